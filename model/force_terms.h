@@ -1,0 +1,70 @@
+// Force terms of the particle model (SPEC §2). The particle system assembles
+// only the terms a scene needs (SPEC §2.6): a term with zero coefficients is
+// never constructed, so it costs nothing per step.
+#ifndef CLOTHBENCH_MODEL_FORCE_TERMS_H_
+#define CLOTHBENCH_MODEL_FORCE_TERMS_H_
+
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "model/scene.h"
+#include "model/types.h"
+
+namespace clothbench {
+
+/// One explicit force term g_k(t, x, v) of the split ODE (3.20).
+class ForceTerm {
+ public:
+  virtual ~ForceTerm() = default;
+  /// Short stable name, e.g. "tension_nonlinear", "shear", "bend_thin_plate".
+  virtual std::string_view name() const = 0;
+  /// f += g_k(t, x, v).
+  /// @param t time [s]; @param x N×3 positions [m]; @param v N×3 velocities [m/s]
+  /// @param f N×3 forces [N], accumulated into. Does not allocate.
+  virtual void AddForce(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const = 0;
+  /// Appends the exact Jacobian blocks of g_k: ∂g/∂x and ∂g/∂v as 3N×3N
+  /// triplets with interleaved index 3p + c. Duplicates are to be summed.
+  /// The triplet pattern does not depend on (t, x, v), so a sparse
+  /// factorisation can keep its symbolic analysis.
+  virtual void AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                           std::vector<Triplet>* dfdv) const = 0;
+};
+
+/// One spring of the tension model (SPEC §2.1): a u- or v-edge.
+struct Spring {
+  int a = 0, b = 0;           ///< particle indices
+  double stiffness = 0.0;     ///< s_e = k_u lv/lu (u-edge) or k_v lu/lv [N/m]
+  double rest_length = 0.0;   ///< l_e [m]
+  double damping = 0.0;       ///< c_e = d_t lv/lu or d_t lu/lv [N s/m]
+};
+
+/// Per-particle data the stencil terms need.
+struct GridGeometry {
+  int nu = 0, nv = 0;
+  double lu = 0.0, lv = 0.0;       ///< rest spacings [m]
+  Eigen::VectorXd area;            ///< node areas [m²] (m_p/ρ)
+};
+
+/// F_nl = −s_e l_e d/|d| per spring: the explicit part of the IMEX split of
+/// tension (SPEC §2.1, §3.3.3, Desbrun et al.).
+std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs);
+/// Gravity m_p g (§2.6).
+std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vector3& g);
+/// Shear in energy form E_s = Σ ½ μ γ² lu lv with viscosity d_s γ̇ (SPEC §2.2, (2.16), (2.21)).
+std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double damping);
+/// Membrane bending F = ⟨B_u s_uu + B_v s_vv + d_b Δv, N⟩N lu lv (SPEC §2.3, (2.25), Alg. 3).
+std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping);
+/// Thin-plate bending F = −⟨B_u s_uuuu + (B_u+B_v) s_uuvv + B_v s_vvvv + d_b Δ²v, N⟩N lu lv
+/// (SPEC §2.3, (2.26), Alg. 4).
+std::unique_ptr<ForceTerm> MakeThinPlateBend(const GridGeometry& geo, double bu, double bv, double damping);
+/// Transverse contraction σ_11 += C ε_22, σ_22 += C ε_11 (SPEC §2.4, (2.22), Alg. 5).
+std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122);
+/// Wind (2.35, 2.36).
+std::unique_ptr<ForceTerm> MakeWind(const GridGeometry& geo, const WindSpec& wind);
+/// Air resistance (2.37): −c_air |⟨v,N⟩| v/|v| per area.
+std::unique_ptr<ForceTerm> MakeAirResistance(const GridGeometry& geo, double c_air);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_FORCE_TERMS_H_

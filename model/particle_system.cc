@@ -1,0 +1,113 @@
+// Assembly of the particle model (SPEC §1, §2, §2.6).
+#include "model/particle_system.h"
+
+namespace clothbench {
+
+ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
+  const int nu = scene.grid.nu, nv = scene.grid.nv;
+  n_ = nu * nv;
+  const double lu = scene.lu(), lv = scene.lv();
+  const MaterialSpec& mat = scene.material;
+
+  // Rest positions and lumped masses (SPEC §1). "area" halves border masses.
+  rest_.resize(n_, 3);
+  mass_.resize(n_);
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const int p = scene.Index(i, j);
+      rest_.row(p) = (scene.grid.origin + i * lu * scene.grid.u_axis + j * lv * scene.grid.v_axis).transpose();
+      double w = 1.0;
+      if (mat.mass_lumping == MassLumping::kArea) {
+        if (i == 0 || i == nu - 1) w *= 0.5;
+        if (j == 0 || j == nv - 1) w *= 0.5;
+      }
+      mass_(p) = mat.density * lu * lv * w;
+    }
+
+  // Springs on u- and v-edges (SPEC §2.1, (2.20)).
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const int p = scene.Index(i, j);
+      if (i + 1 < nu)
+        springs_.push_back({p, scene.Index(i + 1, j), mat.tension[0] * lv / lu, lu, mat.tension_damping * lv / lu});
+      if (j + 1 < nv)
+        springs_.push_back({p, scene.Index(i, j + 1), mat.tension[1] * lu / lv, lv, mat.tension_damping * lu / lv});
+    }
+
+  // L_K, L_D (3.19): weighted graph Laplacians, one N×N matrix each.
+  auto laplacian = [&](auto weight) {
+    std::vector<Triplet> t;
+    t.reserve(springs_.size() * 4);
+    for (const Spring& s : springs_) {
+      const double w = weight(s);
+      if (w == 0.0) continue;
+      t.emplace_back(s.a, s.a, w);
+      t.emplace_back(s.b, s.b, w);
+      t.emplace_back(s.a, s.b, -w);
+      t.emplace_back(s.b, s.a, -w);
+    }
+    SparseMatrix l(n_, n_);
+    l.setFromTriplets(t.begin(), t.end());
+    l.makeCompressed();
+    return l;
+  };
+  lk_ = laplacian([](const Spring& s) { return s.stiffness; });
+  ld_ = laplacian([](const Spring& s) { return s.damping; });
+
+  fixed_ = scene.fixed;
+  fixed_mask_.assign(static_cast<std::size_t>(n_), 0);
+  for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;
+
+  // Explicit terms: only those with non-zero coefficients (SPEC §2.6).
+  GridGeometry geo{nu, nv, lu, lv, mass_ / mat.density};
+  if (mat.tension[0] != 0.0 || mat.tension[1] != 0.0) {
+    std::vector<Spring> stiff;
+    for (const Spring& s : springs_)
+      if (s.stiffness != 0.0) stiff.push_back(s);
+    terms_.push_back(MakeTensionNonlinear(std::move(stiff)));
+  }
+  if (mat.shear != 0.0 || mat.shear_damping != 0.0) terms_.push_back(MakeShear(geo, mat.shear, mat.shear_damping));
+  const bool bend = mat.bend[0] != 0.0 || mat.bend[1] != 0.0 || mat.bend_damping != 0.0;
+  if (bend && mat.bend_model == BendModel::kMembrane)
+    terms_.push_back(MakeMembraneBend(geo, mat.bend[0], mat.bend[1], mat.bend_damping));
+  if (bend && mat.bend_model == BendModel::kThinPlate)
+    terms_.push_back(MakeThinPlateBend(geo, mat.bend[0], mat.bend[1], mat.bend_damping));
+  if (mat.transverse != 0.0) terms_.push_back(MakeTransverse(geo, mat.transverse));
+  if (scene.forces.gravity.squaredNorm() > 0.0) terms_.push_back(MakeGravity(mass_, scene.forces.gravity));
+  if (scene.forces.wind && scene.forces.wind->direction.squaredNorm() > 0.0 &&
+      (scene.forces.wind->drag != 0.0 || scene.forces.wind->lift != 0.0))
+    terms_.push_back(MakeWind(geo, *scene.forces.wind));
+  if (scene.forces.air != 0.0) terms_.push_back(MakeAirResistance(geo, scene.forces.air));
+}
+
+std::vector<std::string> ParticleSystem::TermNames() const {
+  std::vector<std::string> names;
+  for (const auto& t : terms_) names.emplace_back(t->name());
+  return names;
+}
+
+void ParticleSystem::ExplicitForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const {
+  g->setZero();
+  for (const auto& term : terms_) term->AddForce(t, x, v, g);
+}
+
+void ParticleSystem::Forces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
+  ExplicitForces(t, x, v, f);
+  f->noalias() -= lk_ * x;
+  if (has_tension_damping()) f->noalias() -= ld_ * v;
+}
+
+void ParticleSystem::ForceJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                                   std::vector<Triplet>* dfdv) const {
+  // Linear part: −L_K ⊗ I₃ and −L_D ⊗ I₃ (3.19).
+  auto add_kron = [](const SparseMatrix& l, std::vector<Triplet>* out) {
+    for (int col = 0; col < l.outerSize(); ++col)
+      for (SparseMatrix::InnerIterator it(l, col); it; ++it)
+        for (int c = 0; c < 3; ++c) out->emplace_back(3 * it.row() + c, 3 * it.col() + c, -it.value());
+  };
+  add_kron(lk_, dfdx);
+  add_kron(ld_, dfdv);
+  for (const auto& term : terms_) term->AddJacobian(t, x, v, dfdx, dfdv);
+}
+
+}  // namespace clothbench

@@ -1,0 +1,336 @@
+// Scene parsing and validation (issue 2 "Scene format"). Every failure is a
+// SceneError whose message is one line: "<source>: <key>: <rule>".
+#include "model/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "model/default_scene.h"
+
+namespace clothbench {
+
+std::string_view ToString(BendModel m) {
+  switch (m) {
+    case BendModel::kNone: return "none";
+    case BendModel::kMembrane: return "membrane";
+    case BendModel::kThinPlate: return "thin_plate";
+  }
+  return "?";
+}
+std::string_view ToString(MassLumping m) {
+  return m == MassLumping::kUniform ? "uniform" : "area";
+}
+std::string_view ToString(PreconditionerType p) {
+  switch (p) {
+    case PreconditionerType::kNone: return "none";
+    case PreconditionerType::kJacobi: return "jacobi";
+    case PreconditionerType::kIc0: return "ic0";
+  }
+  return "?";
+}
+std::string_view ToString(Predictor p) {
+  return p == Predictor::kConstantVelocity ? "constant" : "extrapolate";
+}
+std::string_view ToString(StepControl s) {
+  return s == StepControl::kFixed ? "fixed" : "iterations";
+}
+
+double Scene::NumericalStiffness(double step) const {
+  // h² k/(ρ l²) (§3.4.4): spring stiffness k·lv/lu over particle mass ρ lu lv.
+  const double su = material.tension[0] / (lu() * lu());
+  const double sv = material.tension[1] / (lv() * lv());
+  return step * step * std::max(su, sv) / material.density;
+}
+
+namespace {
+
+// Reads one TOML table, remembering which keys were consumed so that unknown
+// keys can be reported.
+class TableReader {
+ public:
+  TableReader(const toml::table* table, std::string prefix, const std::string& source)
+      : table_(table), prefix_(std::move(prefix)), source_(source) {}
+
+  [[noreturn]] void Fail(std::string_view key, std::string_view rule) const {
+    throw SceneError(fmt::format("{}: {}{}: {}", source_, prefix_, key, rule));
+  }
+
+  const toml::node* Get(std::string_view key) {
+    used_.insert(std::string(key));
+    return table_ ? table_->get(key) : nullptr;
+  }
+
+  double Number(std::string_view key, double fallback) {
+    const toml::node* n = Get(key);
+    if (!n) return fallback;
+    if (auto d = n->value<double>()) {
+      if (!std::isfinite(*d)) Fail(key, "must be a finite number");
+      return *d;
+    }
+    Fail(key, "must be a number");
+  }
+  double NonNegative(std::string_view key, double fallback) {
+    const double d = Number(key, fallback);
+    if (d < 0.0) Fail(key, fmt::format("must be >= 0 (got {})", d));
+    return d;
+  }
+  double Positive(std::string_view key, double fallback) {
+    const double d = Number(key, fallback);
+    if (!(d > 0.0)) Fail(key, fmt::format("must be > 0 (got {})", d));
+    return d;
+  }
+  int Integer(std::string_view key, int fallback, int min_value) {
+    const toml::node* n = Get(key);
+    if (!n) return fallback;
+    auto i = n->value_exact<int64_t>();
+    if (!i) Fail(key, "must be an integer");
+    if (*i < min_value || *i > 1000000) Fail(key, fmt::format("must be an integer in [{}, 1000000] (got {})", min_value, *i));
+    return static_cast<int>(*i);
+  }
+  std::string String(std::string_view key, std::string fallback) {
+    const toml::node* n = Get(key);
+    if (!n) return fallback;
+    auto s = n->value_exact<std::string>();
+    if (!s) Fail(key, "must be a string");
+    return *s;
+  }
+  template <std::size_t K>
+  std::array<double, K> Numbers(std::string_view key, std::array<double, K> fallback, bool non_negative) {
+    const toml::node* n = Get(key);
+    if (!n) return fallback;
+    const toml::array* a = n->as_array();
+    const std::string rule = fmt::format("must be an array of {} {}numbers", K, non_negative ? "non-negative " : "");
+    if (!a || a->size() != K) Fail(key, rule);
+    std::array<double, K> out{};
+    for (std::size_t k = 0; k < K; ++k) {
+      auto d = (*a)[k].value<double>();
+      if (!d || !std::isfinite(*d) || (non_negative && *d < 0.0)) Fail(key, rule);
+      out[k] = *d;
+    }
+    return out;
+  }
+  Vector3 Vec3(std::string_view key, const Vector3& fallback) {
+    auto a = Numbers<3>(key, {fallback.x(), fallback.y(), fallback.z()}, false);
+    return Vector3(a[0], a[1], a[2]);
+  }
+  template <class Enum>
+  Enum Choice(std::string_view key, Enum fallback, std::initializer_list<Enum> options) {
+    const std::string s = String(key, std::string(ToString(fallback)));
+    std::string names;
+    for (Enum e : options) {
+      if (s == ToString(e)) return e;
+      names += (names.empty() ? "\"" : " | \"") + std::string(ToString(e)) + "\"";
+    }
+    Fail(key, fmt::format("must be one of {} (got \"{}\")", names, s));
+  }
+  const toml::table* SubTable(std::string_view key) {
+    const toml::node* n = Get(key);
+    if (!n) return nullptr;
+    if (!n->as_table()) Fail(key, "must be a table");
+    return n->as_table();
+  }
+  std::string Child(std::string_view key) const { return prefix_ + std::string(key) + "."; }
+
+  /// Reports the first key that was never read.
+  void RejectUnknown() const {
+    if (!table_) return;
+    for (auto&& [k, node] : *table_) {
+      (void)node;
+      if (!used_.count(std::string(k.str()))) Fail(k.str(), "unknown key");
+    }
+  }
+
+ private:
+  const toml::table* table_;
+  std::string prefix_;
+  const std::string& source_;
+  std::set<std::string> used_;
+};
+
+int ParseIndex(const std::string& s, int limit, const std::string& what) {
+  std::size_t pos = 0;
+  int v = -1;
+  try {
+    v = std::stoi(s, &pos);
+  } catch (...) {
+    pos = 0;
+  }
+  if (pos != s.size() || v < 0 || v >= limit) throw SceneError(what + fmt::format("index \"{}\" must be an integer in [0, {})", s, limit));
+  return v;
+}
+
+}  // namespace
+
+std::vector<int> ResolveFixed(const std::string& spec, int nu, int nv, const std::string& what) {
+  const std::string bad = what + fmt::format("\"{}\" must be \"edge:u0|u1|v0|v1\", \"corner:u0v0|u0v1|u1v0|u1v1\" or \"particle:I,J\"", spec);
+  const auto colon = spec.find(':');
+  if (colon == std::string::npos) throw SceneError(bad);
+  const std::string kind = spec.substr(0, colon), arg = spec.substr(colon + 1);
+  std::vector<int> out;
+  auto idx = [nu](int i, int j) { return i + nu * j; };
+  if (kind == "edge") {
+    if (arg == "u0" || arg == "u1") {
+      const int i = arg == "u0" ? 0 : nu - 1;
+      for (int j = 0; j < nv; ++j) out.push_back(idx(i, j));
+    } else if (arg == "v0" || arg == "v1") {
+      const int j = arg == "v0" ? 0 : nv - 1;
+      for (int i = 0; i < nu; ++i) out.push_back(idx(i, j));
+    } else {
+      throw SceneError(bad);
+    }
+  } else if (kind == "corner") {
+    if (arg.size() != 4 || arg[0] != 'u' || arg[2] != 'v' || (arg[1] != '0' && arg[1] != '1') || (arg[3] != '0' && arg[3] != '1'))
+      throw SceneError(bad);
+    out.push_back(idx(arg[1] == '0' ? 0 : nu - 1, arg[3] == '0' ? 0 : nv - 1));
+  } else if (kind == "particle") {
+    const auto comma = arg.find(',');
+    if (comma == std::string::npos) throw SceneError(bad);
+    const int i = ParseIndex(arg.substr(0, comma), nu, what);
+    const int j = ParseIndex(arg.substr(comma + 1), nv, what);
+    out.push_back(idx(i, j));
+  } else {
+    throw SceneError(bad);
+  }
+  return out;
+}
+
+Scene ParseScene(std::string_view text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    std::string desc(e.description());
+    std::replace(desc.begin(), desc.end(), '\n', ' ');
+    throw SceneError(fmt::format("{}:{}:{}: TOML syntax error: {}", source, e.source().begin.line,
+                                 e.source().begin.column, desc));
+  }
+  Scene s;
+  s.source = source;
+  s.toml = std::string(text);
+
+  TableReader top(&root, "", source);
+  s.name = top.String("name", s.name);
+  if (s.name.empty()) top.Fail("name", "must not be empty");
+  s.t_end = top.Positive("t_end", s.t_end);
+  s.frame_dt = top.Positive("frame_dt", s.frame_dt);
+  s.h = top.Positive("h", s.h);
+  if (s.frame_dt > s.t_end) top.Fail("frame_dt", "must be <= t_end");
+
+  {
+    TableReader g(top.SubTable("grid"), top.Child("grid"), source);
+    s.grid.nu = g.Integer("nu", s.grid.nu, 2);
+    s.grid.nv = g.Integer("nv", s.grid.nv, 2);
+    auto size = g.Numbers<2>("size", s.grid.size, true);
+    if (!(size[0] > 0 && size[1] > 0)) g.Fail("size", "must be 2 positive numbers [m]");
+    s.grid.size = size;
+    s.grid.origin = g.Vec3("origin", s.grid.origin);
+    s.grid.u_axis = g.Vec3("u_axis", s.grid.u_axis);
+    s.grid.v_axis = g.Vec3("v_axis", s.grid.v_axis);
+    if (std::abs(s.grid.u_axis.norm() - 1.0) > 1e-9) g.Fail("u_axis", "must be a unit vector");
+    if (std::abs(s.grid.v_axis.norm() - 1.0) > 1e-9) g.Fail("v_axis", "must be a unit vector");
+    if (std::abs(s.grid.u_axis.dot(s.grid.v_axis)) > 1e-9) g.Fail("v_axis", "must be orthogonal to u_axis");
+    g.RejectUnknown();
+  }
+  {
+    TableReader m(top.SubTable("material"), top.Child("material"), source);
+    MaterialSpec& mat = s.material;
+    mat.density = m.Positive("density", mat.density);
+    mat.tension = m.Numbers<2>("tension", mat.tension, true);
+    mat.tension_damping = m.NonNegative("tension_damping", mat.tension_damping);
+    mat.shear = m.NonNegative("shear", mat.shear);
+    mat.shear_damping = m.NonNegative("shear_damping", mat.shear_damping);
+    mat.bend = m.Numbers<2>("bend", mat.bend, true);
+    mat.bend_damping = m.NonNegative("bend_damping", mat.bend_damping);
+    mat.bend_model = m.Choice("bend_model", mat.bend_model,
+                              {BendModel::kMembrane, BendModel::kThinPlate, BendModel::kNone});
+    mat.transverse = m.Number("transverse", mat.transverse);
+    mat.mass_lumping = m.Choice("mass_lumping", mat.mass_lumping, {MassLumping::kUniform, MassLumping::kArea});
+    m.RejectUnknown();
+  }
+  {
+    TableReader f(top.SubTable("forces"), top.Child("forces"), source);
+    s.forces.gravity = f.Vec3("gravity", s.forces.gravity);
+    if (const toml::table* wt = f.SubTable("wind")) {
+      TableReader w(wt, f.Child("wind"), source);
+      WindSpec wind;
+      wind.direction = w.Vec3("direction", wind.direction);
+      wind.constant = w.Number("constant", wind.constant);
+      wind.angular_frequency = w.Number("angular_frequency", wind.angular_frequency);
+      wind.drag = w.NonNegative("drag", wind.drag);
+      wind.lift = w.NonNegative("lift", wind.lift);
+      w.RejectUnknown();
+      s.forces.wind = wind;
+    }
+    if (const toml::table* at = f.SubTable("air")) {
+      TableReader a(at, f.Child("air"), source);
+      s.forces.air = a.NonNegative("coefficient", 0.0);
+      a.RejectUnknown();
+    }
+    f.RejectUnknown();
+  }
+  {
+    TableReader c(top.SubTable("constraints"), top.Child("constraints"), source);
+    if (const toml::node* n = c.Get("fixed")) {
+      const toml::array* a = n->as_array();
+      if (!a) c.Fail("fixed", "must be an array of strings");
+      std::set<int> fixed;
+      for (std::size_t k = 0; k < a->size(); ++k) {
+        auto str = (*a)[k].value_exact<std::string>();
+        if (!str) c.Fail("fixed", "must be an array of strings");
+        s.fixed_specs.push_back(*str);
+        for (int p : ResolveFixed(*str, s.grid.nu, s.grid.nv, fmt::format("{}: constraints.fixed[{}]: ", source, k)))
+          fixed.insert(p);
+      }
+      s.fixed.assign(fixed.begin(), fixed.end());
+    }
+    c.RejectUnknown();
+  }
+  {
+    TableReader v(top.SubTable("solver"), top.Child("solver"), source);
+    SolverSpec& so = s.solver;
+    so.cg_tolerance = v.Positive("cg_tolerance", so.cg_tolerance);
+    if (so.cg_tolerance >= 1.0) v.Fail("cg_tolerance", "must be < 1");
+    so.cg_max_iterations = v.Integer("cg_max_iterations", so.cg_max_iterations, 1);
+    so.preconditioner = v.Choice("preconditioner", so.preconditioner,
+                                 {PreconditionerType::kIc0, PreconditionerType::kJacobi, PreconditionerType::kNone});
+    so.max_updates = v.Integer("max_updates", so.max_updates, 1);
+    {
+      auto band = v.Numbers<2>("controller_updates", {double(so.controller_updates[0]), double(so.controller_updates[1])}, true);
+      if (band[0] != std::floor(band[0]) || band[1] != std::floor(band[1]) || band[0] < 1 || band[0] > band[1])
+        v.Fail("controller_updates", "must be 2 integers [lo, hi] with 1 <= lo <= hi");
+      so.controller_updates = {static_cast<int>(band[0]), static_cast<int>(band[1])};
+    }
+    so.fixed_point_tolerance = v.NonNegative("fixed_point_tolerance", so.fixed_point_tolerance);
+    so.predictor = v.Choice("predictor", so.predictor, {Predictor::kConstantVelocity, Predictor::kExtrapolate});
+    so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations});
+    so.step_factor = v.Number("step_factor", so.step_factor);
+    if (!(so.step_factor > 1.0)) v.Fail("step_factor", "must be > 1");
+    so.h_min = v.Positive("h_min", so.h_min);
+    so.h_max = v.NonNegative("h_max", so.h_max);
+    so.max_rejections = v.Integer("max_rejections", so.max_rejections, 0);
+    v.RejectUnknown();
+  }
+  top.RejectUnknown();
+  if (s.h > s.t_end) top.Fail("h", "must be <= t_end");
+  return s;
+}
+
+Scene LoadScene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(fmt::format("{}: cannot open scene file", path));
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ParseScene(ss.str(), path);
+}
+
+std::string_view DefaultSceneToml() { return kDefaultSceneToml; }
+
+Scene DefaultScene() { return ParseScene(kDefaultSceneToml, "<embedded:swinging_sheet.toml>"); }
+
+}  // namespace clothbench

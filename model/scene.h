@@ -1,0 +1,141 @@
+// Scene description: the cloth grid, its material, external forces, fixed
+// particles and solver settings, read from TOML (issue 2 "Scene format").
+// SPEC §1 (discretisation), §2 (forces), §5–6 (solver settings).
+#ifndef CLOTHBENCH_MODEL_SCENE_H_
+#define CLOTHBENCH_MODEL_SCENE_H_
+
+#include <array>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "model/types.h"
+
+namespace clothbench {
+
+/// Thrown for a bad scene: the message is one line naming the source (file),
+/// the key and the rule it broke, e.g.
+/// `scenes/x.toml: material.tension: must be 2 numbers >= 0`.
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class BendModel { kNone, kMembrane, kThinPlate };
+enum class MassLumping { kUniform, kArea };
+enum class PreconditionerType { kNone, kJacobi, kIc0 };
+enum class Predictor { kConstantVelocity, kExtrapolate };
+enum class StepControl { kFixed, kIterations };
+
+std::string_view ToString(BendModel m);
+std::string_view ToString(MassLumping m);
+std::string_view ToString(PreconditionerType p);
+std::string_view ToString(Predictor p);
+std::string_view ToString(StepControl s);
+
+struct GridSpec {
+  int nu = 20;                                    ///< particles along u (>= 2)
+  int nv = 20;                                    ///< particles along v (>= 2)
+  std::array<double, 2> size = {0.76, 0.76};      ///< [m] along u and v
+  Vector3 origin = Vector3(0.0, 0.0, 1.0);        ///< [m] rest position of particle (0,0)
+  Vector3 u_axis = Vector3::UnitX();              ///< unit vector along u
+  Vector3 v_axis = Vector3::UnitY();              ///< unit vector along v, orthogonal to u
+};
+
+/// Material constants per unit length of cloth (SPEC §1).
+struct MaterialSpec {
+  double density = 1.0;                           ///< ρ [kg/m²]
+  std::array<double, 2> tension = {1000.0, 1000.0};  ///< k_u, k_v [N/m], (2.20)
+  double tension_damping = 0.0;                   ///< d_t [N s/m], (3.18)
+  double shear = 0.0;                             ///< μ [N/m], (2.21)
+  double shear_damping = 0.0;                     ///< d_s [N s/m]
+  std::array<double, 2> bend = {0.0, 0.0};        ///< B_u, B_v ([N m] thin plate, [N/m] membrane)
+  double bend_damping = 0.0;                      ///< d_b, (2.30)
+  BendModel bend_model = BendModel::kThinPlate;   ///< (2.25) membrane | (2.26) thin plate
+  double transverse = 0.0;                        ///< C_1122 [N/m], (2.22)
+  MassLumping mass_lumping = MassLumping::kUniform;  ///< SPEC §1
+};
+
+/// Oscillating wind (2.35, 2.36): f_w(t) = (a + sin(ω t)) w.
+struct WindSpec {
+  Vector3 direction = Vector3::Zero();  ///< w [m/s·(force scale)], direction and strength
+  double constant = 0.0;                ///< a, constant part
+  double angular_frequency = 0.0;       ///< ω [rad/s]
+  double drag = 1.0;                    ///< c_drag [kg/(m² s)·…] normal coefficient
+  double lift = 0.0;                    ///< c_lift tangential coefficient
+};
+
+struct ForcesSpec {
+  Vector3 gravity = Vector3(0.0, 0.0, -9.81);  ///< [m/s²]
+  std::optional<WindSpec> wind;                ///< absent: no wind term
+  double air = 0.0;                            ///< c_air [kg/(m² s)], (2.37); 0: no term
+};
+
+/// Settings of the step engine (SPEC §5, §6).
+struct SolverSpec {
+  double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S b‖₂ (SPEC §5)
+  int cg_max_iterations = 1000;
+  PreconditionerType preconditioner = PreconditionerType::kIc0;
+  int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
+  /// Iteration controller band (SPEC §6, §3.4.3): h grows by step_factor when
+  /// a step needed fewer than [0] updates and shrinks when it needed more than [1].
+  std::array<int, 2> controller_updates = {3, 6};
+  /// Fixed-point stop: 0 selects the thesis' rule (PCG needed 0 iterations);
+  /// > 0 stops when max |Δv| ≤ tol [m/s] as well.
+  double fixed_point_tolerance = 0.0;
+  Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
+  StepControl step_control = StepControl::kFixed;
+  double step_factor = 2.0;          ///< controller grow/shrink factor (> 1)
+  double h_min = 1e-6;               ///< [s] smallest step before a run fails
+  double h_max = 0.0;                ///< [s] largest step of the controller; 0: scene h
+  int max_rejections = 10;           ///< successive rejected attempts before a run fails
+};
+
+/// One scene: everything needed to build the particle system and run it.
+struct Scene {
+  std::string name = "unnamed";
+  double t_end = 1.0;      ///< [s]
+  double frame_dt = 0.01;  ///< [s] interval of stored frames
+  double h = 0.01;         ///< [s] nominal step
+  GridSpec grid;
+  MaterialSpec material;
+  ForcesSpec forces;
+  std::vector<std::string> fixed_specs;  ///< as written in the scene
+  std::vector<int> fixed;                ///< resolved flat particle indices, sorted, unique
+  SolverSpec solver;
+  std::string source = "<memory>";       ///< file path or "<embedded>"
+  std::string toml;                      ///< the scene's TOML text
+
+  int num_particles() const { return grid.nu * grid.nv; }
+  double lu() const { return grid.size[0] / (grid.nu - 1); }
+  double lv() const { return grid.size[1] / (grid.nv - 1); }
+  /// Flat index p = i + nu·j (SPEC §1).
+  int Index(int i, int j) const { return i + grid.nu * j; }
+  /// Numerical stiffness h²k/(ρl²) (§3.4.4) with the largest k_e/l_e² of u and v.
+  double NumericalStiffness(double step) const;
+};
+
+/// Parses and validates a scene from TOML text.
+/// @param text   TOML document (format: README "Scene format")
+/// @param source name used in error messages (a path or "<embedded>")
+/// @throws SceneError with a one-line message on any syntax error, unknown
+///         key, wrong type or value out of range.
+Scene ParseScene(std::string_view text, const std::string& source);
+
+/// Reads and parses a scene file. @throws SceneError (also if unreadable).
+Scene LoadScene(const std::string& path);
+
+/// The embedded default scene (scenes/swinging_sheet.toml, compiled in).
+Scene DefaultScene();
+/// TOML text of the embedded default scene.
+std::string_view DefaultSceneToml();
+
+/// Resolves a constraint spec ("edge:u0", "corner:u1v0", "particle:I,J") to
+/// flat indices. @throws SceneError naming `what` on a malformed spec.
+std::vector<int> ResolveFixed(const std::string& spec, int nu, int nv, const std::string& what);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_SCENE_H_

@@ -1,0 +1,21 @@
+// Common numeric types of clothbench.
+#ifndef CLOTHBENCH_MODEL_TYPES_H_
+#define CLOTHBENCH_MODEL_TYPES_H_
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+namespace clothbench {
+
+/// N×3 per-particle quantities (positions [m], velocities [m/s], forces [N]).
+/// Column-major: the x, y and z columns are contiguous, so the N×N Laplacians
+/// act on all three columns in one sparse product (SPEC §2.1, `L ⊗ I₃`).
+using MatrixN3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
+using Vector3 = Eigen::Vector3d;
+/// Compressed sparse matrix used for L_K, L_D and A_α (N×N).
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+using Triplet = Eigen::Triplet<double, int>;
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_TYPES_H_

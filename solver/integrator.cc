@@ -1,0 +1,258 @@
+// Step engine (SPEC §3, §4, §6; thesis (3.21)–(3.36), Alg. 6).
+#include "solver/integrator.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace clothbench {
+
+std::string_view ToString(Method m) {
+  switch (m) {
+    case Method::kImexEuler: return "imex_euler";
+    case Method::kImplicitEuler: return "implicit_euler";
+    case Method::kSbdf2: return "sbdf2";
+    case Method::kBdf2: return "bdf2";
+    case Method::kImplicitMidpoint: return "implicit_midpoint";
+  }
+  return "?";
+}
+
+std::optional<Method> MethodFromString(std::string_view s) {
+  for (Method m : AllMethods())
+    if (ToString(m) == s) return m;
+  return std::nullopt;
+}
+
+const std::vector<Method>& AllMethods() {
+  static const std::vector<Method> kAll = {Method::kImexEuler, Method::kImplicitEuler, Method::kSbdf2, Method::kBdf2,
+                                           Method::kImplicitMidpoint};
+  return kAll;
+}
+
+bool IsImex(Method m) { return m == Method::kImexEuler || m == Method::kSbdf2; }
+
+int MethodOrder(Method m) { return (m == Method::kImexEuler || m == Method::kImplicitEuler) ? 1 : 2; }
+
+std::string_view ToString(StepStatus s) {
+  switch (s) {
+    case StepStatus::kOk: return "ok";
+    case StepStatus::kCgFailed: return "cg_failed";
+    case StepStatus::kNoFixedPointConvergence: return "no_fixed_point_convergence";
+    case StepStatus::kNonFinite: return "non_finite";
+    case StepStatus::kPreconditionerFailed: return "preconditioner_failed";
+  }
+  return "?";
+}
+
+// ---------------------------------------------------------------------------
+SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type) : precond_(type) {
+  const int n = system.num_particles();
+  // Pattern: diagonal plus every spring, so A's pattern never changes.
+  std::vector<Triplet> t;
+  for (int p = 0; p < n; ++p) t.emplace_back(p, p, 0.0);
+  for (const Spring& s : system.springs()) {
+    t.emplace_back(s.a, s.b, 0.0);
+    t.emplace_back(s.b, s.a, 0.0);
+  }
+  a_.resize(n, n);
+  a_.setFromTriplets(t.begin(), t.end());
+  a_.makeCompressed();
+  const Eigen::Index nnz = a_.nonZeros();
+  m_vals_.setZero(nnz);
+  lk_vals_.setZero(nnz);
+  ld_vals_.setZero(nnz);
+  const SparseMatrix& lk = system.stiffness_laplacian();
+  const SparseMatrix& ld = system.damping_laplacian();
+  for (int col = 0; col < n; ++col)
+    for (int pos = a_.outerIndexPtr()[col]; pos < a_.outerIndexPtr()[col + 1]; ++pos) {
+      const int row = a_.innerIndexPtr()[pos];
+      if (row == col) m_vals_(pos) = system.masses()(row);
+      lk_vals_(pos) = lk.coeff(row, col);
+      if (ld.nonZeros() > 0) ld_vals_(pos) = ld.coeff(row, col);
+    }
+  precond_.Analyze(a_);
+}
+
+bool SystemMatrix::Update(double alpha_h) {
+  if (alpha_h == alpha_h_) return true;  // cached while αh is constant (SPEC §3)
+  Eigen::Map<Eigen::VectorXd> vals(a_.valuePtr(), a_.nonZeros());
+  vals = m_vals_ + (alpha_h * alpha_h) * lk_vals_ + alpha_h * ld_vals_;  // (3.24), (3.31)
+  ++rebuilds_;
+  if (!precond_.Factorize(a_)) {
+    alpha_h_ = -1.0;
+    return false;
+  }
+  alpha_h_ = alpha_h;
+  return true;
+}
+
+// ---------------------------------------------------------------------------
+StepEngine::StepEngine(const ParticleSystem& system, Method method, const SolverSpec& solver)
+    : sys_(system), method_(method), opts_(solver), sysmat_(system, solver.preconditioner) {
+  const int n = system.num_particles();
+  for (int p : system.fixed()) filter_.Fix(p);
+  work_.Resize(n);
+  for (MatrixN3* m : {&x0_, &v0_, &xm1_, &vm1_, &gm1_, &g0_, &g_, &b0_, &b_, &xhat_, &xg0_, &vg_, &xg_, &v1_, &x1_,
+                      &tmp_, &vprev_})
+    m->setZero(n, 3);
+}
+
+void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
+  t_ = t;
+  x0_ = x;
+  v0_ = v;
+  filter_.Impose(&v0_);
+  have_history_ = false;
+  have_g0_ = false;
+  h_prev_ = 0.0;
+}
+
+StepStats StepEngine::Step(double h) {
+  StepStats st;
+  st.t = t_ + h;
+  st.h = h;
+
+  // Multistep methods start with a one-step method of the same family
+  // (SPEC §4): SBDF(2) with IMEX Euler, BDF(2) with implicit Euler.
+  Method m = method_;
+  const bool multistep = method_ == Method::kSbdf2 || method_ == Method::kBdf2;
+  if (multistep && !have_history_) m = method_ == Method::kSbdf2 ? Method::kImexEuler : Method::kImplicitEuler;
+  const bool imex = IsImex(m);
+
+  // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)).
+  const double omega = have_history_ ? h / h_prev_ : 1.0;
+  const double c1 = (1 + omega) * (1 + omega) / (1 + 2 * omega);
+  const double c2 = omega * omega / (1 + 2 * omega);
+  const double c3 = (1 + omega) / (1 + 2 * omega);
+
+  const Eigen::VectorXd& mass = sys_.masses();
+  const SparseMatrix& lk = sys_.stiffness_laplacian();
+  double alpha = 1.0, beta = 1.0, gamma = 1.0, gamma_g = 1.0, t_g = t_ + h;
+  bool midpoint = false;
+  switch (m) {
+    case Method::kImexEuler:
+    case Method::kImplicitEuler:
+      // (3.22)–(3.25), (3.33), (3.34): x₁ = x₀ + h v₁,
+      // A₁ v₁ = M v₀ − h L_K x₀ + h g.
+      xhat_ = x0_;
+      b0_.noalias() = mass.asDiagonal() * v0_;
+      tmp_.noalias() = lk * x0_;
+      b0_ -= h * tmp_;
+      xg0_ = x0_;
+      t_g = imex ? t_ : t_ + h;
+      break;
+    case Method::kSbdf2:
+    case Method::kBdf2:
+      // (3.30), (3.35), (3.36): x₁ = c1 x₀ − c2 x₋₁ + c3 h v₁,
+      // A_c3 v₁ = M(c1 v₀ − c2 v₋₁) − c3 h L_K (c1 x₀ − c2 x₋₁) + c3 h ĝ.
+      alpha = beta = gamma = gamma_g = c3;
+      xhat_ = c1 * x0_ - c2 * xm1_;
+      tmp_ = c1 * v0_ - c2 * vm1_;
+      b0_.noalias() = mass.asDiagonal() * tmp_;
+      tmp_.noalias() = lk * xhat_;
+      b0_ -= (c3 * h) * tmp_;
+      xg0_ = xhat_;
+      t_g = t_ + h;
+      break;
+    case Method::kImplicitMidpoint:
+      // (3.26): x₁ = x₀ + (h/2)(v₀ + v₁), x_m = x₀ + (h/4)(v₀ + v₁),
+      // A_½ v₁ = M v₀ − h L_K (x₀ + (h/4) v₀) − (h/2) L_D v₀ + h g(t₀ + h/2, x_m, v_m).
+      midpoint = true;
+      alpha = 0.5;
+      gamma = 0.5;
+      gamma_g = 0.25;
+      xhat_ = x0_ + (0.5 * h) * v0_;
+      xg0_ = x0_ + (0.25 * h) * v0_;
+      b0_.noalias() = mass.asDiagonal() * v0_;
+      tmp_.noalias() = lk * xg0_;
+      b0_ -= h * tmp_;
+      if (sys_.has_tension_damping()) {
+        tmp_.noalias() = sys_.damping_laplacian() * v0_;
+        b0_ -= (0.5 * h) * tmp_;
+      }
+      t_g = t_ + 0.5 * h;
+      break;
+  }
+
+  if (!sysmat_.Update(alpha * h)) {
+    st.status = StepStatus::kPreconditionerFailed;
+    return st;
+  }
+
+  // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for SBDF(2).
+  if (imex) {
+    if (!have_g0_) {
+      sys_.ExplicitForces(t_, x0_, v0_, &g0_);
+      have_g0_ = true;
+    }
+    if (m == Method::kSbdf2)
+      g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (SPEC §4)
+    else
+      g_ = g0_;
+  }
+
+  // Predictor (3.25, 3.32): constant velocity, or linear extrapolation.
+  v1_ = v0_;
+  if (opts_.predictor == Predictor::kExtrapolate && have_history_) v1_ += omega * (v0_ - vm1_);
+
+  PcgOptions pcg_opts{opts_.cg_tolerance, opts_.cg_max_iterations};
+  const int max_updates = imex ? 1 : opts_.max_updates;
+  bool converged = false;
+  for (int u = 0; u < max_updates; ++u) {
+    if (!imex) {
+      // Evaluate g at the current iterate (Alg. 6 line 7).
+      xg_ = xg0_ + (gamma_g * h) * v1_;
+      if (midpoint) {
+        vg_ = 0.5 * (v0_ + v1_);
+        sys_.ExplicitForces(t_g, xg_, vg_, &g_);
+      } else {
+        sys_.ExplicitForces(t_g, xg_, v1_, &g_);
+      }
+    }
+    b_ = b0_ + (beta * h) * g_;
+    if (opts_.fixed_point_tolerance > 0.0) vprev_ = v1_;
+    last_pcg_ = FilteredPcg(sysmat_.matrix(), b_, filter_, sysmat_.preconditioner(), pcg_opts, &v1_, &work_);
+    ++st.updates;
+    st.cg_iterations += last_pcg_.iterations;
+    if (last_pcg_.status != PcgStatus::kConverged) {
+      st.status = last_pcg_.status == PcgStatus::kNonFinite ? StepStatus::kNonFinite : StepStatus::kCgFailed;
+      return st;
+    }
+    // Alg. 6 line 11: converged when the PCG needed 0 iterations (the new
+    // g did not move the solution beyond the CG tolerance); optionally also
+    // when max |Δv| ≤ fixed_point_tolerance.
+    if (imex || last_pcg_.iterations == 0 ||
+        (opts_.fixed_point_tolerance > 0.0 && (v1_ - vprev_).cwiseAbs().maxCoeff() <= opts_.fixed_point_tolerance)) {
+      converged = true;
+      break;
+    }
+  }
+  if (!converged) {
+    st.status = StepStatus::kNoFixedPointConvergence;
+    return st;
+  }
+
+  x1_ = xhat_ + (gamma * h) * v1_;
+  if (!x1_.allFinite() || !v1_.allFinite()) {
+    st.status = StepStatus::kNonFinite;
+    return st;
+  }
+
+  // Commit: (x₋₁, v₋₁, g₋₁) ← (x₀, v₀, g₀), (x₀, v₀) ← (x₁, v₁). Swaps, no copies.
+  xm1_.swap(x0_);
+  x0_.swap(x1_);
+  vm1_.swap(v0_);
+  v0_.swap(v1_);
+  gm1_.swap(g0_);
+  const bool g_history_valid = have_g0_;
+  have_g0_ = false;
+  // SBDF(2) needs g₋₁; after an implicit start step it was never evaluated.
+  if (method_ == Method::kSbdf2 && !g_history_valid) sys_.ExplicitForces(t_, xm1_, vm1_, &gm1_);
+  h_prev_ = h;
+  have_history_ = true;
+  t_ += h;
+  return st;
+}
+
+}  // namespace clothbench

@@ -1,0 +1,123 @@
+// Filtered preconditioned conjugate gradients (SPEC §5; thesis Alg. 7,
+// Baraff & Witkin 1998, in the form of Ascher & Boxerman 2003) for
+//   S (A v − b) = 0,   (I − S) v = z                                   (4.3)
+// where A is an N×N SPD matrix applied to the three coordinate columns
+// (A ⊗ I₃) and S is the per-particle velocity filter.
+#ifndef CLOTHBENCH_SOLVER_PCG_H_
+#define CLOTHBENCH_SOLVER_PCG_H_
+
+#include <string_view>
+#include <vector>
+
+#include "model/scene.h"
+#include "model/types.h"
+
+namespace clothbench {
+
+/// Per-particle velocity filter S_p = I − Σ c cᵀ with prescribed velocities
+/// along the constrained directions (SPEC §5). A fixed particle constrains all
+/// three directions. Without constraints the projection is skipped entirely
+/// (SPEC §2.6).
+class VelocityFilter {
+ public:
+  /// Constrains all three directions of particle p to velocity `target` [m/s].
+  void Fix(int p, const Vector3& target = Vector3::Zero());
+  /// Constrains particle p along unit direction `dir` to ⟨v,dir⟩ = target [m/s].
+  /// Directions of one particle are orthonormalised.
+  void Constrain(int p, const Vector3& dir, double target);
+  void Clear() { entries_.clear(); }
+  bool empty() const { return entries_.empty(); }
+  int size() const { return static_cast<int>(entries_.size()); }
+  /// v ← S v.
+  void Project(MatrixN3* v) const;
+  /// v ← S v + (I − S) z: imposes the prescribed components.
+  void Impose(MatrixN3* v) const;
+
+ private:
+  struct Entry {
+    int particle;
+    int count;                 // number of constrained directions (3: fixed)
+    Eigen::Matrix3d dirs;      // orthonormal directions in the first `count` columns
+    Vector3 targets;           // prescribed velocity along each direction
+  };
+  std::vector<Entry> entries_;
+};
+
+/// Incomplete Cholesky IC(0) of an SPD sparse matrix: L Lᵀ ≈ A on the lower
+/// pattern of A (the thesis' preconditioner, §3.4). A diagonal shift is added
+/// and the factorisation repeated if a pivot is not positive.
+class IncompleteCholesky0 {
+ public:
+  /// Sets the pattern (allocates). Must precede Factorize with the same pattern.
+  void Analyze(const SparseMatrix& a);
+  /// Computes L on the analysed pattern (no allocation). Returns false if no
+  /// positive pivots were found even with shifts.
+  bool Factorize(const SparseMatrix& a);
+  /// z ← (L Lᵀ)⁻¹ r, column by column. No allocation.
+  void Solve(const MatrixN3& r, MatrixN3* z) const;
+  double shift() const { return shift_; }
+
+ private:
+  SparseMatrix l_;               // lower triangle, diagonal first in each column
+  std::vector<int> diag_pos_;    // index of the diagonal entry of column k in l_
+  double shift_ = 0.0;
+};
+
+/// Preconditioner for the filtered PCG: none, Jacobi (diag(A) ⊗ I₃, the
+/// block-diagonal 3×3 of A ⊗ I₃) or IC(0).
+class Preconditioner {
+ public:
+  explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0) : type_(type) {}
+  PreconditionerType type() const { return type_; }
+  void Analyze(const SparseMatrix& a);
+  bool Factorize(const SparseMatrix& a);
+  /// z ← P⁻¹ r.
+  void Apply(const MatrixN3& r, MatrixN3* z) const;
+
+ private:
+  PreconditionerType type_;
+  Eigen::VectorXd inv_diag_;
+  IncompleteCholesky0 ic0_;
+};
+
+enum class PcgStatus { kConverged, kMaxIterations, kBreakdown, kNonFinite };
+std::string_view ToString(PcgStatus s);
+
+struct PcgOptions {
+  double tolerance = 1e-6;  ///< η: stop when ‖r‖₂ ≤ η ‖S b‖₂ (2-norm over all 3N entries)
+  int max_iterations = 1000;
+};
+
+struct PcgSummary {
+  PcgStatus status = PcgStatus::kBreakdown;
+  int iterations = -1;          ///< CG iterations; 0 if the guess already met the tolerance
+  double residual_norm = -1.0;  ///< final ‖S(b − A v)‖₂ [units of b]
+  double rhs_norm = -1.0;       ///< ‖S b‖₂
+};
+
+/// Scratch vectors of the PCG, allocated once for N particles.
+struct PcgWorkspace {
+  explicit PcgWorkspace(int n = 0) { Resize(n); }
+  void Resize(int n) {
+    r.resize(n, 3);
+    z.resize(n, 3);
+    p.resize(n, 3);
+    q.resize(n, 3);
+  }
+  MatrixN3 r, z, p, q;
+};
+
+/// Solves S(A v − b) = 0, (I − S) v = z by filtered PCG.
+/// @param a       N×N SPD matrix [kg] (applied to the 3 columns)
+/// @param b       N×3 right-hand side [kg m/s]
+/// @param filter  constraints; empty means none (no projection is applied)
+/// @param precond factorised preconditioner of `a`
+/// @param v       N×3 [m/s]: initial guess in, solution out
+/// @param work    scratch of size N (no allocation inside)
+/// @return status, iterations and residual. Never throws.
+PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityFilter& filter,
+                       const Preconditioner& precond, const PcgOptions& options, MatrixN3* v, PcgWorkspace* work);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_SOLVER_PCG_H_

@@ -1,0 +1,54 @@
+// Runs one integrator over a scene's time interval: fixed steps or the
+// iteration-count controller, rejected steps retried with a smaller h, and
+// frames stored at 0, frame_dt, …, t_end (SPEC §6; issue 2).
+#ifndef CLOTHBENCH_SOLVER_RUN_H_
+#define CLOTHBENCH_SOLVER_RUN_H_
+
+#include <string>
+#include <vector>
+
+#include "model/particle_system.h"
+#include "solver/integrator.h"
+
+namespace clothbench {
+
+/// Output times 0, frame_dt, 2 frame_dt, …, t_end [s] (t_end appended if it
+/// is not a multiple of frame_dt).
+std::vector<double> FrameTimes(double t_end, double frame_dt);
+
+/// Frames of a run: times [F] and N×3 positions per frame.
+struct Trajectory {
+  std::vector<double> times;
+  std::vector<MatrixN3> positions;
+};
+
+struct RunOptions {
+  double h = 0.01;          ///< nominal (fixed) step [s]
+  double t_end = 1.0;       ///< [s]
+  double frame_dt = 0.01;   ///< [s]
+};
+
+/// Summary of one run (counters -1 = not set, Ceres style).
+struct RunSummary {
+  bool ok = false;
+  std::string status = "not_run";   ///< "ok" or the failure (a StepStatus name)
+  std::string message;              ///< why it stopped
+  int steps = -1;                   ///< accepted steps
+  int rejected_steps = -1;          ///< attempts rejected and retried with a smaller h
+  long fixed_point_updates = -1;    ///< linear solves, over all attempts
+  long cg_iterations = -1;          ///< PCG iterations, over all attempts
+  int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds
+  double solver_time_in_seconds = -1.0;  ///< time inside the step engine
+  double wall_time_in_seconds = -1.0;    ///< whole run including frame output
+  std::vector<StepStats> step_stats;     ///< every attempt, rejected ones included
+  Trajectory trajectory;
+};
+
+/// Integrates `system` from rest (x = rest positions, v = 0) to t_end.
+/// Never throws for numerical failure: the summary says what happened and the
+/// trajectory holds the frames reached.
+RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_SOLVER_RUN_H_
