@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <string>
 
+#include <Eigen/Geometry>
 #include <unsupported/Eigen/AutoDiff>
 
 namespace clothbench {

@@ -1,0 +1,342 @@
+// bench_integrators: integrates a cloth scene with the thesis' integrators at
+// several step sizes and with SUNDIALS CVODE, prints one table (steps,
+// updates, CG iterations, solver time, e_rms at t_end, observed order) and
+// stores everything in HDF5 (issue 2; SPEC §9).
+//
+//   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
+//                     [--t-end T] [--reference cvode|none] [--out FILE.h5]
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "model/particle_system.h"
+#include "reference/cvode_reference.h"
+#include "results/metrics.h"
+#include "results/result_file.h"
+#include "solver/run.h"
+
+namespace clothbench {
+namespace {
+
+/// Bad command-line input: reported as one line, exit code 2.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::vector<std::string> SplitList(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const auto b = item.find_first_not_of(" \t"), e = item.find_last_not_of(" \t");
+    if (b == std::string::npos) throw UsageError(fmt::format("empty item in list \"{}\"", s));
+    out.push_back(item.substr(b, e - b + 1));
+  }
+  if (out.empty()) throw UsageError(fmt::format("empty list \"{}\"", s));
+  return out;
+}
+
+std::vector<double> ParsePositiveList(const std::string& s, const std::string& option) {
+  std::vector<double> out;
+  for (const std::string& item : SplitList(s)) {
+    std::size_t pos = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(item, &pos);
+    } catch (...) {
+      pos = 0;
+    }
+    if (pos != item.size() || !std::isfinite(v) || !(v > 0.0))
+      throw UsageError(fmt::format("{}: \"{}\" is not a positive number", option, item));
+    out.push_back(v);
+  }
+  return out;
+}
+
+/// One table row and its HDF5 record.
+struct Row {
+  std::string id, integrator;
+  double h = 0.0, rtol = 0.0;
+  bool ok = false;
+  std::string status, message;
+  long steps = 0, updates = 0, cg = 0;
+  double solver_time = 0.0, wall_time = 0.0;
+  std::optional<TrajectoryErrors> err;
+  std::optional<double> order;
+  double stiffness = 0.0;
+  Trajectory traj;
+  std::vector<StepRecord> steps_table;
+  std::vector<double> cvode_order;
+  CvodeStats cvode;
+  long rejected = 0;
+};
+
+Row FromRun(const std::string& integrator, double h, const RunSummary& r, const Scene& scene) {
+  Row row;
+  row.id = fmt::format("{}_h{:g}", integrator, h);
+  row.integrator = integrator;
+  row.h = h;
+  row.ok = r.ok;
+  row.status = r.status;
+  row.message = r.message;
+  row.steps = r.steps;
+  row.updates = r.fixed_point_updates;
+  row.cg = r.cg_iterations;
+  row.rejected = r.rejected_steps;
+  row.solver_time = r.solver_time_in_seconds;
+  row.wall_time = r.wall_time_in_seconds;
+  row.stiffness = scene.NumericalStiffness(h);
+  row.traj = r.trajectory;
+  for (const StepStats& s : r.step_stats)
+    row.steps_table.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status)});
+  return row;
+}
+
+Row FromCvode(double rtol, const CvodeResult& c, const Scene& scene) {
+  Row row;
+  row.id = fmt::format("cvode_rtol{:g}", rtol);
+  row.integrator = "cvode";
+  row.rtol = rtol;
+  row.ok = c.ok;
+  row.status = c.status;
+  row.message = c.message;
+  row.steps = c.stats.nst;
+  row.updates = c.stats.nni;
+  row.cg = c.stats.nli;
+  row.solver_time = c.solver_time_in_seconds;
+  row.wall_time = c.wall_time_in_seconds;
+  row.stiffness = scene.NumericalStiffness(scene.h);
+  row.traj = c.trajectory;
+  row.cvode = c.stats;
+  for (std::size_t k = 0; k < c.step_t.size(); ++k) {
+    row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0});
+    row.cvode_order.push_back(c.step_order[k]);
+  }
+  return row;
+}
+
+
+void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
+                  const std::optional<CvodeResult>& ref, const CvodeOptions& ref_opts, const std::vector<Row>& rows) {
+  ResultFile f(path);
+  f.SetAttribute("/", "schema", std::string("clothbench/1"));
+  f.SetAttribute("/", "created", NowIso8601Utc());
+  f.SetAttribute("/", "git_commit", GitCommit());
+  f.SetAttribute("/", "host", HostName());
+  f.SetAttribute("/", "compiler", CompilerId());
+  f.SetAttribute("/", "build_type", BuildType());
+  f.CreateGroup("/scene");
+  f.SetAttribute("/scene", "name", scene.name);
+  f.SetAttribute("/scene", "source", scene.source);
+  f.SetAttribute("/scene", "toml", scene.toml);
+  f.SetAttribute("/scene", "n_particles", static_cast<long>(sys.num_particles()));
+  f.SetAttribute("/scene", "n_fixed", static_cast<long>(sys.fixed().size()));
+  f.SetAttribute("/scene", "t_end", scene.t_end);
+  f.SetAttribute("/scene", "frame_dt", scene.frame_dt);
+  std::string terms;
+  for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ",") + t;
+  f.SetAttribute("/scene", "explicit_terms", terms);
+  if (ref) {
+    f.CreateGroup("/reference");
+    f.SetAttribute("/reference", "integrator", std::string("cvode"));
+    f.SetAttribute("/reference", "rtol", ref_opts.rtol);
+    f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
+    f.SetAttribute("/reference", "wall_time_s", ref->wall_time_in_seconds);
+    f.SetAttribute("/reference", "solver_time_s", ref->solver_time_in_seconds);
+    for (auto [name, v] : {std::pair{"nst", ref->stats.nst}, {"nfe", ref->stats.nfe}, {"nni", ref->stats.nni},
+                           {"nli", ref->stats.nli}, {"netf", ref->stats.netf}, {"ncfn", ref->stats.ncfn},
+                           {"nje", ref->stats.nje}, {"nsetups", ref->stats.nsetups}})
+      f.SetAttribute("/reference", name, v);
+    f.WriteVector("/reference/times", ref->trajectory.times, "s");
+    f.WriteFrames("/reference/positions", ref->trajectory.positions);
+    std::vector<StepRecord> st;
+    for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0});
+    f.WriteStepStats("/reference/step_stats", st);
+  }
+  f.CreateGroup("/runs");
+  for (const Row& r : rows) {
+    const std::string g = "/runs/" + r.id;
+    f.CreateGroup(g);
+    f.SetAttribute(g, "integrator", r.integrator);
+    f.SetAttribute(g, "h", r.h);
+    if (r.integrator == "cvode") f.SetAttribute(g, "rtol", r.rtol);
+    f.SetAttribute(g, "status", r.status);
+    if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
+    f.SetAttribute(g, "steps", r.steps);
+    f.SetAttribute(g, "fixed_point_updates", r.updates);
+    f.SetAttribute(g, "cg_iterations", r.cg);
+    f.SetAttribute(g, "rejected_steps", r.rejected);
+    f.SetAttribute(g, "solver_time_s", r.solver_time);
+    f.SetAttribute(g, "wall_time_s", r.wall_time);
+    f.SetAttribute(g, "numerical_stiffness", r.stiffness);
+    if (r.integrator == "cvode") {
+      for (auto [name, v] : {std::pair{"nst", r.cvode.nst}, {"nfe", r.cvode.nfe}, {"nni", r.cvode.nni},
+                             {"nli", r.cvode.nli}, {"netf", r.cvode.netf}, {"ncfn", r.cvode.ncfn},
+                             {"nje", r.cvode.nje}, {"nsetups", r.cvode.nsetups}})
+        f.SetAttribute(g, name, v);
+    } else {
+      f.SetAttribute(g, "cg_tolerance", scene.solver.cg_tolerance);
+      f.SetAttribute(g, "preconditioner", std::string(ToString(scene.solver.preconditioner)));
+      f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
+      f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
+    }
+    // Errors only where they exist: no NaN is ever written.
+    if (r.err) {
+      f.SetAttribute(g, "error_rms_m", r.err->rms_at_end);
+      f.SetAttribute(g, "error_max_m", r.err->rms_max);
+      f.SetAttribute(g, "error_mean_m", r.err->mean_at_end);
+    }
+    if (r.order) f.SetAttribute(g, "observed_order", *r.order);
+    f.WriteVector(g + "/times", r.traj.times, "s");
+    f.WriteFrames(g + "/positions", r.traj.positions);
+    f.WriteStepStats(g + "/step_stats", r.steps_table);
+    if (!r.cvode_order.empty()) f.WriteVector(g + "/bdf_order", r.cvode_order, "");
+  }
+  f.Commit();
+}
+
+std::string Sci(double v) { return fmt::format("{:.3e}", v); }
+
+void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::optional<CvodeResult>& ref,
+                const CvodeOptions& ref_opts, const std::vector<Row>& rows, double t_end) {
+  std::string terms;
+  for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ", ") + t;
+  fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", scene.name,
+             scene.source, sys.num_particles(), sys.fixed().size(), t_end, terms);
+  fmt::print("solver: cg_tolerance {:g}, preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
+             "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
+             scene.solver.cg_tolerance, ToString(scene.solver.preconditioner), scene.solver.max_updates,
+             ToString(scene.solver.predictor), scene.NumericalStiffness(scene.h), scene.h);
+  if (ref)
+    fmt::print("reference: CVODE BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s\n", ref_opts.rtol, ref->stats.nst,
+               ref->wall_time_in_seconds);
+  else
+    fmt::print("reference: none (error columns empty)\n");
+  fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>11} {:>7}  {}\n", "integrator", "h|rtol", "steps", "updates",
+             "cg_iters", "solver_s", "e_rms_m", "order", "status");
+  std::string last;
+  for (const Row& r : rows) {
+    if (!last.empty() && last != r.integrator) fmt::print("\n");
+    last = r.integrator;
+    const std::string hcol = r.integrator == "cvode" ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
+    fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>11} {:>7}  {}\n", r.integrator, hcol, r.steps, r.updates,
+               r.cg, r.solver_time, r.err ? Sci(r.err->rms_at_end) : "", r.order ? fmt::format("{:.2f}", *r.order) : "",
+               r.ok ? "ok" : r.status + (r.rejected > 0 ? "" : ""));
+    if (r.ok && r.rejected > 0) fmt::print("{:<18} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
+  }
+  fmt::print("\ncvode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
+  fmt::print("machine: {}, {} hardware threads, {}, {} build, commit {}\n", HostName(),
+             std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
+  std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, cvode_rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
+  double t_end = 0.0, ref_rtol = 1e-10;
+  app.add_option("--scene", scene_path, "scene file (TOML); default: the embedded swinging_sheet");
+  app.add_option("--integrators", integrators_arg,
+                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,cvode (default: all)");
+  app.add_option("--h", h_arg, "comma-separated step sizes [s] (default: scene h, h/2, h/4, h/8)");
+  app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
+  app.add_option("--reference", reference, "cvode | none");
+  app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the CVODE reference (default 1e-10)");
+  app.add_option("--cvode-rtols", cvode_rtols_arg, "rtol list of the CVODE competitor rows");
+  app.add_option("--out", out, "result file (default: results/<scene>.h5)");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    return 2;
+  }
+
+  try {
+    // Validate everything before computing anything.
+    Scene scene = scene_path.empty() ? DefaultScene() : LoadScene(scene_path);
+    if (app.count("--t-end")) {
+      if (!std::isfinite(t_end) || !(t_end > 0.0)) throw UsageError(fmt::format("--t-end: {} is not a positive number", t_end));
+      scene.t_end = t_end;
+      scene.frame_dt = std::min(scene.frame_dt, t_end);
+    }
+    if (reference != "cvode" && reference != "none")
+      throw UsageError(fmt::format("--reference: \"{}\" must be cvode or none", reference));
+    if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
+    std::vector<std::string> names;
+    if (integrators_arg.empty()) {
+      for (Method m : AllMethods()) names.emplace_back(ToString(m));
+      names.emplace_back("cvode");
+    } else {
+      names = SplitList(integrators_arg);
+      for (const std::string& n : names)
+        if (n != "cvode" && !MethodFromString(n))
+          throw UsageError(fmt::format("--integrators: unknown integrator \"{}\" (expected imex_euler, implicit_euler, "
+                                       "sbdf2, bdf2, implicit_midpoint, cvode)",
+                                       n));
+    }
+    std::vector<double> hs = h_arg.empty()
+                                  ? std::vector<double>{scene.h, scene.h / 2, scene.h / 4, scene.h / 8}
+                                  : ParsePositiveList(h_arg, "--h");
+    for (double h : hs)
+      if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
+    std::sort(hs.begin(), hs.end(), std::greater<>());
+    const std::vector<double> cvode_rtols = ParsePositiveList(cvode_rtols_arg, "--cvode-rtols");
+    if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
+    if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
+
+    const ParticleSystem sys(scene);
+    std::optional<CvodeResult> ref;
+    CvodeOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
+    if (reference == "cvode") {
+      ref = RunCvode(sys, ref_opts);
+      if (!ref->ok) {
+        fmt::print(stderr, "bench_integrators: CVODE reference at rtol {:g} failed: {}\n", ref_rtol, ref->message);
+        return 1;
+      }
+    }
+
+    std::vector<Row> rows;
+    for (const std::string& name : names) {
+      const std::size_t first = rows.size();
+      if (name == "cvode") {
+        for (double rtol : cvode_rtols)
+          rows.push_back(FromCvode(rtol, RunCvode(sys, {rtol, -1.0, 5, scene.t_end, scene.frame_dt}), scene));
+      } else {
+        const Method m = *MethodFromString(name);
+        for (double h : hs) rows.push_back(FromRun(name, h, RunIntegrator(sys, m, {h, scene.t_end, scene.frame_dt}), scene));
+      }
+      if (!ref) continue;
+      for (std::size_t k = first; k < rows.size(); ++k) {
+        if (rows[k].ok) rows[k].err = CompareTrajectories(rows[k].traj.positions, ref->trajectory.positions);
+        if (name != "cvode" && k > first && rows[k].err && rows[k - 1].err)
+          rows[k].order = ObservedOrder(rows[k - 1].h, rows[k - 1].err->rms_at_end, rows[k].h, rows[k].err->rms_at_end);
+      }
+    }
+    PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
+    WriteResults(out, scene, sys, ref, ref_opts, rows);
+    fmt::print("results: {}\n", out);
+    return 0;
+  } catch (const UsageError& e) {
+    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    return 2;
+  } catch (const SceneError& e) {
+    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace
+}  // namespace clothbench
+
+int main(int argc, char** argv) { return clothbench::Main(argc, argv); }

@@ -1,0 +1,40 @@
+#include "results/metrics.h"
+
+#include <cmath>
+
+namespace clothbench {
+
+double ErrorRms(const MatrixN3& x, const MatrixN3& ref) {
+  return std::sqrt((x - ref).squaredNorm() / static_cast<double>(x.rows()));
+}
+
+double ErrorMean(const MatrixN3& x, const MatrixN3& ref) {
+  return (x - ref).rowwise().norm().sum() / static_cast<double>(x.rows());
+}
+
+std::optional<TrajectoryErrors> CompareTrajectories(const std::vector<MatrixN3>& run, const std::vector<MatrixN3>& ref) {
+  if (run.size() != ref.size() || run.empty()) return std::nullopt;
+  TrajectoryErrors e;
+  for (std::size_t k = 0; k < run.size(); ++k) e.rms_max = std::max(e.rms_max, ErrorRms(run[k], ref[k]));
+  e.rms_at_end = ErrorRms(run.back(), ref.back());
+  e.mean_at_end = ErrorMean(run.back(), ref.back());
+  if (!std::isfinite(e.rms_max) || !std::isfinite(e.rms_at_end)) return std::nullopt;
+  return e;
+}
+
+double ObservedOrder(double h1, double e1, double h2, double e2) { return std::log(e1 / e2) / std::log(h1 / h2); }
+
+double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e) {
+  const double n = static_cast<double>(h.size());
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t k = 0; k < h.size(); ++k) {
+    const double x = std::log(h[k]), y = std::log(e[k]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+}  // namespace clothbench

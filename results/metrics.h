@@ -1,0 +1,35 @@
+// Error measures and observed order (SPEC §9).
+#ifndef CLOTHBENCH_RESULTS_METRICS_H_
+#define CLOTHBENCH_RESULTS_METRICS_H_
+
+#include <optional>
+#include <vector>
+
+#include "model/types.h"
+
+namespace clothbench {
+
+/// e_rms = sqrt((1/N) Σ_p |x_p − x_p^ref|²) [m] (SPEC §9).
+double ErrorRms(const MatrixN3& x, const MatrixN3& ref);
+/// The thesis' "normalised by the number of nodes" error (1/N) Σ_p |x_p − x_p^ref| [m] (§2.8).
+double ErrorMean(const MatrixN3& x, const MatrixN3& ref);
+
+struct TrajectoryErrors {
+  double rms_at_end = 0.0;   ///< e_rms at the last frame [m]
+  double rms_max = 0.0;      ///< max over frames of e_rms [m]
+  double mean_at_end = 0.0;  ///< (1/N) Σ|x − x_ref| at the last frame [m]
+};
+
+/// Compares frame by frame. Returns nothing if the frame counts differ (a run
+/// that stopped early) or a value is not finite.
+std::optional<TrajectoryErrors> CompareTrajectories(const std::vector<MatrixN3>& run, const std::vector<MatrixN3>& ref);
+
+/// Observed order log(e1/e2)/log(h1/h2) between step sizes h1 > h2 (SPEC §9).
+double ObservedOrder(double h1, double e1, double h2, double e2);
+
+/// Least-squares slope of log e against log h.
+double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_RESULTS_METRICS_H_

@@ -1,0 +1,168 @@
+// HDF5 writer (C API).
+#include "results/result_file.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <hdf5.h>
+
+namespace clothbench {
+namespace {
+
+hid_t Check(hid_t id, const std::string& what, const std::string& file) {
+  if (id < 0) throw ResultError(fmt::format("{}: HDF5 error: {}", file, what));
+  return id;
+}
+
+// Closes an HDF5 handle when it goes out of scope.
+struct Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+}  // namespace
+
+ResultFile::ResultFile(const std::string& path) : path_(path), tmp_path_(path + ".tmp") {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become ResultError, not stderr dumps
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "cannot create file", tmp_path_);
+}
+
+ResultFile::~ResultFile() {
+  if (file_ >= 0) H5Fclose(file_);
+  if (!committed_) std::remove(tmp_path_.c_str());
+}
+
+void ResultFile::CreateGroup(const std::string& path) {
+  Handle lcpl{H5Pcreate(H5P_LINK_CREATE), H5Pclose};
+  H5Pset_create_intermediate_group(lcpl.id, 1);
+  Handle g{Check(H5Gcreate2(file_, path.c_str(), lcpl.id, H5P_DEFAULT, H5P_DEFAULT), "cannot create group " + path, path_),
+           H5Gclose};
+}
+
+void ResultFile::SetAttribute(const std::string& object, const std::string& name, const std::string& value) {
+  Handle type{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(type.id, value.empty() ? 1 : value.size());
+  H5Tset_strpad(type.id, H5T_STR_NULLPAD);
+  H5Tset_cset(type.id, H5T_CSET_UTF8);
+  Handle space{H5Screate(H5S_SCALAR), H5Sclose};
+  Handle attr{Check(H5Acreate_by_name(file_, object.c_str(), name.c_str(), type.id, space.id, H5P_DEFAULT, H5P_DEFAULT,
+                                      H5P_DEFAULT),
+                    "cannot create attribute " + object + "@" + name, path_),
+              H5Aclose};
+  const std::string buf = value.empty() ? std::string(1, '\0') : value;
+  Check(H5Awrite(attr.id, type.id, buf.data()), "cannot write attribute " + name, path_);
+}
+
+void ResultFile::SetAttribute(const std::string& object, const std::string& name, double value) {
+  Handle space{H5Screate(H5S_SCALAR), H5Sclose};
+  Handle attr{Check(H5Acreate_by_name(file_, object.c_str(), name.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT,
+                                      H5P_DEFAULT, H5P_DEFAULT),
+                    "cannot create attribute " + object + "@" + name, path_),
+              H5Aclose};
+  Check(H5Awrite(attr.id, H5T_NATIVE_DOUBLE, &value), "cannot write attribute " + name, path_);
+}
+
+void ResultFile::SetAttribute(const std::string& object, const std::string& name, long value) {
+  Handle space{H5Screate(H5S_SCALAR), H5Sclose};
+  Handle attr{Check(H5Acreate_by_name(file_, object.c_str(), name.c_str(), H5T_STD_I64LE, space.id, H5P_DEFAULT,
+                                      H5P_DEFAULT, H5P_DEFAULT),
+                    "cannot create attribute " + object + "@" + name, path_),
+              H5Aclose};
+  const int64_t v = value;
+  Check(H5Awrite(attr.id, H5T_NATIVE_INT64, &v), "cannot write attribute " + name, path_);
+}
+
+void ResultFile::WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units) {
+  const hsize_t dims[1] = {values.size()};
+  Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
+  Handle ds{Check(H5Dcreate2(file_, path.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                  "cannot create dataset " + path, path_),
+            H5Dclose};
+  if (!values.empty())
+    Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), "cannot write " + path, path_);
+  if (!units.empty()) SetAttribute(path, "units", units);
+}
+
+void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames) {
+  const hsize_t f = frames.size(), n = frames.empty() ? 0 : static_cast<hsize_t>(frames[0].rows());
+  std::vector<double> buf(f * n * 3);
+  for (hsize_t k = 0; k < f; ++k)
+    for (hsize_t p = 0; p < n; ++p)
+      for (hsize_t c = 0; c < 3; ++c)
+        buf[(k * n + p) * 3 + c] = frames[k](static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c));
+  const hsize_t dims[3] = {f, n, 3};
+  Handle space{H5Screate_simple(3, dims, nullptr), H5Sclose};
+  Handle ds{Check(H5Dcreate2(file_, path.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                  "cannot create dataset " + path, path_),
+            H5Dclose};
+  if (!buf.empty())
+    Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
+  SetAttribute(path, "units", std::string("m"));
+}
+
+void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows) {
+  Handle mem{H5Tcreate(H5T_COMPOUND, sizeof(StepRecord)), H5Tclose};
+  H5Tinsert(mem.id, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
+  H5Tinsert(mem.id, "h", HOFFSET(StepRecord, h), H5T_NATIVE_DOUBLE);
+  H5Tinsert(mem.id, "updates", HOFFSET(StepRecord, updates), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
+  const hsize_t dims[1] = {rows.size()};
+  Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
+  Handle ds{Check(H5Dcreate2(file_, path.c_str(), mem.id, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                  "cannot create dataset " + path, path_),
+            H5Dclose};
+  if (!rows.empty()) Check(H5Dwrite(ds.id, mem.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, rows.data()), "cannot write " + path, path_);
+}
+
+void ResultFile::Commit() {
+  if (file_ >= 0) {
+    const herr_t err = H5Fclose(file_);
+    file_ = -1;
+    if (err < 0) throw ResultError(fmt::format("{}: HDF5 error: cannot close file", tmp_path_));
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp_path_, path_, ec);
+  if (ec) throw ResultError(fmt::format("{}: cannot rename from {}: {}", path_, tmp_path_, ec.message()));
+  committed_ = true;
+}
+
+std::string HostName() {
+  char buf[256] = {0};
+  if (gethostname(buf, sizeof(buf) - 1) != 0) return "unknown";
+  return buf;
+}
+
+std::string CompilerId() {
+#if defined(__clang__)
+  return fmt::format("clang {}", __clang_version__);
+#elif defined(__GNUC__)
+  return fmt::format("gcc {}", __VERSION__);
+#else
+  return "unknown";
+#endif
+}
+
+std::string BuildType() { return CLOTHBENCH_BUILD_TYPE; }
+std::string GitCommit() { return CLOTHBENCH_GIT_COMMIT; }
+
+std::string NowIso8601Utc() {
+  std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+}  // namespace clothbench

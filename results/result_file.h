@@ -1,0 +1,73 @@
+// HDF5 result files (issue 2 "HDF5 layout", schema "clothbench/1"), written
+// through the HDF5 C API. A file is written under "<path>.tmp" and renamed
+// to <path> only by Commit(), so an interrupted run never leaves a half file
+// under the final name.
+#ifndef CLOTHBENCH_RESULTS_RESULT_FILE_H_
+#define CLOTHBENCH_RESULTS_RESULT_FILE_H_
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "model/types.h"
+
+namespace clothbench {
+
+/// Thrown when HDF5 fails; the message names the file and the object.
+class ResultError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// One row of a step_stats table.
+struct StepRecord {
+  double t;            ///< end of the step [s]
+  double h;            ///< step size [s]
+  int32_t updates;     ///< fixed-point updates (CVODE: BDF order)
+  int32_t cg_iterations;
+  int32_t status;      ///< 0 = accepted; else the StepStatus code of a rejected attempt
+};
+
+class ResultFile {
+ public:
+  /// Creates "<path>.tmp" (truncating). @throws ResultError.
+  explicit ResultFile(const std::string& path);
+  /// Removes the temporary file unless Commit() succeeded.
+  ~ResultFile();
+  ResultFile(const ResultFile&) = delete;
+  ResultFile& operator=(const ResultFile&) = delete;
+
+  /// Creates group `path` (e.g. "/runs/sbdf2_h0.01"), parents included.
+  void CreateGroup(const std::string& path);
+  void SetAttribute(const std::string& object, const std::string& name, const std::string& value);
+  void SetAttribute(const std::string& object, const std::string& name, double value);
+  void SetAttribute(const std::string& object, const std::string& name, long value);
+  /// 1-D float64 dataset [n].
+  void WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units);
+  /// positions [F, N, 3] float64 [m] from F frames of N×3.
+  void WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames);
+  /// Compound table (t, h, updates, cg_iterations, status) [S].
+  void WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows);
+  /// Closes the file and renames it to its final path. @throws ResultError.
+  void Commit();
+
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_, tmp_path_;
+  int64_t file_ = -1;  // hid_t
+  bool committed_ = false;
+};
+
+/// Host name, compiler, build type and git commit for the root attributes.
+std::string HostName();
+std::string CompilerId();
+std::string BuildType();
+std::string GitCommit();
+/// Current UTC time, ISO 8601 (e.g. 2026-11-21T15:04:05Z).
+std::string NowIso8601Utc();
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_RESULTS_RESULT_FILE_H_
