@@ -60,7 +60,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
 
   // Explicit terms: only those with non-zero coefficients (SPEC §2.6).
   GridGeometry geo{nu, nv, lu, lv, mass_ / mat.density};
-  if (mat.tension[0] != 0.0 || mat.tension[1] != 0.0) {
+  if ((mat.tension[0] != 0.0 || mat.tension[1] != 0.0) && mat.tension_model == TensionModel::kSplit) {
     std::vector<Spring> stiff;
     for (const Spring& s : springs_)
       if (s.stiffness != 0.0) stiff.push_back(s);

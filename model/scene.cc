@@ -23,6 +23,7 @@ std::string_view ToString(BendModel m) {
   }
   return "?";
 }
+std::string_view ToString(TensionModel m) { return m == TensionModel::kSplit ? "split" : "linear"; }
 std::string_view ToString(MassLumping m) {
   return m == MassLumping::kUniform ? "uniform" : "area";
 }
@@ -243,6 +244,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     mat.density = m.Positive("density", mat.density);
     mat.tension = m.Numbers<2>("tension", mat.tension, true);
     mat.tension_damping = m.NonNegative("tension_damping", mat.tension_damping);
+    mat.tension_model = m.Choice("tension_model", mat.tension_model, {TensionModel::kSplit, TensionModel::kLinear});
     mat.shear = m.NonNegative("shear", mat.shear);
     mat.shear_damping = m.NonNegative("shear_damping", mat.shear_damping);
     mat.bend = m.Numbers<2>("bend", mat.bend, true);

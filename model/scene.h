@@ -24,12 +24,17 @@ class SceneError : public std::runtime_error {
 };
 
 enum class BendModel { kNone, kMembrane, kThinPlate };
+/// "split": springs with rest length l_e, IMEX split F_lin + F_nl (SPEC §2.1).
+/// "linear": zero-rest-length springs, f = −L_K x − L_D v only (F_nl absent):
+/// an exactly linear prestressed membrane, used by the modal order tests.
+enum class TensionModel { kSplit, kLinear };
 enum class MassLumping { kUniform, kArea };
 enum class PreconditionerType { kNone, kJacobi, kIc0 };
 enum class Predictor { kConstantVelocity, kExtrapolate };
 enum class StepControl { kFixed, kIterations };
 
 std::string_view ToString(BendModel m);
+std::string_view ToString(TensionModel m);
 std::string_view ToString(MassLumping m);
 std::string_view ToString(PreconditionerType p);
 std::string_view ToString(Predictor p);
@@ -49,6 +54,7 @@ struct MaterialSpec {
   double density = 1.0;                           ///< ρ [kg/m²]
   std::array<double, 2> tension = {1000.0, 1000.0};  ///< k_u, k_v [N/m], (2.20)
   double tension_damping = 0.0;                   ///< d_t [N s/m], (3.18)
+  TensionModel tension_model = TensionModel::kSplit;
   double shear = 0.0;                             ///< μ [N/m], (2.21)
   double shear_damping = 0.0;                     ///< d_s [N s/m]
   std::array<double, 2> bend = {0.0, 0.0};        ///< B_u, B_v ([N m] thin plate, [N/m] membrane)

@@ -122,9 +122,8 @@ StepStats StepEngine::Step(double h) {
 
   // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)).
   const double omega = have_history_ ? h / h_prev_ : 1.0;
-  const double c1 = (1 + omega) * (1 + omega) / (1 + 2 * omega);
-  const double c2 = omega * omega / (1 + 2 * omega);
-  const double c3 = (1 + omega) / (1 + 2 * omega);
+  const Bdf2Coefficients bdf(omega);
+  const double c1 = bdf.c1, c2 = bdf.c2, c3 = bdf.c3;
 
   const Eigen::VectorXd& mass = sys_.masses();
   const SparseMatrix& lk = sys_.stiffness_laplacian();
@@ -234,6 +233,9 @@ StepStats StepEngine::Step(double h) {
   }
 
   x1_ = xhat_ + (gamma * h) * v1_;
+  // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
+  // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
+  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
   if (!x1_.allFinite() || !v1_.allFinite()) {
     st.status = StepStatus::kNonFinite;
     return st;

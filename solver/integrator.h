@@ -29,6 +29,17 @@ bool IsImex(Method m);
 /// Classical order of convergence (1 or 2).
 int MethodOrder(Method m);
 
+/// Variable-step BDF(2) coefficients for ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)):
+/// x₁ = c1 x₀ − c2 x₋₁ + c3 h ẋ₁ with c1 = (1+ω)²/(1+2ω), c2 = ω²/(1+2ω),
+/// c3 = (1+ω)/(1+2ω); 4/3, 1/3, 2/3 at ω = 1.
+struct Bdf2Coefficients {
+  explicit Bdf2Coefficients(double omega)
+      : c1((1 + omega) * (1 + omega) / (1 + 2 * omega)),
+        c2(omega * omega / (1 + 2 * omega)),
+        c3((1 + omega) / (1 + 2 * omega)) {}
+  double c1, c2, c3;
+};
+
 enum class StepStatus { kOk, kCgFailed, kNoFixedPointConvergence, kNonFinite, kPreconditionerFailed };
 std::string_view ToString(StepStatus s);
 

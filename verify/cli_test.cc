@@ -1,0 +1,174 @@
+// bench_integrators end to end: bad input gives one line on stderr and a
+// non-zero exit with no result file; a complete run writes the HDF5 layout;
+// an interrupted run leaves no file under the final name.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "results/result_file.h"
+
+namespace clothbench {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Outcome {
+  int exit_code;
+  std::string err;
+};
+
+fs::path TempDir() {
+  fs::path d = fs::temp_directory_path() / ("clothbench_cli_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+Outcome RunBench(const std::string& args) {
+  const fs::path err = TempDir() / "stderr.txt";
+  const std::string cmd = std::string(CLOTHBENCH_BENCH_BINARY) + " " + args + " > /dev/null 2> " + err.string();
+  const int rc = std::system(cmd.c_str());
+  std::ifstream in(err);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, ss.str()};
+}
+
+std::string WriteScene(const std::string& name, const std::string& text) {
+  const fs::path p = TempDir() / name;
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+const char* kTiny = R"(name = "tiny"
+t_end = 0.04
+frame_dt = 0.01
+h = 0.01
+[grid]
+nu = 4
+nv = 3
+size = [0.3, 0.2]
+[material]
+tension = [100.0, 100.0]
+tension_damping = 0.1
+shear = 1.0
+bend = [1e-5, 1e-5]
+[constraints]
+fixed = ["corner:u0v1", "corner:u1v1"]
+[solver]
+cg_tolerance = 1e-10
+)";
+
+void ExpectOneLineError(const Outcome& o, const std::string& needle, int code = 2) {
+  EXPECT_EQ(o.exit_code, code) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find(needle), std::string::npos) << o.err;
+}
+
+TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
+  const fs::path out = TempDir() / "bad.h5";
+  const std::string o = " --out " + out.string();
+  ExpectOneLineError(RunBench("--scene /nonexistent/scene.toml" + o), "cannot open scene file");
+  ExpectOneLineError(RunBench("--scene " + WriteScene("syntax.toml", "name = \"x\"\n[grid\nnu = 3\n") + o),
+                     "TOML syntax error");
+  ExpectOneLineError(RunBench("--scene " + WriteScene("unknown.toml", std::string(kTiny) + "foo = 1\n") + o),
+                     "solver.foo: unknown key");
+  std::string neg = kTiny;
+  neg.replace(neg.find("[100.0, 100.0]"), 14, "[-1.0, 100.0]");
+  ExpectOneLineError(RunBench("--scene " + WriteScene("neg.toml", neg) + o), "material.tension");
+  std::string badfix = kTiny;
+  badfix.replace(badfix.find("corner:u1v1"), 11, "corner:u2v1");
+  ExpectOneLineError(RunBench("--scene " + WriteScene("fix.toml", badfix) + o), "constraints.fixed[1]");
+  const std::string tiny = " --scene " + WriteScene("tiny.toml", kTiny);
+  ExpectOneLineError(RunBench(tiny + " --integrators sbdf2,rk4" + o), "unknown integrator \"rk4\"");
+  ExpectOneLineError(RunBench(tiny + " --h 0.01,-0.005" + o), "--h: \"-0.005\" is not a positive number");
+  ExpectOneLineError(RunBench(tiny + " --h 0" + o), "--h: \"0\" is not a positive number");
+  ExpectOneLineError(RunBench(tiny + " --reference ida" + o), "--reference");
+  ExpectOneLineError(RunBench(tiny + " --no-such-flag" + o), "no-such-flag");
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+}
+
+TEST(BenchCli, CompleteRunWritesLayout) {
+  const fs::path out = TempDir() / "tiny.h5";
+  fs::remove(out);
+  const Outcome o = RunBench("--scene " + WriteScene("tiny.toml", kTiny) +
+                             " --integrators bdf2,cvode --h 0.01,0.005 --cvode-rtols 1e-6 --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  ASSERT_TRUE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  const hid_t f = H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  for (const char* obj : {"/scene", "/reference/times", "/reference/positions", "/runs/bdf2_h0.01/positions",
+                          "/runs/bdf2_h0.005/step_stats", "/runs/cvode_rtol1e-06/times"})
+    EXPECT_GT(H5Oexists_by_name(f, obj, H5P_DEFAULT), 0) << obj;
+  for (const char* attr : {"schema", "created", "git_commit", "host", "compiler", "build_type"})
+    EXPECT_GT(H5Aexists(f, attr), 0) << attr;
+  EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "error_rms_m", H5P_DEFAULT), 0);
+  EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "observed_order", H5P_DEFAULT), 0);
+  // positions are [F, N, 3] with F = 5 frames (0, 0.01, …, 0.04) and N = 12.
+  const hid_t ds = H5Dopen2(f, "/runs/bdf2_h0.005/positions", H5P_DEFAULT);
+  const hid_t sp = H5Dget_space(ds);
+  hsize_t dims[3];
+  ASSERT_EQ(H5Sget_simple_extent_dims(sp, dims, nullptr), 3);
+  EXPECT_EQ(dims[0], 5u);
+  EXPECT_EQ(dims[1], 12u);
+  EXPECT_EQ(dims[2], 3u);
+  H5Sclose(sp);
+  H5Dclose(ds);
+  H5Fclose(f);
+}
+
+TEST(BenchCli, NoReferenceLeavesErrorsOut) {
+  const fs::path out = TempDir() / "noref.h5";
+  const Outcome o = RunBench("--scene " + WriteScene("tiny.toml", kTiny) +
+                             " --integrators sbdf2 --reference none --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const hid_t f = H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  EXPECT_EQ(H5Lexists(f, "/reference", H5P_DEFAULT), 0);
+  EXPECT_EQ(H5Aexists_by_name(f, "/runs/sbdf2_h0.01", "error_rms_m", H5P_DEFAULT), 0);
+  H5Fclose(f);
+}
+
+// A run killed half-way (SIGKILL, no cleanup at all) leaves nothing under
+// the final name.
+TEST(BenchCli, InterruptedRunLeavesNoFinalFile) {
+  const fs::path out = TempDir() / "killed.h5";
+  fs::remove(out);
+  const std::string cmd = "timeout -s KILL 2 " + std::string(CLOTHBENCH_BENCH_BINARY) + " --out " + out.string() +
+                          " > /dev/null 2>&1";
+  const int rc = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(rc));
+  EXPECT_EQ(WEXITSTATUS(rc), 137);  // killed by timeout, not finished
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(ResultFile, AppearsOnlyOnCommit) {
+  const fs::path out = TempDir() / "unit.h5";
+  fs::remove(out);
+  {
+    ResultFile f(out.string());
+    f.CreateGroup("/runs/x");
+    f.SetAttribute("/runs/x", "status", std::string("ok"));
+    EXPECT_TRUE(fs::exists(out.string() + ".tmp"));
+    EXPECT_FALSE(fs::exists(out));
+  }  // destroyed without Commit: like an exception mid-run
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  {
+    ResultFile f(out.string());
+    f.WriteVector("/times", {0.0, 0.1}, "s");
+    f.Commit();
+  }
+  EXPECT_TRUE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+}
+
+}  // namespace
+}  // namespace clothbench

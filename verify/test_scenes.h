@@ -1,0 +1,59 @@
+// Small scenes for the unit tests.
+#ifndef CLOTHBENCH_VERIFY_TEST_SCENES_H_
+#define CLOTHBENCH_VERIFY_TEST_SCENES_H_
+
+#include <random>
+
+#include "model/particle_system.h"
+
+namespace clothbench::testing {
+
+/// A nu×nv sheet in the xy-plane with every force term switched on.
+inline Scene AllTermsScene(int nu = 5, int nv = 4, BendModel bend = BendModel::kThinPlate) {
+  Scene s;
+  s.name = "all_terms";
+  s.grid.nu = nu;
+  s.grid.nv = nv;
+  s.grid.size = {0.3, 0.2};
+  s.material.tension = {200.0, 150.0};
+  s.material.tension_damping = 0.3;
+  s.material.shear = 20.0;
+  s.material.shear_damping = 0.2;
+  s.material.bend = {2e-3, 1e-3};
+  s.material.bend_damping = 1e-3;
+  s.material.bend_model = bend;
+  s.material.transverse = 15.0;
+  s.forces.gravity = Vector3(0.0, 0.0, -9.81);
+  WindSpec w;
+  w.direction = Vector3(0.3, 1.0, 2.0);
+  w.constant = 0.5;
+  w.angular_frequency = 3.0;
+  w.drag = 1.2;
+  w.lift = 0.4;
+  s.forces.wind = w;
+  s.forces.air = 0.7;
+  return s;
+}
+
+/// Positions near rest with a smooth out-of-plane bump and random jitter
+/// (so no term is degenerate), and random velocities.
+inline void PerturbedState(const ParticleSystem& sys, unsigned seed, MatrixN3* x, MatrixN3* v, double jitter = 0.01) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  *x = sys.rest_positions();
+  v->setZero(sys.num_particles(), 3);
+  const Scene& s = sys.scene();
+  for (int j = 0; j < s.grid.nv; ++j)
+    for (int i = 0; i < s.grid.nu; ++i) {
+      const int p = s.Index(i, j);
+      (*x)(p, 2) += 0.05 * std::sin(0.9 * i + 0.3) * std::cos(0.7 * j + 0.1);
+      for (int c = 0; c < 3; ++c) {
+        (*x)(p, c) += jitter * u(rng);
+        (*v)(p, c) = 0.5 * u(rng);
+      }
+    }
+}
+
+}  // namespace clothbench::testing
+
+#endif  // CLOTHBENCH_VERIFY_TEST_SCENES_H_
