@@ -5,6 +5,7 @@
 //
 //   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
 //                     [--t-end T] [--reference cvode|none] [--out FILE.h5]
+//                     [--reference-rtol R] [--cvode-rtols LIST] [--cg-tolerance ETA]
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -240,7 +241,7 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, cvode_rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
-  double t_end = 0.0, ref_rtol = 1e-10;
+  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
   app.add_option("--scene", scene_path, "scene file (TOML); default: the embedded swinging_sheet");
   app.add_option("--integrators", integrators_arg,
                  "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,cvode (default: all)");
@@ -249,6 +250,7 @@ int Main(int argc, char** argv) {
   app.add_option("--reference", reference, "cvode | none");
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the CVODE reference (default 1e-10)");
   app.add_option("--cvode-rtols", cvode_rtols_arg, "rtol list of the CVODE competitor rows");
+  app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
   try {
     app.parse(argc, argv);
@@ -266,6 +268,11 @@ int Main(int argc, char** argv) {
       if (!std::isfinite(t_end) || !(t_end > 0.0)) throw UsageError(fmt::format("--t-end: {} is not a positive number", t_end));
       scene.t_end = t_end;
       scene.frame_dt = std::min(scene.frame_dt, t_end);
+    }
+    if (app.count("--cg-tolerance")) {
+      if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
+        throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
+      scene.solver.cg_tolerance = cg_tolerance;
     }
     if (reference != "cvode" && reference != "none")
       throw UsageError(fmt::format("--reference: \"{}\" must be cvode or none", reference));
