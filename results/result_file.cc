@@ -10,6 +10,8 @@
 #include <fmt/format.h>
 #include <hdf5.h>
 
+#include "git_commit.h"  // generated at build time
+
 namespace clothbench {
 namespace {
 
@@ -63,23 +65,28 @@ void ResultFile::SetAttribute(const std::string& object, const std::string& name
   Check(H5Awrite(attr.id, type.id, buf.data()), "cannot write attribute " + name, path_);
 }
 
-void ResultFile::SetAttribute(const std::string& object, const std::string& name, double value) {
+namespace {
+
+// Writes one scalar attribute of file type `ftype` from memory type `mtype`.
+void WriteScalarAttribute(hid_t file, const std::string& path, const std::string& object, const std::string& name,
+                          hid_t ftype, hid_t mtype, const void* value) {
   Handle space{H5Screate(H5S_SCALAR), H5Sclose};
-  Handle attr{Check(H5Acreate_by_name(file_, object.c_str(), name.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT,
-                                      H5P_DEFAULT, H5P_DEFAULT),
-                    "cannot create attribute " + object + "@" + name, path_),
+  Handle attr{Check(H5Acreate_by_name(file, object.c_str(), name.c_str(), ftype, space.id, H5P_DEFAULT, H5P_DEFAULT,
+                                      H5P_DEFAULT),
+                    "cannot create attribute " + object + "@" + name, path),
               H5Aclose};
-  Check(H5Awrite(attr.id, H5T_NATIVE_DOUBLE, &value), "cannot write attribute " + name, path_);
+  Check(H5Awrite(attr.id, mtype, value), "cannot write attribute " + name, path);
+}
+
+}  // namespace
+
+void ResultFile::SetAttribute(const std::string& object, const std::string& name, double value) {
+  WriteScalarAttribute(file_, path_, object, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
 }
 
 void ResultFile::SetAttribute(const std::string& object, const std::string& name, long value) {
-  Handle space{H5Screate(H5S_SCALAR), H5Sclose};
-  Handle attr{Check(H5Acreate_by_name(file_, object.c_str(), name.c_str(), H5T_STD_I64LE, space.id, H5P_DEFAULT,
-                                      H5P_DEFAULT, H5P_DEFAULT),
-                    "cannot create attribute " + object + "@" + name, path_),
-              H5Aclose};
   const int64_t v = value;
-  Check(H5Awrite(attr.id, H5T_NATIVE_INT64, &v), "cannot write attribute " + name, path_);
+  WriteScalarAttribute(file_, path_, object, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &v);
 }
 
 void ResultFile::WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units) {
