@@ -74,6 +74,9 @@ class FreeDofOde {
     jt_.clear();
     const int off = 3 * nf_;
     for (int i = 0; i < off; ++i) jt_.emplace_back(i, off + i, 1.0);
+    // Explicit zero diagonal: without it SUNMatScaleAddI_Sparse (I − γJ)
+    // rebuilds the matrix at every setup (measured: 56% of CVODE's time).
+    for (int i = 0; i < 2 * off; ++i) jt_.emplace_back(i, i, 0.0);
     auto map = [&](const std::vector<Triplet>& src, int col_off) {
       for (const Triplet& e : src) {
         const int pr = free_index_[static_cast<std::size_t>(e.row() / 3)];
@@ -170,6 +173,7 @@ CvodeResult RunCvode(const ParticleSystem& system, const CvodeOptions& options) 
   const SparseMatrix& j0 = ode.Jacobian(0.0, N_VGetArrayPointer(h.y));
   h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);
   h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
+  SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD: the Jacobian pattern is structurally symmetric
   h.mem = CVodeCreate(CV_BDF, h.ctx);
   const double atol = options.atol > 0.0 ? options.atol : options.rtol;
   bool ok = check(CVodeSetErrHandlerFn(h.mem, ErrHandler, &err), "CVodeSetErrHandlerFn") &&
