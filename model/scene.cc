@@ -49,6 +49,25 @@ double Scene::NumericalStiffness(double step) const {
   return step * step * std::max(su, sv) / material.density;
 }
 
+bool SolverSpec::IsValid(std::string* error) const {
+  auto fail = [error](std::string msg) {
+    if (error) *error = std::move(msg);
+    return false;
+  };
+  if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0)) return fail(fmt::format("cg_tolerance = {} must be in (0, 1)", cg_tolerance));
+  if (cg_max_iterations < 1) return fail(fmt::format("cg_max_iterations = {} must be >= 1", cg_max_iterations));
+  if (max_updates < 1) return fail(fmt::format("max_updates = {} must be >= 1", max_updates));
+  if (controller_updates[0] < 1 || controller_updates[0] > controller_updates[1])
+    return fail(fmt::format("controller_updates = [{}, {}] must satisfy 1 <= lo <= hi", controller_updates[0],
+                            controller_updates[1]));
+  if (!(fixed_point_tolerance >= 0.0)) return fail(fmt::format("fixed_point_tolerance = {} must be >= 0", fixed_point_tolerance));
+  if (!(step_factor > 1.0)) return fail(fmt::format("step_factor = {} must be > 1", step_factor));
+  if (!(h_min > 0.0)) return fail(fmt::format("h_min = {} must be > 0", h_min));
+  if (!(h_max >= 0.0)) return fail(fmt::format("h_max = {} must be >= 0", h_max));
+  if (max_rejections < 0) return fail(fmt::format("max_rejections = {} must be >= 0", max_rejections));
+  return true;
+}
+
 namespace {
 
 // Reads one TOML table, remembering which keys were consumed so that unknown
@@ -317,6 +336,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     so.h_max = v.NonNegative("h_max", so.h_max);
     so.max_rejections = v.Integer("max_rejections", so.max_rejections, 0);
     v.RejectUnknown();
+    if (std::string why; !so.IsValid(&why)) throw SceneError(fmt::format("{}: solver: {}", source, why));
   }
   top.RejectUnknown();
   if (s.h > s.t_end) top.Fail("h", "must be <= t_end");

@@ -97,6 +97,9 @@ struct SolverSpec {
   double h_min = 1e-6;               ///< [s] smallest step before a run fails
   double h_max = 0.0;                ///< [s] largest step of the controller; 0: scene h
   int max_rejections = 10;           ///< successive rejected attempts before a run fails
+
+  /// Ceres style: false with `error` naming the field, its value and the rule.
+  bool IsValid(std::string* error) const;
 };
 
 /// One scene: everything needed to build the particle system and run it.

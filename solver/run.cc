@@ -17,6 +17,23 @@ std::vector<double> FrameTimes(double t_end, double frame_dt) {
   return times;
 }
 
+bool RunOptions::IsValid(std::string* error) const {
+  auto fail = [error](std::string msg) {
+    if (error) *error = std::move(msg);
+    return false;
+  };
+  if (!(h > 0.0) || !std::isfinite(h)) return fail(fmt::format("h = {} must be a positive number", h));
+  if (!(t_end > 0.0) || !std::isfinite(t_end)) return fail(fmt::format("t_end = {} must be a positive number", t_end));
+  if (!(frame_dt > 0.0) || frame_dt > t_end) return fail(fmt::format("frame_dt = {} must be in (0, t_end]", frame_dt));
+  return true;
+}
+
+std::string RunSummary::BriefReport() const {
+  return fmt::format("{}: {} steps ({} rejected), {} updates, {} CG iterations, solver {:.3f} s, wall {:.3f} s{}{}",
+                     status, steps, rejected_steps, fixed_point_updates, cg_iterations, solver_time_in_seconds,
+                     wall_time_in_seconds, message.empty() ? "" : ": ", message);
+}
+
 namespace {
 
 // Cubic Hermite interpolation of positions inside a step, exact at both ends
@@ -39,6 +56,12 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   const auto wall_start = Clock::now();
   const SolverSpec& spec = system.scene().solver;
   RunSummary sum;
+  std::string why;
+  if (!options.IsValid(&why) || !spec.IsValid(&why)) {
+    sum.status = "invalid_options";
+    sum.message = why;
+    return sum;
+  }
   sum.steps = sum.rejected_steps = 0;
   sum.fixed_point_updates = sum.cg_iterations = 0;
   double solver_seconds = 0.0;

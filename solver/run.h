@@ -26,6 +26,8 @@ struct RunOptions {
   double h = 0.01;          ///< nominal (fixed) step [s]
   double t_end = 1.0;       ///< [s]
   double frame_dt = 0.01;   ///< [s]
+  /// false with `error` naming the field, its value and the rule.
+  bool IsValid(std::string* error) const;
 };
 
 /// Summary of one run (counters -1 = not set, Ceres style).
@@ -42,11 +44,15 @@ struct RunSummary {
   double wall_time_in_seconds = -1.0;    ///< whole run including frame output
   std::vector<StepStats> step_stats;     ///< every attempt, rejected ones included
   Trajectory trajectory;
+
+  /// One line: status, steps, updates, CG iterations, times.
+  std::string BriefReport() const;
 };
 
 /// Integrates `system` from rest (x = rest positions, v = 0) to t_end.
-/// Never throws for numerical failure: the summary says what happened and the
-/// trajectory holds the frames reached.
+/// Never throws: invalid options give status "invalid_options"; a numerical
+/// failure gives the failing StepStatus, and the trajectory holds the frames
+/// reached.
 RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options);
 
 }  // namespace clothbench

@@ -154,6 +154,19 @@ TEST(StepEngine, FailureIsReportedAsStatus) {
   EXPECT_FALSE(r.message.empty());
 }
 
+// Invalid options are a status with a message naming the field, not a crash.
+TEST(StepEngine, InvalidOptionsAreReported) {
+  Scene s = DefaultScene();
+  s.solver.cg_tolerance = 2.0;
+  const RunSummary r = RunIntegrator(ParticleSystem(s), Method::kSbdf2, {0.01, 0.1, 0.01});
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.status, "invalid_options");
+  EXPECT_NE(r.message.find("cg_tolerance"), std::string::npos) << r.message;
+  const RunSummary r2 = RunIntegrator(ParticleSystem(DefaultScene()), Method::kSbdf2, {-0.01, 0.1, 0.01});
+  EXPECT_EQ(r2.status, "invalid_options");
+  EXPECT_NE(r2.BriefReport().find("h = -0.01"), std::string::npos) << r2.BriefReport();
+}
+
 // The iteration controller (SPEC §6) changes h and still reaches t_end and
 // every frame.
 TEST(StepEngine, IterationControllerReachesEnd) {
