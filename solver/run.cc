@@ -70,14 +70,16 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   MatrixN3 v_init = MatrixN3::Zero(system.num_particles(), 3);
   engine.Reset(0.0, system.rest_positions(), v_init);
 
+  // Frames and step statistics are allocated before the loop.
   const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
   sum.trajectory.times.reserve(frames.size());
-  sum.trajectory.positions.reserve(frames.size());
+  sum.trajectory.positions.assign(frames.size(), MatrixN3(system.num_particles(), 3));
+  sum.step_stats.reserve(static_cast<std::size_t>(std::ceil(options.t_end / options.h)) + 64);
   sum.trajectory.times.push_back(0.0);
-  sum.trajectory.positions.push_back(engine.x());
+  sum.trajectory.positions[0] = engine.x();
   std::size_t next_frame = 1;
 
-  MatrixN3 x_prev = engine.x(), v_prev = engine.v(), frame(system.num_particles(), 3);
+  MatrixN3 x_prev = engine.x(), v_prev = engine.v();
   const double h_nominal = options.h;
   const double h_max = spec.h_max > 0.0 ? spec.h_max : h_nominal;
   const bool controlled = spec.step_control == StepControl::kIterations;
@@ -123,9 +125,8 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
     const double t0s = engine.t() - step;
     while (next_frame < frames.size() && frames[next_frame] <= engine.t() + 1e-9 * step) {
       const double s = (frames[next_frame] - t0s) / step;
-      Hermite(x_prev, v_prev, engine.x(), engine.v(), step, s, &frame);
+      Hermite(x_prev, v_prev, engine.x(), engine.v(), step, s, &sum.trajectory.positions[next_frame]);
       sum.trajectory.times.push_back(frames[next_frame]);
-      sum.trajectory.positions.push_back(frame);
       ++next_frame;
     }
 
@@ -142,6 +143,7 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
       if (next - engine.t() < 1e-9 * h_nominal) ++fixed_step_index;
     }
   }
+  sum.trajectory.positions.resize(next_frame);  // a failed run keeps the frames it reached
   sum.matrix_rebuilds = engine.system_matrix().rebuilds();
   sum.solver_time_in_seconds = solver_seconds;
   sum.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
