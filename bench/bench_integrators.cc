@@ -4,8 +4,8 @@
 // stores everything in HDF5 (issue 2; SPEC §9).
 //
 //   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
-//                     [--t-end T] [--reference cvode|none] [--out FILE.h5]
-//                     [--reference-rtol R] [--cvode-rtols LIST] [--cg-tolerance ETA]
+//                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
+//                     [--reference-rtol R] [--rtols LIST] [--cg-tolerance ETA]
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -20,6 +20,7 @@
 
 #include "model/particle_system.h"
 #include "reference/cvode_reference.h"
+#include "reference/ida_reference.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
 #include "solver/run.h"
@@ -76,7 +77,7 @@ struct Row {
   Trajectory traj;
   std::vector<StepRecord> steps_table;
   std::vector<double> cvode_order;
-  CvodeStats cvode;
+  ReferenceStats cvode;
   long rejected = 0;
 };
 
@@ -101,10 +102,12 @@ Row FromRun(const std::string& integrator, double h, const RunSummary& r, const 
   return row;
 }
 
-Row FromCvode(double rtol, const CvodeResult& c, const Scene& scene) {
+bool IsSundials(const std::string& name) { return name == "cvode" || name == "ida"; }
+
+Row FromReference(double rtol, const ReferenceResult& c, const Scene& scene) {
   Row row;
-  row.id = fmt::format("cvode_rtol{:g}", rtol);
-  row.integrator = "cvode";
+  row.id = fmt::format("{}_rtol{:g}", c.integrator, rtol);
+  row.integrator = c.integrator;
   row.rtol = rtol;
   row.ok = c.ok;
   row.status = c.status;
@@ -126,7 +129,7 @@ Row FromCvode(double rtol, const CvodeResult& c, const Scene& scene) {
 
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
-                  const std::optional<CvodeResult>& ref, const CvodeOptions& ref_opts, const std::vector<Row>& rows) {
+                  const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows) {
   ResultFile f(path);
   f.SetAttribute("/", "schema", std::string("clothbench/1"));
   f.SetAttribute("/", "created", NowIso8601Utc());
@@ -147,7 +150,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   f.SetAttribute("/scene", "explicit_terms", terms);
   if (ref) {
     f.CreateGroup("/reference");
-    f.SetAttribute("/reference", "integrator", std::string("cvode"));
+    f.SetAttribute("/reference", "integrator", ref->integrator);
     f.SetAttribute("/reference", "rtol", ref_opts.rtol);
     f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
     f.SetAttribute("/reference", "wall_time_s", ref->wall_time_in_seconds);
@@ -168,7 +171,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.CreateGroup(g);
     f.SetAttribute(g, "integrator", r.integrator);
     f.SetAttribute(g, "h", r.h);
-    if (r.integrator == "cvode") f.SetAttribute(g, "rtol", r.rtol);
+    if (IsSundials(r.integrator)) f.SetAttribute(g, "rtol", r.rtol);
     f.SetAttribute(g, "status", r.status);
     if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
     f.SetAttribute(g, "steps", r.steps);
@@ -178,7 +181,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.SetAttribute(g, "solver_time_s", r.solver_time);
     f.SetAttribute(g, "wall_time_s", r.wall_time);
     f.SetAttribute(g, "numerical_stiffness", r.stiffness);
-    if (r.integrator == "cvode") {
+    if (IsSundials(r.integrator)) {
       for (auto [name, v] : {std::pair{"nst", r.cvode.nst}, {"nfe", r.cvode.nfe}, {"nni", r.cvode.nni},
                              {"nli", r.cvode.nli}, {"netf", r.cvode.netf}, {"ncfn", r.cvode.ncfn},
                              {"nje", r.cvode.nje}, {"nsetups", r.cvode.nsetups}})
@@ -206,8 +209,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 
-void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::optional<CvodeResult>& ref,
-                const CvodeOptions& ref_opts, const std::vector<Row>& rows, double t_end) {
+void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::optional<ReferenceResult>& ref,
+                const ReferenceOptions& ref_opts, const std::vector<Row>& rows, double t_end) {
   std::string terms;
   for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ", ") + t;
   fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", scene.name,
@@ -217,8 +220,8 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
              scene.solver.cg_tolerance, ToString(scene.solver.preconditioner), scene.solver.max_updates,
              ToString(scene.solver.predictor), scene.NumericalStiffness(scene.h), scene.h);
   if (ref)
-    fmt::print("reference: CVODE BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s\n", ref_opts.rtol, ref->stats.nst,
-               ref->wall_time_in_seconds);
+    fmt::print("reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s\n",
+               ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->stats.nst, ref->wall_time_in_seconds);
   else
     fmt::print("reference: none (error columns empty)\n");
   fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>11} {:>7}  {}\n", "integrator", "h|rtol", "steps", "updates",
@@ -227,29 +230,30 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
   for (const Row& r : rows) {
     if (!last.empty() && last != r.integrator) fmt::print("\n");
     last = r.integrator;
-    const std::string hcol = r.integrator == "cvode" ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
+    const std::string hcol = IsSundials(r.integrator) ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
     fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>11} {:>7}  {}\n", r.integrator, hcol, r.steps, r.updates,
                r.cg, r.solver_time, r.err ? Sci(r.err->rms_at_end) : "", r.order ? fmt::format("{:.2f}", *r.order) : "",
                r.ok ? "ok" : r.status + (r.rejected > 0 ? "" : ""));
     if (r.ok && r.rejected > 0) fmt::print("{:<18} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
   }
-  fmt::print("\ncvode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
+  fmt::print("\ncvode/ida rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
   fmt::print("machine: {}, {} hardware threads, {}, {} build, commit {}\n", HostName(),
              std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());
 }
 
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
-  std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, cvode_rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
+  std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
   app.add_option("--scene", scene_path, "scene file (TOML); default: the embedded swinging_sheet");
   app.add_option("--integrators", integrators_arg,
-                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,cvode (default: all)");
+                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,cvode,ida "
+                 "(default: the five methods and cvode)");
   app.add_option("--h", h_arg, "comma-separated step sizes [s] (default: scene h, h/2, h/4, h/8)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
-  app.add_option("--reference", reference, "cvode | none");
-  app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the CVODE reference (default 1e-10)");
-  app.add_option("--cvode-rtols", cvode_rtols_arg, "rtol list of the CVODE competitor rows");
+  app.add_option("--reference", reference, "cvode | ida | none");
+  app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
+  app.add_option("--rtols", rtols_arg, "rtol list of the cvode and ida rows (default 1e-3,…,1e-7)");
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
   try {
@@ -274,8 +278,8 @@ int Main(int argc, char** argv) {
         throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
       scene.solver.cg_tolerance = cg_tolerance;
     }
-    if (reference != "cvode" && reference != "none")
-      throw UsageError(fmt::format("--reference: \"{}\" must be cvode or none", reference));
+    if (reference != "cvode" && reference != "ida" && reference != "none")
+      throw UsageError(fmt::format("--reference: \"{}\" must be cvode, ida or none", reference));
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
@@ -284,9 +288,9 @@ int Main(int argc, char** argv) {
     } else {
       names = SplitList(integrators_arg);
       for (const std::string& n : names)
-        if (n != "cvode" && !MethodFromString(n))
+        if (!IsSundials(n) && !MethodFromString(n))
           throw UsageError(fmt::format("--integrators: unknown integrator \"{}\" (expected imex_euler, implicit_euler, "
-                                       "sbdf2, bdf2, implicit_midpoint, cvode)",
+                                       "sbdf2, bdf2, implicit_midpoint, cvode, ida)",
                                        n));
     }
     std::vector<double> hs = h_arg.empty()
@@ -295,17 +299,17 @@ int Main(int argc, char** argv) {
     for (double h : hs)
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
     std::sort(hs.begin(), hs.end(), std::greater<>());
-    const std::vector<double> cvode_rtols = ParsePositiveList(cvode_rtols_arg, "--cvode-rtols");
+    const std::vector<double> rtols = ParsePositiveList(rtols_arg, "--rtols");
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
     const ParticleSystem sys(scene);
-    std::optional<CvodeResult> ref;
-    CvodeOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
-    if (reference == "cvode") {
-      ref = RunCvode(sys, ref_opts);
+    std::optional<ReferenceResult> ref;
+    ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
+    if (reference != "none") {
+      ref = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
       if (!ref->ok) {
-        fmt::print(stderr, "bench_integrators: CVODE reference at rtol {:g} failed: {}\n", ref_rtol, ref->message);
+        fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, ref->message);
         return 1;
       }
     }
@@ -313,9 +317,11 @@ int Main(int argc, char** argv) {
     std::vector<Row> rows;
     for (const std::string& name : names) {
       const std::size_t first = rows.size();
-      if (name == "cvode") {
-        for (double rtol : cvode_rtols)
-          rows.push_back(FromCvode(rtol, RunCvode(sys, {rtol, -1.0, 5, scene.t_end, scene.frame_dt}), scene));
+      if (IsSundials(name)) {
+        for (double rtol : rtols) {
+          const ReferenceOptions o{rtol, -1.0, 5, scene.t_end, scene.frame_dt};
+          rows.push_back(FromReference(rtol, name == "ida" ? RunIda(sys, o) : RunCvode(sys, o), scene));
+        }
       } else {
         const Method m = *MethodFromString(name);
         for (double h : hs) rows.push_back(FromRun(name, h, RunIntegrator(sys, m, {h, scene.t_end, scene.frame_dt}), scene));
@@ -323,7 +329,7 @@ int Main(int argc, char** argv) {
       if (!ref) continue;
       for (std::size_t k = first; k < rows.size(); ++k) {
         if (rows[k].ok) rows[k].err = CompareTrajectories(rows[k].traj.positions, ref->trajectory.positions);
-        if (name != "cvode" && k > first && rows[k].err && rows[k - 1].err)
+        if (!IsSundials(name) && k > first && rows[k].err && rows[k - 1].err)
           rows[k].order = ObservedOrder(rows[k - 1].h, rows[k - 1].err->rms_at_end, rows[k].h, rows[k].err->rms_at_end);
       }
     }

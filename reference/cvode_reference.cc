@@ -109,19 +109,7 @@ int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
 }
 
 int JacFn(realtype t, N_Vector y, N_Vector, SUNMatrix jac, void* user, N_Vector, N_Vector, N_Vector) {
-  const SparseMatrix& j = static_cast<FreeDofOde*>(user)->Jacobian(t, N_VGetArrayPointer(y));
-  if (SUNSparseMatrix_NNZ(jac) < j.nonZeros()) {
-    if (SUNSparseMatrix_Reallocate(jac, j.nonZeros()) != 0) return -1;
-  }
-  sunindextype* colptr = SUNSparseMatrix_IndexPointers(jac);
-  sunindextype* rowval = SUNSparseMatrix_IndexValues(jac);
-  realtype* data = SUNSparseMatrix_Data(jac);
-  for (Eigen::Index c = 0; c <= j.outerSize(); ++c) colptr[c] = j.outerIndexPtr()[c];
-  for (Eigen::Index k = 0; k < j.nonZeros(); ++k) {
-    rowval[k] = j.innerIndexPtr()[k];
-    data[k] = j.valuePtr()[k];
-  }
-  return 0;
+  return internal::CopyToSunSparse(static_cast<FreeDofOde*>(user)->Jacobian(t, N_VGetArrayPointer(y)), jac);
 }
 
 void ErrHandler(int code, const char* module, const char* function, char* msg, void* user) {
@@ -148,10 +136,11 @@ struct CvodeHandles {
 
 }  // namespace
 
-CvodeResult RunCvode(const ParticleSystem& system, const CvodeOptions& options) {
+ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
-  CvodeResult res;
+  ReferenceResult res;
+  res.integrator = "cvode";
   FreeDofOde ode(system);
   CvodeHandles h;
   std::string err;
@@ -175,57 +164,30 @@ CvodeResult RunCvode(const ParticleSystem& system, const CvodeOptions& options) 
   h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
   SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD: the Jacobian pattern is structurally symmetric
   h.mem = CVodeCreate(CV_BDF, h.ctx);
-  const double atol = options.atol > 0.0 ? options.atol : options.rtol;
-  bool ok = check(CVodeSetErrHandlerFn(h.mem, ErrHandler, &err), "CVodeSetErrHandlerFn") &&
-            check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
-            check(CVodeSetUserData(h.mem, &ode), "CVodeSetUserData") &&
-            check(CVodeSStolerances(h.mem, options.rtol, atol), "CVodeSStolerances") &&
-            check(CVodeSetLinearSolver(h.mem, h.ls, h.a), "CVodeSetLinearSolver") &&
-            check(CVodeSetJacFn(h.mem, JacFn), "CVodeSetJacFn") &&
-            check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
-            check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&
-            check(CVodeSetMaxNumSteps(h.mem, 100000000L), "CVodeSetMaxNumSteps");
-
-  const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
-  res.trajectory.times.push_back(0.0);
-  res.trajectory.positions.push_back(system.rest_positions());
-  std::size_t next = 1;
-  double solver_seconds = 0.0;
-  MatrixN3 frame;
-  double t = 0.0;
-  while (ok && next < frames.size()) {
-    // One-step mode gives the step history (the Debian build has no monitoring).
-    const auto t0 = Clock::now();
-    const int flag = CVode(h.mem, options.t_end, h.y, &t, CV_ONE_STEP);
-    solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-    if (!check(flag, "CVode")) break;
-    realtype hlast = 0.0;
-    int qlast = 0;
-    CVodeGetLastStep(h.mem, &hlast);
-    CVodeGetLastOrder(h.mem, &qlast);
-    res.step_t.push_back(t);
-    res.step_h.push_back(hlast);
-    res.step_order.push_back(qlast);
-    while (next < frames.size() && frames[next] <= t + 1e-12) {
-      const double tf = next + 1 == frames.size() ? t : frames[next];
-      if (tf == t) {
-        ode.PositionsFromY(N_VGetArrayPointer(h.y), &frame);
-      } else {
-        if (!check(CVodeGetDky(h.mem, tf, 0, h.dky), "CVodeGetDky")) break;
-        ode.PositionsFromY(N_VGetArrayPointer(h.dky), &frame);
-      }
-      res.trajectory.times.push_back(frames[next]);
-      res.trajectory.positions.push_back(frame);
-      ++next;
-    }
-    if (!res.message.empty()) ok = false;
-  }
-  if (ok && next == frames.size()) {
-    res.ok = true;
-    res.status = "ok";
-  } else if (res.message.empty()) {
-    res.status = "incomplete";
-    res.message = "CVODE stopped before t_end";
+  const bool ok = check(CVodeSetErrHandlerFn(h.mem, ErrHandler, &err), "CVodeSetErrHandlerFn") &&
+                  check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
+                  check(CVodeSetUserData(h.mem, &ode), "CVodeSetUserData") &&
+                  check(CVodeSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "CVodeSStolerances") &&
+                  check(CVodeSetLinearSolver(h.mem, h.ls, h.a), "CVodeSetLinearSolver") &&
+                  check(CVodeSetJacFn(h.mem, JacFn), "CVodeSetJacFn") &&
+                  check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
+                  check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&
+                  check(CVodeSetMaxNumSteps(h.mem, 100000000L), "CVodeSetMaxNumSteps");
+  if (ok) {
+    internal::OneStepDriver d;
+    d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };
+    d.positions_at = [&](double tf, MatrixN3* x) {
+      const int f = CVodeGetDky(h.mem, tf, 0, h.dky);
+      if (f >= 0) ode.PositionsFromY(N_VGetArrayPointer(h.dky), x);
+      return f;
+    };
+    d.current_positions = [&](MatrixN3* x) { ode.PositionsFromY(N_VGetArrayPointer(h.y), x); };
+    d.last_step = [&](double* hl, int* q) {
+      CVodeGetLastStep(h.mem, hl);
+      CVodeGetLastOrder(h.mem, q);
+    };
+    d.flag_name = [](int f) { return std::string(CVodeGetReturnFlagName(f)); };
+    internal::RunFrames(d, system, options, err, &res);
   }
   CVodeGetNumSteps(h.mem, &res.stats.nst);
   CVodeGetNumRhsEvals(h.mem, &res.stats.nfe);
@@ -235,7 +197,6 @@ CvodeResult RunCvode(const ParticleSystem& system, const CvodeOptions& options) 
   CVodeGetNumNonlinSolvConvFails(h.mem, &res.stats.ncfn);
   CVodeGetNumJacEvals(h.mem, &res.stats.nje);
   CVodeGetNumLinSolvSetups(h.mem, &res.stats.nsetups);
-  res.solver_time_in_seconds = solver_seconds;
   res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }

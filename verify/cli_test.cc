@@ -88,7 +88,7 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --integrators sbdf2,rk4" + o), "unknown integrator \"rk4\"");
   ExpectOneLineError(RunBench(tiny + " --h 0.01,-0.005" + o), "--h: \"-0.005\" is not a positive number");
   ExpectOneLineError(RunBench(tiny + " --h 0" + o), "--h: \"0\" is not a positive number");
-  ExpectOneLineError(RunBench(tiny + " --reference ida" + o), "--reference");
+  ExpectOneLineError(RunBench(tiny + " --reference ode45" + o), "--reference");
   ExpectOneLineError(RunBench(tiny + " --no-such-flag" + o), "no-such-flag");
   EXPECT_FALSE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
@@ -98,7 +98,7 @@ TEST(BenchCli, CompleteRunWritesLayout) {
   const fs::path out = TempDir() / "tiny.h5";
   fs::remove(out);
   const Outcome o = RunBench("--scene " + WriteScene("tiny.toml", kTiny) +
-                             " --integrators bdf2,cvode --h 0.01,0.005 --cvode-rtols 1e-6 --out " + out.string());
+                             " --integrators bdf2,cvode --h 0.01,0.005 --rtols 1e-6 --out " + out.string());
   ASSERT_EQ(o.exit_code, 0) << o.err;
   ASSERT_TRUE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));

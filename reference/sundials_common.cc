@@ -1,0 +1,70 @@
+#include "reference/sundials_common.h"
+
+#include <chrono>
+
+#include <sunmatrix/sunmatrix_sparse.h>
+
+namespace clothbench::internal {
+
+void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
+               const std::string& error, ReferenceResult* res) {
+  using Clock = std::chrono::steady_clock;
+  const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
+  res->trajectory.times.assign(1, 0.0);
+  res->trajectory.positions.assign(1, system.rest_positions());
+  std::size_t next = 1;
+  double solver_seconds = 0.0, t = 0.0;
+  MatrixN3 frame;
+  bool ok = true;
+  while (ok && next < frames.size()) {
+    const auto t0 = Clock::now();
+    const int flag = d.step(&t);
+    solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    if (flag < 0) {
+      res->status = d.flag_name(flag);
+      res->message = error.empty() ? "step failed with " + res->status : error;
+      ok = false;
+      break;
+    }
+    double h = 0.0;
+    int q = 0;
+    d.last_step(&h, &q);
+    res->step_t.push_back(t);
+    res->step_h.push_back(h);
+    res->step_order.push_back(q);
+    while (next < frames.size() && frames[next] <= t + 1e-12) {
+      if (next + 1 == frames.size() || frames[next] == t) {
+        d.current_positions(&frame);  // the stop time t_end is hit exactly
+      } else if (const int f = d.positions_at(frames[next], &frame); f < 0) {
+        res->status = d.flag_name(f);
+        res->message = error.empty() ? "dense output failed with " + res->status : error;
+        ok = false;
+        break;
+      }
+      res->trajectory.times.push_back(frames[next]);
+      res->trajectory.positions.push_back(frame);
+      ++next;
+    }
+  }
+  if (ok) {
+    res->ok = true;
+    res->status = "ok";
+  }
+  res->solver_time_in_seconds = solver_seconds;
+}
+
+int CopyToSunSparse(const SparseMatrix& j, void* sun_matrix) {
+  auto m = static_cast<SUNMatrix>(sun_matrix);
+  if (SUNSparseMatrix_NNZ(m) < j.nonZeros() && SUNSparseMatrix_Reallocate(m, j.nonZeros()) != 0) return -1;
+  sunindextype* colptr = SUNSparseMatrix_IndexPointers(m);
+  sunindextype* rowval = SUNSparseMatrix_IndexValues(m);
+  realtype* data = SUNSparseMatrix_Data(m);
+  for (Eigen::Index c = 0; c <= j.outerSize(); ++c) colptr[c] = j.outerIndexPtr()[c];
+  for (Eigen::Index k = 0; k < j.nonZeros(); ++k) {
+    rowval[k] = j.innerIndexPtr()[k];
+    data[k] = j.valuePtr()[k];
+  }
+  return 0;
+}
+
+}  // namespace clothbench::internal

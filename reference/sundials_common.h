@@ -1,0 +1,76 @@
+// Shared parts of the SUNDIALS references (SPEC §8): options, counters,
+// results, the one-step frame loop and the sparse-matrix copy.
+#ifndef CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
+#define CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "model/particle_system.h"
+#include "solver/run.h"
+
+namespace clothbench {
+
+struct ReferenceOptions {
+  double rtol = 1e-10;     ///< relative tolerance
+  double atol = -1.0;      ///< absolute tolerance [m, m/s]; < 0: atol = rtol
+  int max_order = 5;       ///< BDF order limit (1..5)
+  double t_end = 1.0;      ///< [s]
+  double frame_dt = 0.01;  ///< [s]
+  double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
+};
+
+/// SUNDIALS counters (CVodePrintAllStats / IDAPrintAllStats names).
+struct ReferenceStats {
+  long nst = -1;      ///< steps
+  long nfe = -1;      ///< right-hand side (CVODE) or residual (IDA) evaluations
+  long nni = -1;      ///< nonlinear (Newton) iterations
+  long nli = -1;      ///< linear iterations (0 for the direct KLU solver)
+  long netf = -1;     ///< error test failures
+  long ncfn = -1;     ///< nonlinear convergence failures
+  long nje = -1;      ///< Jacobian evaluations
+  long nsetups = -1;  ///< linear solver setups (KLU factorisations)
+};
+
+struct ReferenceResult {
+  bool ok = false;
+  std::string integrator;          ///< "cvode" or "ida"
+  std::string status = "not_run";  ///< "ok" or the SUNDIALS flag name
+  std::string message;
+  ReferenceStats stats;
+  double solver_time_in_seconds = -1.0;
+  double wall_time_in_seconds = -1.0;
+  Trajectory trajectory;
+  std::vector<double> step_t, step_h;  ///< step history from one-step mode
+  std::vector<int> step_order;
+};
+
+namespace internal {
+
+/// Calls of one SUNDIALS integrator used by the shared frame loop.
+struct OneStepDriver {
+  /// Takes one internal step towards t_end; returns the flag, sets t.
+  std::function<int(double* t)> step;
+  /// Positions at time tf inside the last step (dense output) into x.
+  std::function<int(double tf, MatrixN3* x)> positions_at;
+  /// Positions at the current time into x.
+  std::function<void(MatrixN3* x)> current_positions;
+  std::function<void(double* h, int* order)> last_step;
+  std::function<std::string(int flag)> flag_name;
+};
+
+/// Runs the one-step loop (the Debian build has no monitoring) storing the
+/// step history and the frames 0, frame_dt, …, t_end. `error` holds the
+/// message of the SUNDIALS error handler, if any.
+void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
+               const std::string& error, ReferenceResult* res);
+
+/// Copies a compressed-column Eigen matrix into a SUNDIALS CSC matrix
+/// (reallocating if needed). Returns 0 or −1.
+int CopyToSunSparse(const SparseMatrix& j, void* sun_matrix);
+
+}  // namespace internal
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
