@@ -73,6 +73,7 @@ struct Row {
   double solver_time = 0.0, wall_time = 0.0;
   std::optional<TrajectoryErrors> err;
   std::optional<double> order;
+  EnergySeries energy;
   double stiffness = 0.0;
   Trajectory traj;
   std::vector<StepRecord> steps_table;
@@ -128,6 +129,19 @@ Row FromReference(double rtol, const ReferenceResult& c, const Scene& scene) {
 }
 
 
+void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
+  f.CreateGroup(g + "/energy");
+  f.WriteVector(g + "/energy/kinetic", e.kinetic, "J");
+  f.WriteVector(g + "/energy/tension", e.tension, "J");
+  f.WriteVector(g + "/energy/shear", e.shear, "J");
+  f.WriteVector(g + "/energy/bending", e.bending, "J");
+  f.WriteVector(g + "/energy/gravity", e.gravity, "J");
+  f.WriteVector(g + "/energy/external_work", e.external_work, "J");
+  f.WriteVector(g + "/energy/total", e.total, "J");
+  f.WriteVectors3(g + "/momentum", e.momentum, "kg m/s");
+  if (e.t.size() >= 2) f.SetAttribute(g, "energy_rate_W", e.Rate());
+}
+
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows) {
   ResultFile f(path);
@@ -161,6 +175,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
       f.SetAttribute("/reference", name, v);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
     f.WriteFrames("/reference/positions", ref->trajectory.positions);
+    f.WriteFrames("/reference/velocities", ref->trajectory.velocities, "m/s");
+    WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
     for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0});
     f.WriteStepStats("/reference/step_stats", st);
@@ -201,6 +217,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     if (r.order) f.SetAttribute(g, "observed_order", *r.order);
     f.WriteVector(g + "/times", r.traj.times, "s");
     f.WriteFrames(g + "/positions", r.traj.positions);
+    f.WriteFrames(g + "/velocities", r.traj.velocities, "m/s");
+    WriteEnergy(f, g, r.energy);
     f.WriteStepStats(g + "/step_stats", r.steps_table);
     if (!r.cvode_order.empty()) f.WriteVector(g + "/bdf_order", r.cvode_order, "");
   }
@@ -220,23 +238,26 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
              scene.solver.cg_tolerance, ToString(scene.solver.preconditioner), scene.solver.max_updates,
              ToString(scene.solver.predictor), scene.NumericalStiffness(scene.h), scene.h);
   if (ref)
-    fmt::print("reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s\n",
-               ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->stats.nst, ref->wall_time_in_seconds);
+    fmt::print("reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {:.3e} W\n",
+               ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->stats.nst, ref->wall_time_in_seconds,
+               ComputeEnergies(sys, ref->trajectory).Rate());
   else
     fmt::print("reference: none (error columns empty)\n");
-  fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>11} {:>7}  {}\n", "integrator", "h|rtol", "steps", "updates",
-             "cg_iters", "solver_s", "e_rms_m", "order", "status");
+  fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol", "steps",
+             "updates", "cg_iters", "solver_s", "e_rms_m", "order", "dE/dt_W", "status");
   std::string last;
   for (const Row& r : rows) {
     if (!last.empty() && last != r.integrator) fmt::print("\n");
     last = r.integrator;
     const std::string hcol = IsSundials(r.integrator) ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
-    fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>11} {:>7}  {}\n", r.integrator, hcol, r.steps, r.updates,
-               r.cg, r.solver_time, r.err ? Sci(r.err->rms_at_end) : "", r.order ? fmt::format("{:.2f}", *r.order) : "",
-               r.ok ? "ok" : r.status + (r.rejected > 0 ? "" : ""));
+    fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>11} {:>7} {:>11}  {}\n", r.integrator, hcol, r.steps,
+               r.updates, r.cg, r.solver_time, r.err ? Sci(r.err->rms_at_end) : "",
+               r.order ? fmt::format("{:.2f}", *r.order) : "", r.ok ? fmt::format("{:.3e}", r.energy.Rate()) : "",
+               r.ok ? "ok" : r.status);
     if (r.ok && r.rejected > 0) fmt::print("{:<18} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
   }
   fmt::print("\ncvode/ida rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
+  fmt::print("dE/dt_W: (E(t_end) - E(0) - W_ext)/t_end, energy gained (> 0) or dissipated (< 0) beyond external work.\n");
   fmt::print("machine: {}, {} hardware threads, {}, {} build, commit {}\n", HostName(),
              std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());
 }
@@ -326,6 +347,8 @@ int Main(int argc, char** argv) {
         const Method m = *MethodFromString(name);
         for (double h : hs) rows.push_back(FromRun(name, h, RunIntegrator(sys, m, {h, scene.t_end, scene.frame_dt}), scene));
       }
+      for (std::size_t k = first; k < rows.size(); ++k)
+        if (rows[k].ok) rows[k].energy = ComputeEnergies(sys, rows[k].traj);
       if (!ref) continue;
       for (std::size_t k = first; k < rows.size(); ++k) {
         if (rows[k].ok) rows[k].err = CompareTrajectories(rows[k].traj.positions, ref->trajectory.positions);

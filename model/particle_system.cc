@@ -1,6 +1,8 @@
 // Assembly of the particle model (SPEC §1, §2, §2.6).
 #include "model/particle_system.h"
 
+#include <Eigen/Geometry>
+
 namespace clothbench {
 
 ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
@@ -75,9 +77,61 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   if (mat.transverse != 0.0) terms_.push_back(MakeTransverse(geo, mat.transverse));
   if (scene.forces.gravity.squaredNorm() > 0.0) terms_.push_back(MakeGravity(mass_, scene.forces.gravity));
   if (scene.forces.wind && scene.forces.wind->direction.squaredNorm() > 0.0 &&
-      (scene.forces.wind->drag != 0.0 || scene.forces.wind->lift != 0.0))
+      (scene.forces.wind->drag != 0.0 || scene.forces.wind->lift != 0.0)) {
     terms_.push_back(MakeWind(geo, *scene.forces.wind));
-  if (scene.forces.air != 0.0) terms_.push_back(MakeAirResistance(geo, scene.forces.air));
+    external_terms_.push_back(terms_.back().get());
+  }
+  if (scene.forces.air != 0.0) {
+    terms_.push_back(MakeAirResistance(geo, scene.forces.air));
+    external_terms_.push_back(terms_.back().get());
+  }
+}
+
+void ParticleSystem::AddExternalForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
+  for (const ForceTerm* term : external_terms_) term->AddForce(t, x, v, f);
+}
+
+EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) const {
+  EnergyBreakdown e;
+  const MaterialSpec& mat = scene_.material;
+  e.kinetic = 0.5 * (mass_.asDiagonal() * v).cwiseProduct(v).sum();
+  e.momentum = (mass_.transpose() * v).transpose();
+  e.gravity = -(mass_.transpose() * (x * scene_.forces.gravity)).value();
+  const bool linear = mat.tension_model == TensionModel::kLinear;
+  for (const Spring& s : springs_) {
+    const double len = (x.row(s.b) - x.row(s.a)).norm();
+    const double stretch = linear ? len : len - s.rest_length;
+    e.tension += 0.5 * s.stiffness * stretch * stretch;
+  }
+  const int nu = scene_.grid.nu, nv = scene_.grid.nv;
+  const double lu = scene_.lu(), lv = scene_.lv();
+  auto at = [&](int i, int j) { return Vector3(x.row(scene_.Index(i, j)).transpose()); };
+  const bool bend = mat.bend_model != BendModel::kNone && (mat.bend[0] != 0.0 || mat.bend[1] != 0.0);
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      // Shear strain γ with one-sided differences on the border (SPEC §2.2).
+      if (mat.shear != 0.0) {
+        const int r = std::min(i + 1, nu - 1), l = std::max(i - 1, 0), u = std::min(j + 1, nv - 1), d = std::max(j - 1, 0);
+        const Vector3 a = (at(r, j) - at(l, j)) / ((r - l) * lu), b = (at(i, u) - at(i, d)) / ((u - d) * lv);
+        const double gamma = a.dot(b);
+        e.shear += 0.5 * mat.shear * gamma * gamma * lu * lv;
+      }
+      if (bend) {
+        // Vertex normal: mean of the unit normals of the adjacent quads.
+        Vector3 n = Vector3::Zero();
+        for (int s : {1, -1})
+          for (int t : {1, -1}) {
+            if (i + s < 0 || i + s >= nu || j + t < 0 || j + t >= nv) continue;
+            const Vector3 nf = (at(i + s, j + t) - at(i, j)).cross(at(i, j + t) - at(i + s, j)) * (s * t);
+            n += nf.normalized();
+          }
+        n.normalize();
+        const double kuu = (i > 0 && i < nu - 1) ? (at(i + 1, j) - 2 * at(i, j) + at(i - 1, j)).dot(n) / (lu * lu) : 0.0;
+        const double kvv = (j > 0 && j < nv - 1) ? (at(i, j + 1) - 2 * at(i, j) + at(i, j - 1)).dot(n) / (lv * lv) : 0.0;
+        e.bending += 0.5 * lu * lv * (mat.bend[0] * kuu * kuu + mat.bend[1] * kvv * kvv);
+      }
+    }
+  return e;
 }
 
 std::vector<std::string> ParticleSystem::TermNames() const {

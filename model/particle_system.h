@@ -15,6 +15,18 @@
 
 namespace clothbench {
 
+/// Energies [J] and linear momentum [kg m/s] of a state (issue 3 item 5).
+struct EnergyBreakdown {
+  double kinetic = 0.0;    ///< ½ Σ m |v|²
+  double tension = 0.0;    ///< ½ Σ s_e (|d| − l_e)² (split) or ½ Σ s_e |d|² (linear model)
+  double shear = 0.0;      ///< Σ ½ μ γ² lu lv, the energy whose gradient the shear term is (SPEC §2.2)
+  double bending = 0.0;    ///< ½ Σ lu lv (B_u ⟨s_uu,N⟩² + B_v ⟨s_vv,N⟩²): a diagnostic, see below
+  double gravity = 0.0;    ///< −Σ m g·x
+  Vector3 momentum = Vector3::Zero();  ///< Σ m v
+  /// Kinetic + tension + shear + bending + gravity.
+  double total() const { return kinetic + tension + shear + bending + gravity; }
+};
+
 class ParticleSystem {
  public:
   /// Builds the model of `scene` (validated by ParseScene).
@@ -53,6 +65,19 @@ class ParticleSystem {
   void ForceJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                      std::vector<Triplet>* dfdv) const;
 
+  /// Energies and momentum of (x, v). Tension, shear and gravity are exact
+  /// potentials of their forces. The bending value is the normal-curvature
+  /// energy of (2.25)/(2.26) evaluated with the discrete second differences;
+  /// the projected bending forces (Alg. 3/4) are not its exact gradient, so
+  /// energy balances that must close exactly are checked without bending.
+  EnergyBreakdown Energies(const MatrixN3& x, const MatrixN3& v) const;
+
+  /// True if the scene has non-conservative external forces (wind, air),
+  /// whose work the run driver integrates.
+  bool has_external_work() const { return external_terms_.size() > 0; }
+  /// f += the non-conservative external forces (wind, air) at (t, x, v).
+  void AddExternalForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const;
+
  private:
   Scene scene_;
   int n_ = 0;
@@ -63,6 +88,7 @@ class ParticleSystem {
   std::vector<int> fixed_;
   std::vector<char> fixed_mask_;
   std::vector<std::unique_ptr<ForceTerm>> terms_;
+  std::vector<const ForceTerm*> external_terms_;  // wind, air (owned by terms_)
 };
 
 }  // namespace clothbench

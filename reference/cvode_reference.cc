@@ -45,6 +45,12 @@ class FreeDofOde {
     for (int k = 0; k < nf_; ++k)
       for (int c = 0; c < 3; ++c) (*x)(free_[static_cast<std::size_t>(k)], c) = y[3 * k + c];
   }
+  // Velocities of all particles (fixed ones at rest).
+  void VelocitiesFromY(const double* y, MatrixN3* v) const {
+    v->setZero(n_, 3);
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) (*v)(free_[static_cast<std::size_t>(k)], c) = y[3 * nf_ + 3 * k + c];
+  }
   void Unpack(const double* y) {
     PositionsFromY(y, &x_);
     for (int k = 0; k < nf_; ++k)
@@ -176,12 +182,18 @@ ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& o
   if (ok) {
     internal::OneStepDriver d;
     d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };
-    d.positions_at = [&](double tf, MatrixN3* x) {
+    d.state_at = [&](double tf, MatrixN3* x, MatrixN3* v) {
       const int f = CVodeGetDky(h.mem, tf, 0, h.dky);
-      if (f >= 0) ode.PositionsFromY(N_VGetArrayPointer(h.dky), x);
+      if (f >= 0) {
+        ode.PositionsFromY(N_VGetArrayPointer(h.dky), x);
+        ode.VelocitiesFromY(N_VGetArrayPointer(h.dky), v);
+      }
       return f;
     };
-    d.current_positions = [&](MatrixN3* x) { ode.PositionsFromY(N_VGetArrayPointer(h.y), x); };
+    d.current_state = [&](MatrixN3* x, MatrixN3* v) {
+      ode.PositionsFromY(N_VGetArrayPointer(h.y), x);
+      ode.VelocitiesFromY(N_VGetArrayPointer(h.y), v);
+    };
     d.last_step = [&](double* hl, int* q) {
       CVodeGetLastStep(h.mem, hl);
       CVodeGetLastOrder(h.mem, q);

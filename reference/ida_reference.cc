@@ -30,10 +30,14 @@ class ResidualForm {
         v_(p, c) = y[3 * n_ + 3 * p + c];
       }
   }
-  void Positions(const double* y, MatrixN3* x) const {
+  void State(const double* y, MatrixN3* x, MatrixN3* v) const {
     x->resize(n_, 3);
+    v->resize(n_, 3);
     for (int p = 0; p < n_; ++p)
-      for (int c = 0; c < 3; ++c) (*x)(p, c) = y[3 * p + c];
+      for (int c = 0; c < 3; ++c) {
+        (*x)(p, c) = y[3 * p + c];
+        (*v)(p, c) = y[3 * n_ + 3 * p + c];
+      }
   }
 
   // Consistent initial values at rest: ẋ = v = 0, M v̇ = f(0, x₀, 0).
@@ -187,12 +191,12 @@ ReferenceResult RunIda(const ParticleSystem& system, const ReferenceOptions& opt
   if (ok) {
     internal::OneStepDriver d;
     d.step = [&](double* t) { return IDASolve(h.mem, options.t_end, t, h.y, h.yp, IDA_ONE_STEP); };
-    d.positions_at = [&](double tf, MatrixN3* x) {
+    d.state_at = [&](double tf, MatrixN3* x, MatrixN3* v) {
       const int f = IDAGetDky(h.mem, tf, 0, h.dky);
-      if (f >= 0) form.Positions(N_VGetArrayPointer(h.dky), x);
+      if (f >= 0) form.State(N_VGetArrayPointer(h.dky), x, v);
       return f;
     };
-    d.current_positions = [&](MatrixN3* x) { form.Positions(N_VGetArrayPointer(h.y), x); };
+    d.current_state = [&](MatrixN3* x, MatrixN3* v) { form.State(N_VGetArrayPointer(h.y), x, v); };
     d.last_step = [&](double* hl, int* q) {
       IDAGetLastStep(h.mem, hl);
       IDAGetLastOrder(h.mem, q);

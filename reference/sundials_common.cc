@@ -12,9 +12,10 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
   res->trajectory.times.assign(1, 0.0);
   res->trajectory.positions.assign(1, system.rest_positions());
+  res->trajectory.velocities.assign(1, MatrixN3::Zero(system.num_particles(), 3));
   std::size_t next = 1;
   double solver_seconds = 0.0, t = 0.0;
-  MatrixN3 frame;
+  MatrixN3 frame, frame_v;
   bool ok = true;
   while (ok && next < frames.size()) {
     const auto t0 = Clock::now();
@@ -34,8 +35,8 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     res->step_order.push_back(q);
     while (next < frames.size() && frames[next] <= t + 1e-12) {
       if (next + 1 == frames.size() || frames[next] == t) {
-        d.current_positions(&frame);  // the stop time t_end is hit exactly
-      } else if (const int f = d.positions_at(frames[next], &frame); f < 0) {
+        d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly
+      } else if (const int f = d.state_at(frames[next], &frame, &frame_v); f < 0) {
         res->status = d.flag_name(f);
         res->message = error.empty() ? "dense output failed with " + res->status : error;
         ok = false;
@@ -43,6 +44,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       }
       res->trajectory.times.push_back(frames[next]);
       res->trajectory.positions.push_back(frame);
+      res->trajectory.velocities.push_back(frame_v);
       ++next;
     }
   }

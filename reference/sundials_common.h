@@ -52,10 +52,10 @@ namespace internal {
 struct OneStepDriver {
   /// Takes one internal step towards t_end; returns the flag, sets t.
   std::function<int(double* t)> step;
-  /// Positions at time tf inside the last step (dense output) into x.
-  std::function<int(double tf, MatrixN3* x)> positions_at;
-  /// Positions at the current time into x.
-  std::function<void(MatrixN3* x)> current_positions;
+  /// Positions and velocities at time tf inside the last step (dense output).
+  std::function<int(double tf, MatrixN3* x, MatrixN3* v)> state_at;
+  /// Positions and velocities at the current time.
+  std::function<void(MatrixN3* x, MatrixN3* v)> current_state;
   std::function<void(double* h, int* order)> last_step;
   std::function<std::string(int flag)> flag_name;
 };

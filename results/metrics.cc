@@ -37,4 +37,38 @@ double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>
   return (n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
+double EnergySeries::Rate() const {
+  if (t.size() < 2) return 0.0;
+  return (total.back() - total.front() - external_work.back()) / (t.back() - t.front());
+}
+
+EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& traj) {
+  EnergySeries s;
+  const std::size_t f = std::min(traj.positions.size(), traj.velocities.size());
+  MatrixN3 fext(system.num_particles(), 3);
+  double work = 0.0, power_prev = 0.0;
+  for (std::size_t k = 0; k < f; ++k) {
+    const EnergyBreakdown e = system.Energies(traj.positions[k], traj.velocities[k]);
+    s.t.push_back(traj.times[k]);
+    s.kinetic.push_back(e.kinetic);
+    s.tension.push_back(e.tension);
+    s.shear.push_back(e.shear);
+    s.bending.push_back(e.bending);
+    s.gravity.push_back(e.gravity);
+    s.total.push_back(e.total());
+    s.momentum.push_back(e.momentum);
+    if (k < traj.external_work.size()) {
+      work = traj.external_work[k];
+    } else if (system.has_external_work()) {
+      fext.setZero();
+      system.AddExternalForces(traj.times[k], traj.positions[k], traj.velocities[k], &fext);
+      const double power = (fext.array() * traj.velocities[k].array()).sum();
+      if (k > 0) work += 0.5 * (traj.times[k] - traj.times[k - 1]) * (power + power_prev);
+      power_prev = power;
+    }
+    s.external_work.push_back(work);
+  }
+  return s;
+}
+
 }  // namespace clothbench

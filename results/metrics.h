@@ -5,7 +5,9 @@
 #include <optional>
 #include <vector>
 
+#include "model/particle_system.h"
 #include "model/types.h"
+#include "solver/run.h"
 
 namespace clothbench {
 
@@ -29,6 +31,21 @@ double ObservedOrder(double h1, double e1, double h2, double e2);
 
 /// Least-squares slope of log e against log h.
 double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e);
+
+/// Energies [J] and momentum [kg m/s] per frame (issue 3 item 5).
+struct EnergySeries {
+  std::vector<double> t, kinetic, tension, shear, bending, gravity, external_work, total;
+  std::vector<Vector3> momentum;
+  /// (E(t_end) − E(0) − W_ext(t_end)) / t_end [W]: the rate at which the run
+  /// gains (> 0) or dissipates (< 0) energy beyond the work of external
+  /// forces. Physical damping contributes; the reference run shows how much.
+  double Rate() const;
+};
+
+/// Evaluates ParticleSystem::Energies at every frame. External work comes
+/// from the run (trapezoidal rule per step) or, for the SUNDIALS references,
+/// from the trapezoidal rule over frames.
+EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& trajectory);
 
 }  // namespace clothbench
 

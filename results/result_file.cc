@@ -100,7 +100,21 @@ void ResultFile::WriteVector(const std::string& path, const std::vector<double>&
   if (!units.empty()) SetAttribute(path, "units", units);
 }
 
-void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames) {
+void ResultFile::WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units) {
+  std::vector<double> buf;
+  buf.reserve(rows.size() * 3);
+  for (const Vector3& r : rows) buf.insert(buf.end(), {r.x(), r.y(), r.z()});
+  const hsize_t dims[2] = {rows.size(), 3};
+  Handle space{H5Screate_simple(2, dims, nullptr), H5Sclose};
+  Handle ds{Check(H5Dcreate2(file_, path.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                  "cannot create dataset " + path, path_),
+            H5Dclose};
+  if (!buf.empty())
+    Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
+  SetAttribute(path, "units", units);
+}
+
+void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames, const std::string& units) {
   const hsize_t f = frames.size(), n = frames.empty() ? 0 : static_cast<hsize_t>(frames[0].rows());
   std::vector<double> buf(f * n * 3);
   for (hsize_t k = 0; k < f; ++k)
@@ -114,7 +128,7 @@ void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3
             H5Dclose};
   if (!buf.empty())
     Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
-  SetAttribute(path, "units", std::string("m"));
+  SetAttribute(path, "units", units);
 }
 
 void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows) {

@@ -45,8 +45,10 @@ class ResultFile {
   void SetAttribute(const std::string& object, const std::string& name, long value);
   /// 1-D float64 dataset [n].
   void WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units);
-  /// positions [F, N, 3] float64 [m] from F frames of N×3.
-  void WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames);
+  /// [F, N, 3] float64 from F frames of N×3 (positions [m], velocities [m/s]).
+  void WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames, const std::string& units = "m");
+  /// [F, 3] float64 from F 3-vectors.
+  void WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units);
   /// Compound table (t, h, updates, cg_iterations, status) [S].
   void WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows);
   /// Closes the file and renames it to its final path. @throws ResultError.

@@ -16,10 +16,14 @@ namespace clothbench {
 /// is not a multiple of frame_dt).
 std::vector<double> FrameTimes(double t_end, double frame_dt);
 
-/// Frames of a run: times [F] and N×3 positions per frame.
+/// Frames of a run: times [F], N×3 positions and velocities per frame, and
+/// the work done by non-conservative external forces (wind, air) since t = 0
+/// [J] when the run integrated it (empty otherwise).
 struct Trajectory {
   std::vector<double> times;
   std::vector<MatrixN3> positions;
+  std::vector<MatrixN3> velocities;
+  std::vector<double> external_work;
 };
 
 struct RunOptions {
