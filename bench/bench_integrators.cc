@@ -266,9 +266,10 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  app.add_option("--scene", scene_path, "scene file (TOML); default: the embedded swinging_sheet");
+  app.add_option("--scene", scene_path,
+                 "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
-                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,cvode,ida "
+                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,cvode,ida "
                  "(default: the five methods and cvode)");
   app.add_option("--h", h_arg, "comma-separated step sizes [s] (default: scene h, h/2, h/4, h/8)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
@@ -288,7 +289,7 @@ int Main(int argc, char** argv) {
 
   try {
     // Validate everything before computing anything.
-    Scene scene = scene_path.empty() ? DefaultScene() : LoadScene(scene_path);
+    Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {
       if (!std::isfinite(t_end) || !(t_end > 0.0)) throw UsageError(fmt::format("--t-end: {} is not a positive number", t_end));
       scene.t_end = t_end;
@@ -311,7 +312,7 @@ int Main(int argc, char** argv) {
       for (const std::string& n : names)
         if (!IsSundials(n) && !MethodFromString(n))
           throw UsageError(fmt::format("--integrators: unknown integrator \"{}\" (expected imex_euler, implicit_euler, "
-                                       "sbdf2, bdf2, implicit_midpoint, cvode, ida)",
+                                       "sbdf2, bdf2, implicit_midpoint, symplectic_euler, cvode, ida)",
                                        n));
     }
     std::vector<double> hs = h_arg.empty()

@@ -351,8 +351,26 @@ Scene LoadScene(const std::string& path) {
   return ParseScene(ss.str(), path);
 }
 
-std::string_view DefaultSceneToml() { return kDefaultSceneToml; }
+std::string_view DefaultSceneToml() { return kBuiltinScenes[0].second; }
 
-Scene DefaultScene() { return ParseScene(kDefaultSceneToml, "<embedded:swinging_sheet.toml>"); }
+Scene DefaultScene() { return BuiltinScene("swinging_sheet"); }
+
+std::vector<std::string> BuiltinSceneNames() {
+  std::vector<std::string> names;
+  for (const auto& [name, text] : kBuiltinScenes) names.emplace_back(name);
+  return names;
+}
+
+Scene BuiltinScene(std::string_view name) {
+  for (const auto& [n, text] : kBuiltinScenes)
+    if (n == name) return ParseScene(text, fmt::format("<embedded:{}.toml>", n));
+  throw SceneError(fmt::format("<embedded>: no built-in scene \"{}\"", name));
+}
+
+Scene LoadSceneOrBuiltin(const std::string& arg) {
+  for (const auto& [n, text] : kBuiltinScenes)
+    if (n == arg) return BuiltinScene(n);
+  return LoadScene(arg);
+}
 
 }  // namespace clothbench

@@ -100,6 +100,31 @@ void ResultFile::WriteVector(const std::string& path, const std::vector<double>&
   if (!units.empty()) SetAttribute(path, "units", units);
 }
 
+namespace {
+
+void WriteRaw(hid_t file, const std::string& file_path, const std::string& path, int rank, const hsize_t* dims,
+              hid_t ftype, hid_t mtype, const void* data, bool empty) {
+  Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
+  Handle ds{Check(H5Dcreate2(file, path.c_str(), ftype, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                  "cannot create dataset " + path, file_path),
+            H5Dclose};
+  if (!empty) Check(H5Dwrite(ds.id, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "cannot write " + path, file_path);
+}
+
+}  // namespace
+
+void ResultFile::WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values,
+                            const std::string& units) {
+  const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
+  WriteRaw(file_, path_, path, 2, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(), values.empty());
+  if (!units.empty()) SetAttribute(path, "units", units);
+}
+
+void ResultFile::WriteTable(const std::string& path, int rows, int cols, const std::vector<int32_t>& values) {
+  const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
+  WriteRaw(file_, path_, path, 2, dims, H5T_STD_I32LE, H5T_NATIVE_INT32, values.data(), values.empty());
+}
+
 void ResultFile::WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units) {
   std::vector<double> buf;
   buf.reserve(rows.size() * 3);

@@ -47,6 +47,9 @@ class ResultFile {
   void WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units);
   /// [F, N, 3] float64 from F frames of N×3 (positions [m], velocities [m/s]).
   void WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames, const std::string& units = "m");
+  /// 2-D row-major table [rows, cols] of float64 or int32.
+  void WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values, const std::string& units);
+  void WriteTable(const std::string& path, int rows, int cols, const std::vector<int32_t>& values);
   /// [F, 3] float64 from F 3-vectors.
   void WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units);
   /// Compound table (t, h, updates, cg_iterations, status) [S].

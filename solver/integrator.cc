@@ -14,6 +14,7 @@ std::string_view ToString(Method m) {
     case Method::kSbdf2: return "sbdf2";
     case Method::kBdf2: return "bdf2";
     case Method::kImplicitMidpoint: return "implicit_midpoint";
+    case Method::kSymplecticEuler: return "symplectic_euler";
   }
   return "?";
 }
@@ -21,6 +22,7 @@ std::string_view ToString(Method m) {
 std::optional<Method> MethodFromString(std::string_view s) {
   for (Method m : AllMethods())
     if (ToString(m) == s) return m;
+  if (s == ToString(Method::kSymplecticEuler)) return Method::kSymplecticEuler;
   return std::nullopt;
 }
 
@@ -32,7 +34,11 @@ const std::vector<Method>& AllMethods() {
 
 bool IsImex(Method m) { return m == Method::kImexEuler || m == Method::kSbdf2; }
 
-int MethodOrder(Method m) { return (m == Method::kImexEuler || m == Method::kImplicitEuler) ? 1 : 2; }
+bool IsExplicit(Method m) { return m == Method::kSymplecticEuler; }
+
+int MethodOrder(Method m) {
+  return (m == Method::kImexEuler || m == Method::kImplicitEuler || m == Method::kSymplecticEuler) ? 1 : 2;
+}
 
 std::string_view ToString(StepStatus s) {
   switch (s) {
@@ -41,6 +47,7 @@ std::string_view ToString(StepStatus s) {
     case StepStatus::kNoFixedPointConvergence: return "no_fixed_point_convergence";
     case StepStatus::kNonFinite: return "non_finite";
     case StepStatus::kPreconditionerFailed: return "preconditioner_failed";
+    case StepStatus::kFixedPointDiverged: return "fixed_point_diverged";
   }
   return "?";
 }
@@ -112,6 +119,7 @@ StepStats StepEngine::Step(double h) {
   StepStats st;
   st.t = t_ + h;
   st.h = h;
+  if (method_ == Method::kSymplecticEuler) return ExplicitStep(h, st);
 
   // Multistep methods start with a one-step method of the same family
   // (SPEC §4): SBDF(2) with IMEX Euler, BDF(2) with implicit Euler.
@@ -172,6 +180,8 @@ StepStats StepEngine::Step(double h) {
       }
       t_g = t_ + 0.5 * h;
       break;
+    case Method::kSymplecticEuler:  // handled by ExplicitStep
+      break;
   }
 
   if (!sysmat_.Update(alpha * h)) {
@@ -215,7 +225,10 @@ StepStats StepEngine::Step(double h) {
     ++st.updates;
     st.cg_iterations += last_pcg_.iterations;
     if (last_pcg_.status != PcgStatus::kConverged) {
-      st.status = last_pcg_.status == PcgStatus::kNonFinite ? StepStatus::kNonFinite : StepStatus::kCgFailed;
+      if (last_pcg_.status != PcgStatus::kNonFinite)
+        st.status = StepStatus::kCgFailed;
+      else
+        st.status = (!imex && u > 0) ? StepStatus::kFixedPointDiverged : StepStatus::kNonFinite;
       return st;
     }
     // Alg. 6 line 11: converged when the PCG needed 0 iterations (the new
@@ -251,6 +264,28 @@ StepStats StepEngine::Step(double h) {
   have_g0_ = false;
   // SBDF(2) needs g₋₁; after an implicit start step it was never evaluated.
   if (method_ == Method::kSbdf2 && !g_history_valid) sys_.ExplicitForces(t_, xm1_, vm1_, &gm1_);
+  h_prev_ = h;
+  have_history_ = true;
+  t_ += h;
+  return st;
+}
+
+// Symplectic (semi-implicit) Euler: v₁ = v₀ + h M⁻¹ f(t₀, x₀, v₀),
+// x₁ = x₀ + h v₁ — the explicit baseline of the stability maps. Stable only
+// while h ω_max < 2 (its CFL limit, numerical stiffness·λ_max < 4).
+StepStats StepEngine::ExplicitStep(double h, StepStats st) {
+  sys_.Forces(t_, x0_, v0_, &g_);
+  v1_ = v0_ + h * (sys_.masses().cwiseInverse().asDiagonal() * g_);
+  filter_.Impose(&v1_);
+  x1_ = x0_ + h * v1_;
+  if (!x1_.allFinite() || !v1_.allFinite()) {
+    st.status = StepStatus::kNonFinite;
+    return st;
+  }
+  xm1_.swap(x0_);
+  x0_.swap(x1_);
+  vm1_.swap(v0_);
+  v0_.swap(v1_);
   h_prev_ = h;
   have_history_ = true;
   t_ += h;

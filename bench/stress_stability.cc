@@ -1,0 +1,165 @@
+// stress_stability: stability maps over numerical stiffness h²k/(ρl²) and
+// step size h (issue 3 item 7; thesis §3.4.4).
+//
+// For every scene, integrator, h and stiffness S the tension modulus is set
+// to k = S ρ l²/h² and the sheet (side×side particles, the scene's spacing)
+// is integrated from rest for `steps` steps of size h. A cell records:
+//   bounded    E(t) − W_ext(t) ≤ E(0) + 1e-3 E_ref at every step, where
+//              E_ref = Σ m |g| L (L = sheet diagonal) is the energy gravity can
+//              release; a violation is "energy_growth" (a blow-up);
+//   failure    the first failed step and why: non_finite, cg_failed,
+//              no_fixed_point_convergence (no retries: the map shows where a
+//              method stops working at that h);
+//   work       fixed-point updates and CG iterations per step.
+//
+//   stress_stability [--scenes LIST] [--integrators LIST] [--stiffness LIST]
+//                    [--h LIST] [--steps N] [--side N] [--out FILE.h5]
+#include <cmath>
+#include <cstdint>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "model/particle_system.h"
+#include "results/result_file.h"
+#include "solver/stability_map.h"
+
+namespace clothbench {
+namespace {
+
+std::vector<std::string> Split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+std::vector<double> ParseList(const std::string& s, const std::string& opt) {
+  std::vector<double> out;
+  for (const std::string& item : Split(s)) {
+    std::size_t pos = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(item, &pos);
+    } catch (...) {
+      pos = 0;
+    }
+    if (pos != item.size() || !(v > 0.0) || !std::isfinite(v))
+      throw std::invalid_argument(fmt::format("{}: \"{}\" is not a positive number", opt, item));
+    out.push_back(v);
+  }
+  return out;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"clothbench stability maps over numerical stiffness and step size"};
+  std::string scenes_arg = "hanging_sheet,swinging_sheet", integrators_arg, stiffness_arg = "0.1,1,1e2,1e4,1e6,1e8",
+              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5";
+  int steps = 200, side = 10;
+  app.add_option("--scenes", scenes_arg, "built-in scene names or files (default hanging_sheet,swinging_sheet)");
+  app.add_option("--integrators", integrators_arg, "default: the five thesis methods and symplectic_euler");
+  app.add_option("--stiffness", stiffness_arg, "numerical stiffness values h^2 k/(rho l^2)");
+  app.add_option("--h", h_arg, "step sizes [s]");
+  app.add_option("--steps", steps, "steps per cell (default 200)")->check(CLI::Range(1, 1000000));
+  app.add_option("--side", side, "particles per side (default 10; spacing from the scene)")->check(CLI::Range(3, 200));
+  app.add_option("--out", out, "result file");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    fmt::print(stderr, "stress_stability: {}\n", e.what());
+    return 2;
+  }
+  try {
+    std::vector<Method> methods;
+    if (integrators_arg.empty()) {
+      methods = AllMethods();
+      methods.push_back(Method::kSymplecticEuler);
+    } else {
+      for (const std::string& n : Split(integrators_arg)) {
+        const auto m = MethodFromString(n);
+        if (!m) throw std::invalid_argument(fmt::format("--integrators: unknown integrator \"{}\"", n));
+        methods.push_back(*m);
+      }
+    }
+    const std::vector<double> stiff = ParseList(stiffness_arg, "--stiffness"), hs = ParseList(h_arg, "--h");
+    std::vector<Scene> scenes;
+    for (const std::string& name : Split(scenes_arg)) {
+      scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
+    }
+
+    ResultFile f(out);
+    f.SetAttribute("/", "schema", std::string("clothbench/1"));
+    f.SetAttribute("/", "created", NowIso8601Utc());
+    f.SetAttribute("/", "git_commit", GitCommit());
+    f.SetAttribute("/", "host", HostName());
+    f.SetAttribute("/", "compiler", CompilerId());
+    f.SetAttribute("/", "build_type", BuildType());
+    f.CreateGroup("/stress");
+    f.WriteVector("/stress/stiffness", stiff, "");
+    f.WriteVector("/stress/h", hs, "s");
+    f.SetAttribute("/stress", "steps", static_cast<long>(steps));
+    f.SetAttribute("/stress", "side", static_cast<long>(side));
+    f.SetAttribute("/stress", "outcome_codes", std::string(kStabilityOutcomeCodes));
+    f.SetAttribute("/stress", "bounded_margin", std::string("E(t) - W_ext(t) <= E(0) + 1e-3 sum(m)|g| diag"));
+    const int nh = static_cast<int>(hs.size()), ns = static_cast<int>(stiff.size());
+    for (const Scene& scene : scenes) {
+      fmt::print("\n{} ({}×{} particles, {} steps per cell, max_updates 30, cg_tolerance 1e-6, no retries)\n",
+                 scene.name, side, side, steps);
+      fmt::print("cells: ok U/C = bounded, U updates and C CG iterations per step; at step n: GROW@n energy growth, "
+                 "NaN@n non-finite state, CG@n PCG failed, FP@n fixed point not converged in 30 updates, FPdiv@n fixed "
+                 "point diverged\n");
+      for (Method m : methods) {
+        std::vector<int32_t> outcome, done;
+        std::vector<double> upd, cgs, excess;
+        fmt::print("\n{:<18} {:>8}", ToString(m), "h \\ S");
+        for (double s : stiff) fmt::print(" {:>12g}", s);
+        fmt::print("\n");
+        for (double h : hs) {
+          fmt::print("{:<18} {:>8g}", "", h);
+          for (double s : stiff) {
+            const StabilityCell c = RunStabilityCell(scene, m, h, s, steps);
+            outcome.push_back(c.outcome);
+            done.push_back(c.steps);
+            upd.push_back(c.updates_per_step);
+            cgs.push_back(c.cg_per_step);
+            excess.push_back(c.energy_excess);
+            fmt::print(" {:>12}", StabilityCellText(c));
+          }
+          fmt::print("\n");
+        }
+        const std::string g = fmt::format("/stress/{}/{}", scene.name, ToString(m));
+        f.CreateGroup(g);
+        f.WriteTable(g + "/outcome", nh, ns, outcome);
+        f.WriteTable(g + "/steps_completed", nh, ns, done);
+        f.WriteTable(g + "/updates_per_step", nh, ns, upd, "");
+        f.WriteTable(g + "/cg_per_step", nh, ns, cgs, "");
+        f.WriteTable(g + "/energy_excess", nh, ns, excess, "");
+      }
+    }
+    f.Commit();
+    fmt::print("\nmachine: {}, {} hardware threads, {}, commit {}\nresults: {}\n", HostName(),
+               std::thread::hardware_concurrency(), CompilerId(), GitCommit(), out);
+    return 0;
+  } catch (const SceneError& e) {
+    fmt::print(stderr, "stress_stability: {}\n", e.what());
+    return 2;
+  } catch (const std::invalid_argument& e) {
+    fmt::print(stderr, "stress_stability: {}\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "stress_stability: {}\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace
+}  // namespace clothbench
+
+int main(int argc, char** argv) { return clothbench::Main(argc, argv); }
