@@ -145,12 +145,7 @@ void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows) {
   ResultFile f(path);
-  f.SetAttribute("/", "schema", std::string("clothbench/1"));
-  f.SetAttribute("/", "created", NowIso8601Utc());
-  f.SetAttribute("/", "git_commit", GitCommit());
-  f.SetAttribute("/", "host", HostName());
-  f.SetAttribute("/", "compiler", CompilerId());
-  f.SetAttribute("/", "build_type", BuildType());
+  WriteProvenance(f);
   f.CreateGroup("/scene");
   f.SetAttribute("/scene", "name", scene.name);
   f.SetAttribute("/scene", "source", scene.source);

@@ -95,12 +95,7 @@ int Main(int argc, char** argv) {
     }
 
     ResultFile f(out);
-    f.SetAttribute("/", "schema", std::string("clothbench/1"));
-    f.SetAttribute("/", "created", NowIso8601Utc());
-    f.SetAttribute("/", "git_commit", GitCommit());
-    f.SetAttribute("/", "host", HostName());
-    f.SetAttribute("/", "compiler", CompilerId());
-    f.SetAttribute("/", "build_type", BuildType());
+    WriteProvenance(f);
     f.CreateGroup("/stress");
     f.WriteVector("/stress/stiffness", stiff, "");
     f.WriteVector("/stress/h", hs, "s");

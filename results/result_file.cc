@@ -89,17 +89,6 @@ void ResultFile::SetAttribute(const std::string& object, const std::string& name
   WriteScalarAttribute(file_, path_, object, name, H5T_STD_I64LE, H5T_NATIVE_INT64, &v);
 }
 
-void ResultFile::WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units) {
-  const hsize_t dims[1] = {values.size()};
-  Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
-  Handle ds{Check(H5Dcreate2(file_, path.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                  "cannot create dataset " + path, path_),
-            H5Dclose};
-  if (!values.empty())
-    Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), "cannot write " + path, path_);
-  if (!units.empty()) SetAttribute(path, "units", units);
-}
-
 namespace {
 
 void WriteRaw(hid_t file, const std::string& file_path, const std::string& path, int rank, const hsize_t* dims,
@@ -112,6 +101,12 @@ void WriteRaw(hid_t file, const std::string& file_path, const std::string& path,
 }
 
 }  // namespace
+
+void ResultFile::WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units) {
+  const hsize_t dims[1] = {values.size()};
+  WriteRaw(file_, path_, path, 1, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(), values.empty());
+  if (!units.empty()) SetAttribute(path, "units", units);
+}
 
 void ResultFile::WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values,
                             const std::string& units) {
@@ -130,12 +125,7 @@ void ResultFile::WriteVectors3(const std::string& path, const std::vector<Vector
   buf.reserve(rows.size() * 3);
   for (const Vector3& r : rows) buf.insert(buf.end(), {r.x(), r.y(), r.z()});
   const hsize_t dims[2] = {rows.size(), 3};
-  Handle space{H5Screate_simple(2, dims, nullptr), H5Sclose};
-  Handle ds{Check(H5Dcreate2(file_, path.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                  "cannot create dataset " + path, path_),
-            H5Dclose};
-  if (!buf.empty())
-    Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
+  WriteRaw(file_, path_, path, 2, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, buf.data(), buf.empty());
   SetAttribute(path, "units", units);
 }
 
@@ -147,12 +137,7 @@ void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3
       for (hsize_t c = 0; c < 3; ++c)
         buf[(k * n + p) * 3 + c] = frames[k](static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c));
   const hsize_t dims[3] = {f, n, 3};
-  Handle space{H5Screate_simple(3, dims, nullptr), H5Sclose};
-  Handle ds{Check(H5Dcreate2(file_, path.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                  "cannot create dataset " + path, path_),
-            H5Dclose};
-  if (!buf.empty())
-    Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
+  WriteRaw(file_, path_, path, 3, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, buf.data(), buf.empty());
   SetAttribute(path, "units", units);
 }
 
@@ -181,6 +166,15 @@ void ResultFile::Commit() {
   std::filesystem::rename(tmp_path_, path_, ec);
   if (ec) throw ResultError(fmt::format("{}: cannot rename from {}: {}", path_, tmp_path_, ec.message()));
   committed_ = true;
+}
+
+void WriteProvenance(ResultFile& f) {
+  f.SetAttribute("/", "schema", std::string("clothbench/1"));
+  f.SetAttribute("/", "created", NowIso8601Utc());
+  f.SetAttribute("/", "git_commit", GitCommit());
+  f.SetAttribute("/", "host", HostName());
+  f.SetAttribute("/", "compiler", CompilerId());
+  f.SetAttribute("/", "build_type", BuildType());
 }
 
 std::string HostName() {

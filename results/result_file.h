@@ -65,6 +65,10 @@ class ResultFile {
   bool committed_ = false;
 };
 
+/// Writes the root attributes schema, created, git_commit, host, compiler and
+/// build_type (issue 2 "HDF5 layout").
+void WriteProvenance(ResultFile& file);
+
 /// Host name, compiler, build type and git commit for the root attributes.
 std::string HostName();
 std::string CompilerId();

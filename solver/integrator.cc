@@ -249,12 +249,13 @@ StepStats StepEngine::Step(double h) {
   // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
   // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
   for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
-  if (!x1_.allFinite() || !v1_.allFinite()) {
-    st.status = StepStatus::kNonFinite;
-    return st;
-  }
+  if (!Commit(h)) st.status = StepStatus::kNonFinite;
+  return st;
+}
 
-  // Commit: (x₋₁, v₋₁, g₋₁) ← (x₀, v₀, g₀), (x₀, v₀) ← (x₁, v₁). Swaps, no copies.
+bool StepEngine::Commit(double h) {
+  if (!x1_.allFinite() || !v1_.allFinite()) return false;
+  // (x₋₁, v₋₁, g₋₁) ← (x₀, v₀, g₀), (x₀, v₀) ← (x₁, v₁). Swaps, no copies.
   xm1_.swap(x0_);
   x0_.swap(x1_);
   vm1_.swap(v0_);
@@ -267,7 +268,7 @@ StepStats StepEngine::Step(double h) {
   h_prev_ = h;
   have_history_ = true;
   t_ += h;
-  return st;
+  return true;
 }
 
 // Symplectic (semi-implicit) Euler: v₁ = v₀ + h M⁻¹ f(t₀, x₀, v₀),
@@ -278,17 +279,7 @@ StepStats StepEngine::ExplicitStep(double h, StepStats st) {
   v1_ = v0_ + h * (sys_.masses().cwiseInverse().asDiagonal() * g_);
   filter_.Impose(&v1_);
   x1_ = x0_ + h * v1_;
-  if (!x1_.allFinite() || !v1_.allFinite()) {
-    st.status = StepStatus::kNonFinite;
-    return st;
-  }
-  xm1_.swap(x0_);
-  x0_.swap(x1_);
-  vm1_.swap(v0_);
-  v0_.swap(v1_);
-  h_prev_ = h;
-  have_history_ = true;
-  t_ += h;
+  if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;
 }
 

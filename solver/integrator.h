@@ -116,6 +116,8 @@ class StepEngine {
 
  private:
   StepStats ExplicitStep(double h, StepStats st);
+  /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
+  bool Commit(double h);
 
   const ParticleSystem& sys_;
   Method method_;

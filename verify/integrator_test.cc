@@ -40,23 +40,8 @@ TEST(Bdf2Coefficients, ExactForQuadraticsAtAnyRatio) {
 }
 
 Scene LinearScene() {
-  Scene s;
+  Scene s = testing::LinearMembrane(0.01);  // proportional: L_D = 1e-3 L_K
   s.name = "linear_membrane";
-  s.grid.nu = 7;
-  s.grid.nv = 6;
-  s.grid.size = {0.6, 0.5};  // l = 0.1 m, m = 0.01 kg
-  s.material.tension = {10.0, 10.0};
-  s.material.tension_model = TensionModel::kLinear;
-  s.material.tension_damping = 0.01;  // proportional: L_D = 1e-3 L_K
-  s.material.shear = 0.0;
-  s.material.bend = {0.0, 0.0};
-  s.forces.gravity = Vector3(0.0, 0.0, -9.81);
-  for (const char* e : {"edge:u0", "edge:u1", "edge:v0", "edge:v1"})
-    for (int p : ResolveFixed(e, s.grid.nu, s.grid.nv, "")) s.fixed.push_back(p);
-  std::sort(s.fixed.begin(), s.fixed.end());
-  s.fixed.erase(std::unique(s.fixed.begin(), s.fixed.end()), s.fixed.end());
-  s.solver.cg_tolerance = 1e-13;
-  s.solver.max_updates = 50;
   s.t_end = 0.4;
   s.frame_dt = 0.4;
   return s;

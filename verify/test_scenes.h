@@ -2,6 +2,7 @@
 #ifndef CLOTHBENCH_VERIFY_TEST_SCENES_H_
 #define CLOTHBENCH_VERIFY_TEST_SCENES_H_
 
+#include <algorithm>
 #include <random>
 
 #include "model/particle_system.h"
@@ -52,6 +53,30 @@ inline void PerturbedState(const ParticleSystem& sys, unsigned seed, MatrixN3* x
         (*v)(p, c) = 0.5 * u(rng);
       }
     }
+}
+
+/// Linear membrane: zero-rest-length springs (tension_model = "linear"), all
+/// four edges fixed, gravity, no shear or bending, 7×6 particles 0.1 m apart
+/// (m = 0.01 kg): an exactly linear system (modal order and energy tests).
+/// @param damping d_t [N s/m]; L_D = (d_t/k) L_K (proportional damping)
+inline Scene LinearMembrane(double damping) {
+  Scene s;
+  s.grid.nu = 7;
+  s.grid.nv = 6;
+  s.grid.size = {0.6, 0.5};
+  s.material.tension = {10.0, 10.0};
+  s.material.tension_model = TensionModel::kLinear;
+  s.material.tension_damping = damping;
+  s.material.shear = 0.0;
+  s.material.bend = {0.0, 0.0};
+  s.forces.gravity = Vector3(0.0, 0.0, -9.81);
+  for (const char* e : {"edge:u0", "edge:u1", "edge:v0", "edge:v1"})
+    for (int p : ResolveFixed(e, s.grid.nu, s.grid.nv, "")) s.fixed.push_back(p);
+  std::sort(s.fixed.begin(), s.fixed.end());
+  s.fixed.erase(std::unique(s.fixed.begin(), s.fixed.end()), s.fixed.end());
+  s.solver.cg_tolerance = 1e-13;
+  s.solver.max_updates = 50;
+  return s;
 }
 
 }  // namespace clothbench::testing
