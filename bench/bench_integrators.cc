@@ -99,7 +99,7 @@ Row FromRun(const std::string& integrator, double h, const RunSummary& r, const 
   row.stiffness = scene.NumericalStiffness(h);
   row.traj = r.trajectory;
   for (const StepStats& s : r.step_stats)
-    row.steps_table.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status)});
+    row.steps_table.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding});
   return row;
 }
 
@@ -122,7 +122,7 @@ Row FromReference(double rtol, const ReferenceResult& c, const Scene& scene) {
   row.traj = c.trajectory;
   row.cvode = c.stats;
   for (std::size_t k = 0; k < c.step_t.size(); ++k) {
-    row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0});
+    row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0, -1});
     row.cvode_order.push_back(c.step_order[k]);
   }
   return row;
@@ -173,7 +173,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteFrames("/reference/velocities", ref->trajectory.velocities, "m/s");
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
-    for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0});
+    for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0, -1});
     f.WriteStepStats("/reference/step_stats", st);
   }
   f.CreateGroup("/runs");
@@ -214,6 +214,14 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteFrames(g + "/positions", r.traj.positions);
     f.WriteFrames(g + "/velocities", r.traj.velocities, "m/s");
     WriteEnergy(f, g, r.energy);
+    if (!sys.obstacles().empty()) {
+      const PenetrationSeries pen = ComputePenetration(sys, r.traj);
+      const int frames = static_cast<int>(r.traj.times.size());
+      f.CreateGroup(g + "/penetration");
+      f.WriteTable(g + "/penetration/max_depth", frames, pen.obstacles, pen.max_depth, "m");
+      f.WriteTable(g + "/penetration/mean_depth", frames, pen.obstacles, pen.mean_depth, "m");
+      f.WriteTable(g + "/penetration/close_count", frames, pen.obstacles, pen.close);
+    }
     f.WriteStepStats(g + "/step_stats", r.steps_table);
     if (!r.cvode_order.empty()) f.WriteVector(g + "/bdf_order", r.cvode_order, "");
   }

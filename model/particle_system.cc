@@ -56,6 +56,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   lk_ = laplacian([](const Spring& s) { return s.stiffness; });
   ld_ = laplacian([](const Spring& s) { return s.damping; });
 
+  for (const ObstacleSpec& o : scene.obstacles) obstacles_.emplace_back(o);
   fixed_ = scene.fixed;
   fixed_mask_.assign(static_cast<std::size_t>(n_), 0);
   for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;

@@ -50,6 +50,8 @@ class ParticleSystem {
   /// Sorted flat indices of fixed particles; is_fixed(p) for lookup.
   const std::vector<int>& fixed() const { return fixed_; }
   bool is_fixed(int p) const { return fixed_mask_[static_cast<std::size_t>(p)] != 0; }
+  /// Obstacles of the scene (SPEC §7); empty: no detection at all.
+  const std::vector<Obstacle>& obstacles() const { return obstacles_; }
   /// The explicit terms in evaluation order.
   const std::vector<std::unique_ptr<ForceTerm>>& terms() const { return terms_; }
   std::vector<std::string> TermNames() const;
@@ -89,6 +91,7 @@ class ParticleSystem {
   std::vector<char> fixed_mask_;
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   std::vector<const ForceTerm*> external_terms_;  // wind, air (owned by terms_)
+  std::vector<Obstacle> obstacles_;
 };
 
 }  // namespace clothbench

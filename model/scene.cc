@@ -338,6 +338,50 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     v.RejectUnknown();
     if (std::string why; !so.IsValid(&why)) throw SceneError(fmt::format("{}: solver: {}", source, why));
   }
+  if (const toml::node* obs = top.Get("obstacle")) {
+    const toml::array* arr = obs->as_array();
+    if (!arr) top.Fail("obstacle", "must be an array of tables ([[obstacle]])");
+    for (std::size_t k = 0; k < arr->size(); ++k) {
+      const toml::table* t = (*arr)[k].as_table();
+      const std::string prefix = fmt::format("obstacle[{}].", k);
+      if (!t) throw SceneError(fmt::format("{}: obstacle[{}]: must be a table", source, k));
+      TableReader o(t, prefix, source);
+      ObstacleSpec spec;
+      const std::string type = o.String("type", "");
+      if (type == "plane") spec.type = ObstacleType::kPlane;
+      else if (type == "sphere") spec.type = ObstacleType::kSphere;
+      else if (type == "box") spec.type = ObstacleType::kBox;
+      else if (type == "cylinder") spec.type = ObstacleType::kCylinder;
+      else o.Fail("type", fmt::format("must be \"plane\", \"sphere\", \"box\" or \"cylinder\" (got \"{}\")", type));
+      spec.center = o.Vec3("center", spec.center);
+      spec.collision_distance = o.Positive("collision_distance", spec.collision_distance);
+      spec.friction = o.NonNegative("friction", spec.friction);
+      spec.relaxation = o.Positive("relaxation", spec.relaxation);
+      if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
+      switch (spec.type) {
+        case ObstacleType::kPlane:
+          spec.normal = o.Vec3("normal", spec.normal);
+          if (spec.normal.norm() < 1e-12) o.Fail("normal", "must be a non-zero vector");
+          spec.normal.normalize();
+          break;
+        case ObstacleType::kSphere:
+          spec.radius = o.Positive("radius", 0.0);
+          break;
+        case ObstacleType::kBox: {
+          auto size = o.Numbers<3>("size", {0.0, 0.0, 0.0}, true);
+          if (!(size[0] > 0 && size[1] > 0 && size[2] > 0)) o.Fail("size", "must be 3 positive edge lengths [m]");
+          spec.size = Vector3(size[0], size[1], size[2]);
+          break;
+        }
+        case ObstacleType::kCylinder:
+          spec.radius = o.Positive("radius", 0.0);
+          spec.height = o.Positive("height", 0.0);
+          break;
+      }
+      o.RejectUnknown();
+      s.obstacles.push_back(spec);
+    }
+  }
   top.RejectUnknown();
   if (s.h > s.t_end) top.Fail("h", "must be <= t_end");
   return s;

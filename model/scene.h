@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "model/obstacle.h"
 #include "model/types.h"
 
 namespace clothbench {
@@ -114,6 +115,7 @@ struct Scene {
   std::vector<std::string> fixed_specs;  ///< as written in the scene
   std::vector<int> fixed;                ///< resolved flat particle indices, sorted, unique
   SolverSpec solver;
+  std::vector<ObstacleSpec> obstacles;   ///< `[[obstacle]]` (SPEC §7); empty: no detection, no filter
   std::string source = "<memory>";       ///< file path or "<embedded>"
   std::string toml;                      ///< the scene's TOML text
 

@@ -71,4 +71,37 @@ EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& tra
   return s;
 }
 
+PenetrationSeries ComputePenetration(const ParticleSystem& system, const Trajectory& traj) {
+  PenetrationSeries s;
+  const auto& obs = system.obstacles();
+  s.obstacles = static_cast<int>(obs.size());
+  for (const MatrixN3& x : traj.positions)
+    for (const Obstacle& o : obs) {
+      double max_depth = 0.0, sum = 0.0;
+      int below = 0, close = 0;
+      for (int p = 0; p < x.rows(); ++p) {
+        Vector3 dir;
+        const double d = o.SignedDistance(x.row(p).transpose(), &dir);
+        if (d < 0.0) {
+          max_depth = std::max(max_depth, -d);
+          sum += -d;
+          ++below;
+        }
+        if (d < 0.5 * o.spec().collision_distance) ++close;
+      }
+      s.max_depth.push_back(max_depth);
+      s.mean_depth.push_back(below ? sum / below : 0.0);
+      s.close.push_back(close);
+    }
+  return s;
+}
+
+double PenetrationSeries::MaxDepthAfter(const std::vector<double>& times, double t_from) const {
+  double m = 0.0;
+  for (std::size_t f = 0; f < times.size(); ++f)
+    if (times[f] >= t_from - 1e-12)
+      for (int o = 0; o < obstacles; ++o) m = std::max(m, max_depth[f * static_cast<std::size_t>(obstacles) + o]);
+  return m;
+}
+
 }  // namespace clothbench

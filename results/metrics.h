@@ -2,6 +2,7 @@
 #ifndef CLOTHBENCH_RESULTS_METRICS_H_
 #define CLOTHBENCH_RESULTS_METRICS_H_
 
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -46,6 +47,20 @@ struct EnergySeries {
 /// from the run (trapezoidal rule per step) or, for the SUNDIALS references,
 /// from the trapezoidal rule over frames.
 EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& trajectory);
+
+/// Penetration of the cloth into each obstacle per frame (issue 4): rows are
+/// frames, columns obstacles.
+struct PenetrationSeries {
+  int obstacles = 0;
+  std::vector<double> max_depth;   ///< [F·O] max over particles of max(0, −d) [m]
+  std::vector<double> mean_depth;  ///< [F·O] mean of −d over particles with d < 0 (0 if none) [m]
+  std::vector<int32_t> close;      ///< [F·O] particles with d < δ/2
+  /// Max of max_depth over frames at or after t_from [s], over all obstacles.
+  double MaxDepthAfter(const std::vector<double>& times, double t_from) const;
+};
+
+/// Signed distances d of every particle to every obstacle at every frame.
+PenetrationSeries ComputePenetration(const ParticleSystem& system, const Trajectory& trajectory);
 
 }  // namespace clothbench
 

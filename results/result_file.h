@@ -27,6 +27,7 @@ struct StepRecord {
   int32_t updates;     ///< fixed-point updates (CVODE: BDF order)
   int32_t cg_iterations;
   int32_t status;      ///< 0 = accepted; else the StepStatus code of a rejected attempt
+  int32_t colliding;   ///< particles constrained by obstacles (−1 for SUNDIALS rows)
 };
 
 class ResultFile {

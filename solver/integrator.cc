@@ -98,8 +98,13 @@ bool SystemMatrix::Update(double alpha_h) {
 StepEngine::StepEngine(const ParticleSystem& system, Method method, const SolverSpec& solver)
     : sys_(system), method_(method), opts_(solver), sysmat_(system, solver.preconditioner) {
   const int n = system.num_particles();
+  filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
+  if (!system.obstacles().empty()) {
+    contacts_.assign(static_cast<std::size_t>(n), Contact{});
+    friction_.setZero(n, 3);
+  }
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &vm1_, &gm1_, &g0_, &g_, &b0_, &b_, &xhat_, &xg0_, &vg_, &xg_, &v1_, &x1_,
                       &tmp_, &vprev_})
     m->setZero(n, 3);
@@ -188,6 +193,10 @@ StepStats StepEngine::Step(double h) {
     st.status = StepStatus::kPreconditionerFailed;
     return st;
   }
+  if (!contacts_.empty()) {
+    st.colliding = SetUpContacts(h, gamma);
+    b0_ += h * friction_;  // Coulomb friction, explicit (SPEC §2.5)
+  }
 
   // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for SBDF(2).
   if (imex) {
@@ -245,12 +254,83 @@ StepStats StepEngine::Step(double h) {
     return st;
   }
 
+  if (!contacts_.empty()) ReadContactImpulses();
   x1_ = xhat_ + (gamma * h) * v1_;
   // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
   // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
   for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;
+}
+
+// Collision response (SPEC §7; thesis (4.3), (4.4)). A particle in the
+// collision area of an obstacle (signed distance d < δ, or predicted to
+// enter it within the step) is constrained along the collision direction D.
+// Its target velocity is chosen so that the method's position formula
+// x₁ = x̂ + γ h v₁ moves it a fraction ω_r of the way to the area's border:
+//   ⟨x₁ − x₀, D⟩ = ω_r (δ − d)  (d < δ),   = δ − d  (predicted entry),
+//   ⟨v₁, D⟩ = (⟨x₁ − x₀, D⟩ − ⟨x̂ − x₀, D⟩) / (γ h).
+// Positions are never projected and constraints switch only here, between
+// steps, so SBDF(2) and BDF(2) stay consistent. A particle whose constraint
+// impulse pulled it toward the obstacle in the last step is released.
+int StepEngine::SetUpContacts(double h, double gamma) {
+  filter_.Clear();
+  for (int p : sys_.fixed()) filter_.Fix(p);
+  friction_.setZero();
+  int count = 0;
+  const auto& obstacles = sys_.obstacles();
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    Contact& c = contacts_[static_cast<std::size_t>(p)];
+    if (sys_.is_fixed(p)) continue;
+    const bool was = c.obstacle >= 0;
+    const bool released = was && c.impulse < 0.0;
+    const double last_impulse = c.impulse;
+    c.obstacle = -1;
+    c.impulse = 0.0;
+    if (released) continue;
+    const Vector3 x0 = x0_.row(p).transpose(), v0 = v0_.row(p).transpose();
+    double best = 1e300, target_disp = 0.0;
+    Vector3 dir = Vector3::Zero();
+    for (std::size_t k = 0; k < obstacles.size(); ++k) {
+      Vector3 d_k;
+      const double d = obstacles[k].SignedDistance(x0, &d_k);
+      const double delta = obstacles[k].spec().collision_distance;
+      const bool inside = d < delta;
+      const bool entering = d + h * v0.dot(d_k) < delta;
+      if ((inside || entering) && d < best) {
+        best = d;
+        dir = d_k;
+        c.obstacle = static_cast<int>(k);
+        target_disp = inside ? obstacles[k].spec().relaxation * (delta - d) : delta - d;
+      }
+    }
+    if (c.obstacle < 0) continue;
+    c.direction = dir;
+    const Vector3 xhat = xhat_.row(p).transpose();
+    filter_.Constrain(p, dir, (target_disp - (xhat - x0).dot(dir)) / (gamma * h));
+    // Coulomb friction from the normal impulse of the last step (SPEC §2.5).
+    const double mu = obstacles[static_cast<std::size_t>(c.obstacle)].spec().friction;
+    if (mu > 0.0 && was && last_impulse > 0.0) {
+      const Vector3 vt = v0 - v0.dot(dir) * dir;
+      const double speed = vt.norm();
+      if (speed > 1e-12) friction_.row(p) = (-mu * (last_impulse / h) / speed) * vt.transpose();
+    }
+    ++count;
+  }
+  return count;
+}
+
+// Constraint impulse of each contact: (A v₁ − b)·D, the momentum the filter
+// added along D (A is symmetric, so row p is column p).
+void StepEngine::ReadContactImpulses() {
+  const SparseMatrix& a = sysmat_.matrix();
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    Contact& c = contacts_[static_cast<std::size_t>(p)];
+    if (c.obstacle < 0) continue;
+    Vector3 av = Vector3::Zero();
+    for (SparseMatrix::InnerIterator it(a, p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
+    c.impulse = (av - b_.row(p).transpose()).dot(c.direction);
+  }
 }
 
 bool StepEngine::Commit(double h) {

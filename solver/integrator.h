@@ -64,6 +64,7 @@ struct StepStats {
   double h = 0.0;          ///< step size [s]
   int updates = 0;         ///< fixed-point updates (linear solves)
   int cg_iterations = 0;   ///< PCG iterations summed over the updates
+  int colliding = 0;       ///< particles constrained by obstacles in this step (Fig. 4.3)
   StepStatus status = StepStatus::kOk;
 };
 
@@ -118,6 +119,21 @@ class StepEngine {
   StepStats ExplicitStep(double h, StepStats st);
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);
+  /// Collision response (SPEC §7): rebuilds the filter from the positions at
+  /// the start of the step; returns the number of colliding particles.
+  int SetUpContacts(double h, double gamma);
+  /// After a successful solve: constraint impulses (A v₁ − b)·D for release
+  /// and friction.
+  void ReadContactImpulses();
+
+  // Per-particle contact state (only used when the scene has obstacles).
+  struct Contact {
+    int obstacle = -1;            // obstacle index, −1: none
+    Vector3 direction = Vector3::Zero();
+    double impulse = 0.0;         // (A v₁ − b)·D of the last step [kg m/s]
+  };
+  std::vector<Contact> contacts_;
+  MatrixN3 friction_;             // Coulomb friction forces [N], explicit
 
   const ParticleSystem& sys_;
   Method method_;

@@ -26,6 +26,8 @@ class VelocityFilter {
   /// Directions of one particle are orthonormalised.
   void Constrain(int p, const Vector3& dir, double target);
   void Clear() { entries_.clear(); }
+  /// Reserves room for n constrained particles (no allocation afterwards).
+  void Reserve(int n) { entries_.reserve(static_cast<std::size_t>(n)); }
   bool empty() const { return entries_.empty(); }
   int size() const { return static_cast<int>(entries_.size()); }
   /// v ← S v.
