@@ -96,6 +96,34 @@ void BM_Step(benchmark::State& state) {
 }
 BENCHMARK(BM_Step)->ArgName("method")->DenseRange(0, 4);
 
+// Collision detection cost (issue 4 item 8): 0 = no obstacles (an empty list
+// allocates no contact state, so detection and the filter rebuild never run:
+// the collision-free path), 1 = a plane far below the sheet (detection runs
+// every step but never constrains).
+void BM_StepObstacles(benchmark::State& state) {
+  Scene scene = SquareScene(20);
+  if (state.range(0) == 1) {
+    ObstacleSpec plane;
+    plane.center = Vector3(0.0, 0.0, -100.0);
+    scene.obstacles.push_back(plane);
+  }
+  const ParticleSystem sys(scene);
+  StepEngine e(sys, Method::kSbdf2, scene.solver);
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  e.Reset(0.2, x, v);
+  for (auto _ : state) {
+    if (e.Step(0.0025).status != StepStatus::kOk) state.SkipWithError("step failed");
+    if (e.t() > 0.6) {
+      state.PauseTiming();
+      e.Reset(0.2, x, v);
+      state.ResumeTiming();
+    }
+  }
+  state.SetLabel(state.range(0) == 1 ? "far plane" : "no obstacles");
+}
+BENCHMARK(BM_StepObstacles)->ArgName("obstacles")->Arg(0)->Arg(1);
+
 void BM_ForceJacobian(benchmark::State& state) {
   const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
   MatrixN3 x, v;
