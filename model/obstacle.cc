@@ -1,6 +1,8 @@
 // Signed distances of the analytic obstacles (SPEC §7).
 #include "model/obstacle.h"
 
+#include "model/triangle_mesh.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -12,6 +14,7 @@ std::string_view ToString(ObstacleType t) {
     case ObstacleType::kSphere: return "sphere";
     case ObstacleType::kBox: return "box";
     case ObstacleType::kCylinder: return "cylinder";
+    case ObstacleType::kMesh: return "mesh";
   }
   return "?";
 }
@@ -38,9 +41,16 @@ double BoxDistance(const Vector3& p, const Vector3& e, Vector3* dir) {
 
 }  // namespace
 
+Obstacle::Obstacle(const ObstacleSpec& spec) : spec_(spec) {
+  if (spec.type == ObstacleType::kMesh)
+    mesh_ = std::make_shared<const TriangleMesh>(spec.path, spec.scale, spec.rotate, spec.translate);
+}
+
 double Obstacle::SignedDistance(const Vector3& p, Vector3* dir) const {
   const ObstacleSpec& s = spec_;
   switch (s.type) {
+    case ObstacleType::kMesh:
+      return mesh_->SignedDistance(p, dir);
     case ObstacleType::kPlane:
       *dir = s.normal;
       return (p - s.center).dot(s.normal);

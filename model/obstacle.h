@@ -13,7 +13,9 @@
 
 namespace clothbench {
 
-enum class ObstacleType { kPlane, kSphere, kBox, kCylinder };
+enum class ObstacleType { kPlane, kSphere, kBox, kCylinder, kMesh };
+
+class TriangleMesh;
 
 /// An obstacle as written in a scene (`[[obstacle]]`).
 struct ObstacleSpec {
@@ -26,13 +28,20 @@ struct ObstacleSpec {
   double collision_distance = 0.01;          ///< δ, thickness of the collision area [m]
   double friction = 0.0;                     ///< Coulomb coefficient c_f (SPEC §2.5)
   double relaxation = 0.5;                   ///< ω_r in (4.4), 0 < ω_r ≤ 1
+  // Triangle meshes (OFF/OBJ/PLY through CGAL): x ↦ R(scale·x) + translate.
+  std::string path;                          ///< resolved mesh file
+  double scale = 1.0;
+  Vector3 rotate = Vector3::Zero();          ///< degrees about x, then y, then z
+  Vector3 translate = Vector3::Zero();       ///< [m]
 };
 
 std::string_view ToString(ObstacleType t);
 
 class Obstacle {
  public:
-  explicit Obstacle(const ObstacleSpec& spec) : spec_(spec) {}
+  /// Loads the mesh of a mesh obstacle. @throws std::runtime_error for an
+  /// unreadable mesh file.
+  explicit Obstacle(const ObstacleSpec& spec);
   /// Signed distance [m] of p to the surface (negative inside) and the unit
   /// outward direction D at the closest surface point.
   double SignedDistance(const Vector3& p, Vector3* direction) const;
@@ -40,6 +49,7 @@ class Obstacle {
 
  private:
   ObstacleSpec spec_;
+  std::shared_ptr<const TriangleMesh> mesh_;  // kMesh only (shared by copies)
 };
 
 }  // namespace clothbench

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -352,8 +353,9 @@ Scene ParseScene(std::string_view text, const std::string& source) {
       else if (type == "sphere") spec.type = ObstacleType::kSphere;
       else if (type == "box") spec.type = ObstacleType::kBox;
       else if (type == "cylinder") spec.type = ObstacleType::kCylinder;
-      else o.Fail("type", fmt::format("must be \"plane\", \"sphere\", \"box\" or \"cylinder\" (got \"{}\")", type));
-      spec.center = o.Vec3("center", spec.center);
+      else if (type == "mesh") spec.type = ObstacleType::kMesh;
+      else o.Fail("type", fmt::format("must be \"plane\", \"sphere\", \"box\", \"cylinder\" or \"mesh\" (got \"{}\")", type));
+      if (spec.type != ObstacleType::kMesh) spec.center = o.Vec3("center", spec.center);
       spec.collision_distance = o.Positive("collision_distance", spec.collision_distance);
       spec.friction = o.NonNegative("friction", spec.friction);
       spec.relaxation = o.Positive("relaxation", spec.relaxation);
@@ -377,6 +379,26 @@ Scene ParseScene(std::string_view text, const std::string& source) {
           spec.radius = o.Positive("radius", 0.0);
           spec.height = o.Positive("height", 0.0);
           break;
+        case ObstacleType::kMesh: {
+          // Relative paths are relative to the scene file (or, for a
+          // built-in scene, to the source tree).
+          const std::string rel = o.String("path", "");
+          if (rel.empty()) o.Fail("path", "must name a mesh file (OFF, OBJ or PLY)");
+          std::filesystem::path p(rel);
+          if (p.is_relative()) {
+            const bool embedded = source.rfind("<embedded", 0) == 0;
+            p = (embedded ? std::filesystem::path(CLOTHBENCH_SOURCE_DIR)
+                          : std::filesystem::path(source).parent_path()) / p;
+          }
+          if (!std::filesystem::is_regular_file(p))
+            o.Fail("path", fmt::format("mesh file \"{}\" not found (scripts/setup extracts CGAL's data into data/)",
+                                       p.string()));
+          spec.path = p.string();
+          spec.scale = o.Positive("scale", 1.0);
+          spec.rotate = o.Vec3("rotate", spec.rotate);
+          spec.translate = o.Vec3("translate", spec.translate);
+          break;
+        }
       }
       o.RejectUnknown();
       s.obstacles.push_back(spec);

@@ -10,6 +10,9 @@
 //    the explicit terms adds before the next switch (≈ g h² = 1 mm here).
 // 3. The cloth rests on the table: about the particles over the 0.5 m top
 //    (13×13 = 169 of 400) stay constrained at t_end.
+// 4. The avatar (CGAL mesh man.off, scripts/setup extracts it): the same
+//    depth bound for every integrator over the first 1.5 s of the drape
+//    (the sheet settles on the head by 0.6 s), and the sheet rests on it.
 #include <gtest/gtest.h>
 
 #include "results/metrics.h"
@@ -51,7 +54,9 @@ class PenetrationTest : public ::testing::TestWithParam<std::tuple<const char*, 
 
 TEST_P(PenetrationTest, NoParticleDeeperThanHalfDeltaAfterSettling) {
   const auto [name, method] = GetParam();
-  const Scene s = BuiltinScene(name);
+  Scene s = BuiltinScene(name);
+  const bool avatar = std::string(name) == "avatar_drape";
+  if (avatar) s.t_end = 1.5;
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, method, {s.h, s.t_end, s.frame_dt});
   ASSERT_TRUE(r.ok) << r.BriefReport();
@@ -61,11 +66,11 @@ TEST_P(PenetrationTest, NoParticleDeeperThanHalfDeltaAfterSettling) {
   std::printf("[ penetration ] %-12s %-18s max depth after 0.5 s %.2e m (δ/2 = %.1e), colliding at t_end %d\n", name,
               std::string(ToString(method)).c_str(), depth, 0.5 * delta, r.step_stats.back().colliding);
   EXPECT_LT(depth, 0.5 * delta);
-  EXPECT_GT(r.step_stats.back().colliding, 80);  // the cloth rests on the table top
+  EXPECT_GT(r.step_stats.back().colliding, avatar ? 20 : 80);  // the cloth rests on the obstacle
 }
 
 INSTANTIATE_TEST_SUITE_P(Tables, PenetrationTest,
-                         ::testing::Combine(::testing::Values("tablecloth", "round_table"),
+                         ::testing::Combine(::testing::Values("tablecloth", "round_table", "avatar_drape"),
                                             ::testing::ValuesIn(AllMethods())),
                          [](const auto& param_info) {
                            return std::string(std::get<0>(param_info.param)) + "_" +

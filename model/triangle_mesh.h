@@ -1,0 +1,41 @@
+// Triangle-mesh obstacles through CGAL (issue 4; SPEC §7): OFF/OBJ/PLY input
+// (CGAL::IO::read_polygon_mesh), a rigid placement (scale, rotation,
+// translation), closest-point queries on CGAL's AABB tree, and the inside
+// test of CGAL::Side_of_triangle_mesh for the sign of the distance. All CGAL
+// code stays in triangle_mesh.cc.
+#ifndef CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
+#define CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
+
+#include <memory>
+#include <string>
+
+#include "model/types.h"
+
+namespace clothbench {
+
+class TriangleMesh {
+ public:
+  /// Loads `path` and places it: x ↦ R (scale · x) + translate, with R from
+  /// `rotate_deg` (rotations about x, then y, then z, in degrees).
+  /// @throws std::runtime_error naming the file if it cannot be read or is
+  ///         not a triangle mesh.
+  TriangleMesh(const std::string& path, double scale, const Vector3& rotate_deg, const Vector3& translate);
+  ~TriangleMesh();
+  TriangleMesh(const TriangleMesh&) = delete;
+  TriangleMesh& operator=(const TriangleMesh&) = delete;
+
+  /// Signed distance [m] (negative inside a closed mesh) and the unit
+  /// direction D from the closest surface point toward the outside.
+  double SignedDistance(const Vector3& p, Vector3* direction) const;
+  int num_vertices() const;
+  int num_faces() const;
+  bool closed() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
