@@ -161,8 +161,13 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   if (ref) {
     f.CreateGroup("/reference");
     f.SetAttribute("/reference", "integrator", ref->integrator);
-    f.SetAttribute("/reference", "rtol", ref_opts.rtol);
-    f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
+    if (ref->integrator == "bdf2_self_convergence") {
+      f.SetAttribute("/reference", "h", ref_opts.atol);
+      f.SetAttribute("/reference", "cg_tolerance", 1e-10);
+    } else {
+      f.SetAttribute("/reference", "rtol", ref_opts.rtol);
+      f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
+    }
     f.SetAttribute("/reference", "wall_time_s", ref->wall_time_in_seconds);
     f.SetAttribute("/reference", "solver_time_s", ref->solver_time_in_seconds);
     for (auto [name, v] : {std::pair{"nst", ref->stats.nst}, {"nfe", ref->stats.nfe}, {"nni", ref->stats.nni},
@@ -270,7 +275,11 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
              "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
              scene.solver.cg_tolerance, ToString(scene.solver.preconditioner), scene.solver.max_updates,
              ToString(scene.solver.predictor), scene.NumericalStiffness(scene.h), scene.h);
-  if (ref)
+  if (ref && ref->integrator == "bdf2_self_convergence")
+    fmt::print("reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
+               "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s\n",
+               ref_opts.atol, ref->stats.nst, ref->wall_time_in_seconds);
+  else if (ref)
     fmt::print("reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {:.3e} W\n",
                ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->stats.nst, ref->wall_time_in_seconds,
                ComputeEnergies(sys, ref->trajectory).Rate());
@@ -468,7 +477,36 @@ int Main(int argc, char** argv) {
     const ParticleSystem sys(scene);
     std::optional<ReferenceResult> ref;
     ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
-    if (reference != "none") {
+    if (reference != "none" && !sys.obstacles().empty()) {
+      // CVODE and IDA have no collision response: on obstacle scenes the
+      // reference is a self-convergence run, BDF(2) at h_min/16 with tight
+      // CG and fixed-point tolerances (issue 4).
+      Scene tight = scene;
+      tight.solver.cg_tolerance = 1e-10;
+      tight.solver.fixed_point_tolerance = 1e-12;
+      tight.solver.max_updates = 200;
+      const ParticleSystem tight_sys(tight);
+      const double h_ref = hs.back() / 16.0;
+      const RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
+      if (!r.ok) {
+        fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
+                   r.message);
+        return 1;
+      }
+      ReferenceResult self;
+      self.ok = true;
+      self.integrator = "bdf2_self_convergence";
+      self.status = "ok";
+      self.stats.nst = r.steps;
+      self.stats.nni = r.fixed_point_updates;
+      self.stats.nli = r.cg_iterations;
+      self.solver_time_in_seconds = r.solver_time_in_seconds;
+      self.wall_time_in_seconds = r.wall_time_in_seconds;
+      self.trajectory = r.trajectory;
+      ref = self;
+      ref_opts.rtol = 0.0;
+      ref_opts.atol = h_ref;  // recorded as the reference's step size
+    } else if (reference != "none") {
       ref = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
       if (!ref->ok) {
         fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, ref->message);
