@@ -35,7 +35,8 @@ struct ReferenceStats {
 
 struct ReferenceResult {
   bool ok = false;
-  std::string integrator;          ///< "cvode" or "ida"
+  std::string integrator;          ///< "cvode", "ida" or "bdf2_self_convergence"
+  double h = 0.0;                  ///< fixed step [s] of a self-convergence reference; 0 for SUNDIALS
   std::string status = "not_run";  ///< "ok" or the SUNDIALS flag name
   std::string message;
   ReferenceStats stats;

@@ -340,11 +340,8 @@ bool StepEngine::Commit(double h) {
   x0_.swap(x1_);
   vm1_.swap(v0_);
   v0_.swap(v1_);
-  gm1_.swap(g0_);
-  const bool g_history_valid = have_g0_;
+  gm1_.swap(g0_);  // g₋₁ for SBDF(2): its start step (IMEX Euler) evaluates g₀ too
   have_g0_ = false;
-  // SBDF(2) needs g₋₁; after an implicit start step it was never evaluated.
-  if (method_ == Method::kSbdf2 && !g_history_valid) sys_.ExplicitForces(t_, xm1_, vm1_, &gm1_);
   h_prev_ = h;
   have_history_ = true;
   t_ += h;

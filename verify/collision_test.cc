@@ -11,8 +11,9 @@
 // 3. The cloth rests on the table: about the particles over the 0.5 m top
 //    (13×13 = 169 of 400) stay constrained at t_end.
 // 4. The avatar (CGAL mesh man.off, scripts/setup extracts it): the same
-//    depth bound for every integrator over the first 1.5 s of the drape
-//    (the sheet settles on the head by 0.6 s), and the sheet rests on it.
+//    depth bound for every integrator over the first 1.5 s of the drape,
+//    and more than 20 particles in contact at 1.5 s (36–43 measured, printed):
+//    a response that lets the sheet fall through leaves 0.
 #include <gtest/gtest.h>
 
 #include "results/metrics.h"

@@ -107,12 +107,7 @@ TEST(Tension, FullSpringJacobianHasClosedForm) {
 // Σ_p F_p = 0 to round-off. Bending projected onto vertex normals
 // (Alg. 3/4) does not, so it is checked separately below.
 TEST(InternalForces, SumToZero) {
-  Scene s = testing::AllTermsScene(6, 5);
-  s.forces.gravity.setZero();
-  s.forces.wind.reset();
-  s.forces.air = 0.0;
-  s.material.bend = {0.0, 0.0};
-  s.material.bend_damping = 0.0;
+  Scene s = testing::InternalForcesScene(6, 5);
   const ParticleSystem sys(s);
   MatrixN3 x, v, f(sys.num_particles(), 3);
   testing::PerturbedState(sys, 3, &x, &v, 0.02);

@@ -31,12 +31,7 @@ Scene SmallSheet() {
 // left out: its projection onto vertex normals (Alg. 3/4) is not
 // momentum-conserving. Bound: 1e-10 of Σ m|v|.
 TEST(Properties, InternalForcesConserveMomentum) {
-  Scene s = testing::AllTermsScene(6, 5);
-  s.forces.gravity.setZero();
-  s.forces.wind.reset();
-  s.forces.air = 0.0;
-  s.material.bend = {0.0, 0.0};
-  s.material.bend_damping = 0.0;
+  Scene s = testing::InternalForcesScene(6, 5);
   s.solver.cg_tolerance = 1e-13;
   s.solver.max_updates = 200;
   const ParticleSystem sys(s);

@@ -36,6 +36,19 @@ inline Scene AllTermsScene(int nu = 5, int nv = 4, BendModel bend = BendModel::k
   return s;
 }
 
+/// AllTermsScene with only the momentum-conserving internal forces:
+/// tension, shear and transverse contraction (no gravity, wind, air, and no
+/// bending, whose projection onto vertex normals is not conservative).
+inline Scene InternalForcesScene(int nu, int nv) {
+  Scene s = AllTermsScene(nu, nv);
+  s.forces.gravity.setZero();
+  s.forces.wind.reset();
+  s.forces.air = 0.0;
+  s.material.bend = {0.0, 0.0};
+  s.material.bend_damping = 0.0;
+  return s;
+}
+
 /// Positions near rest with a smooth out-of-plane bump and random jitter
 /// (so no term is degenerate), and random velocities.
 inline void PerturbedState(const ParticleSystem& sys, unsigned seed, MatrixN3* x, MatrixN3* v, double jitter = 0.01) {
