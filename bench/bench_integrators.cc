@@ -205,6 +205,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
         f.SetAttribute(g, name, v);
     } else {
       f.SetAttribute(g, "cg_tolerance", scene.solver.cg_tolerance);
+      f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
       f.SetAttribute(g, "preconditioner", std::string(ToString(scene.solver.preconditioner)));
       f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
       f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
@@ -271,9 +272,10 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
   for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ", ") + t;
   fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", scene.name,
              scene.source, sys.num_particles(), sys.fixed().size(), t_end, terms);
-  fmt::print("solver: cg_tolerance {:g}, preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
+  fmt::print("solver: cg_tolerance {:g} ({}), preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
              "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
-             scene.solver.cg_tolerance, ToString(scene.solver.preconditioner), scene.solver.max_updates,
+             scene.solver.cg_tolerance, ToString(scene.solver.cg_reference), ToString(scene.solver.preconditioner),
+             scene.solver.max_updates,
              ToString(scene.solver.predictor), scene.NumericalStiffness(scene.h), scene.h);
   if (ref && ref->integrator == "bdf2_self_convergence")
     fmt::print("reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "

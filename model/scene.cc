@@ -39,6 +39,9 @@ std::string_view ToString(PreconditionerType p) {
 std::string_view ToString(Predictor p) {
   return p == Predictor::kConstantVelocity ? "constant" : "extrapolate";
 }
+std::string_view ToString(CgReference r) {
+  return r == CgReference::kFixedOnly ? "fixed_only" : "filtered";
+}
 std::string_view ToString(StepControl s) {
   return s == StepControl::kFixed ? "fixed" : "iterations";
 }
@@ -318,6 +321,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     SolverSpec& so = s.solver;
     so.cg_tolerance = v.Positive("cg_tolerance", so.cg_tolerance);
     if (so.cg_tolerance >= 1.0) v.Fail("cg_tolerance", "must be < 1");
+    so.cg_reference = v.Choice("cg_reference", so.cg_reference, {CgReference::kFixedOnly, CgReference::kFiltered});
     so.cg_max_iterations = v.Integer("cg_max_iterations", so.cg_max_iterations, 1);
     so.preconditioner = v.Choice("preconditioner", so.preconditioner,
                                  {PreconditionerType::kIc0, PreconditionerType::kJacobi, PreconditionerType::kNone});

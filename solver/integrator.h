@@ -121,16 +121,18 @@ class StepEngine {
   bool Commit(double h);
   /// Collision response (SPEC §7): rebuilds the filter from the positions at
   /// the start of the step; returns the number of colliding particles.
-  int SetUpContacts(double h, double gamma);
-  /// After a successful solve: constraint impulses (A v₁ − b)·D for release
-  /// and friction.
+  int SetUpContacts(double h);
+  /// After a successful solve: the contact impulse that holds each particle,
+  /// ⟨(A v₁ − b) − M(v₁ − v̂), D⟩, for release and friction.
   void ReadContactImpulses();
+  /// ‖S_F b‖₂: the 2-norm of b over the particles that are not fixed.
+  double FreeRowsNorm(const MatrixN3& b) const;
 
   // Per-particle contact state (only used when the scene has obstacles).
   struct Contact {
     int obstacle = -1;            // obstacle index, −1: none
     Vector3 direction = Vector3::Zero();
-    double impulse = 0.0;         // (A v₁ − b)·D of the last step [kg m/s]
+    double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadContactImpulses)
   };
   std::vector<Contact> contacts_;
   MatrixN3 friction_;             // Coulomb friction forces [N], explicit
@@ -150,7 +152,7 @@ class StepEngine {
   bool have_g0_ = false;         // g0_ holds g(t0, x0, v0)
 
   // Scratch, allocated once.
-  MatrixN3 g0_, g_, b0_, b_, xhat_, xg0_, vg_, xg_, v1_, x1_, tmp_, vprev_;
+  MatrixN3 g0_, g_, b0_, b_, xhat_, vhat_, xg0_, vg_, xg_, v1_, x1_, tmp_, vprev_;
   PcgSummary last_pcg_;
 };
 

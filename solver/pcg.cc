@@ -180,10 +180,14 @@ PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityF
   MatrixN3& q = w->q;
 
   if (filtered) filter.Impose(v);
-  // ‖S b‖ for the stopping rule (SPEC §5).
-  r = b;
-  if (filtered) filter.Project(&r);
-  s.rhs_norm = r.norm();
+  // ‖S b‖ for the stopping rule (SPEC §5), unless the caller gave its own.
+  if (options.rhs_norm >= 0.0) {
+    s.rhs_norm = options.rhs_norm;
+  } else {
+    r = b;
+    if (filtered) filter.Project(&r);
+    s.rhs_norm = r.norm();
+  }
   const double threshold = options.tolerance * s.rhs_norm;
 
   r = b;  // line 2: r = S(b − A v)

@@ -88,13 +88,16 @@ std::string_view ToString(PcgStatus s);
 struct PcgOptions {
   double tolerance = 1e-6;  ///< η: stop when ‖r‖₂ ≤ η ‖S b‖₂ (2-norm over all 3N entries)
   int max_iterations = 1000;
+  /// If ≥ 0: the norm η is relative to instead of ‖S b‖₂ [units of b]
+  /// (the step engine passes ‖S_F b‖₂, see CgReference).
+  double rhs_norm = -1.0;
 };
 
 struct PcgSummary {
   PcgStatus status = PcgStatus::kBreakdown;
   int iterations = -1;          ///< CG iterations; 0 if the guess already met the tolerance
   double residual_norm = -1.0;  ///< final ‖S(b − A v)‖₂ [units of b]
-  double rhs_norm = -1.0;       ///< ‖S b‖₂
+  double rhs_norm = -1.0;       ///< the norm the tolerance was relative to (‖S b‖₂ by default)
 };
 
 /// Scratch vectors of the PCG, allocated once for N particles.
