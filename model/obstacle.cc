@@ -1,10 +1,12 @@
-// Signed distances of the analytic obstacles (SPEC §7).
+// Signed distances, segment casts and keyframed rigid motion of obstacles
+// (SPEC §7; thesis §5.1, §6.2).
 #include "model/obstacle.h"
 
 #include "model/triangle_mesh.h"
 
 #include <algorithm>
 #include <cmath>
+#include <Eigen/Geometry>
 
 namespace clothbench {
 
@@ -41,12 +43,98 @@ double BoxDistance(const Vector3& p, const Vector3& e, Vector3* dir) {
 
 }  // namespace
 
+Eigen::Matrix3d RotationFromDegrees(const Vector3& deg) {
+  const double d2r = M_PI / 180.0;
+  return (Eigen::AngleAxisd(deg.z() * d2r, Vector3::UnitZ()) * Eigen::AngleAxisd(deg.y() * d2r, Vector3::UnitY()) *
+          Eigen::AngleAxisd(deg.x() * d2r, Vector3::UnitX()))
+      .toRotationMatrix();
+}
+
 Obstacle::Obstacle(const ObstacleSpec& spec) : spec_(spec) {
   if (spec.type == ObstacleType::kMesh)
     mesh_ = std::make_shared<const TriangleMesh>(spec.path, spec.scale, spec.rotate, spec.translate);
+  anchor_ = spec.type == ObstacleType::kMesh ? spec.translate : spec.center;
+  for (const ObstacleKeyframe& k : spec.keyframes)
+    key_rotations_.emplace_back(Eigen::Quaterniond(RotationFromDegrees(k.rotate)).normalized());
 }
 
-double Obstacle::SignedDistance(const Vector3& p, Vector3* dir) const {
+ObstaclePose Obstacle::PoseAt(double t) const {
+  ObstaclePose pose;
+  pose.anchor = anchor_;
+  const auto& keys = spec_.keyframes;
+  if (keys.empty()) return pose;
+  pose.identity = false;
+  std::size_t k = 0;  // segment [k, k+1] containing t, or a held end pose
+  while (k + 1 < keys.size() && keys[k + 1].t <= t) ++k;
+  if (t <= keys.front().t || k + 1 == keys.size()) {
+    const std::size_t held = t <= keys.front().t ? 0 : keys.size() - 1;
+    pose.rotation = key_rotations_[held].toRotationMatrix();
+    pose.translation = keys[held].translate;
+    return pose;
+  }
+  // Linear translation and constant-rate rotation (the shortest arc from
+  // R_k to R_k+1) over the segment: R(t) = exp(s θ [a]) R_k.
+  const double dt = keys[k + 1].t - keys[k].t, s = (t - keys[k].t) / dt;
+  Eigen::Quaterniond dq = key_rotations_[k + 1] * key_rotations_[k].inverse();
+  if (dq.w() < 0.0) dq.coeffs() *= -1.0;
+  const Eigen::AngleAxisd arc(dq);
+  pose.rotation = Eigen::AngleAxisd(s * arc.angle(), arc.axis()) * key_rotations_[k].toRotationMatrix();
+  pose.translation = (1.0 - s) * keys[k].translate + s * keys[k + 1].translate;
+  pose.linear_velocity = (keys[k + 1].translate - keys[k].translate) / dt;
+  pose.angular_velocity = (arc.angle() / dt) * arc.axis();
+  return pose;
+}
+
+double Obstacle::SignedDistance(const ObstaclePose& pose, const Vector3& p, Vector3* dir) const {
+  if (pose.identity) return PlacedSignedDistance(p, dir);
+  Vector3 d_placed;
+  const double d = PlacedSignedDistance(pose.ToPlaced(p), &d_placed);
+  *dir = pose.ToWorldDirection(d_placed);
+  return d;
+}
+
+std::optional<SegmentHit> Obstacle::FirstHit(const ObstaclePose& pose, const Vector3& a_world,
+                                             const Vector3& b_world) const {
+  const Vector3 a = pose.ToPlaced(a_world), b = pose.ToPlaced(b_world);
+  std::optional<SegmentHit> hit;
+  if (spec_.type == ObstacleType::kMesh) {
+    hit = mesh_->FirstHit(a, b);
+  } else {
+    Vector3 dir;
+    auto f = [&](double s) { return PlacedSignedDistance(a + s * (b - a), &dir); };
+    if (f(0.0) < 0.0) return std::nullopt;  // already inside: proximity handles it
+    // Golden-section search for the minimum of the convex f on [0, 1].
+    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+    double lo = 0.0, hi = 1.0, m1 = hi - g * (hi - lo), m2 = lo + g * (hi - lo), f1 = f(m1), f2 = f(m2);
+    double s_min = f(1.0) < 0.0 ? 1.0 : -1.0;
+    if (s_min < 0.0) {
+      while (hi - lo > 1e-12) {
+        if (f1 < 0.0) { s_min = m1; break; }
+        if (f2 < 0.0) { s_min = m2; break; }
+        if (f1 < f2) { hi = m2; m2 = m1; f2 = f1; m1 = hi - g * (hi - lo); f1 = f(m1); }
+        else { lo = m1; m1 = m2; f1 = f2; m2 = lo + g * (hi - lo); f2 = f(m2); }
+      }
+      if (s_min < 0.0) return std::nullopt;  // the segment stays outside
+    }
+    lo = 0.0;  // f(lo) ≥ 0 > f(hi): bisection for the entry
+    hi = s_min;
+    while (hi - lo > 1e-12) {
+      const double mid = 0.5 * (lo + hi);
+      (f(mid) >= 0.0 ? lo : hi) = mid;
+    }
+    SegmentHit h;
+    h.s = lo;
+    h.point = a + lo * (b - a);
+    PlacedSignedDistance(h.point, &h.normal);
+    hit = h;
+  }
+  if (!hit) return std::nullopt;
+  hit->point = pose.ToWorld(hit->point);
+  hit->normal = pose.ToWorldDirection(hit->normal);
+  return hit;
+}
+
+double Obstacle::PlacedSignedDistance(const Vector3& p, Vector3* dir) const {
   const ObstacleSpec& s = spec_;
   switch (s.type) {
     case ObstacleType::kMesh:

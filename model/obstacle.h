@@ -1,13 +1,19 @@
-// Static analytic obstacles for collision response (SPEC §7, thesis ch. 4):
-// plane, sphere, box and cylinder (a round table is a cylinder with a top).
-// Each gives the signed distance of a point and the collision direction D
-// (outward normal of the closest surface point).
+// Obstacles for collision response (SPEC §7, thesis ch. 4): analytic plane,
+// sphere, box and cylinder (a round table is a cylinder with a top) and CGAL
+// triangle meshes. Each gives the signed distance of a point, the collision
+// direction D (outward normal of the closest surface point) and the first
+// point where a segment enters it (the old→new ray cast of §5.1). An
+// obstacle is static or moves as a keyframed rigid transform (thesis §6.2,
+// class Environment).
 #ifndef CLOTHBENCH_MODEL_OBSTACLE_H_
 #define CLOTHBENCH_MODEL_OBSTACLE_H_
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "model/types.h"
 
@@ -16,6 +22,53 @@ namespace clothbench {
 enum class ObstacleType { kPlane, kSphere, kBox, kCylinder, kMesh };
 
 class TriangleMesh;
+
+/// Rotation R = R_z(c) R_y(b) R_x(a) from angles (a, b, c) in degrees: about x,
+/// then y, then z (the convention of the scene keys `rotate`).
+Eigen::Matrix3d RotationFromDegrees(const Vector3& degrees);
+
+/// One keyframe of a moving obstacle: at time t [s] the obstacle, as placed
+/// by its other keys, is rotated by `rotate` (degrees about x, then y, then
+/// z) about its anchor (centre of an analytic obstacle, `translate` of a
+/// mesh) and then moved by `translate` [m].
+struct ObstacleKeyframe {
+  double t = 0.0;
+  Vector3 translate = Vector3::Zero();
+  Vector3 rotate = Vector3::Zero();
+};
+
+/// The rigid placement of an obstacle at one time: a point x of the obstacle
+/// as placed in the scene is at anchor + translation + R (x − anchor).
+/// Velocities are exact for the piecewise-linear translation and the
+/// constant-rate rotation between keyframes.
+struct ObstaclePose {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Vector3 translation = Vector3::Zero();         ///< [m]
+  Vector3 anchor = Vector3::Zero();              ///< [m], the rotation centre as placed
+  Vector3 linear_velocity = Vector3::Zero();     ///< of the anchor [m/s]
+  Vector3 angular_velocity = Vector3::Zero();    ///< world frame [rad/s]
+  bool identity = true;                          ///< no motion applied (static obstacle)
+
+  /// World point → the obstacle's placed (scene) frame.
+  Vector3 ToPlaced(const Vector3& p) const {
+    return identity ? p : Vector3(anchor + rotation.transpose() * (p - anchor - translation));
+  }
+  /// Placed-frame direction → world direction.
+  Vector3 ToWorldDirection(const Vector3& d) const { return identity ? d : Vector3(rotation * d); }
+  /// Placed-frame point → world point.
+  Vector3 ToWorld(const Vector3& x) const { return identity ? x : Vector3(anchor + translation + rotation * (x - anchor)); }
+  /// Velocity [m/s] of the obstacle's material point at world position p.
+  Vector3 Velocity(const Vector3& p) const {
+    return linear_velocity + angular_velocity.cross(p - anchor - translation);
+  }
+};
+
+/// Where a segment a → b first enters an obstacle.
+struct SegmentHit {
+  double s = 0.0;                      ///< fraction along the segment, in [0, 1]
+  Vector3 point = Vector3::Zero();     ///< a + s (b − a) [m]
+  Vector3 normal = Vector3::Zero();    ///< unit surface normal at the hit, facing a's side
+};
 
 /// An obstacle as written in a scene (`[[obstacle]]`).
 struct ObstacleSpec {
@@ -33,6 +86,9 @@ struct ObstacleSpec {
   double scale = 1.0;
   Vector3 rotate = Vector3::Zero();          ///< degrees about x, then y, then z
   Vector3 translate = Vector3::Zero();       ///< [m]
+  /// Rigid motion (any type); empty: static. Times strictly increasing;
+  /// before the first and after the last keyframe the pose is held.
+  std::vector<ObstacleKeyframe> keyframes;
 };
 
 std::string_view ToString(ObstacleType t);
@@ -42,13 +98,32 @@ class Obstacle {
   /// Loads the mesh of a mesh obstacle. @throws std::runtime_error for an
   /// unreadable mesh file.
   explicit Obstacle(const ObstacleSpec& spec);
-  /// Signed distance [m] of p to the surface (negative inside) and the unit
-  /// outward direction D at the closest surface point.
-  double SignedDistance(const Vector3& p, Vector3* direction) const;
+  /// Signed distance [m] of the world point p to the surface at `pose`
+  /// (negative inside a solid; unsigned for an open mesh) and the unit
+  /// outward direction D [world] at the closest surface point.
+  double SignedDistance(const ObstaclePose& pose, const Vector3& p, Vector3* direction) const;
+  /// The same at time t [s] (PoseAt(t)).
+  double SignedDistance(double t, const Vector3& p, Vector3* direction) const {
+    return SignedDistance(PoseAt(t), p, direction);
+  }
+  /// The first point where the segment a → b [m, world] enters the obstacle
+  /// at `pose` (SPEC §7, thesis §5.1's ray cast), or nothing if it does not
+  /// or a is already inside. Analytic obstacles are convex, so the signed
+  /// distance along the segment is convex: its minimum is bracketed by
+  /// golden-section search and the entry by bisection (to 1e-12 of the
+  /// segment). Meshes: the first intersection of CGAL's AABB tree.
+  std::optional<SegmentHit> FirstHit(const ObstaclePose& pose, const Vector3& a, const Vector3& b) const;
+  /// The rigid placement at time t [s] from the keyframes (identity if none).
+  ObstaclePose PoseAt(double t) const;
+  bool moving() const { return !spec_.keyframes.empty(); }
   const ObstacleSpec& spec() const { return spec_; }
 
  private:
+  double PlacedSignedDistance(const Vector3& p, Vector3* direction) const;
+
   ObstacleSpec spec_;
+  Vector3 anchor_ = Vector3::Zero();
+  std::vector<Eigen::Quaterniond> key_rotations_;  // one per keyframe
   std::shared_ptr<const TriangleMesh> mesh_;  // kMesh only (shared by copies)
 };
 

@@ -404,6 +404,28 @@ Scene ParseScene(std::string_view text, const std::string& source) {
           break;
         }
       }
+      // Keyframed rigid motion (thesis §6.2): keyframes = [{ t, translate, rotate }, ...].
+      if (const toml::node* kf = o.Get("keyframes")) {
+        const toml::array* keys = kf->as_array();
+        if (!keys || keys->empty())
+          o.Fail("keyframes", "must be a non-empty array of tables { t = s, translate = [x, y, z], rotate = [a, b, c] }");
+        for (std::size_t j = 0; j < keys->size(); ++j) {
+          const toml::table* kt = (*keys)[j].as_table();
+          const std::string kprefix = fmt::format("{}keyframes[{}].", prefix, j);
+          if (!kt) throw SceneError(fmt::format("{}: {}: must be a table {{ t, translate, rotate }}", source,
+                                                kprefix.substr(0, kprefix.size() - 1)));
+          TableReader kr(kt, kprefix, source);
+          ObstacleKeyframe key;
+          key.t = kr.NonNegative("t", -1.0);
+          if (!kt->contains("t")) kr.Fail("t", "is required (keyframe time [s])");
+          if (!spec.keyframes.empty() && !(key.t > spec.keyframes.back().t))
+            kr.Fail("t", fmt::format("must be greater than the previous keyframe's t = {}", spec.keyframes.back().t));
+          key.translate = kr.Vec3("translate", key.translate);
+          key.rotate = kr.Vec3("rotate", key.rotate);
+          kr.RejectUnknown();
+          spec.keyframes.push_back(key);
+        }
+      }
       o.RejectUnknown();
       s.obstacles.push_back(spec);
     }

@@ -1,6 +1,7 @@
 // CGAL-backed triangle-mesh distance queries.
 #include "model/triangle_mesh.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -39,11 +40,7 @@ TriangleMesh::TriangleMesh(const std::string& path, double scale, const Vector3&
     throw std::runtime_error(fmt::format("cannot read a polygon mesh from \"{}\"", path));
   if (!CGAL::is_triangle_mesh(impl_->mesh))
     throw std::runtime_error(fmt::format("\"{}\" is not a triangle mesh", path));
-  const double d2r = M_PI / 180.0;
-  const Eigen::Matrix3d rot = (Eigen::AngleAxisd(rotate_deg.z() * d2r, Vector3::UnitZ()) *
-                               Eigen::AngleAxisd(rotate_deg.y() * d2r, Vector3::UnitY()) *
-                               Eigen::AngleAxisd(rotate_deg.x() * d2r, Vector3::UnitX()))
-                                  .toRotationMatrix();
+  const Eigen::Matrix3d rot = RotationFromDegrees(rotate_deg);
   for (auto v : impl_->mesh.vertices()) {
     const Point& p = impl_->mesh.point(v);
     const Vector3 q = rot * (scale * Vector3(p.x(), p.y(), p.z())) + translate;
@@ -72,6 +69,32 @@ double TriangleMesh::SignedDistance(const Vector3& p, Vector3* direction) const 
     *direction = Vector3(n.x(), n.y(), n.z());
   }
   return is_inside ? -dist : dist;
+}
+
+std::optional<SegmentHit> TriangleMesh::FirstHit(const Vector3& a, const Vector3& b) const {
+  const Vector3 ab = b - a;
+  const double len = ab.norm();
+  if (len <= 0.0) return std::nullopt;
+  const Kernel::Ray_3 ray(Point(a.x(), a.y(), a.z()), Point(b.x(), b.y(), b.z()));
+  const auto res = impl_->tree->first_intersection(ray);
+  if (!res) return std::nullopt;
+  Vector3 q;
+  if (const Point* p = boost::get<Point>(&res->first)) {
+    q = Vector3(p->x(), p->y(), p->z());
+  } else if (const auto* seg = boost::get<Kernel::Segment_3>(&res->first)) {  // ray in the face's plane
+    const Point& p0 = seg->source();
+    const Point& p1 = seg->target();
+    const Vector3 q0(p0.x(), p0.y(), p0.z()), q1(p1.x(), p1.y(), p1.z());
+    q = (q0 - a).squaredNorm() <= (q1 - a).squaredNorm() ? q0 : q1;
+  } else {
+    return std::nullopt;
+  }
+  const double s = (q - a).dot(ab) / (len * len);
+  if (s > 1.0) return std::nullopt;
+  const auto n = CGAL::Polygon_mesh_processing::compute_face_normal(res->second, impl_->mesh);
+  Vector3 normal(n.x(), n.y(), n.z());
+  if (normal.dot(ab) > 0.0) normal = -normal;
+  return SegmentHit{std::clamp(s, 0.0, 1.0), q, normal};
 }
 
 int TriangleMesh::num_vertices() const { return static_cast<int>(impl_->mesh.number_of_vertices()); }

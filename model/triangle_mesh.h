@@ -7,8 +7,10 @@
 #define CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
 
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "model/obstacle.h"
 #include "model/types.h"
 
 namespace clothbench {
@@ -27,6 +29,10 @@ class TriangleMesh {
   /// Signed distance [m] (negative inside a closed mesh) and the unit
   /// direction D from the closest surface point toward the outside.
   double SignedDistance(const Vector3& p, Vector3* direction) const;
+  /// The first intersection of the segment a → b [m] with the mesh (CGAL's
+  /// AABB-tree ray cast, kept if within the segment), or nothing. The
+  /// normal is the hit face's, turned toward a.
+  std::optional<SegmentHit> FirstHit(const Vector3& a, const Vector3& b) const;
   int num_vertices() const;
   int num_faces() const;
   bool closed() const;

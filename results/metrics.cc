@@ -75,13 +75,15 @@ PenetrationSeries ComputePenetration(const ParticleSystem& system, const Traject
   PenetrationSeries s;
   const auto& obs = system.obstacles();
   s.obstacles = static_cast<int>(obs.size());
-  for (const MatrixN3& x : traj.positions)
+  for (std::size_t f = 0; f < traj.positions.size(); ++f) {
+    const MatrixN3& x = traj.positions[f];
     for (const Obstacle& o : obs) {
+      const ObstaclePose pose = o.PoseAt(traj.times[f]);
       double max_depth = 0.0, sum = 0.0;
       int below = 0, close = 0;
       for (int p = 0; p < x.rows(); ++p) {
         Vector3 dir;
-        const double d = o.SignedDistance(x.row(p).transpose(), &dir);
+        const double d = o.SignedDistance(pose, x.row(p).transpose(), &dir);
         if (d < 0.0) {
           max_depth = std::max(max_depth, -d);
           sum += -d;
@@ -93,6 +95,7 @@ PenetrationSeries ComputePenetration(const ParticleSystem& system, const Traject
       s.mean_depth.push_back(below ? sum / below : 0.0);
       s.close.push_back(close);
     }
+  }
   return s;
 }
 

@@ -135,6 +135,9 @@ class StepEngine {
     double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadContactImpulses)
   };
   std::vector<Contact> contacts_;
+  double release_tolerance_ = 0.0;         // η‖S_F b‖ of the last solve [kg m/s]
+  std::vector<ObstaclePose> poses_;        // of each obstacle at t₀ (per step)
+  std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now)
   MatrixN3 friction_;             // Coulomb friction forces [N], explicit
 
   const ParticleSystem& sys_;
