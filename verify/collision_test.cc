@@ -29,6 +29,7 @@
 
 #include "results/metrics.h"
 #include "solver/run.h"
+#include "verify/test_scenes.h"
 
 namespace clothbench {
 namespace {
@@ -84,13 +85,8 @@ TEST_P(PenetrationTest, NoParticleDeeperThanHalfDeltaAfterSettling) {
 class RestingContactTest : public ::testing::TestWithParam<Method> {};
 
 TEST_P(RestingContactTest, CostsOneUpdateAndNoCgOnAPlane) {
-  Scene s = BuiltinScene("tablecloth");
-  s.grid.origin.z() = 0.705;
+  Scene s = testing::TableclothOnPlane(0.6);
   ObstacleSpec& plane = s.obstacles[0];
-  plane.type = ObstacleType::kPlane;
-  plane.center = Vector3(0.0, 0.0, 0.7);
-  plane.normal = Vector3::UnitZ();
-  s.t_end = 0.6;
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, GetParam(), {s.h, s.t_end, s.frame_dt});
   ASSERT_TRUE(r.ok) << r.BriefReport();

@@ -29,6 +29,7 @@
 #include "model/obstacle.h"
 #include "results/metrics.h"
 #include "solver/run.h"
+#include "verify/test_scenes.h"
 
 namespace clothbench {
 namespace {
@@ -251,14 +252,9 @@ TEST(ObstacleMotion, RisingPlaneLiftsTheCloth) {
   // ride on it: at t_end it rests on the raised border (z = 0.81 m, within
   // 1 mm: the relaxation ω_r = 0.5 closes the lag of the rise within a few
   // steps) and no particle is ever deeper than δ/2 below the moving plane.
-  Scene s = BuiltinScene("tablecloth");
-  s.grid.origin.z() = 0.705;
+  Scene s = testing::TableclothOnPlane(0.8);
   ObstacleSpec& plane = s.obstacles[0];
-  plane.type = ObstacleType::kPlane;
-  plane.center = Vector3(0.0, 0.0, 0.7);
-  plane.normal = Vector3::UnitZ();
   plane.keyframes = {{0.2, Vector3::Zero(), Vector3::Zero()}, {0.6, Vector3(0, 0, 0.1), Vector3::Zero()}};
-  s.t_end = 0.8;
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     const RunSummary r = RunIntegrator(sys, m, {s.h, s.t_end, s.frame_dt});

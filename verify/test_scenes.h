@@ -92,6 +92,20 @@ inline Scene LinearMembrane(double damping) {
   return s;
 }
 
+/// The tablecloth (scenes/tablecloth.toml) released flat 5 mm above an
+/// infinite plane z = 0.7 m, i.e. inside the collision area (δ = 10 mm), for
+/// t_end [s].
+inline Scene TableclothOnPlane(double t_end) {
+  Scene s = BuiltinScene("tablecloth");
+  s.grid.origin.z() = 0.705;
+  ObstacleSpec& plane = s.obstacles[0];
+  plane.type = ObstacleType::kPlane;
+  plane.center = Vector3(0.0, 0.0, 0.7);
+  plane.normal = Vector3::UnitZ();
+  s.t_end = t_end;
+  return s;
+}
+
 }  // namespace clothbench::testing
 
 #endif  // CLOTHBENCH_VERIFY_TEST_SCENES_H_
