@@ -416,8 +416,8 @@ Scene ParseScene(std::string_view text, const std::string& source) {
                                                 kprefix.substr(0, kprefix.size() - 1)));
           TableReader kr(kt, kprefix, source);
           ObstacleKeyframe key;
-          key.t = kr.NonNegative("t", -1.0);
           if (!kt->contains("t")) kr.Fail("t", "is required (keyframe time [s])");
+          key.t = kr.NonNegative("t", key.t);
           if (!spec.keyframes.empty() && !(key.t > spec.keyframes.back().t))
             kr.Fail("t", fmt::format("must be greater than the previous keyframe's t = {}", spec.keyframes.back().t));
           key.translate = kr.Vec3("translate", key.translate);

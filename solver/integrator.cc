@@ -266,7 +266,7 @@ StepStats StepEngine::Step(double h) {
 
   if (!contacts_.empty()) {
     ReadContactImpulses();
-    release_tolerance_ = opts_.cg_tolerance * (fixed_only_norm ? pcg_opts.rhs_norm : FreeRowsNorm(b_));
+    release_tolerance_ = opts_.cg_tolerance * FreeRowsNorm(b_);
   }
   x1_ = xhat_ + (gamma * h) * v1_;
   // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by

@@ -84,6 +84,11 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   std::string badfix = kTiny;
   badfix.replace(badfix.find("corner:u1v1"), 11, "corner:u2v1");
   ExpectOneLineError(RunBench("--scene " + WriteScene("fix.toml", badfix) + o), "constraints.fixed[1]");
+  const std::string plane = "\n[[obstacle]]\ntype = \"plane\"\nkeyframes = ";
+  ExpectOneLineError(RunBench("--scene " + WriteScene("kf_t.toml", kTiny + plane + "[{ translate = [0, 0, 1] }]\n") + o),
+                     "obstacle[0].keyframes[0].t: is required");
+  ExpectOneLineError(RunBench("--scene " + WriteScene("kf_order.toml", kTiny + plane + "[{ t = 0.5 }, { t = 0.5 }]\n") + o),
+                     "obstacle[0].keyframes[1].t: must be greater than the previous keyframe's t = 0.5");
   const std::string tiny = " --scene " + WriteScene("tiny.toml", kTiny);
   ExpectOneLineError(RunBench(tiny + " --integrators sbdf2,rk4" + o), "unknown integrator \"rk4\"");
   ExpectOneLineError(RunBench(tiny + " --h 0.01,-0.005" + o), "--h: \"-0.005\" is not a positive number");

@@ -70,7 +70,7 @@ TEST(ObstacleMotion, KeyframedPoseAndVelocity) {
     EXPECT_EQ(p.linear_velocity.norm() + p.angular_velocity.norm(), 0.0) << "t = " << t;
   }
   EXPECT_NEAR((box.PoseAt(3.0).rotation - r1).norm(), 0.0, 1e-14);
-  EXPECT_NEAR(box.PoseAt(0.2).rotation.isIdentity(1e-15), true, 0);
+  EXPECT_TRUE(box.PoseAt(0.2).rotation.isIdentity(1e-15));
 }
 
 TEST(ObstacleMotion, MovingMeshCubeMatchesAnalyticBox) {
