@@ -64,6 +64,13 @@ std::vector<double> ParsePositiveList(const std::string& s, const std::string& o
   return out;
 }
 
+PreconditionerType ParsePreconditioner(const std::string& name) {
+  for (PreconditionerType t : {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
+                               PreconditionerType::kJacobi, PreconditionerType::kNone})
+    if (name == ToString(t)) return t;
+  throw UsageError(fmt::format("--preconditioner: \"{}\" must be ic0, cholesky, amg, jacobi or none", name));
+}
+
 /// One table row and its HDF5 record.
 struct Row {
   std::string id, integrator;
@@ -406,7 +413,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  std::string series, table;
+  std::string series, table, preconditioner;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
@@ -418,6 +425,8 @@ int Main(int argc, char** argv) {
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--rtols", rtols_arg, "rtol list of the cvode and ida rows (default 1e-3,…,1e-7)");
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
+  app.add_option("--preconditioner", preconditioner,
+                 "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
   app.add_option("--series", series,
                  "write every step (t, h, updates, CG iterations, colliding particles) as CSV to FILE and print the "
                  "impact / resting-contact summary (thesis Fig. 4.3)");
@@ -446,6 +455,7 @@ int Main(int argc, char** argv) {
         throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
       scene.solver.cg_tolerance = cg_tolerance;
     }
+    if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner);
     if (reference != "cvode" && reference != "ida" && reference != "none")
       throw UsageError(fmt::format("--reference: \"{}\" must be cvode, ida or none", reference));
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");

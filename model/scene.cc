@@ -33,9 +33,12 @@ std::string_view ToString(PreconditionerType p) {
     case PreconditionerType::kNone: return "none";
     case PreconditionerType::kJacobi: return "jacobi";
     case PreconditionerType::kIc0: return "ic0";
+    case PreconditionerType::kCholesky: return "cholesky";
+    case PreconditionerType::kAmg: return "amg";
   }
   return "?";
 }
+std::string_view ToString(CholeskyOrdering o) { return o == CholeskyOrdering::kMetis ? "metis" : "amd"; }
 std::string_view ToString(Predictor p) {
   return p == Predictor::kConstantVelocity ? "constant" : "extrapolate";
 }
@@ -324,7 +327,10 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     so.cg_reference = v.Choice("cg_reference", so.cg_reference, {CgReference::kFixedOnly, CgReference::kFiltered});
     so.cg_max_iterations = v.Integer("cg_max_iterations", so.cg_max_iterations, 1);
     so.preconditioner = v.Choice("preconditioner", so.preconditioner,
-                                 {PreconditionerType::kIc0, PreconditionerType::kJacobi, PreconditionerType::kNone});
+                                 {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
+                                  PreconditionerType::kJacobi, PreconditionerType::kNone});
+    so.cholesky_ordering =
+        v.Choice("cholesky_ordering", so.cholesky_ordering, {CholeskyOrdering::kMetis, CholeskyOrdering::kAmd});
     so.max_updates = v.Integer("max_updates", so.max_updates, 1);
     {
       auto band = v.Numbers<2>("controller_updates", {double(so.controller_updates[0]), double(so.controller_updates[1])}, true);

@@ -30,7 +30,13 @@ enum class BendModel { kNone, kMembrane, kThinPlate };
 /// an exactly linear prestressed membrane, used by the modal order tests.
 enum class TensionModel { kSplit, kLinear };
 enum class MassLumping { kUniform, kArea };
-enum class PreconditionerType { kNone, kJacobi, kIc0 };
+/// Preconditioner of the filtered PCG (SPEC §5): none, Jacobi (diag(A) ⊗ I₃),
+/// IC(0) of A_α (the thesis' choice), a sparse Cholesky factor from CHOLMOD
+/// ("cholesky"), or one V-cycle of algebraic multigrid from hypre BoomerAMG
+/// ("amg").
+enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg };
+/// Fill-reducing ordering of the CHOLMOD factor (solver key cholesky_ordering).
+enum class CholeskyOrdering { kMetis, kAmd };
 enum class Predictor { kConstantVelocity, kExtrapolate };
 enum class StepControl { kFixed, kIterations };
 /// What the PCG tolerance is relative to (SPEC §5 and its deviation below).
@@ -49,6 +55,7 @@ std::string_view ToString(BendModel m);
 std::string_view ToString(TensionModel m);
 std::string_view ToString(MassLumping m);
 std::string_view ToString(PreconditionerType p);
+std::string_view ToString(CholeskyOrdering o);
 std::string_view ToString(Predictor p);
 std::string_view ToString(StepControl s);
 std::string_view ToString(CgReference r);
@@ -98,6 +105,7 @@ struct SolverSpec {
   CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
   int cg_max_iterations = 1000;
   PreconditionerType preconditioner = PreconditionerType::kIc0;
+  CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
   /// Iteration controller band (SPEC §6, §3.4.3): h grows by step_factor when
   /// a step needed fewer than [0] updates and shrinks when it needed more than [1].

@@ -69,17 +69,24 @@ struct StepStats {
 };
 
 /// A_α = M + α²h² L_K + αh L_D on a fixed pattern, with its preconditioner,
-/// recomputed only when α·h changes (SPEC §3). No allocation after
-/// construction.
+/// recomputed only when α·h changes (SPEC §3). The pattern and the
+/// preconditioner's symbolic phase (IC(0) pattern, CHOLMOD analysis) are set
+/// up once, in the constructor. No allocation after construction, except
+/// inside CHOLMOD and hypre when αh changes.
 class SystemMatrix {
  public:
-  SystemMatrix(const ParticleSystem& system, PreconditionerType type);
+  SystemMatrix(const ParticleSystem& system, PreconditionerType type,
+               CholeskyOrdering ordering = CholeskyOrdering::kMetis);
   /// Makes A and P current for the product αh. Returns false if the
   /// preconditioner could not be built.
   bool Update(double alpha_h);
   const SparseMatrix& matrix() const { return a_; }
   const Preconditioner& preconditioner() const { return precond_; }
   int rebuilds() const { return rebuilds_; }
+  /// Wall time [s] of the matrix assembly and the preconditioner's setup:
+  /// pattern and symbolic analysis, plus every numeric factorisation (or
+  /// AMG setup) so far.
+  double setup_seconds() const { return setup_seconds_; }
 
  private:
   SparseMatrix a_;
@@ -87,6 +94,8 @@ class SystemMatrix {
   Preconditioner precond_;
   double alpha_h_ = -1.0;
   int rebuilds_ = 0;
+  bool analyzed_ = false;
+  double setup_seconds_ = 0.0;
 };
 
 /// Advances the state of a particle system step by step with one method.

@@ -127,34 +127,71 @@ void IncompleteCholesky0::Solve(const MatrixN3& r, MatrixN3* z) const {
   const int* inner = l_.innerIndexPtr();
   const double* val = l_.valuePtr();
   *z = r;
-  for (int c = 0; c < 3; ++c) {
-    double* y = z->col(c).data();
-    for (int k = 0; k < n; ++k) {  // L y = r (column-oriented)
-      const double yk = y[k] / val[outer[k]];
-      y[k] = yk;
-      for (int p = outer[k] + 1; p < outer[k + 1]; ++p) y[inner[p]] -= val[p] * yk;
+  double* y0 = z->col(0).data();
+  double* y1 = z->col(1).data();
+  double* y2 = z->col(2).data();
+  for (int k = 0; k < n; ++k) {  // L y = r (column-oriented), three columns per entry of L
+    const double d = val[outer[k]];
+    const double a0 = y0[k] / d, a1 = y1[k] / d, a2 = y2[k] / d;
+    y0[k] = a0;
+    y1[k] = a1;
+    y2[k] = a2;
+    for (int p = outer[k] + 1; p < outer[k + 1]; ++p) {
+      const int i = inner[p];
+      const double l = val[p];
+      y0[i] -= l * a0;
+      y1[i] -= l * a1;
+      y2[i] -= l * a2;
     }
-    for (int k = n - 1; k >= 0; --k) {  // Lᵀ z = y
-      double s = y[k];
-      for (int p = outer[k] + 1; p < outer[k + 1]; ++p) s -= val[p] * y[inner[p]];
-      y[k] = s / val[outer[k]];
+  }
+  for (int k = n - 1; k >= 0; --k) {  // Lᵀ z = y
+    double s0 = y0[k], s1 = y1[k], s2 = y2[k];
+    for (int p = outer[k] + 1; p < outer[k + 1]; ++p) {
+      const int i = inner[p];
+      const double l = val[p];
+      s0 -= l * y0[i];
+      s1 -= l * y1[i];
+      s2 -= l * y2[i];
     }
+    const double d = val[outer[k]];
+    y0[k] = s0 / d;
+    y1[k] = s1 / d;
+    y2[k] = s2 / d;
   }
 }
 
 // ---------------------------------------------------------------------------
-void Preconditioner::Analyze(const SparseMatrix& a) {
-  if (type_ == PreconditionerType::kJacobi) inv_diag_.resize(a.rows());
-  if (type_ == PreconditionerType::kIc0) ic0_.Analyze(a);
+Preconditioner::Preconditioner(PreconditionerType type, CholeskyOrdering ordering) : type_(type), ordering_(ordering) {}
+Preconditioner::~Preconditioner() = default;
+Preconditioner::Preconditioner(Preconditioner&&) noexcept = default;
+Preconditioner& Preconditioner::operator=(Preconditioner&&) noexcept = default;
+
+bool Preconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixed) {
+  switch (type_) {
+    case PreconditionerType::kNone: return true;
+    case PreconditionerType::kJacobi: inv_diag_.resize(a.rows()); return true;
+    case PreconditionerType::kIc0: ic0_.Analyze(a); return true;
+    case PreconditionerType::kCholesky:
+      if (!cholesky_) cholesky_ = std::make_unique<CholeskyFactor>();
+      return cholesky_->Analyze(a, fixed, ordering_);
+    case PreconditionerType::kAmg:
+      if (!amg_) amg_ = std::make_unique<AmgPreconditioner>();
+      return amg_->Analyze(a, fixed);
+  }
+  return false;
 }
 
 bool Preconditioner::Factorize(const SparseMatrix& a) {
-  if (type_ == PreconditionerType::kJacobi) {
-    for (int k = 0; k < a.rows(); ++k) inv_diag_(k) = 1.0 / a.coeff(k, k);
-    return inv_diag_.allFinite();
+  switch (type_) {
+    case PreconditionerType::kNone: return true;
+    case PreconditionerType::kJacobi:
+      for (int k = 0; k < a.rows(); ++k) inv_diag_(k) = 1.0 / a.coeff(k, k);
+      return inv_diag_.allFinite();
+    case PreconditionerType::kIc0: return ic0_.Factorize(a);
+    case PreconditionerType::kCholesky: return cholesky_ && cholesky_->Factorize(a);
+    case PreconditionerType::kAmg: return amg_ && amg_->Factorize(a);
   }
-  if (type_ == PreconditionerType::kIc0) return ic0_.Factorize(a);
-  return true;
+  return false;
 }
 
 void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
@@ -162,7 +199,59 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
     case PreconditionerType::kNone: *z = r; break;
     case PreconditionerType::kJacobi: z->noalias() = inv_diag_.asDiagonal() * r; break;
     case PreconditionerType::kIc0: ic0_.Solve(r, z); break;
+    case PreconditionerType::kCholesky: cholesky_->Solve(r, z); break;
+    case PreconditionerType::kAmg: amg_->Solve(r, z); break;
   }
+}
+
+// ---------------------------------------------------------------------------
+namespace {
+
+// y(j,:) = start(j,:) ± Σ_i A(i,j) x(i,:), the terms in ascending i: the
+// same operations, in the same order, as Eigen's column-major sparse ×
+// dense product (which scatters column j of A into y), so the result is
+// bit-identical to `y = a * x` (sign +1, no start) and `y -= a * x`.
+template <bool kSubtract>
+void ProductKernel(const SparseMatrix& a, const MatrixN3& x, const MatrixN3* start, MatrixN3* y) {
+  const int n = static_cast<int>(a.cols());
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  const double* val = a.valuePtr();
+  const double* x0 = x.col(0).data();
+  const double* x1 = x.col(1).data();
+  const double* x2 = x.col(2).data();
+  double* y0 = y->col(0).data();
+  double* y1 = y->col(1).data();
+  double* y2 = y->col(2).data();
+  const double* s0 = start ? start->col(0).data() : nullptr;
+  const double* s1 = start ? start->col(1).data() : nullptr;
+  const double* s2 = start ? start->col(2).data() : nullptr;
+#pragma omp parallel for schedule(static) if (n > 20000)
+  for (int j = 0; j < n; ++j) {
+    double a0 = s0 ? s0[j] : 0.0, a1 = s1 ? s1[j] : 0.0, a2 = s2 ? s2[j] : 0.0;
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      const int i = inner[p];
+      const double v = val[p];
+      if constexpr (kSubtract) {
+        a0 -= v * x0[i];
+        a1 -= v * x1[i];
+        a2 -= v * x2[i];
+      } else {
+        a0 += v * x0[i];
+        a1 += v * x1[i];
+        a2 += v * x2[i];
+      }
+    }
+    y0[j] = a0;
+    y1[j] = a1;
+    y2[j] = a2;
+  }
+}
+
+}  // namespace
+
+void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y) {
+  ProductKernel<false>(a, x, nullptr, y);
 }
 
 // ---------------------------------------------------------------------------
@@ -190,8 +279,7 @@ PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityF
   }
   const double threshold = options.tolerance * s.rhs_norm;
 
-  r = b;  // line 2: r = S(b − A v)
-  r.noalias() -= a * (*v);
+  ProductKernel<true>(a, *v, &b, &r);  // line 2: r = S(b − A v)
   if (filtered) filter.Project(&r);
   double rnorm = r.norm();
   s.iterations = 0;
@@ -209,7 +297,7 @@ PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityF
   p = z;
   double rho = (r.array() * z.array()).sum();
   for (int k = 0; k < options.max_iterations; ++k) {
-    q.noalias() = a * p;  // line 9
+    SymmetricProduct(a, p, &q);  // line 9
     if (filtered) filter.Project(&q);  // line 10
     const double pq = (p.array() * q.array()).sum();
     if (!(pq > 0.0)) {

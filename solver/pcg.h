@@ -6,11 +6,14 @@
 #ifndef CLOTHBENCH_SOLVER_PCG_H_
 #define CLOTHBENCH_SOLVER_PCG_H_
 
+#include <memory>
 #include <string_view>
 #include <vector>
 
 #include "model/scene.h"
 #include "model/types.h"
+#include "solver/amg.h"
+#include "solver/cholesky.h"
 
 namespace clothbench {
 
@@ -55,7 +58,9 @@ class IncompleteCholesky0 {
   /// Computes L on the analysed pattern (no allocation). Returns false if no
   /// positive pivots were found even with shifts.
   bool Factorize(const SparseMatrix& a);
-  /// z ← (L Lᵀ)⁻¹ r, column by column. No allocation.
+  /// z ← (L Lᵀ)⁻¹ r for the three columns in one sweep of L and one of Lᵀ
+  /// (each column sees the same operations as a column-by-column solve, so
+  /// the result is bit-identical to it). No allocation.
   void Solve(const MatrixN3& r, MatrixN3* z) const;
   double shift() const { return shift_; }
 
@@ -65,22 +70,46 @@ class IncompleteCholesky0 {
   double shift_ = 0.0;
 };
 
-/// Preconditioner for the filtered PCG: none, Jacobi (diag(A) ⊗ I₃, the
-/// block-diagonal 3×3 of A ⊗ I₃) or IC(0).
+/// Preconditioner for the filtered PCG (SPEC §5): none, Jacobi (diag(A) ⊗ I₃,
+/// the block-diagonal 3×3 of A ⊗ I₃), IC(0) of A, a CHOLMOD factor of A_F or
+/// one BoomerAMG V-cycle on A_F (A_F: A with the fixed particles' rows and
+/// columns decoupled, see CholeskyFactor). Movable, not copyable.
 class Preconditioner {
  public:
-  explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0) : type_(type) {}
+  explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
+                          CholeskyOrdering ordering = CholeskyOrdering::kMetis);
+  ~Preconditioner();
+  Preconditioner(Preconditioner&&) noexcept;
+  Preconditioner& operator=(Preconditioner&&) noexcept;
   PreconditionerType type() const { return type_; }
-  void Analyze(const SparseMatrix& a);
+  /// Symbolic phase for the pattern of `a` (allocates). @param fixed sorted
+  /// fixed particles (used by "cholesky" and "amg"). @return false if the
+  /// library failed.
+  bool Analyze(const SparseMatrix& a, const std::vector<int>& fixed = {});
+  /// Numeric phase for the values of `a`; false if it failed (not SPD).
   bool Factorize(const SparseMatrix& a);
-  /// z ← P⁻¹ r.
+  /// z ← P⁻¹ r. @param r, z N×3. No allocation (after the first call).
   void Apply(const MatrixN3& r, MatrixN3* z) const;
+  /// Nonzeros of the Cholesky factor (0 for other types).
+  long factor_nonzeros() const { return cholesky_ ? cholesky_->factor_nonzeros() : 0; }
+  /// Levels of the AMG hierarchy (0 for other types).
+  int amg_levels() const { return amg_ ? amg_->levels() : 0; }
 
  private:
   PreconditionerType type_;
+  CholeskyOrdering ordering_;
   Eigen::VectorXd inv_diag_;
   IncompleteCholesky0 ic0_;
+  std::unique_ptr<CholeskyFactor> cholesky_;
+  std::unique_ptr<AmgPreconditioner> amg_;
 };
+
+/// y ← A x for a symmetric N×N A applied to the three columns of x in one
+/// pass over A (row j of A is its column j). Rows are split over the OpenMP
+/// threads; every entry of y is summed in the same order whatever the
+/// thread count, so the result is bit-for-bit reproducible.
+/// @param a N×N symmetric, @param x, y N×3 (y must not alias x).
+void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y);
 
 enum class PcgStatus { kConverged, kMaxIterations, kBreakdown, kNonFinite };
 std::string_view ToString(PcgStatus s);
