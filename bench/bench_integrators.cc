@@ -78,7 +78,7 @@ struct Row {
   bool ok = false;
   std::string status, message;
   long steps = 0, updates = 0, cg = 0;
-  double solver_time = 0.0, wall_time = 0.0;
+  double solver_time = 0.0, wall_time = 0.0, setup_time = -1.0;
   std::optional<TrajectoryErrors> err;
   std::optional<double> order;
   EnergySeries energy;
@@ -103,11 +103,13 @@ Row FromRun(const std::string& integrator, double h, const RunSummary& r, const 
   row.cg = r.cg_iterations;
   row.rejected = r.rejected_steps;
   row.solver_time = r.solver_time_in_seconds;
+  row.setup_time = r.setup_time_in_seconds;
   row.wall_time = r.wall_time_in_seconds;
   row.stiffness = scene.NumericalStiffness(h);
   row.traj = r.trajectory;
   for (const StepStats& s : r.step_stats)
-    row.steps_table.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding});
+    row.steps_table.push_back(
+        {s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time});
   return row;
 }
 
@@ -130,7 +132,7 @@ Row FromReference(double rtol, const ReferenceResult& c, const Scene& scene) {
   row.traj = c.trajectory;
   row.sundials = c.stats;
   for (std::size_t k = 0; k < c.step_t.size(); ++k) {
-    row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0, -1});
+    row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0, -1, c.step_time[k]});
     row.cvode_order.push_back(c.step_order[k]);
   }
   return row;
@@ -186,7 +188,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteFrames("/reference/velocities", ref->trajectory.velocities, "m/s");
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
-    for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0, -1});
+    for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0, -1, ref->step_time[k]});
     f.WriteStepStats("/reference/step_stats", st);
   }
   f.CreateGroup("/runs");
@@ -203,6 +205,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.SetAttribute(g, "cg_iterations", r.cg);
     f.SetAttribute(g, "rejected_steps", r.rejected);
     f.SetAttribute(g, "solver_time_s", r.solver_time);
+    if (r.setup_time >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time);
     f.SetAttribute(g, "wall_time_s", r.wall_time);
     f.SetAttribute(g, "numerical_stiffness", r.stiffness);
     if (IsSundials(r.integrator)) {
@@ -295,20 +298,22 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
                ComputeEnergies(sys, ref->trajectory).Rate());
   else
     fmt::print("reference: none (error columns empty)\n");
-  fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol", "steps",
-             "updates", "cg_iters", "solver_s", "e_rms_m", "order", "dE/dt_W", "status");
+  fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol", "steps",
+             "updates", "cg_iters", "solver_s", "setup_s", "e_rms_m", "order", "dE/dt_W", "status");
   std::string last;
   for (const Row& r : rows) {
     if (!last.empty() && last != r.integrator) fmt::print("\n");
     last = r.integrator;
     const std::string hcol = IsSundials(r.integrator) ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
-    fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>11} {:>7} {:>11}  {}\n", r.integrator, hcol, r.steps,
-               r.updates, r.cg, r.solver_time, r.err ? Sci(r.err->rms_at_end) : "",
+    fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.integrator, hcol,
+               r.steps, r.updates, r.cg, r.solver_time, r.setup_time >= 0 ? fmt::format("{:.3f}", r.setup_time) : "",
+               r.err ? Sci(r.err->rms_at_end) : "",
                r.order ? fmt::format("{:.2f}", *r.order) : "", r.ok ? fmt::format("{:.3e}", r.energy.Rate()) : "",
                r.ok ? "ok" : r.status);
     if (r.ok && r.rejected > 0) fmt::print("{:<18} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
   }
   fmt::print("\ncvode/ida rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
+  fmt::print("setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the preconditioner.\n");
   fmt::print("dE/dt_W: (E(t_end) - E(0) - W_ext)/t_end, energy gained (> 0) or dissipated (< 0) beyond external work.\n");
   fmt::print("machine: {}, {} hardware threads, {}, {} build, commit {}\n", HostName(),
              std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());

@@ -20,7 +20,8 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   while (ok && next < frames.size()) {
     const auto t0 = Clock::now();
     const int flag = d.step(&t);
-    solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    solver_seconds += seconds;
     if (flag < 0) {
       res->status = d.flag_name(flag);
       res->message = error.empty() ? "step failed with " + res->status : error;
@@ -33,6 +34,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     res->step_t.push_back(t);
     res->step_h.push_back(h);
     res->step_order.push_back(q);
+    res->step_time.push_back(seconds);
     while (next < frames.size() && frames[next] <= t + 1e-12) {
       if (next + 1 == frames.size() || frames[next] == t) {
         d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly

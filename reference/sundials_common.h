@@ -45,6 +45,7 @@ struct ReferenceResult {
   Trajectory trajectory;
   std::vector<double> step_t, step_h;  ///< step history from one-step mode
   std::vector<int> step_order;
+  std::vector<double> step_time;  ///< wall time of each one-step call [s]
 };
 
 namespace internal {

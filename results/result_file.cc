@@ -149,6 +149,7 @@ void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepR
   H5Tinsert(mem.id, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
   H5Tinsert(mem.id, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
   H5Tinsert(mem.id, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
   const hsize_t dims[1] = {rows.size()};
   Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
   Handle ds{Check(H5Dcreate2(file_, path.c_str(), mem.id, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),

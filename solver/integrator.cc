@@ -128,6 +128,15 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
 }
 
 StepStats StepEngine::Step(double h) {
+  const auto start = std::chrono::steady_clock::now();
+  const double setup_before = sysmat_.setup_seconds();
+  StepStats st = StepImpl(h);
+  st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  st.setup_time = sysmat_.setup_seconds() - setup_before;
+  return st;
+}
+
+StepStats StepEngine::StepImpl(double h) {
   StepStats st;
   st.t = t_ + h;
   st.h = h;

@@ -66,6 +66,8 @@ struct StepStats {
   int cg_iterations = 0;   ///< PCG iterations summed over the updates
   int colliding = 0;       ///< particles constrained by obstacles in this step (Fig. 4.3)
   StepStatus status = StepStatus::kOk;
+  double solve_time = 0.0; ///< wall time of the attempt in the step engine [s], setup of A and P included
+  double setup_time = 0.0; ///< part of solve_time spent refreshing A_α and its preconditioner [s]
 };
 
 /// A_α = M + α²h² L_K + αh L_D on a fixed pattern, with its preconditioner,
@@ -125,6 +127,7 @@ class StepEngine {
   double last_residual() const { return last_pcg_.residual_norm; }
 
  private:
+  StepStats StepImpl(double h);
   StepStats ExplicitStep(double h, StepStats st);
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);

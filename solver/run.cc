@@ -29,9 +29,10 @@ bool RunOptions::IsValid(std::string* error) const {
 }
 
 std::string RunSummary::BriefReport() const {
-  return fmt::format("{}: {} steps ({} rejected), {} updates, {} CG iterations, solver {:.3f} s, wall {:.3f} s{}{}",
-                     status, steps, rejected_steps, fixed_point_updates, cg_iterations, solver_time_in_seconds,
-                     wall_time_in_seconds, message.empty() ? "" : ": ", message);
+  return fmt::format(
+      "{}: {} steps ({} rejected), {} updates, {} CG iterations, solver {:.3f} s (setup {:.3f} s), wall {:.3f} s{}{}",
+      status, steps, rejected_steps, fixed_point_updates, cg_iterations, solver_time_in_seconds, setup_time_in_seconds,
+      wall_time_in_seconds, message.empty() ? "" : ": ", message);
 }
 
 namespace {
@@ -174,6 +175,7 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   if (track_work) sum.trajectory.external_work.resize(next_frame);
   sum.matrix_rebuilds = engine.system_matrix().rebuilds();
   sum.solver_time_in_seconds = solver_seconds;
+  sum.setup_time_in_seconds = engine.system_matrix().setup_seconds();
   sum.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return sum;
 }

@@ -45,6 +45,10 @@ struct RunSummary {
   long cg_iterations = -1;          ///< PCG iterations, over all attempts
   int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds
   double solver_time_in_seconds = -1.0;  ///< time inside the step engine
+  /// Wall time of matrix assembly, symbolic analysis and every numeric
+  /// factorisation or AMG setup (included in solver_time_in_seconds except
+  /// the engine's construction) [s].
+  double setup_time_in_seconds = -1.0;
   double wall_time_in_seconds = -1.0;    ///< whole run including frame output
   std::vector<StepStats> step_stats;     ///< every attempt, rejected ones included
   Trajectory trajectory;
