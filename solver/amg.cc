@@ -75,7 +75,7 @@ struct AmgPreconditioner::Impl {
   }
 };
 
-AmgPreconditioner::AmgPreconditioner() : impl_(std::make_unique<Impl>()) {}
+AmgPreconditioner::AmgPreconditioner() : impl_(std::make_unique<Impl>()) { StartHypre(); }
 AmgPreconditioner::~AmgPreconditioner() = default;
 
 bool AmgPreconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixed) {

@@ -1,0 +1,123 @@
+// bench_scaling: one SBDF(2) step of the large sheet (scenes/large_sheet.toml)
+// at N = 10³, 10⁴, 10⁵ and 10⁶ particles (√N × √N, same 1 m square and
+// material), for each preconditioner of the filtered PCG, without contacts
+// and with a contact patch: a round table (cylinder) under the centre whose
+// top is δ/2 below the sheet, so that 10 % or 30 % of the sheet starts in
+// contact (SPEC §7).
+//
+// Setup (outside the timing): the model, A_α's pattern, the preconditioner's
+// symbolic phase and step 1 (IMEX Euler, SBDF(2)'s start). Timed: steps 2–5,
+// one per benchmark iteration, each minus the time spent refactorising (step
+// 2 refactorises because α changes from 1 to 2/3); that factorisation is in
+// the setup_s counter instead. Counters: cg_per_step, setup_s (assembly,
+// analysis, both factorisations), colliding (particles in contact),
+// factor_nnz (Cholesky) or amg_levels.
+//
+//   build/bench/bench_scaling [--benchmark_filter=REGEX]
+//                             [--benchmark_out=results/scaling.json --benchmark_out_format=json]
+// By default the preconditioners whose step at 10⁶ takes minutes (ic0,
+// jacobi, none) stop at 10⁵; CLOTHBENCH_SCALING_ALL=1 adds them at 10⁶.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "model/particle_system.h"
+#include "solver/integrator.h"
+
+namespace clothbench {
+namespace {
+
+/// The large sheet with side×side particles; contact_fraction > 0 adds a
+/// cylinder under the centre covering that fraction of the sheet's area.
+Scene ScalingScene(int side, double contact_fraction, PreconditionerType preconditioner) {
+  Scene s = BuiltinScene("large_sheet");
+  s.grid.nu = s.grid.nv = side;
+  s.fixed = {s.Index(0, side - 1), s.Index(side - 1, side - 1)};
+  s.solver.preconditioner = preconditioner;
+  s.solver.cg_max_iterations = 100000;  // report the iterations needed, not a failure
+  if (contact_fraction > 0.0) {
+    ObstacleSpec table;
+    table.type = ObstacleType::kCylinder;
+    table.collision_distance = 0.005;
+    table.radius = std::sqrt(contact_fraction * s.grid.size[0] * s.grid.size[1] / M_PI);
+    table.center = Vector3(0.5 * s.grid.size[0], 0.5 * s.grid.size[1], s.grid.origin.z() - 0.5 * table.collision_distance);
+    table.height = 0.5;
+    table.friction = 0.3;
+    s.obstacles.push_back(table);
+  }
+  return s;
+}
+
+void BM_SbdfStep(benchmark::State& state) {
+  const int side = static_cast<int>(state.range(0));
+  const auto type = static_cast<PreconditionerType>(state.range(1));
+  const double contact = static_cast<double>(state.range(2)) / 100.0;
+  const Scene scene = ScalingScene(side, contact, type);
+  const ParticleSystem sys(scene);
+  StepEngine engine(sys, Method::kSbdf2, scene.solver);
+  engine.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
+  const double h = scene.h;
+  StepStats first = engine.Step(h);  // IMEX Euler start
+  if (first.status != StepStatus::kOk) {
+    state.SkipWithError(std::string(ToString(first.status)).c_str());
+    return;
+  }
+  long cg = 0;
+  int colliding = 0;
+  std::vector<double> times;
+  for (auto _ : state) {
+    const StepStats st = engine.Step(h);
+    if (st.status != StepStatus::kOk) {
+      state.SkipWithError(std::string(ToString(st.status)).c_str());
+      return;
+    }
+    const double seconds = st.solve_time - st.setup_time;  // factorisation excluded
+    state.SetIterationTime(seconds);
+    times.push_back(seconds);
+    cg += st.cg_iterations;
+    colliding = std::max(colliding, st.colliding);
+  }
+  std::sort(times.begin(), times.end());
+  const std::size_t k = times.size();
+  state.counters["median_step_s"] = k ? 0.5 * (times[(k - 1) / 2] + times[k / 2]) : 0.0;
+  state.counters["cg_per_step"] = static_cast<double>(cg) / static_cast<double>(std::max<std::size_t>(k, 1));
+  state.counters["setup_s"] = engine.system_matrix().setup_seconds();
+  state.counters["colliding"] = colliding;
+  state.counters["N"] = sys.num_particles();
+  if (type == PreconditionerType::kCholesky)
+    state.counters["factor_nnz"] = static_cast<double>(engine.system_matrix().preconditioner().factor_nonzeros());
+  if (type == PreconditionerType::kAmg) state.counters["amg_levels"] = engine.system_matrix().preconditioner().amg_levels();
+  state.SetComplexityN(sys.num_particles());
+}
+
+}  // namespace
+}  // namespace clothbench
+
+int main(int argc, char** argv) {
+  using namespace clothbench;
+  const bool all = std::getenv("CLOTHBENCH_SCALING_ALL") != nullptr;
+  // √N for N ≈ 10³, 10⁴, 10⁵, 10⁶.
+  const std::vector<int> sides = {32, 100, 316, 1000};
+  for (const int contact : {0, 10, 30}) {
+    for (PreconditionerType type : {PreconditionerType::kCholesky, PreconditionerType::kAmg, PreconditionerType::kIc0,
+                                    PreconditionerType::kJacobi, PreconditionerType::kNone}) {
+      const bool fast = type == PreconditionerType::kCholesky || type == PreconditionerType::kAmg;
+      const std::string name = "SbdfStep/" + std::string(ToString(type)) + "/contact" + std::to_string(contact);
+      auto* b = benchmark::RegisterBenchmark(name.c_str(), BM_SbdfStep);
+      b->ArgNames({"side", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
+      for (int side : sides)
+        if (fast || all || side < 1000) b->Args({side, static_cast<long>(type), contact});
+      b->Complexity(benchmark::oN);
+    }
+  }
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
