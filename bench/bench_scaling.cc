@@ -15,6 +15,7 @@
 //
 //   build/bench/bench_scaling [--benchmark_filter=REGEX]
 //                             [--benchmark_out=results/scaling.json --benchmark_out_format=json]
+// SbdfStep/cholesky_amd: the factor with AMD ordering instead of METIS.
 // By default the preconditioners whose step at 10⁶ takes minutes (ic0,
 // jacobi, none) stop at 10⁵; CLOTHBENCH_SCALING_ALL=1 adds them at 10⁶.
 #include <benchmark/benchmark.h>
@@ -57,7 +58,8 @@ void BM_SbdfStep(benchmark::State& state) {
   const int side = static_cast<int>(state.range(0));
   const auto type = static_cast<PreconditionerType>(state.range(1));
   const double contact = static_cast<double>(state.range(2)) / 100.0;
-  const Scene scene = ScalingScene(side, contact, type);
+  Scene scene = ScalingScene(side, contact, type);
+  if (state.range(3) == 1) scene.solver.cholesky_ordering = CholeskyOrdering::kAmd;
   const ParticleSystem sys(scene);
   StepEngine engine(sys, Method::kSbdf2, scene.solver);
   engine.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
@@ -109,12 +111,18 @@ int main(int argc, char** argv) {
       const bool fast = type == PreconditionerType::kCholesky || type == PreconditionerType::kAmg;
       const std::string name = "SbdfStep/" + std::string(ToString(type)) + "/contact" + std::to_string(contact);
       auto* b = benchmark::RegisterBenchmark(name.c_str(), BM_SbdfStep);
-      b->ArgNames({"side", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
+      b->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
       for (int side : sides)
-        if (fast || all || side < 1000) b->Args({side, static_cast<long>(type), contact});
+        if (fast || all || side < 1000) b->Args({side, static_cast<long>(type), contact, 0});
       b->Complexity(benchmark::oN);
     }
   }
+  // The Cholesky factor with AMD instead of METIS ordering (the choice of
+  // the default cholesky_ordering), no contacts.
+  auto* amd = benchmark::RegisterBenchmark("SbdfStep/cholesky_amd/contact0", BM_SbdfStep);
+  amd->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
+  for (int side : sides) amd->Args({side, static_cast<long>(PreconditionerType::kCholesky), 0, 1});
+  amd->Complexity(benchmark::oN);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;
   benchmark::RunSpecifiedBenchmarks();

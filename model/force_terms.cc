@@ -88,6 +88,68 @@ struct Patch {
   }
 };
 
+// Terms with at least this many centres (or springs) are evaluated on the
+// OpenMP threads; smaller ones serially (a parallel region costs more than
+// they do).
+constexpr std::ptrdiff_t kParallelMinimum = 20000;
+
+// Scatter made parallel and deterministic: the items (stencil centres or
+// springs) write their `outputs` force vectors into a buffer, then each
+// particle sums its buffer entries in item order, which is the order of the
+// serial scatter loop. `node(item, k)` names the particle of output k; a
+// negative sign flag (bit 31 of the entry) subtracts the entry instead.
+struct GatherLists {
+  GatherLists() = default;
+  template <class NodeOf>
+  GatherLists(int num_particles, std::size_t items, int outputs, NodeOf node) {
+    offsets.assign(static_cast<std::size_t>(num_particles) + 1, 0);
+    for (std::size_t c = 0; c < items; ++c)
+      for (int k = 0; k < outputs; ++k) ++offsets[static_cast<std::size_t>(node(c, k)) + 1];
+    for (std::size_t p = 0; p < static_cast<std::size_t>(num_particles); ++p) offsets[p + 1] += offsets[p];
+    entries.resize(static_cast<std::size_t>(offsets.back()));
+    std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+    for (std::size_t c = 0; c < items; ++c)  // item order within each particle's list
+      for (int k = 0; k < outputs; ++k)
+        entries[static_cast<std::size_t>(fill[static_cast<std::size_t>(node(c, k))]++)] =
+            static_cast<int>(c) * outputs + k;
+    buffer.assign(3 * items * static_cast<std::size_t>(outputs), 0.0);
+  }
+  // f(p) += Σ buffer entries of p, in item order; `negate(e)` says whether
+  // entry e is subtracted.
+  template <class Negate>
+  void AddTo(MatrixN3* f, Negate negate) const {
+    const auto n = static_cast<std::ptrdiff_t>(offsets.size()) - 1;
+    double* f0 = f->col(0).data();
+    double* f1 = f->col(1).data();
+    double* f2 = f->col(2).data();
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < n; ++p) {
+      double a0 = f0[p], a1 = f1[p], a2 = f2[p];
+      for (int q = offsets[static_cast<std::size_t>(p)]; q < offsets[static_cast<std::size_t>(p) + 1]; ++q) {
+        const int e = entries[static_cast<std::size_t>(q)];
+        const double* b = buffer.data() + 3 * static_cast<std::size_t>(e);
+        if (negate(e)) {
+          a0 -= b[0];
+          a1 -= b[1];
+          a2 -= b[2];
+        } else {
+          a0 += b[0];
+          a1 += b[1];
+          a2 += b[2];
+        }
+      }
+      f0[p] = a0;
+      f1[p] = a1;
+      f2[p] = a2;
+    }
+  }
+  void AddTo(MatrixN3* f) const {
+    AddTo(f, [](int) { return false; });
+  }
+  std::vector<int> offsets, entries;
+  std::vector<double> buffer;
+};
+
 // Generic term over per-centre stencils of K particles; the kernel writes
 // forces into the first Kernel::kOutputs slots.
 template <class Kernel>
@@ -100,21 +162,47 @@ class StencilTerm final : public ForceTerm {
     double weight = 0.0;
   };
 
-  StencilTerm(std::string name, Kernel kernel, std::vector<Centre> centres)
-      : name_(std::move(name)), kernel_(std::move(kernel)), centres_(std::move(centres)) {}
+  StencilTerm(std::string name, Kernel kernel, std::vector<Centre> centres, int num_particles)
+      : name_(std::move(name)), kernel_(std::move(kernel)), centres_(std::move(centres)) {
+    if (Kernel::kOutputs > 1 && static_cast<int>(centres_.size()) >= kParallelMinimum)
+      gather_ = GatherLists(num_particles, centres_.size(), Kernel::kOutputs,
+                            [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
+  }
 
   std::string_view name() const override { return name_; }
 
+  // Serial below kParallelMinimum centres. Above it, the centres are split
+  // over the OpenMP threads: a kernel with one output writes only its own
+  // centre particle; one with several writes its outputs to a buffer, and
+  // each particle then sums its entries in centre order. Either way every
+  // force is summed in the serial order: bit-identical for any thread count.
   void AddForce(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const override {
-    std::array<Vector3, K> xs, vs, fs;
-    for (const Centre& c : centres_) {
-      for (int k = 0; k < K; ++k) {
-        xs[k] = x.row(c.nodes[k]).transpose();
-        vs[k] = v.row(c.nodes[k]).transpose();
-        fs[k].setZero();
+    const auto n = static_cast<std::ptrdiff_t>(centres_.size());
+    if (n < kParallelMinimum) {
+      for (std::ptrdiff_t c = 0; c < n; ++c) {
+        std::array<Vector3, Kernel::kOutputs> fs;
+        Evaluate(t, x, v, centres_[static_cast<std::size_t>(c)], &fs);
+        for (int k = 0; k < Kernel::kOutputs; ++k) f->row(centres_[static_cast<std::size_t>(c)].nodes[k]) += fs[k].transpose();
       }
-      kernel_.template Evaluate<double>(t, c.valid, c.weight, xs, vs, fs);
-      for (int k = 0; k < Kernel::kOutputs; ++k) f->row(c.nodes[k]) += fs[k].transpose();
+      return;
+    }
+    if constexpr (Kernel::kOutputs == 1) {
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t c = 0; c < n; ++c) {
+        std::array<Vector3, 1> fs;
+        Evaluate(t, x, v, centres_[static_cast<std::size_t>(c)], &fs);
+        f->row(centres_[static_cast<std::size_t>(c)].nodes[0]) += fs[0].transpose();
+      }
+    } else {
+      double* buffer = gather_.buffer.data();
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t c = 0; c < n; ++c) {
+        std::array<Vector3, Kernel::kOutputs> fs;
+        Evaluate(t, x, v, centres_[static_cast<std::size_t>(c)], &fs);
+        for (int k = 0; k < Kernel::kOutputs; ++k)
+          Eigen::Map<Vector3>(buffer + 3 * (c * Kernel::kOutputs + k)) = fs[static_cast<std::size_t>(k)];
+      }
+      gather_.AddTo(f);
     }
   }
 
@@ -147,9 +235,22 @@ class StencilTerm final : public ForceTerm {
   }
 
  private:
+  void Evaluate(double t, const MatrixN3& x, const MatrixN3& v, const Centre& c,
+                std::array<Vector3, Kernel::kOutputs>* out) const {
+    std::array<Vector3, K> xs, vs, fs;
+    for (int k = 0; k < K; ++k) {
+      xs[k] = x.row(c.nodes[k]).transpose();
+      vs[k] = v.row(c.nodes[k]).transpose();
+      fs[k].setZero();
+    }
+    kernel_.template Evaluate<double>(t, c.valid, c.weight, xs, vs, fs);
+    for (int k = 0; k < Kernel::kOutputs; ++k) (*out)[static_cast<std::size_t>(k)] = fs[static_cast<std::size_t>(k)];
+  }
+
   std::string name_;
   Kernel kernel_;
   std::vector<Centre> centres_;
+  mutable GatherLists gather_;  // kOutputs > 1 and many centres only
 };
 
 // Builds one centre per particle with the first K patch slots.
@@ -304,15 +405,38 @@ struct AirKernel {
 // --- Springs: nonlinear part of the IMEX split (SPEC §2.1) -----------------
 class TensionNonlinear final : public ForceTerm {
  public:
-  explicit TensionNonlinear(std::vector<Spring> springs) : springs_(std::move(springs)) {}
+  // F_nl on a (SPEC §2.1): −s_e l_e d/|d|, d = x_b − x_a.
+  static Vector3 Force(const MatrixN3& x, const Spring& s) {
+    const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
+    return (-s.stiffness * s.rest_length / d.norm()) * d;
+  }
+  TensionNonlinear(std::vector<Spring> springs, int num_particles) : springs_(std::move(springs)) {
+    if (static_cast<std::ptrdiff_t>(springs_.size()) >= kParallelMinimum)
+      gather_ = GatherLists(num_particles, springs_.size(), 2, [this](std::size_t s, int k) {
+        return k == 0 ? springs_[s].a : springs_[s].b;
+      });
+  }
   std::string_view name() const override { return "tension_nonlinear"; }
+  // Serial for few springs; else per-spring forces on the OpenMP threads,
+  // gathered per particle in spring order (bit-identical, see GatherLists).
   void AddForce(double, const MatrixN3& x, const MatrixN3&, MatrixN3* f) const override {
-    for (const Spring& s : springs_) {
-      const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
-      const Vector3 fa = (-s.stiffness * s.rest_length / d.norm()) * d;  // F_nl on a
-      f->row(s.a) += fa.transpose();
-      f->row(s.b) -= fa.transpose();
+    const auto n = static_cast<std::ptrdiff_t>(springs_.size());
+    if (n < kParallelMinimum) {
+      for (const Spring& s : springs_) {
+        const Vector3 fa = Force(x, s);
+        f->row(s.a) += fa.transpose();
+        f->row(s.b) -= fa.transpose();
+      }
+      return;
     }
+    double* buffer = gather_.buffer.data();
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t k = 0; k < n; ++k) {
+      const Vector3 fa = Force(x, springs_[static_cast<std::size_t>(k)]);
+      Eigen::Map<Vector3>(buffer + 6 * k) = fa;  // output 0: +F on a
+      Eigen::Map<Vector3>(buffer + 6 * k + 3) = fa;  // output 1: −F on b
+    }
+    gather_.AddTo(f, [](int e) { return (e & 1) != 0; });
   }
   // ∂F_nl,a/∂x_b = −s_e l_e (I − d̂d̂ᵀ)/|d|; ∂/∂x_a is its negative.
   void AddJacobian(double, const MatrixN3& x, const MatrixN3&, std::vector<Triplet>* dfdx,
@@ -334,6 +458,7 @@ class TensionNonlinear final : public ForceTerm {
 
  private:
   std::vector<Spring> springs_;
+  mutable GatherLists gather_;  // many springs only
 };
 
 class Gravity final : public ForceTerm {
@@ -349,8 +474,8 @@ class Gravity final : public ForceTerm {
 
 }  // namespace
 
-std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs) {
-  return std::make_unique<TensionNonlinear>(std::move(springs));
+std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs, int num_particles) {
+  return std::make_unique<TensionNonlinear>(std::move(springs), num_particles);
 }
 
 std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vector3& g) {
@@ -359,17 +484,17 @@ std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vect
 
 std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double damping) {
   return std::make_unique<StencilTerm<ShearKernel>>("shear", ShearKernel{mu, damping, geo.lu, geo.lv},
-                                                    GridCentres<ShearKernel>(geo));
+                                                    GridCentres<ShearKernel>(geo), geo.nu * geo.nv);
 }
 
 std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping) {
   return std::make_unique<StencilTerm<MembraneKernel>>(
-      "bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<MembraneKernel>(geo));
+      "bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<MembraneKernel>(geo), geo.nu * geo.nv);
 }
 
 std::unique_ptr<ForceTerm> MakeThinPlateBend(const GridGeometry& geo, double bu, double bv, double damping) {
   return std::make_unique<StencilTerm<ThinPlateKernel>>(
-      "bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<ThinPlateKernel>(geo));
+      "bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<ThinPlateKernel>(geo), geo.nu * geo.nv);
 }
 
 std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122) {
@@ -385,15 +510,15 @@ std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122)
       centres.push_back(c);
     }
   return std::make_unique<StencilTerm<TransverseKernel>>("transverse", TransverseKernel{c1122, geo.lu, geo.lv},
-                                                         std::move(centres));
+                                                         std::move(centres), geo.nu * geo.nv);
 }
 
 std::unique_ptr<ForceTerm> MakeWind(const GridGeometry& geo, const WindSpec& wind) {
-  return std::make_unique<StencilTerm<WindKernel>>("wind", WindKernel{wind}, GridCentres<WindKernel>(geo));
+  return std::make_unique<StencilTerm<WindKernel>>("wind", WindKernel{wind}, GridCentres<WindKernel>(geo), geo.nu * geo.nv);
 }
 
 std::unique_ptr<ForceTerm> MakeAirResistance(const GridGeometry& geo, double c_air) {
-  return std::make_unique<StencilTerm<AirKernel>>("air", AirKernel{c_air}, GridCentres<AirKernel>(geo));
+  return std::make_unique<StencilTerm<AirKernel>>("air", AirKernel{c_air}, GridCentres<AirKernel>(geo), geo.nu * geo.nv);
 }
 
 }  // namespace clothbench

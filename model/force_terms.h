@@ -48,7 +48,7 @@ struct GridGeometry {
 
 /// F_nl = −s_e l_e d/|d| per spring: the explicit part of the IMEX split of
 /// tension (SPEC §2.1, §3.3.3, Desbrun et al.).
-std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs);
+std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs, int num_particles);
 /// Gravity m_p g (§2.6).
 std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vector3& g);
 /// Shear in energy form E_s = Σ ½ μ γ² lu lv with viscosity d_s γ̇ (SPEC §2.2, (2.16), (2.21)).

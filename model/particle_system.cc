@@ -67,7 +67,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
     std::vector<Spring> stiff;
     for (const Spring& s : springs_)
       if (s.stiffness != 0.0) stiff.push_back(s);
-    terms_.push_back(MakeTensionNonlinear(std::move(stiff)));
+    terms_.push_back(MakeTensionNonlinear(std::move(stiff), n_));
   }
   if (mat.shear != 0.0 || mat.shear_damping != 0.0) terms_.push_back(MakeShear(geo, mat.shear, mat.shear_damping));
   const bool bend = mat.bend[0] != 0.0 || mat.bend[1] != 0.0 || mat.bend_damping != 0.0;

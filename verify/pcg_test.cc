@@ -122,7 +122,8 @@ TEST_P(PcgTest, MatchesDenseSolveWithAndWithoutConstraints) {
 
 INSTANTIATE_TEST_SUITE_P(Preconditioners, PcgTest,
                          ::testing::Values(PreconditionerType::kNone, PreconditionerType::kJacobi,
-                                           PreconditionerType::kIc0),
+                                           PreconditionerType::kIc0, PreconditionerType::kCholesky,
+                                           PreconditionerType::kAmg),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
 // IC(0) on a chain (tridiagonal A) has no fill-in, so it is the exact
