@@ -1,7 +1,7 @@
 // bench_integrators: integrates a cloth scene with the thesis' integrators at
 // several step sizes and with SUNDIALS CVODE, prints one table (steps,
 // updates, CG iterations, solver time, e_rms at t_end, observed order) and
-// stores everything in HDF5 (issue 2; SPEC §9).
+// stores everything in HDF5 (SPEC §9).
 //
 //   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
 //                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
@@ -71,6 +71,56 @@ PreconditionerType ParsePreconditioner(const std::string& name) {
   throw UsageError(fmt::format("--preconditioner: \"{}\" must be ic0, cholesky, amg, jacobi or none", name));
 }
 
+bool IsSundials(const std::string& name) { return name == "cvode" || name == "ida"; }
+
+// Bytes of memory available to this process (MemAvailable of
+// /proc/meminfo; 0 if unknown).
+double AvailableBytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  double kb = 0.0;
+  while (in >> key) {
+    if (key == "MemAvailable:" && (in >> kb)) return kb * 1024.0;
+    in.ignore(1 << 12, '\n');
+  }
+  return 0.0;
+}
+
+// Refuses, before any computing, a run whose frames and solver state would
+// not fit in memory. Estimate per particle [bytes]: 24 per N×3 matrix, of
+// which the step engine holds ~25 and every kept frame 2 (positions and
+// velocities, held for all rows until the file is written); A_α and the
+// Laplacians ~200; the CHOLMOD factor ~45 entries × 12 bytes (measured:
+// 44.9e6 entries at 10⁶, METIS); the SUNDIALS references a 3N×3N Jacobian
+// (~117 entries per particle row triple) and its KLU factor with fill,
+// taken as 4 kB per particle (an upper estimate, not a measurement).
+void CheckMemory(const Scene& scene, const std::vector<std::string>& names, std::size_t n_h, std::size_t n_rtol,
+                 const std::string& reference) {
+  const double n = scene.num_particles();
+  const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
+  double rows = 0.0;
+  bool sundials = reference != "none" && scene.obstacles.empty();
+  for (const std::string& name : names) {
+    if (IsSundials(name)) {
+      rows += static_cast<double>(n_rtol);
+      sundials = true;
+    } else {
+      rows += static_cast<double>(n_h);
+    }
+  }
+  if (reference != "none") rows += 1.0;
+  double bytes = n * (25.0 * 24.0 + 200.0) + rows * frames * 2.0 * 24.0 * n;
+  if (scene.solver.preconditioner == PreconditionerType::kCholesky) bytes += n * 45.0 * 12.0;
+  if (sundials) bytes += n * 4096.0;
+  const double available = AvailableBytes();
+  if (available > 0.0 && bytes > 0.8 * available)
+    throw UsageError(fmt::format(
+        "{}: grid.nu × grid.nv = {} × {} = {:.0f} particles: this run needs about {:.1f} GB ({:.0f} frames × {:.0f} "
+        "runs kept), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
+        "--reference none, or smaller nu/nv",
+        scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, available / 1e9));
+}
+
 /// One table row and its HDF5 record.
 struct Row {
   std::string id, integrator;
@@ -113,8 +163,6 @@ Row FromRun(const std::string& integrator, double h, const RunSummary& r, const 
   return row;
 }
 
-bool IsSundials(const std::string& name) { return name == "cvode" || name == "ida"; }
-
 Row FromReference(double rtol, const ReferenceResult& c, const Scene& scene) {
   Row row;
   row.id = fmt::format("{}_rtol{:g}", c.integrator, rtol);
@@ -153,7 +201,8 @@ void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
 }
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
-                  const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows) {
+                  const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
+                  bool write_frames) {
   ResultFile f(path);
   WriteProvenance(f);
   f.CreateGroup("/scene");
@@ -164,6 +213,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   f.SetAttribute("/scene", "n_fixed", static_cast<long>(sys.fixed().size()));
   f.SetAttribute("/scene", "t_end", scene.t_end);
   f.SetAttribute("/scene", "frame_dt", scene.frame_dt);
+  f.SetAttribute("/scene", "frames", std::string(write_frames ? "stored" : "none"));
   std::string terms;
   for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ",") + t;
   f.SetAttribute("/scene", "explicit_terms", terms);
@@ -184,8 +234,10 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
                            {"nje", ref->stats.nje}, {"nsetups", ref->stats.nsetups}})
       f.SetAttribute("/reference", name, v);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
-    f.WriteFrames("/reference/positions", ref->trajectory.positions);
-    f.WriteFrames("/reference/velocities", ref->trajectory.velocities, "m/s");
+    if (write_frames) {
+      f.WriteFrames("/reference/positions", ref->trajectory.positions);
+      f.WriteFrames("/reference/velocities", ref->trajectory.velocities, "m/s");
+    }
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
     for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0, -1, ref->step_time[k]});
@@ -228,8 +280,10 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     }
     if (r.order) f.SetAttribute(g, "observed_order", *r.order);
     f.WriteVector(g + "/times", r.traj.times, "s");
-    f.WriteFrames(g + "/positions", r.traj.positions);
-    f.WriteFrames(g + "/velocities", r.traj.velocities, "m/s");
+    if (write_frames) {
+      f.WriteFrames(g + "/positions", r.traj.positions);
+      f.WriteFrames(g + "/velocities", r.traj.velocities, "m/s");
+    }
     WriteEnergy(f, g, r.energy);
     if (!sys.obstacles().empty()) {
       const PenetrationSeries pen = ComputePenetration(sys, r.traj);
@@ -330,7 +384,7 @@ struct ThesisRow {
   double time_s;  // < 0: not given
 };
 
-int RunThesisTable(const std::string& which, std::string out) {
+int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner) {
   std::vector<ThesisRow> rows;
   if (which == "3.1") {
     rows = {{"bdf2", 1e4, 160, 803, 1160, -1}, {"bdf2", 1e4, 1600, 198, 538, -1}, {"bdf2", 1e5, 1600, 377, 566, -1},
@@ -343,10 +397,12 @@ int RunThesisTable(const std::string& which, std::string out) {
     throw UsageError(fmt::format("--table: \"{}\" must be 3.1 or 3.2", which));
   }
   if (out.empty()) out = fmt::format("results/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
-  const Scene base = BuiltinScene("tablecloth");
+  Scene base = BuiltinScene("tablecloth");
+  if (preconditioner) base.solver.preconditioner = *preconditioner;
   fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, cg_tolerance "
-             "{:g}, IC(0)); thesis numbers from the OCR (SPEC §9), thesis machine: Pentium III 660 MHz\n",
-             which, base.h, base.t_end, base.solver.cg_tolerance);
+             "{:g}, preconditioner {}); thesis numbers from the OCR (SPEC §9, thesis: IC(0)), thesis machine: "
+             "Pentium III 660 MHz\n",
+             which, base.h, base.t_end, base.solver.cg_tolerance, ToString(base.solver.preconditioner));
   if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");
   fmt::print("\n{:<18} {:>8} {:>6} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9} {:>7} | {:>6} {}\n", "method", "k_N/m", "d",
              "thesis_u", "thes_cg", "thesis_s", "updates", "cg", "solver_s", "ratio", "rej", "status");
@@ -355,6 +411,7 @@ int RunThesisTable(const std::string& which, std::string out) {
   f.CreateGroup("/table");
   f.SetAttribute("/table", "name", std::string("Table ") + which);
   f.SetAttribute("/table", "scene_toml", base.toml);
+  f.SetAttribute("/table", "preconditioner", std::string(ToString(base.solver.preconditioner)));
   int index = 0;
   // One HDF5 group per row: our counts beside the thesis'.
   auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RunSummary& r) {
@@ -388,7 +445,8 @@ int RunThesisTable(const std::string& which, std::string out) {
   }
   if (which == "3.2") {
     // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
-    const Scene av = BuiltinScene("avatar_drape");
+    Scene av = BuiltinScene("avatar_drape");
+    if (preconditioner) av.solver.preconditioner = *preconditioner;
     const double kd = av.material.tension[0], dd = av.material.tension_damping;
     const std::vector<ThesisRow> dress = {{"imex_euler", kd, dd, 500, 17198, 152.7},
                                           {"implicit_euler", kd, dd, 1654, 21424, 204.9},
@@ -418,7 +476,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  std::string series, table, preconditioner;
+  std::string series, table, preconditioner, frames_mode = "all";
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
@@ -432,6 +490,9 @@ int Main(int argc, char** argv) {
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
+  app.add_option("--frames", frames_mode,
+                 "all: store positions and velocities every frame_dt | ends: only t = 0 and t_end (errors and "
+                 "energies at the ends) | none: no frame datasets in the file (errors at t_end still computed)");
   app.add_option("--series", series,
                  "write every step (t, h, updates, CG iterations, colliding particles) as CSV to FILE and print the "
                  "impact / resting-contact summary (thesis Fig. 4.3)");
@@ -447,7 +508,10 @@ int Main(int argc, char** argv) {
   }
 
   try {
-    if (!table.empty()) return RunThesisTable(table, out);
+    if (!table.empty())
+      return RunThesisTable(table, out,
+                            app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner))
+                                                          : std::nullopt);
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {
@@ -461,6 +525,12 @@ int Main(int argc, char** argv) {
       scene.solver.cg_tolerance = cg_tolerance;
     }
     if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner);
+    if (frames_mode != "all" && frames_mode != "ends" && frames_mode != "none")
+      throw UsageError(fmt::format("--frames: \"{}\" must be all, ends or none", frames_mode));
+    // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
+    // leaves the frame datasets out of the file.
+    const bool write_frames = frames_mode != "none";
+    if (frames_mode != "all") scene.frame_dt = scene.t_end;
     if (reference != "cvode" && reference != "ida" && reference != "none")
       throw UsageError(fmt::format("--reference: \"{}\" must be cvode, ida or none", reference));
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
@@ -483,6 +553,7 @@ int Main(int argc, char** argv) {
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
     std::sort(hs.begin(), hs.end(), std::greater<>());
     const std::vector<double> rtols = ParsePositiveList(rtols_arg, "--rtols");
+    CheckMemory(scene, names, hs.size(), rtols.size(), reference);
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
@@ -492,7 +563,7 @@ int Main(int argc, char** argv) {
     if (reference != "none" && !sys.obstacles().empty()) {
       // CVODE and IDA have no collision response: on obstacle scenes the
       // reference is a self-convergence run, BDF(2) at h_min/16 with tight
-      // CG and fixed-point tolerances (issue 4).
+      // CG and fixed-point tolerances.
       Scene tight = scene;
       tight.solver.cg_tolerance = 1e-10;
       tight.solver.fixed_point_tolerance = 1e-12;
@@ -548,7 +619,7 @@ int Main(int argc, char** argv) {
     }
     PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
     if (!series.empty()) WriteSeries(series, rows);
-    WriteResults(out, scene, sys, ref, ref_opts, rows);
+    WriteResults(out, scene, sys, ref, ref_opts, rows, write_frames);
     fmt::print("results: {}\n", out);
     return 0;
   } catch (const UsageError& e) {

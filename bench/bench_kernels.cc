@@ -96,7 +96,7 @@ void BM_Step(benchmark::State& state) {
 }
 BENCHMARK(BM_Step)->ArgName("method")->DenseRange(0, 4);
 
-// Collision detection cost (issue 4 item 8): 0 = no obstacles (an empty list
+// Collision detection cost: 0 = no obstacles (an empty list
 // allocates no contact state, so detection and the filter rebuild never run:
 // the collision-free path), 1 = a plane far below the sheet (detection runs
 // every step but never constrains).

@@ -1,5 +1,5 @@
 // stress_stability: stability maps over numerical stiffness h²k/(ρl²) and
-// step size h (issue 3 item 7; thesis §3.4.4).
+// step size h (thesis §3.4.4).
 //
 // For every scene, integrator, h and stiffness S the tension modulus is set
 // to k = S ρ l²/h² and the sheet (side×side particles, the scene's spacing)

@@ -15,7 +15,7 @@
 
 namespace clothbench {
 
-/// Energies [J] and linear momentum [kg m/s] of a state (issue 3 item 5).
+/// Energies [J] and linear momentum [kg m/s] of a state.
 struct EnergyBreakdown {
   double kinetic = 0.0;    ///< ½ Σ m |v|²
   double tension = 0.0;    ///< ½ Σ s_e (|d| − l_e)² (split) or ½ Σ s_e |d|² (linear model)

@@ -1,5 +1,5 @@
 // Scene description: the cloth grid, its material, external forces, fixed
-// particles and solver settings, read from TOML (issue 2 "Scene format").
+// particles and solver settings, read from TOML.
 // SPEC §1 (discretisation), §2 (forces), §5–6 (solver settings).
 #ifndef CLOTHBENCH_MODEL_SCENE_H_
 #define CLOTHBENCH_MODEL_SCENE_H_
@@ -103,7 +103,7 @@ struct ForcesSpec {
 struct SolverSpec {
   double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (SPEC §5, see CgReference)
   CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
-  int cg_max_iterations = 1000;
+  int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
   PreconditionerType preconditioner = PreconditionerType::kIc0;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected

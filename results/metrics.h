@@ -33,7 +33,7 @@ double ObservedOrder(double h1, double e1, double h2, double e2);
 /// Least-squares slope of log e against log h.
 double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e);
 
-/// Energies [J] and momentum [kg m/s] per frame (issue 3 item 5).
+/// Energies [J] and momentum [kg m/s] per frame.
 struct EnergySeries {
   std::vector<double> t, kinetic, tension, shear, bending, gravity, external_work, total;
   std::vector<Vector3> momentum;
@@ -48,7 +48,7 @@ struct EnergySeries {
 /// from the trapezoidal rule over frames.
 EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& trajectory);
 
-/// Penetration of the cloth into each obstacle per frame (issue 4): rows are
+/// Penetration of the cloth into each obstacle per frame: rows are
 /// frames, columns obstacles.
 struct PenetrationSeries {
   int obstacles = 0;

@@ -1,4 +1,4 @@
-// HDF5 result files (issue 2 "HDF5 layout", schema "clothbench/1"), written
+// HDF5 result files (schema "clothbench/1"), written
 // through the HDF5 C API. A file is written under "<path>.tmp" and renamed
 // to <path> only by Commit(), so an interrupted run never leaves a half file
 // under the final name.
@@ -47,7 +47,8 @@ class ResultFile {
   void SetAttribute(const std::string& object, const std::string& name, long value);
   /// 1-D float64 dataset [n].
   void WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units);
-  /// [F, N, 3] float64 from F frames of N×3 (positions [m], velocities [m/s]).
+  /// [F, N, 3] float64 from F frames of N×3 (positions [m], velocities [m/s]),
+  /// chunked one frame per chunk, compressed with byte shuffle + deflate.
   void WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames, const std::string& units = "m");
   /// 2-D row-major table [rows, cols] of float64 or int32.
   void WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values, const std::string& units);
@@ -68,7 +69,7 @@ class ResultFile {
 };
 
 /// Writes the root attributes schema, created, git_commit, host, compiler and
-/// build_type (issue 2 "HDF5 layout").
+/// build_type.
 void WriteProvenance(ResultFile& file);
 
 /// Host name, compiler, build type and git commit for the root attributes.

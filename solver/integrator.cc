@@ -256,6 +256,7 @@ StepStats StepEngine::StepImpl(double h) {
     ++st.updates;
     st.cg_iterations += last_pcg_.iterations;
     if (last_pcg_.status != PcgStatus::kConverged) {
+      st.pcg_status = last_pcg_.status;
       if (last_pcg_.status != PcgStatus::kNonFinite)
         st.status = StepStatus::kCgFailed;
       else

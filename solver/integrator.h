@@ -68,6 +68,7 @@ struct StepStats {
   StepStatus status = StepStatus::kOk;
   double solve_time = 0.0; ///< wall time of the attempt in the step engine [s], setup of A and P included
   double setup_time = 0.0; ///< part of solve_time spent refreshing A_α and its preconditioner [s]
+  PcgStatus pcg_status = PcgStatus::kConverged;  ///< of the last PCG solve (why kCgFailed)
 };
 
 /// A_α = M + α²h² L_K + αh L_D on a fixed pattern, with its preconditioner,

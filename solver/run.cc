@@ -131,6 +131,10 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
         sum.status = std::string(ToString(st.status));
         sum.message = fmt::format("step at t = {:.6g} s failed ({}) after {} retries, last h = {:.3g} s", engine.t(),
                                   ToString(st.status), consecutive_rejections - 1, step);
+        if (st.pcg_status == PcgStatus::kMaxIterations)
+          sum.message += fmt::format(": the PCG reached solver.cg_max_iterations = {} (raise it or choose another "
+                                     "preconditioner)",
+                                     spec.cg_max_iterations);
         break;
       }
       continue;

@@ -1,4 +1,4 @@
-// Stability map cells (issue 3 item 7).
+// Stability map cells.
 #include "solver/stability_map.h"
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-// Stability map cells (issue 3 item 7; thesis §3.4.4): one integrator at one
+// Stability map cells (thesis §3.4.4): one integrator at one
 // step size h and one numerical stiffness S = h²k/(ρl²), run from rest for a
 // fixed number of steps with no retries.
 #ifndef CLOTHBENCH_SOLVER_STABILITY_MAP_H_

@@ -1,4 +1,4 @@
-// Static equilibrium by Newton's method (issue 3, chapter 2 experiments).
+// Static equilibrium by Newton's method (chapter 2 experiments).
 #include "solver/static_solve.h"
 
 #include <algorithm>

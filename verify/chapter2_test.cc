@@ -1,5 +1,5 @@
-// Chapter 2: spatial convergence to analytic equilibria (issue 3 item 2;
-// SPEC §9 experiments 1–3; thesis §2.8, Fig. 2.11). Each experiment solves
+// Chapter 2: spatial convergence to analytic equilibria
+// (SPEC §9 experiments 1–3; thesis §2.8, Fig. 2.11). Each experiment solves
 // the static equilibrium f(x, 0) = 0 of the discrete model (solver/
 // static_solve.h) on n×n grids, n = 5, 9, 17, 33, and compares with the
 // continuum solution at the nodes: e = rms over nodes of |x − x_continuum|.

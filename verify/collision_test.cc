@@ -1,4 +1,4 @@
-// Collisions (issue 4; SPEC §7, thesis ch. 4).
+// Collisions (SPEC §7, thesis ch. 4).
 //
 // 1. Signed distances of the analytic obstacles at points where they are
 //    known in closed form (exact up to round-off: 1e-12).
@@ -10,7 +10,7 @@
 //    the explicit terms adds before the next switch (≈ g h² = 1 mm here).
 // 3. The cloth rests on the table: about the particles over the 0.5 m top
 //    (13×13 = 169 of 400) stay constrained at t_end.
-// 5. Resting contact costs nothing extra (issue 4): the tablecloth released
+// 5. Resting contact costs nothing extra: the tablecloth released
 //    5 mm above an infinite plane (inside the collision area δ = 10 mm, so
 //    every particle is constrained from the first step) comes to rest on
 //    the area's border. Flat on the plane the cloth is unstrained, so once

@@ -1,4 +1,4 @@
-// Energy and momentum (issue 3 item 5).
+// Energy and momentum.
 //
 // 1. The energy function is the potential of the conservative forces:
 //    −∂(E_tension + E_shear + E_gravity)/∂x = f(x, 0) without damping and

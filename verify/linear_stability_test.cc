@@ -1,4 +1,4 @@
-// Linear stability (issue 3 item 6): on a single damped spring, the step
+// Linear stability: on a single damped spring, the step
 // engine reproduces each method's exact amplification matrix.
 //
 // Scene: a 2×2 grid with three fixed particles and one free particle p tied

@@ -1,4 +1,4 @@
-// Obstacle geometry, keyframed motion and segment casts (issue 4; SPEC §7,
+// Obstacle geometry, keyframed motion and segment casts (SPEC §7,
 // thesis §5.1 and §6.2).
 //
 // 1. Keyframed poses: halfway between two keyframes the translation is the

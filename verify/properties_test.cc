@@ -1,4 +1,4 @@
-// Properties of the discrete model and the step engine (issue 3 item 8):
+// Properties of the discrete model and the step engine:
 // momentum conservation by internal forces, invariance under placement
 // (rotation + translation) and under particle order (transposing the grid),
 // and bit-for-bit reproducibility (also in integrator_test.cc).

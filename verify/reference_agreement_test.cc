@@ -1,5 +1,5 @@
 // IDA (residual form, fixed particles algebraic) and CVODE (ODE on the free
-// DOFs) agree on every thesis scene (issue 3 item 4; SPEC §8).
+// DOFs) agree on every thesis scene (SPEC §8).
 //
 // Both run at rtol = atol = 1e-8 over the first 0.2 s of each scene. Each
 // controls its local error per step to ≈ rtol·|y| + atol with |y| ≲ 2 (m,

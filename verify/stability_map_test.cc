@@ -1,4 +1,4 @@
-// Stability map expectations (issue 3 item 7), on the swinging sheet at 8×8
+// Stability map expectations, on the swinging sheet at 8×8
 // particles, 200 steps per cell, S = h²k/(ρl²) ∈ {0.1, 1e2, 1e4, 1e8},
 // h ∈ {1e-4, 1e-3, 1e-2, 1e-1} s (see solver/stability_map.h for "bounded").
 //
