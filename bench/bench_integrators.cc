@@ -200,9 +200,22 @@ void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
   if (e.t.size() >= 2) f.SetAttribute(g, "energy_rate_W", e.Rate());
 }
 
+// Velocities: every frame ("all", "ends"), or only the first and the last
+// frame as velocities_ends [2, N, 3] ("positions", the default: double
+// precision trajectories compress only ~1.2× losslessly, so leaving out the
+// per-frame velocities is what halves the default file).
+void WriteVelocities(ResultFile& f, const std::string& group, const std::vector<MatrixN3>& v, const std::string& frames) {
+  if (frames != "positions" || v.size() <= 2) {
+    f.WriteFrames(group + "/velocities", v, "m/s");
+    return;
+  }
+  f.WriteFrames(group + "/velocities_ends", {v.front(), v.back()}, "m/s");
+}
+
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
-                  bool write_frames) {
+                  const std::string& frames_mode) {
+  const bool write_frames = frames_mode != "none";
   ResultFile f(path);
   WriteProvenance(f);
   f.CreateGroup("/scene");
@@ -213,7 +226,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   f.SetAttribute("/scene", "n_fixed", static_cast<long>(sys.fixed().size()));
   f.SetAttribute("/scene", "t_end", scene.t_end);
   f.SetAttribute("/scene", "frame_dt", scene.frame_dt);
-  f.SetAttribute("/scene", "frames", std::string(write_frames ? "stored" : "none"));
+  f.SetAttribute("/scene", "frames", frames_mode);
   std::string terms;
   for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ",") + t;
   f.SetAttribute("/scene", "explicit_terms", terms);
@@ -236,7 +249,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
     if (write_frames) {
       f.WriteFrames("/reference/positions", ref->trajectory.positions);
-      f.WriteFrames("/reference/velocities", ref->trajectory.velocities, "m/s");
+      WriteVelocities(f, "/reference", ref->trajectory.velocities, frames_mode);
     }
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
@@ -282,7 +295,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteVector(g + "/times", r.traj.times, "s");
     if (write_frames) {
       f.WriteFrames(g + "/positions", r.traj.positions);
-      f.WriteFrames(g + "/velocities", r.traj.velocities, "m/s");
+      WriteVelocities(f, g, r.traj.velocities, frames_mode);
     }
     WriteEnergy(f, g, r.energy);
     if (!sys.obstacles().empty()) {
@@ -476,7 +489,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  std::string series, table, preconditioner, frames_mode = "all";
+  std::string series, table, preconditioner, frames_mode = "positions";
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
@@ -491,8 +504,9 @@ int Main(int argc, char** argv) {
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
   app.add_option("--frames", frames_mode,
-                 "all: store positions and velocities every frame_dt | ends: only t = 0 and t_end (errors and "
-                 "energies at the ends) | none: no frame datasets in the file (errors at t_end still computed)");
+                 "positions (default): positions every frame_dt, velocities at t = 0 and t_end | all: positions and "
+                 "velocities every frame_dt | ends: both only at t = 0 and t_end (errors and energies at the ends) | "
+                 "none: no frame datasets in the file (errors at t_end still computed)");
   app.add_option("--series", series,
                  "write every step (t, h, updates, CG iterations, colliding particles) as CSV to FILE and print the "
                  "impact / resting-contact summary (thesis Fig. 4.3)");
@@ -525,12 +539,11 @@ int Main(int argc, char** argv) {
       scene.solver.cg_tolerance = cg_tolerance;
     }
     if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner);
-    if (frames_mode != "all" && frames_mode != "ends" && frames_mode != "none")
-      throw UsageError(fmt::format("--frames: \"{}\" must be all, ends or none", frames_mode));
+    if (frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" && frames_mode != "none")
+      throw UsageError(fmt::format("--frames: \"{}\" must be positions, all, ends or none", frames_mode));
     // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
     // leaves the frame datasets out of the file.
-    const bool write_frames = frames_mode != "none";
-    if (frames_mode != "all") scene.frame_dt = scene.t_end;
+    if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
     if (reference != "cvode" && reference != "ida" && reference != "none")
       throw UsageError(fmt::format("--reference: \"{}\" must be cvode, ida or none", reference));
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
@@ -619,7 +632,7 @@ int Main(int argc, char** argv) {
     }
     PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
     if (!series.empty()) WriteSeries(series, rows);
-    WriteResults(out, scene, sys, ref, ref_opts, rows, write_frames);
+    WriteResults(out, scene, sys, ref, ref_opts, rows, frames_mode);
     fmt::print("results: {}\n", out);
     return 0;
   } catch (const UsageError& e) {

@@ -95,6 +95,17 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --h 0" + o), "--h: \"0\" is not a positive number");
   ExpectOneLineError(RunBench(tiny + " --reference ode45" + o), "--reference");
   ExpectOneLineError(RunBench(tiny + " --no-such-flag" + o), "no-such-flag");
+  ExpectOneLineError(RunBench(tiny + " --preconditioner ilu" + o), "--preconditioner: \"ilu\" must be");
+  ExpectOneLineError(RunBench(tiny + " --frames some" + o), "--frames: \"some\" must be");
+  std::string pre = kTiny;
+  pre += "preconditioner = \"multigrid\"\n";
+  ExpectOneLineError(RunBench("--scene " + WriteScene("pre.toml", pre) + o), "solver.preconditioner");
+  // 4000 × 4000 particles with every frame kept: refused before any
+  // computing, naming nu and nv (the frames alone would need ~8 TB).
+  std::string huge = kTiny;
+  huge.replace(huge.find("nu = 4"), 6, "nu = 4000");
+  huge.replace(huge.find("nv = 3"), 6, "nv = 4000");
+  ExpectOneLineError(RunBench("--scene " + WriteScene("huge.toml", huge) + o), "grid.nu × grid.nv = 4000 × 4000");
   EXPECT_FALSE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
 }
@@ -127,6 +138,49 @@ TEST(BenchCli, CompleteRunWritesLayout) {
   H5Sclose(sp);
   H5Dclose(ds);
   H5Fclose(f);
+}
+
+// --frames: "positions" (default) keeps velocities at the ends only, "all"
+// every frame, "none" no frame datasets; every frame dataset is chunked one
+// frame per chunk and deflate-compressed.
+TEST(BenchCli, FramesModesAndCompression) {
+  const std::string tiny = "--scene " + WriteScene("tiny.toml", kTiny) + " --integrators sbdf2 --h 0.01 --out ";
+  struct Case {
+    const char* mode;
+    bool positions, velocities, velocities_ends;
+  };
+  for (const Case c : {Case{"positions", true, false, true}, Case{"all", true, true, false},
+                       Case{"none", false, false, false}}) {
+    const fs::path out = TempDir() / (std::string("frames_") + c.mode + ".h5");
+    const Outcome o = RunBench(tiny + out.string() + " --frames " + c.mode);
+    ASSERT_EQ(o.exit_code, 0) << o.err;
+    const hid_t f = H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    EXPECT_EQ(H5Lexists(f, "/runs/sbdf2_h0.01/positions", H5P_DEFAULT) > 0, c.positions) << c.mode;
+    EXPECT_EQ(H5Lexists(f, "/runs/sbdf2_h0.01/velocities", H5P_DEFAULT) > 0, c.velocities) << c.mode;
+    EXPECT_EQ(H5Lexists(f, "/runs/sbdf2_h0.01/velocities_ends", H5P_DEFAULT) > 0, c.velocities_ends) << c.mode;
+    EXPECT_GT(H5Aexists_by_name(f, "/runs/sbdf2_h0.01", "error_rms_m", H5P_DEFAULT), 0) << c.mode;
+    if (c.positions) {
+      const hid_t ds = H5Dopen2(f, "/runs/sbdf2_h0.01/positions", H5P_DEFAULT);
+      const hid_t dcpl = H5Dget_create_plist(ds);
+      hsize_t chunk[3] = {0, 0, 0};
+      EXPECT_EQ(H5Pget_layout(dcpl), H5D_CHUNKED);
+      EXPECT_EQ(H5Pget_chunk(dcpl, 3, chunk), 3);
+      EXPECT_EQ(chunk[0], 1u);   // one frame per chunk
+      EXPECT_EQ(chunk[1], 12u);  // all N particles
+      unsigned flags = 0, values[8] = {0};
+      bool deflate = false;
+      for (int k = 0; k < H5Pget_nfilters(dcpl); ++k) {
+        size_t nelmts = 8;
+        deflate |= H5Pget_filter2(dcpl, static_cast<unsigned>(k), &flags, &nelmts, values, 0, nullptr, nullptr) ==
+                   H5Z_FILTER_DEFLATE;
+      }
+      EXPECT_TRUE(deflate);
+      H5Pclose(dcpl);
+      H5Dclose(ds);
+    }
+    H5Fclose(f);
+  }
 }
 
 TEST(BenchCli, NoReferenceLeavesErrorsOut) {
