@@ -16,13 +16,24 @@ std::string_view ToString(PcgStatus s) {
 }
 
 // ---------------------------------------------------------------------------
+VelocityFilter::Entry* VelocityFilter::Find(int p) {
+  const auto k = static_cast<std::size_t>(p);
+  if (k < slot_.size()) return slot_[k] >= 0 ? &entries_[static_cast<std::size_t>(slot_[k])] : nullptr;
+  for (Entry& e : entries_)  // without Reserve: linear search
+    if (e.particle == p) return &e;
+  return nullptr;
+}
+
 void VelocityFilter::Fix(int p, const Vector3& target) {
+  if (static_cast<std::size_t>(p) < slot_.size()) slot_[static_cast<std::size_t>(p)] = size();
   entries_.push_back({p, 3, Eigen::Matrix3d::Identity(), target});
 }
 
+// A particle's entry is found through slot_ in O(1) (a linear search made
+// the contact setup quadratic: 91 s per step with 3·10⁵ contacts).
 void VelocityFilter::Constrain(int p, const Vector3& dir, double target) {
-  for (Entry& e : entries_) {
-    if (e.particle != p) continue;
+  if (Entry* found = Find(p)) {
+    Entry& e = *found;
     if (e.count == 3) return;
     Vector3 d = dir;
     for (int k = 0; k < e.count; ++k) d -= e.dirs.col(k).dot(d) * e.dirs.col(k);
@@ -32,6 +43,7 @@ void VelocityFilter::Constrain(int p, const Vector3& dir, double target) {
     ++e.count;
     return;
   }
+  if (static_cast<std::size_t>(p) < slot_.size()) slot_[static_cast<std::size_t>(p)] = size();
   Entry e{p, 1, Eigen::Matrix3d::Zero(), Vector3::Zero()};
   e.dirs.col(0) = dir.normalized();
   e.targets(0) = target;

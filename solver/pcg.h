@@ -28,9 +28,18 @@ class VelocityFilter {
   /// Constrains particle p along unit direction `dir` to ⟨v,dir⟩ = target [m/s].
   /// Directions of one particle are orthonormalised.
   void Constrain(int p, const Vector3& dir, double target);
-  void Clear() { entries_.clear(); }
-  /// Reserves room for n constrained particles (no allocation afterwards).
-  void Reserve(int n) { entries_.reserve(static_cast<std::size_t>(n)); }
+  void Clear() {
+    for (const Entry& e : entries_)
+      if (static_cast<std::size_t>(e.particle) < slot_.size()) slot_[static_cast<std::size_t>(e.particle)] = -1;
+    entries_.clear();
+  }
+  /// Reserves room for n constrained particles, particles 0 … n−1 (no
+  /// allocation afterwards; Fix and Constrain then find a particle's entry
+  /// in O(1)).
+  void Reserve(int n) {
+    entries_.reserve(static_cast<std::size_t>(n));
+    slot_.assign(static_cast<std::size_t>(n), -1);
+  }
   bool empty() const { return entries_.empty(); }
   int size() const { return static_cast<int>(entries_.size()); }
   /// v ← S v.
@@ -46,6 +55,8 @@ class VelocityFilter {
     Vector3 targets;           // prescribed velocity along each direction
   };
   std::vector<Entry> entries_;
+  std::vector<int> slot_;  // entry index of each particle, −1: none (after Reserve)
+  Entry* Find(int p);
 };
 
 /// Incomplete Cholesky IC(0) of an SPD sparse matrix: L Lᵀ ≈ A on the lower
