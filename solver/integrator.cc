@@ -82,7 +82,7 @@ SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type
       if (ld.nonZeros() > 0) ld_vals_(pos) = ld.coeff(row, col);
     }
   analyzed_ = precond_.Analyze(a_, system.fixed());
-  setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  setup_seconds_ = analysis_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 bool SystemMatrix::Update(double alpha_h) {

@@ -90,6 +90,9 @@ class SystemMatrix {
   /// pattern and symbolic analysis, plus every numeric factorisation (or
   /// AMG setup) so far.
   double setup_seconds() const { return setup_seconds_; }
+  /// The part of setup_seconds() spent once, in the constructor: pattern and
+  /// symbolic analysis (for "cholesky" the fill-reducing ordering).
+  double analysis_seconds() const { return analysis_seconds_; }
 
  private:
   SparseMatrix a_;
@@ -99,6 +102,7 @@ class SystemMatrix {
   int rebuilds_ = 0;
   bool analyzed_ = false;
   double setup_seconds_ = 0.0;
+  double analysis_seconds_ = 0.0;
 };
 
 /// Advances the state of a particle system step by step with one method.
