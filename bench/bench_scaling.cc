@@ -17,6 +17,8 @@
 //   build/bench/bench_scaling [--benchmark_filter=REGEX]
 //                             [--benchmark_out=results/scaling.json --benchmark_out_format=json]
 // SbdfStep/cholesky_amd: the factor with AMD ordering instead of METIS.
+// StepPart/*: one Cholesky solve, one A·x and one evaluation of the explicit
+// forces at 10⁵ and 10⁶ particles (the parts of a step).
 // By default the preconditioners whose step at 10⁶ takes minutes (ic0,
 // jacobi, none) stop at 10⁵; CLOTHBENCH_SCALING_ALL=1 adds them at 10⁶.
 #include <benchmark/benchmark.h>
@@ -103,6 +105,34 @@ void BM_SbdfStep(benchmark::State& state) {
   state.SetComplexityN(sys.num_particles());
 }
 
+// The parts of a step at N particles (no contacts), for the distance to the
+// bandwidth floor: one preconditioner application (three columns), one A·x,
+// and the explicit forces g(t, x, v).
+void BM_StepParts(benchmark::State& state) {
+  const int side = static_cast<int>(state.range(0));
+  const Scene scene = ScalingScene(side, 0.0, PreconditionerType::kCholesky);
+  const ParticleSystem sys(scene);
+  SystemMatrix sm(sys, PreconditionerType::kCholesky);
+  if (!sm.Update(scene.h * 2.0 / 3.0)) {
+    state.SkipWithError("factorisation failed");
+    return;
+  }
+  const int n = sys.num_particles();
+  MatrixN3 r = MatrixN3::Random(n, 3), z(n, 3), g(n, 3);
+  const MatrixN3 x = sys.rest_positions();
+  const MatrixN3 v = MatrixN3::Random(n, 3);
+  const int part = static_cast<int>(state.range(1));
+  for (auto _ : state) {
+    if (part == 0) sm.preconditioner().Apply(r, &z);
+    if (part == 1) SymmetricProduct(sm.matrix(), r, &z);
+    if (part == 2) sys.ExplicitForces(0.0, x, v, &g);
+    benchmark::DoNotOptimize(z.data());
+    benchmark::DoNotOptimize(g.data());
+  }
+  state.counters["N"] = n;
+  if (part == 0) state.counters["factor_nnz"] = static_cast<double>(sm.preconditioner().factor_nonzeros());
+}
+
 }  // namespace
 }  // namespace clothbench
 
@@ -129,6 +159,12 @@ int main(int argc, char** argv) {
   amd->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
   for (int side : sides) amd->Args({side, static_cast<long>(PreconditionerType::kCholesky), 0, 1});
   amd->Complexity(benchmark::oN);
+  // Parts of a step: 0 = Cholesky solve, 1 = A·x, 2 = explicit forces.
+  for (const char* part : {"CholeskySolve", "Product", "ExplicitForces"}) {
+    auto* b = benchmark::RegisterBenchmark((std::string("StepPart/") + part).c_str(), BM_StepParts);
+    const long index = std::string(part) == "CholeskySolve" ? 0 : std::string(part) == "Product" ? 1 : 2;
+    b->ArgNames({"side", ""})->Args({316, index})->Args({1000, index})->UseRealTime()->Unit(benchmark::kMillisecond);
+  }
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;
   benchmark::RunSpecifiedBenchmarks();

@@ -104,7 +104,9 @@ struct SolverSpec {
   double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (SPEC §5, see CgReference)
   CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
   int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
-  PreconditionerType preconditioner = PreconditionerType::kIc0;
+  /// The CHOLMOD factor: fastest on the thesis scenes and at scale (README
+  /// "Linear solvers and scaling"); the thesis scenes name "ic0" explicitly.
+  PreconditionerType preconditioner = PreconditionerType::kCholesky;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
   /// Iteration controller band (SPEC §6, §3.4.3): h grows by step_factor when
