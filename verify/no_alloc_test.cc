@@ -8,6 +8,7 @@
 #include <cstddef>
 
 #include "solver/integrator.h"
+#include "solver/tangent.h"
 
 extern "C" void* __libc_malloc(std::size_t);
 extern "C" void* __libc_calloc(std::size_t, std::size_t);
@@ -52,6 +53,21 @@ TEST(StepLoop, DoesNotAllocate) {
     EXPECT_TRUE(ok) << ToString(m);
     EXPECT_EQ(g_allocations.load(), 0) << ToString(m);
   }
+}
+
+// The tangent system J_α refreshes its values in place: triplet buffers keep
+// their capacity, the stencil Jacobians use fixed-size AutoDiff vectors.
+TEST(TangentUpdate, DoesNotAllocate) {
+  const Scene s = DefaultScene();
+  const ParticleSystem sys(s);
+  TangentSystem ts(sys, {TangentProjection::kClamp, true});
+  const MatrixN3 x = 1.01 * sys.rest_positions(), v = MatrixN3::Constant(sys.num_particles(), 3, 0.1);
+  ts.Update(0.0, x, v, 0.01);
+  g_allocations = 0;
+  g_counting = true;
+  for (int k = 0; k < 3; ++k) ts.Update(0.01 * k, x, v, 0.01);
+  g_counting = false;
+  EXPECT_EQ(g_allocations.load(), 0);
 }
 
 // The direct preconditioner and the OpenMP paths (forces and A·x above
