@@ -88,16 +88,11 @@ struct Patch {
   }
 };
 
-// Terms with at least this many centres (or springs) are evaluated on the
-// OpenMP threads; smaller ones serially (a parallel region costs more than
-// they do).
-constexpr std::ptrdiff_t kParallelMinimum = 20000;
-
 // Scatter made parallel and deterministic: the items (stencil centres or
 // springs) write their `outputs` force vectors into a buffer, then each
 // particle sums its buffer entries in item order, which is the order of the
-// serial scatter loop. `node(item, k)` names the particle of output k; a
-// negative sign flag (bit 31 of the entry) subtracts the entry instead.
+// serial scatter loop. `node(item, k)` names the particle of output k;
+// AddTo's `negate(entry)` says which entries are subtracted.
 struct GatherLists {
   GatherLists() = default;
   template <class NodeOf>

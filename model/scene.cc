@@ -326,8 +326,8 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     if (so.cg_tolerance >= 1.0) v.Fail("cg_tolerance", "must be < 1");
     so.cg_reference = v.Choice("cg_reference", so.cg_reference, {CgReference::kFixedOnly, CgReference::kFiltered});
     // Absent: scaled with the grid. IC(0)-PCG iterations on A_α grow like the
-    // grid side (measured 43, 134, 420, 1279 at N = 10³…10⁶), so 4·max(nu, nv)
-    // leaves 3× headroom at 10⁶; never below 1000.
+    // grid side (bench_scaling: 42, 132, 420 per SBDF(2) step at N = 10³, 10⁴,
+    // 10⁵), so 4·max(nu, nv) leaves 3× headroom; never below 1000.
     so.cg_max_iterations = v.Integer("cg_max_iterations", std::max(1000, 4 * std::max(s.grid.nu, s.grid.nv)), 1);
     so.preconditioner = v.Choice("preconditioner", so.preconditioner,
                                  {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,

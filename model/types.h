@@ -16,6 +16,11 @@ using Vector3 = Eigen::Vector3d;
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 using Triplet = Eigen::Triplet<double, int>;
 
+/// Kernels over particles, springs or matrix columns (forces, A·x) run on the
+/// OpenMP threads from this many items up; below it a parallel region costs
+/// more than it saves.
+constexpr int kParallelMinimum = 20000;
+
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_MODEL_TYPES_H_

@@ -2,6 +2,8 @@
 // are confined to this file.
 #include "solver/amg.h"
 
+#include "solver/decoupled.h"
+
 // The C API only (Open MPI would otherwise pull in its C++ bindings).
 #define OMPI_SKIP_MPICXX 1
 #include <mpi.h>
@@ -41,7 +43,7 @@ bool StartHypre() {
 
 struct AmgPreconditioner::Impl {
   int n = 0;
-  std::vector<int> source;      // per entry of the CSR rows: position in A's values, −1: decoupled
+  std::vector<int> source;      // per entry of the CSR rows: position in A's values
   std::vector<HYPRE_Int> ncols, rows, cols;
   std::vector<double> values;
   HYPRE_IJMatrix ij_a = nullptr;
@@ -83,22 +85,15 @@ bool AmgPreconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& f
   Impl& m = *impl_;
   m.FreeMatrix();
   m.n = static_cast<int>(a.rows());
-  std::vector<char> is_fixed(static_cast<std::size_t>(m.n), 0);
-  for (int p : fixed) is_fixed[static_cast<std::size_t>(p)] = 1;
-  // A is symmetric: column j of the CSC storage is row j of the CSR rows.
-  m.ncols.assign(static_cast<std::size_t>(m.n), 0);
+  // A_F is symmetric: column j of its CSC storage is row j of hypre's CSR rows.
+  internal::DecoupledPattern pattern = internal::DecoupleFixed(a, fixed, /*upper_only=*/false);
+  m.source = std::move(pattern.source);
+  m.cols.assign(pattern.inner.begin(), pattern.inner.end());
+  m.ncols.resize(static_cast<std::size_t>(m.n));
   m.rows.resize(static_cast<std::size_t>(m.n));
-  m.cols.clear();
-  m.source.clear();
   for (int j = 0; j < m.n; ++j) {
     m.rows[static_cast<std::size_t>(j)] = j;
-    for (int pos = a.outerIndexPtr()[j]; pos < a.outerIndexPtr()[j + 1]; ++pos) {
-      const int i = a.innerIndexPtr()[pos];
-      if (i != j && (is_fixed[static_cast<std::size_t>(i)] || is_fixed[static_cast<std::size_t>(j)])) continue;
-      m.cols.push_back(i);
-      m.source.push_back(pos);
-      ++m.ncols[static_cast<std::size_t>(j)];
-    }
+    m.ncols[static_cast<std::size_t>(j)] = pattern.outer[static_cast<std::size_t>(j) + 1] - pattern.outer[static_cast<std::size_t>(j)];
   }
   m.values.assign(m.cols.size(), 0.0);
   if (!m.ij_b) m.ij_b = m.MakeVector();

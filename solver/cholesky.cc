@@ -1,6 +1,8 @@
 // CHOLMOD factor of A_F (SPEC §5). CHOLMOD is confined to this file.
 #include "solver/cholesky.h"
 
+#include "solver/decoupled.h"
+
 #include <cholmod.h>
 
 #include <algorithm>
@@ -14,7 +16,7 @@ struct CholeskyFactor::Impl {
   cholmod_sparse* upper = nullptr;   // A_F, upper triangle (stype = 1)
   cholmod_factor* factor = nullptr;  // supernodal where CHOLMOD chooses it: fast (BLAS-3) factorisation
   cholmod_factor* solver = nullptr;  // simplicial LLᵀ copy for the solves (see Factorize)
-  std::vector<int> source;           // position in A's values of each entry of `upper`, −1: decoupled (0)
+  std::vector<int> source;           // position in A's values of each entry of `upper`
   // Solve workspace, reused (cholmod_solve2 allocates them once).
   cholmod_dense* x = nullptr;
   cholmod_dense* y = nullptr;
@@ -47,24 +49,12 @@ bool CholeskyFactor::Analyze(const SparseMatrix& a, const std::vector<int>& fixe
   cholmod_free_sparse(&m.upper, &m.common);
   m.factorized = false;
   const int n = static_cast<int>(a.rows());
-  std::vector<char> is_fixed(static_cast<std::size_t>(n), 0);
-  for (int p : fixed) is_fixed[static_cast<std::size_t>(p)] = 1;
-  // Upper triangle of A's pattern; entries coupling a fixed particle are
-  // left out of the pattern altogether (they are zero in A_F).
-  std::vector<int> colptr(static_cast<std::size_t>(n) + 1, 0), rows;
-  m.source.clear();
-  rows.reserve(static_cast<std::size_t>(a.nonZeros() / 2 + n));
-  m.source.reserve(rows.capacity());
-  for (int j = 0; j < n; ++j) {
-    for (int pos = a.outerIndexPtr()[j]; pos < a.outerIndexPtr()[j + 1]; ++pos) {
-      const int i = a.innerIndexPtr()[pos];
-      if (i > j) break;  // rows sorted: the rest is the lower triangle
-      if (i != j && (is_fixed[static_cast<std::size_t>(i)] || is_fixed[static_cast<std::size_t>(j)])) continue;
-      rows.push_back(i);
-      m.source.push_back(pos);
-    }
-    colptr[static_cast<std::size_t>(j) + 1] = static_cast<int>(rows.size());
-  }
+  // Upper triangle of A_F: entries coupling a fixed particle are left out of
+  // the pattern altogether (they are zero in A_F).
+  internal::DecoupledPattern pattern = internal::DecoupleFixed(a, fixed, /*upper_only=*/true);
+  m.source = std::move(pattern.source);
+  const std::vector<int>& colptr = pattern.outer;
+  const std::vector<int>& rows = pattern.inner;
   m.upper = cholmod_allocate_sparse(static_cast<size_t>(n), static_cast<size_t>(n), rows.size(), /*sorted=*/1,
                                     /*packed=*/1, /*stype=*/1, CHOLMOD_REAL, &m.common);
   if (!m.upper) return false;
@@ -93,9 +83,10 @@ bool CholeskyFactor::Factorize(const SparseMatrix& a) {
   if (!ok || m.common.status != CHOLMOD_OK || m.factor->minor < m.factor->n) return false;
   // Solves run on a simplicial LLᵀ copy of the factor. CHOLMOD's supernodal
   // solve calls BLAS once per supernode, with 3 right-hand sides; on A_α's
-  // many small supernodes that call overhead dominates (measured at 10⁶
-  // particles: 0.26 s per 3-column solve against 0.16 s simplicial). The
-  // supernodal factor is kept for the next numeric factorisation.
+  // many small supernodes that call overhead dominates (measured with a
+  // scratch driver at 10⁶ particles: 0.26 s per 3-column solve against
+  // 0.16 s simplicial). The supernodal factor is kept for the next numeric
+  // factorisation.
   cholmod_free_factor(&m.solver, &m.common);
   if (m.factor->is_super) {
     m.solver = cholmod_copy_factor(m.factor, &m.common);
