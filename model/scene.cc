@@ -45,6 +45,15 @@ std::string_view ToString(Predictor p) {
 std::string_view ToString(CgReference r) {
   return r == CgReference::kFixedOnly ? "fixed_only" : "filtered";
 }
+std::string_view ToString(NonlinearSolver s) {
+  return s == NonlinearSolver::kFixedPoint ? "fixed_point" : "newton";
+}
+std::string_view ToString(NewtonJacobian j) {
+  return j == NewtonJacobian::kRefresh ? "refresh" : "frozen";
+}
+std::string_view ToString(TangentProjection p) {
+  return p == TangentProjection::kClamp ? "clamp" : "none";
+}
 std::string_view ToString(StepControl s) {
   return s == StepControl::kFixed ? "fixed" : "iterations";
 }
@@ -119,6 +128,13 @@ class TableReader {
     if (!i) Fail(key, "must be an integer");
     if (*i < min_value || *i > 1000000) Fail(key, fmt::format("must be an integer in [{}, 1000000] (got {})", min_value, *i));
     return static_cast<int>(*i);
+  }
+  bool Bool(std::string_view key, bool fallback) {
+    const toml::node* n = Get(key);
+    if (!n) return fallback;
+    auto b = n->value_exact<bool>();
+    if (!b) Fail(key, "must be true or false");
+    return *b;
   }
   std::string String(std::string_view key, std::string fallback) {
     const toml::node* n = Get(key);
@@ -342,6 +358,12 @@ Scene ParseScene(std::string_view text, const std::string& source) {
       so.controller_updates = {static_cast<int>(band[0]), static_cast<int>(band[1])};
     }
     so.fixed_point_tolerance = v.NonNegative("fixed_point_tolerance", so.fixed_point_tolerance);
+    so.nonlinear_solver =
+        v.Choice("nonlinear_solver", so.nonlinear_solver, {NonlinearSolver::kFixedPoint, NonlinearSolver::kNewton});
+    so.newton_jacobian = v.Choice("newton_jacobian", so.newton_jacobian, {NewtonJacobian::kRefresh, NewtonJacobian::kFrozen});
+    so.tangent_projection =
+        v.Choice("tangent_projection", so.tangent_projection, {TangentProjection::kClamp, TangentProjection::kNone});
+    so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
     so.predictor = v.Choice("predictor", so.predictor, {Predictor::kConstantVelocity, Predictor::kExtrapolate});
     so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations});
     so.step_factor = v.Number("step_factor", so.step_factor);

@@ -50,6 +50,18 @@ enum class StepControl { kFixed, kIterations };
 /// ‖S_F b‖ keeps the load the obstacle carries in the scale. Without
 /// obstacles both are the same number.
 enum class CgReference { kFixedOnly, kFiltered };
+/// Nonlinear solver of the fully implicit methods (implicit Euler, BDF(2),
+/// implicit midpoint). "fixed_point": Alg. 6, the thesis' simplified Newton
+/// method with the linear part A_α as matrix (SPEC §3.4.3). "newton": Newton's
+/// method with the tangent system J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (SPEC §11).
+enum class NonlinearSolver { kFixedPoint, kNewton };
+/// When Newton refreshes J_α: at every iterate ("refresh"), or once per step
+/// at the predictor ("frozen", a chord method).
+enum class NewtonJacobian { kRefresh, kFrozen };
+/// How the tangent system treats compressed springs (solver/tangent.h):
+/// "clamp" keeps J_α definite with the transverse factor max(0, 1 − l_e/|d|)
+/// (Choi & Ko 2002); "none" is the exact spring Jacobian.
+enum class TangentProjection { kClamp, kNone };
 
 std::string_view ToString(BendModel m);
 std::string_view ToString(TensionModel m);
@@ -59,6 +71,9 @@ std::string_view ToString(CholeskyOrdering o);
 std::string_view ToString(Predictor p);
 std::string_view ToString(StepControl s);
 std::string_view ToString(CgReference r);
+std::string_view ToString(NonlinearSolver s);
+std::string_view ToString(NewtonJacobian j);
+std::string_view ToString(TangentProjection p);
 
 struct GridSpec {
   int nu = 20;                                    ///< particles along u (>= 2)
@@ -115,6 +130,14 @@ struct SolverSpec {
   /// Fixed-point stop: 0 selects the thesis' rule (PCG needed 0 iterations);
   /// > 0 stops when max |Δv| ≤ tol [m/s] as well.
   double fixed_point_tolerance = 0.0;
+  /// Alg. 6 (the default and the thesis' reference) or Newton with J_α.
+  NonlinearSolver nonlinear_solver = NonlinearSolver::kFixedPoint;
+  /// Newton: J_α at every iterate or once per step (README "Newton iterations").
+  NewtonJacobian newton_jacobian = NewtonJacobian::kRefresh;
+  TangentProjection tangent_projection = TangentProjection::kClamp;
+  /// Newton and Baraff–Witkin: the explicit terms' Jacobians (shear, bending,
+  /// transverse, air) enter J_α; false: tension and mass only.
+  bool tangent_explicit_terms = true;
   Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
   StepControl step_control = StepControl::kFixed;
   double step_factor = 2.0;          ///< controller grow/shrink factor (> 1)

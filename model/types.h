@@ -11,6 +11,9 @@ namespace clothbench {
 /// Column-major: the x, y and z columns are contiguous, so the N×N Laplacians
 /// act on all three columns in one sparse product (SPEC §2.1, `L ⊗ I₃`).
 using MatrixN3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
+/// The same N×3 quantities stored row-major: its data is the 3N vector with
+/// the interleaved index 3p + c of the tangent system J_α (solver/tangent.h).
+using MatrixN3R = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Vector3 = Eigen::Vector3d;
 /// Compressed sparse matrix used for L_K, L_D and A_α (N×N).
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;

@@ -49,6 +49,8 @@ std::string_view ToString(StepStatus s) {
     case StepStatus::kNonFinite: return "non_finite";
     case StepStatus::kPreconditionerFailed: return "preconditioner_failed";
     case StepStatus::kFixedPointDiverged: return "fixed_point_diverged";
+    case StepStatus::kNoNewtonConvergence: return "no_newton_convergence";
+    case StepStatus::kNewtonDiverged: return "newton_diverged";
   }
   return "?";
 }
@@ -110,6 +112,22 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
     last_distance_.assign(static_cast<std::size_t>(n) * system.obstacles().size(), 1e300);
     friction_.setZero(n, 3);
   }
+  const bool fully_implicit =
+      method == Method::kImplicitEuler || method == Method::kBdf2 || method == Method::kImplicitMidpoint;
+  if (fully_implicit && solver.nonlinear_solver == NonlinearSolver::kNewton) {
+    const auto start = std::chrono::steady_clock::now();
+    TangentOptions to;
+    to.projection = solver.tangent_projection;
+    to.include_explicit_terms = solver.tangent_explicit_terms;
+    to.symmetrize = true;  // the PCG needs a symmetric matrix (see TangentOptions)
+    tangent_ = std::make_unique<TangentSystem>(system, to);
+    tangent_pre_ = TangentPreconditioner(solver.preconditioner);
+    tangent_pre_.Analyze(tangent_->matrix(), &sysmat_.preconditioner());
+    tangent_work_.Resize(n);
+    vr_.setZero(n, 3);
+    br_.setZero(n, 3);
+    tangent_setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &vm1_, &gm1_, &g0_, &g_, &b0_, &b_, &xhat_, &vhat_, &xg0_, &vg_, &xg_, &v1_, &x1_,
                       &tmp_, &vprev_})
     m->setZero(n, 3);
@@ -129,10 +147,10 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
 
 StepStats StepEngine::Step(double h) {
   const auto start = std::chrono::steady_clock::now();
-  const double setup_before = sysmat_.setup_seconds();
+  const double setup_before = sysmat_.setup_seconds() + tangent_setup_seconds_;
   StepStats st = StepImpl(h);
   st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  st.setup_time = sysmat_.setup_seconds() - setup_before;
+  st.setup_time = sysmat_.setup_seconds() + tangent_setup_seconds_ - setup_before;
   return st;
 }
 
@@ -238,7 +256,11 @@ StepStats StepEngine::StepImpl(double h) {
   const bool fixed_only_norm = !contacts_.empty() && opts_.cg_reference == CgReference::kFixedOnly;
   const int max_updates = imex ? 1 : opts_.max_updates;
   bool converged = false;
-  for (int u = 0; u < max_updates; ++u) {
+  if (!imex && tangent_) {
+    converged = NewtonIterate(h, alpha, beta, gamma_g, t_g, midpoint, fixed_only_norm, &st);
+    if (!converged) return st;
+  }
+  for (int u = 0; u < max_updates && !converged; ++u) {
     if (!imex) {
       // Evaluate g at the current iterate (Alg. 6 line 7).
       xg_ = xg0_ + (gamma_g * h) * v1_;
@@ -287,6 +309,90 @@ StepStats StepEngine::StepImpl(double h) {
   for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;
+}
+
+// Newton's method for the fully implicit step (SPEC §11). The step equation
+// of every method is F(v₁) = A_α v₁ − b₀ − βh g(t_g, x̂_g + γ_g h v₁, v_g(v₁)) = 0
+// on the free directions (S F = 0, (I − S) v₁ = z), with v_g = v₁, or
+// (v₀ + v₁)/2 for the midpoint rule. Its Jacobian is exactly
+//   dF/dv₁ = A_α − βh (γ_g h ∂g/∂x + ∂v_g/∂v₁ ∂g/∂v) = M − αh ∂f/∂v − α²h² ∂f/∂x = J_α,
+// since β = α = γ_g (implicit Euler, BDF(2)) or β = 1, γ_g = α² = 1/4,
+// ∂v_g/∂v₁ = α = 1/2 (midpoint), with ∂f/∂· at (t_g, x_g, v_g). Each
+// iteration solves J_α v_new = J_α v − F(v) by the filtered PCG, whose
+// initial residual is then −S F(v). The stop is Alg. 6's: ‖S F(v)‖₂ ≤ η·‖S_F b‖₂
+// (the fixed point's "PCG needed 0 iterations"; the same norm, see
+// CgReference), or max |Δv| ≤ fixed_point_tolerance if that is set, so both
+// solvers stop at the same discrete solution within the same tolerance.
+// The inner PCG stops at a tenth of that threshold, so that the next
+// residual is not dominated by the linear solve's own error.
+bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma_g, double t_g, bool midpoint,
+                               bool fixed_only_norm, StepStats* st) {
+  constexpr double kLinearFraction = 0.1;
+  const double alpha_h = alpha * h;
+  const SparseMatrix& a = sysmat_.matrix();
+  filter_.Impose(&v1_);  // the iterates satisfy the constraints from the start
+  double dv_max = 0.0;
+  for (int u = 0; u < opts_.max_updates; ++u) {
+    xg_ = xg0_ + (gamma_g * h) * v1_;
+    if (midpoint) vg_ = 0.5 * (v0_ + v1_);
+    const MatrixN3& vg = midpoint ? vg_ : v1_;
+    sys_.ExplicitForces(t_g, xg_, vg, &g_);
+    b_ = b0_ + (beta * h) * g_;
+    ++st->updates;
+    // F(v) = A_α v − b in tmp_, its filtered norm, and the reference ‖S_F b‖.
+    SymmetricProduct(a, v1_, &tmp_);
+    tmp_ -= b_;
+    double reference = 0.0;
+    if (fixed_only_norm) {
+      reference = FreeRowsNorm(b_);
+    } else {
+      vprev_ = b_;
+      filter_.Project(&vprev_);
+      reference = vprev_.norm();
+    }
+    vprev_ = tmp_;
+    filter_.Project(&vprev_);
+    const double residual = vprev_.norm();
+    if (!std::isfinite(residual)) {
+      st->status = u > 0 ? StepStatus::kNewtonDiverged : StepStatus::kNonFinite;
+      return false;
+    }
+    const double threshold = opts_.cg_tolerance * reference;
+    if (residual <= threshold || (u > 0 && opts_.fixed_point_tolerance > 0.0 && dv_max <= opts_.fixed_point_tolerance)) {
+      last_pcg_ = PcgSummary{PcgStatus::kConverged, 0, residual, reference};
+      return true;
+    }
+    if (u + 1 == opts_.max_updates) break;  // no update left to check a new iterate
+    if (u == 0 || opts_.newton_jacobian == NewtonJacobian::kRefresh) {
+      const auto start = std::chrono::steady_clock::now();
+      tangent_->Update(t_g, xg_, vg, alpha_h);
+      const bool ok = tangent_pre_.Factorize(tangent_->matrix());
+      tangent_setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (!ok) {
+        st->status = StepStatus::kPreconditionerFailed;
+        return false;
+      }
+    }
+    // J v_new = J v − F(v), from v.
+    vr_ = v1_;
+    TangentProduct(tangent_->matrix(), vr_, &br_);
+    br_ -= tmp_;
+    PcgOptions inner{kLinearFraction * opts_.cg_tolerance, opts_.cg_max_iterations, reference};
+    last_pcg_ = FilteredPcg(tangent_->matrix(), br_, filter_, tangent_pre_, inner, &vr_, &tangent_work_);
+    st->cg_iterations += last_pcg_.iterations;
+    if (last_pcg_.status != PcgStatus::kConverged) {
+      st->pcg_status = last_pcg_.status;
+      if (last_pcg_.status != PcgStatus::kNonFinite)
+        st->status = StepStatus::kCgFailed;
+      else
+        st->status = u > 0 ? StepStatus::kNewtonDiverged : StepStatus::kNonFinite;
+      return false;
+    }
+    dv_max = (vr_ - v1_).cwiseAbs().maxCoeff();
+    v1_ = vr_;
+  }
+  st->status = StepStatus::kNoNewtonConvergence;
+  return false;
 }
 
 // Collision response (SPEC §7; thesis (4.3), (4.4), §5.1). A particle is

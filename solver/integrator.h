@@ -3,11 +3,13 @@
 // Alg. 6 with the filtered PCG (SPEC §3–6). Every method solves
 //   A_α v₁ = b₀ + β h g(t_g, x_g(v₁), v_g(v₁)),  A_α = M + α²h² L_K + αh L_D  (3.24, 3.31)
 // with positions x₁ = x̂ + γ h v₁. IMEX methods do one update per step; the
-// fully implicit ones iterate to convergence (a simplified Newton method
-// with approximate Jacobian A_α, §3.4.3).
+// fully implicit ones iterate to convergence, either with Alg. 6 (a
+// simplified Newton method with approximate Jacobian A_α, §3.4.3) or with
+// Newton's method on the tangent system J_α (SPEC §11, solver/tangent.h).
 #ifndef CLOTHBENCH_SOLVER_INTEGRATOR_H_
 #define CLOTHBENCH_SOLVER_INTEGRATOR_H_
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -15,6 +17,7 @@
 
 #include "model/particle_system.h"
 #include "solver/pcg.h"
+#include "solver/tangent.h"
 
 namespace clothbench {
 
@@ -48,13 +51,16 @@ struct Bdf2Coefficients {
 /// Why a step failed. kFixedPointDiverged: the fixed-point iterates of a
 /// fully implicit method became non-finite (the iteration diverged);
 /// kNonFinite: the step's result itself is not finite (a blow-up).
+/// kNoNewtonConvergence, kNewtonDiverged: the same for the Newton iteration.
 enum class StepStatus {
   kOk,
   kCgFailed,
   kNoFixedPointConvergence,
   kNonFinite,
   kPreconditionerFailed,
-  kFixedPointDiverged
+  kFixedPointDiverged,
+  kNoNewtonConvergence,
+  kNewtonDiverged
 };
 std::string_view ToString(StepStatus s);
 
@@ -62,12 +68,12 @@ std::string_view ToString(StepStatus s);
 struct StepStats {
   double t = 0.0;          ///< time at the end of the step [s]
   double h = 0.0;          ///< step size [s]
-  int updates = 0;         ///< fixed-point updates (linear solves)
+  int updates = 0;         ///< fixed-point or Newton updates: evaluations of g, each with its linear solve (the last one only checks the residual)
   int cg_iterations = 0;   ///< PCG iterations summed over the updates
   int colliding = 0;       ///< particles constrained by obstacles in this step (Fig. 4.3)
   StepStatus status = StepStatus::kOk;
   double solve_time = 0.0; ///< wall time of the attempt in the step engine [s], setup of A and P included
-  double setup_time = 0.0; ///< part of solve_time spent refreshing A_α and its preconditioner [s]
+  double setup_time = 0.0; ///< part of solve_time spent refreshing A_α, J_α and their preconditioners [s]
   PcgStatus pcg_status = PcgStatus::kConverged;  ///< of the last PCG solve (why kCgFailed)
 };
 
@@ -105,9 +111,33 @@ class SystemMatrix {
   double analysis_seconds_ = 0.0;
 };
 
+/// A one-step-at-a-time integrator of a particle system, as the run driver
+/// (solver/run.h) and the stability maps use it: the thesis' methods
+/// (StepEngine) and the peers (peers/) alike.
+class Stepper {
+ public:
+  virtual ~Stepper() = default;
+  /// Sets the state at time t [s] (N×3 positions x [m], velocities v [m/s])
+  /// and forgets any history.
+  virtual void Reset(double t, const MatrixN3& x, const MatrixN3& v) = 0;
+  /// Attempts one step of size h [s]; on failure the state is unchanged and
+  /// stats.status says why. No allocation.
+  virtual StepStats Step(double h) = 0;
+  virtual double t() const = 0;
+  virtual const MatrixN3& x() const = 0;
+  virtual const MatrixN3& v() const = 0;
+  /// True if every step does exactly one update (IMEX, linearised methods):
+  /// the iteration-count controller then keeps h.
+  virtual bool single_update() const = 0;
+  /// Rebuilds of the system matrix's preconditioner so far.
+  virtual int matrix_rebuilds() const = 0;
+  /// Setup time so far [s]: assembly, analysis, factorisations.
+  virtual double setup_seconds() const = 0;
+};
+
 /// Advances the state of a particle system step by step with one method.
 /// Fixed particles are held by the velocity filter (zero velocity).
-class StepEngine {
+class StepEngine : public Stepper {
  public:
   /// @param system the model (must outlive the engine)
   /// @param method the integrator
@@ -117,22 +147,32 @@ class StepEngine {
   /// Sets the state at time t [s] with N×3 positions x [m] and velocities v
   /// [m/s] and forgets the history (multistep methods restart: SBDF(2) with
   /// IMEX Euler, BDF(2) with implicit Euler, SPEC §4).
-  void Reset(double t, const MatrixN3& x, const MatrixN3& v);
+  void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
 
   /// Attempts one step of size h [s]. On success the state advances; on
   /// failure it is unchanged and stats.status says why. No allocation.
-  StepStats Step(double h);
+  StepStats Step(double h) override;
 
-  double t() const { return t_; }
-  const MatrixN3& x() const { return x0_; }
-  const MatrixN3& v() const { return v0_; }
+  double t() const override { return t_; }
+  const MatrixN3& x() const override { return x0_; }
+  const MatrixN3& v() const override { return v0_; }
+  bool single_update() const override { return IsImex(method_); }
+  int matrix_rebuilds() const override { return sysmat_.rebuilds(); }
+  double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   Method method() const { return method_; }
   const SystemMatrix& system_matrix() const { return sysmat_; }
   /// Residual of the last PCG solve, ‖S(b − A v)‖₂.
   double last_residual() const { return last_pcg_.residual_norm; }
+  /// Whether the fully implicit method iterates with Newton (J_α).
+  bool newton() const { return tangent_ != nullptr; }
 
  private:
   StepStats StepImpl(double h);
+  /// Newton's method for v₁ (SPEC §11): F(v) = A_α v − b₀ − βh g(t_g, x_g(v), v_g(v)),
+  /// J_α δ = −F on the free directions. Returns true when converged; on
+  /// failure st->status says why.
+  bool NewtonIterate(double h, double alpha, double beta, double gamma_g, double t_g, bool midpoint,
+                     bool fixed_only_norm, StepStats* st);
   StepStats ExplicitStep(double h, StepStats st);
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);
@@ -163,6 +203,12 @@ class StepEngine {
   SystemMatrix sysmat_;
   VelocityFilter filter_;
   PcgWorkspace work_;
+  // Newton (nonlinear_solver = "newton" on a fully implicit method only).
+  std::unique_ptr<TangentSystem> tangent_;
+  TangentPreconditioner tangent_pre_;
+  TangentPcgWorkspace tangent_work_;
+  MatrixN3R vr_, br_;
+  double tangent_setup_seconds_ = 0.0;
 
   double t_ = 0.0;
   MatrixN3 x0_, v0_;             // current state

@@ -3,6 +3,8 @@
 
 #include <cmath>
 
+#include <Eigen/Cholesky>
+
 namespace clothbench {
 
 std::string_view ToString(PcgStatus s) {
@@ -51,7 +53,8 @@ void VelocityFilter::Constrain(int p, const Vector3& dir, double target) {
   entries_.push_back(e);
 }
 
-void VelocityFilter::Project(MatrixN3* v) const {
+template <class M>
+void VelocityFilter::Project(M* v) const {
   for (const Entry& e : entries_) {
     if (e.count == 3) {
       v->row(e.particle).setZero();
@@ -63,7 +66,8 @@ void VelocityFilter::Project(MatrixN3* v) const {
   }
 }
 
-void VelocityFilter::Impose(MatrixN3* v) const {
+template <class M>
+void VelocityFilter::Impose(M* v) const {
   for (const Entry& e : entries_) {
     if (e.count == 3) {
       v->row(e.particle) = e.targets.transpose();  // dirs = I
@@ -74,6 +78,11 @@ void VelocityFilter::Impose(MatrixN3* v) const {
     v->row(e.particle) = x.transpose();
   }
 }
+
+template void VelocityFilter::Project(MatrixN3*) const;
+template void VelocityFilter::Project(MatrixN3R*) const;
+template void VelocityFilter::Impose(MatrixN3*) const;
+template void VelocityFilter::Impose(MatrixN3R*) const;
 
 // ---------------------------------------------------------------------------
 void IncompleteCholesky0::Analyze(const SparseMatrix& a) {
@@ -134,43 +143,46 @@ bool IncompleteCholesky0::Factorize(const SparseMatrix& a) {
   return false;
 }
 
-void IncompleteCholesky0::Solve(const MatrixN3& r, MatrixN3* z) const {
+// Forward sweep L y = r (column-oriented) and backward sweep Lᵀ z = y on K
+// columns at once; every column sees the operations of a one-column solve.
+template <int K>
+void IncompleteCholesky0::Sweeps(double* const* y) const {
   const int n = static_cast<int>(l_.cols());
   const int* outer = l_.outerIndexPtr();
   const int* inner = l_.innerIndexPtr();
   const double* val = l_.valuePtr();
+  for (int k = 0; k < n; ++k) {
+    const double d = val[outer[k]];
+    double a[K];
+    for (int c = 0; c < K; ++c) y[c][k] = a[c] = y[c][k] / d;
+    for (int p = outer[k] + 1; p < outer[k + 1]; ++p) {
+      const int i = inner[p];
+      const double l = val[p];
+      for (int c = 0; c < K; ++c) y[c][i] -= l * a[c];
+    }
+  }
+  for (int k = n - 1; k >= 0; --k) {
+    double s[K];
+    for (int c = 0; c < K; ++c) s[c] = y[c][k];
+    for (int p = outer[k] + 1; p < outer[k + 1]; ++p) {
+      const int i = inner[p];
+      const double l = val[p];
+      for (int c = 0; c < K; ++c) s[c] -= l * y[c][i];
+    }
+    const double d = val[outer[k]];
+    for (int c = 0; c < K; ++c) y[c][k] = s[c] / d;
+  }
+}
+
+void IncompleteCholesky0::Solve(const MatrixN3& r, MatrixN3* z) const {
   *z = r;
-  double* y0 = z->col(0).data();
-  double* y1 = z->col(1).data();
-  double* y2 = z->col(2).data();
-  for (int k = 0; k < n; ++k) {  // L y = r (column-oriented), three columns per entry of L
-    const double d = val[outer[k]];
-    const double a0 = y0[k] / d, a1 = y1[k] / d, a2 = y2[k] / d;
-    y0[k] = a0;
-    y1[k] = a1;
-    y2[k] = a2;
-    for (int p = outer[k] + 1; p < outer[k + 1]; ++p) {
-      const int i = inner[p];
-      const double l = val[p];
-      y0[i] -= l * a0;
-      y1[i] -= l * a1;
-      y2[i] -= l * a2;
-    }
-  }
-  for (int k = n - 1; k >= 0; --k) {  // Lᵀ z = y
-    double s0 = y0[k], s1 = y1[k], s2 = y2[k];
-    for (int p = outer[k] + 1; p < outer[k + 1]; ++p) {
-      const int i = inner[p];
-      const double l = val[p];
-      s0 -= l * y0[i];
-      s1 -= l * y1[i];
-      s2 -= l * y2[i];
-    }
-    const double d = val[outer[k]];
-    y0[k] = s0 / d;
-    y1[k] = s1 / d;
-    y2[k] = s2 / d;
-  }
+  double* const y[3] = {z->col(0).data(), z->col(1).data(), z->col(2).data()};
+  Sweeps<3>(y);
+}
+
+void IncompleteCholesky0::SolveInPlace(double* y) const {
+  double* const cols[1] = {y};
+  Sweeps<1>(cols);
 }
 
 // ---------------------------------------------------------------------------
@@ -220,53 +232,144 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
 }
 
 // ---------------------------------------------------------------------------
+void TangentPreconditioner::Analyze(const SparseMatrix& j, const Preconditioner* laplacian) {
+  const int n = static_cast<int>(j.cols()) / 3;
+  laplacian_ = laplacian;
+  switch (type_) {
+    case PreconditionerType::kJacobi:
+      block_inv_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+      block_pos_.assign(static_cast<std::size_t>(9 * n), -1);
+      for (int col = 0; col < 3 * n; ++col)
+        for (int pos = j.outerIndexPtr()[col]; pos < j.outerIndexPtr()[col + 1]; ++pos) {
+          const int row = j.innerIndexPtr()[pos];
+          if (row / 3 == col / 3) block_pos_[static_cast<std::size_t>(9 * (col / 3) + 3 * (row % 3) + col % 3)] = pos;
+        }
+      break;
+    case PreconditionerType::kIc0: ic0_.Analyze(j); break;
+    case PreconditionerType::kCholesky:
+    case PreconditionerType::kAmg:
+      rc_.resize(n, 3);
+      zc_.resize(n, 3);
+      break;
+    case PreconditionerType::kNone: break;
+  }
+}
+
+bool TangentPreconditioner::Factorize(const SparseMatrix& j) {
+  switch (type_) {
+    case PreconditionerType::kJacobi: {
+      const double* val = j.valuePtr();
+      for (std::size_t p = 0; p < block_inv_.size(); ++p) {
+        Eigen::Matrix3d b;
+        for (int k = 0; k < 9; ++k) {
+          const int pos = block_pos_[9 * p + static_cast<std::size_t>(k)];
+          b(k / 3, k % 3) = pos >= 0 ? val[pos] : 0.0;
+        }
+        const Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (b + b.transpose()));
+        if (llt.info() != Eigen::Success) return false;
+        block_inv_[p] = llt.solve(Eigen::Matrix3d::Identity());
+      }
+      return true;
+    }
+    case PreconditionerType::kIc0: return ic0_.Factorize(j);
+    case PreconditionerType::kCholesky:
+    case PreconditionerType::kAmg: return laplacian_ != nullptr;
+    case PreconditionerType::kNone: return true;
+  }
+  return false;
+}
+
+void TangentPreconditioner::Apply(const MatrixN3R& r, MatrixN3R* z) const {
+  switch (type_) {
+    case PreconditionerType::kJacobi:
+      for (std::size_t p = 0; p < block_inv_.size(); ++p) {
+        const auto i = static_cast<Eigen::Index>(p);
+        z->row(i).noalias() = r.row(i) * block_inv_[p];  // symmetric blocks
+      }
+      break;
+    case PreconditionerType::kIc0:
+      *z = r;
+      ic0_.SolveInPlace(z->data());
+      break;
+    case PreconditionerType::kCholesky:
+    case PreconditionerType::kAmg:
+      rc_ = r;  // layout change only
+      laplacian_->Apply(rc_, &zc_);
+      *z = zc_;
+      break;
+    case PreconditionerType::kNone: *z = r; break;
+  }
+}
+
+// ---------------------------------------------------------------------------
 namespace {
 
-// y(j,:) = start(j,:) ± Σ_i A(i,j) x(i,:), the terms in ascending i: the
+// y(j,:) = start(j,:) ± Σ_i A(i,j) x(i,:), the terms in ascending i, on K
+// columns of length n (K = 3: the N×3 columns; K = 1: one 3N vector): the
 // same operations, in the same order, as Eigen's column-major sparse ×
 // dense product (which scatters column j of A into y), so the result is
 // bit-identical to `y = a * x` (sign +1, no start) and `y -= a * x`.
-template <bool kSubtract>
-void ProductKernel(const SparseMatrix& a, const MatrixN3& x, const MatrixN3* start, MatrixN3* y) {
+// A symmetric A's column j is its row j.
+template <int K, bool kSubtract>
+void ProductKernel(const SparseMatrix& a, const double* const* x, const double* const* start, double* const* y) {
   const int n = static_cast<int>(a.cols());
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
   const double* val = a.valuePtr();
-  const double* x0 = x.col(0).data();
-  const double* x1 = x.col(1).data();
-  const double* x2 = x.col(2).data();
-  double* y0 = y->col(0).data();
-  double* y1 = y->col(1).data();
-  double* y2 = y->col(2).data();
-  const double* s0 = start ? start->col(0).data() : nullptr;
-  const double* s1 = start ? start->col(1).data() : nullptr;
-  const double* s2 = start ? start->col(2).data() : nullptr;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinimum)
   for (int j = 0; j < n; ++j) {
-    double a0 = s0 ? s0[j] : 0.0, a1 = s1 ? s1[j] : 0.0, a2 = s2 ? s2[j] : 0.0;
+    double acc[K];
+    for (int c = 0; c < K; ++c) acc[c] = start ? start[c][j] : 0.0;
     for (int p = outer[j]; p < outer[j + 1]; ++p) {
       const int i = inner[p];
       const double v = val[p];
-      if constexpr (kSubtract) {
-        a0 -= v * x0[i];
-        a1 -= v * x1[i];
-        a2 -= v * x2[i];
-      } else {
-        a0 += v * x0[i];
-        a1 += v * x1[i];
-        a2 += v * x2[i];
+      for (int c = 0; c < K; ++c) {
+        if constexpr (kSubtract)
+          acc[c] -= v * x[c][i];
+        else
+          acc[c] += v * x[c][i];
       }
     }
-    y0[j] = a0;
-    y1[j] = a1;
-    y2[j] = a2;
+    for (int c = 0; c < K; ++c) y[c][j] = acc[c];
   }
 }
+
+// The two operators of the filtered PCG: r = b − A v (Residual) and
+// q = A p (Apply).
+struct LaplacianOperator {  // N×N A applied to the three columns of an N×3 matrix
+  const SparseMatrix& a;
+  void Residual(const MatrixN3& b, const MatrixN3& v, MatrixN3* r) const {
+    const double* const x[3] = {v.col(0).data(), v.col(1).data(), v.col(2).data()};
+    const double* const s[3] = {b.col(0).data(), b.col(1).data(), b.col(2).data()};
+    double* const y[3] = {r->col(0).data(), r->col(1).data(), r->col(2).data()};
+    ProductKernel<3, true>(a, x, s, y);
+  }
+  void Apply(const MatrixN3& p, MatrixN3* q) const { SymmetricProduct(a, p, q); }
+};
+
+struct TangentOperator {  // 3N×3N J on the 3N vector stored in an N×3 row-major matrix
+  const SparseMatrix& j;
+  void Residual(const MatrixN3R& b, const MatrixN3R& v, MatrixN3R* r) const {
+    const double* const x[1] = {v.data()};
+    const double* const s[1] = {b.data()};
+    double* const y[1] = {r->data()};
+    ProductKernel<1, true>(j, x, s, y);
+  }
+  void Apply(const MatrixN3R& p, MatrixN3R* q) const { TangentProduct(j, p, q); }
+};
 
 }  // namespace
 
 void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y) {
-  ProductKernel<false>(a, x, nullptr, y);
+  const double* const xc[3] = {x.col(0).data(), x.col(1).data(), x.col(2).data()};
+  double* const yc[3] = {y->col(0).data(), y->col(1).data(), y->col(2).data()};
+  ProductKernel<3, false>(a, xc, nullptr, yc);
+}
+
+void TangentProduct(const SparseMatrix& j, const MatrixN3R& x, MatrixN3R* y) {
+  const double* const xc[1] = {x.data()};
+  double* const yc[1] = {y->data()};
+  ProductKernel<1, false>(j, xc, nullptr, yc);
 }
 
 // ---------------------------------------------------------------------------
@@ -274,14 +377,19 @@ void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y) {
 // so that CG runs on the projected system S A S y = S(b − A v₀) and the
 // preconditioner S P⁻¹ S stays symmetric. Projections after the
 // preconditioner (Alg. 7 line 6) and after A·p (line 10).
-PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityFilter& filter,
-                       const Preconditioner& precond, const PcgOptions& options, MatrixN3* v, PcgWorkspace* w) {
+// One algorithm for both systems: Op is LaplacianOperator or TangentOperator,
+// Pre the matching preconditioner, Vec MatrixN3 or MatrixN3R.
+namespace {
+
+template <class Vec, class Op, class Pre>
+PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& filter, const Pre& precond,
+                           const PcgOptions& options, Vec* v, PcgWorkspaceT<Vec>* w) {
   PcgSummary s;
   const bool filtered = !filter.empty();
-  MatrixN3& r = w->r;
-  MatrixN3& z = w->z;
-  MatrixN3& p = w->p;
-  MatrixN3& q = w->q;
+  Vec& r = w->r;
+  Vec& z = w->z;
+  Vec& p = w->p;
+  Vec& q = w->q;
 
   if (filtered) filter.Impose(v);
   // ‖S b‖ for the stopping rule (SPEC §5), unless the caller gave its own.
@@ -294,7 +402,7 @@ PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityF
   }
   const double threshold = options.tolerance * s.rhs_norm;
 
-  ProductKernel<true>(a, *v, &b, &r);  // line 2: r = S(b − A v)
+  op.Residual(b, *v, &r);  // line 2: r = S(b − A v)
   if (filtered) filter.Project(&r);
   double rnorm = r.norm();
   s.iterations = 0;
@@ -312,7 +420,7 @@ PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityF
   p = z;
   double rho = (r.array() * z.array()).sum();
   for (int k = 0; k < options.max_iterations; ++k) {
-    SymmetricProduct(a, p, &q);  // line 9
+    op.Apply(p, &q);  // line 9
     if (filtered) filter.Project(&q);  // line 10
     const double pq = (p.array() * q.array()).sum();
     if (!(pq > 0.0)) {
@@ -342,6 +450,19 @@ PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityF
   }
   s.status = PcgStatus::kMaxIterations;
   return s;
+}
+
+}  // namespace
+
+PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityFilter& filter,
+                       const Preconditioner& precond, const PcgOptions& options, MatrixN3* v, PcgWorkspace* work) {
+  return FilteredPcgImpl(LaplacianOperator{a}, b, filter, precond, options, v, work);
+}
+
+PcgSummary FilteredPcg(const SparseMatrix& j, const MatrixN3R& b, const VelocityFilter& filter,
+                       const TangentPreconditioner& precond, const PcgOptions& options, MatrixN3R* v,
+                       TangentPcgWorkspace* work) {
+  return FilteredPcgImpl(TangentOperator{j}, b, filter, precond, options, v, work);
 }
 
 }  // namespace clothbench

@@ -1,8 +1,13 @@
 // Filtered preconditioned conjugate gradients (SPEC §5; thesis Alg. 7,
 // Baraff & Witkin 1998, in the form of Ascher & Boxerman 2003) for
 //   S (A v − b) = 0,   (I − S) v = z                                   (4.3)
-// where A is an N×N SPD matrix applied to the three coordinate columns
-// (A ⊗ I₃) and S is the per-particle velocity filter.
+// where S is the per-particle velocity filter and A is either
+//   - an N×N SPD matrix applied to the three coordinate columns (A ⊗ I₃):
+//     the thesis' A_α, on N×3 column-major data (MatrixN3), or
+//   - a 3N×3N SPD matrix with interleaved index 3p + c: the tangent system
+//     J_α of the Newton iteration and of Baraff–Witkin (solver/tangent.h),
+//     on N×3 row-major data (MatrixN3R, whose storage is that 3N vector).
+// Both are one algorithm, FilteredPcg over an operator (pcg.cc).
 #ifndef CLOTHBENCH_SOLVER_PCG_H_
 #define CLOTHBENCH_SOLVER_PCG_H_
 
@@ -42,10 +47,12 @@ class VelocityFilter {
   }
   bool empty() const { return entries_.empty(); }
   int size() const { return static_cast<int>(entries_.size()); }
-  /// v ← S v.
-  void Project(MatrixN3* v) const;
+  /// v ← S v. @tparam M MatrixN3 or MatrixN3R.
+  template <class M>
+  void Project(M* v) const;
   /// v ← S v + (I − S) z: imposes the prescribed components.
-  void Impose(MatrixN3* v) const;
+  template <class M>
+  void Impose(M* v) const;
 
  private:
   struct Entry {
@@ -73,9 +80,14 @@ class IncompleteCholesky0 {
   /// (each column sees the same operations as a column-by-column solve, so
   /// the result is bit-identical to it). No allocation.
   void Solve(const MatrixN3& r, MatrixN3* z) const;
+  /// y ← (L Lᵀ)⁻¹ y for one vector of length n (the 3N tangent system).
+  void SolveInPlace(double* y) const;
   double shift() const { return shift_; }
 
  private:
+  template <int K>
+  void Sweeps(double* const* y) const;  // forward and backward sweep on K columns
+
   SparseMatrix l_;               // lower triangle, diagonal first in each column
   std::vector<int> diag_pos_;    // index of the diagonal entry of column k in l_
   double shift_ = 0.0;
@@ -122,6 +134,11 @@ class Preconditioner {
 /// @param a N×N symmetric, @param x, y N×3 (y must not alias x).
 void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y);
 
+/// y ← J x for a symmetric 3N×3N J (interleaved index 3p + c) on the 3N
+/// vectors stored in N×3 row-major matrices; reproducible like
+/// SymmetricProduct. @param x, y N×3 row-major (y must not alias x).
+void TangentProduct(const SparseMatrix& j, const MatrixN3R& x, MatrixN3R* y);
+
 enum class PcgStatus { kConverged, kMaxIterations, kBreakdown, kNonFinite };
 std::string_view ToString(PcgStatus s);
 
@@ -141,18 +158,56 @@ struct PcgSummary {
 };
 
 /// Scratch vectors of the PCG, allocated once for N particles.
-struct PcgWorkspace {
-  explicit PcgWorkspace(int n = 0) { Resize(n); }
+/// @tparam Vec MatrixN3 (N×N systems) or MatrixN3R (3N×3N systems).
+template <class Vec>
+struct PcgWorkspaceT {
+  explicit PcgWorkspaceT(int n = 0) { Resize(n); }
   void Resize(int n) {
     r.resize(n, 3);
     z.resize(n, 3);
     p.resize(n, 3);
     q.resize(n, 3);
   }
-  MatrixN3 r, z, p, q;
+  Vec r, z, p, q;
+};
+using PcgWorkspace = PcgWorkspaceT<MatrixN3>;
+using TangentPcgWorkspace = PcgWorkspaceT<MatrixN3R>;
+
+/// Preconditioner of the 3N×3N tangent system J_α (solver/tangent.h), chosen
+/// by the scene's `preconditioner`:
+///   "jacobi"   → block Jacobi: the inverse of each particle's 3×3 diagonal block of J_α;
+///   "ic0"      → IC(0) of J_α (scalar, on its 3N×3N pattern);
+///   "cholesky", "amg" → the N×N preconditioner of A_α (its CHOLMOD factor or
+///                BoomerAMG V-cycle, applied to the three columns): A_α is J_α
+///                without the explicit terms' Jacobian and the transverse spring
+///                stiffness, SPD, and already factorised while αh is constant,
+///                so J_α's values change without a refactorisation;
+///   "none"     → identity.
+/// Movable, not copyable.
+class TangentPreconditioner {
+ public:
+  explicit TangentPreconditioner(PreconditionerType type = PreconditionerType::kJacobi) : type_(type) {}
+  PreconditionerType type() const { return type_; }
+  /// Symbolic phase for the pattern of J (3N×3N). Allocates.
+  /// @param laplacian the factorised A_α preconditioner ("cholesky", "amg"; must
+  ///        outlive this object and be kept current by its owner)
+  void Analyze(const SparseMatrix& j, const Preconditioner* laplacian);
+  /// Numeric phase for the values of J. @return false if a block or pivot is
+  /// not positive definite (or non-finite).
+  bool Factorize(const SparseMatrix& j);
+  /// z ← P⁻¹ r. @param r, z N×3 row-major (3N vectors). No allocation.
+  void Apply(const MatrixN3R& r, MatrixN3R* z) const;
+
+ private:
+  PreconditionerType type_;
+  std::vector<Eigen::Matrix3d> block_inv_;  // block Jacobi
+  std::vector<int> block_pos_;              // value index of J(3p+r, 3p+c), 9 per particle
+  IncompleteCholesky0 ic0_;
+  const Preconditioner* laplacian_ = nullptr;
+  mutable MatrixN3 rc_, zc_;                // column-major scratch for the A_α path
 };
 
-/// Solves S(A v − b) = 0, (I − S) v = z by filtered PCG.
+/// Solves S(A v − b) = 0, (I − S) v = z by filtered PCG (the N×N path).
 /// @param a       N×N SPD matrix [kg] (applied to the 3 columns)
 /// @param b       N×3 right-hand side [kg m/s]
 /// @param filter  constraints; empty means none (no projection is applied)
@@ -162,6 +217,16 @@ struct PcgWorkspace {
 /// @return status, iterations and residual. Never throws.
 PcgSummary FilteredPcg(const SparseMatrix& a, const MatrixN3& b, const VelocityFilter& filter,
                        const Preconditioner& precond, const PcgOptions& options, MatrixN3* v, PcgWorkspace* work);
+
+/// The same filtered PCG on the 3N×3N tangent system (Newton iteration,
+/// Baraff–Witkin).
+/// @param j       3N×3N symmetric positive definite [kg], interleaved index 3p + c,
+///                both triangles stored
+/// @param b, v    N×3 row-major (3N vectors) [kg m/s], [m/s]
+/// Same return, no allocation, never throws.
+PcgSummary FilteredPcg(const SparseMatrix& j, const MatrixN3R& b, const VelocityFilter& filter,
+                       const TangentPreconditioner& precond, const PcgOptions& options, MatrixN3R* v,
+                       TangentPcgWorkspace* work);
 
 }  // namespace clothbench
 

@@ -64,6 +64,18 @@ double ExternalPower(const ParticleSystem& sys, double t, const MatrixN3& x, con
 }  // namespace
 
 RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why) || !system.scene().solver.IsValid(&why)) {
+    RunSummary sum;
+    sum.status = "invalid_options";
+    sum.message = why;
+    return sum;
+  }
+  StepEngine engine(system, method, system.scene().solver);
+  return RunStepper(system, engine, options);
+}
+
+RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   const SolverSpec& spec = system.scene().solver;
@@ -78,7 +90,6 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   sum.fixed_point_updates = sum.cg_iterations = 0;
   double solver_seconds = 0.0;
 
-  StepEngine engine(system, method, spec);
   MatrixN3 v_init = MatrixN3::Zero(system.num_particles(), 3);
   engine.Reset(0.0, system.rest_positions(), v_init);
 
@@ -163,8 +174,8 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
 
     // Step-size selection.
     if (controlled) {
-      if (!IsImex(method) && st.updates > spec.controller_updates[1]) h = step / spec.step_factor;
-      else if (!IsImex(method) && st.updates < spec.controller_updates[0]) h = std::min(step * spec.step_factor, h_max);
+      if (!engine.single_update() && st.updates > spec.controller_updates[1]) h = step / spec.step_factor;
+      else if (!engine.single_update() && st.updates < spec.controller_updates[0]) h = std::min(step * spec.step_factor, h_max);
       else h = std::max(h, step);
     } else if (h < h_nominal) {
       // After a rejection, return to the fixed grid n·h at the next multiple.
@@ -177,9 +188,9 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   sum.trajectory.positions.resize(next_frame);  // a failed run keeps the frames it reached
   sum.trajectory.velocities.resize(next_frame);
   if (track_work) sum.trajectory.external_work.resize(next_frame);
-  sum.matrix_rebuilds = engine.system_matrix().rebuilds();
+  sum.matrix_rebuilds = engine.matrix_rebuilds();
   sum.solver_time_in_seconds = solver_seconds;
-  sum.setup_time_in_seconds = engine.system_matrix().setup_seconds();
+  sum.setup_time_in_seconds = engine.setup_seconds();
   sum.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return sum;
 }

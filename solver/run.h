@@ -63,6 +63,10 @@ struct RunSummary {
 /// reached.
 RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options);
 
+/// The same driver for any stepper built on `system` (the peers). Reset to
+/// rest here.
+RunSummary RunStepper(const ParticleSystem& system, Stepper& stepper, const RunOptions& options);
+
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_SOLVER_RUN_H_

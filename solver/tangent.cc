@@ -24,6 +24,9 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
   std::vector<Triplet> pattern(dfdx_.begin(), dfdx_.end());
   pattern.insert(pattern.end(), dfdv_.begin(), dfdv_.end());
   for (int k = 0; k < n3; ++k) pattern.emplace_back(k, k, 0.0);
+  // Structurally symmetric, so that the symmetric part lives on the same pattern.
+  const std::size_t half = pattern.size();
+  for (std::size_t k = 0; k < half; ++k) pattern.emplace_back(pattern[k].col(), pattern[k].row(), 0.0);
   j_.resize(n3, n3);
   j_.setFromTriplets(pattern.begin(), pattern.end());
   j_.makeCompressed();
@@ -33,6 +36,13 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
   for (std::size_t k = 0; k < dfdv_.size(); ++k) pos_v_[k] = Position(j_, dfdv_[k].row(), dfdv_[k].col());
   diag_pos_.resize(static_cast<std::size_t>(n3));
   for (int k = 0; k < n3; ++k) diag_pos_[static_cast<std::size_t>(k)] = Position(j_, k, k);
+  if (options_.symmetrize)
+    for (int col = 0; col < n3; ++col)
+      for (int pos = j_.outerIndexPtr()[col]; pos < j_.outerIndexPtr()[col + 1]; ++pos)
+        if (j_.innerIndexPtr()[pos] < col) {
+          upper_pos_.push_back(pos);
+          lower_pos_.push_back(Position(j_, col, j_.innerIndexPtr()[pos]));
+        }
 }
 
 void TangentSystem::Collect(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -83,6 +93,10 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
   for (std::size_t k = 0; k < dfdv_.size(); ++k) vals(pos_v_[k]) += cv * dfdv_[k].value();
   const Eigen::VectorXd& m = sys_.masses();
   for (std::size_t k = 0; k < diag_pos_.size(); ++k) vals(diag_pos_[k]) += m(static_cast<Eigen::Index>(k / 3));
+  for (std::size_t k = 0; k < upper_pos_.size(); ++k) {  // (J + Jᵀ)/2 if options_.symmetrize
+    const double mean = 0.5 * (vals(upper_pos_[k]) + vals(lower_pos_[k]));
+    vals(upper_pos_[k]) = vals(lower_pos_[k]) = mean;
+  }
 }
 
 }  // namespace clothbench

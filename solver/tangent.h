@@ -12,13 +12,12 @@
 
 namespace clothbench {
 
-/// How the spring blocks treat compression. The exact spring Jacobian
-/// (SPEC §2.1) is s_e[(1 − l_e/|d|)(I − d̂d̂ᵀ) + d̂d̂ᵀ]; its transverse factor
-/// (1 − l_e/|d|) is negative for a compressed spring, which makes ∂f/∂x
-/// indefinite. kClamp uses max(0, 1 − l_e/|d|) (Choi & Ko 2002; Blender's
-/// implicit_blender.cc drops the Jacobian of compressed springs); kNone is
-/// the exact Jacobian.
-enum class TangentProjection { kClamp, kNone };
+// TangentProjection (model/scene.h): how the spring blocks treat
+// compression. The exact spring Jacobian (SPEC §2.1) is
+// s_e[(1 − l_e/|d|)(I − d̂d̂ᵀ) + d̂d̂ᵀ]; its transverse factor (1 − l_e/|d|)
+// is negative for a compressed spring, which makes ∂f/∂x indefinite. kClamp
+// uses max(0, 1 − l_e/|d|) (Choi & Ko 2002; Blender's implicit_blender.cc
+// drops the Jacobian of compressed springs); kNone is the exact Jacobian.
 
 struct TangentOptions {
   TangentProjection projection = TangentProjection::kClamp;
@@ -26,6 +25,15 @@ struct TangentOptions {
   /// transverse contraction, wind, air; exact, by AutoDiff) enter J_α;
   /// false: only tension (springs and their damping) and the mass.
   bool include_explicit_terms = true;
+  /// true: store the symmetric part (J_α + J_αᵀ)/2, the matrix a conjugate
+  /// gradient solver needs. J_α is exactly symmetric for tension, shear and
+  /// bending (∂f/∂x of a potential, linear damping); the transverse
+  /// contraction and the air forces are not potential forces and make it
+  /// slightly non-symmetric (measured relative asymmetry 4e-7 … 4e-5 on the
+  /// thesis scenes, verify/tangent_test.cc). A Newton iteration with the
+  /// symmetric part still converges to the exact solution (its residual is
+  /// the exact one), at a linear rate of the order of that asymmetry.
+  bool symmetrize = false;
 };
 
 /// J_α on a fixed pattern. Update() recomputes the values in place and does
@@ -53,6 +61,7 @@ class TangentSystem {
   std::vector<Triplet> dfdx_, dfdv_;   // reused buffers (capacity kept)
   std::vector<int> pos_x_, pos_v_;     // value index in j_ of each triplet
   std::vector<int> diag_pos_;          // value index of each diagonal entry (3p + c)
+  std::vector<int> upper_pos_, lower_pos_;  // value indices of (i, j) and (j, i), i < j
 };
 
 }  // namespace clothbench
