@@ -101,17 +101,15 @@ bool SystemMatrix::Update(double alpha_h) {
 
 // ---------------------------------------------------------------------------
 StepEngine::StepEngine(const ParticleSystem& system, Method method, const SolverSpec& solver)
-    : sys_(system), method_(method), opts_(solver), sysmat_(system, solver.preconditioner, solver.cholesky_ordering) {
+    : sys_(system),
+      method_(method),
+      opts_(solver),
+      sysmat_(system, solver.preconditioner, solver.cholesky_ordering),
+      contacts_(system) {
   const int n = system.num_particles();
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
-  if (!system.obstacles().empty()) {
-    contacts_.assign(static_cast<std::size_t>(n), Contact{});
-    poses_.resize(system.obstacles().size());
-    last_distance_.assign(static_cast<std::size_t>(n) * system.obstacles().size(), 1e300);
-    friction_.setZero(n, 3);
-  }
   const bool fully_implicit =
       method == Method::kImplicitEuler || method == Method::kBdf2 || method == Method::kImplicitMidpoint;
   if (fully_implicit && solver.nonlinear_solver == NonlinearSolver::kNewton) {
@@ -141,8 +139,7 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   have_history_ = false;
   have_g0_ = false;
   h_prev_ = 0.0;
-  for (Contact& c : contacts_) c = Contact{};
-  std::fill(last_distance_.begin(), last_distance_.end(), 1e300);
+  contacts_.Reset();
 }
 
 StepStats StepEngine::Step(double h) {
@@ -229,9 +226,9 @@ StepStats StepEngine::StepImpl(double h) {
     st.status = StepStatus::kPreconditionerFailed;
     return st;
   }
-  if (!contacts_.empty()) {
-    st.colliding = SetUpContacts(h);
-    b0_ += h * friction_;  // Coulomb friction, explicit (SPEC §2.5)
+  if (contacts_.active()) {
+    st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+    b0_ += h * contacts_.friction();  // Coulomb friction, explicit (SPEC §2.5)
   }
 
   // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for SBDF(2).
@@ -253,7 +250,7 @@ StepStats StepEngine::StepImpl(double h) {
   PcgOptions pcg_opts{opts_.cg_tolerance, opts_.cg_max_iterations};
   // With contacts and CgReference::kFixedOnly, η is relative to ‖S_F b‖:
   // only the fixed particles' rows are left out (see CgReference).
-  const bool fixed_only_norm = !contacts_.empty() && opts_.cg_reference == CgReference::kFixedOnly;
+  const bool fixed_only_norm = contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly;
   const int max_updates = imex ? 1 : opts_.max_updates;
   bool converged = false;
   if (!imex && tangent_) {
@@ -299,9 +296,15 @@ StepStats StepEngine::StepImpl(double h) {
     return st;
   }
 
-  if (!contacts_.empty()) {
-    ReadContactImpulses();
-    release_tolerance_ = opts_.cg_tolerance * FreeRowsNorm(b_);
+  if (contacts_.active()) {
+    // Row p of A v₁ − b (A is symmetric: row p is column p).
+    const SparseMatrix& a = sysmat_.matrix();
+    auto residual_row = [&](int p) {
+      Vector3 av = Vector3::Zero();
+      for (SparseMatrix::InnerIterator it(a, p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
+      return Vector3(av - b_.row(p).transpose());
+    };
+    contacts_.ReadImpulses(residual_row, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_));
   }
   x1_ = xhat_ + (gamma * h) * v1_;
   // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
@@ -395,170 +398,10 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
   return false;
 }
 
-// Collision response (SPEC §7; thesis (4.3), (4.4), §5.1). A particle is
-// constrained along a collision direction D when, against some obstacle at
-// its pose at t₀ (signed distance d, obstacle velocity v_obs at x₀,
-// relative velocity v_rel = v₀ − v_obs):
-//   1. it is in the collision area, d < δ (proximity; D = closest-point
-//      direction), or was in contact, still pushed and is within 2δ;
-//   2. the last step's segment x₋₁ → x₀ entered the obstacle (old→new ray
-//      cast): D is the normal of the entered face and d the signed distance
-//      to its plane, so a particle that crossed a thin or open part is sent
-//      back to the side it came from, not on to the nearest face; a particle
-//      in contact also remembers its side (D is flipped if it turns against
-//      the last contact direction);
-//   3. it is predicted to enter the area within the step: d + h⟨v_rel, D⟩ < δ
-//      (exact for convex obstacles, whose d is convex along the path: the
-//      linear estimate is a lower bound) or, failing that, the segment
-//      x₀ → x₀ + h v_rel enters the obstacle (a cast, for non-convex meshes).
-// Segment casts run only where the distance bound allows a hit (d is
-// 1-Lipschitz). The target velocity is (4.4) with the obstacle's motion:
-//   ⟨v₁, D⟩ = ⟨v_obs, D⟩ + ω_r (δ − d)/h  (in the area),
-//   ⟨v₁, D⟩ = ⟨v_obs, D⟩ + (δ − d)/h      (predicted entry),
-// for every method: the relative normal velocity is replaced, so contact is
-// inelastic. (A target that instead made each method's position formula
-// x₁ = x̂ + γ h v₁ land on the border gives ⟨v₁,D⟩ = 2(δ−d)/h − ⟨v₀,D⟩ for
-// implicit midpoint: it bounces with its impact speed every step, is
-// released and falls through a plane — measured before this choice.)
-// Positions are never projected and constraints switch only here, between
-// steps, so SBDF(2) and BDF(2) stay consistent. A particle whose holding
-// impulse pulled it toward the obstacle in the last step is released.
-int StepEngine::SetUpContacts(double h) {
-  filter_.Clear();
-  for (int p : sys_.fixed()) filter_.Fix(p);
-  friction_.setZero();
-  int count = 0;
-  const auto& obstacles = sys_.obstacles();
-  const std::size_t n_obs = obstacles.size();
-  for (std::size_t k = 0; k < n_obs; ++k) poses_[k] = obstacles[k].PoseAt(t_);
-  for (int p = 0; p < sys_.num_particles(); ++p) {
-    Contact& c = contacts_[static_cast<std::size_t>(p)];
-    if (sys_.is_fixed(p)) continue;
-    const bool was = c.obstacle >= 0;
-    // Release below −η‖S_F b‖ only: a holding impulse within the PCG's own
-    // residual is round-off (a contact with no load, J_hold = 0 exactly, was
-    // otherwise released at random).
-    const bool released = was && c.impulse < -release_tolerance_;
-    const double last_impulse = c.impulse;
-    const int last_obstacle = c.obstacle;
-    const Vector3 last_direction = c.direction;
-    c.obstacle = -1;
-    c.impulse = 0.0;
-    const Vector3 x0 = x0_.row(p).transpose(), v0 = v0_.row(p).transpose();
-    double best = 1e300, target_velocity = 0.0;
-    Vector3 dir = Vector3::Zero(), best_v_rel = Vector3::Zero();
-    for (std::size_t k = 0; k < n_obs; ++k) {
-      const Obstacle& o = obstacles[k];
-      const ObstaclePose& pose = poses_[k];
-      const double delta = o.spec().collision_distance;
-      Vector3 d_k;
-      double d = o.SignedDistance(pose, x0, &d_k);
-      // Side memory: a particle in contact that now finds the obstacle's
-      // direction turned against its contact direction has crossed a thin or
-      // open part (an open mesh's distance is unsigned): it is behind the
-      // surface, d < 0, on the side it came from.
-      const bool same_contact = was && static_cast<int>(k) == last_obstacle;
-      if (same_contact && d_k.dot(last_direction) < 0.0) {
-        d = -d;
-        d_k = -d_k;
-      }
-      double& d_stored = last_distance_[static_cast<std::size_t>(p) * n_obs + k];
-      const double d_old = d_stored;  // at x₋₁ (+inf after Reset)
-      d_stored = d;
-      if (released) continue;
-      const Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
-      const Vector3 v_rel = v0 - v_obs;
-      // 2. Old→new cast: possible only if d(x₋₁) + d(x₀) ≤ |x₀ − x₋₁|.
-      // For a moving obstacle d(x₋₁) is re-measured at the current pose (the
-      // stored one is at the old pose, where the bound does not hold).
-      bool tunnelled = false;
-      if (have_history_ && d_old < 1e300) {
-        const Vector3 xm1 = xm1_.row(p).transpose();
-        Vector3 unused;
-        const double d_prev = o.moving() ? o.SignedDistance(pose, xm1, &unused) : d_old;
-        if (d_prev >= 0.0 && (d < 0.0 || d_prev + d <= (x0 - xm1).norm())) {
-          const auto hit = o.FirstHit(pose, xm1, x0);
-          // (A crossing back toward the remembered side is a return, not a tunnel.)
-          if (hit && !(same_contact && hit->normal.dot(last_direction) < 0.0)) {
-            const double side = (x0 - hit->point).dot(hit->normal);
-            if (side < delta) {
-              d = side;
-              d_k = hit->normal;
-              tunnelled = true;
-            }
-          }
-        }
-      }
-      // 1. Proximity, with hysteresis: a contact that still pushed
-      // (J_hold ≥ 0) is kept while d < 2δ. A multistep method's history
-      // carries a resting particle slightly past the border, and dropping it
-      // there makes the sheet fall and re-enter (measured: BDF(2) released
-      // all 400 particles of a flat cloth every 7 steps).
-      const bool kept = same_contact && d < 2.0 * delta;
-      const bool inside = d < delta || kept || tunnelled;
-      // 3. Predicted entry.
-      bool entering = d + h * v_rel.dot(d_k) < delta;
-      if (!inside && !entering && d <= h * v_rel.norm() + delta) {
-        if (const auto hit = o.FirstHit(pose, x0, x0 + h * v_rel)) {
-          d_k = hit->normal;
-          d = (x0 - hit->point).dot(hit->normal);
-          entering = true;
-        }
-      }
-      if ((inside || entering) && d < best) {
-        best = d;
-        dir = d_k;
-        best_v_rel = v_rel;
-        c.obstacle = static_cast<int>(k);
-        target_velocity = v_obs.dot(d_k) + (inside ? o.spec().relaxation * (delta - d) : delta - d) / h;
-      }
-    }
-    if (c.obstacle < 0) continue;
-    c.direction = dir;
-    filter_.Constrain(p, dir, target_velocity);  // (4.4)
-    // Coulomb friction from the normal impulse of the last step (SPEC §2.5),
-    // explicit, against the tangential velocity relative to the obstacle.
-    // Its impulse is capped at m|v_t|: friction can stop a sliding particle
-    // but never reverse it (uncapped, a round-off v_t of 1e-15 m/s got the
-    // full μ|f_N| and set resting cloth sliding at h μ g per step).
-    const double mu = obstacles[static_cast<std::size_t>(c.obstacle)].spec().friction;
-    if (mu > 0.0 && was && last_impulse > 0.0) {
-      const Vector3 vt = best_v_rel - best_v_rel.dot(dir) * dir;
-      const double speed = vt.norm();
-      const double impulse = std::min(mu * last_impulse, sys_.masses()(p) * speed);
-      if (speed > 0.0) friction_.row(p) = (-impulse / (h * speed)) * vt.transpose();
-    }
-    ++count;
-  }
-  return count;
-}
-
 double StepEngine::FreeRowsNorm(const MatrixN3& b) const {
   double sum = b.squaredNorm();
   for (int p : sys_.fixed()) sum -= b.row(p).squaredNorm();
   return std::sqrt(std::max(sum, 0.0));
-}
-
-// Contact force of each contact, as the impulse along D it takes to hold
-// the particle against every other force of the step:
-//   J_hold = ⟨(A v₁ − b) − M (v₁ − v̂), D⟩ = −h ⟨f, D⟩ (β-weighted),
-// with v̂ the method's momentum predictor (b = M v̂ + h·forces). The full
-// constraint impulse (A v₁ − b)·D also carries the momentum of the target
-// velocity itself, which slows as a particle relaxes to the border; reading
-// that as "pulling" released resting cloth every few steps (measured on a
-// flat cloth on a plane), so release and friction use J_hold.
-// A is symmetric, so row p is column p.
-void StepEngine::ReadContactImpulses() {
-  const SparseMatrix& a = sysmat_.matrix();
-  const Eigen::VectorXd& mass = sys_.masses();
-  for (int p = 0; p < sys_.num_particles(); ++p) {
-    Contact& c = contacts_[static_cast<std::size_t>(p)];
-    if (c.obstacle < 0) continue;
-    Vector3 av = Vector3::Zero();
-    for (SparseMatrix::InnerIterator it(a, p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
-    const Vector3 inertia = mass(p) * (v1_.row(p) - vhat_.row(p)).transpose();
-    c.impulse = (av - b_.row(p).transpose() - inertia).dot(c.direction);
-  }
 }
 
 bool StepEngine::Commit(double h) {

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
+#include "solver/contact.h"
 #include "solver/pcg.h"
 #include "solver/tangent.h"
 
@@ -176,32 +177,15 @@ class StepEngine : public Stepper {
   StepStats ExplicitStep(double h, StepStats st);
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);
-  /// Collision response (SPEC §7): rebuilds the filter from the positions at
-  /// the start of the step; returns the number of colliding particles.
-  int SetUpContacts(double h);
-  /// After a successful solve: the contact impulse that holds each particle,
-  /// ⟨(A v₁ − b) − M(v₁ − v̂), D⟩, for release and friction.
-  void ReadContactImpulses();
   /// ‖S_F b‖₂: the 2-norm of b over the particles that are not fixed.
   double FreeRowsNorm(const MatrixN3& b) const;
-
-  // Per-particle contact state (only used when the scene has obstacles).
-  struct Contact {
-    int obstacle = -1;            // obstacle index, −1: none
-    Vector3 direction = Vector3::Zero();
-    double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadContactImpulses)
-  };
-  std::vector<Contact> contacts_;
-  double release_tolerance_ = 0.0;         // η‖S_F b‖ of the last solve [kg m/s]
-  std::vector<ObstaclePose> poses_;        // of each obstacle at t₀ (per step)
-  std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now)
-  MatrixN3 friction_;             // Coulomb friction forces [N], explicit
 
   const ParticleSystem& sys_;
   Method method_;
   SolverSpec opts_;
   SystemMatrix sysmat_;
   VelocityFilter filter_;
+  ContactResponse contacts_;
   PcgWorkspace work_;
   // Newton (nonlinear_solver = "newton" on a fully implicit method only).
   std::unique_ptr<TangentSystem> tangent_;

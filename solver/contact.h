@@ -1,0 +1,79 @@
+// Collision response through the velocity filter (SPEC §7; thesis (4.3),
+// (4.4), §5.1) with explicit Coulomb friction (SPEC §2.5), shared by the
+// thesis' methods (StepEngine) and the peers that use the same filter
+// (Baraff–Witkin). Contacts are set up once per step, from the state at its
+// start; the constraint impulses read after the solve decide release and
+// friction in the next step.
+#ifndef CLOTHBENCH_SOLVER_CONTACT_H_
+#define CLOTHBENCH_SOLVER_CONTACT_H_
+
+#include <vector>
+
+#include "model/particle_system.h"
+#include "solver/pcg.h"
+
+namespace clothbench {
+
+class ContactResponse {
+ public:
+  /// Allocates the per-particle state (nothing if the scene has no obstacles).
+  explicit ContactResponse(const ParticleSystem& system);
+
+  /// Whether the scene has obstacles (otherwise nothing here is ever used).
+  bool active() const { return !contacts_.empty(); }
+  /// Forgets every contact (a new run).
+  void Reset();
+
+  /// Rebuilds `filter` for a step of size h [s] from t0 [s]: the fixed
+  /// particles, then one direction per colliding particle with the (4.4)
+  /// target velocity; computes the friction forces (friction()).
+  /// @param x0, v0 N×3 state at t0 [m], [m/s]
+  /// @param xm1 N×3 positions one step earlier, or nullptr without history
+  /// @return the number of colliding particles (Fig. 4.3). No allocation.
+  int SetUp(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3* xm1, VelocityFilter* filter);
+
+  /// Coulomb friction forces of the step [N], N×3 (explicit; SPEC §2.5).
+  const MatrixN3& friction() const { return friction_; }
+
+  /// After a successful solve: the impulse that holds each contact,
+  ///   J_hold = ⟨r_p − m_p (v₁ − v̂)_p, D⟩,
+  /// with r_p the particle's row of the solved system's residual (A v − b;
+  /// its constraint impulse) and v̂ the method's momentum predictor, so that
+  /// J_hold = −h ⟨f, D⟩: the force the obstacle carries, without the
+  /// momentum of the target velocity. The full constraint impulse r_p·D
+  /// also carries that momentum, which slows as a particle relaxes to the
+  /// border; reading it as "pulling" released resting cloth every few steps
+  /// (measured on a flat cloth on a plane), so release and friction use J_hold.
+  /// @param residual_row callable p → Vector3 r_p [kg m/s]
+  /// @param v1, vhat N×3 [m/s]
+  /// @param release_tolerance a contact is released when J_hold is below
+  ///        −release_tolerance [kg m/s] (the PCG's own residual, η‖S_F b‖)
+  template <class RowResidual>
+  void ReadImpulses(RowResidual&& residual_row, const MatrixN3& v1, const MatrixN3& vhat, double release_tolerance) {
+    const Eigen::VectorXd& mass = sys_.masses();
+    for (int p = 0; p < sys_.num_particles(); ++p) {
+      Contact& c = contacts_[static_cast<std::size_t>(p)];
+      if (c.obstacle < 0) continue;
+      const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
+      c.impulse = (residual_row(p) - inertia).dot(c.direction);
+    }
+    release_tolerance_ = release_tolerance;
+  }
+
+ private:
+  struct Contact {
+    int obstacle = -1;            // obstacle index, −1: none
+    Vector3 direction = Vector3::Zero();
+    double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadImpulses)
+  };
+  const ParticleSystem& sys_;
+  std::vector<Contact> contacts_;
+  double release_tolerance_ = 0.0;         // of the last solve [kg m/s]
+  std::vector<ObstaclePose> poses_;        // of each obstacle at t₀ (per step)
+  std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now)
+  MatrixN3 friction_;                      // Coulomb friction forces [N], explicit
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_SOLVER_CONTACT_H_
