@@ -19,6 +19,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/methods.h"
 #include "model/particle_system.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
@@ -123,7 +124,9 @@ void CheckMemory(const Scene& scene, const std::vector<std::string>& names, std:
 
 /// One table row and its HDF5 record.
 struct Row {
-  std::string id, integrator;
+  std::string id, integrator;       ///< integrator: the row label ("bdf2/newton", "cvode")
+  std::string method;               ///< the method's name ("bdf2"); empty for the references
+  std::string nonlinear_solver;     ///< fully implicit thesis methods only
   double h = 0.0, rtol = 0.0;
   bool ok = false;
   std::string status, message;
@@ -140,10 +143,12 @@ struct Row {
   long rejected = 0;
 };
 
-Row FromRun(const std::string& integrator, double h, const RunSummary& r, const Scene& scene) {
+Row FromRun(const RowMethod& m, double h, const RunSummary& r, const Scene& scene) {
   Row row;
-  row.id = fmt::format("{}_h{:g}", integrator, h);
-  row.integrator = integrator;
+  row.id = fmt::format("{}_h{:g}", m.id(), h);
+  row.integrator = m.label();
+  row.method = m.name;
+  if (m.fully_implicit()) row.nonlinear_solver = std::string(ToString(m.solver));
   row.h = h;
   row.ok = r.ok;
   row.status = r.status;
@@ -260,7 +265,9 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   for (const Row& r : rows) {
     const std::string g = "/runs/" + r.id;
     f.CreateGroup(g);
-    f.SetAttribute(g, "integrator", r.integrator);
+    f.SetAttribute(g, "integrator", r.method.empty() ? r.integrator : r.method);
+    f.SetAttribute(g, "label", r.integrator);
+    if (!r.nonlinear_solver.empty()) f.SetAttribute(g, "nonlinear_solver", r.nonlinear_solver);
     f.SetAttribute(g, "h", r.h);
     if (IsSundials(r.integrator)) f.SetAttribute(g, "rtol", r.rtol);
     f.SetAttribute(g, "status", r.status);
@@ -319,7 +326,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
   std::ofstream csv(path);
   if (!csv) throw std::runtime_error(fmt::format("--series: cannot write \"{}\"", path));
   csv << "integrator,h,t,step_h,updates,cg_iterations,colliding,status\n";
-  fmt::print("\nFig. 4.3 series: {}\n{:<18} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
+  fmt::print("\nFig. 4.3 series: {}\n{:<24} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
              "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
   for (const Row& r : rows) {
     if (IsSundials(r.integrator)) continue;
@@ -334,7 +341,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
       if (s.t > t_last - 0.3) upd_b += s.updates, cg_b += s.cg_iterations, ++n_b;
     }
     const double steps_b = n_b ? static_cast<double>(n_b) : 1.0;
-    fmt::print("{:<18} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}\n", r.integrator, r.h,
+    fmt::print("{:<24} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}\n", r.integrator, r.h,
                impact < 0 ? "none" : fmt::format("{:.2f}", impact),
                n_a ? fmt::format("{:.1f}", static_cast<double>(cg_a) / static_cast<double>(n_a)) : "",
                static_cast<double>(upd_b) / steps_b, static_cast<double>(cg_b) / steps_b,
@@ -365,19 +372,19 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
                ComputeEnergies(sys, ref->trajectory).Rate());
   else
     fmt::print("reference: none (error columns empty)\n");
-  fmt::print("\n{:<18} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol", "steps",
+  fmt::print("\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol", "steps",
              "updates", "cg_iters", "solver_s", "setup_s", "e_rms_m", "order", "dE/dt_W", "status");
   std::string last;
   for (const Row& r : rows) {
     if (!last.empty() && last != r.integrator) fmt::print("\n");
     last = r.integrator;
     const std::string hcol = IsSundials(r.integrator) ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
-    fmt::print("{:<18} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.integrator, hcol,
+    fmt::print("{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.integrator, hcol,
                r.steps, r.updates, r.cg, r.solver_time, r.setup_time >= 0 ? fmt::format("{:.3f}", r.setup_time) : "",
                r.err ? Sci(r.err->rms_at_end) : "",
                r.order ? fmt::format("{:.2f}", *r.order) : "", r.ok ? fmt::format("{:.3e}", r.energy.Rate()) : "",
                r.ok ? "ok" : r.status);
-    if (r.ok && r.rejected > 0) fmt::print("{:<18} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
+    if (r.ok && r.rejected > 0) fmt::print("{:<24} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
   }
   fmt::print("\ncvode/ida rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
   fmt::print("setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the preconditioner.\n");
@@ -397,7 +404,8 @@ struct ThesisRow {
   double time_s;  // < 0: not given
 };
 
-int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner) {
+int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner,
+                   std::vector<NonlinearSolver> solvers) {
   std::vector<ThesisRow> rows;
   if (which == "3.1") {
     rows = {{"bdf2", 1e4, 160, 803, 1160, -1}, {"bdf2", 1e4, 1600, 198, 538, -1}, {"bdf2", 1e5, 1600, 377, 566, -1},
@@ -417,7 +425,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
              "Pentium III 660 MHz\n",
              which, base.h, base.t_end, base.solver.cg_tolerance, ToString(base.solver.preconditioner));
   if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");
-  fmt::print("\n{:<18} {:>8} {:>6} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9} {:>7} | {:>6} {}\n", "method", "k_N/m", "d",
+  fmt::print("\n{:<24} {:>8} {:>6} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9} {:>7} | {:>6} {}\n", "method", "k_N/m", "d",
              "thesis_u", "thes_cg", "thesis_s", "updates", "cg", "solver_s", "ratio", "rej", "status");
   ResultFile f(out);
   WriteProvenance(f);
@@ -427,11 +435,13 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   f.SetAttribute("/table", "preconditioner", std::string(ToString(base.solver.preconditioner)));
   int index = 0;
   // One HDF5 group per row: our counts beside the thesis'.
-  auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RunSummary& r) {
+  auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RowMethod& m, const RunSummary& r) {
     const std::string g = fmt::format("/table/row{}", index++);
     f.CreateGroup(g);
     f.SetAttribute(g, "scene", scene_name);
     f.SetAttribute(g, "integrator", tr.method);
+    f.SetAttribute(g, "label", m.label());
+    if (m.fully_implicit()) f.SetAttribute(g, "nonlinear_solver", std::string(ToString(m.solver)));
     f.SetAttribute(g, "k", tr.k);
     f.SetAttribute(g, "d", tr.d);
     f.SetAttribute(g, "status", r.status);
@@ -444,17 +454,21 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     f.SetAttribute(g, "thesis_cg_iterations", tr.cg);
     if (tr.time_s > 0) f.SetAttribute(g, "thesis_solver_time_s", tr.time_s);
   };
+  if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
   for (const ThesisRow& tr : rows) {
     Scene s = base;
     s.material.tension = {tr.k, tr.k};
     s.material.tension_damping = tr.d;
     const ParticleSystem sys(s);
-    const RunSummary r = RunIntegrator(sys, *MethodFromString(tr.method), {s.h, s.t_end, s.frame_dt});
-    const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_in_seconds / tr.time_s) : "";
-    fmt::print("{:<18} {:>8g} {:>6g} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9.3f} {:>7} | {:>6} {}\n", tr.method, tr.k,
-               tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "", r.fixed_point_updates,
-               r.cg_iterations, r.solver_time_in_seconds, ratio, r.rejected_steps, r.status);
-    write_row("tablecloth", tr, r);
+    for (const RowMethod& m : ExpandMethods({tr.method}, solvers, "--table")) {
+      const std::unique_ptr<Stepper> stepper = m.Make(sys, s.solver);
+      const RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
+      const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_in_seconds / tr.time_s) : "";
+      fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9.3f} {:>7} | {:>6} {}\n", m.label(), tr.k,
+                 tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "", r.fixed_point_updates,
+                 r.cg_iterations, r.solver_time_in_seconds, ratio, r.rejected_steps, r.status);
+      write_row("tablecloth", tr, m, r);
+    }
   }
   if (which == "3.2") {
     // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
@@ -471,12 +485,15 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                av.material.tension_damping, av.t_end, av.h);
     const ParticleSystem sys(av);
     for (const ThesisRow& tr : dress) {
-      const RunSummary r = RunIntegrator(sys, *MethodFromString(tr.method), {av.h, av.t_end, av.frame_dt});
-      fmt::print("{:<18} {:>8g} {:>6g} | {:>8} {:>7} {:>9.1f} | {:>8} {:>7} {:>9.3f} {:>7.3f} | {:>6} {}\n", tr.method,
-                 av.material.tension[0], av.material.tension_damping, tr.updates, tr.cg, tr.time_s, r.fixed_point_updates,
-                 r.cg_iterations, r.solver_time_in_seconds, r.solver_time_in_seconds / tr.time_s, r.rejected_steps,
-                 r.status);
-      write_row("avatar_drape", tr, r);
+      for (const RowMethod& m : ExpandMethods({tr.method}, solvers, "--table")) {
+        const std::unique_ptr<Stepper> stepper = m.Make(sys, av.solver);
+        const RunSummary r = RunStepper(sys, *stepper, {av.h, av.t_end, av.frame_dt});
+        fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9.1f} | {:>8} {:>7} {:>9.3f} {:>7.3f} | {:>6} {}\n", m.label(),
+                   av.material.tension[0], av.material.tension_damping, tr.updates, tr.cg, tr.time_s,
+                   r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, r.solver_time_in_seconds / tr.time_s,
+                   r.rejected_steps, r.status);
+        write_row("avatar_drape", tr, m, r);
+      }
     }
   }
   f.Commit();
@@ -489,12 +506,16 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  std::string series, table, preconditioner, frames_mode = "positions";
+  std::string series, table, preconditioner, frames_mode = "positions", nonlinear_arg;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
-                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,cvode,ida "
+                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,"
+                 "baraff_witkin,cvode,ida; a fully implicit method may name its nonlinear solver, e.g. bdf2/newton "
                  "(default: the five methods and cvode)");
+  app.add_option("--nonlinear-solver", nonlinear_arg,
+                 "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
+                 "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
   app.add_option("--h", h_arg, "comma-separated step sizes [s] (default: scene h, h/2, h/4, h/8)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference, "cvode | ida | none");
@@ -522,10 +543,17 @@ int Main(int argc, char** argv) {
   }
 
   try {
+    std::vector<NonlinearSolver> solvers;
+    try {
+      for (const std::string& n : SplitList(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
     if (!table.empty())
       return RunThesisTable(table, out,
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner))
-                                                          : std::nullopt);
+                                                          : std::nullopt,
+                            solvers);
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {
@@ -553,11 +581,20 @@ int Main(int argc, char** argv) {
       names.emplace_back("cvode");
     } else {
       names = SplitList(integrators_arg);
-      for (const std::string& n : names)
-        if (!IsSundials(n) && !MethodFromString(n))
-          throw UsageError(fmt::format("--integrators: unknown integrator \"{}\" (expected imex_euler, implicit_euler, "
-                                       "sbdf2, bdf2, implicit_midpoint, symplectic_euler, cvode, ida)",
-                                       n));
+    }
+    if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
+    // Each entry: a SUNDIALS name, or the rows of one of our methods.
+    std::vector<std::pair<std::string, std::optional<RowMethod>>> entries;
+    try {
+      for (const std::string& n : names) {
+        if (IsSundials(n)) {
+          entries.emplace_back(n, std::nullopt);
+          continue;
+        }
+        for (const RowMethod& m : ExpandMethods({n}, solvers, "--integrators")) entries.emplace_back(m.label(), m);
+      }
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string(e.what()) + ", cvode, ida");
     }
     std::vector<double> hs = h_arg.empty()
                                   ? std::vector<double>{scene.h, scene.h / 2, scene.h / 4, scene.h / 8}
@@ -566,7 +603,11 @@ int Main(int argc, char** argv) {
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
     std::sort(hs.begin(), hs.end(), std::greater<>());
     const std::vector<double> rtols = ParsePositiveList(rtols_arg, "--rtols");
-    CheckMemory(scene, names, hs.size(), rtols.size(), reference);
+    {
+      std::vector<std::string> labels;
+      for (const auto& e : entries) labels.push_back(e.first);
+      CheckMemory(scene, labels, hs.size(), rtols.size(), reference);
+    }
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
@@ -610,16 +651,18 @@ int Main(int argc, char** argv) {
     }
 
     std::vector<Row> rows;
-    for (const std::string& name : names) {
+    for (const auto& [name, method] : entries) {
       const std::size_t first = rows.size();
-      if (IsSundials(name)) {
+      if (!method) {
         for (double rtol : rtols) {
           const ReferenceOptions o{rtol, -1.0, 5, scene.t_end, scene.frame_dt};
           rows.push_back(FromReference(rtol, name == "ida" ? RunIda(sys, o) : RunCvode(sys, o), scene));
         }
       } else {
-        const Method m = *MethodFromString(name);
-        for (double h : hs) rows.push_back(FromRun(name, h, RunIntegrator(sys, m, {h, scene.t_end, scene.frame_dt}), scene));
+        for (double h : hs) {
+          const std::unique_ptr<Stepper> stepper = method->Make(sys, scene.solver);
+          rows.push_back(FromRun(*method, h, RunStepper(sys, *stepper, {h, scene.t_end, scene.frame_dt}), scene));
+        }
       }
       for (std::size_t k = first; k < rows.size(); ++k)
         if (rows[k].ok) rows[k].energy = ComputeEnergies(sys, rows[k].traj);

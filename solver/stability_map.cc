@@ -10,7 +10,7 @@ namespace clothbench {
 
 const char* const kStabilityOutcomeCodes =
     "0 bounded, 1 energy_growth, 2 non_finite, 3 cg_failed, 4 no_fixed_point_convergence, 5 fixed_point_diverged, "
-    "6 other";
+    "6 other, 7 no_newton_convergence, 8 newton_diverged";
 
 Scene StabilityScene(Scene s, int side) {
   const double lu = s.lu(), lv = s.lv();
@@ -30,11 +30,21 @@ Scene StabilityScene(Scene s, int side) {
 }
 
 StabilityCell RunStabilityCell(Scene scene, Method method, double h, double stiffness, int steps) {
+  return RunStabilityCell(
+      std::move(scene),
+      [method](const ParticleSystem& sys, const SolverSpec& spec) -> std::unique_ptr<Stepper> {
+        return std::make_unique<StepEngine>(sys, method, spec);
+      },
+      h, stiffness, steps);
+}
+
+StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h, double stiffness, int steps) {
   const double l = std::max(scene.lu(), scene.lv());
   const double k = stiffness * scene.material.density * l * l / (h * h);
   scene.material.tension = {k, k};
   const ParticleSystem sys(scene);
-  StepEngine engine(sys, method, scene.solver);
+  const std::unique_ptr<Stepper> stepper = make(sys, scene.solver);
+  Stepper& engine = *stepper;
   engine.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
   const double diag = std::hypot(scene.grid.size[0], scene.grid.size[1]);
   const double e_ref = sys.masses().sum() * scene.forces.gravity.norm() * diag;
@@ -58,6 +68,8 @@ StabilityCell RunStabilityCell(Scene scene, Method method, double h, double stif
                   : st.status == StepStatus::kCgFailed           ? kCgFailed
                   : st.status == StepStatus::kNoFixedPointConvergence ? kNoFixedPoint
                   : st.status == StepStatus::kFixedPointDiverged      ? kFixedPointDiverged
+                  : st.status == StepStatus::kNoNewtonConvergence     ? kNoNewton
+                  : st.status == StepStatus::kNewtonDiverged          ? kNewtonDiverged
                                                                       : kOtherFailure;
       break;
     }
@@ -90,6 +102,8 @@ std::string StabilityCellText(const StabilityCell& c) {
     case kCgFailed: return fmt::format("CG@{}", c.steps);
     case kNoFixedPoint: return fmt::format("FP@{}", c.steps);
     case kFixedPointDiverged: return fmt::format("FPdiv@{}", c.steps);
+    case kNoNewton: return fmt::format("NW@{}", c.steps);
+    case kNewtonDiverged: return fmt::format("NWdiv@{}", c.steps);
     default: return fmt::format("FAIL@{}", c.steps);
   }
 }

@@ -5,6 +5,8 @@
 #define CLOTHBENCH_SOLVER_STABILITY_MAP_H_
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 
 #include "solver/integrator.h"
@@ -19,7 +21,9 @@ enum StabilityOutcome : int32_t {
   kCgFailed = 3,            ///< PCG did not converge in cg_max_iterations
   kNoFixedPoint = 4,        ///< fixed point not converged in max_updates
   kFixedPointDiverged = 5,  ///< fixed-point iterates became non-finite
-  kOtherFailure = 6
+  kOtherFailure = 6,
+  kNoNewton = 7,            ///< Newton not converged in max_updates
+  kNewtonDiverged = 8       ///< Newton iterates became non-finite
 };
 /// "0 bounded, 1 energy_growth, …" for the HDF5 attribute.
 extern const char* const kStabilityOutcomeCodes;
@@ -41,7 +45,13 @@ Scene StabilityScene(Scene scene, int side);
 /// size h from rest. E_ref = Σ m |g| L with L the sheet diagonal.
 StabilityCell RunStabilityCell(Scene scene, Method method, double h, double stiffness, int steps);
 
-/// Short text for a printed map: "ok U/C", "GROW@n", "NaN@n", "CG@n", "FP@n", "FPdiv@n".
+/// Builds the stepper of a cell on the cell's system and solver settings.
+using StepperFactory = std::function<std::unique_ptr<Stepper>(const ParticleSystem&, const SolverSpec&)>;
+/// The same cell for any stepper (the Newton variants, the peers).
+StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h, double stiffness, int steps);
+
+/// Short text for a printed map: "ok U/C", "GROW@n", "NaN@n", "CG@n", "FP@n",
+/// "FPdiv@n", "NW@n" (Newton not converged), "NWdiv@n".
 std::string StabilityCellText(const StabilityCell& c);
 
 }  // namespace clothbench

@@ -99,4 +99,12 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
   }
 }
 
+void TangentSystem::AddJacobianProducts(double cx, const MatrixN3& u, double cv, const MatrixN3& w,
+                                        MatrixN3* out) const {
+  if (cx != 0.0)
+    for (const Triplet& e : dfdx_) (*out)(e.row() / 3, e.row() % 3) += cx * e.value() * u(e.col() / 3, e.col() % 3);
+  if (cv != 0.0)
+    for (const Triplet& e : dfdv_) (*out)(e.row() / 3, e.row() % 3) += cv * e.value() * w(e.col() / 3, e.col() % 3);
+}
+
 }  // namespace clothbench

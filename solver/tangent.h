@@ -47,6 +47,11 @@ class TangentSystem {
   /// @param x, v N×3 positions [m] and velocities [m/s].
   void Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h);
 
+  /// out += cx (∂f/∂x) u + cv (∂f/∂v) w with the force Jacobians of the last
+  /// Update (as assembled: clamped if so, not symmetrised).
+  /// @param u, w, out N×3 (row p, column c is entry 3p + c). No allocation.
+  void AddJacobianProducts(double cx, const MatrixN3& u, double cv, const MatrixN3& w, MatrixN3* out) const;
+
   /// The 3N×3N matrix [kg], column-major, both triangles stored.
   const SparseMatrix& matrix() const { return j_; }
   const TangentOptions& options() const { return options_; }

@@ -1,0 +1,127 @@
+// Baraff–Witkin step (Baraff & Witkin 1998, eq. 16–18; Blender's
+// implicit_blender.cc, BPH_mass_spring_solve_velocities).
+#include "peers/baraff_witkin.h"
+
+#include <chrono>
+#include <cmath>
+
+namespace clothbench {
+namespace {
+
+TangentOptions Options(const SolverSpec& s) {
+  TangentOptions o;
+  o.projection = s.tangent_projection;
+  o.include_explicit_terms = s.tangent_explicit_terms;
+  o.symmetrize = true;  // CG needs a symmetric matrix (see TangentOptions)
+  return o;
+}
+
+}  // namespace
+
+BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solver)
+    : sys_(system), opts_(solver), tangent_(system, Options(solver)), precond_(solver.preconditioner), contacts_(system) {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = system.num_particles();
+  if (solver.preconditioner == PreconditionerType::kCholesky || solver.preconditioner == PreconditionerType::kAmg)
+    laplacian_ = std::make_unique<SystemMatrix>(system, solver.preconditioner, solver.cholesky_ordering);
+  precond_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
+  work_.Resize(n);
+  filter_.Reserve(n);
+  for (int p : system.fixed()) filter_.Fix(p);
+  for (MatrixN3* m : {&x0_, &v0_, &xm1_, &f_, &rhs_, &x1_, &v1_}) m->setZero(n, 3);
+  vr_.setZero(n, 3);
+  br_.setZero(n, 3);
+  setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+double BaraffWitkin::setup_seconds() const {
+  return setup_seconds_ + (laplacian_ ? laplacian_->setup_seconds() : 0.0);
+}
+
+void BaraffWitkin::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
+  t_ = t;
+  x0_ = x;
+  v0_ = v;
+  filter_.Impose(&v0_);
+  have_history_ = false;
+  contacts_.Reset();
+}
+
+StepStats BaraffWitkin::Step(double h) {
+  const auto start = std::chrono::steady_clock::now();
+  const double setup_before = setup_seconds();
+  StepStats st;
+  st.t = t_ + h;
+  st.h = h;
+  st.updates = 1;
+  auto finish = [&]() {
+    st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    st.setup_time = setup_seconds() - setup_before;
+    return st;
+  };
+  if (contacts_.active()) st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+
+  // J = M − h ∂f/∂v − h² ∂f/∂x at (t₀, x₀, v₀) and its preconditioner.
+  {
+    const auto t0 = std::chrono::steady_clock::now();
+    tangent_.Update(t_, x0_, v0_, h);
+    bool ok = !laplacian_ || laplacian_->Update(h);
+    ok = ok && precond_.Factorize(tangent_.matrix());
+    ++rebuilds_;
+    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!ok) {
+      st.status = StepStatus::kPreconditionerFailed;
+      return finish();
+    }
+  }
+  // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
+  sys_.Forces(t_, x0_, v0_, &f_);
+  if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (SPEC §2.5)
+  rhs_ = h * f_;
+  tangent_.AddJacobianProducts(h * h, v0_, 0.0, v0_, &rhs_);
+  vr_ = v0_;
+  TangentProduct(tangent_.matrix(), vr_, &br_);
+  br_ += rhs_;
+
+  // η relative to ‖S_F b‖ (or ‖S b‖), as for the thesis' methods (CgReference).
+  double reference = -1.0;
+  if (contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly) {
+    double sum = br_.squaredNorm();
+    for (int p : sys_.fixed()) sum -= br_.row(p).squaredNorm();
+    reference = std::sqrt(std::max(sum, 0.0));
+  }
+  const PcgSummary pcg = FilteredPcg(tangent_.matrix(), br_, filter_, precond_,
+                                     PcgOptions{opts_.cg_tolerance, opts_.cg_max_iterations, reference}, &vr_, &work_);
+  st.cg_iterations = pcg.iterations;
+  st.pcg_status = pcg.status;
+  if (pcg.status != PcgStatus::kConverged) {
+    st.status = pcg.status == PcgStatus::kNonFinite ? StepStatus::kNonFinite : StepStatus::kCgFailed;
+    return finish();
+  }
+  v1_ = vr_;
+  x1_ = x0_ + h * v1_;
+  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
+  if (!x1_.allFinite() || !v1_.allFinite()) {
+    st.status = StepStatus::kNonFinite;
+    return finish();
+  }
+  if (contacts_.active()) {
+    // Row p of J v₁ − b (J is symmetric: rows 3p … 3p+2 are those columns).
+    const SparseMatrix& j = tangent_.matrix();
+    auto residual_row = [&](int p) {
+      Vector3 r = -br_.row(p).transpose();
+      for (int c = 0; c < 3; ++c)
+        for (SparseMatrix::InnerIterator it(j, 3 * p + c); it; ++it) r(c) += it.value() * vr_.data()[it.row()];
+      return r;
+    };
+    contacts_.ReadImpulses(residual_row, v1_, v0_, opts_.cg_tolerance * (reference >= 0.0 ? reference : br_.norm()));
+  }
+  xm1_.swap(x0_);
+  x0_.swap(x1_);
+  v0_.swap(v1_);
+  t_ += h;
+  have_history_ = true;
+  return finish();
+}
+
+}  // namespace clothbench

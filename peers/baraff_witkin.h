@@ -1,0 +1,82 @@
+// Baraff & Witkin (1998), "Large steps in cloth simulation", as production
+// cloth solvers run it (Blender's implicit_blender.cc): implicit Euler
+// linearised once per step with the full force Jacobians (eq. 16–18),
+//   (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f₀ + h ∂f/∂x v₀),   x₁ = x₀ + h (v₀ + Δv),
+// solved by the same filtered PCG, velocity filter S and (4.4) target as the
+// thesis' methods (SPEC §5, §7), with the same explicit Coulomb friction.
+// A peer of the thesis' integrators, not one of them (SPEC §11).
+#ifndef CLOTHBENCH_PEERS_BARAFF_WITKIN_H_
+#define CLOTHBENCH_PEERS_BARAFF_WITKIN_H_
+
+#include <memory>
+#include <string_view>
+
+#include "model/particle_system.h"
+#include "solver/contact.h"
+#include "solver/integrator.h"
+#include "solver/pcg.h"
+#include "solver/tangent.h"
+
+namespace clothbench {
+
+/// The integrator name used by the executables and result files.
+inline constexpr std::string_view kBaraffWitkinName = "baraff_witkin";
+
+/// One linearised implicit Euler step per time step (order 1).
+///
+/// Conventions, where they differ between Blender and this harness:
+///  - Force model: the scene's (tension with rest length and isotropic
+///    damping c_e(v_b − v_a), shear, bending, transverse, wind, air), so the
+///    row solves the same ODE as every other row. Blender's springs are
+///    dropped entirely while compressed (unless "resist compression") and
+///    damp only along the spring, c (v·d̂) d̂.
+///  - Compressed springs in the Jacobian: the transverse factor is clamped
+///    at 0 (tangent_projection = "clamp", Choi & Ko 2002), keeping the axial
+///    stiffness s_e d̂d̂ᵀ; Blender zeroes the whole Jacobian of a compressed
+///    spring, consistent with its force being zero there.
+///  - Shear, bending and the other stencil terms enter ∂f/∂x exactly
+///    (AutoDiff) when tangent_explicit_terms is true; Blender models them as
+///    springs with spring Jacobians. J is symmetrised, (J + Jᵀ)/2, for CG.
+///  - Precision and the CG stop: double precision and the scene's
+///    cg_tolerance relative to ‖S_F b‖ (Blender: single precision, a loose
+///    relative tolerance and at most 100 iterations).
+///  - Unknown: v₁ = v₀ + Δv (the filter prescribes velocities, Blender's z
+///    prescribes Δv); the same linear system.
+class BaraffWitkin : public Stepper {
+ public:
+  /// @param system the model (must outlive the stepper)
+  /// @param solver cg_tolerance, cg_max_iterations, preconditioner,
+  ///        cg_reference, tangent_projection, tangent_explicit_terms
+  BaraffWitkin(const ParticleSystem& system, const SolverSpec& solver);
+
+  void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
+  /// One step of size h [s]: status kCgFailed / kPreconditionerFailed /
+  /// kNonFinite on failure (the state is then unchanged). No allocation.
+  StepStats Step(double h) override;
+  double t() const override { return t_; }
+  const MatrixN3& x() const override { return x0_; }
+  const MatrixN3& v() const override { return v0_; }
+  bool single_update() const override { return true; }
+  int matrix_rebuilds() const override { return rebuilds_; }
+  double setup_seconds() const override;
+
+ private:
+  const ParticleSystem& sys_;
+  SolverSpec opts_;
+  TangentSystem tangent_;
+  std::unique_ptr<SystemMatrix> laplacian_;  // A_α's preconditioner ("cholesky", "amg" only)
+  TangentPreconditioner precond_;
+  TangentPcgWorkspace work_;
+  VelocityFilter filter_;
+  ContactResponse contacts_;
+  double t_ = 0.0;
+  bool have_history_ = false;
+  int rebuilds_ = 0;
+  double setup_seconds_ = 0.0;
+  MatrixN3 x0_, v0_, xm1_, f_, rhs_, x1_, v1_;
+  MatrixN3R vr_, br_;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_PEERS_BARAFF_WITKIN_H_
