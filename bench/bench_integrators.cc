@@ -545,7 +545,8 @@ int Main(int argc, char** argv) {
   try {
     std::vector<NonlinearSolver> solvers;
     try {
-      for (const std::string& n : SplitList(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+      if (app.count("--nonlinear-solver"))
+        for (const std::string& n : SplitList(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }

@@ -201,35 +201,69 @@ class StencilTerm final : public ForceTerm {
     }
   }
 
+  // Forward-mode AutoDiff over the stencil's positions, and over its
+  // velocities only if the kernel uses them (damping, wind, air): the
+  // derivative vectors are then half as long, and so is the cost. The dfdv
+  // triplets are emitted either way (zeros), so the pattern never changes.
   void AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                    std::vector<Triplet>* dfdv) const override {
-    using Derivs = Eigen::Matrix<double, 6 * K, 1>;
+    if (kernel_.uses_velocity())
+      JacobianPass<true>(t, x, v, dfdx, dfdv);
+    else
+      JacobianPass<false>(t, x, v, dfdx, dfdv);
+  }
+
+ private:
+  template <bool kVelocity>
+  void JacobianPass(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                    std::vector<Triplet>* dfdv) const {
+    constexpr int D = kVelocity ? 6 * K : 3 * K;
+    using Derivs = Eigen::Matrix<double, D, 1>;
     using AD = Eigen::AutoDiffScalar<Derivs>;
-    std::array<V3<AD>, K> xs, vs, fs;
-    for (const Centre& c : centres_) {
+    // Every centre writes its fixed number of triplets at its own offset,
+    // so the centres run on the OpenMP threads with a result independent of
+    // the thread count (AutoDiff costs microseconds per centre: threads pay
+    // off from a few hundred centres). resize() keeps the capacity: no
+    // allocation after the first call.
+    constexpr std::size_t kPer = static_cast<std::size_t>(Kernel::kOutputs) * 9 * K;
+    const std::size_t bx = dfdx->size(), bv = dfdv->size();
+    dfdx->resize(bx + centres_.size() * kPer);
+    dfdv->resize(bv + centres_.size() * kPer);
+    Triplet* out_x = dfdx->data() + bx;
+    Triplet* out_v = dfdv->data() + bv;
+    const auto n = static_cast<std::ptrdiff_t>(centres_.size());
+#pragma omp parallel for schedule(static) if (n >= 256)
+    for (std::ptrdiff_t ci = 0; ci < n; ++ci) {
+      const Centre& c = centres_[static_cast<std::size_t>(ci)];
+      std::array<V3<AD>, K> xs, vs, fs;
       for (int k = 0; k < K; ++k)
         for (int r = 0; r < 3; ++r) {
-          xs[k](r) = AD(x(c.nodes[k], r), 6 * K, 3 * k + r);
-          vs[k](r) = AD(v(c.nodes[k], r), 6 * K, 3 * K + 3 * k + r);
+          xs[k](r) = AD(x(c.nodes[k], r), D, 3 * k + r);
+          if constexpr (kVelocity)
+            vs[k](r) = AD(v(c.nodes[k], r), D, 3 * K + 3 * k + r);
+          else
+            vs[k](r) = AD(v(c.nodes[k], r));  // a constant: zero derivatives
           fs[k](r) = AD(0.0);
         }
       kernel_.template Evaluate<AD>(t, c.valid, c.weight, xs, vs, fs);
+      std::size_t pos = static_cast<std::size_t>(ci) * kPer;
       for (int a = 0; a < Kernel::kOutputs; ++a)
         for (int r = 0; r < 3; ++r) {
           const Derivs& d = fs[a](r).derivatives();
-          const bool has = d.size() == 6 * K;  // an untouched output has no derivatives
           const int row = 3 * c.nodes[a] + r;
           for (int b = 0; b < K; ++b)
-            for (int cc = 0; cc < 3; ++cc) {
+            for (int cc = 0; cc < 3; ++cc, ++pos) {
               const int col = 3 * c.nodes[b] + cc;
-              dfdx->emplace_back(row, col, has ? d(3 * b + cc) : 0.0);
-              dfdv->emplace_back(row, col, has ? d(3 * K + 3 * b + cc) : 0.0);
+              out_x[pos] = Triplet(row, col, d(3 * b + cc));
+              if constexpr (kVelocity)
+                out_v[pos] = Triplet(row, col, d(3 * K + 3 * b + cc));
+              else
+                out_v[pos] = Triplet(row, col, 0.0);
             }
         }
     }
   }
 
- private:
   void Evaluate(double t, const MatrixN3& x, const MatrixN3& v, const Centre& c,
                 std::array<Vector3, Kernel::kOutputs>* out) const {
     std::array<Vector3, K> xs, vs, fs;
@@ -280,6 +314,7 @@ std::vector<typename StencilTerm<Kernel>::Centre> GridCentres(const GridGeometry
 struct ShearKernel {
   static constexpr int kNodes = 5;    // centre, r, l, u, d
   static constexpr int kOutputs = 5;
+  bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double mu, damping, lu, lv;
   template <class S>
   void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v,
@@ -302,6 +337,7 @@ struct ShearKernel {
 struct MembraneKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
+  bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double bu, bv, damping, lu, lv;
   template <class S>
   void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>& v,
@@ -320,6 +356,7 @@ struct MembraneKernel {
 struct ThinPlateKernel {
   static constexpr int kNodes = 13;
   static constexpr int kOutputs = 1;
+  bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double bu, bv, damping, lu, lv;
 
   template <class S>
@@ -350,6 +387,7 @@ struct ThinPlateKernel {
 struct TransverseKernel {
   static constexpr int kNodes = 3;
   static constexpr int kOutputs = 3;
+  bool uses_velocity() const { return false; }  ///< whether f depends on v
   double c1122, lu, lv;
   template <class S>
   void Evaluate(double, std::uint32_t, double, const std::array<V3<S>, 3>& x, const std::array<V3<S>, 3>&,
@@ -369,6 +407,7 @@ struct TransverseKernel {
 struct WindKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
+  bool uses_velocity() const { return false; }  ///< whether f depends on v
   WindSpec w;
   template <class S>
   void Evaluate(double t, std::uint32_t valid, double area, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>&,
@@ -385,6 +424,7 @@ struct WindKernel {
 struct AirKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
+  bool uses_velocity() const { return true; }  ///< whether f depends on v
   double c_air;
   template <class S>
   void Evaluate(double, std::uint32_t valid, double area, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>& v,
