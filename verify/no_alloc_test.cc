@@ -5,8 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <array>
 #include <cstddef>
+#include <memory>
 
+#include "peers/baraff_witkin.h"
 #include "solver/integrator.h"
 #include "solver/tangent.h"
 
@@ -53,6 +56,38 @@ TEST(StepLoop, DoesNotAllocate) {
     EXPECT_TRUE(ok) << ToString(m);
     EXPECT_EQ(g_allocations.load(), 0) << ToString(m);
   }
+}
+
+// Newton on J_α (refreshed at every iterate and frozen per step, with each
+// preconditioner of the 3N system that needs no library: block Jacobi and
+// IC(0) of J_α) and the Baraff–Witkin step, with a change of h.
+TEST(StepLoop, NewtonAndBaraffWitkinDoNotAllocate) {
+  Scene s = DefaultScene();
+  s.solver.nonlinear_solver = NonlinearSolver::kNewton;
+  const ParticleSystem sys(s);
+  for (PreconditionerType type : {PreconditionerType::kJacobi, PreconditionerType::kIc0})
+    for (NewtonJacobian jac : {NewtonJacobian::kRefresh, NewtonJacobian::kFrozen})
+      for (int which = 0; which < 4; ++which) {
+        SolverSpec spec = s.solver;
+        spec.preconditioner = type;
+        spec.newton_jacobian = jac;
+        std::unique_ptr<Stepper> st;
+        if (which == 3)
+          st = std::make_unique<BaraffWitkin>(sys, spec);
+        else
+          st = std::make_unique<StepEngine>(
+              sys, std::array{Method::kImplicitEuler, Method::kBdf2, Method::kImplicitMidpoint}[which], spec);
+        st->Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
+        ASSERT_EQ(st->Step(0.01).status, StepStatus::kOk);
+        g_allocations = 0;
+        g_counting = true;
+        bool ok = true;
+        for (int k = 0; k < 3; ++k) ok &= st->Step(0.01).status == StepStatus::kOk;
+        ok &= st->Step(0.005).status == StepStatus::kOk;
+        g_counting = false;
+        EXPECT_TRUE(ok) << which << " " << ToString(type) << " " << ToString(jac);
+        EXPECT_EQ(g_allocations.load(), 0) << which << " " << ToString(type) << " " << ToString(jac);
+      }
 }
 
 // The tangent system J_α refreshes its values in place: triplet buffers keep
