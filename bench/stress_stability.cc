@@ -10,10 +10,10 @@
 //   failure    the first failed step and why: non_finite, cg_failed,
 //              no_fixed_point_convergence (no retries: the map shows where a
 //              method stops working at that h);
-//   work       fixed-point updates and CG iterations per step.
+//   work       fixed-point (or Newton) updates and CG iterations per step.
 //
-//   stress_stability [--scenes LIST] [--integrators LIST] [--stiffness LIST]
-//                    [--h LIST] [--steps N] [--side N] [--out FILE.h5]
+//   stress_stability [--scenes LIST] [--integrators LIST] [--nonlinear-solver LIST]
+//                    [--stiffness LIST] [--h LIST] [--steps N] [--side N] [--out FILE.h5]
 #include <cmath>
 #include <cstdint>
 #include <sstream>
@@ -24,6 +24,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/methods.h"
 #include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/stability_map.h"
@@ -59,10 +60,15 @@ std::vector<double> ParseList(const std::string& s, const std::string& opt) {
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench stability maps over numerical stiffness and step size"};
   std::string scenes_arg = "hanging_sheet,swinging_sheet", integrators_arg, stiffness_arg = "0.1,1,1e2,1e4,1e6,1e8",
-              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5";
+              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5", nonlinear_arg = "fixed_point";
   int steps = 200, side = 10;
   app.add_option("--scenes", scenes_arg, "built-in scene names or files (default hanging_sheet,swinging_sheet)");
-  app.add_option("--integrators", integrators_arg, "default: the five thesis methods and symplectic_euler");
+  app.add_option("--integrators", integrators_arg,
+                 "default: the five thesis methods and symplectic_euler; also baraff_witkin, and NAME/newton for the "
+                 "fully implicit methods");
+  app.add_option("--nonlinear-solver", nonlinear_arg,
+                 "fixed_point,newton: one map per solver for implicit_euler, bdf2 and implicit_midpoint (default "
+                 "fixed_point)");
   app.add_option("--stiffness", stiffness_arg, "numerical stiffness values h^2 k/(rho l^2)");
   app.add_option("--h", h_arg, "step sizes [s]");
   app.add_option("--steps", steps, "steps per cell (default 200)")->check(CLI::Range(1, 1000000));
@@ -77,17 +83,16 @@ int Main(int argc, char** argv) {
     return 2;
   }
   try {
-    std::vector<Method> methods;
+    std::vector<std::string> names;
     if (integrators_arg.empty()) {
-      methods = AllMethods();
-      methods.push_back(Method::kSymplecticEuler);
+      for (Method m : AllMethods()) names.emplace_back(ToString(m));
+      names.emplace_back(ToString(Method::kSymplecticEuler));
     } else {
-      for (const std::string& n : Split(integrators_arg)) {
-        const auto m = MethodFromString(n);
-        if (!m) throw std::invalid_argument(fmt::format("--integrators: unknown integrator \"{}\"", n));
-        methods.push_back(*m);
-      }
+      names = Split(integrators_arg);
     }
+    std::vector<NonlinearSolver> solvers;
+    for (const std::string& n : Split(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+    const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators");
     const std::vector<double> stiff = ParseList(stiffness_arg, "--stiffness"), hs = ParseList(h_arg, "--h");
     std::vector<Scene> scenes;
     for (const std::string& name : Split(scenes_arg)) {
@@ -109,17 +114,19 @@ int Main(int argc, char** argv) {
                  scene.name, side, side, steps);
       fmt::print("cells: ok U/C = bounded, U updates and C CG iterations per step; at step n: GROW@n energy growth, "
                  "NaN@n non-finite state, CG@n PCG failed, FP@n fixed point not converged in 30 updates, FPdiv@n fixed "
-                 "point diverged\n");
-      for (Method m : methods) {
+                 "point diverged, NW@n Newton not converged in 30 updates, NWdiv@n Newton diverged\n");
+      for (const RowMethod& m : methods) {
         std::vector<int32_t> outcome, done;
         std::vector<double> upd, cgs, excess;
-        fmt::print("\n{:<18} {:>8}", ToString(m), "h \\ S");
+        fmt::print("\n{:<24} {:>8}", m.label(), "h \\ S");
         for (double s : stiff) fmt::print(" {:>12g}", s);
         fmt::print("\n");
         for (double h : hs) {
-          fmt::print("{:<18} {:>8g}", "", h);
+          fmt::print("{:<24} {:>8g}", "", h);
           for (double s : stiff) {
-            const StabilityCell c = RunStabilityCell(scene, m, h, s, steps);
+            const StabilityCell c = RunStabilityCell(
+                scene, [&m](const ParticleSystem& sys, const SolverSpec& spec) { return m.Make(sys, spec); }, h, s,
+                steps);
             outcome.push_back(c.outcome);
             done.push_back(c.steps);
             upd.push_back(c.updates_per_step);
@@ -129,7 +136,7 @@ int Main(int argc, char** argv) {
           }
           fmt::print("\n");
         }
-        const std::string g = fmt::format("/stress/{}/{}", scene.name, ToString(m));
+        const std::string g = fmt::format("/stress/{}/{}", scene.name, m.id());
         f.CreateGroup(g);
         f.WriteTable(g + "/outcome", nh, ns, outcome);
         f.WriteTable(g + "/steps_completed", nh, ns, done);
