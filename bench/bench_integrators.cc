@@ -512,7 +512,8 @@ int Main(int argc, char** argv) {
   app.add_option("--integrators", integrators_arg,
                  "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,"
                  "baraff_witkin,cvode,ida; a fully implicit method may name its nonlinear solver, e.g. bdf2/newton "
-                 "(default: the five methods and cvode)");
+                 "(default: the five methods, the Newton variants of implicit_euler, bdf2 and implicit_midpoint, "
+                 "baraff_witkin and cvode)");
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
                  "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
@@ -578,7 +579,15 @@ int Main(int argc, char** argv) {
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
-      for (Method m : AllMethods()) names.emplace_back(ToString(m));
+      // The five methods with the scene's nonlinear solver, each fully
+      // implicit one also with Newton, Baraff–Witkin and CVODE.
+      for (Method m : AllMethods()) {
+        names.emplace_back(ToString(m));
+        if (RowMethod{std::string(ToString(m)), m}.fully_implicit() && !app.count("--nonlinear-solver") &&
+            scene.solver.nonlinear_solver != NonlinearSolver::kNewton)
+          names.push_back(std::string(ToString(m)) + "/newton");
+      }
+      names.emplace_back(kBaraffWitkinName);
       names.emplace_back("cvode");
     } else {
       names = SplitList(integrators_arg);
