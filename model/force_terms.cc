@@ -203,8 +203,9 @@ class StencilTerm final : public ForceTerm {
 
   // Forward-mode AutoDiff over the stencil's positions, and over its
   // velocities only if the kernel uses them (damping, wind, air): the
-  // derivative vectors are then half as long, and so is the cost. The dfdv
-  // triplets are emitted either way (zeros), so the pattern never changes.
+  // derivative vectors are then half as long, and so is the cost. A kernel
+  // that does not use v emits no dfdv triplets at all (uses_velocity() is
+  // fixed for a term, so the pattern never changes).
   void AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                    std::vector<Triplet>* dfdv) const override {
     if (kernel_.uses_velocity())
@@ -228,9 +229,9 @@ class StencilTerm final : public ForceTerm {
     constexpr std::size_t kPer = static_cast<std::size_t>(Kernel::kOutputs) * 9 * K;
     const std::size_t bx = dfdx->size(), bv = dfdv->size();
     dfdx->resize(bx + centres_.size() * kPer);
-    dfdv->resize(bv + centres_.size() * kPer);
+    if constexpr (kVelocity) dfdv->resize(bv + centres_.size() * kPer);
     Triplet* out_x = dfdx->data() + bx;
-    Triplet* out_v = dfdv->data() + bv;
+    [[maybe_unused]] Triplet* out_v = kVelocity ? dfdv->data() + bv : nullptr;
     const auto n = static_cast<std::ptrdiff_t>(centres_.size());
 #pragma omp parallel for schedule(static) if (n >= 256)
     for (std::ptrdiff_t ci = 0; ci < n; ++ci) {
@@ -255,10 +256,7 @@ class StencilTerm final : public ForceTerm {
             for (int cc = 0; cc < 3; ++cc, ++pos) {
               const int col = 3 * c.nodes[b] + cc;
               out_x[pos] = Triplet(row, col, d(3 * b + cc));
-              if constexpr (kVelocity)
-                out_v[pos] = Triplet(row, col, d(3 * K + 3 * b + cc));
-              else
-                out_v[pos] = Triplet(row, col, 0.0);
+              if constexpr (kVelocity) out_v[pos] = Triplet(row, col, d(3 * K + 3 * b + cc));
             }
         }
     }
