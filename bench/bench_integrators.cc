@@ -591,7 +591,7 @@ int Main(int argc, char** argv) {
       // implicit one also with Newton, Baraff–Witkin and CVODE.
       for (Method m : AllMethods()) {
         names.emplace_back(ToString(m));
-        if (RowMethod{std::string(ToString(m)), m}.fully_implicit() && !app.count("--nonlinear-solver") &&
+        if (IsFullyImplicit(m) && !app.count("--nonlinear-solver") &&
             scene.solver.nonlinear_solver != NonlinearSolver::kNewton)
           names.push_back(std::string(ToString(m)) + "/newton");
       }
@@ -609,10 +609,11 @@ int Main(int argc, char** argv) {
           entries.emplace_back(n, std::nullopt);
           continue;
         }
-        for (const RowMethod& m : ExpandMethods({n}, solvers, "--integrators")) entries.emplace_back(m.label(), m);
+        for (const RowMethod& m : ExpandMethods({n}, solvers, "--integrators", "cvode, ida"))
+          entries.emplace_back(m.label(), m);
       }
     } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string(e.what()) + ", cvode, ida");
+      throw UsageError(e.what());
     }
     std::vector<double> hs = h_arg.empty()
                                   ? std::vector<double>{scene.h, scene.h / 2, scene.h / 4, scene.h / 8}

@@ -36,9 +36,7 @@ struct RowMethod {
       if (c == '/') c = '_';
     return s;
   }
-  bool fully_implicit() const {
-    return method && (*method == Method::kImplicitEuler || *method == Method::kBdf2 || *method == Method::kImplicitMidpoint);
-  }
+  bool fully_implicit() const { return method && IsFullyImplicit(*method); }
   /// The stepper on `sys` with the scene's solver settings, the nonlinear
   /// solver replaced by this row's.
   std::unique_ptr<Stepper> Make(const ParticleSystem& sys, SolverSpec spec) const {
@@ -65,9 +63,11 @@ inline NonlinearSolver ParseNonlinearSolver(const std::string& s, const std::str
 /// One RowMethod per name; a fully implicit method gives one per solver in
 /// `solvers` (in that order), any other method one row. A name may carry its
 /// solver itself: "bdf2/newton".
+/// @param also further names the caller accepts, for the message ("cvode, ida")
 /// @throws std::invalid_argument for an unknown name or solver, naming `option`.
 inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names,
-                                            const std::vector<NonlinearSolver>& solvers, const std::string& option) {
+                                            const std::vector<NonlinearSolver>& solvers, const std::string& option,
+                                            const std::string& also = "") {
   std::vector<RowMethod> out;
   for (const std::string& full : names) {
     const auto slash = full.find('/');
@@ -76,8 +76,8 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
     r.name = name;
     r.method = MethodFromString(name);
     if (!r.method && name != kBaraffWitkinName)
-      throw std::invalid_argument(fmt::format("{}: unknown integrator \"{}\" (expected {})", option, full,
-                                              KnownMethodNames()));
+      throw std::invalid_argument(fmt::format("{}: unknown integrator \"{}\" (expected {}{})", option, full,
+                                              KnownMethodNames(), also.empty() ? "" : ", " + also));
     if (slash != std::string::npos) {
       if (!r.fully_implicit())
         throw std::invalid_argument(fmt::format("{}: \"{}\": only implicit_euler, bdf2 and implicit_midpoint take a "

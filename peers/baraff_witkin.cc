@@ -84,12 +84,9 @@ StepStats BaraffWitkin::Step(double h) {
   br_ += rhs_;
 
   // η relative to ‖S_F b‖ (or ‖S b‖), as for the thesis' methods (CgReference).
-  double reference = -1.0;
-  if (contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly) {
-    double sum = br_.squaredNorm();
-    for (int p : sys_.fixed()) sum -= br_.row(p).squaredNorm();
-    reference = std::sqrt(std::max(sum, 0.0));
-  }
+  const double free_norm = FreeRowsNorm(br_, sys_.fixed());
+  const double reference =
+      contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly ? free_norm : -1.0;
   const PcgSummary pcg = FilteredPcg(tangent_.matrix(), br_, filter_, precond_,
                                      PcgOptions{opts_.cg_tolerance, opts_.cg_max_iterations, reference}, &vr_, &work_);
   st.cg_iterations = pcg.iterations;
@@ -114,7 +111,7 @@ StepStats BaraffWitkin::Step(double h) {
         for (SparseMatrix::InnerIterator it(j, 3 * p + c); it; ++it) r(c) += it.value() * vr_.data()[it.row()];
       return r;
     };
-    contacts_.ReadImpulses(residual_row, v1_, v0_, opts_.cg_tolerance * (reference >= 0.0 ? reference : br_.norm()));
+    contacts_.ReadImpulses(residual_row, v1_, v0_, opts_.cg_tolerance * free_norm);
   }
   xm1_.swap(x0_);
   x0_.swap(x1_);

@@ -35,6 +35,10 @@ const std::vector<Method>& AllMethods() {
 
 bool IsImex(Method m) { return m == Method::kImexEuler || m == Method::kSbdf2; }
 
+bool IsFullyImplicit(Method m) {
+  return m == Method::kImplicitEuler || m == Method::kBdf2 || m == Method::kImplicitMidpoint;
+}
+
 bool IsExplicit(Method m) { return m == Method::kSymplecticEuler; }
 
 int MethodOrder(Method m) {
@@ -110,9 +114,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
-  const bool fully_implicit =
-      method == Method::kImplicitEuler || method == Method::kBdf2 || method == Method::kImplicitMidpoint;
-  if (fully_implicit && solver.nonlinear_solver == NonlinearSolver::kNewton) {
+  if (IsFullyImplicit(method) && solver.nonlinear_solver == NonlinearSolver::kNewton) {
     const auto start = std::chrono::steady_clock::now();
     TangentOptions to;
     to.projection = solver.tangent_projection;
@@ -269,7 +271,7 @@ StepStats StepEngine::StepImpl(double h) {
       }
     }
     b_ = b0_ + (beta * h) * g_;
-    if (fixed_only_norm) pcg_opts.rhs_norm = FreeRowsNorm(b_);
+    if (fixed_only_norm) pcg_opts.rhs_norm = FreeRowsNorm(b_, sys_.fixed());
     if (opts_.fixed_point_tolerance > 0.0) vprev_ = v1_;
     last_pcg_ = FilteredPcg(sysmat_.matrix(), b_, filter_, sysmat_.preconditioner(), pcg_opts, &v1_, &work_);
     ++st.updates;
@@ -304,7 +306,7 @@ StepStats StepEngine::StepImpl(double h) {
       for (SparseMatrix::InnerIterator it(a, p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
       return Vector3(av - b_.row(p).transpose());
     };
-    contacts_.ReadImpulses(residual_row, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_));
+    contacts_.ReadImpulses(residual_row, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
   }
   x1_ = xhat_ + (gamma * h) * v1_;
   // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
@@ -347,7 +349,7 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
     tmp_ -= b_;
     double reference = 0.0;
     if (fixed_only_norm) {
-      reference = FreeRowsNorm(b_);
+      reference = FreeRowsNorm(b_, sys_.fixed());
     } else {
       vprev_ = b_;
       filter_.Project(&vprev_);
@@ -411,12 +413,6 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
   }
   st->status = StepStatus::kNoNewtonConvergence;
   return false;
-}
-
-double StepEngine::FreeRowsNorm(const MatrixN3& b) const {
-  double sum = b.squaredNorm();
-  for (int p : sys_.fixed()) sum -= b.row(p).squaredNorm();
-  return std::sqrt(std::max(sum, 0.0));
 }
 
 bool StepEngine::Commit(double h) {

@@ -33,6 +33,9 @@ std::optional<Method> MethodFromString(std::string_view s);
 const std::vector<Method>& AllMethods();
 /// IMEX methods (IMEX Euler, SBDF(2)) do exactly one update per step.
 bool IsImex(Method m);
+/// Fully implicit methods (implicit Euler, BDF(2), implicit midpoint) iterate
+/// with a nonlinear solver (fixed point or Newton).
+bool IsFullyImplicit(Method m);
 /// Explicit methods solve no linear system (symplectic Euler).
 bool IsExplicit(Method m);
 /// Classical order of convergence (1 or 2).
@@ -177,9 +180,6 @@ class StepEngine : public Stepper {
   StepStats ExplicitStep(double h, StepStats st);
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);
-  /// ‖S_F b‖₂: the 2-norm of b over the particles that are not fixed.
-  double FreeRowsNorm(const MatrixN3& b) const;
-
   const ParticleSystem& sys_;
   Method method_;
   SolverSpec opts_;

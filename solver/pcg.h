@@ -11,6 +11,8 @@
 #ifndef CLOTHBENCH_SOLVER_PCG_H_
 #define CLOTHBENCH_SOLVER_PCG_H_
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string_view>
 #include <vector>
@@ -133,6 +135,16 @@ class Preconditioner {
 /// thread count, so the result is bit-for-bit reproducible.
 /// @param a N×N symmetric, @param x, y N×3 (y must not alias x).
 void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y);
+
+/// ‖S_F b‖₂: the 2-norm of b over the particles not in `fixed` (the
+/// reference of the PCG tolerance with CgReference::kFixedOnly, SPEC §5).
+/// @param b N×3 (MatrixN3 or MatrixN3R) @param fixed particle indices
+template <class M>
+double FreeRowsNorm(const M& b, const std::vector<int>& fixed) {
+  double sum = b.squaredNorm();
+  for (int p : fixed) sum -= b.row(p).squaredNorm();
+  return std::sqrt(std::max(sum, 0.0));
+}
 
 /// y ← J x for a symmetric 3N×3N J (interleaved index 3p + c) on the 3N
 /// vectors stored in N×3 row-major matrices; reproducible like
