@@ -55,7 +55,7 @@ std::string_view ToString(TangentProjection p) {
   return p == TangentProjection::kClamp ? "clamp" : "none";
 }
 std::string_view ToString(StepControl s) {
-  return s == StepControl::kFixed ? "fixed" : "iterations";
+  return s == StepControl::kFixed ? "fixed" : s == StepControl::kIterations ? "iterations" : "error";
 }
 
 double Scene::NumericalStiffness(double step) const {
@@ -80,6 +80,8 @@ bool SolverSpec::IsValid(std::string* error) const {
   if (!(step_factor > 1.0)) return fail(fmt::format("step_factor = {} must be > 1", step_factor));
   if (!(h_min > 0.0)) return fail(fmt::format("h_min = {} must be > 0", h_min));
   if (!(h_max >= 0.0)) return fail(fmt::format("h_max = {} must be >= 0", h_max));
+  if (!(rtol > 0.0 && rtol < 1.0)) return fail(fmt::format("rtol = {} must be in (0, 1)", rtol));
+  if (!(atol >= 0.0)) return fail(fmt::format("atol = {} must be >= 0", atol));
   if (max_rejections < 0) return fail(fmt::format("max_rejections = {} must be >= 0", max_rejections));
   return true;
 }
@@ -365,7 +367,10 @@ Scene ParseScene(std::string_view text, const std::string& source) {
         v.Choice("tangent_projection", so.tangent_projection, {TangentProjection::kClamp, TangentProjection::kNone});
     so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
     so.predictor = v.Choice("predictor", so.predictor, {Predictor::kConstantVelocity, Predictor::kExtrapolate});
-    so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations});
+    so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations, StepControl::kError});
+    so.rtol = v.Positive("rtol", so.rtol);
+    if (so.rtol >= 1.0) v.Fail("rtol", "must be < 1");
+    so.atol = v.NonNegative("atol", so.atol);
     so.step_factor = v.Number("step_factor", so.step_factor);
     if (!(so.step_factor > 1.0)) v.Fail("step_factor", "must be > 1");
     so.h_min = v.Positive("h_min", so.h_min);

@@ -38,7 +38,7 @@ enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg };
 /// Fill-reducing ordering of the CHOLMOD factor (solver key cholesky_ordering).
 enum class CholeskyOrdering { kMetis, kAmd };
 enum class Predictor { kConstantVelocity, kExtrapolate };
-enum class StepControl { kFixed, kIterations };
+enum class StepControl { kFixed, kIterations, kError };
 /// What the PCG tolerance is relative to (SPEC §5 and its deviation below).
 /// kFiltered: ‖S b‖₂ over every constraint, SPEC §5 literally.
 /// kFixedOnly: ‖S_F b‖₂, where S_F filters only the fixed (bilateral)
@@ -139,10 +139,17 @@ struct SolverSpec {
   /// transverse, air) enter J_α; false: tension and mass only.
   bool tangent_explicit_terms = true;
   Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
+  /// fixed h; the thesis' iteration-count controller (SPEC §6); or local
+  /// error control of SBDF(2)/BDF(2) against rtol/atol (README
+  /// "Work-precision").
   StepControl step_control = StepControl::kFixed;
+  double rtol = 1e-4;                ///< step_control = "error": relative tolerance
+  /// step_control = "error": absolute tolerance [m for x, m/s for v]; 0: atol = rtol.
+  double atol = 0.0;
+  double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
   double step_factor = 2.0;          ///< controller grow/shrink factor (> 1)
   double h_min = 1e-6;               ///< [s] smallest step before a run fails
-  double h_max = 0.0;                ///< [s] largest step of the controller; 0: scene h
+  double h_max = 0.0;                ///< [s] largest step of a controller; 0: scene h (iterations), t_end (error)
   int max_rejections = 10;           ///< successive rejected attempts before a run fails
 
   /// Ceres style: false with `error` naming the field, its value and the rule.

@@ -55,6 +55,7 @@ std::string_view ToString(StepStatus s) {
     case StepStatus::kFixedPointDiverged: return "fixed_point_diverged";
     case StepStatus::kNoNewtonConvergence: return "no_newton_convergence";
     case StepStatus::kNewtonDiverged: return "newton_diverged";
+    case StepStatus::kErrorTestFailed: return "error_test_failed";
   }
   return "?";
 }
@@ -131,6 +132,10 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &vm1_, &gm1_, &g0_, &g_, &b0_, &b_, &xhat_, &vhat_, &xg0_, &vg_, &xg_, &v1_, &x1_,
                       &tmp_, &vprev_})
     m->setZero(n, 3);
+  error_control_ =
+      solver.step_control == StepControl::kError && (method == Method::kSbdf2 || method == Method::kBdf2);
+  if (error_control_)
+    for (MatrixN3* m : {&xm2_, &vm2_, &a_init_}) m->setZero(n, 3);
 }
 
 void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -140,8 +145,15 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   filter_.Impose(&v0_);
   have_history_ = false;
   have_g0_ = false;
-  h_prev_ = 0.0;
+  h_prev_ = h_prev2_ = 0.0;
+  history_ = 0;
   contacts_.Reset();
+  if (error_control_) {
+    // v̇ at the start, the exact slope of the error estimate's predictors.
+    sys_.Forces(t, x0_, v0_, &a_init_);
+    a_init_ = sys_.masses().cwiseInverse().asDiagonal() * a_init_;
+    filter_.Impose(&a_init_);
+  }
 }
 
 StepStats StepEngine::Step(double h) {
@@ -298,6 +310,21 @@ StepStats StepEngine::StepImpl(double h) {
     return st;
   }
 
+  x1_ = xhat_ + (gamma * h) * v1_;
+  // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
+  // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
+  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
+  if (error_control_) {
+    st.error_norm = ErrorNorm(h, &st.error_order);
+    if (!std::isfinite(st.error_norm)) {
+      st.status = StepStatus::kNonFinite;
+      return st;
+    }
+    if (st.error_norm > 1.0) {
+      st.status = StepStatus::kErrorTestFailed;
+      return st;
+    }
+  }
   if (contacts_.active()) {
     // Row p of A v₁ − b (A is symmetric: row p is column p).
     const SparseMatrix& a = sysmat_.matrix();
@@ -308,12 +335,79 @@ StepStats StepEngine::StepImpl(double h) {
     };
     contacts_.ReadImpulses(residual_row, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
   }
-  x1_ = xhat_ + (gamma * h) * v1_;
-  // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
-  // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
-  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;
+}
+
+// Local error estimate of variable-step BDF(2) by Milne's device (Hairer &
+// Wanner, Solving ODEs II, §III.7; Shampine & Gordon 1975): for z = x and
+// z = v, the corrector z₁ is compared with a quadratic predictor P
+// extrapolated to t₁ = t₀ + h. With steps h, H = h₋₁, H₂ = h₋₂ and a cubic z,
+//   z₁ − z(t₁) ≈  E_c z⁽³⁾,  E_c = (c2 (h+H)³ − c1 h³)/6   (BDF(2) truncation error, ω = h/H)
+//   P  − z(t₁) ≈ −E_p z⁽³⁾                                  (extrapolation error)
+// so the corrector's local error is E_c/(E_c + E_p)·(z₁ − P). P is
+//  - from the third step on, the quadratic through z₋₂, z₋₁, z₀:
+//    E_p = h (h+H)(h+H+H₂)/6 (2/11·(z₁ − P) at constant h);
+//  - in the second step, the quadratic through z₋₁ and z₀ with the exact
+//    initial slope ż₋₁ (ẋ = v, v̇ = M⁻¹f at t = 0): E_p = h (h+H)²/6.
+// The start step (implicit or IMEX Euler) is compared with the explicit Euler
+// predictor z₀ + h ż₀: local error (z₁ − P)/2, first order. The slope of
+// the numerical solution (the BDF derivative) is not used anywhere: it is
+// itself O(h²) off, which would enter P at the order of the estimate.
+// SBDF(2) uses the same estimate: the extrapolation error of ĝ is not in it.
+// The norm is CVODE's weighted RMS over the free particles' x and v
+// components, w = 1/(rtol |z₀| + atol).
+double StepEngine::ErrorNorm(double h, int* order) const {
+  const double rtol = opts_.rtol, atol = opts_.AbsoluteTolerance();
+  const int n = sys_.num_particles();
+  double k = 0.5;  // LTE = k (z₁ − P)
+  const double hh = h_prev_, h2 = h_prev2_;
+  if (history_ == 0) {
+    *order = 1;
+  } else {
+    *order = 2;
+    const Bdf2Coefficients bdf(h / hh);
+    const double ec = (bdf.c2 * std::pow(h + hh, 3) - bdf.c1 * h * h * h) / 6.0;
+    const double ep = history_ == 1 ? h * (h + hh) * (h + hh) / 6.0 : h * (h + hh) * (h + hh + h2) / 6.0;
+    k = ec / (ec + ep);
+  }
+  // Predictors at t₀ + h. slope: ż₀ (start step) or ż₋₁ (second step).
+  auto predict = [&](double zm2, double zm1, double z0, double slope) {
+    if (history_ == 0) return z0 + h * slope;
+    if (history_ == 1) {
+      // P(s) through (−H, z₋₁) with slope ż₋₁ there, and (0, z₀).
+      const double q = (z0 - zm1 - slope * hh) / (hh * hh);
+      const double s = h + hh;
+      return zm1 + slope * s + q * s * s;
+    }
+    // Newton form through (−H−H₂, z₋₂), (−H, z₋₁), (0, z₀).
+    const double d1 = (z0 - zm1) / hh, d0 = (zm1 - zm2) / h2;
+    const double d2 = (d1 - d0) / (hh + h2);
+    return z0 + d1 * h + d2 * h * (h + hh);
+  };
+  double sum = 0.0;
+  long count = 0;
+  for (int p = 0; p < n; ++p) {
+    if (sys_.is_fixed(p)) continue;
+    for (int c = 0; c < 3; ++c) {
+      double px, pv;
+      if (history_ == 0) {
+        px = predict(0, 0, x0_(p, c), v0_(p, c));
+        pv = predict(0, 0, v0_(p, c), a_init_(p, c));
+      } else if (history_ == 1) {
+        px = predict(0, xm1_(p, c), x0_(p, c), vm1_(p, c));
+        pv = predict(0, vm1_(p, c), v0_(p, c), a_init_(p, c));
+      } else {
+        px = predict(xm2_(p, c), xm1_(p, c), x0_(p, c), 0);
+        pv = predict(vm2_(p, c), vm1_(p, c), v0_(p, c), 0);
+      }
+      const double wx = k * (x1_(p, c) - px) / (rtol * std::abs(x0_(p, c)) + atol);
+      const double wv = k * (v1_(p, c) - pv) / (rtol * std::abs(v0_(p, c)) + atol);
+      sum += wx * wx + wv * wv;
+    }
+    count += 6;
+  }
+  return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
 }
 
 // Newton's method for the fully implicit step (SPEC §11). The step equation
@@ -418,6 +512,12 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
 bool StepEngine::Commit(double h) {
   if (!x1_.allFinite() || !v1_.allFinite()) return false;
   // (x₋₁, v₋₁, g₋₁) ← (x₀, v₀, g₀), (x₀, v₀) ← (x₁, v₁). Swaps, no copies.
+  if (error_control_) {  // (x₋₂, v₋₂) ← (x₋₁, v₋₁) for the error estimate
+    xm2_.swap(xm1_);
+    vm2_.swap(vm1_);
+    h_prev2_ = h_prev_;
+    history_ = std::min(history_ + 1, 2);
+  }
   xm1_.swap(x0_);
   x0_.swap(x1_);
   vm1_.swap(v0_);

@@ -56,6 +56,8 @@ struct Bdf2Coefficients {
 /// fully implicit method became non-finite (the iteration diverged);
 /// kNonFinite: the step's result itself is not finite (a blow-up).
 /// kNoNewtonConvergence, kNewtonDiverged: the same for the Newton iteration.
+/// kErrorTestFailed: step_control = "error" and the local error estimate
+/// exceeded the tolerance (StepStats::error_norm > 1).
 enum class StepStatus {
   kOk,
   kCgFailed,
@@ -64,7 +66,8 @@ enum class StepStatus {
   kPreconditionerFailed,
   kFixedPointDiverged,
   kNoNewtonConvergence,
-  kNewtonDiverged
+  kNewtonDiverged,
+  kErrorTestFailed
 };
 std::string_view ToString(StepStatus s);
 
@@ -79,6 +82,12 @@ struct StepStats {
   double solve_time = 0.0; ///< wall time of the attempt in the step engine [s], setup of A and P included
   double setup_time = 0.0; ///< part of solve_time spent refreshing A_α, J_α and their preconditioners [s]
   PcgStatus pcg_status = PcgStatus::kConverged;  ///< of the last PCG solve (why kCgFailed)
+  /// Weighted RMS norm of the local error estimate (≤ 1 passes the error
+  /// test); −1 when the stepper does not estimate it.
+  double error_norm = -1.0;
+  /// Order q of the estimated local error's leading term, O(h^{q+1}): 2 for
+  /// BDF(2), 1 for its start step. The controller's exponent is 1/(q+1).
+  int error_order = 0;
 };
 
 /// A_α = M + α²h² L_K + αh L_D on a fixed pattern, with its preconditioner,
@@ -137,6 +146,10 @@ class Stepper {
   virtual int matrix_rebuilds() const = 0;
   /// Setup time so far [s]: assembly, analysis, factorisations.
   virtual double setup_seconds() const = 0;
+  /// True if Step() estimates its local error (StepStats::error_norm) and
+  /// rejects a step whose estimate fails the test: the run driver then
+  /// controls h by the error (SolverSpec::step_control = "error").
+  virtual bool estimates_error() const { return false; }
 };
 
 /// Advances the state of a particle system step by step with one method.
@@ -161,6 +174,8 @@ class StepEngine : public Stepper {
   const MatrixN3& x() const override { return x0_; }
   const MatrixN3& v() const override { return v0_; }
   bool single_update() const override { return IsImex(method_); }
+  /// SBDF(2) and BDF(2) with step_control = "error".
+  bool estimates_error() const override { return error_control_; }
   int matrix_rebuilds() const override { return sysmat_.rebuilds(); }
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   Method method() const { return method_; }
@@ -180,6 +195,10 @@ class StepEngine : public Stepper {
   StepStats ExplicitStep(double h, StepStats st);
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);
+  /// Local error estimate of the step just solved (x1_, v1_), weighted RMS
+  /// norm against rtol/atol (README "Work-precision"); `order` gets the
+  /// estimate's order q (local error O(h^{q+1})).
+  double ErrorNorm(double h, int* order) const;
   const ParticleSystem& sys_;
   Method method_;
   SolverSpec opts_;
@@ -200,6 +219,12 @@ class StepEngine : public Stepper {
   double h_prev_ = 0.0;
   bool have_history_ = false;
   bool have_g0_ = false;         // g0_ holds g(t0, x0, v0)
+  bool error_control_ = false;   // SBDF(2)/BDF(2) with step_control = "error"
+  // Error control only: (x₋₂, v₋₂), v̇ = M⁻¹f at the last Reset, the step
+  // before h_prev_, and the accepted steps since Reset (capped at 2).
+  MatrixN3 xm2_, vm2_, a_init_;
+  double h_prev2_ = 0.0;
+  int history_ = 0;
 
   // Scratch, allocated once.
   MatrixN3 g0_, g_, b0_, b_, xhat_, vhat_, xg0_, vg_, xg_, v1_, x1_, tmp_, vprev_;

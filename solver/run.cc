@@ -1,6 +1,7 @@
 // Run driver (SPEC §6).
 #include "solver/run.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -86,7 +87,12 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     sum.message = why;
     return sum;
   }
-  sum.steps = sum.rejected_steps = 0;
+  if (spec.step_control == StepControl::kError && !engine.estimates_error()) {
+    sum.status = "invalid_options";
+    sum.message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
+    return sum;
+  }
+  sum.steps = sum.rejected_steps = sum.error_test_failures = 0;
   sum.fixed_point_updates = sum.cg_iterations = 0;
   double solver_seconds = 0.0;
 
@@ -110,8 +116,10 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();
   const double h_nominal = options.h;
-  const double h_max = spec.h_max > 0.0 ? spec.h_max : h_nominal;
-  const bool controlled = spec.step_control == StepControl::kIterations;
+  const bool error_control = spec.step_control == StepControl::kError;
+  const double h_max = spec.h_max > 0.0 ? spec.h_max : error_control ? options.t_end : h_nominal;
+  const bool controlled = spec.step_control != StepControl::kFixed;
+  double err_prev = 1.0;  // the PI controller's previous error norm
   double h = h_nominal;
   int consecutive_rejections = 0;
   long fixed_step_index = 0;  // fixed steps land on n·h exactly (no drift)
@@ -137,6 +145,12 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       ++sum.rejected_steps;
       ++consecutive_rejections;
       h = step / spec.step_factor;
+      if (st.status == StepStatus::kErrorTestFailed) {
+        // Error test failed: h ← h·max(0.2, 0.9 err^(−1/(q+1))) (Hairer, Nørsett
+        // & Wanner, Solving ODEs I, §II.4, (4.13)).
+        ++sum.error_test_failures;
+        h = step * std::max(0.2, 0.9 * std::pow(st.error_norm, -1.0 / (st.error_order + 1)));
+      }
       if (consecutive_rejections > spec.max_rejections || h < spec.h_min) {
         sum.ok = false;
         sum.status = std::string(ToString(st.status));
@@ -173,7 +187,23 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     }
 
     // Step-size selection.
-    if (controlled) {
+    if (error_control) {
+      // PI controller (Gustafsson 1991; Hairer, Nørsett & Wanner, Solving
+      // ODEs I, §IV.2 (2.43c) and DOPRI5's defaults β = 0.04, safety 0.9):
+      // h ← h·0.9·err^(−(1/k − 0.75β))·err_prev^β, k = q + 1, the factor in
+      // [0.2, 2]: variable-step BDF(2) is zero-stable only for
+      // ω = h_n/h_{n−1} < 1 + √2 (Grigorieff 1983), and no growth right
+      // after a rejection.
+      constexpr double kBeta = 0.04;
+      const double err = std::max(st.error_norm, 1e-4);
+      const double k = st.error_order + 1;
+      double fac = 0.9 * std::pow(err, -(1.0 / k - 0.75 * kBeta)) * std::pow(err_prev, kBeta);
+      fac = std::clamp(fac, 0.2, 2.0);
+      if (sum.step_stats.size() >= 2 && sum.step_stats[sum.step_stats.size() - 2].status != StepStatus::kOk)
+        fac = std::min(fac, 1.0);
+      err_prev = err;
+      h = std::min(step * fac, h_max);
+    } else if (controlled) {
       if (!engine.single_update() && st.updates > spec.controller_updates[1]) h = step / spec.step_factor;
       else if (!engine.single_update() && st.updates < spec.controller_updates[0]) h = std::min(step * spec.step_factor, h_max);
       else h = std::max(h, step);

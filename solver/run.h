@@ -41,6 +41,7 @@ struct RunSummary {
   std::string message;              ///< why it stopped
   int steps = -1;                   ///< accepted steps
   int rejected_steps = -1;          ///< attempts rejected and retried with a smaller h
+  int error_test_failures = -1;     ///< of those, rejected by the local error test (step_control = "error")
   long fixed_point_updates = -1;    ///< linear solves, over all attempts
   long cg_iterations = -1;          ///< PCG iterations, over all attempts
   int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds

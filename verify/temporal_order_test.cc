@@ -28,6 +28,7 @@
 #include "reference/cvode_reference.h"
 #include "results/metrics.h"
 #include "solver/run.h"
+#include "verify/modal_solution.h"
 #include "verify/test_scenes.h"
 
 #include <Eigen/Dense>
@@ -43,38 +44,10 @@ Scene LinearScene() {
   return s;
 }
 
-// Exact positions at time t (see the file header).
+// Exact positions at time t from rest (see the file header).
 MatrixN3 ExactLinear(const ParticleSystem& sys, double t) {
-  const Scene& s = sys.scene();
-  std::vector<int> free;
-  for (int p = 0; p < sys.num_particles(); ++p)
-    if (!sys.is_fixed(p)) free.push_back(p);
-  const int nf = static_cast<int>(free.size());
-  const Eigen::MatrixXd lk(sys.stiffness_laplacian());
-  Eigen::MatrixXd lff(nf, nf);
-  Eigen::VectorXd sqm(nf);
-  for (int a = 0; a < nf; ++a) {
-    sqm(a) = std::sqrt(sys.masses()(free[a]));
-    for (int b = 0; b < nf; ++b) lff(a, b) = lk(free[a], free[b]);
-  }
-  const double c = s.material.tension_damping / s.material.tension[0];
-  const Eigen::MatrixXd w = sqm.cwiseInverse().asDiagonal() * lff * sqm.cwiseInverse().asDiagonal();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(w);
-  MatrixN3 x = sys.rest_positions();
-  for (int col = 0; col < 3; ++col) {
-    const double g = s.forces.gravity(col);
-    if (g == 0.0) continue;
-    const Eigen::VectorXd mg = sqm.cwiseProduct(sqm) * g;
-    const Eigen::VectorXd up = lff.ldlt().solve(mg);
-    const Eigen::VectorXd q0 = -eig.eigenvectors().transpose() * sqm.cwiseProduct(up);
-    Eigen::VectorXd q(nf);
-    for (int k = 0; k < nf; ++k) {
-      const double lam = eig.eigenvalues()(k), sigma = 0.5 * c * lam, wd = std::sqrt(lam - sigma * sigma);
-      q(k) = std::exp(-sigma * t) * (q0(k) * std::cos(wd * t) + sigma * q0(k) / wd * std::sin(wd * t));
-    }
-    const Eigen::VectorXd u = up + sqm.cwiseInverse().cwiseProduct(eig.eigenvectors() * q);
-    for (int a = 0; a < nf; ++a) x(free[a], col) += u(a);
-  }
+  MatrixN3 x, v;
+  testing::LinearModalFlow(sys).Flow(sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3), t, &x, &v);
   return x;
 }
 
