@@ -24,7 +24,8 @@ struct ReferenceOptions {
 /// SUNDIALS counters (CVodePrintAllStats / IDAPrintAllStats names).
 struct ReferenceStats {
   long nst = -1;      ///< steps
-  long nfe = -1;      ///< right-hand side (CVODE) or residual (IDA) evaluations
+  long nfe = -1;      ///< right-hand side (CVODE), residual (IDA) or explicit f_E (ARKODE) evaluations
+  long nfe_i = -1;    ///< implicit f_I evaluations (ARKODE only)
   long nni = -1;      ///< nonlinear (Newton) iterations
   long nli = -1;      ///< linear iterations (0 for the direct KLU solver)
   long netf = -1;     ///< error test failures
@@ -41,6 +42,7 @@ struct ReferenceResult {
   std::string message;
   ReferenceStats stats;
   double solver_time_in_seconds = -1.0;
+  double setup_time_in_seconds = -1.0;  ///< matrix and preconditioner setup (ARKODE's reduced solve) [s]
   double wall_time_in_seconds = -1.0;
   Trajectory trajectory;
   std::vector<double> step_t, step_h;  ///< step history from one-step mode

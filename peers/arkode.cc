@@ -1,0 +1,310 @@
+// ARKODE ARKStep IMEX peer (SPEC §8, §11).
+#include "peers/arkode.h"
+
+#include <chrono>
+#include <stdexcept>
+#include <utility>
+
+#include <arkode/arkode_arkstep.h>
+#include <fmt/format.h>
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_context.h>
+#include <sundials/sundials_linearsolver.h>
+
+#include "solver/integrator.h"
+#include "solver/pcg.h"
+
+namespace clothbench {
+namespace {
+
+struct TablePair {
+  const char* name;
+  ARKODE_ERKTableID explicit_table;
+  ARKODE_DIRKTableID implicit_table;
+  int order;
+};
+
+constexpr TablePair kTables[] = {
+    {"ARK324L2SA", ARKODE_ARK324L2SA_ERK_4_2_3, ARKODE_ARK324L2SA_DIRK_4_2_3, 3},
+    {"ARK436L2SA", ARKODE_ARK436L2SA_ERK_6_3_4, ARKODE_ARK436L2SA_DIRK_6_3_4, 4},
+    {"ARK437L2SA", ARKODE_ARK437L2SA_ERK_7_3_4, ARKODE_ARK437L2SA_DIRK_7_3_4, 4},
+    {"ARK548L2SA", ARKODE_ARK548L2SA_ERK_8_4_5, ARKODE_ARK548L2SA_DIRK_8_4_5, 5},
+    {"ARK548L2SAb", ARKODE_ARK548L2SAb_ERK_8_4_5, ARKODE_ARK548L2SAb_DIRK_8_4_5, 5},
+};
+
+// The split ODE on the free degrees of freedom y = [x_free; v_free], and the
+// reduced stage solve.
+class ImexOde {
+ public:
+  explicit ImexOde(const ParticleSystem& sys)
+      : sys_(sys), n_(sys.num_particles()), sysmat_(sys, sys.scene().solver.preconditioner,
+                                                    sys.scene().solver.cholesky_ordering) {
+    for (int p = 0; p < n_; ++p)
+      if (!sys.is_fixed(p)) free_.push_back(p);
+    nf_ = static_cast<int>(free_.size());
+    for (MatrixN3* m : {&x_, &v_, &f_, &rx_, &rv_, &rhs_, &dv_, &tmp_}) m->setZero(n_, 3);
+    x_ = sys.rest_positions();
+    filter_.Reserve(n_);
+    for (int p : sys.fixed()) filter_.Fix(p);
+    work_.Resize(n_);
+  }
+  int size() const { return 6 * nf_; }
+
+  void ToY(const MatrixN3& x, const MatrixN3& v, double* y) const {
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) {
+        y[3 * k + c] = x(free_[k], c);
+        y[3 * nf_ + 3 * k + c] = v(free_[k], c);
+      }
+  }
+  void FromY(const double* y, MatrixN3* x, MatrixN3* v) const {
+    *x = sys_.rest_positions();
+    v->setZero(n_, 3);
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) {
+        (*x)(free_[k], c) = y[3 * k + c];
+        (*v)(free_[k], c) = y[3 * nf_ + 3 * k + c];
+      }
+  }
+  // f_E = (0, M⁻¹ g(t, x, v)).
+  void Explicit(double t, const double* y, double* ydot) {
+    FromY(y, &x_, &v_);
+    sys_.ExplicitForces(t, x_, v_, &f_);
+    Store(f_, nullptr, ydot);
+  }
+  // f_I = (v, M⁻¹(−L_K x − L_D v)).
+  void Implicit(const double* y, double* ydot) {
+    FromY(y, &x_, &v_);
+    f_.noalias() = sys_.stiffness_laplacian() * x_;
+    if (sys_.has_tension_damping()) f_.noalias() += sys_.damping_laplacian() * v_;
+    f_ = -f_;
+    Store(f_, y, ydot);
+  }
+  // (I − γ J_I) δ = r by δv from (M + γ L_D + γ² L_K) δv = M r_v − γ L_K r_x
+  // and δx = r_x + γ δv. Returns the PCG status.
+  PcgStatus Solve(double gamma, const double* r, double* delta) {
+    if (!sysmat_.Update(gamma)) return PcgStatus::kBreakdown;
+    rx_.setZero();
+    rv_.setZero();
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) {
+        rx_(free_[k], c) = r[3 * k + c];
+        rv_(free_[k], c) = r[3 * nf_ + 3 * k + c];
+      }
+    tmp_.noalias() = sys_.stiffness_laplacian() * rx_;
+    rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
+    rhs_ -= gamma * tmp_;
+    dv_.setZero();
+    const SolverSpec& spec = sys_.scene().solver;
+    const PcgSummary s = FilteredPcg(sysmat_.matrix(), rhs_, filter_, sysmat_.preconditioner(),
+                                     {spec.cg_tolerance, spec.cg_max_iterations}, &dv_, &work_);
+    last_iterations_ = s.iterations;
+    total_iterations_ += s.iterations;
+    last_residual_ = s.residual_norm;
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) {
+        delta[3 * nf_ + 3 * k + c] = dv_(free_[k], c);
+        delta[3 * k + c] = r[3 * k + c] + gamma * dv_(free_[k], c);
+      }
+    return s.status;
+  }
+  int last_iterations() const { return last_iterations_; }
+  long total_iterations() const { return total_iterations_; }
+  double last_residual() const { return last_residual_; }
+  double setup_seconds() const { return sysmat_.setup_seconds(); }
+
+ private:
+  // ydot = (v or 0, M⁻¹ force) on the free rows.
+  void Store(const MatrixN3& force, const double* y, double* ydot) const {
+    const Eigen::VectorXd& m = sys_.masses();
+    for (int k = 0; k < nf_; ++k) {
+      const int p = free_[k];
+      for (int c = 0; c < 3; ++c) {
+        ydot[3 * k + c] = y ? y[3 * nf_ + 3 * k + c] : 0.0;
+        ydot[3 * nf_ + 3 * k + c] = force(p, c) / m(p);
+      }
+    }
+  }
+  const ParticleSystem& sys_;
+  int n_, nf_ = 0;
+  std::vector<int> free_;
+  SystemMatrix sysmat_;
+  VelocityFilter filter_;
+  PcgWorkspace work_;
+  MatrixN3 x_, v_, f_, rx_, rv_, rhs_, dv_, tmp_;
+  int last_iterations_ = 0;
+  long total_iterations_ = 0;
+  double last_residual_ = 0.0;
+};
+
+int ExplicitRhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
+  static_cast<ImexOde*>(user)->Explicit(t, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
+  return 0;
+}
+int ImplicitRhs(realtype, N_Vector y, N_Vector ydot, void* user) {
+  static_cast<ImexOde*>(user)->Implicit(N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
+  return 0;
+}
+
+// The custom SUNLinearSolver: SUNLINEARSOLVER_ITERATIVE (no SUNMatrix; ARKLS
+// then hands the right-hand side and takes the solution), solved through
+// ImexOde::Solve with γ from ARKStepGetCurrentGamma. ARKLS's tolerance is
+// not used: the PCG stops at the scene's η, the same for every method.
+struct ReducedSolverContent {
+  ImexOde* ode = nullptr;
+  void* arkode_mem = nullptr;
+  int last_flag = 0;
+};
+ReducedSolverContent* Content(SUNLinearSolver s) { return static_cast<ReducedSolverContent*>(s->content); }
+
+SUNLinearSolver_Type ReducedGetType(SUNLinearSolver) { return SUNLINEARSOLVER_ITERATIVE; }
+SUNLinearSolver_ID ReducedGetId(SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; }
+int ReducedSetATimes(SUNLinearSolver, void*, SUNATimesFn) { return SUNLS_SUCCESS; }
+int ReducedInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
+int ReducedSetup(SUNLinearSolver, SUNMatrix) { return SUNLS_SUCCESS; }
+int ReducedSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype) {
+  ReducedSolverContent* c = Content(s);
+  double gamma = 0.0;
+  if (ARKStepGetCurrentGamma(c->arkode_mem, &gamma) != ARK_SUCCESS) return c->last_flag = SUNLS_PACKAGE_FAIL_UNREC;
+  const PcgStatus st = c->ode->Solve(gamma, N_VGetArrayPointer(b), N_VGetArrayPointer(x));
+  // A CG failure is recoverable: ARKODE retries the step with a smaller h.
+  c->last_flag = st == PcgStatus::kConverged ? SUNLS_SUCCESS : SUNLS_CONV_FAIL;
+  return c->last_flag;
+}
+int ReducedNumIters(SUNLinearSolver s) { return Content(s)->ode->last_iterations(); }
+realtype ReducedResNorm(SUNLinearSolver s) { return Content(s)->ode->last_residual(); }
+sunindextype ReducedLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
+int ReducedFree(SUNLinearSolver s) {
+  if (!s) return SUNLS_SUCCESS;
+  delete Content(s);
+  s->content = nullptr;
+  SUNLinSolFreeEmpty(s);
+  return SUNLS_SUCCESS;
+}
+
+SUNLinearSolver NewReducedSolver(SUNContext ctx, ImexOde* ode) {
+  SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
+  if (!s) return nullptr;
+  s->ops->gettype = ReducedGetType;
+  s->ops->getid = ReducedGetId;
+  s->ops->setatimes = ReducedSetATimes;
+  s->ops->initialize = ReducedInitialize;
+  s->ops->setup = ReducedSetup;
+  s->ops->solve = ReducedSolve;
+  s->ops->numiters = ReducedNumIters;
+  s->ops->resnorm = ReducedResNorm;
+  s->ops->lastflag = ReducedLastFlag;
+  s->ops->free = ReducedFree;
+  s->content = new ReducedSolverContent{ode, nullptr, 0};
+  return s;
+}
+
+void ErrHandler(int code, const char* module, const char* function, char* msg, void* user) {
+  *static_cast<std::string*>(user) = fmt::format("{} {} (flag {}): {}", module, function, code, msg);
+}
+
+struct ArkodeHandles {
+  SUNContext ctx = nullptr;
+  N_Vector y = nullptr, dky = nullptr;
+  SUNLinearSolver ls = nullptr;
+  void* mem = nullptr;
+  ~ArkodeHandles() {
+    if (mem) ARKStepFree(&mem);
+    if (ls) SUNLinSolFree(ls);
+    if (dky) N_VDestroy(dky);
+    if (y) N_VDestroy(y);
+    if (ctx) SUNContext_Free(&ctx);
+  }
+};
+
+}  // namespace
+
+const std::vector<std::string>& ArkodeTableNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> v;
+    for (const TablePair& t : kTables) v.emplace_back(t.name);
+    return v;
+  }();
+  return names;
+}
+
+ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& options, const std::string& table) {
+  const TablePair* pair = nullptr;
+  for (const TablePair& t : kTables)
+    if (table == t.name) pair = &t;
+  if (!pair) {
+    std::string known;
+    for (const std::string& n : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + n;
+    throw std::invalid_argument(fmt::format("arkode table \"{}\" is not one of {}", table, known));
+  }
+  using Clock = std::chrono::steady_clock;
+  const auto wall_start = Clock::now();
+  ReferenceResult res;
+  res.integrator = kArkodeName;
+  if (!system.obstacles().empty()) {
+    res.status = "unsupported_scene";
+    res.message = "arkode has no collision response: the scene has obstacles";
+    return res;
+  }
+  std::string why;
+  if (!system.scene().solver.IsValid(&why)) {
+    res.status = "invalid_options";
+    res.message = why;
+    return res;
+  }
+  ImexOde ode(system);
+  ArkodeHandles h;
+  std::string err;
+  auto check = [&](int flag, const char* call) {
+    if (flag < 0 && res.message.empty()) {
+      res.status = ARKStepGetReturnFlagName(flag);
+      res.message = err.empty() ? fmt::format("{} failed with {}", call, res.status) : err;
+    }
+    return flag >= 0;
+  };
+  SUNContext_Create(nullptr, &h.ctx);
+  const sunindextype n = ode.size();
+  h.y = N_VNew_Serial(n, h.ctx);
+  h.dky = N_VNew_Serial(n, h.ctx);
+  ode.ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), N_VGetArrayPointer(h.y));
+  h.mem = ARKStepCreate(ExplicitRhs, ImplicitRhs, 0.0, h.y, h.ctx);
+  h.ls = NewReducedSolver(h.ctx, &ode);
+  Content(h.ls)->arkode_mem = h.mem;
+  const bool ok = check(ARKStepSetErrHandlerFn(h.mem, ErrHandler, &err), "ARKStepSetErrHandlerFn") &&
+                  check(ARKStepSetUserData(h.mem, &ode), "ARKStepSetUserData") &&
+                  check(ARKStepSetTableNum(h.mem, pair->implicit_table, pair->explicit_table), "ARKStepSetTableNum") &&
+                  check(ARKStepSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "ARKStepSStolerances") &&
+                  check(ARKStepSetLinearSolver(h.mem, h.ls, nullptr), "ARKStepSetLinearSolver") &&
+                  // f_I is linear with a constant Jacobian: one Newton iteration per stage.
+                  check(ARKStepSetLinear(h.mem, 0), "ARKStepSetLinear") &&
+                  check(ARKStepSetStopTime(h.mem, options.t_end), "ARKStepSetStopTime") &&
+                  check(ARKStepSetMaxNumSteps(h.mem, 100000000L), "ARKStepSetMaxNumSteps");
+  if (ok) {
+    internal::OneStepDriver d;
+    d.step = [&](double* t) { return ARKStepEvolve(h.mem, options.t_end, h.y, t, ARK_ONE_STEP); };
+    d.state_at = [&](double tf, MatrixN3* x, MatrixN3* v) {
+      const int f = ARKStepGetDky(h.mem, tf, 0, h.dky);
+      if (f >= 0) ode.FromY(N_VGetArrayPointer(h.dky), x, v);
+      return f;
+    };
+    d.current_state = [&](MatrixN3* x, MatrixN3* v) { ode.FromY(N_VGetArrayPointer(h.y), x, v); };
+    d.last_step = [&](double* hl, int* q) {
+      ARKStepGetLastStep(h.mem, hl);
+      *q = pair->order;
+    };
+    d.flag_name = [](int f) { return std::string(ARKStepGetReturnFlagName(f)); };
+    internal::RunFrames(d, system, options, err, &res);
+  }
+  ARKStepGetNumSteps(h.mem, &res.stats.nst);
+  ARKStepGetNumRhsEvals(h.mem, &res.stats.nfe, &res.stats.nfe_i);
+  ARKStepGetNumNonlinSolvIters(h.mem, &res.stats.nni);
+  res.stats.nli = ode.total_iterations();
+  ARKStepGetNumErrTestFails(h.mem, &res.stats.netf);
+  ARKStepGetNumNonlinSolvConvFails(h.mem, &res.stats.ncfn);
+  ARKStepGetNumLinSolvSetups(h.mem, &res.stats.nsetups);
+  res.setup_time_in_seconds = ode.setup_seconds();
+  res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  return res;
+}
+
+}  // namespace clothbench
