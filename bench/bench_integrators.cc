@@ -25,6 +25,7 @@
 #include "reference/ida_reference.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
+#include "results/work_precision.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -72,8 +73,6 @@ PreconditionerType ParsePreconditioner(const std::string& name) {
   throw UsageError(fmt::format("--preconditioner: \"{}\" must be ic0, cholesky, amg, jacobi or none", name));
 }
 
-bool IsSundials(const std::string& name) { return name == "cvode" || name == "ida"; }
-
 // Bytes of memory available to this process (MemAvailable of
 // /proc/meminfo; 0 if unknown).
 double AvailableBytes() {
@@ -95,19 +94,18 @@ double AvailableBytes() {
 // 44.9e6 entries at 10⁶, METIS); the SUNDIALS references a 3N×3N Jacobian
 // (~117 entries per particle row triple) and its KLU factor with fill,
 // taken as 4 kB per particle (an upper estimate, not a measurement).
-void CheckMemory(const Scene& scene, const std::vector<std::string>& names, std::size_t n_h, std::size_t n_rtol,
-                 const std::string& reference) {
+void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, std::size_t n_h, std::size_t n_rtol,
+                 std::size_t n_eta, const std::string& reference) {
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
   bool sundials = reference != "none" && scene.obstacles.empty();
-  for (const std::string& name : names) {
-    if (IsSundials(name)) {
-      rows += static_cast<double>(n_rtol);
-      sundials = true;
-    } else {
-      rows += static_cast<double>(n_h);
-    }
+  bool tangent = false;
+  for (const RowMethod& m : methods) {
+    const double per = static_cast<double>(m.kind() == StepKind::kFixedStep ? n_h : n_rtol);
+    rows += per * static_cast<double>(m.uses_pcg() ? n_eta : 1);
+    if (m.entry->name == "cvode" || m.entry->name == "ida") sundials = true;
+    if (m.solver == NonlinearSolver::kNewton || m.entry->name == kBaraffWitkinName) tangent = true;
   }
   if (reference != "none") rows += 1.0;
   double bytes = n * (25.0 * 24.0 + 200.0) + rows * frames * 2.0 * 24.0 * n;
@@ -116,11 +114,7 @@ void CheckMemory(const Scene& scene, const std::vector<std::string>& names, std:
   // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α, its
   // Jacobian triplets and its preconditioner: 18.6 kB per particle (measured
   // peak RSS 18.55 GB for baraff_witkin on the 10⁶-particle large_sheet).
-  for (const std::string& name : names)
-    if (name.find("/newton") != std::string::npos || name == kBaraffWitkinName) {
-      bytes += n * 18.6e3;
-      break;
-    }
+  if (tangent) bytes += n * 18.6e3;
   const double available = AvailableBytes();
   if (available > 0.0 && bytes > 0.8 * available)
     throw UsageError(fmt::format(
@@ -130,75 +124,7 @@ void CheckMemory(const Scene& scene, const std::vector<std::string>& names, std:
         scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, available / 1e9));
 }
 
-/// One table row and its HDF5 record.
-struct Row {
-  std::string id, integrator;       ///< integrator: the row label ("bdf2/newton", "cvode")
-  std::string method;               ///< the method's name ("bdf2"); empty for the references
-  std::string nonlinear_solver;     ///< fully implicit thesis methods only
-  double h = 0.0, rtol = 0.0;
-  bool ok = false;
-  std::string status, message;
-  long steps = 0, updates = 0, cg = 0;
-  double solver_time = 0.0, wall_time = 0.0, setup_time = -1.0;
-  std::optional<TrajectoryErrors> err;
-  std::optional<double> order;
-  EnergySeries energy;
-  double stiffness = 0.0;
-  Trajectory traj;
-  std::vector<StepRecord> steps_table;
-  std::vector<double> cvode_order;
-  ReferenceStats sundials;  ///< cvode/ida rows
-  long rejected = 0;
-};
-
-Row FromRun(const RowMethod& m, double h, const RunSummary& r, const Scene& scene) {
-  Row row;
-  row.id = fmt::format("{}_h{:g}", m.id(), h);
-  row.integrator = m.label();
-  row.method = m.name;
-  if (m.fully_implicit()) row.nonlinear_solver = std::string(ToString(m.solver));
-  row.h = h;
-  row.ok = r.ok;
-  row.status = r.status;
-  row.message = r.message;
-  row.steps = r.steps;
-  row.updates = r.fixed_point_updates;
-  row.cg = r.cg_iterations;
-  row.rejected = r.rejected_steps;
-  row.solver_time = r.solver_time_in_seconds;
-  row.setup_time = r.setup_time_in_seconds;
-  row.wall_time = r.wall_time_in_seconds;
-  row.stiffness = scene.NumericalStiffness(h);
-  row.traj = r.trajectory;
-  for (const StepStats& s : r.step_stats)
-    row.steps_table.push_back(
-        {s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time});
-  return row;
-}
-
-Row FromReference(double rtol, const ReferenceResult& c, const Scene& scene) {
-  Row row;
-  row.id = fmt::format("{}_rtol{:g}", c.integrator, rtol);
-  row.integrator = c.integrator;
-  row.rtol = rtol;
-  row.ok = c.ok;
-  row.status = c.status;
-  row.message = c.message;
-  row.steps = c.stats.nst;
-  row.updates = c.stats.nni;
-  row.cg = c.stats.nli;
-  row.solver_time = c.solver_time_in_seconds;
-  row.wall_time = c.wall_time_in_seconds;
-  row.stiffness = scene.NumericalStiffness(scene.h);
-  row.traj = c.trajectory;
-  row.sundials = c.stats;
-  for (std::size_t k = 0; k < c.step_t.size(); ++k) {
-    row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0, -1, c.step_time[k]});
-    row.cvode_order.push_back(c.step_order[k]);
-  }
-  return row;
-}
-
+using Row = MethodRun;
 
 void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
   f.CreateGroup(g + "/energy");
@@ -225,9 +151,32 @@ void WriteVelocities(ResultFile& f, const std::string& group, const std::vector<
   f.WriteFrames(group + "/velocities_ends", {v.front(), v.back()}, "m/s");
 }
 
+void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
+  f.CreateGroup("/work_precision");
+  f.SetAttribute("/work_precision", "reference_method", std::string("cvode"));
+  f.SetAttribute("/work_precision", "measure",
+                 std::string("solver_time_s at e_rms(t_end) = target, log-log interpolation between bracketing runs; "
+                             "-1 where the runs do not bracket the target"));
+  f.WriteVector("/work_precision/targets", t.targets, "m");
+  std::string labels;
+  for (const std::string& l : t.labels) labels += (labels.empty() ? "" : ",") + l;
+  f.SetAttribute("/work_precision", "labels", labels);
+  const int rows = static_cast<int>(t.labels.size()), cols = static_cast<int>(t.targets.size());
+  std::vector<double> cost, ratio;
+  for (int m = 0; m < rows; ++m)
+    for (int j = 0; j < cols; ++j) {
+      cost.push_back(t.cost[m][j].value_or(-1.0));
+      ratio.push_back(t.ratio[m][j].value_or(-1.0));
+    }
+  f.WriteTable("/work_precision/solver_time", rows, cols, cost, "s");
+  f.WriteTable("/work_precision/ratio_to_cvode", rows, cols, ratio, "");
+  std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
+  f.WriteTable("/work_precision/fastest", 1, cols, fastest);
+}
+
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
-                  const std::string& frames_mode) {
+                  const std::string& frames_mode, const EqualAccuracyTable* wp) {
   const bool write_frames = frames_mode != "none";
   ResultFile f(path);
   WriteProvenance(f);
@@ -273,11 +222,14 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   for (const Row& r : rows) {
     const std::string g = "/runs/" + r.id;
     f.CreateGroup(g);
-    f.SetAttribute(g, "integrator", r.method.empty() ? r.integrator : r.method);
-    f.SetAttribute(g, "label", r.integrator);
+    f.SetAttribute(g, "integrator", r.method);
+    f.SetAttribute(g, "label", r.label);
+    f.SetAttribute(g, "layer", r.layer);
+    f.SetAttribute(g, "step_kind", std::string(ToString(r.kind)));
     if (!r.nonlinear_solver.empty()) f.SetAttribute(g, "nonlinear_solver", r.nonlinear_solver);
-    f.SetAttribute(g, "h", r.h);
-    if (IsSundials(r.integrator)) f.SetAttribute(g, "rtol", r.rtol);
+    if (r.kind == StepKind::kAdaptive) f.SetAttribute(g, "rtol", r.rtol);
+    else f.SetAttribute(g, "h", r.h);
+    if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
     f.SetAttribute(g, "status", r.status);
     if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
     f.SetAttribute(g, "steps", r.steps);
@@ -288,13 +240,14 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     if (r.setup_time >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time);
     f.SetAttribute(g, "wall_time_s", r.wall_time);
     f.SetAttribute(g, "numerical_stiffness", r.stiffness);
-    if (IsSundials(r.integrator)) {
-      for (auto [name, v] : {std::pair{"nst", r.sundials.nst}, {"nfe", r.sundials.nfe}, {"nni", r.sundials.nni},
-                             {"nli", r.sundials.nli}, {"netf", r.sundials.netf}, {"ncfn", r.sundials.ncfn},
-                             {"nje", r.sundials.nje}, {"nsetups", r.sundials.nsetups}})
-        f.SetAttribute(g, name, v);
-    } else {
-      f.SetAttribute(g, "cg_tolerance", scene.solver.cg_tolerance);
+    if (r.sundials) {
+      for (auto [name, v] : {std::pair{"nst", r.sundials->nst}, {"nfe", r.sundials->nfe}, {"nfe_i", r.sundials->nfe_i},
+                             {"nni", r.sundials->nni}, {"nli", r.sundials->nli}, {"netf", r.sundials->netf},
+                             {"ncfn", r.sundials->ncfn}, {"nje", r.sundials->nje}, {"nsetups", r.sundials->nsetups}})
+        if (v >= 0) f.SetAttribute(g, name, v);
+    }
+    if (r.cg_tolerance > 0.0) {
+      f.SetAttribute(g, "cg_tolerance", r.cg_tolerance);
       f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
       f.SetAttribute(g, "preconditioner", std::string(ToString(scene.solver.preconditioner)));
       f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
@@ -322,8 +275,9 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
       f.WriteTable(g + "/penetration/close_count", frames, pen.obstacles, pen.close);
     }
     f.WriteStepStats(g + "/step_stats", r.steps_table);
-    if (!r.cvode_order.empty()) f.WriteVector(g + "/bdf_order", r.cvode_order, "");
+    if (!r.bdf_order.empty()) f.WriteVector(g + "/method_order", r.bdf_order, "");
   }
+  if (wp) WriteWorkPrecision(f, *wp);
   f.Commit();
 }
 
@@ -337,11 +291,11 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
   fmt::print("\nFig. 4.3 series: {}\n{:<24} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
              "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
   for (const Row& r : rows) {
-    if (IsSundials(r.integrator)) continue;
+    if (r.kind != StepKind::kFixedStep) continue;
     double impact = -1.0, t_last = r.steps_table.empty() ? 0.0 : r.steps_table.back().t;
     long cg_a = 0, n_a = 0, upd_b = 0, cg_b = 0, n_b = 0;
     for (const StepRecord& s : r.steps_table) {
-      csv << fmt::format("{},{:g},{:.6f},{:.6g},{},{},{},{}\n", r.integrator, r.h, s.t, s.h, s.updates, s.cg_iterations,
+      csv << fmt::format("{},{:g},{:.6f},{:.6g},{},{},{},{}\n", r.label, r.h, s.t, s.h, s.updates, s.cg_iterations,
                          s.colliding, s.status);
       if (s.status != 0) continue;
       if (impact < 0.0 && s.colliding > 0) impact = s.t;
@@ -349,7 +303,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
       if (s.t > t_last - 0.3) upd_b += s.updates, cg_b += s.cg_iterations, ++n_b;
     }
     const double steps_b = n_b ? static_cast<double>(n_b) : 1.0;
-    fmt::print("{:<24} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}\n", r.integrator, r.h,
+    fmt::print("{:<24} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}\n", r.label, r.h,
                impact < 0 ? "none" : fmt::format("{:.2f}", impact),
                n_a ? fmt::format("{:.1f}", static_cast<double>(cg_a) / static_cast<double>(n_a)) : "",
                static_cast<double>(upd_b) / steps_b, static_cast<double>(cg_b) / steps_b,
@@ -384,21 +338,66 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
              "updates", "cg_iters", "solver_s", "setup_s", "e_rms_m", "order", "dE/dt_W", "status");
   std::string last;
   for (const Row& r : rows) {
-    if (!last.empty() && last != r.integrator) fmt::print("\n");
-    last = r.integrator;
-    const std::string hcol = IsSundials(r.integrator) ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
-    fmt::print("{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.integrator, hcol,
+    const std::string& label = r.label;
+    if (!last.empty() && last != label) fmt::print("\n");
+    last = label;
+    const std::string hcol = r.kind == StepKind::kAdaptive ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
+    fmt::print("{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", label, hcol,
                r.steps, r.updates, r.cg, r.solver_time, r.setup_time >= 0 ? fmt::format("{:.3f}", r.setup_time) : "",
                r.err ? Sci(r.err->rms_at_end) : "",
                r.order ? fmt::format("{:.2f}", *r.order) : "", r.ok ? fmt::format("{:.3e}", r.energy.Rate()) : "",
                r.ok ? "ok" : r.status);
-    if (r.ok && r.rejected > 0) fmt::print("{:<24} ({} rejected attempts retried with smaller h)\n", "", r.rejected);
+    if (r.ok && r.rejected > 0)
+      fmt::print("{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
+                 r.error_test_failures > 0 ? fmt::format(", {} by the error test", r.error_test_failures) : "");
   }
-  fmt::print("\ncvode/ida rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (0: direct KLU solver).\n");
+  fmt::print("\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error).\n");
+  fmt::print("cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode/ida: 0, the "
+             "direct KLU solver; arkode: our PCG's iterations).\n");
   fmt::print("setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the preconditioner.\n");
   fmt::print("dE/dt_W: (E(t_end) - E(0) - W_ext)/t_end, energy gained (> 0) or dissipated (< 0) beyond external work.\n");
   fmt::print("machine: {}, {} hardware threads, {}, {} build, commit {}\n", HostName(),
              std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());
+}
+
+// The equal-accuracy table (README "Work-precision"): each row label's
+// (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
+EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets, bool) {
+  std::vector<std::string> labels;
+  std::vector<std::vector<WorkPoint>> points;
+  for (const Row& r : rows) {
+    auto it = std::find(labels.begin(), labels.end(), r.label);
+    if (it == labels.end()) {
+      labels.push_back(r.label);
+      points.emplace_back();
+      it = labels.end() - 1;
+    }
+    if (r.ok && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time, r.err->rms_at_end});
+  }
+  return BuildEqualAccuracyTable(labels, points, targets, "cvode");
+}
+
+void PrintWorkPrecision(const EqualAccuracyTable& t) {
+  fmt::print("\nEqual accuracy: solver time [s] at e_rms(t_end) = target, interpolated log-log between the two runs "
+             "that bracket it (never extrapolated; '-': the runs do not bracket the target); x = ratio to cvode\n");
+  fmt::print("{:<28}", "method");
+  for (double e : t.targets) fmt::print(" {:>22}", fmt::format("e_rms {:g} m", e));
+  fmt::print("\n");
+  for (std::size_t m = 0; m < t.labels.size(); ++m) {
+    fmt::print("{:<28}", t.labels[m]);
+    for (std::size_t j = 0; j < t.targets.size(); ++j) {
+      std::string cell = "-";
+      if (t.cost[m][j])
+        cell = t.ratio[m][j] ? fmt::format("{:.3f} s ({:.2f}x)", *t.cost[m][j], *t.ratio[m][j])
+                             : fmt::format("{:.3f} s", *t.cost[m][j]);
+      fmt::print(" {:>22}", cell);
+    }
+    fmt::print("\n");
+  }
+  fmt::print("{:<28}", "fastest");
+  for (std::size_t j = 0; j < t.targets.size(); ++j)
+    fmt::print(" {:>22}", t.fastest[j] >= 0 ? t.labels[static_cast<std::size_t>(t.fastest[j])] : "-");
+  fmt::print("\n");
 }
 
 // Thesis tables (SPEC §9): Table 3.1 (BDF(2), tablecloth, (k, d) sweep) and
@@ -515,13 +514,16 @@ int Main(int argc, char** argv) {
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
   std::string series, table, preconditioner, frames_mode = "positions", nonlinear_arg;
+  std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg;
+  bool work_precision_only = false;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
                  "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,"
-                 "baraff_witkin,cvode,ida; a fully implicit method may name its nonlinear solver, e.g. bdf2/newton "
+                 "baraff_witkin,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
+                 "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error) "
                  "(default: the five methods, the Newton variants of implicit_euler, bdf2 and implicit_midpoint, "
-                 "baraff_witkin and cvode)");
+                 "baraff_witkin, sbdf2/error, bdf2/newton/error, arkode and cvode)");
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
                  "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
@@ -529,7 +531,17 @@ int Main(int argc, char** argv) {
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference, "cvode | ida | none");
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
-  app.add_option("--rtols", rtols_arg, "rtol list of the cvode and ida rows (default 1e-3,…,1e-7)");
+  app.add_option("--rtols", rtols_arg,
+                 "rtol (= atol) list of the adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error (default "
+                 "1e-3,…,1e-7)");
+  app.add_option("--arkode-table", arkode_table,
+                 "ARKODE IMEX pair: ARK324L2SA (default), ARK436L2SA, ARK437L2SA, ARK548L2SA, ARK548L2SAb");
+  app.add_option("--targets", targets_arg, "e_rms targets [m] of the equal-accuracy table (default 1e-2,1e-3,1e-4)");
+  app.add_option("--cg-tolerances", cg_tolerances_arg,
+                 "comma-separated CG tolerances: every method that uses the PCG runs once per value (a second "
+                 "axis of the work-precision table)");
+  app.add_flag("--work-precision", work_precision_only,
+               "print only the equal-accuracy table (it is also printed under the default table)");
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
@@ -596,24 +608,31 @@ int Main(int argc, char** argv) {
           names.push_back(std::string(ToString(m)) + "/newton");
       }
       names.emplace_back(kBaraffWitkinName);
+      names.emplace_back("sbdf2/error");
+      names.emplace_back("bdf2/newton/error");
+      names.emplace_back(kArkodeName);
       names.emplace_back("cvode");
     } else {
       names = SplitList(integrators_arg);
     }
     if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
-    // Each entry: a SUNDIALS name, or the rows of one of our methods.
-    std::vector<std::pair<std::string, std::optional<RowMethod>>> entries;
+    std::vector<RowMethod> methods;
     try {
-      for (const std::string& n : names) {
-        if (IsSundials(n)) {
-          entries.emplace_back(n, std::nullopt);
-          continue;
-        }
-        for (const RowMethod& m : ExpandMethods({n}, solvers, "--integrators", "cvode, ida"))
-          entries.emplace_back(m.label(), m);
-      }
+      methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep, StepKind::kAdaptive});
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
+    }
+    if (std::find(ArkodeTableNames().begin(), ArkodeTableNames().end(), arkode_table) == ArkodeTableNames().end()) {
+      std::string known;
+      for (const std::string& t : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + t;
+      throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", arkode_table, known));
+    }
+    const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
+    std::vector<double> etas = {scene.solver.cg_tolerance};
+    if (app.count("--cg-tolerances")) {
+      etas = ParsePositiveList(cg_tolerances_arg, "--cg-tolerances");
+      for (double e : etas)
+        if (!(e < 1.0)) throw UsageError(fmt::format("--cg-tolerances: {:g} must be in (0, 1)", e));
     }
     std::vector<double> hs = h_arg.empty()
                                   ? std::vector<double>{scene.h, scene.h / 2, scene.h / 4, scene.h / 8}
@@ -622,11 +641,7 @@ int Main(int argc, char** argv) {
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
     std::sort(hs.begin(), hs.end(), std::greater<>());
     const std::vector<double> rtols = ParsePositiveList(rtols_arg, "--rtols");
-    {
-      std::vector<std::string> labels;
-      for (const auto& e : entries) labels.push_back(e.first);
-      CheckMemory(scene, labels, hs.size(), rtols.size(), reference);
-    }
+    CheckMemory(scene, methods, hs.size(), rtols.size(), etas.size(), reference);
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
@@ -670,31 +685,33 @@ int Main(int argc, char** argv) {
     }
 
     std::vector<Row> rows;
-    for (const auto& [name, method] : entries) {
-      const std::size_t first = rows.size();
-      if (!method) {
-        for (double rtol : rtols) {
-          const ReferenceOptions o{rtol, -1.0, 5, scene.t_end, scene.frame_dt};
-          rows.push_back(FromReference(rtol, name == "ida" ? RunIda(sys, o) : RunCvode(sys, o), scene));
+    const RunContext ctx{arkode_table};
+    for (const RowMethod& m : methods) {
+      const std::vector<double>& params = m.kind() == StepKind::kFixedStep ? hs : rtols;
+      for (double eta : m.uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
+        SolverSpec spec = scene.solver;
+        spec.cg_tolerance = eta;
+        const std::size_t first = rows.size();
+        for (double p : params) {
+          rows.push_back(m.Run(sys, scene, spec, p, ctx));
+          if (etas.size() > 1 && m.uses_pcg()) {
+            rows.back().id += fmt::format("_eta{:g}", eta);
+            rows.back().label += fmt::format(" eta={:g}", eta);
+          }
+          Row& r = rows.back();
+          if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
+          if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
+          const std::size_t k = rows.size() - 1;
+          if (m.kind() == StepKind::kFixedStep && k > first && r.err && rows[k - 1].err)
+            r.order = ObservedOrder(rows[k - 1].h, rows[k - 1].err->rms_at_end, r.h, r.err->rms_at_end);
         }
-      } else {
-        for (double h : hs) {
-          const std::unique_ptr<Stepper> stepper = method->Make(sys, scene.solver);
-          rows.push_back(FromRun(*method, h, RunStepper(sys, *stepper, {h, scene.t_end, scene.frame_dt}), scene));
-        }
-      }
-      for (std::size_t k = first; k < rows.size(); ++k)
-        if (rows[k].ok) rows[k].energy = ComputeEnergies(sys, rows[k].traj);
-      if (!ref) continue;
-      for (std::size_t k = first; k < rows.size(); ++k) {
-        if (rows[k].ok) rows[k].err = CompareTrajectories(rows[k].traj.positions, ref->trajectory.positions);
-        if (!IsSundials(name) && k > first && rows[k].err && rows[k - 1].err)
-          rows[k].order = ObservedOrder(rows[k - 1].h, rows[k - 1].err->rms_at_end, rows[k].h, rows[k].err->rms_at_end);
       }
     }
-    PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
+    if (!work_precision_only) PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
+    const EqualAccuracyTable wp = WorkPrecision(rows, targets, etas.size() > 1);
+    if (ref) PrintWorkPrecision(wp);
     if (!series.empty()) WriteSeries(series, rows);
-    WriteResults(out, scene, sys, ref, ref_opts, rows, frames_mode);
+    WriteResults(out, scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);
     fmt::print("results: {}\n", out);
     return 0;
   } catch (const UsageError& e) {

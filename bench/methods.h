@@ -1,8 +1,12 @@
-// The integrators the executables run by name: the thesis' methods (each
-// fully implicit one with the fixed point of Alg. 6 or with Newton) and the
-// peers. Row labels name the nonlinear solver when it is Newton, e.g.
-// "bdf2/newton". The SUNDIALS references (cvode, ida) are handled by the
-// executables themselves.
+// The registry of every method the executables run, by name: the thesis'
+// integrators and symplectic Euler (solver/), the peers baraff_witkin and
+// arkode (peers/), and the references cvode and ida (reference/). Each entry
+// says how it is stepped (fixed h, adaptive at an rtol, substepped) and every
+// row runs through the same call, returning the same MethodRun.
+//
+// Row labels: the name, then "/newton" for a fully implicit method with
+// Newton's method, then "/error" for SBDF(2) and BDF(2) under local error
+// control (adaptive rows, README "Work-precision"): "bdf2/newton/error".
 #ifndef CLOTHBENCH_BENCH_METHODS_H_
 #define CLOTHBENCH_BENCH_METHODS_H_
 
@@ -10,24 +14,118 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/format.h>
 
 #include "model/particle_system.h"
+#include "model/trajectory.h"
+#include "peers/arkode.h"
 #include "peers/baraff_witkin.h"
+#include "reference/cvode_reference.h"
+#include "reference/ida_reference.h"
+#include "results/metrics.h"
+#include "results/result_file.h"
 #include "solver/integrator.h"
+#include "solver/run.h"
 
 namespace clothbench {
 
-/// One row's integrator: a thesis method with its nonlinear solver, or a peer.
+/// How a method's rows are parameterised: a list of step sizes h, a list of
+/// tolerances rtol, or frame steps h each split into substeps.
+enum class StepKind { kFixedStep, kAdaptive, kSubstepped };
+inline std::string_view ToString(StepKind k) {
+  return k == StepKind::kFixedStep ? "fixed_step" : k == StepKind::kAdaptive ? "adaptive" : "substepped";
+}
+
+struct MethodEntry {
+  std::string_view name;
+  StepKind kind;
+  std::string_view layer;      ///< "solver", "peers" or "reference"
+  bool nonlinear_solver;       ///< takes fixed_point | newton (fully implicit thesis methods)
+  bool error_control;          ///< may run adaptively as "<name>/error" (SBDF(2), BDF(2))
+  bool collisions;             ///< has a collision response (SPEC §7)
+};
+
+/// Every method, in table order.
+inline const std::vector<MethodEntry>& Registry() {
+  static const std::vector<MethodEntry> r = {
+      {"imex_euler", StepKind::kFixedStep, "solver", false, false, true},
+      {"implicit_euler", StepKind::kFixedStep, "solver", true, false, true},
+      {"sbdf2", StepKind::kFixedStep, "solver", false, true, true},
+      {"bdf2", StepKind::kFixedStep, "solver", true, true, true},
+      {"implicit_midpoint", StepKind::kFixedStep, "solver", true, false, true},
+      {"symplectic_euler", StepKind::kFixedStep, "solver", false, false, true},
+      {kBaraffWitkinName, StepKind::kFixedStep, "peers", false, false, true},
+      {kArkodeName, StepKind::kAdaptive, "peers", false, false, false},
+      {"cvode", StepKind::kAdaptive, "reference", false, false, false},
+      {"ida", StepKind::kAdaptive, "reference", false, false, false},
+  };
+  return r;
+}
+
+inline const MethodEntry* FindMethod(std::string_view name) {
+  for (const MethodEntry& e : Registry())
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+/// The known names, for messages.
+inline std::string KnownMethodNames() {
+  std::string s;
+  for (const MethodEntry& e : Registry()) s += (s.empty() ? "" : ", ") + std::string(e.name);
+  return s;
+}
+
+/// One run of one row: the summary every method returns. Counters −1 = not
+/// available for that method.
+struct MethodRun {
+  std::string id;                ///< HDF5 group name: "bdf2_newton_h0.01", "cvode_rtol1e-05"
+  std::string label;             ///< the row label ("bdf2/newton", "sbdf2/error", "cvode")
+  std::string method;            ///< the registry name ("bdf2")
+  std::string layer;             ///< "solver", "peers", "reference"
+  StepKind kind = StepKind::kFixedStep;
+  std::string nonlinear_solver;  ///< fully implicit thesis methods only
+  double h = 0.0;                ///< fixed-step rows: the step [s]
+  double rtol = 0.0;             ///< adaptive rows
+  double cg_tolerance = 0.0;     ///< η of the PCG; 0 for methods without it (cvode, ida)
+  bool ok = false;
+  std::string status, message;
+  long steps = 0, updates = 0, cg = 0, rejected = 0, error_test_failures = -1;
+  double solver_time = 0.0, wall_time = 0.0, setup_time = -1.0;
+  Trajectory traj;
+  std::vector<StepRecord> steps_table;
+  std::vector<double> bdf_order;    ///< SUNDIALS rows: method order per step
+  std::optional<ReferenceStats> sundials;  ///< cvode, ida, arkode counters
+  // Filled by the caller against a reference:
+  std::optional<TrajectoryErrors> err;
+  std::optional<double> order;
+  EnergySeries energy;
+  double stiffness = 0.0;
+};
+
+/// Settings shared by all rows of one invocation.
+struct RunContext {
+  std::string arkode_table = "ARK324L2SA";
+};
+
+/// One row's method: a registry entry with its nonlinear solver and, for
+/// SBDF(2)/BDF(2), error control.
 struct RowMethod {
-  std::string name;                 ///< "bdf2", "baraff_witkin", …
-  std::optional<Method> method;     ///< empty for a peer
+  const MethodEntry* entry = nullptr;
+  std::optional<Method> method;     ///< the thesis' integrators only
   NonlinearSolver solver = NonlinearSolver::kFixedPoint;
-  /// "bdf2" (fixed point, IMEX and explicit methods), "bdf2/newton", "baraff_witkin".
+  bool error_control = false;
+
+  std::string name() const { return std::string(entry->name); }
+  StepKind kind() const { return error_control ? StepKind::kAdaptive : entry->kind; }
+  /// "bdf2", "bdf2/newton", "sbdf2/error", "baraff_witkin".
   std::string label() const {
-    return solver == NonlinearSolver::kNewton ? name + "/" + std::string(ToString(solver)) : name;
+    std::string s = name();
+    if (solver == NonlinearSolver::kNewton) s += "/newton";
+    if (error_control) s += "/error";
+    return s;
   }
   /// The label as an HDF5 group-name part ("bdf2_newton").
   std::string id() const {
@@ -36,22 +134,94 @@ struct RowMethod {
       if (c == '/') c = '_';
     return s;
   }
-  bool fully_implicit() const { return method && IsFullyImplicit(*method); }
-  /// The stepper on `sys` with the scene's solver settings, the nonlinear
-  /// solver replaced by this row's.
+  bool fully_implicit() const { return entry->nonlinear_solver; }
+  /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
+  bool uses_pcg() const { return entry->name != "cvode" && entry->name != "ida" && entry->name != "symplectic_euler"; }
+  /// A stepper for fixed-step rows and the stability maps, with the scene's
+  /// solver settings and this row's nonlinear solver; nullptr for adaptive
+  /// methods that SUNDIALS steps.
   std::unique_ptr<Stepper> Make(const ParticleSystem& sys, SolverSpec spec) const {
     spec.nonlinear_solver = solver;
-    if (!method) return std::make_unique<BaraffWitkin>(sys, spec);
-    return std::make_unique<StepEngine>(sys, *method, spec);
+    if (error_control) spec.step_control = StepControl::kError;
+    if (method) return std::make_unique<StepEngine>(sys, *method, spec);
+    if (entry->name == kBaraffWitkinName) return std::make_unique<BaraffWitkin>(sys, spec);
+    return nullptr;
+  }
+
+  /// Runs `sys` from rest to scene.t_end. `param` is h [s] for fixed-step
+  /// rows and rtol (= atol) for adaptive ones; `spec` the solver settings
+  /// (the scene's, with the invocation's overrides). Never throws for a
+  /// numerical failure (see MethodRun::status).
+  MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
+                const RunContext& ctx) const {
+    MethodRun row;
+    row.label = label();
+    row.method = name();
+    row.layer = std::string(entry->layer);
+    row.kind = kind();
+    if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
+    if (uses_pcg()) row.cg_tolerance = spec.cg_tolerance;
+    if (kind() == StepKind::kFixedStep) {
+      row.h = param;
+      row.id = fmt::format("{}_h{:g}", id(), param);
+      row.stiffness = scene.NumericalStiffness(param);
+    } else {
+      row.rtol = param;
+      row.id = fmt::format("{}_rtol{:g}", id(), param);
+      row.stiffness = scene.NumericalStiffness(scene.h);
+    }
+    if (method || entry->name == kBaraffWitkinName) {
+      SolverSpec s = spec;
+      if (error_control) {
+        s.step_control = StepControl::kError;
+        s.rtol = param;
+        s.atol = 0.0;
+      }
+      const std::unique_ptr<Stepper> stepper = Make(sys, s);
+      s.nonlinear_solver = solver;
+      // Error-controlled rows start at the scene's h; the controller takes over.
+      const RunSummary r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s});
+      row.ok = r.ok;
+      row.status = r.status;
+      row.message = r.message;
+      row.steps = r.steps;
+      row.updates = r.fixed_point_updates;
+      row.cg = r.cg_iterations;
+      row.rejected = r.rejected_steps;
+      row.error_test_failures = error_control ? r.error_test_failures : -1;
+      row.solver_time = r.solver_time_in_seconds;
+      row.setup_time = r.setup_time_in_seconds;
+      row.wall_time = r.wall_time_in_seconds;
+      row.traj = r.trajectory;
+      for (const StepStats& st : r.step_stats)
+        row.steps_table.push_back(
+            {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time});
+      return row;
+    }
+    const ReferenceOptions o{param, -1.0, 5, scene.t_end, scene.frame_dt};
+    const ReferenceResult c = entry->name == "ida"        ? RunIda(sys, o)
+                              : entry->name == "cvode"    ? RunCvode(sys, o)
+                                                          : RunArkode(sys, o, ctx.arkode_table, &spec);
+    row.ok = c.ok;
+    row.status = c.status;
+    row.message = c.message;
+    row.steps = c.stats.nst;
+    row.updates = c.stats.nni;
+    row.cg = c.stats.nli;
+    row.rejected = c.stats.netf;
+    row.error_test_failures = c.stats.netf;
+    row.solver_time = c.solver_time_in_seconds;
+    row.setup_time = c.setup_time_in_seconds;
+    row.wall_time = c.wall_time_in_seconds;
+    row.traj = c.trajectory;
+    row.sundials = c.stats;
+    for (std::size_t k = 0; k < c.step_t.size(); ++k) {
+      row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0, -1, c.step_time[k]});
+      row.bdf_order.push_back(c.step_order[k]);
+    }
+    return row;
   }
 };
-
-/// The known names, for messages.
-inline std::string KnownMethodNames() {
-  std::string s;
-  for (Method m : AllMethods()) s += std::string(ToString(m)) + ", ";
-  return s + std::string(ToString(Method::kSymplecticEuler)) + ", " + std::string(kBaraffWitkinName);
-}
 
 /// Parses "fixed_point" | "newton". @throws std::invalid_argument naming `option`.
 inline NonlinearSolver ParseNonlinearSolver(const std::string& s, const std::string& option) {
@@ -60,32 +230,49 @@ inline NonlinearSolver ParseNonlinearSolver(const std::string& s, const std::str
   throw std::invalid_argument(fmt::format("{}: \"{}\" must be fixed_point or newton", option, s));
 }
 
-/// One RowMethod per name; a fully implicit method gives one per solver in
-/// `solvers` (in that order), any other method one row. A name may carry its
-/// solver itself: "bdf2/newton".
-/// @param also further names the caller accepts, for the message ("cvode, ida")
-/// @throws std::invalid_argument for an unknown name or solver, naming `option`.
+/// One RowMethod per name; a fully implicit method without a solver in its
+/// name gives one row per solver in `solvers` (in that order). A name may
+/// carry modifiers: "bdf2/newton", "sbdf2/error", "bdf2/newton/error".
+/// @param kinds if non-empty, the step kinds the caller can run (others are
+///              refused, naming `option`)
+/// @throws std::invalid_argument for an unknown name, solver or modifier.
 inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names,
                                             const std::vector<NonlinearSolver>& solvers, const std::string& option,
-                                            const std::string& also = "") {
+                                            const std::vector<StepKind>& kinds = {}) {
   std::vector<RowMethod> out;
   for (const std::string& full : names) {
-    const auto slash = full.find('/');
-    const std::string name = full.substr(0, slash);
+    std::vector<std::string> parts;
+    for (std::size_t b = 0;;) {
+      const std::size_t e = full.find('/', b);
+      parts.push_back(full.substr(b, e == std::string::npos ? std::string::npos : e - b));
+      if (e == std::string::npos) break;
+      b = e + 1;
+    }
     RowMethod r;
-    r.name = name;
-    r.method = MethodFromString(name);
-    if (!r.method && name != kBaraffWitkinName)
-      throw std::invalid_argument(fmt::format("{}: unknown integrator \"{}\" (expected {}{})", option, full,
-                                              KnownMethodNames(), also.empty() ? "" : ", " + also));
-    if (slash != std::string::npos) {
-      if (!r.fully_implicit())
-        throw std::invalid_argument(fmt::format("{}: \"{}\": only implicit_euler, bdf2 and implicit_midpoint take a "
-                                                "nonlinear solver",
-                                                option, full));
-      r.solver = ParseNonlinearSolver(full.substr(slash + 1), option);
-      out.push_back(r);
-    } else if (r.fully_implicit()) {
+    r.entry = FindMethod(parts[0]);
+    if (!r.entry)
+      throw std::invalid_argument(
+          fmt::format("{}: unknown integrator \"{}\" (expected {})", option, full, KnownMethodNames()));
+    r.method = MethodFromString(parts[0]);
+    bool solver_named = false;
+    for (std::size_t k = 1; k < parts.size(); ++k) {
+      if (parts[k] == "error") {
+        if (!r.entry->error_control)
+          throw std::invalid_argument(
+              fmt::format("{}: \"{}\": only sbdf2 and bdf2 run under error control (/error)", option, full));
+        r.error_control = true;
+      } else if (r.entry->nonlinear_solver) {
+        r.solver = ParseNonlinearSolver(parts[k], option);
+        solver_named = true;
+      } else {
+        throw std::invalid_argument(fmt::format(
+            "{}: \"{}\": only implicit_euler, bdf2 and implicit_midpoint take a nonlinear solver", option, full));
+      }
+    }
+    if (!kinds.empty() && std::find(kinds.begin(), kinds.end(), r.kind()) == kinds.end())
+      throw std::invalid_argument(fmt::format("{}: \"{}\" is {}, which this command does not run", option, full,
+                                              ToString(r.kind())));
+    if (r.fully_implicit() && !solver_named) {
       for (NonlinearSolver s : solvers) {
         r.solver = s;
         out.push_back(r);

@@ -92,7 +92,7 @@ int Main(int argc, char** argv) {
     }
     std::vector<NonlinearSolver> solvers;
     for (const std::string& n : Split(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
-    const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators");
+    const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
     const std::vector<double> stiff = ParseList(stiffness_arg, "--stiffness"), hs = ParseList(h_arg, "--h");
     std::vector<Scene> scenes;
     for (const std::string& name : Split(scenes_arg)) {

@@ -36,9 +36,8 @@ constexpr TablePair kTables[] = {
 // reduced stage solve.
 class ImexOde {
  public:
-  explicit ImexOde(const ParticleSystem& sys)
-      : sys_(sys), n_(sys.num_particles()), sysmat_(sys, sys.scene().solver.preconditioner,
-                                                    sys.scene().solver.cholesky_ordering) {
+  ImexOde(const ParticleSystem& sys, const SolverSpec& spec)
+      : sys_(sys), spec_(spec), n_(sys.num_particles()), sysmat_(sys, spec.preconditioner, spec.cholesky_ordering) {
     for (int p = 0; p < n_; ++p)
       if (!sys.is_fixed(p)) free_.push_back(p);
     nf_ = static_cast<int>(free_.size());
@@ -95,9 +94,8 @@ class ImexOde {
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
     rhs_ -= gamma * tmp_;
     dv_.setZero();
-    const SolverSpec& spec = sys_.scene().solver;
     const PcgSummary s = FilteredPcg(sysmat_.matrix(), rhs_, filter_, sysmat_.preconditioner(),
-                                     {spec.cg_tolerance, spec.cg_max_iterations}, &dv_, &work_);
+                                     {spec_.cg_tolerance, spec_.cg_max_iterations}, &dv_, &work_);
     last_iterations_ = s.iterations;
     total_iterations_ += s.iterations;
     last_residual_ = s.residual_norm;
@@ -126,6 +124,7 @@ class ImexOde {
     }
   }
   const ParticleSystem& sys_;
+  const SolverSpec& spec_;
   int n_, nf_ = 0;
   std::vector<int> free_;
   SystemMatrix sysmat_;
@@ -228,7 +227,9 @@ const std::vector<std::string>& ArkodeTableNames() {
   return names;
 }
 
-ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& options, const std::string& table) {
+ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& options, const std::string& table,
+                          const SolverSpec* solver) {
+  const SolverSpec& spec = solver ? *solver : system.scene().solver;
   const TablePair* pair = nullptr;
   for (const TablePair& t : kTables)
     if (table == t.name) pair = &t;
@@ -247,12 +248,12 @@ ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& 
     return res;
   }
   std::string why;
-  if (!system.scene().solver.IsValid(&why)) {
+  if (!spec.IsValid(&why)) {
     res.status = "invalid_options";
     res.message = why;
     return res;
   }
-  ImexOde ode(system);
+  ImexOde ode(system, spec);
   ArkodeHandles h;
   std::string err;
   auto check = [&](int flag, const char* call) {

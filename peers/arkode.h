@@ -30,9 +30,11 @@ const std::vector<std::string>& ArkodeTableNames();
 /// (explicit f_E evaluations), nfe_i (implicit), nni, nli (our PCG
 /// iterations), netf, ncfn, nsetups. Collisions are not handled: on scenes
 /// with obstacles the run is refused (status "unsupported_scene").
+/// @param solver the PCG's tolerance, limits and preconditioner; nullptr:
+///               the scene's
 /// @throws std::invalid_argument for an unknown table name.
 ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& options,
-                          const std::string& table = "ARK324L2SA");
+                          const std::string& table = "ARK324L2SA", const SolverSpec* solver = nullptr);
 
 }  // namespace clothbench
 

@@ -8,7 +8,7 @@
 
 #include "model/particle_system.h"
 #include "model/types.h"
-#include "solver/run.h"
+#include "model/trajectory.h"
 
 namespace clothbench {
 

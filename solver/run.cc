@@ -79,7 +79,7 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
-  const SolverSpec& spec = system.scene().solver;
+  const SolverSpec& spec = options.solver ? *options.solver : system.scene().solver;
   RunSummary sum;
   std::string why;
   if (!options.IsValid(&why) || !spec.IsValid(&why)) {

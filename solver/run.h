@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
+#include "model/trajectory.h"
 #include "solver/integrator.h"
 
 namespace clothbench {
@@ -16,20 +17,13 @@ namespace clothbench {
 /// is not a multiple of frame_dt).
 std::vector<double> FrameTimes(double t_end, double frame_dt);
 
-/// Frames of a run: times [F], N×3 positions and velocities per frame, and
-/// the work done by non-conservative external forces (wind, air) since t = 0
-/// [J] when the run integrated it (empty otherwise).
-struct Trajectory {
-  std::vector<double> times;
-  std::vector<MatrixN3> positions;
-  std::vector<MatrixN3> velocities;
-  std::vector<double> external_work;
-};
-
 struct RunOptions {
   double h = 0.01;          ///< nominal (fixed) step [s]
   double t_end = 1.0;       ///< [s]
   double frame_dt = 0.01;   ///< [s]
+  /// The step control, tolerances and limits; nullptr: the scene's
+  /// (system.scene().solver). Must outlive the run.
+  const SolverSpec* solver = nullptr;
   /// false with `error` naming the field, its value and the rule.
   bool IsValid(std::string* error) const;
 };
