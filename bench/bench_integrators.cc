@@ -104,8 +104,8 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, std:
   for (const RowMethod& m : methods) {
     const double per = static_cast<double>(m.kind() == StepKind::kFixedStep ? n_h : n_rtol);
     rows += per * static_cast<double>(m.uses_pcg() ? n_eta : 1);
-    if (m.entry->name == "cvode" || m.entry->name == "ida") sundials = true;
-    if (m.solver == NonlinearSolver::kNewton || m.entry->name == kBaraffWitkinName) tangent = true;
+    if (m.entry->sparse_jacobian) sundials = true;
+    if (m.solver == NonlinearSolver::kNewton || m.entry->tangent) tangent = true;
   }
   if (reference != "none") rows += 1.0;
   double bytes = n * (25.0 * 24.0 + 200.0) + rows * frames * 2.0 * 24.0 * n;
@@ -362,7 +362,7 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
 
 // The equal-accuracy table (README "Work-precision"): each row label's
 // (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
-EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets, bool) {
+EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets) {
   std::vector<std::string> labels;
   std::vector<std::vector<WorkPoint>> points;
   for (const Row& r : rows) {
@@ -708,7 +708,7 @@ int Main(int argc, char** argv) {
       }
     }
     if (!work_precision_only) PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
-    const EqualAccuracyTable wp = WorkPrecision(rows, targets, etas.size() > 1);
+    const EqualAccuracyTable wp = WorkPrecision(rows, targets);
     if (ref) PrintWorkPrecision(wp);
     if (!series.empty()) WriteSeries(series, rows);
     WriteResults(out, scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);

@@ -10,6 +10,7 @@
 #ifndef CLOTHBENCH_BENCH_METHODS_H_
 #define CLOTHBENCH_BENCH_METHODS_H_
 
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -39,6 +40,11 @@ inline std::string_view ToString(StepKind k) {
   return k == StepKind::kFixedStep ? "fixed_step" : k == StepKind::kAdaptive ? "adaptive" : "substepped";
 }
 
+/// Settings shared by all rows of one invocation.
+struct RunContext {
+  std::string arkode_table = "ARK324L2SA";
+};
+
 struct MethodEntry {
   std::string_view name;
   StepKind kind;
@@ -46,21 +52,55 @@ struct MethodEntry {
   bool nonlinear_solver;       ///< takes fixed_point | newton (fully implicit thesis methods)
   bool error_control;          ///< may run adaptively as "<name>/error" (SBDF(2), BDF(2))
   bool collisions;             ///< has a collision response (SPEC §7)
+  bool pcg;                    ///< solves with the filtered PCG (so the CG tolerance η applies)
+  bool tangent;                ///< always holds the 3N×3N tangent system J_α (memory check)
+  bool sparse_jacobian;        ///< holds a 6N×6N Jacobian and its KLU factor (memory check)
+  /// Fixed-step methods (and error-controlled SBDF(2)/BDF(2)): the stepper
+  /// on `sys` with settings `spec`; nullptr for the SUNDIALS-stepped ones.
+  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec);
+  /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
+  ReferenceResult (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                               const RunContext& ctx);
 };
+
+namespace internal {
+template <Method M>
+std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec) {
+  return std::make_unique<StepEngine>(sys, M, spec);
+}
+}  // namespace internal
 
 /// Every method, in table order.
 inline const std::vector<MethodEntry>& Registry() {
+  using internal::MakeEngine;
+  constexpr auto kFixed = StepKind::kFixedStep, kAdaptive = StepKind::kAdaptive;
   static const std::vector<MethodEntry> r = {
-      {"imex_euler", StepKind::kFixedStep, "solver", false, false, true},
-      {"implicit_euler", StepKind::kFixedStep, "solver", true, false, true},
-      {"sbdf2", StepKind::kFixedStep, "solver", false, true, true},
-      {"bdf2", StepKind::kFixedStep, "solver", true, true, true},
-      {"implicit_midpoint", StepKind::kFixedStep, "solver", true, false, true},
-      {"symplectic_euler", StepKind::kFixedStep, "solver", false, false, true},
-      {kBaraffWitkinName, StepKind::kFixedStep, "peers", false, false, true},
-      {kArkodeName, StepKind::kAdaptive, "peers", false, false, false},
-      {"cvode", StepKind::kAdaptive, "reference", false, false, false},
-      {"ida", StepKind::kAdaptive, "reference", false, false, false},
+      {"imex_euler", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kImexEuler>, nullptr},
+      {"implicit_euler", kFixed, "solver", true, false, true, true, false, false, MakeEngine<Method::kImplicitEuler>,
+       nullptr},
+      {"sbdf2", kFixed, "solver", false, true, true, true, false, false, MakeEngine<Method::kSbdf2>, nullptr},
+      {"bdf2", kFixed, "solver", true, true, true, true, false, false, MakeEngine<Method::kBdf2>, nullptr},
+      {"implicit_midpoint", kFixed, "solver", true, false, true, true, false, false,
+       MakeEngine<Method::kImplicitMidpoint>, nullptr},
+      {"symplectic_euler", kFixed, "solver", false, false, true, false, false, false,
+       MakeEngine<Method::kSymplecticEuler>, nullptr},
+      {kBaraffWitkinName, kFixed, "peers", false, false, true, true, true, false,
+       [](const ParticleSystem& sys, const SolverSpec& spec) -> std::unique_ptr<Stepper> {
+         return std::make_unique<BaraffWitkin>(sys, spec);
+       },
+       nullptr},
+      {kArkodeName, kAdaptive, "peers", false, false, false, true, false, false, nullptr,
+       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
+         return RunArkode(sys, o, ctx.arkode_table, &spec);
+       }},
+      {"cvode", kAdaptive, "reference", false, false, false, false, false, true, nullptr,
+       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec&, const RunContext&) {
+         return RunCvode(sys, o);
+       }},
+      {"ida", kAdaptive, "reference", false, false, false, false, false, true, nullptr,
+       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec&, const RunContext&) {
+         return RunIda(sys, o);
+       }},
   };
   return r;
 }
@@ -105,16 +145,10 @@ struct MethodRun {
   double stiffness = 0.0;
 };
 
-/// Settings shared by all rows of one invocation.
-struct RunContext {
-  std::string arkode_table = "ARK324L2SA";
-};
-
 /// One row's method: a registry entry with its nonlinear solver and, for
 /// SBDF(2)/BDF(2), error control.
 struct RowMethod {
   const MethodEntry* entry = nullptr;
-  std::optional<Method> method;     ///< the thesis' integrators only
   NonlinearSolver solver = NonlinearSolver::kFixedPoint;
   bool error_control = false;
 
@@ -136,16 +170,23 @@ struct RowMethod {
   }
   bool fully_implicit() const { return entry->nonlinear_solver; }
   /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
-  bool uses_pcg() const { return entry->name != "cvode" && entry->name != "ida" && entry->name != "symplectic_euler"; }
+  bool uses_pcg() const { return entry->pcg; }
+  /// `spec` with this row's nonlinear solver and, under error control, the
+  /// step control and tolerance `rtol` (= atol).
+  SolverSpec Settings(SolverSpec spec, double rtol = 0.0) const {
+    spec.nonlinear_solver = solver;
+    if (error_control) {
+      spec.step_control = StepControl::kError;
+      spec.rtol = rtol;
+      spec.atol = 0.0;
+    }
+    return spec;
+  }
   /// A stepper for fixed-step rows and the stability maps, with the scene's
   /// solver settings and this row's nonlinear solver; nullptr for adaptive
   /// methods that SUNDIALS steps.
-  std::unique_ptr<Stepper> Make(const ParticleSystem& sys, SolverSpec spec) const {
-    spec.nonlinear_solver = solver;
-    if (error_control) spec.step_control = StepControl::kError;
-    if (method) return std::make_unique<StepEngine>(sys, *method, spec);
-    if (entry->name == kBaraffWitkinName) return std::make_unique<BaraffWitkin>(sys, spec);
-    return nullptr;
+  std::unique_ptr<Stepper> Make(const ParticleSystem& sys, const SolverSpec& spec) const {
+    return entry->make ? entry->make(sys, Settings(spec)) : nullptr;
   }
 
   /// Runs `sys` from rest to scene.t_end. `param` is h [s] for fixed-step
@@ -170,15 +211,9 @@ struct RowMethod {
       row.id = fmt::format("{}_rtol{:g}", id(), param);
       row.stiffness = scene.NumericalStiffness(scene.h);
     }
-    if (method || entry->name == kBaraffWitkinName) {
-      SolverSpec s = spec;
-      if (error_control) {
-        s.step_control = StepControl::kError;
-        s.rtol = param;
-        s.atol = 0.0;
-      }
-      const std::unique_ptr<Stepper> stepper = Make(sys, s);
-      s.nonlinear_solver = solver;
+    if (entry->make) {
+      const SolverSpec s = Settings(spec, param);
+      const std::unique_ptr<Stepper> stepper = entry->make(sys, s);
       // Error-controlled rows start at the scene's h; the controller takes over.
       const RunSummary r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s});
       row.ok = r.ok;
@@ -199,9 +234,7 @@ struct RowMethod {
       return row;
     }
     const ReferenceOptions o{param, -1.0, 5, scene.t_end, scene.frame_dt};
-    const ReferenceResult c = entry->name == "ida"        ? RunIda(sys, o)
-                              : entry->name == "cvode"    ? RunCvode(sys, o)
-                                                          : RunArkode(sys, o, ctx.arkode_table, &spec);
+    const ReferenceResult c = entry->integrate(sys, o, spec, ctx);
     row.ok = c.ok;
     row.status = c.status;
     row.message = c.message;
@@ -253,7 +286,6 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
     if (!r.entry)
       throw std::invalid_argument(
           fmt::format("{}: unknown integrator \"{}\" (expected {})", option, full, KnownMethodNames()));
-    r.method = MethodFromString(parts[0]);
     bool solver_named = false;
     for (std::size_t k = 1; k < parts.size(); ++k) {
       if (parts[k] == "error") {

@@ -37,33 +37,23 @@ constexpr TablePair kTables[] = {
 class ImexOde {
  public:
   ImexOde(const ParticleSystem& sys, const SolverSpec& spec)
-      : sys_(sys), spec_(spec), n_(sys.num_particles()), sysmat_(sys, spec.preconditioner, spec.cholesky_ordering) {
-    for (int p = 0; p < n_; ++p)
-      if (!sys.is_fixed(p)) free_.push_back(p);
-    nf_ = static_cast<int>(free_.size());
+      : sys_(sys),
+        spec_(spec),
+        map_(sys),
+        n_(sys.num_particles()),
+        nf_(map_.num_free()),
+        sysmat_(sys, spec.preconditioner, spec.cholesky_ordering) {
     for (MatrixN3* m : {&x_, &v_, &f_, &rx_, &rv_, &rhs_, &dv_, &tmp_}) m->setZero(n_, 3);
     x_ = sys.rest_positions();
     filter_.Reserve(n_);
     for (int p : sys.fixed()) filter_.Fix(p);
     work_.Resize(n_);
   }
-  int size() const { return 6 * nf_; }
-
-  void ToY(const MatrixN3& x, const MatrixN3& v, double* y) const {
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) {
-        y[3 * k + c] = x(free_[k], c);
-        y[3 * nf_ + 3 * k + c] = v(free_[k], c);
-      }
-  }
+  const internal::FreeDofMap& map() const { return map_; }
+  int size() const { return map_.size(); }
   void FromY(const double* y, MatrixN3* x, MatrixN3* v) const {
-    *x = sys_.rest_positions();
-    v->setZero(n_, 3);
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) {
-        (*x)(free_[k], c) = y[3 * k + c];
-        (*v)(free_[k], c) = y[3 * nf_ + 3 * k + c];
-      }
+    map_.PositionsFromY(y, x);
+    map_.VelocitiesFromY(y, v);
   }
   // f_E = (0, M⁻¹ g(t, x, v)).
   void Explicit(double t, const double* y, double* ydot) {
@@ -87,8 +77,8 @@ class ImexOde {
     rv_.setZero();
     for (int k = 0; k < nf_; ++k)
       for (int c = 0; c < 3; ++c) {
-        rx_(free_[k], c) = r[3 * k + c];
-        rv_(free_[k], c) = r[3 * nf_ + 3 * k + c];
+        rx_(map_.particle(k), c) = r[3 * k + c];
+        rv_(map_.particle(k), c) = r[3 * nf_ + 3 * k + c];
       }
     tmp_.noalias() = sys_.stiffness_laplacian() * rx_;
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
@@ -101,8 +91,8 @@ class ImexOde {
     last_residual_ = s.residual_norm;
     for (int k = 0; k < nf_; ++k)
       for (int c = 0; c < 3; ++c) {
-        delta[3 * nf_ + 3 * k + c] = dv_(free_[k], c);
-        delta[3 * k + c] = r[3 * k + c] + gamma * dv_(free_[k], c);
+        delta[3 * nf_ + 3 * k + c] = dv_(map_.particle(k), c);
+        delta[3 * k + c] = r[3 * k + c] + gamma * dv_(map_.particle(k), c);
       }
     return s.status;
   }
@@ -116,7 +106,7 @@ class ImexOde {
   void Store(const MatrixN3& force, const double* y, double* ydot) const {
     const Eigen::VectorXd& m = sys_.masses();
     for (int k = 0; k < nf_; ++k) {
-      const int p = free_[k];
+      const int p = map_.particle(k);
       for (int c = 0; c < 3; ++c) {
         ydot[3 * k + c] = y ? y[3 * nf_ + 3 * k + c] : 0.0;
         ydot[3 * nf_ + 3 * k + c] = force(p, c) / m(p);
@@ -125,8 +115,8 @@ class ImexOde {
   }
   const ParticleSystem& sys_;
   const SolverSpec& spec_;
-  int n_, nf_ = 0;
-  std::vector<int> free_;
+  internal::FreeDofMap map_;
+  int n_, nf_;
   SystemMatrix sysmat_;
   VelocityFilter filter_;
   PcgWorkspace work_;
@@ -198,10 +188,6 @@ SUNLinearSolver NewReducedSolver(SUNContext ctx, ImexOde* ode) {
   return s;
 }
 
-void ErrHandler(int code, const char* module, const char* function, char* msg, void* user) {
-  *static_cast<std::string*>(user) = fmt::format("{} {} (flag {}): {}", module, function, code, msg);
-}
-
 struct ArkodeHandles {
   SUNContext ctx = nullptr;
   N_Vector y = nullptr, dky = nullptr;
@@ -257,21 +243,17 @@ ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& 
   ArkodeHandles h;
   std::string err;
   auto check = [&](int flag, const char* call) {
-    if (flag < 0 && res.message.empty()) {
-      res.status = ARKStepGetReturnFlagName(flag);
-      res.message = err.empty() ? fmt::format("{} failed with {}", call, res.status) : err;
-    }
-    return flag >= 0;
+    return internal::CheckFlag(flag, call, ARKStepGetReturnFlagName, err, &res);
   };
   SUNContext_Create(nullptr, &h.ctx);
   const sunindextype n = ode.size();
   h.y = N_VNew_Serial(n, h.ctx);
   h.dky = N_VNew_Serial(n, h.ctx);
-  ode.ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), N_VGetArrayPointer(h.y));
+  ode.map().ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), N_VGetArrayPointer(h.y));
   h.mem = ARKStepCreate(ExplicitRhs, ImplicitRhs, 0.0, h.y, h.ctx);
   h.ls = NewReducedSolver(h.ctx, &ode);
   Content(h.ls)->arkode_mem = h.mem;
-  const bool ok = check(ARKStepSetErrHandlerFn(h.mem, ErrHandler, &err), "ARKStepSetErrHandlerFn") &&
+  const bool ok = check(ARKStepSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "ARKStepSetErrHandlerFn") &&
                   check(ARKStepSetUserData(h.mem, &ode), "ARKStepSetUserData") &&
                   check(ARKStepSetTableNum(h.mem, pair->implicit_table, pair->explicit_table), "ARKStepSetTableNum") &&
                   check(ARKStepSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "ARKStepSStolerances") &&

@@ -14,47 +14,20 @@
 namespace clothbench {
 namespace {
 
-// Maps between the free-DOF vector y = [x_free; v_free] and N×3 states, and
-// evaluates the right-hand side and the sparse Jacobian.
+// The ODE on the free DOFs y = [x_free; v_free] (internal::FreeDofMap): the
+// right-hand side and the sparse Jacobian.
 class FreeDofOde {
  public:
-  explicit FreeDofOde(const ParticleSystem& sys) : sys_(sys), n_(sys.num_particles()) {
-    free_index_.assign(static_cast<std::size_t>(n_), -1);
-    for (int p = 0; p < n_; ++p)
-      if (!sys.is_fixed(p)) {
-        free_index_[static_cast<std::size_t>(p)] = static_cast<int>(free_.size());
-        free_.push_back(p);
-      }
-    nf_ = static_cast<int>(free_.size());
+  explicit FreeDofOde(const ParticleSystem& sys) : sys_(sys), map_(sys), n_(sys.num_particles()), nf_(map_.num_free()) {
     x_ = sys.rest_positions();
     v_.setZero(n_, 3);
     f_.setZero(n_, 3);
   }
-  int size() const { return 6 * nf_; }
-
-  void ToY(const MatrixN3& x, const MatrixN3& v, double* y) const {
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) {
-        y[3 * k + c] = x(free_[static_cast<std::size_t>(k)], c);
-        y[3 * nf_ + 3 * k + c] = v(free_[static_cast<std::size_t>(k)], c);
-      }
-  }
-  // Positions of all particles (fixed ones at rest).
-  void PositionsFromY(const double* y, MatrixN3* x) const {
-    *x = sys_.rest_positions();
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) (*x)(free_[static_cast<std::size_t>(k)], c) = y[3 * k + c];
-  }
-  // Velocities of all particles (fixed ones at rest).
-  void VelocitiesFromY(const double* y, MatrixN3* v) const {
-    v->setZero(n_, 3);
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) (*v)(free_[static_cast<std::size_t>(k)], c) = y[3 * nf_ + 3 * k + c];
-  }
+  const internal::FreeDofMap& map() const { return map_; }
+  int size() const { return map_.size(); }
   void Unpack(const double* y) {
-    PositionsFromY(y, &x_);
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) v_(free_[static_cast<std::size_t>(k)], c) = y[3 * nf_ + 3 * k + c];
+    map_.PositionsFromY(y, &x_);
+    map_.VelocitiesFromY(y, &v_);
   }
 
   void Rhs(double t, const double* y, double* ydot) {
@@ -62,7 +35,7 @@ class FreeDofOde {
     sys_.Forces(t, x_, v_, &f_);
     const Eigen::VectorXd& m = sys_.masses();
     for (int k = 0; k < nf_; ++k) {
-      const int p = free_[static_cast<std::size_t>(k)];
+      const int p = map_.particle(k);
       for (int c = 0; c < 3; ++c) {
         ydot[3 * k + c] = y[3 * nf_ + 3 * k + c];
         ydot[3 * nf_ + 3 * k + c] = f_(p, c) / m(p);
@@ -85,8 +58,8 @@ class FreeDofOde {
     for (int i = 0; i < 2 * off; ++i) jt_.emplace_back(i, i, 0.0);
     auto map = [&](const std::vector<Triplet>& src, int col_off) {
       for (const Triplet& e : src) {
-        const int pr = free_index_[static_cast<std::size_t>(e.row() / 3)];
-        const int pc = free_index_[static_cast<std::size_t>(e.col() / 3)];
+        const int pr = map_.free_index(e.row() / 3);
+        const int pc = map_.free_index(e.col() / 3);
         if (pr < 0 || pc < 0) continue;
         jt_.emplace_back(off + 3 * pr + e.row() % 3, col_off + 3 * pc + e.col() % 3,
                          e.value() / sys_.masses()(e.row() / 3));
@@ -102,8 +75,8 @@ class FreeDofOde {
 
  private:
   const ParticleSystem& sys_;
-  int n_, nf_ = 0;
-  std::vector<int> free_, free_index_;
+  internal::FreeDofMap map_;
+  int n_, nf_;
   MatrixN3 x_, v_, f_;
   std::vector<Triplet> dfdx_, dfdv_, jt_;
   SparseMatrix jac_;
@@ -116,11 +89,6 @@ int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
 
 int JacFn(realtype t, N_Vector y, N_Vector, SUNMatrix jac, void* user, N_Vector, N_Vector, N_Vector) {
   return internal::CopyToSunSparse(static_cast<FreeDofOde*>(user)->Jacobian(t, N_VGetArrayPointer(y)), jac);
-}
-
-void ErrHandler(int code, const char* module, const char* function, char* msg, void* user) {
-  auto* out = static_cast<std::string*>(user);
-  *out = fmt::format("{} {} (flag {}): {}", module, function, code, msg);
 }
 
 // RAII owner of the SUNDIALS objects.
@@ -152,11 +120,7 @@ ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& o
   std::string err;
 
   auto check = [&](int flag, const char* call) {
-    if (flag < 0 && res.message.empty()) {
-      res.status = CVodeGetReturnFlagName(flag);
-      res.message = err.empty() ? fmt::format("{} failed with {}", call, res.status) : err;
-    }
-    return flag >= 0;
+    return internal::CheckFlag(flag, call, CVodeGetReturnFlagName, err, &res);
   };
 
   SUNContext_Create(nullptr, &h.ctx);
@@ -164,13 +128,13 @@ ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& o
   h.y = N_VNew_Serial(n, h.ctx);
   h.dky = N_VNew_Serial(n, h.ctx);
   MatrixN3 v0 = MatrixN3::Zero(system.num_particles(), 3);
-  ode.ToY(system.rest_positions(), v0, N_VGetArrayPointer(h.y));
+  ode.map().ToY(system.rest_positions(), v0, N_VGetArrayPointer(h.y));
   const SparseMatrix& j0 = ode.Jacobian(0.0, N_VGetArrayPointer(h.y));
   h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);
   h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
   SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD: the Jacobian pattern is structurally symmetric
   h.mem = CVodeCreate(CV_BDF, h.ctx);
-  const bool ok = check(CVodeSetErrHandlerFn(h.mem, ErrHandler, &err), "CVodeSetErrHandlerFn") &&
+  const bool ok = check(CVodeSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "CVodeSetErrHandlerFn") &&
                   check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
                   check(CVodeSetUserData(h.mem, &ode), "CVodeSetUserData") &&
                   check(CVodeSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "CVodeSStolerances") &&
@@ -185,14 +149,14 @@ ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& o
     d.state_at = [&](double tf, MatrixN3* x, MatrixN3* v) {
       const int f = CVodeGetDky(h.mem, tf, 0, h.dky);
       if (f >= 0) {
-        ode.PositionsFromY(N_VGetArrayPointer(h.dky), x);
-        ode.VelocitiesFromY(N_VGetArrayPointer(h.dky), v);
+        ode.map().PositionsFromY(N_VGetArrayPointer(h.dky), x);
+        ode.map().VelocitiesFromY(N_VGetArrayPointer(h.dky), v);
       }
       return f;
     };
     d.current_state = [&](MatrixN3* x, MatrixN3* v) {
-      ode.PositionsFromY(N_VGetArrayPointer(h.y), x);
-      ode.VelocitiesFromY(N_VGetArrayPointer(h.y), v);
+      ode.map().PositionsFromY(N_VGetArrayPointer(h.y), x);
+      ode.map().VelocitiesFromY(N_VGetArrayPointer(h.y), v);
     };
     d.last_step = [&](double* hl, int* q) {
       CVodeGetLastStep(h.mem, hl);

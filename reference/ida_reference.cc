@@ -126,10 +126,6 @@ int JacFn(realtype t, realtype cj, N_Vector y, N_Vector, N_Vector, SUNMatrix jac
   return internal::CopyToSunSparse(static_cast<ResidualForm*>(user)->Jacobian(t, cj, N_VGetArrayPointer(y)), jac);
 }
 
-void ErrHandler(int code, const char* module, const char* function, char* msg, void* user) {
-  *static_cast<std::string*>(user) = fmt::format("{} {} (flag {}): {}", module, function, code, msg);
-}
-
 struct IdaHandles {
   SUNContext ctx = nullptr;
   N_Vector y = nullptr, yp = nullptr, id = nullptr, dky = nullptr;
@@ -157,11 +153,7 @@ ReferenceResult RunIda(const ParticleSystem& system, const ReferenceOptions& opt
   IdaHandles h;
   std::string err;
   auto check = [&](int flag, const char* call) {
-    if (flag < 0 && res.message.empty()) {
-      res.status = IDAGetReturnFlagName(flag);
-      res.message = err.empty() ? fmt::format("{} failed with {}", call, res.status) : err;
-    }
-    return flag >= 0;
+    return internal::CheckFlag(flag, call, IDAGetReturnFlagName, err, &res);
   };
 
   SUNContext_Create(nullptr, &h.ctx);
@@ -177,7 +169,7 @@ ReferenceResult RunIda(const ParticleSystem& system, const ReferenceOptions& opt
   h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
   SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD
   h.mem = IDACreate(h.ctx);
-  const bool ok = check(IDASetErrHandlerFn(h.mem, ErrHandler, &err), "IDASetErrHandlerFn") &&
+  const bool ok = check(IDASetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "IDASetErrHandlerFn") &&
                   check(IDAInit(h.mem, ResFn, 0.0, h.y, h.yp), "IDAInit") &&
                   check(IDASetUserData(h.mem, &form), "IDASetUserData") &&
                   check(IDASStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "IDASStolerances") &&

@@ -2,6 +2,8 @@
 
 #include <chrono>
 
+#include <fmt/format.h>
+
 #include <sunmatrix/sunmatrix_sparse.h>
 
 namespace clothbench::internal {
@@ -55,6 +57,50 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     res->status = "ok";
   }
   res->solver_time_in_seconds = solver_seconds;
+}
+
+FreeDofMap::FreeDofMap(const ParticleSystem& system) : sys_(system) {
+  free_index_.assign(static_cast<std::size_t>(system.num_particles()), -1);
+  for (int p = 0; p < system.num_particles(); ++p)
+    if (!system.is_fixed(p)) {
+      free_index_[static_cast<std::size_t>(p)] = static_cast<int>(free_.size());
+      free_.push_back(p);
+    }
+}
+
+void FreeDofMap::ToY(const MatrixN3& x, const MatrixN3& v, double* y) const {
+  const int nf = num_free();
+  for (int k = 0; k < nf; ++k)
+    for (int c = 0; c < 3; ++c) {
+      y[3 * k + c] = x(particle(k), c);
+      y[3 * nf + 3 * k + c] = v(particle(k), c);
+    }
+}
+
+void FreeDofMap::PositionsFromY(const double* y, MatrixN3* x) const {
+  *x = sys_.rest_positions();
+  for (int k = 0; k < num_free(); ++k)
+    for (int c = 0; c < 3; ++c) (*x)(particle(k), c) = y[3 * k + c];
+}
+
+void FreeDofMap::VelocitiesFromY(const double* y, MatrixN3* v) const {
+  const int nf = num_free();
+  v->setZero(sys_.num_particles(), 3);
+  for (int k = 0; k < nf; ++k)
+    for (int c = 0; c < 3; ++c) (*v)(particle(k), c) = y[3 * nf + 3 * k + c];
+}
+
+void StoreErrorMessage(int code, const char* module, const char* function, char* msg, void* error_string) {
+  *static_cast<std::string*>(error_string) = fmt::format("{} {} (flag {}): {}", module, function, code, msg);
+}
+
+bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
+               ReferenceResult* res) {
+  if (flag < 0 && res->message.empty()) {
+    res->status = flag_name(flag);
+    res->message = error.empty() ? fmt::format("{} failed with {}", call, res->status) : error;
+  }
+  return flag >= 0;
 }
 
 int CopyToSunSparse(const SparseMatrix& j, void* sun_matrix) {

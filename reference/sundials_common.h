@@ -70,6 +70,41 @@ struct OneStepDriver {
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
                const std::string& error, ReferenceResult* res);
 
+/// The free degrees of freedom of a particle system as a SUNDIALS state
+/// y = [x_free; v_free] (6·N_free entries; fixed particles are not
+/// unknowns and stay at rest), used by the CVODE reference and ARKODE.
+class FreeDofMap {
+ public:
+  explicit FreeDofMap(const ParticleSystem& system);
+  int num_free() const { return static_cast<int>(free_.size()); }
+  int size() const { return 6 * num_free(); }
+  /// Flat particle index of free particle k.
+  int particle(int k) const { return free_[static_cast<std::size_t>(k)]; }
+  /// Free index of particle p, −1 if p is fixed.
+  int free_index(int p) const { return free_index_[static_cast<std::size_t>(p)]; }
+  /// y from N×3 positions [m] and velocities [m/s].
+  void ToY(const MatrixN3& x, const MatrixN3& v, double* y) const;
+  /// N×3 positions from y, fixed particles at rest.
+  void PositionsFromY(const double* y, MatrixN3* x) const;
+  /// N×3 velocities from y, fixed particles 0.
+  void VelocitiesFromY(const double* y, MatrixN3* v) const;
+
+ private:
+  const ParticleSystem& sys_;
+  std::vector<int> free_, free_index_;
+};
+
+/// A SUNDIALS error handler (CVErrHandlerFn, IDAErrHandlerFn,
+/// ARKErrHandlerFn) that stores "<module> <function> (flag <code>): <msg>"
+/// in the std::string passed as its user data.
+void StoreErrorMessage(int code, const char* module, const char* function, char* msg, void* error_string);
+
+/// Records the first failing setup call in `res`: status = the flag's name
+/// (`flag_name`: CVodeGetReturnFlagName, …), message = the error handler's
+/// text `error` or "<call> failed with <flag>". Returns flag >= 0.
+bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
+               ReferenceResult* res);
+
 /// Copies a compressed-column Eigen matrix into a SUNDIALS CSC matrix
 /// (reallocating if needed). Returns 0 or −1.
 int CopyToSunSparse(const SparseMatrix& j, void* sun_matrix);

@@ -17,17 +17,29 @@
 namespace clothbench {
 namespace {
 
-class ReferenceAgreementTest : public ::testing::TestWithParam<const char*> {};
+class ReferenceAgreementTest : public ::testing::TestWithParam<const char*> {
+ protected:
+  // The scene over its first 0.2 s and the options of both runs.
+  static Scene FirstPart(const char* name) {
+    Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/" + name + ".toml");
+    s.t_end = 0.2;
+    return s;
+  }
+  static ReferenceOptions Options(const Scene& s) { return {1e-8, 1e-8, 5, s.t_end, s.frame_dt}; }
+  // max over frames of e_rms between two successful runs.
+  static std::optional<TrajectoryErrors> Compare(const ReferenceResult& a, const ReferenceResult& c) {
+    EXPECT_TRUE(a.ok) << a.message;
+    EXPECT_TRUE(c.ok) << c.message;
+    if (!a.ok || !c.ok) return std::nullopt;
+    return CompareTrajectories(a.trajectory.positions, c.trajectory.positions);
+  }
+};
 
 TEST_P(ReferenceAgreementTest, IdaMatchesCvode) {
-  Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/" + GetParam() + ".toml");
-  s.t_end = 0.2;
+  const Scene s = FirstPart(GetParam());
   const ParticleSystem sys(s);
-  const ReferenceOptions o{1e-8, 1e-8, 5, s.t_end, s.frame_dt};
-  const ReferenceResult c = RunCvode(sys, o), i = RunIda(sys, o);
-  ASSERT_TRUE(c.ok) << c.message;
-  ASSERT_TRUE(i.ok) << i.message;
-  const auto e = CompareTrajectories(i.trajectory.positions, c.trajectory.positions);
+  const ReferenceResult c = RunCvode(sys, Options(s)), i = RunIda(sys, Options(s));
+  const auto e = Compare(i, c);
   ASSERT_TRUE(e.has_value());
   std::printf("[ ida vs cvode ] %-14s rtol 1e-8: max_t e_rms = %.2e m (cvode %ld steps, ida %ld steps)\n", GetParam(),
               e->rms_max, c.stats.nst, i.stats.nst);
@@ -41,14 +53,10 @@ TEST_P(ReferenceAgreementTest, IdaMatchesCvode) {
 // against CVODE, both at rtol = atol = 1e-8, same bound and reasoning as
 // above; the PCG's tolerance η is the scene's.
 TEST_P(ReferenceAgreementTest, ArkodeMatchesCvode) {
-  Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/" + GetParam() + ".toml");
-  s.t_end = 0.2;
+  const Scene s = FirstPart(GetParam());
   const ParticleSystem sys(s);
-  const ReferenceOptions o{1e-8, 1e-8, 5, s.t_end, s.frame_dt};
-  const ReferenceResult c = RunCvode(sys, o), a = RunArkode(sys, o);
-  ASSERT_TRUE(c.ok) << c.message;
-  ASSERT_TRUE(a.ok) << a.message;
-  const auto e = CompareTrajectories(a.trajectory.positions, c.trajectory.positions);
+  const ReferenceResult c = RunCvode(sys, Options(s)), a = RunArkode(sys, Options(s));
+  const auto e = Compare(a, c);
   ASSERT_TRUE(e.has_value());
   std::printf("[ arkode vs cvode ] %-18s rtol 1e-8: max_t e_rms = %.2e m (cvode %ld steps, arkode %ld steps, "
               "%ld PCG iterations, eta %.0e)\n",
