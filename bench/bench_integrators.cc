@@ -5,7 +5,8 @@
 //
 //   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
 //                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
-//                     [--reference-rtol R] [--rtols LIST] [--cg-tolerance ETA]
+//                     [--reference-rtol R] [--rtols LIST] [--substeps LIST]
+//                     [--cg-tolerance ETA] [--cg-tolerances LIST] [--work-precision]
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -95,14 +96,16 @@ double AvailableBytes() {
 // (~117 entries per particle row triple) and its KLU factor with fill,
 // taken as 4 kB per particle (an upper estimate, not a measurement).
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, std::size_t n_h, std::size_t n_rtol,
-                 std::size_t n_eta, const std::string& reference) {
+                 std::size_t n_substeps, std::size_t n_eta, const std::string& reference) {
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
   bool sundials = reference != "none" && scene.obstacles.empty();
   bool tangent = false;
   for (const RowMethod& m : methods) {
-    const double per = static_cast<double>(m.kind() == StepKind::kFixedStep ? n_h : n_rtol);
+    const double per = static_cast<double>(m.kind() == StepKind::kFixedStep     ? n_h
+                                           : m.kind() == StepKind::kSubstepped ? n_h * n_substeps
+                                                                                : n_rtol);
     rows += per * static_cast<double>(m.uses_pcg() ? n_eta : 1);
     if (m.entry->sparse_jacobian) sundials = true;
     if (m.solver == NonlinearSolver::kNewton || m.entry->tangent) tangent = true;
@@ -229,6 +232,9 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     if (!r.nonlinear_solver.empty()) f.SetAttribute(g, "nonlinear_solver", r.nonlinear_solver);
     if (r.kind == StepKind::kAdaptive) f.SetAttribute(g, "rtol", r.rtol);
     else f.SetAttribute(g, "h", r.h);
+    if (r.kind == StepKind::kSubstepped) f.SetAttribute(g, "substeps", static_cast<long>(r.substeps));
+    if (!r.constraints.empty()) f.SetAttribute(g, "constraints", r.constraints);
+    if (!r.explicit_terms.empty()) f.SetAttribute(g, "explicit_terms", r.explicit_terms);
     if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
     f.SetAttribute(g, "status", r.status);
     if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
@@ -341,7 +347,9 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
     const std::string& label = r.label;
     if (!last.empty() && last != label) fmt::print("\n");
     last = label;
-    const std::string hcol = r.kind == StepKind::kAdaptive ? fmt::format("{:g}", r.rtol) : fmt::format("{:g}", r.h);
+    const std::string hcol = r.kind == StepKind::kAdaptive     ? fmt::format("{:g}", r.rtol)
+                             : r.kind == StepKind::kSubstepped ? fmt::format("{:g}/{}", r.h, r.substeps)
+                                                               : fmt::format("{:g}", r.h);
     fmt::print("{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", label, hcol,
                r.steps, r.updates, r.cg, r.solver_time, r.setup_time >= 0 ? fmt::format("{:.3f}", r.setup_time) : "",
                r.err ? Sci(r.err->rms_at_end) : "",
@@ -351,7 +359,15 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
       fmt::print("{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
                  r.error_test_failures > 0 ? fmt::format(", {} by the error test", r.error_test_failures) : "");
   }
-  fmt::print("\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error).\n");
+  fmt::print("\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
+             "frame step/substeps of substepped rows (xpbd).\n");
+  for (const Row& r : rows)
+    if (r.kind == StepKind::kSubstepped) {
+      fmt::print("xpbd rows: updates = substeps (one constraint sweep each); constraints: {}; explicit forces in the "
+                 "prediction: {}.\n",
+                 r.constraints, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+      break;
+    }
   fmt::print("cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode/ida: 0, the "
              "direct KLU solver; arkode: our PCG's iterations).\n");
   fmt::print("setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the preconditioner.\n");
@@ -514,16 +530,16 @@ int Main(int argc, char** argv) {
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
   std::string series, table, preconditioner, frames_mode = "positions", nonlinear_arg;
-  std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg;
+  std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
                  "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,"
-                 "baraff_witkin,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
+                 "baraff_witkin,xpbd,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
                  "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error) "
                  "(default: the five methods, the Newton variants of implicit_euler, bdf2 and implicit_midpoint, "
-                 "baraff_witkin, sbdf2/error, bdf2/newton/error, arkode and cvode)");
+                 "baraff_witkin, xpbd, sbdf2/error, bdf2/newton/error, arkode and cvode)");
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
                  "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
@@ -534,6 +550,9 @@ int Main(int argc, char** argv) {
   app.add_option("--rtols", rtols_arg,
                  "rtol (= atol) list of the adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error (default "
                  "1e-3,…,1e-7)");
+  app.add_option("--substeps", substeps_arg,
+                 "comma-separated substeps per frame step of the substepped rows (xpbd): one row per h and value "
+                 "(default 1,4,16,64)");
   app.add_option("--arkode-table", arkode_table,
                  "ARKODE IMEX pair: ARK324L2SA (default), ARK436L2SA, ARK437L2SA, ARK548L2SA, ARK548L2SAb");
   app.add_option("--targets", targets_arg, "e_rms targets [m] of the equal-accuracy table (default 1e-2,1e-3,1e-4)");
@@ -608,6 +627,7 @@ int Main(int argc, char** argv) {
           names.push_back(std::string(ToString(m)) + "/newton");
       }
       names.emplace_back(kBaraffWitkinName);
+      names.emplace_back(kXpbdName);
       names.emplace_back("sbdf2/error");
       names.emplace_back("bdf2/newton/error");
       names.emplace_back(kArkodeName);
@@ -618,7 +638,7 @@ int Main(int argc, char** argv) {
     if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
     std::vector<RowMethod> methods;
     try {
-      methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep, StepKind::kAdaptive});
+      methods = ExpandMethods(names, solvers, "--integrators");
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
@@ -641,7 +661,13 @@ int Main(int argc, char** argv) {
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
     std::sort(hs.begin(), hs.end(), std::greater<>());
     const std::vector<double> rtols = ParsePositiveList(rtols_arg, "--rtols");
-    CheckMemory(scene, methods, hs.size(), rtols.size(), etas.size(), reference);
+    std::vector<int> substeps;
+    for (double n : ParsePositiveList(substeps_arg, "--substeps")) {
+      if (n != std::floor(n) || n > 1e6)
+        throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
+      substeps.push_back(static_cast<int>(n));
+    }
+    CheckMemory(scene, methods, hs.size(), rtols.size(), substeps.size(), etas.size(), reference);
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
@@ -687,13 +713,24 @@ int Main(int argc, char** argv) {
     std::vector<Row> rows;
     const RunContext ctx{arkode_table};
     for (const RowMethod& m : methods) {
-      const std::vector<double>& params = m.kind() == StepKind::kFixedStep ? hs : rtols;
+      // (param, substeps) in run order: h or rtol decreasing; substepped
+      // rows by their substep h/n decreasing (ties: larger frame step
+      // first), so that consecutive rows refine one step size.
+      std::vector<std::pair<double, int>> params;
+      if (m.kind() == StepKind::kSubstepped) {
+        for (double h : hs)
+          for (int n : substeps) params.emplace_back(h, n);
+        std::stable_sort(params.begin(), params.end(),
+                         [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
+      } else {
+        for (double p : m.kind() == StepKind::kFixedStep ? hs : rtols) params.emplace_back(p, 1);
+      }
       for (double eta : m.uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
         SolverSpec spec = scene.solver;
         spec.cg_tolerance = eta;
         const std::size_t first = rows.size();
-        for (double p : params) {
-          rows.push_back(m.Run(sys, scene, spec, p, ctx));
+        for (const auto& [p, n] : params) {
+          rows.push_back(m.Run(sys, scene, spec, p, ctx, n));
           if (etas.size() > 1 && m.uses_pcg()) {
             rows.back().id += fmt::format("_eta{:g}", eta);
             rows.back().label += fmt::format(" eta={:g}", eta);
@@ -702,8 +739,10 @@ int Main(int argc, char** argv) {
           if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
           if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
           const std::size_t k = rows.size() - 1;
-          if (m.kind() == StepKind::kFixedStep && k > first && r.err && rows[k - 1].err)
-            r.order = ObservedOrder(rows[k - 1].h, rows[k - 1].err->rms_at_end, r.h, r.err->rms_at_end);
+          // Observed order against the (sub)step h/n; 0/0 when two rows have the same one.
+          const auto step = [](const Row& q) { return q.substeps > 0 ? q.h / q.substeps : q.h; };
+          if (m.kind() != StepKind::kAdaptive && k > first && r.err && rows[k - 1].err && step(rows[k - 1]) != step(r))
+            r.order = ObservedOrder(step(rows[k - 1]), rows[k - 1].err->rms_at_end, step(r), r.err->rms_at_end);
         }
       }
     }

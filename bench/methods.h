@@ -1,6 +1,6 @@
 // The registry of every method the executables run, by name: the thesis'
-// integrators and symplectic Euler (solver/), the peers baraff_witkin and
-// arkode (peers/), and the references cvode and ida (reference/). Each entry
+// integrators and symplectic Euler (solver/), the peers baraff_witkin, xpbd
+// and arkode (peers/), and the references cvode and ida (reference/). Each entry
 // says how it is stepped (fixed h, adaptive at an rtol, substepped) and every
 // row runs through the same call, returning the same MethodRun.
 //
@@ -24,6 +24,7 @@
 #include "model/trajectory.h"
 #include "peers/arkode.h"
 #include "peers/baraff_witkin.h"
+#include "peers/xpbd.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
 #include "results/metrics.h"
@@ -55,9 +56,10 @@ struct MethodEntry {
   bool pcg;                    ///< solves with the filtered PCG (so the CG tolerance η applies)
   bool tangent;                ///< always holds the 3N×3N tangent system J_α (memory check)
   bool sparse_jacobian;        ///< holds a 6N×6N Jacobian and its KLU factor (memory check)
-  /// Fixed-step methods (and error-controlled SBDF(2)/BDF(2)): the stepper
-  /// on `sys` with settings `spec`; nullptr for the SUNDIALS-stepped ones.
-  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec);
+  /// Fixed-step and substepped methods (and error-controlled SBDF(2)/BDF(2)):
+  /// the stepper on `sys` with settings `spec` (`substeps` per step for
+  /// substepped ones); nullptr for the SUNDIALS-stepped ones.
+  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec, int substeps);
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   ReferenceResult (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                                const RunContext& ctx);
@@ -65,7 +67,7 @@ struct MethodEntry {
 
 namespace internal {
 template <Method M>
-std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec) {
+std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec, int /*substeps*/) {
   return std::make_unique<StepEngine>(sys, M, spec);
 }
 }  // namespace internal
@@ -73,7 +75,7 @@ std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec&
 /// Every method, in table order.
 inline const std::vector<MethodEntry>& Registry() {
   using internal::MakeEngine;
-  constexpr auto kFixed = StepKind::kFixedStep, kAdaptive = StepKind::kAdaptive;
+  constexpr auto kFixed = StepKind::kFixedStep, kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped;
   static const std::vector<MethodEntry> r = {
       {"imex_euler", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kImexEuler>, nullptr},
       {"implicit_euler", kFixed, "solver", true, false, true, true, false, false, MakeEngine<Method::kImplicitEuler>,
@@ -85,8 +87,13 @@ inline const std::vector<MethodEntry>& Registry() {
       {"symplectic_euler", kFixed, "solver", false, false, true, false, false, false,
        MakeEngine<Method::kSymplecticEuler>, nullptr},
       {kBaraffWitkinName, kFixed, "peers", false, false, true, true, true, false,
-       [](const ParticleSystem& sys, const SolverSpec& spec) -> std::unique_ptr<Stepper> {
+       [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec);
+       },
+       nullptr},
+      {kXpbdName, kSubstepped, "peers", false, false, true, false, false, false,
+       [](const ParticleSystem& sys, const SolverSpec&, int substeps) -> std::unique_ptr<Stepper> {
+         return std::make_unique<Xpbd>(sys, substeps);
        },
        nullptr},
       {kArkodeName, kAdaptive, "peers", false, false, false, true, false, false, nullptr,
@@ -127,9 +134,14 @@ struct MethodRun {
   std::string layer;             ///< "solver", "peers", "reference"
   StepKind kind = StepKind::kFixedStep;
   std::string nonlinear_solver;  ///< fully implicit thesis methods only
-  double h = 0.0;                ///< fixed-step rows: the step [s]
+  double h = 0.0;                ///< fixed-step rows: the step [s]; substepped rows: the frame step
+  int substeps = 0;              ///< substepped rows: substeps per frame step (Δt = h/substeps)
   double rtol = 0.0;             ///< adaptive rows
-  double cg_tolerance = 0.0;     ///< η of the PCG; 0 for methods without it (cvode, ida)
+  double cg_tolerance = 0.0;     ///< η of the PCG; 0 for methods without it (cvode, ida, xpbd)
+  /// xpbd: the force terms applied explicitly in the prediction rather than
+  /// as constraints ("gravity,bend_thin_plate"); empty otherwise.
+  std::string explicit_terms;
+  std::string constraints;  ///< xpbd: "tension,shear,obstacles" (those present)
   bool ok = false;
   std::string status, message;
   long steps = 0, updates = 0, cg = 0, rejected = 0, error_test_failures = -1;
@@ -186,15 +198,16 @@ struct RowMethod {
   /// solver settings and this row's nonlinear solver; nullptr for adaptive
   /// methods that SUNDIALS steps.
   std::unique_ptr<Stepper> Make(const ParticleSystem& sys, const SolverSpec& spec) const {
-    return entry->make ? entry->make(sys, Settings(spec)) : nullptr;
+    return entry->make ? entry->make(sys, Settings(spec), 1) : nullptr;
   }
 
   /// Runs `sys` from rest to scene.t_end. `param` is h [s] for fixed-step
-  /// rows and rtol (= atol) for adaptive ones; `spec` the solver settings
-  /// (the scene's, with the invocation's overrides). Never throws for a
-  /// numerical failure (see MethodRun::status).
+  /// and substepped rows (the frame step, split into `substeps`) and rtol
+  /// (= atol) for adaptive ones; `spec` the solver settings (the scene's,
+  /// with the invocation's overrides). Never throws for a numerical failure
+  /// (see MethodRun::status).
   MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
-                const RunContext& ctx) const {
+                const RunContext& ctx, int substeps = 1) const {
     MethodRun row;
     row.label = label();
     row.method = name();
@@ -206,6 +219,11 @@ struct RowMethod {
       row.h = param;
       row.id = fmt::format("{}_h{:g}", id(), param);
       row.stiffness = scene.NumericalStiffness(param);
+    } else if (kind() == StepKind::kSubstepped) {
+      row.h = param;
+      row.substeps = substeps;
+      row.id = fmt::format("{}_h{:g}_n{}", id(), param, substeps);
+      row.stiffness = scene.NumericalStiffness(param / substeps);
     } else {
       row.rtol = param;
       row.id = fmt::format("{}_rtol{:g}", id(), param);
@@ -213,7 +231,12 @@ struct RowMethod {
     }
     if (entry->make) {
       const SolverSpec s = Settings(spec, param);
-      const std::unique_ptr<Stepper> stepper = entry->make(sys, s);
+      const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
+      if (const auto* x = dynamic_cast<const Xpbd*>(stepper.get())) {
+        for (const std::string& t : x->explicit_terms()) row.explicit_terms += (row.explicit_terms.empty() ? "" : ",") + t;
+        row.constraints = std::string("tension") + (x->shear_constraint() ? ",shear" : "") +
+                          (sys.obstacles().empty() ? "" : ",obstacles");
+      }
       // Error-controlled rows start at the scene's h; the controller takes over.
       const RunSummary r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s});
       row.ok = r.ok;

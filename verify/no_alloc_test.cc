@@ -8,8 +8,10 @@
 #include <array>
 #include <cstddef>
 #include <memory>
+#include <string>
 
 #include "peers/baraff_witkin.h"
+#include "peers/xpbd.h"
 #include "solver/integrator.h"
 #include "solver/tangent.h"
 
@@ -88,6 +90,27 @@ TEST(StepLoop, NewtonAndBaraffWitkinDoNotAllocate) {
         EXPECT_TRUE(ok) << which << " " << ToString(type) << " " << ToString(jac);
         EXPECT_EQ(g_allocations.load(), 0) << which << " " << ToString(type) << " " << ToString(jac);
       }
+}
+
+// XPBD: prediction forces, the constraint sweeps and the obstacle
+// projection (tablecloth: a cylinder table) with 4 substeps per step.
+TEST(StepLoop, XpbdDoesNotAllocate) {
+  for (const char* name : {"swinging_sheet", "tablecloth"}) {
+    const ParticleSystem sys(BuiltinScene(name));
+    Xpbd xpbd(sys, 4);
+    xpbd.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
+    for (int k = 0; k < 60; ++k) ASSERT_EQ(xpbd.Step(0.01).status, StepStatus::kOk);  // the tablecloth on the table
+    g_allocations = 0;
+    g_counting = true;
+    bool ok = true;
+    for (int k = 0; k < 3; ++k) ok &= xpbd.Step(0.01).status == StepStatus::kOk;
+    const StepStats last = xpbd.Step(0.005);
+    ok &= last.status == StepStatus::kOk;
+    g_counting = false;
+    if (std::string(name) == "tablecloth") EXPECT_GT(last.colliding, 0);
+    EXPECT_TRUE(ok) << name;
+    EXPECT_EQ(g_allocations.load(), 0) << name;
+  }
 }
 
 // The tangent system J_α refreshes its values in place: triplet buffers keep
