@@ -95,17 +95,16 @@ double AvailableBytes() {
 // 44.9e6 entries at 10⁶, METIS); the SUNDIALS references a 3N×3N Jacobian
 // (~117 entries per particle row triple) and its KLU factor with fill,
 // taken as 4 kB per particle (an upper estimate, not a measurement).
-void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, std::size_t n_h, std::size_t n_rtol,
-                 std::size_t n_substeps, std::size_t n_eta, const std::string& reference) {
+void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
+                 std::size_t n_eta, const std::string& reference) {
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
   bool sundials = reference != "none" && scene.obstacles.empty();
   bool tangent = false;
-  for (const RowMethod& m : methods) {
-    const double per = static_cast<double>(m.kind() == StepKind::kFixedStep     ? n_h
-                                           : m.kind() == StepKind::kSubstepped ? n_h * n_substeps
-                                                                                : n_rtol);
+  for (std::size_t k = 0; k < methods.size(); ++k) {
+    const RowMethod& m = methods[k];
+    const double per = static_cast<double>(n_params[k]);
     rows += per * static_cast<double>(m.uses_pcg() ? n_eta : 1);
     if (m.entry->sparse_jacobian) sundials = true;
     if (m.solver == NonlinearSolver::kNewton || m.entry->tangent) tangent = true;
@@ -416,10 +415,37 @@ void PrintWorkPrecision(const EqualAccuracyTable& t) {
   fmt::print("\n");
 }
 
+// A tight self-convergence reference for obstacle scenes, where CVODE and
+// IDA have no collision response: BDF(2) at h_ref with CG tolerance 1e-10,
+// fixed-point tolerance 1e-12 m/s and up to 200 updates per step.
+ReferenceResult SelfConvergenceReference(const Scene& scene, double h_ref) {
+  Scene tight = scene;
+  tight.solver.cg_tolerance = 1e-10;
+  tight.solver.fixed_point_tolerance = 1e-12;
+  tight.solver.max_updates = 200;
+  const ParticleSystem tight_sys(tight);
+  const RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
+  ReferenceResult self;
+  self.ok = r.ok;
+  self.integrator = "bdf2_self_convergence";
+  self.status = r.status;
+  self.message = r.message;
+  self.stats.nst = r.steps;
+  self.stats.nni = r.fixed_point_updates;
+  self.stats.nli = r.cg_iterations;
+  self.solver_time_in_seconds = r.solver_time_in_seconds;
+  self.wall_time_in_seconds = r.wall_time_in_seconds;
+  self.trajectory = r.trajectory;
+  self.h = h_ref;
+  return self;
+}
+
 // Thesis tables (SPEC §9): Table 3.1 (BDF(2), tablecloth, (k, d) sweep) and
-// Table 3.2 (all five methods on the tablecloth, 1 s; the dress rows need the
-// avatar mesh and are reported as not available yet). Printed beside the
-// thesis' OCR numbers and written to HDF5.
+// Table 3.2 (all five methods on the tablecloth, 1 s, and on the avatar
+// drape, 5 s). Printed beside the thesis' OCR numbers, once per CG tolerance
+// η, with e_rms at t_end against a self-convergence reference (BDF(2) at
+// h/64 on the tablecloth, h/16 on the avatar, tight tolerances), and
+// written to HDF5.
 struct ThesisRow {
   std::string method;
   double k, d;
@@ -427,8 +453,21 @@ struct ThesisRow {
   double time_s;  // < 0: not given
 };
 
+// mean |log10(ours/thesis)| over the updates and CG counts of the rows:
+// how far a CG tolerance puts our counts from the thesis' (0: equal).
+struct CountDistance {
+  double sum = 0.0;
+  int terms = 0;
+  void Add(long ours, long thesis) {
+    if (ours <= 0 || thesis <= 0) return;
+    sum += std::abs(std::log10(static_cast<double>(ours) / static_cast<double>(thesis)));
+    ++terms;
+  }
+  double mean() const { return terms ? sum / terms : 0.0; }
+};
+
 int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner,
-                   std::vector<NonlinearSolver> solvers) {
+                   std::vector<NonlinearSolver> solvers, std::vector<double> etas) {
   std::vector<ThesisRow> rows;
   if (which == "3.1") {
     rows = {{"bdf2", 1e4, 160, 803, 1160, -1}, {"bdf2", 1e4, 1600, 198, 538, -1}, {"bdf2", 1e5, 1600, 377, 566, -1},
@@ -443,22 +482,24 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   if (out.empty()) out = fmt::format("results/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
   Scene base = BuiltinScene("tablecloth");
   if (preconditioner) base.solver.preconditioner = *preconditioner;
-  fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, cg_tolerance "
-             "{:g}, preconditioner {}); thesis numbers from the OCR (SPEC §9, thesis: IC(0)), thesis machine: "
+  if (etas.empty()) etas = {base.solver.cg_tolerance};
+  if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
+  fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, "
+             "preconditioner {}); thesis numbers from the OCR (SPEC §9, thesis: IC(0)), thesis machine: "
              "Pentium III 660 MHz\n",
-             which, base.h, base.t_end, base.solver.cg_tolerance, ToString(base.solver.preconditioner));
+             which, base.h, base.t_end, ToString(base.solver.preconditioner));
   if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");
-  fmt::print("\n{:<24} {:>8} {:>6} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9} {:>7} | {:>6} {}\n", "method", "k_N/m", "d",
-             "thesis_u", "thes_cg", "thesis_s", "updates", "cg", "solver_s", "ratio", "rej", "status");
   ResultFile f(out);
   WriteProvenance(f);
   f.CreateGroup("/table");
   f.SetAttribute("/table", "name", std::string("Table ") + which);
   f.SetAttribute("/table", "scene_toml", base.toml);
   f.SetAttribute("/table", "preconditioner", std::string(ToString(base.solver.preconditioner)));
+  f.WriteVector("/table/cg_tolerances", etas, "");
   int index = 0;
-  // One HDF5 group per row: our counts beside the thesis'.
-  auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RowMethod& m, const RunSummary& r) {
+  // One HDF5 group per row: our counts and error beside the thesis'.
+  auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RowMethod& m, double eta,
+                       const RunSummary& r, std::optional<double> err, double h_ref) {
     const std::string g = fmt::format("/table/row{}", index++);
     f.CreateGroup(g);
     f.SetAttribute(g, "scene", scene_name);
@@ -467,67 +508,115 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     if (m.fully_implicit()) f.SetAttribute(g, "nonlinear_solver", std::string(ToString(m.solver)));
     f.SetAttribute(g, "k", tr.k);
     f.SetAttribute(g, "d", tr.d);
+    f.SetAttribute(g, "cg_tolerance", eta);
     f.SetAttribute(g, "status", r.status);
     f.SetAttribute(g, "steps", static_cast<long>(r.steps));
     f.SetAttribute(g, "rejected_steps", static_cast<long>(r.rejected_steps));
     f.SetAttribute(g, "fixed_point_updates", r.fixed_point_updates);
     f.SetAttribute(g, "cg_iterations", r.cg_iterations);
     f.SetAttribute(g, "solver_time_s", r.solver_time_in_seconds);
+    if (err) {
+      f.SetAttribute(g, "error_rms_m", *err);
+      f.SetAttribute(g, "reference_h", h_ref);
+    }
     f.SetAttribute(g, "thesis_updates", tr.updates);
     f.SetAttribute(g, "thesis_cg_iterations", tr.cg);
     if (tr.time_s > 0) f.SetAttribute(g, "thesis_solver_time_s", tr.time_s);
   };
-  if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
-  for (const ThesisRow& tr : rows) {
-    Scene s = base;
-    s.material.tension = {tr.k, tr.k};
-    s.material.tension_damping = tr.d;
-    const ParticleSystem sys(s);
-    for (const RowMethod& m : ExpandMethods({tr.method}, solvers, "--table")) {
-      const std::unique_ptr<Stepper> stepper = m.Make(sys, s.solver);
-      const RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
-      const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_in_seconds / tr.time_s) : "";
-      fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9.3f} {:>7} | {:>6} {}\n", m.label(), tr.k,
-                 tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "", r.fixed_point_updates,
-                 r.cg_iterations, r.solver_time_in_seconds, ratio, r.rejected_steps, r.status);
-      write_row("tablecloth", tr, m, r);
-    }
-  }
+  // One block of rows on `s` (k and d taken from each row), one table per η.
+  struct Block {
+    std::string scene_name;
+    Scene scene;
+    std::vector<ThesisRow> rows;
+    double h_ref;
+  };
+  std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
   if (which == "3.2") {
     // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
     Scene av = BuiltinScene("avatar_drape");
     if (preconditioner) av.solver.preconditioner = *preconditioner;
     const double kd = av.material.tension[0], dd = av.material.tension_damping;
-    const std::vector<ThesisRow> dress = {{"imex_euler", kd, dd, 500, 17198, 152.7},
-                                          {"implicit_euler", kd, dd, 1654, 21424, 204.9},
-                                          {"sbdf2", kd, dd, 500, 15360, 169.5},
-                                          {"bdf2", kd, dd, 1431, 19307, 194.4},
-                                          {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}};
-    fmt::print("\nDress → avatar_drape (scenes/avatar_drape.toml: 36×36 = 1296 particles on CGAL's man.off, k = 300 N/m, "
-               "d = {:g} N s/m, {:g} s, h = {:g} s)\n",
-               av.material.tension_damping, av.t_end, av.h);
-    const ParticleSystem sys(av);
-    for (const ThesisRow& tr : dress) {
-      for (const RowMethod& m : ExpandMethods({tr.method}, solvers, "--table")) {
-        const std::unique_ptr<Stepper> stepper = m.Make(sys, av.solver);
-        const RunSummary r = RunStepper(sys, *stepper, {av.h, av.t_end, av.frame_dt});
-        fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9.1f} | {:>8} {:>7} {:>9.3f} {:>7.3f} | {:>6} {}\n", m.label(),
-                   av.material.tension[0], av.material.tension_damping, tr.updates, tr.cg, tr.time_s,
-                   r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, r.solver_time_in_seconds / tr.time_s,
-                   r.rejected_steps, r.status);
-        write_row("avatar_drape", tr, m, r);
+    blocks.push_back({"avatar_drape", av,
+                      {{"imex_euler", kd, dd, 500, 17198, 152.7},
+                       {"implicit_euler", kd, dd, 1654, 21424, 204.9},
+                       {"sbdf2", kd, dd, 500, 15360, 169.5},
+                       {"bdf2", kd, dd, 1431, 19307, 194.4},
+                       {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}},
+                      av.h / 16.0});
+  }
+  // References: one per (block, k, d), computed once for all η.
+  std::vector<std::vector<std::optional<ReferenceResult>>> refs(blocks.size());
+  for (std::size_t b = 0; b < blocks.size(); ++b)
+    for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
+      const ThesisRow& tr = blocks[b].rows[i];
+      std::optional<ReferenceResult> same;
+      for (std::size_t j = 0; j < i; ++j)
+        if (blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d) same = refs[b][j];
+      if (!same) {
+        Scene s = blocks[b].scene;
+        s.material.tension = {tr.k, tr.k};
+        s.material.tension_damping = tr.d;
+        same = SelfConvergenceReference(s, blocks[b].h_ref);
+        if (!same->ok)
+          fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
+                     blocks[b].h_ref, blocks[b].scene_name, tr.k, tr.d, same->message);
+      }
+      refs[b].push_back(same);
+    }
+  for (double eta : etas) {
+    CountDistance distance;
+    fmt::print("\ncg_tolerance = {:g}\n", eta);
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+      const Block& blk = blocks[b];
+      if (b > 0)
+        fmt::print("\nDress → avatar_drape (scenes/avatar_drape.toml: 36×36 = 1296 particles on CGAL's man.off, k = "
+                   "{:g} N/m, d = {:g} N s/m, {:g} s, h = {:g} s)\n",
+                   blk.scene.material.tension[0], blk.scene.material.tension_damping, blk.scene.t_end, blk.scene.h);
+      fmt::print("{:<24} {:>8} {:>6} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9} {:>7} {:>10} | {:>6} {}\n", "method",
+                 "k_N/m", "d", "thesis_u", "thes_cg", "thesis_s", "updates", "cg", "solver_s", "ratio", "e_rms_m",
+                 "rej", "status");
+      for (std::size_t i = 0; i < blk.rows.size(); ++i) {
+        const ThesisRow& tr = blk.rows[i];
+        Scene s = blk.scene;
+        s.material.tension = {tr.k, tr.k};
+        s.material.tension_damping = tr.d;
+        s.solver.cg_tolerance = eta;
+        const ParticleSystem sys(s);
+        for (const RowMethod& m : ExpandMethods({tr.method}, solvers, "--table")) {
+          const std::unique_ptr<Stepper> stepper = m.Make(sys, s.solver);
+          const RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
+          std::optional<double> err;
+          if (r.ok && refs[b][i] && refs[b][i]->ok)
+            if (const auto e = CompareTrajectories(r.trajectory.positions, refs[b][i]->trajectory.positions))
+              err = e->rms_at_end;
+          if (r.ok) {
+            distance.Add(r.fixed_point_updates, tr.updates);
+            distance.Add(r.cg_iterations, tr.cg);
+          }
+          const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_in_seconds / tr.time_s) : "";
+          fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9.3f} {:>7} {:>10} | {:>6} {}\n",
+                     m.label(), tr.k, tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "",
+                     r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, ratio,
+                     err ? Sci(*err) : "", r.rejected_steps, r.status);
+          write_row(blk.scene_name, tr, m, eta, r, err, blk.h_ref);
+        }
       }
     }
+    fmt::print("distance to the thesis' counts at cg_tolerance {:g}: mean |log10(ours/thesis)| over updates and CG = "
+               "{:.3f} ({} counts)\n",
+               eta, distance.mean(), distance.terms);
   }
   f.Commit();
-  fmt::print("\nratio = our solver time / thesis solver time. machine: {}, {}, commit {}\nresults: {}\n", HostName(),
-             CompilerId(), GitCommit(), out);
+  fmt::print("\nratio = our solver time / thesis solver time. e_rms_m: at t_end against BDF(2) at h/64 (tablecloth) or "
+             "h/16 (avatar) with cg_tolerance 1e-10 and fixed-point tolerance 1e-12 m/s.\nmachine: {}, {}, commit "
+             "{}\nresults: {}\n",
+             HostName(), CompilerId(), GitCommit(), out);
   return 0;
 }
 
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
-  std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg = "1e-3,1e-4,1e-5,1e-6,1e-7";
+  std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
   std::string series, table, preconditioner, frames_mode = "positions", nonlinear_arg;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
@@ -543,13 +632,16 @@ int Main(int argc, char** argv) {
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
                  "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
-  app.add_option("--h", h_arg, "comma-separated step sizes [s] (default: scene h, h/2, h/4, h/8)");
+  app.add_option("--h", h_arg,
+                 "comma-separated step sizes [s] of every fixed-step row and frame steps of the substepped rows "
+                 "(default: per method, multiples of the scene's h chosen so that the default scene's runs bracket "
+                 "e_rms = 1e-3 m; README \"Work-precision\")");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference, "cvode | ida | none");
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--rtols", rtols_arg,
                  "rtol (= atol) list of the adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error (default "
-                 "1e-3,…,1e-7)");
+                 "1e-2,…,1e-7; arkode 1e-2,…,1e-6)");
   app.add_option("--substeps", substeps_arg,
                  "comma-separated substeps per frame step of the substepped rows (xpbd): one row per h and value "
                  "(default 1,4,16,64)");
@@ -571,7 +663,9 @@ int Main(int argc, char** argv) {
   app.add_option("--series", series,
                  "write every step (t, h, updates, CG iterations, colliding particles) as CSV to FILE and print the "
                  "impact / resting-contact summary (thesis Fig. 4.3)");
-  app.add_option("--table", table, "print the thesis' Table 3.1 or 3.2 beside ours (and write HDF5)");
+  app.add_option("--table", table,
+                 "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
+                 "once per --cg-tolerances value (and write HDF5)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
   try {
     app.parse(argc, argv);
@@ -590,11 +684,17 @@ int Main(int argc, char** argv) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
+    std::vector<double> etas;
+    if (app.count("--cg-tolerances")) {
+      etas = ParsePositiveList(cg_tolerances_arg, "--cg-tolerances");
+      for (double e : etas)
+        if (!(e < 1.0)) throw UsageError(fmt::format("--cg-tolerances: {:g} must be in (0, 1)", e));
+    }
     if (!table.empty())
       return RunThesisTable(table, out,
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner))
                                                           : std::nullopt,
-                            solvers);
+                            solvers, etas);
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {
@@ -648,26 +748,47 @@ int Main(int argc, char** argv) {
       throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", arkode_table, known));
     }
     const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
-    std::vector<double> etas = {scene.solver.cg_tolerance};
-    if (app.count("--cg-tolerances")) {
-      etas = ParsePositiveList(cg_tolerances_arg, "--cg-tolerances");
-      for (double e : etas)
-        if (!(e < 1.0)) throw UsageError(fmt::format("--cg-tolerances: {:g} must be in (0, 1)", e));
-    }
-    std::vector<double> hs = h_arg.empty()
-                                  ? std::vector<double>{scene.h, scene.h / 2, scene.h / 4, scene.h / 8}
-                                  : ParsePositiveList(h_arg, "--h");
+    if (etas.empty()) etas = {scene.solver.cg_tolerance};
+    std::vector<double> hs = h_arg.empty() ? std::vector<double>{} : ParsePositiveList(h_arg, "--h");
     for (double h : hs)
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
-    std::sort(hs.begin(), hs.end(), std::greater<>());
-    const std::vector<double> rtols = ParsePositiveList(rtols_arg, "--rtols");
+    const std::vector<double> rtols =
+        app.count("--rtols") ? ParsePositiveList(rtols_arg, "--rtols") : std::vector<double>{};
     std::vector<int> substeps;
     for (double n : ParsePositiveList(substeps_arg, "--substeps")) {
       if (n != std::floor(n) || n > 1e6)
         throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
       substeps.push_back(static_cast<int>(n));
     }
-    CheckMemory(scene, methods, hs.size(), rtols.size(), substeps.size(), etas.size(), reference);
+    // Each row's (param, substeps) in run order: h or rtol decreasing;
+    // substepped rows by their substep h/n decreasing (ties: larger frame
+    // step first), so that consecutive rows refine one step size. Without
+    // --h / --rtols, each method's defaults (DefaultRowParams).
+    std::vector<std::vector<std::pair<double, int>>> params(methods.size());
+    std::vector<std::size_t> n_params;
+    for (std::size_t k = 0; k < methods.size(); ++k) {
+      const RowMethod& m = methods[k];
+      const DefaultParams d = DefaultRowParams(m);
+      std::vector<double> mh = hs;
+      if (mh.empty())
+        for (double f : d.h_factors)
+          if (f * scene.h <= scene.t_end) mh.push_back(f * scene.h);
+      if (mh.empty()) mh = {scene.h};
+      std::sort(mh.begin(), mh.end(), std::greater<>());
+      auto& ps = params[k];
+      if (m.kind() == StepKind::kSubstepped) {
+        for (double h : mh)
+          for (int n : substeps) ps.emplace_back(h, n);
+        std::stable_sort(ps.begin(), ps.end(),
+                         [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
+      } else if (m.kind() == StepKind::kFixedStep) {
+        for (double h : mh) ps.emplace_back(h, 1);
+      } else {
+        for (double r : rtols.empty() ? d.rtols : rtols) ps.emplace_back(r, 1);
+      }
+      n_params.push_back(ps.size());
+    }
+    CheckMemory(scene, methods, n_params, etas.size(), reference);
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
@@ -676,32 +797,16 @@ int Main(int argc, char** argv) {
     ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
     if (reference != "none" && !sys.obstacles().empty()) {
       // CVODE and IDA have no collision response: on obstacle scenes the
-      // reference is a self-convergence run, BDF(2) at h_min/16 with tight
+      // reference is a self-convergence run, BDF(2) at h_min/16 (without
+      // --h: h/128) with tight
       // CG and fixed-point tolerances.
-      Scene tight = scene;
-      tight.solver.cg_tolerance = 1e-10;
-      tight.solver.fixed_point_tolerance = 1e-12;
-      tight.solver.max_updates = 200;
-      const ParticleSystem tight_sys(tight);
-      const double h_ref = hs.back() / 16.0;
-      const RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
-      if (!r.ok) {
+      const double h_ref = (hs.empty() ? scene.h / 8.0 : *std::min_element(hs.begin(), hs.end())) / 16.0;
+      ref = SelfConvergenceReference(scene, h_ref);
+      if (!ref->ok) {
         fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
-                   r.message);
+                   ref->message);
         return 1;
       }
-      ReferenceResult self;
-      self.ok = true;
-      self.integrator = "bdf2_self_convergence";
-      self.status = "ok";
-      self.stats.nst = r.steps;
-      self.stats.nni = r.fixed_point_updates;
-      self.stats.nli = r.cg_iterations;
-      self.solver_time_in_seconds = r.solver_time_in_seconds;
-      self.wall_time_in_seconds = r.wall_time_in_seconds;
-      self.trajectory = r.trajectory;
-      self.h = h_ref;
-      ref = self;
     } else if (reference != "none") {
       ref = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
       if (!ref->ok) {
@@ -712,24 +817,13 @@ int Main(int argc, char** argv) {
 
     std::vector<Row> rows;
     const RunContext ctx{arkode_table};
-    for (const RowMethod& m : methods) {
-      // (param, substeps) in run order: h or rtol decreasing; substepped
-      // rows by their substep h/n decreasing (ties: larger frame step
-      // first), so that consecutive rows refine one step size.
-      std::vector<std::pair<double, int>> params;
-      if (m.kind() == StepKind::kSubstepped) {
-        for (double h : hs)
-          for (int n : substeps) params.emplace_back(h, n);
-        std::stable_sort(params.begin(), params.end(),
-                         [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
-      } else {
-        for (double p : m.kind() == StepKind::kFixedStep ? hs : rtols) params.emplace_back(p, 1);
-      }
+    for (std::size_t mk = 0; mk < methods.size(); ++mk) {
+      const RowMethod& m = methods[mk];
       for (double eta : m.uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
         SolverSpec spec = scene.solver;
         spec.cg_tolerance = eta;
         const std::size_t first = rows.size();
-        for (const auto& [p, n] : params) {
+        for (const auto& [p, n] : params[mk]) {
           rows.push_back(m.Run(sys, scene, spec, p, ctx, n));
           if (etas.size() > 1 && m.uses_pcg()) {
             rows.back().id += fmt::format("_eta{:g}", eta);

@@ -279,6 +279,51 @@ struct RowMethod {
   }
 };
 
+/// A row's default parameters when the command line gives none: step sizes
+/// as multiples of the scene's h (fixed-step rows; frame steps of
+/// substepped rows) and tolerances rtol (adaptive rows). Chosen on the
+/// default scene (the swinging sheet, h = 0.01 s) so that each row's runs
+/// bracket e_rms = 1e-3 m where that fits the default run's time budget;
+/// the measured e_rms that justify them (README "Work-precision"):
+///  - imex_euler: 0.61, 0.39, 0.18, 0.060 m at h, h/4, h/16, h/64. Its error
+///    is 0.017 m at h/256; 1e-3 m would need h ≈ 2e-6 s (order 1), about
+///    45 s of solver time, so its rows do not bracket 1e-3 m.
+///  - implicit_euler: 3.0e-3, 1.5e-3, 7.5e-4 m at h/8, h/16, h/32 (larger h
+///    cost more: fixed-point rejections).
+///  - implicit_euler/newton: 2.2e-2, 1.1e-2, 5.9e-3 m at h, h/2, h/4;
+///    1e-3 m needs h ≈ 3e-4 s and 15–20 s (a tangent refresh per iterate), so
+///    its rows do not bracket 1e-3 m.
+///  - sbdf2: 4.4e-2 … 1.5e-3 m at h … h/8, and h/16 below 1e-3 m.
+///  - bdf2, implicit_midpoint (fixed point): 2.3e-4 and 6.3e-5 m already at
+///    h; at larger h the fixed point does not converge and the step is
+///    halved, so no run reaches 1e-3 m.
+///  - bdf2/newton: 7.9e-3, 2.7e-3, 7.4e-4 m at 4h, 2h, h.
+///  - implicit_midpoint/newton: 4.0e-3, 9.9e-4, 2.5e-4 m at 4h, 2h, h.
+///  - baraff_witkin: 3.0e-3 m at h/8, ≈ 7.5e-4 m at h/32 (order 1).
+///  - xpbd: frame steps h and h/16 with --substeps 1,4,16,64 give
+///    substeps h/1 … h/1024: 0.19 … 2.7e-3 m at h/256 and ≈ 6.7e-4 m at h/1024.
+///  - cvode, sbdf2/error, bdf2/newton/error: rtol 1e-2 … 1e-7; arkode
+///    1e-2 … 1e-6 (its error is 1.7e-4 m already at rtol 1e-3; rtol 1e-7
+///    alone costs 9.6 s).
+struct DefaultParams {
+  std::vector<double> h_factors;  ///< fixed-step and substepped rows: h = factor × scene h
+  std::vector<double> rtols;      ///< adaptive rows
+};
+inline DefaultParams DefaultRowParams(const RowMethod& m) {
+  const std::string label = m.label();
+  const std::vector<double> rtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
+  if (label == "imex_euler") return {{1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}, {}};
+  if (label == "implicit_euler") return {{1.0 / 8, 1.0 / 16, 1.0 / 32}, {}};
+  if (label == "implicit_euler/newton") return {{1.0, 1.0 / 2, 1.0 / 4}, {}};
+  if (label == "sbdf2") return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}, {}};
+  if (label == "bdf2/newton" || label == "implicit_midpoint/newton") return {{4.0, 2.0, 1.0}, {}};
+  if (label == "implicit_midpoint") return {{1.0, 1.0 / 2, 1.0 / 4}, {}};
+  if (label == "baraff_witkin") return {{1.0 / 8, 1.0 / 32}, {}};
+  if (label == "xpbd") return {{1.0, 1.0 / 16}, {}};
+  if (label == "arkode") return {{}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}};
+  return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, rtols};
+}
+
 /// Parses "fixed_point" | "newton". @throws std::invalid_argument naming `option`.
 inline NonlinearSolver ParseNonlinearSolver(const std::string& s, const std::string& option) {
   for (NonlinearSolver n : {NonlinearSolver::kFixedPoint, NonlinearSolver::kNewton})
