@@ -177,7 +177,7 @@ void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
 }
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
-                  const std::optional<ReferenceResult>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
+                  const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
                   const std::string& frames_mode, const EqualAccuracyTable* wp) {
   const bool write_frames = frames_mode != "none";
   ResultFile f(path);
@@ -206,10 +206,13 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     }
     f.SetAttribute("/reference", "wall_time_s", ref->wall_time_in_seconds);
     f.SetAttribute("/reference", "solver_time_s", ref->solver_time_in_seconds);
-    for (auto [name, v] : {std::pair{"nst", ref->stats.nst}, {"nfe", ref->stats.nfe}, {"nni", ref->stats.nni},
-                           {"nli", ref->stats.nli}, {"netf", ref->stats.netf}, {"ncfn", ref->stats.ncfn},
-                           {"nje", ref->stats.nje}, {"nsetups", ref->stats.nsetups}})
-      f.SetAttribute("/reference", name, v);
+    f.SetAttribute("/reference", "steps", static_cast<long>(ref->steps));
+    f.SetAttribute("/reference", "fixed_point_updates", ref->fixed_point_updates);
+    f.SetAttribute("/reference", "cg_iterations", ref->cg_iterations);
+    if (const auto& s = ref->sundials)
+      for (auto [name, v] : {std::pair{"nst", s->nst}, {"nfe", s->nfe}, {"nni", s->nni}, {"nli", s->nli},
+                             {"netf", s->netf}, {"ncfn", s->ncfn}, {"nje", s->nje}, {"nsetups", s->nsetups}})
+        f.SetAttribute("/reference", name, v);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
     if (write_frames) {
       f.WriteFrames("/reference/positions", ref->trajectory.positions);
@@ -217,7 +220,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     }
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
-    for (std::size_t k = 0; k < ref->step_t.size(); ++k) st.push_back({ref->step_t[k], ref->step_h[k], -1, -1, 0, -1, ref->step_time[k]});
+    for (const StepStats& s : ref->step_stats)
+      st.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time});
     f.WriteStepStats("/reference/step_stats", st);
   }
   f.CreateGroup("/runs");
@@ -318,7 +322,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 
-void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::optional<ReferenceResult>& ref,
+void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                 const ReferenceOptions& ref_opts, const std::vector<Row>& rows, double t_end) {
   std::string terms;
   for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ", ") + t;
@@ -332,10 +336,10 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
   if (ref && ref->integrator == "bdf2_self_convergence")
     fmt::print("reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
                "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s\n",
-               ref->h, ref->stats.nst, ref->wall_time_in_seconds);
+               ref->h, ref->steps, ref->wall_time_in_seconds);
   else if (ref)
     fmt::print("reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {:.3e} W\n",
-               ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->stats.nst, ref->wall_time_in_seconds,
+               ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->steps, ref->wall_time_in_seconds,
                ComputeEnergies(sys, ref->trajectory).Rate());
   else
     fmt::print("reference: none (error columns empty)\n");
@@ -418,26 +422,16 @@ void PrintWorkPrecision(const EqualAccuracyTable& t) {
 // A tight self-convergence reference for obstacle scenes, where CVODE and
 // IDA have no collision response: BDF(2) at h_ref with CG tolerance 1e-10,
 // fixed-point tolerance 1e-12 m/s and up to 200 updates per step.
-ReferenceResult SelfConvergenceReference(const Scene& scene, double h_ref) {
+RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
   Scene tight = scene;
   tight.solver.cg_tolerance = 1e-10;
   tight.solver.fixed_point_tolerance = 1e-12;
   tight.solver.max_updates = 200;
   const ParticleSystem tight_sys(tight);
-  const RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
-  ReferenceResult self;
-  self.ok = r.ok;
-  self.integrator = "bdf2_self_convergence";
-  self.status = r.status;
-  self.message = r.message;
-  self.stats.nst = r.steps;
-  self.stats.nni = r.fixed_point_updates;
-  self.stats.nli = r.cg_iterations;
-  self.solver_time_in_seconds = r.solver_time_in_seconds;
-  self.wall_time_in_seconds = r.wall_time_in_seconds;
-  self.trajectory = r.trajectory;
-  self.h = h_ref;
-  return self;
+  RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
+  r.integrator = "bdf2_self_convergence";
+  r.h = h_ref;
+  return r;
 }
 
 // Thesis tables (SPEC §9): Table 3.1 (BDF(2), tablecloth, (k, d) sweep) and
@@ -545,11 +539,11 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                       av.h / 16.0});
   }
   // References: one per (block, k, d), computed once for all η.
-  std::vector<std::vector<std::optional<ReferenceResult>>> refs(blocks.size());
+  std::vector<std::vector<std::optional<RunSummary>>> refs(blocks.size());
   for (std::size_t b = 0; b < blocks.size(); ++b)
     for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
       const ThesisRow& tr = blocks[b].rows[i];
-      std::optional<ReferenceResult> same;
+      std::optional<RunSummary> same;
       for (std::size_t j = 0; j < i; ++j)
         if (blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d) same = refs[b][j];
       if (!same) {
@@ -793,7 +787,7 @@ int Main(int argc, char** argv) {
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
     const ParticleSystem sys(scene);
-    std::optional<ReferenceResult> ref;
+    std::optional<RunSummary> ref;
     ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
     if (reference != "none" && !sys.obstacles().empty()) {
       // CVODE and IDA have no collision response: on obstacle scenes the

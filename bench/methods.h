@@ -61,7 +61,7 @@ struct MethodEntry {
   /// substepped ones); nullptr for the SUNDIALS-stepped ones.
   std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec, int substeps);
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
-  ReferenceResult (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+  RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                                const RunContext& ctx);
 };
 
@@ -149,7 +149,7 @@ struct MethodRun {
   Trajectory traj;
   std::vector<StepRecord> steps_table;
   std::vector<double> bdf_order;    ///< SUNDIALS rows: method order per step
-  std::optional<ReferenceStats> sundials;  ///< cvode, ida, arkode counters
+  std::optional<SundialsStats> sundials;  ///< cvode, ida, arkode counters
   // Filled by the caller against a reference:
   std::optional<TrajectoryErrors> err;
   std::optional<double> order;
@@ -229,6 +229,7 @@ struct RowMethod {
       row.id = fmt::format("{}_rtol{:g}", id(), param);
       row.stiffness = scene.NumericalStiffness(scene.h);
     }
+    RunSummary r;
     if (entry->make) {
       const SolverSpec s = Settings(spec, param);
       const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
@@ -238,42 +239,27 @@ struct RowMethod {
                           (sys.obstacles().empty() ? "" : ",obstacles");
       }
       // Error-controlled rows start at the scene's h; the controller takes over.
-      const RunSummary r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s});
-      row.ok = r.ok;
-      row.status = r.status;
-      row.message = r.message;
-      row.steps = r.steps;
-      row.updates = r.fixed_point_updates;
-      row.cg = r.cg_iterations;
-      row.rejected = r.rejected_steps;
-      row.error_test_failures = error_control ? r.error_test_failures : -1;
-      row.solver_time = r.solver_time_in_seconds;
-      row.setup_time = r.setup_time_in_seconds;
-      row.wall_time = r.wall_time_in_seconds;
-      row.traj = r.trajectory;
-      for (const StepStats& st : r.step_stats)
-        row.steps_table.push_back(
-            {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time});
-      return row;
+      r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s});
+    } else {
+      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt}, spec, ctx);
     }
-    const ReferenceOptions o{param, -1.0, 5, scene.t_end, scene.frame_dt};
-    const ReferenceResult c = entry->integrate(sys, o, spec, ctx);
-    row.ok = c.ok;
-    row.status = c.status;
-    row.message = c.message;
-    row.steps = c.stats.nst;
-    row.updates = c.stats.nni;
-    row.cg = c.stats.nli;
-    row.rejected = c.stats.netf;
-    row.error_test_failures = c.stats.netf;
-    row.solver_time = c.solver_time_in_seconds;
-    row.setup_time = c.setup_time_in_seconds;
-    row.wall_time = c.wall_time_in_seconds;
-    row.traj = c.trajectory;
-    row.sundials = c.stats;
-    for (std::size_t k = 0; k < c.step_t.size(); ++k) {
-      row.steps_table.push_back({c.step_t[k], c.step_h[k], -1, -1, 0, -1, c.step_time[k]});
-      row.bdf_order.push_back(c.step_order[k]);
+    row.ok = r.ok;
+    row.status = r.status;
+    row.message = r.message;
+    row.steps = r.steps;
+    row.updates = r.fixed_point_updates;
+    row.cg = r.cg_iterations;
+    row.rejected = r.rejected_steps;
+    row.error_test_failures = error_control || r.sundials ? r.error_test_failures : -1;
+    row.solver_time = r.solver_time_in_seconds;
+    row.setup_time = r.setup_time_in_seconds;
+    row.wall_time = r.wall_time_in_seconds;
+    row.traj = std::move(r.trajectory);
+    row.sundials = r.sundials;
+    for (const StepStats& st : r.step_stats) {
+      row.steps_table.push_back(
+          {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time});
+      if (r.sundials) row.bdf_order.push_back(st.error_order);
     }
     return row;
   }

@@ -213,7 +213,7 @@ const std::vector<std::string>& ArkodeTableNames() {
   return names;
 }
 
-ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& options, const std::string& table,
+RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& options, const std::string& table,
                           const SolverSpec* solver) {
   const SolverSpec& spec = solver ? *solver : system.scene().solver;
   const TablePair* pair = nullptr;
@@ -226,7 +226,7 @@ ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& 
   }
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
-  ReferenceResult res;
+  RunSummary res;
   res.integrator = kArkodeName;
   if (!system.obstacles().empty()) {
     res.status = "unsupported_scene";
@@ -278,14 +278,16 @@ ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& 
     d.flag_name = [](int f) { return std::string(ARKStepGetReturnFlagName(f)); };
     internal::RunFrames(d, system, options, err, &res);
   }
-  ARKStepGetNumSteps(h.mem, &res.stats.nst);
-  ARKStepGetNumRhsEvals(h.mem, &res.stats.nfe, &res.stats.nfe_i);
-  ARKStepGetNumNonlinSolvIters(h.mem, &res.stats.nni);
-  res.stats.nli = ode.total_iterations();
-  ARKStepGetNumErrTestFails(h.mem, &res.stats.netf);
-  ARKStepGetNumNonlinSolvConvFails(h.mem, &res.stats.ncfn);
-  ARKStepGetNumLinSolvSetups(h.mem, &res.stats.nsetups);
+  SundialsStats& st = res.sundials.emplace();
+  ARKStepGetNumSteps(h.mem, &st.nst);
+  ARKStepGetNumRhsEvals(h.mem, &st.nfe, &st.nfe_i);
+  ARKStepGetNumNonlinSolvIters(h.mem, &st.nni);
+  st.nli = ode.total_iterations();
+  ARKStepGetNumErrTestFails(h.mem, &st.netf);
+  ARKStepGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
+  ARKStepGetNumLinSolvSetups(h.mem, &st.nsetups);
   res.setup_time_in_seconds = ode.setup_seconds();
+  internal::SummariseCounters(&res);
   res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }

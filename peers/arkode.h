@@ -33,7 +33,7 @@ const std::vector<std::string>& ArkodeTableNames();
 /// @param solver the PCG's tolerance, limits and preconditioner; nullptr:
 ///               the scene's
 /// @throws std::invalid_argument for an unknown table name.
-ReferenceResult RunArkode(const ParticleSystem& system, const ReferenceOptions& options,
+RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& options,
                           const std::string& table = "ARK324L2SA", const SolverSpec* solver = nullptr);
 
 }  // namespace clothbench

@@ -110,10 +110,10 @@ struct CvodeHandles {
 
 }  // namespace
 
-ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
+RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
-  ReferenceResult res;
+  RunSummary res;
   res.integrator = "cvode";
   FreeDofOde ode(system);
   CvodeHandles h;
@@ -165,14 +165,16 @@ ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& o
     d.flag_name = [](int f) { return std::string(CVodeGetReturnFlagName(f)); };
     internal::RunFrames(d, system, options, err, &res);
   }
-  CVodeGetNumSteps(h.mem, &res.stats.nst);
-  CVodeGetNumRhsEvals(h.mem, &res.stats.nfe);
-  CVodeGetNumNonlinSolvIters(h.mem, &res.stats.nni);
-  CVodeGetNumLinIters(h.mem, &res.stats.nli);
-  CVodeGetNumErrTestFails(h.mem, &res.stats.netf);
-  CVodeGetNumNonlinSolvConvFails(h.mem, &res.stats.ncfn);
-  CVodeGetNumJacEvals(h.mem, &res.stats.nje);
-  CVodeGetNumLinSolvSetups(h.mem, &res.stats.nsetups);
+  SundialsStats& st = res.sundials.emplace();
+  CVodeGetNumSteps(h.mem, &st.nst);
+  CVodeGetNumRhsEvals(h.mem, &st.nfe);
+  CVodeGetNumNonlinSolvIters(h.mem, &st.nni);
+  CVodeGetNumLinIters(h.mem, &st.nli);
+  CVodeGetNumErrTestFails(h.mem, &st.netf);
+  CVodeGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
+  CVodeGetNumJacEvals(h.mem, &st.nje);
+  CVodeGetNumLinSolvSetups(h.mem, &st.nsetups);
+  internal::SummariseCounters(&res);
   res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }

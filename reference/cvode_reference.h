@@ -13,7 +13,7 @@ namespace clothbench {
 
 /// Integrates `system` from rest to options.t_end; frames by CVODE's dense
 /// output (CVodeGetDky). Never throws for solver failure: see status.
-ReferenceResult RunCvode(const ParticleSystem& system, const ReferenceOptions& options);
+RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options);
 
 }  // namespace clothbench
 

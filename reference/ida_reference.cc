@@ -144,10 +144,10 @@ struct IdaHandles {
 
 }  // namespace
 
-ReferenceResult RunIda(const ParticleSystem& system, const ReferenceOptions& options) {
+RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
-  ReferenceResult res;
+  RunSummary res;
   res.integrator = "ida";
   ResidualForm form(system);
   IdaHandles h;
@@ -196,14 +196,16 @@ ReferenceResult RunIda(const ParticleSystem& system, const ReferenceOptions& opt
     d.flag_name = [](int f) { return std::string(IDAGetReturnFlagName(f)); };
     internal::RunFrames(d, system, options, err, &res);
   }
-  IDAGetNumSteps(h.mem, &res.stats.nst);
-  IDAGetNumResEvals(h.mem, &res.stats.nfe);
-  IDAGetNumNonlinSolvIters(h.mem, &res.stats.nni);
-  IDAGetNumLinIters(h.mem, &res.stats.nli);
-  IDAGetNumErrTestFails(h.mem, &res.stats.netf);
-  IDAGetNumNonlinSolvConvFails(h.mem, &res.stats.ncfn);
-  IDAGetNumJacEvals(h.mem, &res.stats.nje);
-  IDAGetNumLinSolvSetups(h.mem, &res.stats.nsetups);
+  SundialsStats& st = res.sundials.emplace();
+  IDAGetNumSteps(h.mem, &st.nst);
+  IDAGetNumResEvals(h.mem, &st.nfe);
+  IDAGetNumNonlinSolvIters(h.mem, &st.nni);
+  IDAGetNumLinIters(h.mem, &st.nli);
+  IDAGetNumErrTestFails(h.mem, &st.netf);
+  IDAGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
+  IDAGetNumJacEvals(h.mem, &st.nje);
+  IDAGetNumLinSolvSetups(h.mem, &st.nsetups);
+  internal::SummariseCounters(&res);
   res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }

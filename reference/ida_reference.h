@@ -14,7 +14,7 @@ namespace clothbench {
 
 /// Integrates `system` from rest to options.t_end; frames by IDA's dense
 /// output (IDAGetDky). Never throws for solver failure: see status.
-ReferenceResult RunIda(const ParticleSystem& system, const ReferenceOptions& options);
+RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options);
 
 }  // namespace clothbench
 

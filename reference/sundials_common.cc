@@ -9,7 +9,7 @@
 namespace clothbench::internal {
 
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
-               const std::string& error, ReferenceResult* res) {
+               const std::string& error, RunSummary* res) {
   using Clock = std::chrono::steady_clock;
   const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
   res->trajectory.times.assign(1, 0.0);
@@ -33,10 +33,13 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     double h = 0.0;
     int q = 0;
     d.last_step(&h, &q);
-    res->step_t.push_back(t);
-    res->step_h.push_back(h);
-    res->step_order.push_back(q);
-    res->step_time.push_back(seconds);
+    StepStats st;
+    st.t = t;
+    st.h = h;
+    st.updates = st.cg_iterations = st.colliding = -1;
+    st.solve_time = seconds;
+    st.error_order = q;
+    res->step_stats.push_back(st);
     while (next < frames.size() && frames[next] <= t + 1e-12) {
       if (next + 1 == frames.size() || frames[next] == t) {
         d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly
@@ -57,6 +60,15 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     res->status = "ok";
   }
   res->solver_time_in_seconds = solver_seconds;
+}
+
+void SummariseCounters(RunSummary* res) {
+  const SundialsStats& s = *res->sundials;
+  res->steps = static_cast<int>(s.nst);
+  res->fixed_point_updates = s.nni;
+  res->cg_iterations = s.nli;
+  res->rejected_steps = static_cast<int>(s.netf);
+  res->error_test_failures = static_cast<int>(s.netf);
 }
 
 FreeDofMap::FreeDofMap(const ParticleSystem& system) : sys_(system) {
@@ -95,7 +107,7 @@ void StoreErrorMessage(int code, const char* module, const char* function, char*
 }
 
 bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
-               ReferenceResult* res) {
+               RunSummary* res) {
   if (flag < 0 && res->message.empty()) {
     res->status = flag_name(flag);
     res->message = error.empty() ? fmt::format("{} failed with {}", call, res->status) : error;

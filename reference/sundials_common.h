@@ -21,36 +21,12 @@ struct ReferenceOptions {
   double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
 };
 
-/// SUNDIALS counters (CVodePrintAllStats / IDAPrintAllStats names).
-struct ReferenceStats {
-  long nst = -1;      ///< steps
-  long nfe = -1;      ///< right-hand side (CVODE), residual (IDA) or explicit f_E (ARKODE) evaluations
-  long nfe_i = -1;    ///< implicit f_I evaluations (ARKODE only)
-  long nni = -1;      ///< nonlinear (Newton) iterations
-  long nli = -1;      ///< linear iterations (0 for the direct KLU solver)
-  long netf = -1;     ///< error test failures
-  long ncfn = -1;     ///< nonlinear convergence failures
-  long nje = -1;      ///< Jacobian evaluations
-  long nsetups = -1;  ///< linear solver setups (KLU factorisations)
-};
-
-struct ReferenceResult {
-  bool ok = false;
-  std::string integrator;          ///< "cvode", "ida" or "bdf2_self_convergence"
-  double h = 0.0;                  ///< fixed step [s] of a self-convergence reference; 0 for SUNDIALS
-  std::string status = "not_run";  ///< "ok" or the SUNDIALS flag name
-  std::string message;
-  ReferenceStats stats;
-  double solver_time_in_seconds = -1.0;
-  double setup_time_in_seconds = -1.0;  ///< matrix and preconditioner setup (ARKODE's reduced solve) [s]
-  double wall_time_in_seconds = -1.0;
-  Trajectory trajectory;
-  std::vector<double> step_t, step_h;  ///< step history from one-step mode
-  std::vector<int> step_order;
-  std::vector<double> step_time;  ///< wall time of each one-step call [s]
-};
-
 namespace internal {
+
+/// Copies the SUNDIALS counters `res->sundials` into the generic ones:
+/// steps = nst, fixed_point_updates = nni, cg_iterations = nli,
+/// rejected_steps = error_test_failures = netf.
+void SummariseCounters(RunSummary* res);
 
 /// Calls of one SUNDIALS integrator used by the shared frame loop.
 struct OneStepDriver {
@@ -68,7 +44,7 @@ struct OneStepDriver {
 /// step history and the frames 0, frame_dt, …, t_end. `error` holds the
 /// message of the SUNDIALS error handler, if any.
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
-               const std::string& error, ReferenceResult* res);
+               const std::string& error, RunSummary* res);
 
 /// The free degrees of freedom of a particle system as a SUNDIALS state
 /// y = [x_free; v_free] (6·N_free entries; fixed particles are not
@@ -103,7 +79,7 @@ void StoreErrorMessage(int code, const char* module, const char* function, char*
 /// (`flag_name`: CVodeGetReturnFlagName, …), message = the error handler's
 /// text `error` or "<call> failed with <flag>". Returns flag >= 0.
 bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
-               ReferenceResult* res);
+               RunSummary* res);
 
 /// Copies a compressed-column Eigen matrix into a SUNDIALS CSC matrix
 /// (reallocating if needed). Returns 0 or −1.

@@ -4,6 +4,7 @@
 #ifndef CLOTHBENCH_SOLVER_RUN_H_
 #define CLOTHBENCH_SOLVER_RUN_H_
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,8 +29,28 @@ struct RunOptions {
   bool IsValid(std::string* error) const;
 };
 
-/// Summary of one run (counters -1 = not set, Ceres style).
+/// SUNDIALS counters (CVodePrintAllStats / IDAPrintAllStats names) of a run
+/// by CVODE, IDA (reference/) or ARKODE (peers/).
+struct SundialsStats {
+  long nst = -1;      ///< steps
+  long nfe = -1;      ///< right-hand side (CVODE), residual (IDA) or explicit f_E (ARKODE) evaluations
+  long nfe_i = -1;    ///< implicit f_I evaluations (ARKODE only)
+  long nni = -1;      ///< nonlinear (Newton) iterations
+  long nli = -1;      ///< linear iterations (0 for the direct KLU solver)
+  long netf = -1;     ///< error test failures
+  long ncfn = -1;     ///< nonlinear convergence failures
+  long nje = -1;      ///< Jacobian evaluations
+  long nsetups = -1;  ///< linear solver setups (KLU factorisations)
+};
+
+/// Summary of one run by any method: the thesis' integrators and the peers
+/// stepped by RunStepper, and the SUNDIALS runs (CVODE, IDA, ARKODE), which
+/// fill the same counters from their own (steps = nst, updates = nni,
+/// CG iterations = nli, rejected steps = error-test failures = netf) and add
+/// `sundials`. Counters −1 = not set (Ceres style).
 struct RunSummary {
+  std::string integrator;           ///< "cvode", "ida", "arkode", "bdf2_self_convergence"; empty for RunStepper runs
+  double h = 0.0;                   ///< fixed step [s] of a self-convergence reference run; 0 otherwise
   bool ok = false;
   std::string status = "not_run";   ///< "ok" or the failure (a StepStatus name)
   std::string message;              ///< why it stopped
@@ -45,8 +66,12 @@ struct RunSummary {
   /// the engine's construction) [s].
   double setup_time_in_seconds = -1.0;
   double wall_time_in_seconds = -1.0;    ///< whole run including frame output
-  std::vector<StepStats> step_stats;     ///< every attempt, rejected ones included
+  /// Every attempt, rejected ones included. SUNDIALS runs: every accepted
+  /// internal step with t, h, solve_time and error_order = the method order
+  /// q; updates, cg_iterations and colliding −1 (not counted per step).
+  std::vector<StepStats> step_stats;
   Trajectory trajectory;
+  std::optional<SundialsStats> sundials;  ///< SUNDIALS runs only
 
   /// One line: status, steps, updates, CG iterations, times.
   std::string BriefReport() const;

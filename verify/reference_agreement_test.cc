@@ -27,7 +27,7 @@ class ReferenceAgreementTest : public ::testing::TestWithParam<const char*> {
   }
   static ReferenceOptions Options(const Scene& s) { return {1e-8, 1e-8, 5, s.t_end, s.frame_dt}; }
   // max over frames of e_rms between two successful runs.
-  static std::optional<TrajectoryErrors> Compare(const ReferenceResult& a, const ReferenceResult& c) {
+  static std::optional<TrajectoryErrors> Compare(const RunSummary& a, const RunSummary& c) {
     EXPECT_TRUE(a.ok) << a.message;
     EXPECT_TRUE(c.ok) << c.message;
     if (!a.ok || !c.ok) return std::nullopt;
@@ -38,11 +38,11 @@ class ReferenceAgreementTest : public ::testing::TestWithParam<const char*> {
 TEST_P(ReferenceAgreementTest, IdaMatchesCvode) {
   const Scene s = FirstPart(GetParam());
   const ParticleSystem sys(s);
-  const ReferenceResult c = RunCvode(sys, Options(s)), i = RunIda(sys, Options(s));
+  const RunSummary c = RunCvode(sys, Options(s)), i = RunIda(sys, Options(s));
   const auto e = Compare(i, c);
   ASSERT_TRUE(e.has_value());
   std::printf("[ ida vs cvode ] %-14s rtol 1e-8: max_t e_rms = %.2e m (cvode %ld steps, ida %ld steps)\n", GetParam(),
-              e->rms_max, c.stats.nst, i.stats.nst);
+              e->rms_max, c.sundials->nst, i.sundials->nst);
   EXPECT_LT(e->rms_max, 1e-6);
   // Fixed particles stay exactly at rest in IDA's algebraic equations too.
   for (int p : sys.fixed())
@@ -55,12 +55,12 @@ TEST_P(ReferenceAgreementTest, IdaMatchesCvode) {
 TEST_P(ReferenceAgreementTest, ArkodeMatchesCvode) {
   const Scene s = FirstPart(GetParam());
   const ParticleSystem sys(s);
-  const ReferenceResult c = RunCvode(sys, Options(s)), a = RunArkode(sys, Options(s));
+  const RunSummary c = RunCvode(sys, Options(s)), a = RunArkode(sys, Options(s));
   const auto e = Compare(a, c);
   ASSERT_TRUE(e.has_value());
   std::printf("[ arkode vs cvode ] %-18s rtol 1e-8: max_t e_rms = %.2e m (cvode %ld steps, arkode %ld steps, "
               "%ld PCG iterations, eta %.0e)\n",
-              GetParam(), e->rms_max, c.stats.nst, a.stats.nst, a.stats.nli, s.solver.cg_tolerance);
+              GetParam(), e->rms_max, c.sundials->nst, a.sundials->nst, a.sundials->nli, s.solver.cg_tolerance);
   EXPECT_LT(e->rms_max, 1e-6);
 }
 

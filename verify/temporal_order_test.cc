@@ -89,7 +89,7 @@ Scene SmallSwingingSheet() {
 const MatrixN3& Reference() {
   static const MatrixN3 ref = [] {
     const ParticleSystem sys(SmallSwingingSheet());
-    const ReferenceResult r = RunCvode(sys, ReferenceOptions{1e-12, 1e-12, 5, 0.05, 0.05});
+    const RunSummary r = RunCvode(sys, ReferenceOptions{1e-12, 1e-12, 5, 0.05, 0.05});
     EXPECT_TRUE(r.ok) << r.message;
     return r.trajectory.positions.back();
   }();

@@ -81,7 +81,7 @@ TEST(Xpbd, RefusesZeroSubsteps) {
 TEST(Xpbd, ErrorFallsWithSubstepsOnTheSwingingSheet) {
   const Scene s = BuiltinScene("swinging_sheet");
   const ParticleSystem sys(s);
-  const ReferenceResult ref = RunCvode(sys, {1e-10, -1.0, 5, s.t_end, s.frame_dt});
+  const RunSummary ref = RunCvode(sys, {1e-10, -1.0, 5, s.t_end, s.frame_dt});
   ASSERT_TRUE(ref.ok) << ref.message;
   double previous = 0.0;
   for (int n : {4, 16, 64}) {
