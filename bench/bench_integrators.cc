@@ -379,7 +379,7 @@ void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::option
              std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());
 }
 
-// The equal-accuracy table (README "Work-precision"): each row label's
+// The equal-accuracy table (docs/work-precision.md): each row label's
 // (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
 EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets) {
   std::vector<std::string> labels;
@@ -629,7 +629,7 @@ int Main(int argc, char** argv) {
   app.add_option("--h", h_arg,
                  "comma-separated step sizes [s] of every fixed-step row and frame steps of the substepped rows "
                  "(default: per method, multiples of the scene's h chosen so that the default scene's runs bracket "
-                 "e_rms = 1e-3 m; README \"Work-precision\")");
+                 "e_rms = 1e-3 m; docs/work-precision.md)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference, "cvode | ida | none");
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");

@@ -6,7 +6,7 @@
 //
 // Row labels: the name, then "/newton" for a fully implicit method with
 // Newton's method, then "/error" for SBDF(2) and BDF(2) under local error
-// control (adaptive rows, README "Work-precision"): "bdf2/newton/error".
+// control (adaptive rows, docs/work-precision.md): "bdf2/newton/error".
 #ifndef CLOTHBENCH_BENCH_METHODS_H_
 #define CLOTHBENCH_BENCH_METHODS_H_
 
@@ -270,7 +270,7 @@ struct RowMethod {
 /// substepped rows) and tolerances rtol (adaptive rows). Chosen on the
 /// default scene (the swinging sheet, h = 0.01 s) so that each row's runs
 /// bracket e_rms = 1e-3 m where that fits the default run's time budget;
-/// the measured e_rms that justify them (README "Work-precision"):
+/// the measured e_rms that justify them (docs/work-precision.md):
 ///  - imex_euler: 0.61, 0.39, 0.18, 0.060 m at h, h/4, h/16, h/64. Its error
 ///    is 0.017 m at h/256; 1e-3 m would need h ≈ 2e-6 s (order 1), about
 ///    45 s of solver time, so its rows do not bracket 1e-3 m.

@@ -119,8 +119,7 @@ struct SolverSpec {
   double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (SPEC §5, see CgReference)
   CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
   int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
-  /// The CHOLMOD factor: fastest on the thesis scenes and at scale (README
-  /// "Linear solvers and scaling"); the thesis scenes name "ic0" explicitly.
+  /// The CHOLMOD factor: fastest on the thesis scenes and at scale (docs/performance.md); the thesis scenes name "ic0" explicitly.
   PreconditionerType preconditioner = PreconditionerType::kCholesky;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
@@ -132,7 +131,7 @@ struct SolverSpec {
   double fixed_point_tolerance = 0.0;
   /// Alg. 6 (the default and the thesis' reference) or Newton with J_α.
   NonlinearSolver nonlinear_solver = NonlinearSolver::kFixedPoint;
-  /// Newton: J_α at every iterate or once per step (README "Newton iterations").
+  /// Newton: J_α at every iterate or once per step (docs/newton.md).
   NewtonJacobian newton_jacobian = NewtonJacobian::kRefresh;
   TangentProjection tangent_projection = TangentProjection::kClamp;
   /// Newton and Baraff–Witkin: the explicit terms' Jacobians (shear, bending,
@@ -140,8 +139,7 @@ struct SolverSpec {
   bool tangent_explicit_terms = true;
   Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
   /// fixed h; the thesis' iteration-count controller (SPEC §6); or local
-  /// error control of SBDF(2)/BDF(2) against rtol/atol (README
-  /// "Work-precision").
+  /// error control of SBDF(2)/BDF(2) against rtol/atol (docs/work-precision.md).
   StepControl step_control = StepControl::kFixed;
   double rtol = 1e-4;                ///< step_control = "error": relative tolerance
   /// step_control = "error": absolute tolerance [m for x, m/s for v]; 0: atol = rtol.
@@ -182,7 +180,7 @@ struct Scene {
 };
 
 /// Parses and validates a scene from TOML text.
-/// @param text   TOML document (format: README "Scene format")
+/// @param text   TOML document (format: docs/scenes.md)
 /// @param source name used in error messages (a path or "<embedded>")
 /// @throws SceneError with a one-line message on any syntax error, unknown
 ///         key, wrong type or value out of range.

@@ -16,7 +16,7 @@
 //    Steps h = 4e-4 … 5e-5 s (numerical stiffness 0.1 … 0.0016): there
 //    (a) the fixed-point loop of the implicit methods converges (contraction
 //    ≈ α²h²sλ/(m + α²h²sλ) ≤ 0.45) and (b) IMEX Euler is past its
-//    pre-asymptotic range (README "Observed order"). CG tolerance 1e-13 and a
+//    pre-asymptotic range (docs/verification.md, "Observed order"). CG tolerance 1e-13 and a
 //    fixed-point tolerance of 1e-14 m/s keep solver errors below 1e-11 m,
 //    under the smallest measured error.
 //
