@@ -194,6 +194,18 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   std::string terms;
   for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ",") + t;
   f.SetAttribute("/scene", "explicit_terms", terms);
+  // The grid's quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
+  // particle indices, counter-clockwise in (u, v).
+  {
+    const int nu = scene.grid.nu, nv = scene.grid.nv;
+    std::vector<int32_t> faces;
+    faces.reserve(static_cast<std::size_t>(4 * (nu - 1) * (nv - 1)));
+    for (int j = 0; j + 1 < nv; ++j)
+      for (int i = 0; i + 1 < nu; ++i)
+        for (int q : {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)})
+          faces.push_back(q);
+    f.WriteTable("/scene/faces", (nu - 1) * (nv - 1), 4, faces);
+  }
   if (ref) {
     f.CreateGroup("/reference");
     f.SetAttribute("/reference", "integrator", ref->integrator);

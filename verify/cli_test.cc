@@ -137,6 +137,24 @@ TEST(BenchCli, CompleteRunWritesLayout) {
   EXPECT_EQ(dims[2], 3u);
   H5Sclose(sp);
   H5Dclose(ds);
+  // The grid's quads once: (4 − 1) × (3 − 1) = 6 faces of 4 particle
+  // indices; the first is (0,0), (1,0), (1,1), (0,1) = 0, 1, 5, 4.
+  const hid_t fd = H5Dopen2(f, "/scene/faces", H5P_DEFAULT);
+  ASSERT_GE(fd, 0);
+  const hid_t fsp = H5Dget_space(fd);
+  hsize_t fdims[2];
+  ASSERT_EQ(H5Sget_simple_extent_dims(fsp, fdims, nullptr), 2);
+  EXPECT_EQ(fdims[0], 6u);
+  EXPECT_EQ(fdims[1], 4u);
+  std::vector<int32_t> faces(24);
+  ASSERT_GE(H5Dread(fd, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, faces.data()), 0);
+  EXPECT_EQ(faces[0], 0);
+  EXPECT_EQ(faces[1], 1);
+  EXPECT_EQ(faces[2], 5);
+  EXPECT_EQ(faces[3], 4);
+  EXPECT_EQ(faces[23], 10);  // last quad (2,1), (3,1), (3,2), (2,2) = 6, 7, 11, 10
+  H5Sclose(fsp);
+  H5Dclose(fd);
   H5Fclose(f);
 }
 
