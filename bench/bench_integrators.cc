@@ -550,24 +550,27 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                        {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}},
                       av.h / 16.0});
   }
-  // References: one per (block, k, d), computed once for all η.
-  std::vector<std::vector<std::optional<RunSummary>>> refs(blocks.size());
+  // References: one per (block, k, d), computed once for all η; ref_of[b][i]
+  // indexes row i's in `references`.
+  std::vector<RunSummary> references;
+  std::vector<std::vector<std::size_t>> ref_of(blocks.size());
   for (std::size_t b = 0; b < blocks.size(); ++b)
     for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
       const ThesisRow& tr = blocks[b].rows[i];
-      std::optional<RunSummary> same;
-      for (std::size_t j = 0; j < i; ++j)
-        if (blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d) same = refs[b][j];
-      if (!same) {
-        Scene s = blocks[b].scene;
-        s.material.tension = {tr.k, tr.k};
-        s.material.tension_damping = tr.d;
-        same = SelfConvergenceReference(s, blocks[b].h_ref);
-        if (!same->ok)
-          fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
-                     blocks[b].h_ref, blocks[b].scene_name, tr.k, tr.d, same->message);
+      std::size_t j = 0;
+      while (j < i && !(blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d)) ++j;
+      if (j < i) {
+        ref_of[b].push_back(ref_of[b][j]);
+        continue;
       }
-      refs[b].push_back(same);
+      Scene s = blocks[b].scene;
+      s.material.tension = {tr.k, tr.k};
+      s.material.tension_damping = tr.d;
+      references.push_back(SelfConvergenceReference(s, blocks[b].h_ref));
+      if (!references.back().ok)
+        fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
+                   blocks[b].h_ref, blocks[b].scene_name, tr.k, tr.d, references.back().message);
+      ref_of[b].push_back(references.size() - 1);
     }
   for (double eta : etas) {
     CountDistance distance;
@@ -592,8 +595,9 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
           const std::unique_ptr<Stepper> stepper = m.Make(sys, s.solver);
           const RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
           std::optional<double> err;
-          if (r.ok && refs[b][i] && refs[b][i]->ok)
-            if (const auto e = CompareTrajectories(r.trajectory.positions, refs[b][i]->trajectory.positions))
+          const RunSummary& ref = references[ref_of[b][i]];
+          if (r.ok && ref.ok)
+            if (const auto e = CompareTrajectories(r.trajectory.positions, ref.trajectory.positions))
               err = e->rms_at_end;
           if (r.ok) {
             distance.Add(r.fixed_point_updates, tr.updates);
@@ -839,7 +843,7 @@ int Main(int argc, char** argv) {
           if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
           if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
           const std::size_t k = rows.size() - 1;
-          // Observed order against the (sub)step h/n; 0/0 when two rows have the same one.
+          // Observed order against the (sub)step h/n; none between two rows with the same one.
           const auto step = [](const Row& q) { return q.substeps > 0 ? q.h / q.substeps : q.h; };
           if (m.kind() != StepKind::kAdaptive && k > first && r.err && rows[k - 1].err && step(rows[k - 1]) != step(r))
             r.order = ObservedOrder(step(rows[k - 1]), rows[k - 1].err->rms_at_end, step(r), r.err->rms_at_end);

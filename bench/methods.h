@@ -272,7 +272,8 @@ struct RowMethod {
 /// bracket e_rms = 1e-3 m where that fits the default run's time budget;
 /// the measured e_rms that justify them (docs/work-precision.md):
 ///  - imex_euler: 0.61, 0.39, 0.18, 0.060 m at h, h/4, h/16, h/64. Its error
-///    is 0.017 m at h/256; 1e-3 m would need h ≈ 2e-6 s (order 1), about
+///    is 0.017 m at h/256 (`bench_integrators --integrators
+///    imex_euler,implicit_euler/newton --h 0.01,0.0025,6.25e-4,1.5625e-4,3.90625e-5`); 1e-3 m would need h ≈ 2e-6 s (order 1), about
 ///    45 s of solver time, so its rows do not bracket 1e-3 m.
 ///  - implicit_euler: 3.0e-3, 1.5e-3, 7.5e-4 m at h/8, h/16, h/32 (larger h
 ///    cost more: fixed-point rejections).
@@ -285,7 +286,7 @@ struct RowMethod {
 ///    halved, so no run reaches 1e-3 m.
 ///  - bdf2/newton: 7.9e-3, 2.7e-3, 7.4e-4 m at 4h, 2h, h.
 ///  - implicit_midpoint/newton: 4.0e-3, 9.9e-4, 2.5e-4 m at 4h, 2h, h.
-///  - baraff_witkin: 3.0e-3 m at h/8, ≈ 7.5e-4 m at h/32 (order 1).
+///  - baraff_witkin: 3.0e-3 m at h/8, 7.8e-4 m at h/32.
 ///  - xpbd: frame steps h and h/16 with --substeps 1,4,16,64 give
 ///    substeps h/1 … h/1024: 0.19 … 2.7e-3 m at h/256 and ≈ 6.7e-4 m at h/1024.
 ///  - cvode, sbdf2/error, bdf2/newton/error: rtol 1e-2 … 1e-7; arkode

@@ -176,9 +176,8 @@ StepStats Xpbd::Step(double h) {
     p_ = x_ + dt * v_;
     // 3.–4. One sweep: λ = 0, Δλ by Eq. 26, in a fixed order (deterministic).
     //    The dampers go first: after a distance projection they would see its
-    //    correction as relative motion and undo most of it (β Δt w = 6 on
-    //    the swinging sheet at Δt = 0.01 s, where the sheet then falls
-    //    freely, stretched 18×).
+    //    correction as relative motion and undo most of it (β Δt w ≈ 6 on
+    //    the swinging sheet at Δt = 0.01 s).
     if (has_dampers_)
       for (const Distance& c : distance_) {
         if (c.damping == 0.0) continue;

@@ -10,8 +10,8 @@
 //    the damping term of XPBD Eq. 26 on the vector constraint C = x_b − x_a
 //    with β = c_e and zero stiffness (α → ∞), ProjectDamper. Eq. 26's
 //    damping on the distance constraint itself would damp only along the
-//    spring: a different model, whose trajectories differ from the
-//    reference's by 0.41 m e_rms on the swinging sheet however small Δt;
+//    spring: a different model, whose trajectories do not converge to the
+//    reference's as Δt shrinks;
 //  - shear (μ > 0): one constraint per particle, C = γ_ij of SPEC §2.2, with
 //    α = 1/(μ lu lv) (energy ½ μ γ² lu lv) and β = d_s lu lv;
 //  - everything else (bending, transverse contraction, gravity, wind, air)
