@@ -26,6 +26,9 @@
 #include "reference/ida_reference.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
+#include "results/result_reader.h"
+#include "results/run_table.h"
+#include "results/xdmf.h"
 #include "results/work_precision.h"
 #include "solver/run.h"
 
@@ -138,62 +141,114 @@ void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
   f.WriteVector(g + "/energy/external_work", e.external_work, "J");
   f.WriteVector(g + "/energy/total", e.total, "J");
   f.WriteVectors3(g + "/momentum", e.momentum, "kg m/s");
-  if (e.t.size() >= 2) f.SetAttribute(g, "energy_rate_W", e.Rate());
 }
 
-// Velocities: every frame ("all", "ends"), or only the first and the last
-// frame as velocities_ends [2, N, 3] ("positions", the default: double
-// precision trajectories compress only ~1.2× losslessly, so leaving out the
-// per-frame velocities is what halves the default file).
-void WriteVelocities(ResultFile& f, const std::string& group, const std::vector<MatrixN3>& v, const std::string& frames) {
-  if (frames != "positions" || v.size() <= 2) {
-    f.WriteFrames(group + "/velocities", v, "m/s");
-    return;
+// Writes a trajectory's frames under group g: "positions" / "velocities"
+// [F, N, 3] at every frame (aligned with g/times) when `every_*` is set,
+// else "positions_ends" / "velocities_ends" [2, N, 3] at t = 0 and t_end;
+// plus per-frame views g/frame_views/<name>_<k> for XDMF readers.
+// Double-precision trajectories compress only ~1.2× losslessly, so which
+// frames are kept is what sets the file size (docs/results-schema.md).
+void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory& traj, bool every_position,
+                           bool every_velocity) {
+  const auto write = [&](const std::vector<MatrixN3>& frames, bool every, const std::string& name,
+                         const std::string& units) {
+    if (frames.empty()) return;
+    const std::string path = g + "/" + name + (every || frames.size() <= 2 ? "" : "_ends");
+    if (every || frames.size() <= 2) f.WriteFrames(path, frames, units);
+    else f.WriteFrames(path, {frames.front(), frames.back()}, units);
+    f.WriteFrameViews(path, g + "/frame_views/" + name + "_");
+  };
+  write(traj.positions, every_position, "positions", "m");
+  write(traj.velocities, every_velocity, "velocities", "m/s");
+}
+
+// The table's content as plain data (results/run_table.h): what is printed
+// and what the file stores, so that clothbench_inspect can print it again.
+RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
+                      const ReferenceOptions& ref_opts, const std::vector<Row>& rows, const std::string& frames_mode,
+                      const EqualAccuracyTable* wp) {
+  RunTable t;
+  t.created = NowIso8601Utc();
+  t.git_commit = GitCommit();
+  t.host = HostName();
+  t.compiler = CompilerId();
+  t.build_type = BuildType();
+  t.hardware_threads = static_cast<long>(std::thread::hardware_concurrency());
+  t.scene_name = scene.name;
+  t.scene_source = scene.source;
+  for (const std::string& term : sys.TermNames()) t.explicit_terms += (t.explicit_terms.empty() ? "" : ",") + term;
+  t.frames = frames_mode;
+  t.n_particles = static_cast<long>(sys.num_particles());
+  t.n_fixed = static_cast<long>(sys.fixed().size());
+  t.t_end = scene.t_end;
+  t.frame_dt = scene.frame_dt;
+  t.h = scene.h;
+  t.numerical_stiffness = scene.NumericalStiffness(scene.h);
+  t.cg_tolerance = scene.solver.cg_tolerance;
+  t.cg_reference = ToString(scene.solver.cg_reference);
+  t.preconditioner = ToString(scene.solver.preconditioner);
+  t.predictor = ToString(scene.solver.predictor);
+  t.max_updates = scene.solver.max_updates;
+  if (ref) {
+    ReferenceRecord rr;
+    rr.integrator = ref->integrator;
+    if (ref->integrator == "bdf2_self_convergence") rr.h = ref->h;
+    else rr.rtol = ref_opts.rtol;
+    rr.steps = ref->steps;
+    rr.wall_time_s = ref->wall_time_in_seconds;
+    const EnergySeries e = ComputeEnergies(sys, ref->trajectory);
+    if (e.t.size() >= 2) rr.energy_rate_W = e.Rate();
+    t.reference = rr;
   }
-  f.WriteFrames(group + "/velocities_ends", {v.front(), v.back()}, "m/s");
-}
-
-void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
-  f.CreateGroup("/work_precision");
-  f.SetAttribute("/work_precision", "reference_method", std::string("cvode"));
-  f.SetAttribute("/work_precision", "measure",
-                 std::string("solver_time_s at e_rms(t_end) = target, log-log interpolation between bracketing runs; "
-                             "-1 where the runs do not bracket the target"));
-  f.WriteVector("/work_precision/targets", t.targets, "m");
-  std::string labels;
-  for (const std::string& l : t.labels) labels += (labels.empty() ? "" : ",") + l;
-  f.SetAttribute("/work_precision", "labels", labels);
-  const int rows = static_cast<int>(t.labels.size()), cols = static_cast<int>(t.targets.size());
-  std::vector<double> cost, ratio;
-  for (int m = 0; m < rows; ++m)
-    for (int j = 0; j < cols; ++j) {
-      cost.push_back(t.cost[m][j].value_or(-1.0));
-      ratio.push_back(t.ratio[m][j].value_or(-1.0));
+  for (const Row& r : rows) {
+    RunRecord q;
+    q.id = r.id;
+    q.label = r.label;
+    q.integrator = r.method;
+    q.layer = r.layer;
+    q.step_kind = ToString(r.kind);
+    q.nonlinear_solver = r.nonlinear_solver;
+    q.h = r.h;
+    q.rtol = r.rtol;
+    q.substeps = r.substeps;
+    q.cg_tolerance = r.cg_tolerance;
+    q.constraints = r.constraints;
+    q.explicit_terms = r.explicit_terms;
+    q.status = r.ok ? "ok" : r.status;
+    q.message = r.message;
+    q.steps = r.steps;
+    q.updates = r.updates;
+    q.cg_iterations = r.cg;
+    q.rejected = r.rejected;
+    q.error_test_failures = r.error_test_failures;
+    q.solver_time_s = r.solver_time;
+    q.wall_time_s = r.wall_time;
+    q.setup_time_s = r.setup_time;
+    q.numerical_stiffness = r.stiffness;
+    if (r.err) {
+      q.error_rms_m = r.err->rms_at_end;
+      q.error_max_m = r.err->rms_max;
+      q.error_mean_m = r.err->mean_at_end;
     }
-  f.WriteTable("/work_precision/solver_time", rows, cols, cost, "s");
-  f.WriteTable("/work_precision/ratio_to_cvode", rows, cols, ratio, "");
-  std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
-  f.WriteTable("/work_precision/fastest", 1, cols, fastest);
+    q.observed_order = r.order;
+    if (r.ok && r.energy.t.size() >= 2) q.energy_rate_W = r.energy.Rate();
+    t.runs.push_back(std::move(q));
+  }
+  if (wp) t.work_precision = *wp;
+  return t;
 }
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
-                  const std::string& frames_mode, const EqualAccuracyTable* wp) {
+                  const RunTable& table) {
+  const std::string& frames_mode = table.frames;
   const bool write_frames = frames_mode != "none";
   ResultFile f(path);
   WriteProvenance(f);
   f.CreateGroup("/scene");
-  f.SetAttribute("/scene", "name", scene.name);
-  f.SetAttribute("/scene", "source", scene.source);
+  WriteSceneRecord(f, table);
   f.SetAttribute("/scene", "toml", scene.toml);
-  f.SetAttribute("/scene", "n_particles", static_cast<long>(sys.num_particles()));
-  f.SetAttribute("/scene", "n_fixed", static_cast<long>(sys.fixed().size()));
-  f.SetAttribute("/scene", "t_end", scene.t_end);
-  f.SetAttribute("/scene", "frame_dt", scene.frame_dt);
-  f.SetAttribute("/scene", "frames", frames_mode);
-  std::string terms;
-  for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ",") + t;
-  f.SetAttribute("/scene", "explicit_terms", terms);
   // The grid's quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
   // particle indices, counter-clockwise in (u, v).
   {
@@ -225,11 +280,11 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
       for (auto [name, v] : {std::pair{"nst", s->nst}, {"nfe", s->nfe}, {"nni", s->nni}, {"nli", s->nli},
                              {"netf", s->netf}, {"ncfn", s->ncfn}, {"nje", s->nje}, {"nsetups", s->nsetups}})
         f.SetAttribute("/reference", name, v);
+    if (table.reference->energy_rate_W) f.SetAttribute("/reference", "energy_rate_W", *table.reference->energy_rate_W);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
-    if (write_frames) {
-      f.WriteFrames("/reference/positions", ref->trajectory.positions);
-      WriteVelocities(f, "/reference", ref->trajectory.velocities, frames_mode);
-    }
+    if (write_frames)
+      WriteTrajectoryFrames(f, "/reference", ref->trajectory, frames_mode != "none",
+                            frames_mode == "all" || frames_mode == "ends");
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
     for (const StepStats& s : ref->step_stats)
@@ -237,30 +292,12 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteStepStats("/reference/step_stats", st);
   }
   f.CreateGroup("/runs");
-  for (const Row& r : rows) {
+  std::string last_label;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const Row& r = rows[k];
     const std::string g = "/runs/" + r.id;
     f.CreateGroup(g);
-    f.SetAttribute(g, "integrator", r.method);
-    f.SetAttribute(g, "label", r.label);
-    f.SetAttribute(g, "layer", r.layer);
-    f.SetAttribute(g, "step_kind", std::string(ToString(r.kind)));
-    if (!r.nonlinear_solver.empty()) f.SetAttribute(g, "nonlinear_solver", r.nonlinear_solver);
-    if (r.kind == StepKind::kAdaptive) f.SetAttribute(g, "rtol", r.rtol);
-    else f.SetAttribute(g, "h", r.h);
-    if (r.kind == StepKind::kSubstepped) f.SetAttribute(g, "substeps", static_cast<long>(r.substeps));
-    if (!r.constraints.empty()) f.SetAttribute(g, "constraints", r.constraints);
-    if (!r.explicit_terms.empty()) f.SetAttribute(g, "explicit_terms", r.explicit_terms);
-    if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
-    f.SetAttribute(g, "status", r.status);
-    if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
-    f.SetAttribute(g, "steps", r.steps);
-    f.SetAttribute(g, "fixed_point_updates", r.updates);
-    f.SetAttribute(g, "cg_iterations", r.cg);
-    f.SetAttribute(g, "rejected_steps", r.rejected);
-    f.SetAttribute(g, "solver_time_s", r.solver_time);
-    if (r.setup_time >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time);
-    f.SetAttribute(g, "wall_time_s", r.wall_time);
-    f.SetAttribute(g, "numerical_stiffness", r.stiffness);
+    WriteRunRecord(f, g, table.runs[k]);
     if (r.sundials) {
       for (auto [name, v] : {std::pair{"nst", r.sundials->nst}, {"nfe", r.sundials->nfe}, {"nfe_i", r.sundials->nfe_i},
                              {"nni", r.sundials->nni}, {"nli", r.sundials->nli}, {"netf", r.sundials->netf},
@@ -268,24 +305,22 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
         if (v >= 0) f.SetAttribute(g, name, v);
     }
     if (r.cg_tolerance > 0.0) {
-      f.SetAttribute(g, "cg_tolerance", r.cg_tolerance);
       f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
       f.SetAttribute(g, "preconditioner", std::string(ToString(scene.solver.preconditioner)));
       f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
       f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
     }
-    // Errors only where they exist: no NaN is ever written.
-    if (r.err) {
-      f.SetAttribute(g, "error_rms_m", r.err->rms_at_end);
-      f.SetAttribute(g, "error_max_m", r.err->rms_max);
-      f.SetAttribute(g, "error_mean_m", r.err->mean_at_end);
-    }
-    if (r.order) f.SetAttribute(g, "observed_order", *r.order);
     f.WriteVector(g + "/times", r.traj.times, "s");
-    if (write_frames) {
-      f.WriteFrames(g + "/positions", r.traj.positions);
-      WriteVelocities(f, g, r.traj.velocities, frames_mode);
-    }
+    // --frames default: every frame of each label's first row (its largest
+    // h or rtol, where its motion differs most from the reference), the ends
+    // of the others.
+    const bool first_of_label = r.label != last_label;
+    last_label = r.label;
+    if (write_frames)
+      WriteTrajectoryFrames(f, g, r.traj,
+                            frames_mode == "all" || frames_mode == "positions" || frames_mode == "ends" ||
+                                (frames_mode == "default" && first_of_label),
+                            frames_mode == "all" || frames_mode == "ends");
     WriteEnergy(f, g, r.energy);
     if (!sys.obstacles().empty()) {
       const PenetrationSeries pen = ComputePenetration(sys, r.traj);
@@ -298,7 +333,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteStepStats(g + "/step_stats", r.steps_table);
     if (!r.bdf_order.empty()) f.WriteVector(g + "/method_order", r.bdf_order, "");
   }
-  if (wp) WriteWorkPrecision(f, *wp);
+  if (table.work_precision) WriteWorkPrecision(f, *table.work_precision);
   f.Commit();
 }
 
@@ -334,63 +369,6 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 
-void PrintTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
-                const ReferenceOptions& ref_opts, const std::vector<Row>& rows, double t_end) {
-  std::string terms;
-  for (const std::string& t : sys.TermNames()) terms += (terms.empty() ? "" : ", ") + t;
-  fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", scene.name,
-             scene.source, sys.num_particles(), sys.fixed().size(), t_end, terms);
-  fmt::print("solver: cg_tolerance {:g} ({}), preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
-             "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
-             scene.solver.cg_tolerance, ToString(scene.solver.cg_reference), ToString(scene.solver.preconditioner),
-             scene.solver.max_updates,
-             ToString(scene.solver.predictor), scene.NumericalStiffness(scene.h), scene.h);
-  if (ref && ref->integrator == "bdf2_self_convergence")
-    fmt::print("reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
-               "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s\n",
-               ref->h, ref->steps, ref->wall_time_in_seconds);
-  else if (ref)
-    fmt::print("reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {:.3e} W\n",
-               ref->integrator == "ida" ? "IDA" : "CVODE", ref_opts.rtol, ref->steps, ref->wall_time_in_seconds,
-               ComputeEnergies(sys, ref->trajectory).Rate());
-  else
-    fmt::print("reference: none (error columns empty)\n");
-  fmt::print("\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol", "steps",
-             "updates", "cg_iters", "solver_s", "setup_s", "e_rms_m", "order", "dE/dt_W", "status");
-  std::string last;
-  for (const Row& r : rows) {
-    const std::string& label = r.label;
-    if (!last.empty() && last != label) fmt::print("\n");
-    last = label;
-    const std::string hcol = r.kind == StepKind::kAdaptive     ? fmt::format("{:g}", r.rtol)
-                             : r.kind == StepKind::kSubstepped ? fmt::format("{:g}/{}", r.h, r.substeps)
-                                                               : fmt::format("{:g}", r.h);
-    fmt::print("{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", label, hcol,
-               r.steps, r.updates, r.cg, r.solver_time, r.setup_time >= 0 ? fmt::format("{:.3f}", r.setup_time) : "",
-               r.err ? Sci(r.err->rms_at_end) : "",
-               r.order ? fmt::format("{:.2f}", *r.order) : "", r.ok ? fmt::format("{:.3e}", r.energy.Rate()) : "",
-               r.ok ? "ok" : r.status);
-    if (r.ok && r.rejected > 0)
-      fmt::print("{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
-                 r.error_test_failures > 0 ? fmt::format(", {} by the error test", r.error_test_failures) : "");
-  }
-  fmt::print("\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
-             "frame step/substeps of substepped rows (xpbd).\n");
-  for (const Row& r : rows)
-    if (r.kind == StepKind::kSubstepped) {
-      fmt::print("xpbd rows: updates = substeps (one constraint sweep each); constraints: {}; explicit forces in the "
-                 "prediction: {}.\n",
-                 r.constraints, r.explicit_terms.empty() ? "none" : r.explicit_terms);
-      break;
-    }
-  fmt::print("cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode/ida: 0, the "
-             "direct KLU solver; arkode: our PCG's iterations).\n");
-  fmt::print("setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the preconditioner.\n");
-  fmt::print("dE/dt_W: (E(t_end) - E(0) - W_ext)/t_end, energy gained (> 0) or dissipated (< 0) beyond external work.\n");
-  fmt::print("machine: {}, {} hardware threads, {}, {} build, commit {}\n", HostName(),
-             std::thread::hardware_concurrency(), CompilerId(), BuildType(), GitCommit());
-}
-
 // The equal-accuracy table (docs/work-precision.md): each row label's
 // (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
 EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets) {
@@ -406,29 +384,6 @@ EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector
     if (r.ok && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time, r.err->rms_at_end});
   }
   return BuildEqualAccuracyTable(labels, points, targets, "cvode");
-}
-
-void PrintWorkPrecision(const EqualAccuracyTable& t) {
-  fmt::print("\nEqual accuracy: solver time [s] at e_rms(t_end) = target, interpolated log-log between the two runs "
-             "that bracket it (never extrapolated; '-': the runs do not bracket the target); x = ratio to cvode\n");
-  fmt::print("{:<28}", "method");
-  for (double e : t.targets) fmt::print(" {:>22}", fmt::format("e_rms {:g} m", e));
-  fmt::print("\n");
-  for (std::size_t m = 0; m < t.labels.size(); ++m) {
-    fmt::print("{:<28}", t.labels[m]);
-    for (std::size_t j = 0; j < t.targets.size(); ++j) {
-      std::string cell = "-";
-      if (t.cost[m][j])
-        cell = t.ratio[m][j] ? fmt::format("{:.3f} s ({:.2f}x)", *t.cost[m][j], *t.ratio[m][j])
-                             : fmt::format("{:.3f} s", *t.cost[m][j]);
-      fmt::print(" {:>22}", cell);
-    }
-    fmt::print("\n");
-  }
-  fmt::print("{:<28}", "fastest");
-  for (std::size_t j = 0; j < t.targets.size(); ++j)
-    fmt::print(" {:>22}", t.fastest[j] >= 0 ? t.labels[static_cast<std::size_t>(t.fastest[j])] : "-");
-  fmt::print("\n");
 }
 
 // A tight self-convergence reference for obstacle scenes, where CVODE and
@@ -628,7 +583,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  std::string series, table, preconditioner, frames_mode = "positions", nonlinear_arg;
+  std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false;
   app.add_option("--scene", scene_path,
@@ -667,9 +622,11 @@ int Main(int argc, char** argv) {
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
   app.add_option("--frames", frames_mode,
-                 "positions (default): positions every frame_dt, velocities at t = 0 and t_end | all: positions and "
-                 "velocities every frame_dt | ends: both only at t = 0 and t_end (errors and energies at the ends) | "
-                 "none: no frame datasets in the file (errors at t_end still computed)");
+                 "which frames the file keeps (errors and energies always use every frame_dt): default: positions "
+                 "every frame_dt for the reference and each method's first row, at t = 0 and t_end for the other "
+                 "rows, velocities at t = 0 and t_end | all: positions and velocities every frame_dt | positions: "
+                 "positions every frame_dt, velocities at the ends | ends: only t = 0 and t_end are computed and "
+                 "kept (errors and energies at the ends) | none: no frame datasets (errors at t_end still computed)");
   app.add_option("--series", series,
                  "write every step (t, h, updates, CG iterations, colliding particles) as CSV to FILE and print the "
                  "impact / resting-contact summary (thesis Fig. 4.3)");
@@ -718,8 +675,9 @@ int Main(int argc, char** argv) {
       scene.solver.cg_tolerance = cg_tolerance;
     }
     if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner);
-    if (frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" && frames_mode != "none")
-      throw UsageError(fmt::format("--frames: \"{}\" must be positions, all, ends or none", frames_mode));
+    if (frames_mode != "default" && frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" &&
+        frames_mode != "none")
+      throw UsageError(fmt::format("--frames: \"{}\" must be default, all, positions, ends or none", frames_mode));
     // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
     // leaves the frame datasets out of the file.
     if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
@@ -850,12 +808,15 @@ int Main(int argc, char** argv) {
         }
       }
     }
-    if (!work_precision_only) PrintTable(scene, sys, ref, ref_opts, rows, scene.t_end);
     const EqualAccuracyTable wp = WorkPrecision(rows, targets);
-    if (ref) PrintWorkPrecision(wp);
+    const RunTable run_table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);
+    if (!work_precision_only) PrintRunTable(stdout, run_table);
+    if (ref) PrintWorkPrecision(stdout, wp);
     if (!series.empty()) WriteSeries(series, rows);
-    WriteResults(out, scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);
+    WriteResults(out, scene, sys, ref, ref_opts, rows, run_table);
+    const std::string xdmf = WriteXdmf(out);
     fmt::print("results: {}\n", out);
+    if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
     return 0;
   } catch (const UsageError& e) {
     fmt::print(stderr, "bench_integrators: {}\n", e.what());

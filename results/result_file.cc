@@ -6,11 +6,13 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <thread>
 
 #include <fmt/format.h>
 #include <hdf5.h>
 
 #include "git_commit.h"  // generated at build time
+#include "results/run_table.h"
 
 namespace clothbench {
 namespace {
@@ -51,7 +53,10 @@ ResultFile::~ResultFile() {
 void ResultFile::CreateGroup(const std::string& path) {
   Handle lcpl{H5Pcreate(H5P_LINK_CREATE), H5Pclose};
   H5Pset_create_intermediate_group(lcpl.id, 1);
-  Handle g{Check(H5Gcreate2(file_, path.c_str(), lcpl.id, H5P_DEFAULT, H5P_DEFAULT), "cannot create group " + path, path_),
+  // Links keep their creation order, so readers list runs in run order.
+  Handle gcpl{H5Pcreate(H5P_GROUP_CREATE), H5Pclose};
+  H5Pset_link_creation_order(gcpl.id, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
+  Handle g{Check(H5Gcreate2(file_, path.c_str(), lcpl.id, gcpl.id, H5P_DEFAULT), "cannot create group " + path, path_),
            H5Gclose};
 }
 
@@ -165,6 +170,31 @@ void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3
   SetAttribute(path, "units", units);
 }
 
+void ResultFile::WriteFrameViews(const std::string& frames_path, const std::string& view_prefix) {
+  Handle src{Check(H5Dopen2(file_, frames_path.c_str(), H5P_DEFAULT), "cannot open " + frames_path, path_), H5Dclose};
+  Handle src_space{H5Dget_space(src.id), H5Sclose};
+  hsize_t dims[3] = {0, 0, 0};
+  if (H5Sget_simple_extent_ndims(src_space.id) != 3) throw ResultError(fmt::format("{}: {} is not [F, N, 3]", path_, frames_path));
+  H5Sget_simple_extent_dims(src_space.id, dims, nullptr);
+  const hsize_t view_dims[2] = {dims[1], dims[2]};
+  Handle view_space{H5Screate_simple(2, view_dims, nullptr), H5Sclose};
+  const hsize_t count[3] = {1, dims[1], dims[2]};
+  for (hsize_t k = 0; k < dims[0]; ++k) {
+    const hsize_t start[3] = {k, 0, 0};
+    H5Sselect_hyperslab(src_space.id, H5S_SELECT_SET, start, nullptr, count, nullptr);
+    Handle dcpl{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
+    // "." : the source dataset is in this file (under its final name too).
+    Check(H5Pset_virtual(dcpl.id, view_space.id, ".", frames_path.c_str(), src_space.id),
+          "cannot map a view of " + frames_path, path_);
+    const std::string view = view_prefix + std::to_string(k);
+    Handle lcpl{H5Pcreate(H5P_LINK_CREATE), H5Pclose};
+    H5Pset_create_intermediate_group(lcpl.id, 1);
+    Handle ds{Check(H5Dcreate2(file_, view.c_str(), H5T_IEEE_F64LE, view_space.id, lcpl.id, dcpl.id, H5P_DEFAULT),
+                    "cannot create dataset " + view, path_),
+              H5Dclose};
+  }
+}
+
 void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows) {
   Handle mem{H5Tcreate(H5T_COMPOUND, sizeof(StepRecord)), H5Tclose};
   H5Tinsert(mem.id, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
@@ -195,12 +225,13 @@ void ResultFile::Commit() {
 }
 
 void WriteProvenance(ResultFile& f) {
-  f.SetAttribute("/", "schema", std::string("clothbench/1"));
+  f.SetAttribute("/", "schema", std::string(kResultSchema));
   f.SetAttribute("/", "created", NowIso8601Utc());
   f.SetAttribute("/", "git_commit", GitCommit());
   f.SetAttribute("/", "host", HostName());
   f.SetAttribute("/", "compiler", CompilerId());
   f.SetAttribute("/", "build_type", BuildType());
+  f.SetAttribute("/", "hardware_threads", static_cast<long>(std::thread::hardware_concurrency()));
 }
 
 std::string HostName() {

@@ -1,4 +1,4 @@
-// HDF5 result files (schema "clothbench/1"), written
+// HDF5 result files (schema kResultSchema, results/run_table.h), written
 // through the HDF5 C API. A file is written under "<path>.tmp" and renamed
 // to <path> only by Commit(), so an interrupted run never leaves a half file
 // under the final name.
@@ -50,6 +50,11 @@ class ResultFile {
   /// [F, N, 3] float64 from F frames of N×3 (positions [m], velocities [m/s]),
   /// chunked one frame per chunk, compressed with byte shuffle + deflate.
   void WriteFrames(const std::string& path, const std::vector<MatrixN3>& frames, const std::string& units = "m");
+  /// Per-frame views of the [F, N, 3] dataset `frames_path`: F virtual
+  /// datasets "<view_prefix>k" [N, 3] (HDF5 virtual datasets, no copy), so
+  /// that readers which take whole datasets only (XDMF readers: ParaView,
+  /// meshio) can address one frame. Intermediate groups are created.
+  void WriteFrameViews(const std::string& frames_path, const std::string& view_prefix);
   /// 2-D row-major table [rows, cols] of float64 or int32.
   void WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values, const std::string& units);
   void WriteTable(const std::string& path, int rows, int cols, const std::vector<int32_t>& values);
@@ -68,8 +73,8 @@ class ResultFile {
   bool committed_ = false;
 };
 
-/// Writes the root attributes schema, created, git_commit, host, compiler and
-/// build_type.
+/// Writes the root attributes schema, created, git_commit, host, compiler,
+/// build_type and hardware_threads.
 void WriteProvenance(ResultFile& file);
 
 /// Host name, compiler, build type and git commit for the root attributes.

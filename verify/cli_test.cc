@@ -127,16 +127,36 @@ TEST(BenchCli, CompleteRunWritesLayout) {
     EXPECT_GT(H5Aexists(f, attr), 0) << attr;
   EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "error_rms_m", H5P_DEFAULT), 0);
   EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "observed_order", H5P_DEFAULT), 0);
-  // positions are [F, N, 3] with F = 5 frames (0, 0.01, …, 0.04) and N = 12.
-  const hid_t ds = H5Dopen2(f, "/runs/bdf2_h0.005/positions", H5P_DEFAULT);
-  const hid_t sp = H5Dget_space(ds);
-  hsize_t dims[3];
-  ASSERT_EQ(H5Sget_simple_extent_dims(sp, dims, nullptr), 3);
-  EXPECT_EQ(dims[0], 5u);
-  EXPECT_EQ(dims[1], 12u);
-  EXPECT_EQ(dims[2], 3u);
-  H5Sclose(sp);
-  H5Dclose(ds);
+  // --frames default: the label's first row (h = 0.01) keeps every frame,
+  // [F, N, 3] with F = 5 frames (0, 0.01, …, 0.04) and N = 12; the second
+  // row keeps t = 0 and t_end as positions_ends [2, N, 3].
+  for (const auto& [path, frames] : {std::pair{"/runs/bdf2_h0.01/positions", 5u},
+                                     std::pair{"/runs/bdf2_h0.005/positions_ends", 2u}}) {
+    const hid_t ds = H5Dopen2(f, path, H5P_DEFAULT);
+    ASSERT_GE(ds, 0) << path;
+    const hid_t sp = H5Dget_space(ds);
+    hsize_t dims[3];
+    ASSERT_EQ(H5Sget_simple_extent_dims(sp, dims, nullptr), 3);
+    EXPECT_EQ(dims[0], frames) << path;
+    EXPECT_EQ(dims[1], 12u);
+    EXPECT_EQ(dims[2], 3u);
+    H5Sclose(sp);
+    H5Dclose(ds);
+  }
+  EXPECT_EQ(H5Lexists(f, "/runs/bdf2_h0.005/positions", H5P_DEFAULT), 0);
+  // Per-frame views for XDMF readers: frame 4 of the first row is a [N, 3]
+  // virtual dataset equal to positions[4].
+  {
+    const hid_t all = H5Dopen2(f, "/runs/bdf2_h0.01/positions", H5P_DEFAULT);
+    const hid_t view = H5Dopen2(f, "/runs/bdf2_h0.01/frame_views/positions_4", H5P_DEFAULT);
+    ASSERT_GE(view, 0);
+    std::vector<double> x(5 * 12 * 3), v(12 * 3);
+    ASSERT_GE(H5Dread(all, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x.data()), 0);
+    ASSERT_GE(H5Dread(view, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), 0);
+    EXPECT_TRUE(std::equal(v.begin(), v.end(), x.begin() + 4 * 12 * 3));
+    H5Dclose(view);
+    H5Dclose(all);
+  }
   // The grid's quads once: (4 − 1) × (3 − 1) = 6 faces of 4 particle
   // indices; the first is (0,0), (1,0), (1,1), (0,1) = 0, 1, 5, 4.
   const hid_t fd = H5Dopen2(f, "/scene/faces", H5P_DEFAULT);
@@ -158,7 +178,8 @@ TEST(BenchCli, CompleteRunWritesLayout) {
   H5Fclose(f);
 }
 
-// --frames: "positions" (default) keeps velocities at the ends only, "all"
+// --frames: "default" and "positions" keep velocities at the ends only (a
+// single row is its label's first, so "default" keeps its positions), "all"
 // every frame, "none" no frame datasets; every frame dataset is chunked one
 // frame per chunk and deflate-compressed.
 TEST(BenchCli, FramesModesAndCompression) {
@@ -167,7 +188,8 @@ TEST(BenchCli, FramesModesAndCompression) {
     const char* mode;
     bool positions, velocities, velocities_ends;
   };
-  for (const Case c : {Case{"positions", true, false, true}, Case{"all", true, true, false},
+  for (const Case c : {Case{"default", true, false, true}, Case{"positions", true, false, true},
+                       Case{"all", true, true, false},
                        Case{"none", false, false, false}}) {
     const fs::path out = TempDir() / (std::string("frames_") + c.mode + ".h5");
     const Outcome o = RunBench(tiny + out.string() + " --frames " + c.mode);

@@ -1,0 +1,405 @@
+// HDF5 reader (C API) and the RunTable attribute layout shared with the
+// writer.
+#include "results/result_reader.h"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+#include <hdf5.h>
+
+namespace clothbench {
+namespace {
+
+// Closes an HDF5 handle when it goes out of scope.
+struct Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+std::optional<AttributeValue> ReadAttribute(hid_t attr) {
+  Handle type{H5Aget_type(attr), H5Tclose};
+  Handle space{H5Aget_space(attr), H5Sclose};
+  if (H5Sget_simple_extent_npoints(space.id) != 1) return std::nullopt;
+  switch (H5Tget_class(type.id)) {
+    case H5T_STRING: {
+      if (H5Tis_variable_str(type.id) > 0) {
+        Handle mem{H5Tcopy(H5T_C_S1), H5Tclose};
+        H5Tset_size(mem.id, H5T_VARIABLE);
+        H5Tset_cset(mem.id, H5Tget_cset(type.id));
+        char* s = nullptr;
+        if (H5Aread(attr, mem.id, &s) < 0 || s == nullptr) return std::nullopt;
+        std::string out(s);
+        H5free_memory(s);
+        return out;
+      }
+      std::string buf(H5Tget_size(type.id), '\0');
+      if (H5Aread(attr, type.id, buf.data()) < 0) return std::nullopt;
+      buf.resize(std::min(buf.size(), buf.find('\0')));
+      return buf;
+    }
+    case H5T_INTEGER: {
+      int64_t v = 0;
+      if (H5Aread(attr, H5T_NATIVE_INT64, &v) < 0) return std::nullopt;
+      return static_cast<long>(v);
+    }
+    case H5T_FLOAT: {
+      double v = 0.0;
+      if (H5Aread(attr, H5T_NATIVE_DOUBLE, &v) < 0) return std::nullopt;
+      return v;
+    }
+    default:
+      return std::nullopt;
+  }
+}
+
+herr_t CollectName(hid_t, const char* name, const H5L_info_t*, void* data) {
+  static_cast<std::vector<std::string>*>(data)->emplace_back(name);
+  return 0;
+}
+
+herr_t CollectAttribute(hid_t loc, const char* name, const H5A_info_t*, void* data) {
+  auto* out = static_cast<std::vector<std::pair<std::string, AttributeValue>>*>(data);
+  Handle attr{H5Aopen(loc, name, H5P_DEFAULT), H5Aclose};
+  if (attr.id < 0) return 0;
+  if (auto v = ReadAttribute(attr.id)) out->emplace_back(name, *v);
+  return 0;
+}
+
+}  // namespace
+
+ResultReader::ResultReader(const std::string& path) : path_(path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  if (H5Fis_hdf5(path.c_str()) <= 0)
+    throw ResultError(fmt::format("{}: cannot open: not an HDF5 file or not readable", path));
+  file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (file_ < 0) throw ResultError(fmt::format("{}: cannot open the HDF5 file", path));
+  const std::optional<std::string> schema = String("/", "schema");
+  if (!schema) throw ResultError(fmt::format("{}: not a clothbench result file (no root attribute \"schema\")", path));
+  if (*schema != kResultSchema)
+    throw ResultError(fmt::format("{}: schema {} is not {}, the schema this build reads; rerun the command that "
+                                  "wrote it (root attribute \"created\" and \"git_commit\" name when and how)",
+                                  path, *schema, kResultSchema));
+}
+
+ResultReader::~ResultReader() {
+  if (file_ >= 0) H5Fclose(file_);
+}
+
+bool ResultReader::Exists(const std::string& object) const {
+  if (object == "/") return true;
+  std::string prefix;
+  std::size_t pos = 0;
+  while (pos != std::string::npos) {
+    pos = object.find('/', pos + 1);
+    prefix = object.substr(0, pos);
+    if (H5Lexists(file_, prefix.c_str(), H5P_DEFAULT) <= 0) return false;
+  }
+  return true;
+}
+
+std::vector<std::string> ResultReader::Children(const std::string& group) const {
+  std::vector<std::string> names;
+  if (!Exists(group)) return names;
+  Handle g{H5Gopen2(file_, group.c_str(), H5P_DEFAULT), H5Gclose};
+  if (g.id < 0) return names;
+  hsize_t idx = 0;
+  // Creation order where tracked, else by name.
+  if (H5Literate(g.id, H5_INDEX_CRT_ORDER, H5_ITER_INC, &idx, CollectName, &names) < 0) {
+    names.clear();
+    idx = 0;
+    H5Literate(g.id, H5_INDEX_NAME, H5_ITER_INC, &idx, CollectName, &names);
+  }
+  return names;
+}
+
+std::vector<std::pair<std::string, AttributeValue>> ResultReader::Attributes(const std::string& object) const {
+  std::vector<std::pair<std::string, AttributeValue>> out;
+  if (!Exists(object)) return out;
+  Handle obj{H5Oopen(file_, object.c_str(), H5P_DEFAULT), H5Oclose};
+  if (obj.id < 0) return out;
+  hsize_t idx = 0;
+  if (H5Aiterate2(obj.id, H5_INDEX_CRT_ORDER, H5_ITER_INC, &idx, CollectAttribute, &out) < 0) {
+    out.clear();
+    idx = 0;
+    H5Aiterate2(obj.id, H5_INDEX_NAME, H5_ITER_INC, &idx, CollectAttribute, &out);
+  }
+  return out;
+}
+
+namespace {
+
+std::optional<AttributeValue> Attribute(hid_t file, const std::string& object, const std::string& name) {
+  if (H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0) return std::nullopt;
+  Handle attr{H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  if (attr.id < 0) return std::nullopt;
+  return ReadAttribute(attr.id);
+}
+
+}  // namespace
+
+std::optional<std::string> ResultReader::String(const std::string& object, const std::string& name) const {
+  if (!Exists(object)) return std::nullopt;
+  const auto v = Attribute(file_, object, name);
+  if (!v || !std::holds_alternative<std::string>(*v)) return std::nullopt;
+  return std::get<std::string>(*v);
+}
+
+std::optional<double> ResultReader::Double(const std::string& object, const std::string& name) const {
+  if (!Exists(object)) return std::nullopt;
+  const auto v = Attribute(file_, object, name);
+  if (!v) return std::nullopt;
+  if (const double* d = std::get_if<double>(&*v)) return *d;
+  if (const long* l = std::get_if<long>(&*v)) return static_cast<double>(*l);
+  return std::nullopt;
+}
+
+std::optional<long> ResultReader::Long(const std::string& object, const std::string& name) const {
+  if (!Exists(object)) return std::nullopt;
+  const auto v = Attribute(file_, object, name);
+  if (!v) return std::nullopt;
+  if (const long* l = std::get_if<long>(&*v)) return *l;
+  return std::nullopt;
+}
+
+std::vector<std::size_t> ResultReader::Shape(const std::string& dataset) const {
+  if (!Exists(dataset)) throw ResultError(fmt::format("{}: no dataset {}", path_, dataset));
+  Handle ds{H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  if (ds.id < 0) throw ResultError(fmt::format("{}: {} is not a dataset", path_, dataset));
+  Handle space{H5Dget_space(ds.id), H5Sclose};
+  const int rank = H5Sget_simple_extent_ndims(space.id);
+  std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(rank, 0)));
+  H5Sget_simple_extent_dims(space.id, dims.data(), nullptr);
+  return {dims.begin(), dims.end()};
+}
+
+namespace {
+
+template <typename T>
+std::vector<T> ReadAll(hid_t file, const std::string& path, const std::string& dataset, hid_t mem_type,
+                       const std::vector<std::size_t>& shape) {
+  std::size_t n = 1;
+  for (std::size_t d : shape) n *= d;
+  std::vector<T> out(n);
+  Handle ds{H5Dopen2(file, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  if (n > 0 && H5Dread(ds.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+    throw ResultError(fmt::format("{}: cannot read {}", path, dataset));
+  return out;
+}
+
+}  // namespace
+
+std::vector<double> ResultReader::Doubles(const std::string& dataset) const {
+  return ReadAll<double>(file_, path_, dataset, H5T_NATIVE_DOUBLE, Shape(dataset));
+}
+
+std::vector<int32_t> ResultReader::Ints(const std::string& dataset) const {
+  return ReadAll<int32_t>(file_, path_, dataset, H5T_NATIVE_INT32, Shape(dataset));
+}
+
+MatrixN3 ResultReader::Frame(const std::string& dataset, std::size_t k) const {
+  const std::vector<std::size_t> shape = Shape(dataset);
+  if (shape.size() != 3 || shape[2] != 3) throw ResultError(fmt::format("{}: {} is not [F, N, 3]", path_, dataset));
+  if (k >= shape[0])
+    throw ResultError(fmt::format("{}: {} has {} frames (0 … {}); no frame {}", path_, dataset, shape[0],
+                                  shape[0] - 1, k));
+  Handle ds{H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  Handle space{H5Dget_space(ds.id), H5Sclose};
+  const hsize_t start[3] = {k, 0, 0}, count[3] = {1, shape[1], 3};
+  H5Sselect_hyperslab(space.id, H5S_SELECT_SET, start, nullptr, count, nullptr);
+  Handle mem{H5Screate_simple(3, count, nullptr), H5Sclose};
+  std::vector<double> buf(shape[1] * 3);
+  if (H5Dread(ds.id, H5T_NATIVE_DOUBLE, mem.id, space.id, H5P_DEFAULT, buf.data()) < 0)
+    throw ResultError(fmt::format("{}: cannot read frame {} of {}", path_, k, dataset));
+  MatrixN3 x(static_cast<Eigen::Index>(shape[1]), 3);
+  for (std::size_t p = 0; p < shape[1]; ++p)
+    for (std::size_t c = 0; c < 3; ++c) x(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c)) = buf[p * 3 + c];
+  return x;
+}
+
+std::vector<StepRecord> ResultReader::StepStats(const std::string& dataset) const {
+  const std::vector<std::size_t> shape = Shape(dataset);
+  Handle mem{H5Tcreate(H5T_COMPOUND, sizeof(StepRecord)), H5Tclose};
+  H5Tinsert(mem.id, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
+  H5Tinsert(mem.id, "h", HOFFSET(StepRecord, h), H5T_NATIVE_DOUBLE);
+  H5Tinsert(mem.id, "updates", HOFFSET(StepRecord, updates), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
+  H5Tinsert(mem.id, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
+  return ReadAll<StepRecord>(file_, path_, dataset, mem.id, shape);
+}
+
+RunTable ReadRunTable(const ResultReader& f) {
+  RunTable t;
+  const auto str = [&](const std::string& o, const std::string& n) { return f.String(o, n).value_or(""); };
+  t.schema = str("/", "schema");
+  t.created = str("/", "created");
+  t.git_commit = str("/", "git_commit");
+  t.host = str("/", "host");
+  t.compiler = str("/", "compiler");
+  t.build_type = str("/", "build_type");
+  t.hardware_threads = f.Long("/", "hardware_threads").value_or(0);
+  t.scene_name = str("/scene", "name");
+  t.scene_source = str("/scene", "source");
+  t.explicit_terms = str("/scene", "explicit_terms");
+  t.frames = str("/scene", "frames");
+  t.n_particles = f.Long("/scene", "n_particles").value_or(0);
+  t.n_fixed = f.Long("/scene", "n_fixed").value_or(0);
+  t.t_end = f.Double("/scene", "t_end").value_or(0.0);
+  t.frame_dt = f.Double("/scene", "frame_dt").value_or(0.0);
+  t.h = f.Double("/scene", "h").value_or(0.0);
+  t.numerical_stiffness = f.Double("/scene", "numerical_stiffness").value_or(0.0);
+  t.cg_tolerance = f.Double("/scene", "solver_cg_tolerance").value_or(0.0);
+  t.cg_reference = str("/scene", "solver_cg_reference");
+  t.preconditioner = str("/scene", "solver_preconditioner");
+  t.predictor = str("/scene", "solver_predictor");
+  t.max_updates = f.Long("/scene", "solver_max_updates").value_or(0);
+  if (f.Exists("/reference")) {
+    ReferenceRecord r;
+    r.integrator = str("/reference", "integrator");
+    r.h = f.Double("/reference", "h").value_or(0.0);
+    r.rtol = f.Double("/reference", "rtol").value_or(0.0);
+    r.steps = f.Long("/reference", "steps").value_or(0);
+    r.wall_time_s = f.Double("/reference", "wall_time_s").value_or(0.0);
+    r.energy_rate_W = f.Double("/reference", "energy_rate_W");
+    t.reference = r;
+  }
+  for (const std::string& id : f.Children("/runs")) {
+    const std::string g = "/runs/" + id;
+    RunRecord r;
+    r.id = id;
+    r.label = str(g, "label");
+    r.integrator = str(g, "integrator");
+    r.layer = str(g, "layer");
+    r.step_kind = str(g, "step_kind");
+    r.nonlinear_solver = str(g, "nonlinear_solver");
+    r.h = f.Double(g, "h").value_or(0.0);
+    r.rtol = f.Double(g, "rtol").value_or(0.0);
+    r.substeps = f.Long(g, "substeps").value_or(0);
+    r.cg_tolerance = f.Double(g, "cg_tolerance").value_or(0.0);
+    r.constraints = str(g, "constraints");
+    r.explicit_terms = str(g, "explicit_terms");
+    r.status = str(g, "status");
+    r.message = str(g, "message");
+    r.steps = f.Long(g, "steps").value_or(0);
+    r.updates = f.Long(g, "fixed_point_updates").value_or(0);
+    r.cg_iterations = f.Long(g, "cg_iterations").value_or(0);
+    r.rejected = f.Long(g, "rejected_steps").value_or(0);
+    r.error_test_failures = f.Long(g, "error_test_failures").value_or(-1);
+    r.solver_time_s = f.Double(g, "solver_time_s").value_or(0.0);
+    r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
+    r.setup_time_s = f.Double(g, "setup_time_s").value_or(-1.0);
+    r.numerical_stiffness = f.Double(g, "numerical_stiffness").value_or(0.0);
+    r.error_rms_m = f.Double(g, "error_rms_m");
+    r.error_max_m = f.Double(g, "error_max_m");
+    r.error_mean_m = f.Double(g, "error_mean_m");
+    r.observed_order = f.Double(g, "observed_order");
+    r.energy_rate_W = f.Double(g, "energy_rate_W");
+    t.runs.push_back(std::move(r));
+  }
+  if (f.Exists("/work_precision/targets")) {
+    EqualAccuracyTable w;
+    w.targets = f.Doubles("/work_precision/targets");
+    const std::string labels = str("/work_precision", "labels");
+    for (std::size_t b = 0; b <= labels.size() && !labels.empty();) {
+      const std::size_t e = std::min(labels.find(',', b), labels.size());
+      w.labels.push_back(labels.substr(b, e - b));
+      b = e + 1;
+    }
+    const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
+    const std::vector<double> ratio = f.Doubles("/work_precision/ratio_to_cvode");
+    const std::size_t cols = w.targets.size();
+    if (cost.size() != w.labels.size() * cols || ratio.size() != cost.size())
+      throw ResultError(fmt::format("{}: /work_precision: {} labels × {} targets but {} cells", f.path(),
+                                    w.labels.size(), cols, cost.size()));
+    for (std::size_t m = 0; m < w.labels.size(); ++m) {
+      w.cost.emplace_back();
+      w.ratio.emplace_back();
+      for (std::size_t j = 0; j < cols; ++j) {
+        const double c = cost[m * cols + j], q = ratio[m * cols + j];
+        w.cost.back().push_back(c >= 0.0 ? std::optional(c) : std::nullopt);
+        w.ratio.back().push_back(q >= 0.0 ? std::optional(q) : std::nullopt);
+      }
+    }
+    for (int32_t k : f.Ints("/work_precision/fastest")) w.fastest.push_back(k);
+    t.work_precision = std::move(w);
+  }
+  return t;
+}
+
+void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
+  f.SetAttribute(g, "integrator", r.integrator);
+  f.SetAttribute(g, "label", r.label);
+  f.SetAttribute(g, "layer", r.layer);
+  f.SetAttribute(g, "step_kind", r.step_kind);
+  if (!r.nonlinear_solver.empty()) f.SetAttribute(g, "nonlinear_solver", r.nonlinear_solver);
+  if (r.step_kind == "adaptive") f.SetAttribute(g, "rtol", r.rtol);
+  else f.SetAttribute(g, "h", r.h);
+  if (r.step_kind == "substepped") f.SetAttribute(g, "substeps", r.substeps);
+  if (!r.constraints.empty()) f.SetAttribute(g, "constraints", r.constraints);
+  if (!r.explicit_terms.empty()) f.SetAttribute(g, "explicit_terms", r.explicit_terms);
+  if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
+  f.SetAttribute(g, "status", r.status);
+  if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
+  f.SetAttribute(g, "steps", r.steps);
+  f.SetAttribute(g, "fixed_point_updates", r.updates);
+  f.SetAttribute(g, "cg_iterations", r.cg_iterations);
+  f.SetAttribute(g, "rejected_steps", r.rejected);
+  f.SetAttribute(g, "solver_time_s", r.solver_time_s);
+  if (r.setup_time_s >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time_s);
+  f.SetAttribute(g, "wall_time_s", r.wall_time_s);
+  f.SetAttribute(g, "numerical_stiffness", r.numerical_stiffness);
+  if (r.cg_tolerance > 0.0) f.SetAttribute(g, "cg_tolerance", r.cg_tolerance);
+  // Errors only where they exist: no NaN is ever written.
+  if (r.error_rms_m) f.SetAttribute(g, "error_rms_m", *r.error_rms_m);
+  if (r.error_max_m) f.SetAttribute(g, "error_max_m", *r.error_max_m);
+  if (r.error_mean_m) f.SetAttribute(g, "error_mean_m", *r.error_mean_m);
+  if (r.observed_order) f.SetAttribute(g, "observed_order", *r.observed_order);
+  if (r.energy_rate_W) f.SetAttribute(g, "energy_rate_W", *r.energy_rate_W);
+}
+
+void WriteSceneRecord(ResultFile& f, const RunTable& t) {
+  f.SetAttribute("/scene", "name", t.scene_name);
+  f.SetAttribute("/scene", "source", t.scene_source);
+  f.SetAttribute("/scene", "n_particles", t.n_particles);
+  f.SetAttribute("/scene", "n_fixed", t.n_fixed);
+  f.SetAttribute("/scene", "t_end", t.t_end);
+  f.SetAttribute("/scene", "frame_dt", t.frame_dt);
+  f.SetAttribute("/scene", "frames", t.frames);
+  f.SetAttribute("/scene", "explicit_terms", t.explicit_terms);
+  f.SetAttribute("/scene", "h", t.h);
+  f.SetAttribute("/scene", "numerical_stiffness", t.numerical_stiffness);
+  f.SetAttribute("/scene", "solver_cg_tolerance", t.cg_tolerance);
+  f.SetAttribute("/scene", "solver_cg_reference", t.cg_reference);
+  f.SetAttribute("/scene", "solver_preconditioner", t.preconditioner);
+  f.SetAttribute("/scene", "solver_predictor", t.predictor);
+  f.SetAttribute("/scene", "solver_max_updates", t.max_updates);
+}
+
+void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
+  f.CreateGroup("/work_precision");
+  f.SetAttribute("/work_precision", "reference_method", std::string("cvode"));
+  f.SetAttribute("/work_precision", "measure",
+                 std::string("solver_time_s at e_rms(t_end) = target, log-log interpolation between bracketing runs; "
+                             "-1 where the runs do not bracket the target"));
+  f.WriteVector("/work_precision/targets", t.targets, "m");
+  std::string labels;
+  for (const std::string& l : t.labels) labels += (labels.empty() ? "" : ",") + l;
+  f.SetAttribute("/work_precision", "labels", labels);
+  const int rows = static_cast<int>(t.labels.size()), cols = static_cast<int>(t.targets.size());
+  std::vector<double> cost, ratio;
+  for (int m = 0; m < rows; ++m)
+    for (int j = 0; j < cols; ++j) {
+      cost.push_back(t.cost[static_cast<std::size_t>(m)][static_cast<std::size_t>(j)].value_or(-1.0));
+      ratio.push_back(t.ratio[static_cast<std::size_t>(m)][static_cast<std::size_t>(j)].value_or(-1.0));
+    }
+  f.WriteTable("/work_precision/solver_time", rows, cols, cost, "s");
+  f.WriteTable("/work_precision/ratio_to_cvode", rows, cols, ratio, "");
+  std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
+  f.WriteTable("/work_precision/fastest", 1, cols, fastest);
+}
+
+}  // namespace clothbench

@@ -1,0 +1,74 @@
+// Reading result files (HDF5 C API): the counterpart of ResultFile, used by
+// clothbench_inspect, the XDMF writer and the tests, so that the schema
+// (docs/results-schema.md) is exercised in both directions.
+#ifndef CLOTHBENCH_RESULTS_RESULT_READER_H_
+#define CLOTHBENCH_RESULTS_RESULT_READER_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "model/types.h"
+#include "results/result_file.h"
+#include "results/run_table.h"
+
+namespace clothbench {
+
+/// A scalar attribute: string, integer or floating point.
+using AttributeValue = std::variant<std::string, long, double>;
+
+class ResultReader {
+ public:
+  /// Opens `path` read-only and checks its schema.
+  /// @throws ResultError (one line naming the file) if the file cannot be
+  /// opened, is not a clothbench result file, or has a schema other than
+  /// kResultSchema (the message names both versions).
+  explicit ResultReader(const std::string& path);
+  ~ResultReader();
+  ResultReader(const ResultReader&) = delete;
+  ResultReader& operator=(const ResultReader&) = delete;
+
+  const std::string& path() const { return path_; }
+  /// True if the group or dataset exists (parents included).
+  bool Exists(const std::string& object) const;
+  /// The children of a group in creation order (run order for /runs).
+  std::vector<std::string> Children(const std::string& group) const;
+  /// All scalar attributes of an object, in creation order.
+  std::vector<std::pair<std::string, AttributeValue>> Attributes(const std::string& object) const;
+  std::optional<std::string> String(const std::string& object, const std::string& name) const;
+  std::optional<double> Double(const std::string& object, const std::string& name) const;
+  std::optional<long> Long(const std::string& object, const std::string& name) const;
+  /// The extent of a dataset ([F, N, 3] for frames).
+  std::vector<std::size_t> Shape(const std::string& dataset) const;
+  /// Any float dataset flattened row-major. @throws ResultError if missing.
+  std::vector<double> Doubles(const std::string& dataset) const;
+  /// Any integer dataset flattened row-major. @throws ResultError if missing.
+  std::vector<int32_t> Ints(const std::string& dataset) const;
+  /// Frame k of an [F, N, 3] dataset as N×3. @throws ResultError if k ≥ F.
+  MatrixN3 Frame(const std::string& dataset, std::size_t k) const;
+  /// A step_stats table. @throws ResultError if missing.
+  std::vector<StepRecord> StepStats(const std::string& dataset) const;
+
+ private:
+  std::string path_;
+  int64_t file_ = -1;  // hid_t
+};
+
+/// The table of a bench_integrators result file (see RunTable). A file
+/// without /runs (stress_stability, --table files) gives an empty run list.
+RunTable ReadRunTable(const ResultReader& file);
+
+/// Writes the attributes of one run group /runs/<id> that RunTable holds.
+void WriteRunRecord(ResultFile& file, const std::string& group, const RunRecord& run);
+/// Writes the /scene attributes and solver settings that RunTable holds
+/// (the group must exist).
+void WriteSceneRecord(ResultFile& file, const RunTable& table);
+/// Writes /work_precision: targets, labels, solver_time, ratio_to_cvode,
+/// fastest (−1 where a cell is empty).
+void WriteWorkPrecision(ResultFile& file, const EqualAccuracyTable& table);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_RESULTS_RESULT_READER_H_

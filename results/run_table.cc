@@ -1,0 +1,107 @@
+// The table bench_integrators prints, from a RunTable.
+#include "results/run_table.h"
+
+#include <fmt/format.h>
+
+namespace clothbench {
+namespace {
+
+std::string Sci(double v) { return fmt::format("{:.3e}", v); }
+
+std::string JoinCommaSpace(const std::string& comma_separated) {
+  std::string out;
+  for (char c : comma_separated) {
+    out += c;
+    if (c == ',') out += ' ';
+  }
+  return out;
+}
+
+}  // namespace
+
+void PrintRunTable(std::FILE* out, const RunTable& t) {
+  fmt::print(out, "scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", t.scene_name,
+             t.scene_source, t.n_particles, t.n_fixed, t.t_end, JoinCommaSpace(t.explicit_terms));
+  fmt::print(out,
+             "solver: cg_tolerance {:g} ({}), preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
+             "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
+             t.cg_tolerance, t.cg_reference, t.preconditioner, t.max_updates, t.predictor, t.numerical_stiffness, t.h);
+  const auto& ref = t.reference;
+  if (ref && ref->integrator == "bdf2_self_convergence")
+    fmt::print(out,
+               "reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
+               "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s\n",
+               ref->h, ref->steps, ref->wall_time_s);
+  else if (ref)
+    fmt::print(out, "reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}\n",
+               ref->integrator == "ida" ? "IDA" : "CVODE", ref->rtol, ref->steps, ref->wall_time_s,
+               ref->energy_rate_W ? fmt::format("{:.3e} W", *ref->energy_rate_W) : "-");
+  else
+    fmt::print(out, "reference: none (error columns empty)\n");
+  fmt::print(out, "\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol",
+             "steps", "updates", "cg_iters", "solver_s", "setup_s", "e_rms_m", "order", "dE/dt_W", "status");
+  std::string last;
+  for (const RunRecord& r : t.runs) {
+    if (!last.empty() && last != r.label) fmt::print(out, "\n");
+    last = r.label;
+    const std::string hcol = r.step_kind == "adaptive"     ? fmt::format("{:g}", r.rtol)
+                             : r.step_kind == "substepped" ? fmt::format("{:g}/{}", r.h, r.substeps)
+                                                           : fmt::format("{:g}", r.h);
+    fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.label, hcol,
+               r.steps, r.updates, r.cg_iterations, r.solver_time_s,
+               r.setup_time_s >= 0 ? fmt::format("{:.3f}", r.setup_time_s) : "",
+               r.error_rms_m ? Sci(*r.error_rms_m) : "", r.observed_order ? fmt::format("{:.2f}", *r.observed_order) : "",
+               r.ok() && r.energy_rate_W ? Sci(*r.energy_rate_W) : "", r.status);
+    if (r.ok() && r.rejected > 0)
+      fmt::print(out, "{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
+                 r.error_test_failures > 0 ? fmt::format(", {} by the error test", r.error_test_failures) : "");
+  }
+  fmt::print(out,
+             "\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
+             "frame step/substeps of substepped rows (xpbd).\n");
+  for (const RunRecord& r : t.runs)
+    if (r.step_kind == "substepped") {
+      fmt::print(out,
+                 "xpbd rows: updates = substeps (one constraint sweep each); constraints: {}; explicit forces in the "
+                 "prediction: {}.\n",
+                 r.constraints, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+      break;
+    }
+  fmt::print(out,
+             "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode/ida: 0, the "
+             "direct KLU solver; arkode: our PCG's iterations).\n");
+  fmt::print(out,
+             "setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the "
+             "preconditioner.\n");
+  fmt::print(out,
+             "dE/dt_W: (E(t_end) - E(0) - W_ext)/t_end, energy gained (> 0) or dissipated (< 0) beyond external "
+             "work.\n");
+  fmt::print(out, "machine: {}, {} hardware threads, {}, {} build, commit {}\n", t.host, t.hardware_threads,
+             t.compiler, t.build_type, t.git_commit);
+}
+
+void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
+  fmt::print(out,
+             "\nEqual accuracy: solver time [s] at e_rms(t_end) = target, interpolated log-log between the two runs "
+             "that bracket it (never extrapolated; '-': the runs do not bracket the target); x = ratio to cvode\n");
+  fmt::print(out, "{:<28}", "method");
+  for (double e : t.targets) fmt::print(out, " {:>22}", fmt::format("e_rms {:g} m", e));
+  fmt::print(out, "\n");
+  for (std::size_t m = 0; m < t.labels.size(); ++m) {
+    fmt::print(out, "{:<28}", t.labels[m]);
+    for (std::size_t j = 0; j < t.targets.size(); ++j) {
+      std::string cell = "-";
+      if (t.cost[m][j])
+        cell = t.ratio[m][j] ? fmt::format("{:.3f} s ({:.2f}x)", *t.cost[m][j], *t.ratio[m][j])
+                             : fmt::format("{:.3f} s", *t.cost[m][j]);
+      fmt::print(out, " {:>22}", cell);
+    }
+    fmt::print(out, "\n");
+  }
+  fmt::print(out, "{:<28}", "fastest");
+  for (std::size_t j = 0; j < t.targets.size(); ++j)
+    fmt::print(out, " {:>22}", t.fastest[j] >= 0 ? t.labels[static_cast<std::size_t>(t.fastest[j])] : "-");
+  fmt::print(out, "\n");
+}
+
+}  // namespace clothbench

@@ -1,0 +1,95 @@
+// What a result file says about a bench_integrators run, as plain data:
+// provenance, scene, reference, one RunRecord per row and the
+// equal-accuracy table. bench_integrators fills it from its runs and prints
+// it; clothbench_inspect reads it back from the file (result_reader.h) and
+// prints it with the same function, so `clothbench_inspect FILE table`
+// reproduces the printed table from the file alone. Schema:
+// docs/results-schema.md.
+#ifndef CLOTHBENCH_RESULTS_RUN_TABLE_H_
+#define CLOTHBENCH_RESULTS_RUN_TABLE_H_
+
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "results/work_precision.h"
+
+namespace clothbench {
+
+/// The schema written by this build (root attribute "schema").
+inline constexpr const char* kResultSchema = "clothbench/2";
+
+/// One row of the table: the attributes of /runs/<id>.
+struct RunRecord {
+  std::string id;            ///< group name under /runs
+  std::string label;         ///< row label ("bdf2/newton", "xpbd", "cvode")
+  std::string integrator;    ///< registry name ("bdf2")
+  std::string layer;         ///< "solver", "peers", "reference"
+  std::string step_kind;     ///< "fixed_step", "adaptive", "substepped"
+  std::string nonlinear_solver;  ///< fully implicit thesis methods; else empty
+  double h = 0.0;            ///< fixed-step: the step [s]; substepped: the frame step [s]
+  double rtol = 0.0;         ///< adaptive rows: rtol = atol
+  long substeps = 0;         ///< substepped rows: substeps per frame step
+  double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
+  std::string constraints;   ///< xpbd: the terms solved as constraints
+  std::string explicit_terms;///< xpbd: the terms applied in the prediction
+  std::string status = "ok"; ///< "ok" or the failure status
+  std::string message;       ///< failure message (empty when ok)
+  long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
+  long error_test_failures = -1;  ///< adaptive rows; −1: not applicable
+  double solver_time_s = 0.0, wall_time_s = 0.0;
+  double setup_time_s = -1.0;     ///< < 0: not measured
+  double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step
+  std::optional<double> error_rms_m;     ///< e_rms at t_end against the reference [m]
+  std::optional<double> error_max_m;     ///< largest e_rms over the frames [m]
+  std::optional<double> error_mean_m;    ///< mean particle distance at t_end [m]
+  std::optional<double> observed_order;  ///< against the previous row of the label
+  std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext)/t_end [W]
+
+  bool ok() const { return status == "ok"; }
+};
+
+/// The reference the e_rms column is measured against (/reference).
+struct ReferenceRecord {
+  std::string integrator;  ///< "cvode", "ida" or "bdf2_self_convergence"
+  double h = 0.0;          ///< self-convergence reference: its step [s]
+  double rtol = 0.0;       ///< CVODE/IDA: rtol = atol
+  long steps = 0;
+  double wall_time_s = 0.0;
+  std::optional<double> energy_rate_W;
+};
+
+/// Everything the printed table shows.
+struct RunTable {
+  // Provenance (root attributes).
+  std::string schema = kResultSchema, created, git_commit, host, compiler, build_type;
+  long hardware_threads = 0;
+  // Scene (/scene attributes).
+  std::string scene_name, scene_source, explicit_terms;  ///< explicit_terms: comma-separated
+  std::string frames;                                    ///< the --frames mode
+  long n_particles = 0, n_fixed = 0;
+  double t_end = 0.0, frame_dt = 0.0;
+  double h = 0.0;                    ///< the scene's nominal step [s]
+  double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at h
+  // The scene's solver settings (/scene attributes solver_*).
+  double cg_tolerance = 0.0;
+  std::string cg_reference, preconditioner, predictor;
+  long max_updates = 0;
+
+  std::optional<ReferenceRecord> reference;
+  std::vector<RunRecord> runs;  ///< in run order
+  std::optional<EqualAccuracyTable> work_precision;
+};
+
+/// Prints the run table exactly as bench_integrators prints it: the scene,
+/// solver and reference lines, one line per run, the footnotes and the
+/// machine line.
+void PrintRunTable(std::FILE* out, const RunTable& table);
+
+/// Prints the equal-accuracy table (docs/work-precision.md).
+void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& table);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_RESULTS_RUN_TABLE_H_
