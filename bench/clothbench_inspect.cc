@@ -1,0 +1,285 @@
+// clothbench_inspect: reads a bench_integrators result file (schema
+// clothbench/2, docs/results-schema.md) and prints what is in it.
+//
+//   clothbench_inspect FILE.h5 summary              scene, machine, commit, runs
+//   clothbench_inspect FILE.h5 table                the table bench_integrators printed
+//   clothbench_inspect FILE.h5 runs [--json]        one line (or JSON object) per run
+//   clothbench_inspect A.h5 diff B.h5 [--rtol R] [--time-tolerance T]
+//   clothbench_inspect FILE.h5 export RUN --frame K (--obj OUT | --ply OUT)
+//
+// Exit codes: 0; 1 for `diff` when a change is flagged; 2 for bad input (an
+// unreadable file, another schema, an unknown run or frame), one line.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "results/result_reader.h"
+#include "results/run_table.h"
+
+namespace clothbench {
+namespace {
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string JsonString(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    if (c == '"' || c == '\\') out += '\\', out += static_cast<char>(c);
+    else if (c < 0x20) out += fmt::format("\\u{:04x}", c);
+    else out += static_cast<char>(c);
+  }
+  return out + "\"";
+}
+
+std::string JsonValue(const AttributeValue& v) {
+  if (const auto* s = std::get_if<std::string>(&v)) return JsonString(*s);
+  if (const auto* l = std::get_if<long>(&v)) return std::to_string(*l);
+  const double d = std::get<double>(v);
+  return std::isfinite(d) ? fmt::format("{:.17g}", d) : "null";
+}
+
+std::string Opt(const std::optional<double>& v, const char* format = "{:.3e}") {
+  return v ? fmt::format(fmt::runtime(format), *v) : "-";
+}
+
+void PrintSummary(const ResultReader& f, const RunTable& t) {
+  fmt::print("file: {}\n", f.path());
+  fmt::print("schema {}, written {} by commit {} ({} build, {})\n", t.schema, t.created, t.git_commit, t.build_type,
+             t.compiler);
+  fmt::print("machine: {}, {} hardware threads\n", t.host, t.hardware_threads);
+  fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, frame_dt = {:g} s, frames kept: {}\n",
+             t.scene_name, t.scene_source, t.n_particles, t.n_fixed, t.t_end, t.frame_dt,
+             t.frames.empty() ? "-" : t.frames);
+  if (t.reference)
+    fmt::print("reference: {}{}: {} steps, {:.2f} s\n", t.reference->integrator,
+               t.reference->integrator == "bdf2_self_convergence" ? fmt::format(" at h = {:g} s", t.reference->h)
+                                                                   : fmt::format(" rtol {:g}", t.reference->rtol),
+               t.reference->steps, t.reference->wall_time_s);
+  else
+    fmt::print("reference: none\n");
+  std::map<std::string, int> status;
+  for (const RunRecord& r : t.runs) ++status[r.status];
+  std::string counts;
+  for (const auto& [s, n] : status) counts += fmt::format("{}{} {}", counts.empty() ? "" : ", ", n, s);
+  fmt::print("runs: {}{}\n", t.runs.size(), counts.empty() ? "" : " (" + counts + ")");
+  fmt::print("{:<36} {:<10} {:>7} {:>8} {:>9} {:>10} {:>11}\n", "run", "status", "steps", "updates", "cg_iters",
+             "solver_s", "e_rms_m");
+  for (const RunRecord& r : t.runs)
+    fmt::print("{:<36} {:<10} {:>7} {:>8} {:>9} {:>10.3f} {:>11}\n", r.id, r.status, r.steps, r.updates,
+               r.cg_iterations, r.solver_time_s, Opt(r.error_rms_m));
+  if (t.work_precision)
+    fmt::print("work_precision: {} methods × {} targets\n", t.work_precision->labels.size(),
+               t.work_precision->targets.size());
+}
+
+void PrintRuns(const ResultReader& f, const RunTable& t, bool json) {
+  if (!json) {
+    for (const RunRecord& r : t.runs)
+      fmt::print("{} label={} status={} steps={} updates={} cg_iterations={} solver_time_s={:.6g} e_rms_m={}\n", r.id,
+                 r.label, r.status, r.steps, r.updates, r.cg_iterations, r.solver_time_s, Opt(r.error_rms_m, "{:.6e}"));
+    return;
+  }
+  // Every scalar attribute of every run, plus its id and stored frames.
+  fmt::print("[");
+  for (std::size_t k = 0; k < t.runs.size(); ++k) {
+    const std::string g = "/runs/" + t.runs[k].id;
+    fmt::print("{}\n  {{\"id\": {}", k ? "," : "", JsonString(t.runs[k].id));
+    for (const auto& [name, value] : f.Attributes(g)) fmt::print(", {}: {}", JsonString(name), JsonValue(value));
+    for (const char* frames : {"positions", "positions_ends"})
+      if (f.Exists(g + "/" + frames)) fmt::print(", \"{}_frames\": {}", frames, f.Shape(g + "/" + frames)[0]);
+    fmt::print("}}");
+  }
+  fmt::print("\n]\n");
+}
+
+// Relative change (b − a)/|a|; 0 if both are 0, infinite if only a is.
+double Relative(double a, double b) {
+  if (a == b) return 0.0;
+  return a == 0.0 ? INFINITY : (b - a) / std::fabs(a);
+}
+
+int Diff(const RunTable& a, const RunTable& b, const std::string& path_b, double rtol, double time_tolerance) {
+  std::map<std::string, const RunRecord*> in_b;
+  for (const RunRecord& r : b.runs) in_b[r.id] = &r;
+  std::set<std::string> in_a;
+  int flagged = 0;
+  fmt::print("comparing {} (commit {}) with {} (commit {}); flags: e_rms relative change > {:g}, any change in "
+             "steps, updates or CG iterations, solver time ratio outside [1/{:g}, {:g}], status changes, runs in one "
+             "file only\n",
+             a.scene_name, a.git_commit, path_b, b.git_commit, rtol, 1.0 + time_tolerance, 1.0 + time_tolerance);
+  fmt::print("{:<36} {:>11} {:>11} {:>10} {:>13} {:>15} {:>17} {:>8}  {}\n", "run", "e_rms A", "e_rms B", "rel",
+             "steps", "updates", "cg_iters", "time B/A", "flags");
+  for (const RunRecord& ra : a.runs) {
+    in_a.insert(ra.id);
+    const auto it = in_b.find(ra.id);
+    if (it == in_b.end()) {
+      fmt::print("{:<36} only in A\n", ra.id);
+      ++flagged;
+      continue;
+    }
+    const RunRecord& rb = *it->second;
+    std::vector<std::string> flags;
+    std::string rel = "-";
+    if (ra.error_rms_m && rb.error_rms_m) {
+      const double d = Relative(*ra.error_rms_m, *rb.error_rms_m);
+      rel = fmt::format("{:+.2e}", d);
+      if (!(std::fabs(d) <= rtol)) flags.push_back("e_rms");
+    } else if (ra.error_rms_m.has_value() != rb.error_rms_m.has_value()) {
+      flags.push_back("e_rms");
+    }
+    if (ra.status != rb.status) flags.push_back(fmt::format("status {}→{}", ra.status, rb.status));
+    if (ra.steps != rb.steps) flags.push_back("steps");
+    if (ra.updates != rb.updates) flags.push_back("updates");
+    if (ra.cg_iterations != rb.cg_iterations) flags.push_back("cg_iters");
+    const double ratio = ra.solver_time_s > 0.0 ? rb.solver_time_s / ra.solver_time_s : 1.0;
+    if (ratio > 1.0 + time_tolerance || ratio < 1.0 / (1.0 + time_tolerance)) flags.push_back("time");
+    std::string joined;
+    for (const std::string& s : flags) joined += (joined.empty() ? "" : ",") + s;
+    fmt::print("{:<36} {:>11} {:>11} {:>10} {:>13} {:>15} {:>17} {:>8.2f}  {}\n", ra.id, Opt(ra.error_rms_m),
+               Opt(rb.error_rms_m), rel, fmt::format("{}→{}", ra.steps, rb.steps),
+               fmt::format("{}→{}", ra.updates, rb.updates), fmt::format("{}→{}", ra.cg_iterations, rb.cg_iterations),
+               ratio, joined);
+    if (!flags.empty()) ++flagged;
+  }
+  for (const RunRecord& rb : b.runs)
+    if (!in_a.count(rb.id)) {
+      fmt::print("{:<36} only in B\n", rb.id);
+      ++flagged;
+    }
+  fmt::print("{} of {} runs flagged\n", flagged, std::max(a.runs.size(), b.runs.size()));
+  return flagged ? 1 : 0;
+}
+
+void Export(const ResultReader& f, const std::string& run, long frame, const std::string& obj, const std::string& ply) {
+  const std::string g = run == "reference" ? "/reference" : "/runs/" + run;
+  if (!f.Exists(g)) {
+    std::string runs;
+    for (const std::string& id : f.Children("/runs")) runs += (runs.empty() ? "" : ", ") + id;
+    throw UsageError(fmt::format("export: no run \"{}\" in {} (runs: reference, {})", run, f.path(), runs));
+  }
+  const std::string dataset = f.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
+  if (!f.Exists(dataset))
+    throw UsageError(fmt::format("export: run \"{}\" in {} has no stored frames (written with --frames none)", run,
+                                 f.path()));
+  const std::size_t frames = f.Shape(dataset)[0];
+  if (frame < 0 || static_cast<std::size_t>(frame) >= frames)
+    throw UsageError(fmt::format("--frame: {} is not a stored frame of {} ({} frames, 0 … {}{})", frame, dataset, frames,
+                                 frames - 1, dataset.ends_with("_ends") ? ": t = 0 and t_end" : ""));
+  const MatrixN3 x = f.Frame(dataset, static_cast<std::size_t>(frame));
+  const std::vector<int32_t> faces = f.Ints("/scene/faces");
+  const std::vector<double> times = f.Doubles(g + "/times");
+  const double t = dataset.ends_with("_ends") ? (frame == 0 ? times.front() : times.back())
+                                              : times[static_cast<std::size_t>(frame)];
+  const std::string path = obj.empty() ? ply : obj;
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) throw UsageError(fmt::format("export: cannot write \"{}\"", path));
+    if (!obj.empty()) {
+      out << fmt::format("# {} run {} frame {} (t = {:g} s), positions [m]\n", f.path(), run, frame, t);
+      for (Eigen::Index p = 0; p < x.rows(); ++p) out << fmt::format("v {:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
+      for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
+        out << fmt::format("f {} {} {} {}\n", faces[q] + 1, faces[q + 1] + 1, faces[q + 2] + 1, faces[q + 3] + 1);
+    } else {
+      out << fmt::format("ply\nformat ascii 1.0\ncomment {} run {} frame {} (t = {:g} s), positions [m]\n"
+                         "element vertex {}\nproperty double x\nproperty double y\nproperty double z\n"
+                         "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+                         f.path(), run, frame, t, x.rows(), faces.size() / 4);
+      for (Eigen::Index p = 0; p < x.rows(); ++p) out << fmt::format("{:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
+      for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
+        out << fmt::format("4 {} {} {} {}\n", faces[q], faces[q + 1], faces[q + 2], faces[q + 3]);
+    }
+    if (!out) {
+      std::remove(tmp.c_str());
+      throw UsageError(fmt::format("export: cannot write \"{}\"", path));
+    }
+  }
+  std::filesystem::rename(tmp, path);
+  fmt::print("{}: run {} frame {} (t = {:g} s), {} vertices, {} quads\n", path, run, frame, t, x.rows(),
+             faces.size() / 4);
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"clothbench_inspect: print, compare and export bench_integrators result files (HDF5)"};
+  app.require_subcommand(1);
+  std::string file, other, run, obj, ply;
+  bool json = false;
+  long frame = 0;
+  double rtol = 1e-6, time_tolerance = 0.5;
+  app.add_option("file", file, "result file (.h5)")->required();
+  app.add_subcommand("summary", "scene, machine, commit, and each run with status and counts");
+  app.add_subcommand("table", "the table bench_integrators printed, from the file alone");
+  CLI::App* runs = app.add_subcommand("runs", "one line per run");
+  runs->add_flag("--json", json, "every attribute of every run as a JSON array");
+  CLI::App* diff = app.add_subcommand("diff", "per run, the change in e_rms, steps, updates, CG iterations and solver "
+                                              "time against a second file; exit 1 if a change is flagged");
+  diff->add_option("other", other, "the second result file (B)")->required();
+  diff->add_option("--rtol", rtol,
+                   "flag relative e_rms changes above this (default 1e-6: runs are deterministic, so a rebuild of the "
+                   "same code gives the same e_rms to the last bits; changed summation order moves it by ~1e-12)");
+  diff->add_option("--time-tolerance", time_tolerance,
+                   "flag solver-time ratios B/A outside [1/(1+T), 1+T] (default 0.5: repeated runs on a shared "
+                   "2-core VM differ by up to ~30 %)");
+  CLI::App* exp = app.add_subcommand("export", "one stored frame of a run as a mesh (OBJ or PLY, quads)");
+  exp->add_option("run", run, "run id (clothbench_inspect FILE runs) or \"reference\"")->required();
+  exp->add_option("--frame", frame, "index of the stored frame (default 0)");
+  CLI::Option* o_obj = exp->add_option("--obj", obj, "write Wavefront OBJ");
+  CLI::Option* o_ply = exp->add_option("--ply", ply, "write ASCII PLY");
+  o_obj->excludes(o_ply);
+  try {
+    app.parse(argc, argv);
+    if (exp->parsed() && obj.empty() && ply.empty()) throw CLI::ValidationError("export: one of --obj or --ply is required");
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    return 2;
+  }
+  try {
+    if (!(rtol >= 0.0) || !(time_tolerance >= 0.0))
+      throw UsageError("diff: --rtol and --time-tolerance must be non-negative numbers");
+    const ResultReader f(file);
+    const RunTable t = ReadRunTable(f);
+    if (app.got_subcommand("summary")) {
+      PrintSummary(f, t);
+    } else if (app.got_subcommand("table")) {
+      if (t.runs.empty() && !f.Exists("/runs"))
+        throw UsageError(fmt::format("table: {} has no /runs (not a bench_integrators run table)", file));
+      fmt::print("# {}: written {} by commit {}\n", file, t.created, t.git_commit);
+      PrintRunTable(stdout, t);
+      if (t.work_precision) PrintWorkPrecision(stdout, *t.work_precision);
+    } else if (runs->parsed()) {
+      PrintRuns(f, t, json);
+    } else if (diff->parsed()) {
+      const ResultReader g(other);
+      return Diff(t, ReadRunTable(g), other, rtol, time_tolerance);
+    } else if (exp->parsed()) {
+      Export(f, run, frame, obj, ply);
+    }
+    return 0;
+  } catch (const UsageError& e) {
+    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    return 2;
+  } catch (const ResultError& e) {
+    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace
+}  // namespace clothbench
+
+int main(int argc, char** argv) { return clothbench::Main(argc, argv); }

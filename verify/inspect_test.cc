@@ -1,0 +1,250 @@
+// clothbench_inspect and the results/ reader against files bench_integrators
+// writes: the table is reprinted from the file alone, diff flags a changed
+// e_rms, older schemas give one line naming the version, export writes the
+// stored frame, and ResultReader reads back what the writer stored.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "results/result_reader.h"
+#include "results/run_table.h"
+
+namespace clothbench {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Outcome {
+  int exit_code;
+  std::string out, err;
+};
+
+fs::path TempDir() {
+  fs::path d = fs::temp_directory_path() / ("clothbench_inspect_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+Outcome RunCommand(const std::string& binary, const std::string& args) {
+  const fs::path out = TempDir() / "stdout.txt", err = TempDir() / "stderr.txt";
+  const std::string cmd = binary + " " + args + " > " + out.string() + " 2> " + err.string();
+  const int rc = std::system(cmd.c_str());
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, Slurp(out), Slurp(err)};
+}
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::stringstream ss(text);
+  for (std::string line; std::getline(ss, line);) lines.push_back(line);
+  return lines;
+}
+
+const char* kTiny = R"(name = "tiny"
+t_end = 0.04
+frame_dt = 0.01
+h = 0.01
+[grid]
+nu = 4
+nv = 3
+size = [0.3, 0.2]
+[material]
+tension = [100.0, 100.0]
+tension_damping = 0.1
+shear = 1.0
+bend = [1e-5, 1e-5]
+[constraints]
+fixed = ["corner:u0v1", "corner:u1v1"]
+[solver]
+cg_tolerance = 1e-10
+)";
+
+// One bench_integrators run shared by the tests: fixed-step, Newton,
+// substepped and adaptive rows (every kind of h|rtol column, footnotes,
+// rejected-step lines and the equal-accuracy table).
+class InspectTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    scene_ = (TempDir() / "tiny.toml").string();
+    std::ofstream(scene_) << kTiny;
+    file_ = (TempDir() / "tiny.h5").string();
+    printed_ = new Outcome(RunCommand(CLOTHBENCH_BENCH_BINARY, "--scene " + scene_ +
+                                                            " --integrators sbdf2,bdf2/newton,xpbd,cvode --h 0.01,0.005 "
+                                                            "--substeps 1,4 --rtols 1e-4,1e-6 --out " + file_));
+  }
+  static void TearDownTestSuite() { delete printed_; }
+
+  static std::string scene_, file_;
+  static Outcome* printed_;
+};
+
+std::string InspectTest::scene_, InspectTest::file_;
+Outcome* InspectTest::printed_ = nullptr;
+
+TEST_F(InspectTest, TableReproducesThePrintedTable) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " table");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  // bench_integrators ends with "results: FILE" and "ParaView: FILE.xdmf";
+  // clothbench_inspect starts with one header line naming the file, its
+  // creation time and commit. Everything between is the same, line for line.
+  std::vector<std::string> printed = Lines(printed_->out), reprinted = Lines(o.out);
+  ASSERT_GE(printed.size(), 10u);
+  ASSERT_EQ(printed.back().rfind("ParaView: ", 0), 0u) << printed.back();
+  printed.pop_back();
+  ASSERT_EQ(printed.back(), "results: " + file_);
+  printed.pop_back();
+  ASSERT_FALSE(reprinted.empty());
+  EXPECT_EQ(reprinted.front().rfind("# " + file_ + ": written ", 0), 0u) << reprinted.front();
+  reprinted.erase(reprinted.begin());
+  ASSERT_EQ(reprinted.size(), printed.size());
+  for (std::size_t k = 0; k < printed.size(); ++k) EXPECT_EQ(reprinted[k], printed[k]) << "line " << k + 1;
+}
+
+TEST_F(InspectTest, ReaderReadsWhatTheWriterStored) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  const ResultReader f(file_);
+  const RunTable t = ReadRunTable(f);
+  EXPECT_EQ(t.schema, kResultSchema);
+  EXPECT_EQ(t.scene_name, "tiny");
+  EXPECT_EQ(t.n_particles, 12);
+  // 2 sbdf2 + 2 bdf2/newton + 2 h × 2 substeps xpbd + 2 cvode rows, in run order.
+  ASSERT_EQ(t.runs.size(), 10u);
+  EXPECT_EQ(t.runs.front().id, "sbdf2_h0.01");
+  EXPECT_EQ(t.runs.back().id, "cvode_rtol1e-06");
+  EXPECT_EQ(t.runs.back().step_kind, "adaptive");
+  EXPECT_EQ(t.runs[2].nonlinear_solver, "newton");
+  ASSERT_TRUE(t.runs[1].error_rms_m.has_value());
+  ASSERT_TRUE(t.runs[1].observed_order.has_value());
+  ASSERT_TRUE(t.work_precision.has_value());
+  EXPECT_EQ(t.work_precision->labels.size(), 4u);
+  // Frames: the first row of a label keeps every frame (F = 5), the others
+  // t = 0 and t_end; Frame() refuses an index past the end.
+  EXPECT_EQ(f.Shape("/runs/sbdf2_h0.01/positions"), (std::vector<std::size_t>{5, 12, 3}));
+  EXPECT_EQ(f.Shape("/runs/sbdf2_h0.005/positions_ends"), (std::vector<std::size_t>{2, 12, 3}));
+  EXPECT_THROW(f.Frame("/runs/sbdf2_h0.005/positions_ends", 2), ResultError);
+  const std::vector<StepRecord> steps = f.StepStats("/runs/sbdf2_h0.01/step_stats");
+  ASSERT_EQ(steps.size(), 4u);  // 0.04 s / 0.01 s
+  EXPECT_NEAR(steps.back().t, 0.04, 1e-15);
+}
+
+// Copies `from` to `to` and overwrites the double attribute `name` of
+// `object` (or the string attribute when `text` is given).
+void CopyWithAttribute(const std::string& from, const std::string& to, const std::string& object,
+                       const std::string& name, double value, const char* text = nullptr) {
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+  const hid_t f = H5Fopen(to.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  const hid_t a = H5Aopen_by_name(f, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(a, 0) << object << "@" << name;
+  if (text) {
+    const hid_t type = H5Aget_type(a);
+    std::string buf(H5Tget_size(type), '\0');
+    std::copy(text, text + std::min(std::strlen(text), buf.size()), buf.begin());
+    EXPECT_GE(H5Awrite(a, type, buf.data()), 0);
+    H5Tclose(type);
+    H5Aclose(a);
+  } else {
+    // Deleted and created again: HDF5 1.10 cannot rewrite an attribute of
+    // an object with dense attribute storage (> 8 attributes) in place.
+    H5Aclose(a);
+    ASSERT_GE(H5Adelete_by_name(f, object.c_str(), name.c_str(), H5P_DEFAULT), 0);
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t b = H5Acreate_by_name(f, object.c_str(), name.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT,
+                                      H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(b, 0);
+    EXPECT_GE(H5Awrite(b, H5T_NATIVE_DOUBLE, &value), 0);
+    H5Aclose(b);
+    H5Sclose(space);
+  }
+  H5Fclose(f);
+}
+
+TEST_F(InspectTest, DiffFlagsAChangedErms) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  // A file against itself: nothing flagged, exit 0.
+  const Outcome same = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " diff " + file_);
+  EXPECT_EQ(same.exit_code, 0) << same.out << same.err;
+  EXPECT_NE(same.out.find("0 of 10 runs flagged"), std::string::npos) << same.out;
+  // One run's e_rms 1e-3 larger (relative; far above the default --rtol
+  // 1e-6): that run is flagged, the others are not, exit 1.
+  const double e = *ResultReader(file_).Double("/runs/bdf2_newton_h0.005", "error_rms_m");
+  const std::string changed = (TempDir() / "changed.h5").string();
+  CopyWithAttribute(file_, changed, "/runs/bdf2_newton_h0.005", "error_rms_m", e * 1.001);
+  const Outcome d = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " diff " + changed);
+  EXPECT_EQ(d.exit_code, 1) << d.out << d.err;
+  EXPECT_NE(d.out.find("1 of 10 runs flagged"), std::string::npos) << d.out;
+  bool flagged_line = false;
+  for (const std::string& line : Lines(d.out))
+    flagged_line |= line.rfind("bdf2_newton_h0.005 ", 0) == 0 && line.ends_with("e_rms");
+  EXPECT_TRUE(flagged_line) << d.out;
+  // The same change within a looser --rtol 1e-2 is not flagged.
+  EXPECT_EQ(RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " diff " + changed + " --rtol 1e-2").exit_code, 0);
+}
+
+TEST_F(InspectTest, OlderSchemaGivesOneLineNamingTheVersion) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  const std::string old = (TempDir() / "old.h5").string();
+  CopyWithAttribute(file_, old, "/", "schema", 0.0, "clothbench/1");
+  for (const char* command : {" summary", " table", " runs --json"}) {
+    const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, old + command);
+    EXPECT_EQ(o.exit_code, 2) << command;
+    EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+    EXPECT_NE(o.err.find("schema clothbench/1"), std::string::npos) << o.err;
+    EXPECT_TRUE(o.out.empty()) << o.out;
+  }
+  const Outcome none = RunCommand(CLOTHBENCH_INSPECT_BINARY, (TempDir() / "missing.h5").string() + " summary");
+  EXPECT_EQ(none.exit_code, 2);
+  EXPECT_EQ(std::count(none.err.begin(), none.err.end(), '\n'), 1) << none.err;
+}
+
+TEST_F(InspectTest, ExportWritesTheStoredFrame) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  const std::string obj = (TempDir() / "frame.obj").string();
+  const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " export sbdf2_h0.01 --frame 4 --obj " + obj);
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const ResultReader f(file_);
+  const MatrixN3 x = f.Frame("/runs/sbdf2_h0.01/positions", 4);
+  std::vector<std::string> v, quads;
+  for (const std::string& line : Lines(Slurp(obj))) {
+    if (line.rfind("v ", 0) == 0) v.push_back(line);
+    if (line.rfind("f ", 0) == 0) quads.push_back(line);
+  }
+  ASSERT_EQ(v.size(), 12u);
+  ASSERT_EQ(quads.size(), 6u);
+  // Positions are printed with 17 significant digits: they read back exactly.
+  std::stringstream last(v.back().substr(2));
+  double px = 0, py = 0, pz = 0;
+  last >> px >> py >> pz;
+  EXPECT_EQ(px, x(11, 0));
+  EXPECT_EQ(py, x(11, 1));
+  EXPECT_EQ(pz, x(11, 2));
+  EXPECT_EQ(quads.front(), "f 1 2 6 5");  // the first quad, 1-based
+  // A frame that is not stored, an unknown run: one line, exit 2, no file.
+  const std::string ply = (TempDir() / "frame.ply").string();
+  for (const char* bad : {" export sbdf2_h0.005 --frame 3 --ply ", " export rk4_h0.01 --ply "}) {
+    const Outcome b = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + bad + ply);
+    EXPECT_EQ(b.exit_code, 2) << bad;
+    EXPECT_EQ(std::count(b.err.begin(), b.err.end(), '\n'), 1) << b.err;
+    EXPECT_FALSE(fs::exists(ply));
+  }
+}
+
+}  // namespace
+}  // namespace clothbench
