@@ -21,6 +21,7 @@
 #include <fmt/format.h>
 
 #include "bench/methods.h"
+#include "bench/plot.h"
 #include "model/particle_system.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
@@ -583,7 +584,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
-  std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg;
+  std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false;
   app.add_option("--scene", scene_path,
@@ -634,6 +635,9 @@ int Main(int argc, char** argv) {
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
                  "once per --cg-tolerances value (and write HDF5)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
+  app.add_option("--plot", plot_dir,
+                 "after writing the results, draw them into DIR with scripts/plot (work-precision, observed order, "
+                 "energy, Fig. 4.3 on obstacle scenes; PNG and SVG)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -757,6 +761,13 @@ int Main(int argc, char** argv) {
       n_params.push_back(ps.size());
     }
     CheckMemory(scene, methods, n_params, etas.size(), reference);
+    if (!plot_dir.empty()) {
+      try {
+        CheckPlotDir(plot_dir);
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(e.what());
+      }
+    }
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
@@ -817,6 +828,7 @@ int Main(int argc, char** argv) {
     const std::string xdmf = WriteXdmf(out);
     fmt::print("results: {}\n", out);
     if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
+    if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
     return 0;
   } catch (const UsageError& e) {
     fmt::print(stderr, "bench_integrators: {}\n", e.what());

@@ -25,6 +25,7 @@
 #include <fmt/format.h>
 
 #include "bench/methods.h"
+#include "bench/plot.h"
 #include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/stability_map.h"
@@ -60,7 +61,8 @@ std::vector<double> ParseList(const std::string& s, const std::string& opt) {
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench stability maps over numerical stiffness and step size"};
   std::string scenes_arg = "hanging_sheet,swinging_sheet", integrators_arg, stiffness_arg = "0.1,1,1e2,1e4,1e6,1e8",
-              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5", nonlinear_arg = "fixed_point";
+              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5", nonlinear_arg = "fixed_point",
+              plot_dir;
   int steps = 200, side = 10;
   app.add_option("--scenes", scenes_arg, "built-in scene names or files (default hanging_sheet,swinging_sheet)");
   app.add_option("--integrators", integrators_arg,
@@ -74,6 +76,7 @@ int Main(int argc, char** argv) {
   app.add_option("--steps", steps, "steps per cell (default 200)")->check(CLI::Range(1, 1000000));
   app.add_option("--side", side, "particles per side (default 10; spacing from the scene)")->check(CLI::Range(3, 200));
   app.add_option("--out", out, "result file");
+  app.add_option("--plot", plot_dir, "after writing the results, draw the maps into DIR with scripts/plot (PNG, SVG)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -99,6 +102,7 @@ int Main(int argc, char** argv) {
       scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
     }
 
+    if (!plot_dir.empty()) CheckPlotDir(plot_dir);
     ResultFile f(out);
     WriteProvenance(f);
     f.CreateGroup("/stress");
@@ -148,6 +152,7 @@ int Main(int argc, char** argv) {
     f.Commit();
     fmt::print("\nmachine: {}, {} hardware threads, {}, commit {}\nresults: {}\n", HostName(),
                std::thread::hardware_concurrency(), CompilerId(), GitCommit(), out);
+    if (!plot_dir.empty()) Plot("stress_stability", out, plot_dir);
     return 0;
   } catch (const SceneError& e) {
     fmt::print(stderr, "stress_stability: {}\n", e.what());
