@@ -22,6 +22,7 @@
 
 #include "bench/methods.h"
 #include "bench/plot.h"
+#include "bench/progress.h"
 #include "model/particle_system.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
@@ -586,7 +587,7 @@ int Main(int argc, char** argv) {
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
-  bool work_precision_only = false;
+  bool work_precision_only = false, quiet = false;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
@@ -635,6 +636,8 @@ int Main(int argc, char** argv) {
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
                  "once per --cg-tolerances value (and write HDF5)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
+  app.add_flag("--quiet", quiet, "no progress line on stderr (it is shown only when stderr is a terminal and a run takes "
+                                 "more than 2 s)");
   app.add_option("--plot", plot_dir,
                  "after writing the results, draw them into DIR with scripts/plot (work-precision, observed order, "
                  "energy, Fig. 4.3 on obstacle scenes; PNG and SVG)");
@@ -772,6 +775,7 @@ int Main(int argc, char** argv) {
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
 
     const ParticleSystem sys(scene);
+    TerminalProgress progress(!quiet);
     std::optional<RunSummary> ref;
     ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
     if (reference != "none" && !sys.obstacles().empty()) {
@@ -780,6 +784,7 @@ int Main(int argc, char** argv) {
       // --h: h/128) with tight
       // CG and fixed-point tolerances.
       const double h_ref = (hs.empty() ? scene.h / 8.0 : *std::min_element(hs.begin(), hs.end())) / 16.0;
+      progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), scene.t_end);
       ref = SelfConvergenceReference(scene, h_ref);
       if (!ref->ok) {
         fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
@@ -787,6 +792,7 @@ int Main(int argc, char** argv) {
         return 1;
       }
     } else if (reference != "none") {
+      progress.Start(fmt::format("reference {} rtol {:g}", reference, ref_rtol), scene.t_end);
       ref = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
       if (!ref->ok) {
         fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, ref->message);
@@ -803,6 +809,10 @@ int Main(int argc, char** argv) {
         spec.cg_tolerance = eta;
         const std::size_t first = rows.size();
         for (const auto& [p, n] : params[mk]) {
+          progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), p)
+                         : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), p, n)
+                                                             : fmt::format("{} h = {:g} s", m.label(), p),
+                         scene.t_end);
           rows.push_back(m.Run(sys, scene, spec, p, ctx, n));
           if (etas.size() > 1 && m.uses_pcg()) {
             rows.back().id += fmt::format("_eta{:g}", eta);
@@ -819,6 +829,7 @@ int Main(int argc, char** argv) {
         }
       }
     }
+    progress.Finish();
     const EqualAccuracyTable wp = WorkPrecision(rows, targets);
     const RunTable run_table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);
     if (!work_precision_only) PrintRunTable(stdout, run_table);

@@ -6,6 +6,8 @@
 
 #include <sunmatrix/sunmatrix_sparse.h>
 
+#include "solver/progress.h"
+
 namespace clothbench::internal {
 
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
@@ -40,6 +42,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     st.solve_time = seconds;
     st.error_order = q;
     res->step_stats.push_back(st);
+    ReportProgress(t);
     while (next < frames.size() && frames[next] <= t + 1e-12) {
       if (next + 1 == frames.size() || frames[next] == t) {
         d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly

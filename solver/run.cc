@@ -7,6 +7,8 @@
 
 #include <fmt/format.h>
 
+#include "solver/progress.h"
+
 namespace clothbench {
 
 std::vector<double> FrameTimes(double t_end, double frame_dt) {
@@ -167,6 +169,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     ++sum.steps;
     if (consecutive_rejections == 0 && !controlled) ++fixed_step_index;
     consecutive_rejections = 0;
+    ReportProgress(engine.t());
 
     // External work by the trapezoidal rule on the step (second order).
     const double work0 = work;

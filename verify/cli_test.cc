@@ -269,5 +269,32 @@ TEST(ResultFile, AppearsOnlyOnCommit) {
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
 }
 
+// Progress: a run longer than 2 s (XPBD with 256 substeps per 0.01 s step,
+// ~2.5 s here) draws a progress line on stderr when stderr is a terminal
+// (util-linux `script` provides one), nothing with --quiet, and nothing
+// when stderr is a file.
+TEST(BenchCli, ProgressOnlyOnATerminal) {
+  const fs::path out = TempDir() / "progress.h5", tty = TempDir() / "tty.txt";
+  const std::string run = std::string(CLOTHBENCH_BENCH_BINARY) +
+                          " --integrators xpbd --h 0.01 --substeps 256 --reference none --frames none --out " +
+                          out.string();
+  if (std::system("command -v script > /dev/null") != 0) GTEST_FAIL() << "util-linux script is missing";
+  for (const bool quiet : {false, true}) {
+    const std::string cmd =
+        "script -qec '" + run + (quiet ? " --quiet" : "") + "' /dev/null > " + tty.string() + " 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    std::ifstream in(tty);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    const bool drawn = ss.str().find("xpbd h = 0.01 s/256: t = ") != std::string::npos &&
+                       ss.str().find(" s elapsed, ~") != std::string::npos;
+    EXPECT_EQ(drawn, !quiet) << ss.str();
+  }
+  const Outcome o = RunBench("--integrators xpbd --h 0.01 --substeps 256 --reference none --frames none --out " +
+                             out.string());
+  EXPECT_EQ(o.exit_code, 0);
+  EXPECT_TRUE(o.err.empty()) << o.err;
+}
+
 }  // namespace
 }  // namespace clothbench

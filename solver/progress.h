@@ -1,0 +1,33 @@
+// Progress of the run in flight, for a display such as bench/progress.h.
+// The step loops (RunStepper, the SUNDIALS one-step loop) report the
+// simulated time after every accepted step; without a sink that is one
+// relaxed atomic load.
+#ifndef CLOTHBENCH_SOLVER_PROGRESS_H_
+#define CLOTHBENCH_SOLVER_PROGRESS_H_
+
+#include <atomic>
+
+namespace clothbench {
+
+/// Receives the simulated time t [s] after each accepted step.
+class ProgressSink {
+ public:
+  virtual ~ProgressSink() = default;
+  virtual void Update(double t) = 0;
+};
+
+namespace internal {
+inline std::atomic<ProgressSink*> g_progress_sink{nullptr};
+}  // namespace internal
+
+/// Installs `sink` for the process (nullptr: none). Not owned.
+inline void SetProgressSink(ProgressSink* sink) { internal::g_progress_sink.store(sink, std::memory_order_relaxed); }
+
+/// Called by the step loops after each accepted step at simulated time t [s].
+inline void ReportProgress(double t) {
+  if (ProgressSink* s = internal::g_progress_sink.load(std::memory_order_relaxed)) s->Update(t);
+}
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_SOLVER_PROGRESS_H_
