@@ -24,6 +24,7 @@
 #include "bench/plot.h"
 #include "bench/progress.h"
 #include "model/particle_system.h"
+#include "model/triangle_mesh.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
 #include "results/metrics.h"
@@ -263,6 +264,19 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
           faces.push_back(q);
     f.WriteTable("/scene/faces", (nu - 1) * (nv - 1), 4, faces);
   }
+  // Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
+  // motion not applied), for the XDMF file.
+  for (std::size_t k = 0; k < sys.obstacles().size(); ++k)
+    if (const TriangleMesh* mesh = sys.obstacles()[k].mesh()) {
+      const std::string o = fmt::format("/scene/obstacles/{}", k);
+      std::vector<double> vertices;
+      std::vector<int32_t> triangles;
+      mesh->Export(&vertices, &triangles);
+      f.CreateGroup(o);
+      f.SetAttribute(o, "path", sys.obstacles()[k].spec().path);
+      f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
+      f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
+    }
   if (ref) {
     f.CreateGroup("/reference");
     f.SetAttribute("/reference", "integrator", ref->integrator);

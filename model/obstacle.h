@@ -117,6 +117,9 @@ class Obstacle {
   ObstaclePose PoseAt(double t) const;
   bool moving() const { return !spec_.keyframes.empty(); }
   const ObstacleSpec& spec() const { return spec_; }
+  /// The placed triangle mesh of a mesh obstacle (at rest, before any
+  /// keyframed motion); nullptr for analytic obstacles.
+  const TriangleMesh* mesh() const { return mesh_.get(); }
 
  private:
   double PlacedSignedDistance(const Vector3& p, Vector3* direction) const;

@@ -101,4 +101,18 @@ int TriangleMesh::num_vertices() const { return static_cast<int>(impl_->mesh.num
 int TriangleMesh::num_faces() const { return static_cast<int>(impl_->mesh.number_of_faces()); }
 bool TriangleMesh::closed() const { return impl_->closed; }
 
+void TriangleMesh::Export(std::vector<double>* vertices, std::vector<int32_t>* triangles) const {
+  vertices->clear();
+  triangles->clear();
+  std::vector<int32_t> index(impl_->mesh.num_vertices(), -1);  // descriptor → dense index
+  int32_t next = 0;
+  for (auto v : impl_->mesh.vertices()) {
+    const Point& p = impl_->mesh.point(v);
+    vertices->insert(vertices->end(), {p.x(), p.y(), p.z()});
+    index[v.idx()] = next++;
+  }
+  for (auto f : impl_->mesh.faces())
+    for (auto v : CGAL::vertices_around_face(impl_->mesh.halfedge(f), impl_->mesh)) triangles->push_back(index[v.idx()]);
+}
+
 }  // namespace clothbench

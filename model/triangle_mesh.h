@@ -6,9 +6,11 @@
 #ifndef CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
 #define CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "model/obstacle.h"
 #include "model/types.h"
@@ -35,6 +37,10 @@ class TriangleMesh {
   std::optional<SegmentHit> FirstHit(const Vector3& a, const Vector3& b) const;
   int num_vertices() const;
   int num_faces() const;
+  /// The placed mesh: vertices [V, 3] row-major [m] and triangles [T, 3]
+  /// row-major 0-based vertex indices, e.g. for /scene/obstacles/<k> in
+  /// result files.
+  void Export(std::vector<double>* vertices, std::vector<int32_t>* triangles) const;
   bool closed() const;
 
  private:

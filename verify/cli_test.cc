@@ -6,10 +6,12 @@
 
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "results/result_file.h"
 
@@ -267,6 +269,44 @@ TEST(ResultFile, AppearsOnlyOnCommit) {
   }
   EXPECT_TRUE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+}
+
+// A triangle-mesh obstacle is stored once, placed, under
+// /scene/obstacles/<k> (the cube of data/meshes: 8 vertices, 12 triangles),
+// and the XDMF lists it as a static Triangle grid.
+TEST(BenchCli, MeshObstaclesAreStoredForTheXdmf) {
+  const fs::path out = TempDir() / "mesh.h5";
+  const std::string scene = std::string(kTiny) + "\n[[obstacle]]\ntype = \"mesh\"\npath = \"" +
+                            std::string(CLOTHBENCH_DATA_DIR) +
+                            "/meshes/cube.off\"\nscale = 0.05\ntranslate = [0.15, 0.1, -0.5]\n";
+  const Outcome o = RunBench("--scene " + WriteScene("mesh.toml", scene) +
+                             " --integrators sbdf2 --h 0.01 --reference none --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const hid_t f = H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  for (const auto& [path, rows] : {std::pair{"/scene/obstacles/0/vertices", 8u}, std::pair{"/scene/obstacles/0/triangles", 12u}}) {
+    const hid_t ds = H5Dopen2(f, path, H5P_DEFAULT);
+    ASSERT_GE(ds, 0) << path;
+    const hid_t sp = H5Dget_space(ds);
+    hsize_t dims[2] = {0, 0};
+    ASSERT_EQ(H5Sget_simple_extent_dims(sp, dims, nullptr), 2);
+    EXPECT_EQ(dims[0], rows) << path;
+    EXPECT_EQ(dims[1], 3u) << path;
+    H5Sclose(sp);
+    H5Dclose(ds);
+  }
+  // Placed: x = 0.05 x_file + translate, so every vertex z is −0.5 ± 0.05.
+  std::vector<double> v(24);
+  const hid_t ds = H5Dopen2(f, "/scene/obstacles/0/vertices", H5P_DEFAULT);
+  ASSERT_GE(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), 0);
+  for (int k = 0; k < 8; ++k) EXPECT_NEAR(std::abs(v[3 * k + 2] + 0.5), 0.05, 1e-15) << k;
+  H5Dclose(ds);
+  H5Fclose(f);
+  std::ifstream in(TempDir() / "mesh.xdmf");
+  std::stringstream xml;
+  xml << in.rdbuf();
+  EXPECT_NE(xml.str().find(R"(<Grid Name="obstacle_0" GridType="Uniform">)"), std::string::npos);
+  EXPECT_NE(xml.str().find(R"(<Topology TopologyType="Triangle" NumberOfElements="12">)"), std::string::npos);
 }
 
 // Progress: a run longer than 2 s (XPBD with 256 substeps per 0.01 s step,
