@@ -57,6 +57,20 @@ void PrintSummary(const ResultReader& f, const RunTable& t) {
   fmt::print("schema {}, written {} by commit {} ({} build, {})\n", t.schema, t.created, t.git_commit, t.build_type,
              t.compiler);
   fmt::print("machine: {}, {} hardware threads\n", t.host, t.hardware_threads);
+  // stress_stability and --table files: their groups and what each holds.
+  for (const char* top : {"/stress", "/table"}) {
+    if (!f.Exists(top)) continue;
+    const std::vector<std::string> children = f.Children(top);
+    fmt::print("{}: {}\n", top, top == std::string("/stress") ? "stability maps (stress_stability)"
+                                                              : f.String(top, "name").value_or("thesis table"));
+    for (const std::string& c : children) {
+      const std::vector<std::string> sub = f.Children(std::string(top) + "/" + c);
+      std::string list;
+      for (const std::string& s : sub) list += (list.empty() ? "" : ", ") + s;
+      fmt::print("  {}{}\n", c, list.empty() ? "" : ": " + list);
+    }
+  }
+  if (!f.Exists("/scene")) return;
   fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, frame_dt = {:g} s, frames kept: {}\n",
              t.scene_name, t.scene_source, t.n_particles, t.n_fixed, t.t_end, t.frame_dt,
              t.frames.empty() ? "-" : t.frames);
