@@ -7,6 +7,8 @@
 //                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
 //                     [--reference-rtol R] [--rtols LIST] [--substeps LIST]
 //                     [--cg-tolerance ETA] [--cg-tolerances LIST] [--work-precision]
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -68,6 +70,9 @@ std::vector<double> ParsePositiveList(const std::string& s, const std::string& o
     }
     if (pos != item.size() || !std::isfinite(v) || !(v > 0.0))
       throw UsageError(fmt::format("{}: \"{}\" is not a positive number", option, item));
+    // Two equal entries would give two rows with one id: refused up front.
+    if (std::find(out.begin(), out.end(), v) != out.end())
+      throw UsageError(fmt::format("{}: {:g} is listed twice", option, v));
     out.push_back(v);
   }
   return out;
@@ -130,6 +135,18 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
         "runs kept), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
         "--reference none, or smaller nu/nv",
         scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, available / 1e9));
+}
+
+// Refuses, before any computing, an --out whose folder cannot be created or
+// written.
+void CheckOutputFolder(const std::string& out) {
+  std::filesystem::path folder = std::filesystem::path(out).parent_path();
+  if (folder.empty()) folder = ".";
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
+    throw UsageError(fmt::format("--out: folder \"{}\" {}", folder.string(),
+                                 ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
 }
 
 using Row = MethodRun;
@@ -251,7 +268,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   WriteProvenance(f);
   f.CreateGroup("/scene");
   WriteSceneRecord(f, table);
-  f.SetAttribute("/scene", "toml", scene.toml);
+  f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
   // The grid's quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
   // particle indices, counter-clockwise in (u, v).
   {
@@ -470,7 +487,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   WriteProvenance(f);
   f.CreateGroup("/table");
   f.SetAttribute("/table", "name", std::string("Table ") + which);
-  f.SetAttribute("/table", "scene_toml", base.toml);
+  f.WriteString("/table/scene_toml", base.toml);
   f.SetAttribute("/table", "preconditioner", std::string(ToString(base.solver.preconditioner)));
   f.WriteVector("/table/cg_tolerances", etas, "");
   int index = 0;
@@ -731,6 +748,12 @@ int Main(int argc, char** argv) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
+    for (std::size_t a = 0; a < methods.size(); ++a)
+      for (std::size_t b = 0; b < a; ++b)
+        if (methods[a].label() == methods[b].label())
+          throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver, \"bdf2\" also "
+                                       "names bdf2/newton)",
+                                       methods[a].label()));
     if (std::find(ArkodeTableNames().begin(), ArkodeTableNames().end(), arkode_table) == ArkodeTableNames().end()) {
       std::string known;
       for (const std::string& t : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + t;
@@ -787,6 +810,7 @@ int Main(int argc, char** argv) {
     }
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
+    CheckOutputFolder(out);
 
     const ParticleSystem sys(scene);
     TerminalProgress progress(!quiet);

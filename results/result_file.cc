@@ -111,6 +111,19 @@ void WriteRaw(hid_t file, const std::string& file_path, const std::string& path,
 
 }  // namespace
 
+void ResultFile::WriteString(const std::string& path, const std::string& value) {
+  Handle type{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(type.id, value.empty() ? 1 : value.size());
+  H5Tset_strpad(type.id, H5T_STR_NULLPAD);
+  H5Tset_cset(type.id, H5T_CSET_UTF8);
+  Handle space{H5Screate(H5S_SCALAR), H5Sclose};
+  Handle ds{Check(H5Dcreate2(file_, path.c_str(), type.id, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                  "cannot create dataset " + path, path_),
+            H5Dclose};
+  const std::string buf = value.empty() ? std::string(1, '\0') : value;
+  Check(H5Dwrite(ds.id, type.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
+}
+
 void ResultFile::WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units) {
   const hsize_t dims[1] = {values.size()};
   WriteRaw(file_, path_, path, 1, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(), values.empty());

@@ -45,6 +45,9 @@ class ResultFile {
   void SetAttribute(const std::string& object, const std::string& name, const std::string& value);
   void SetAttribute(const std::string& object, const std::string& name, double value);
   void SetAttribute(const std::string& object, const std::string& name, long value);
+  /// Scalar UTF-8 string dataset (texts of any size, unlike attributes,
+  /// which HDF5 limits to 64 KiB).
+  void WriteString(const std::string& path, const std::string& value);
   /// 1-D float64 dataset [n].
   void WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units);
   /// [F, N, 3] float64 from F frames of N×3 (positions [m], velocities [m/s]),

@@ -99,6 +99,14 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --no-such-flag" + o), "no-such-flag");
   ExpectOneLineError(RunBench(tiny + " --preconditioner ilu" + o), "--preconditioner: \"ilu\" must be");
   ExpectOneLineError(RunBench(tiny + " --frames some" + o), "--frames: \"some\" must be");
+  // Refused before computing: duplicate list entries (two rows with one id)
+  // and an output folder that cannot be written.
+  ExpectOneLineError(RunBench(tiny + " --h 0.01,0.005,0.01" + o), "--h: 0.01 is listed twice");
+  ExpectOneLineError(RunBench(tiny + " --integrators cvode --rtols 1e-3,1e-3" + o), "--rtols: 0.001 is listed twice");
+  ExpectOneLineError(RunBench(tiny + " --integrators sbdf2,bdf2,sbdf2" + o), "--integrators: sbdf2 is listed twice");
+  ExpectOneLineError(RunBench(tiny + " --integrators bdf2,bdf2/newton --nonlinear-solver fixed_point,newton" + o),
+                     "--integrators: bdf2/newton is listed twice");
+  ExpectOneLineError(RunBench(tiny + " --out /proc/clothbench/x.h5"), "--out: folder \"/proc/clothbench\"");
   std::string pre = kTiny;
   pre += "preconditioner = \"multigrid\"\n";
   ExpectOneLineError(RunBench("--scene " + WriteScene("pre.toml", pre) + o), "solver.preconditioner");
@@ -269,6 +277,28 @@ TEST(ResultFile, AppearsOnlyOnCommit) {
   }
   EXPECT_TRUE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+}
+
+// A scene file over 64 KiB (HDF5's attribute limit) is stored whole, as the
+// /scene/toml dataset.
+TEST(BenchCli, LargeSceneTextIsStored) {
+  const fs::path out = TempDir() / "large_text.h5";
+  std::string scene = kTiny;
+  while (scene.size() < 70 * 1024) scene += "# a comment line that makes the scene file larger than 64 KiB\n";
+  const Outcome o = RunBench("--scene " + WriteScene("large_text.toml", scene) +
+                             " --integrators sbdf2 --h 0.01 --reference none --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const hid_t f = H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  const hid_t ds = H5Dopen2(f, "/scene/toml", H5P_DEFAULT);
+  ASSERT_GE(ds, 0);
+  const hid_t type = H5Dget_type(ds);
+  std::string text(H5Tget_size(type), '\0');
+  ASSERT_GE(H5Dread(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, text.data()), 0);
+  EXPECT_EQ(text, scene);
+  H5Tclose(type);
+  H5Dclose(ds);
+  H5Fclose(f);
 }
 
 // A triangle-mesh obstacle is stored once, placed, under
