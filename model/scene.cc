@@ -472,6 +472,12 @@ Scene ParseScene(std::string_view text, const std::string& source) {
 }
 
 Scene LoadScene(const std::string& path) {
+  // A directory, a FIFO or a device is refused before it is opened (a FIFO
+  // would block, /dev/null would read as an empty all-defaults scene).
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))
+    throw SceneError(fmt::format("{}: not a regular file (a scene is a TOML file)", path));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError(fmt::format("{}: cannot open scene file", path));
   std::ostringstream ss;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <cmath>
@@ -76,6 +77,12 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   const fs::path out = TempDir() / "bad.h5";
   const std::string o = " --out " + out.string();
   ExpectOneLineError(RunBench("--scene /nonexistent/scene.toml" + o), "cannot open scene file");
+  ExpectOneLineError(RunBench("--scene /dev/null" + o), "/dev/null: not a regular file");
+  ExpectOneLineError(RunBench("--scene " + TempDir().string() + o), "not a regular file");
+  const fs::path fifo = TempDir() / "scene.fifo";
+  fs::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ExpectOneLineError(RunBench("--scene " + fifo.string() + o), "scene.fifo: not a regular file");
   ExpectOneLineError(RunBench("--scene " + WriteScene("syntax.toml", "name = \"x\"\n[grid\nnu = 3\n") + o),
                      "TOML syntax error");
   ExpectOneLineError(RunBench("--scene " + WriteScene("unknown.toml", std::string(kTiny) + "foo = 1\n") + o),
