@@ -25,6 +25,7 @@
 #include "bench/methods.h"
 #include "bench/plot.h"
 #include "bench/progress.h"
+#include "bench/signals.h"
 #include "model/particle_system.h"
 #include "model/triangle_mesh.h"
 #include "reference/cvode_reference.h"
@@ -680,6 +681,7 @@ int Main(int argc, char** argv) {
     fmt::print(stderr, "bench_integrators: {}\n", e.what());
     return 2;
   }
+  InstallInterruptHandlers();
 
   try {
     std::vector<NonlinearSolver> solvers;
@@ -885,6 +887,9 @@ int Main(int argc, char** argv) {
   } catch (const SceneError& e) {
     fmt::print(stderr, "bench_integrators: {}\n", e.what());
     return 2;
+  } catch (const Interrupted& e) {
+    fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written\n", SignalName(e.signal));
+    return 128 + e.signal;
   } catch (const std::exception& e) {
     fmt::print(stderr, "bench_integrators: {}\n", e.what());
     return 1;

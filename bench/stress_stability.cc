@@ -26,6 +26,7 @@
 
 #include "bench/methods.h"
 #include "bench/plot.h"
+#include "bench/signals.h"
 #include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/stability_map.h"
@@ -85,6 +86,7 @@ int Main(int argc, char** argv) {
     fmt::print(stderr, "stress_stability: {}\n", e.what());
     return 2;
   }
+  InstallInterruptHandlers();
   try {
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
@@ -128,6 +130,7 @@ int Main(int argc, char** argv) {
         for (double h : hs) {
           fmt::print("{:<24} {:>8g}", "", h);
           for (double s : stiff) {
+            ThrowIfInterrupted();  // between cells; unwinding removes the .tmp
             const StabilityCell c = RunStabilityCell(
                 scene, [&m](const ParticleSystem& sys, const SolverSpec& spec) { return m.Make(sys, spec); }, h, s,
                 steps);
@@ -160,6 +163,9 @@ int Main(int argc, char** argv) {
   } catch (const std::invalid_argument& e) {
     fmt::print(stderr, "stress_stability: {}\n", e.what());
     return 2;
+  } catch (const Interrupted& e) {
+    fmt::print(stderr, "stress_stability: interrupted by {}; no result file written\n", SignalName(e.signal));
+    return 128 + e.signal;
   } catch (const std::exception& e) {
     fmt::print(stderr, "stress_stability: {}\n", e.what());
     return 1;

@@ -12,6 +12,7 @@
 #include <hdf5.h>
 
 #include "git_commit.h"  // generated at build time
+#include "model/interrupt.h"
 #include "results/run_table.h"
 
 namespace clothbench {
@@ -173,6 +174,7 @@ void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3
   const hsize_t count[3] = {1, n, 3};
   Handle mem{H5Screate_simple(3, count, nullptr), H5Sclose};
   for (hsize_t k = 0; k < f && n > 0; ++k) {
+    ThrowIfInterrupted();  // unwinding removes the .tmp
     for (hsize_t p = 0; p < n; ++p)
       for (hsize_t c = 0; c < 3; ++c)
         buf[p * 3 + c] = frames[k](static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c));

@@ -1,7 +1,9 @@
 // HDF5 result files (schema kResultSchema, results/run_table.h), written
-// through the HDF5 C API. A file is written under "<path>.tmp" and renamed
-// to <path> only by Commit(), so an interrupted run never leaves a half file
-// under the final name.
+// through the HDF5 C API. A file is written under "<path>.tmp" (truncating a
+// stale one from an earlier crash) and renamed to <path> only by Commit(),
+// so an interrupted run never leaves a half file under the final name; the
+// destructor removes the .tmp, also when SIGINT/SIGTERM unwinds the writer
+// (WriteFrames checks between frames, model/interrupt.h).
 #ifndef CLOTHBENCH_RESULTS_RESULT_FILE_H_
 #define CLOTHBENCH_RESULTS_RESULT_FILE_H_
 

@@ -1,11 +1,13 @@
 // Progress of the run in flight, for a display such as bench/progress.h.
 // The step loops (RunStepper, the SUNDIALS one-step loop) report the
 // simulated time after every accepted step; without a sink that is one
-// relaxed atomic load.
+// relaxed atomic load (and one for the interrupt flag).
 #ifndef CLOTHBENCH_SOLVER_PROGRESS_H_
 #define CLOTHBENCH_SOLVER_PROGRESS_H_
 
 #include <atomic>
+
+#include "model/interrupt.h"
 
 namespace clothbench {
 
@@ -24,7 +26,10 @@ inline std::atomic<ProgressSink*> g_progress_sink{nullptr};
 inline void SetProgressSink(ProgressSink* sink) { internal::g_progress_sink.store(sink, std::memory_order_relaxed); }
 
 /// Called by the step loops after each accepted step at simulated time t [s].
+/// @throws Interrupted if SIGINT or SIGTERM arrived (model/interrupt.h): the
+/// run stops after the current step.
 inline void ReportProgress(double t) {
+  ThrowIfInterrupted();
   if (ProgressSink* s = internal::g_progress_sink.load(std::memory_order_relaxed)) s->Update(t);
 }
 

@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -263,6 +264,43 @@ TEST(BenchCli, InterruptedRunLeavesNoFinalFile) {
   ASSERT_TRUE(WIFEXITED(rc));
   EXPECT_EQ(WEXITSTATUS(rc), 137);  // killed by timeout, not finished
   EXPECT_FALSE(fs::exists(out));
+}
+
+// SIGINT and SIGTERM in the middle of a run (XPBD with 256 substeps per
+// 0.01 s step runs ~2.5 s; the signal comes after 1 s): the run stops after
+// the current step and exits 128 + signal with one line, leaving neither
+// the result file nor its .tmp.
+TEST(BenchCli, SignalsLeaveNoFileAndExit128PlusSignal) {
+  for (const auto& [sig, code] : {std::pair{"INT", 130}, std::pair{"TERM", 143}}) {
+    const fs::path out = TempDir() / (std::string("signal_") + sig + ".h5");
+    const fs::path err = TempDir() / "signal_err.txt";
+    const std::string cmd = std::string("timeout --preserve-status -s ") + sig + " 1 " + CLOTHBENCH_BENCH_BINARY +
+                            " --integrators xpbd --h 0.01 --substeps 256 --reference none --out " + out.string() +
+                            " > /dev/null 2> " + err.string();
+    const int rc = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(rc)) << sig;
+    EXPECT_EQ(WEXITSTATUS(rc), code) << sig;
+    std::ifstream in(err);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    const std::string text = ss.str();
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+    EXPECT_NE(text.find(std::string("interrupted by SIG") + sig), std::string::npos) << text;
+    EXPECT_FALSE(fs::exists(out)) << sig;
+    EXPECT_FALSE(fs::exists(out.string() + ".tmp")) << sig;
+  }
+}
+
+// A stale .tmp from an earlier crash is replaced, and gone after the run.
+TEST(BenchCli, StaleTmpIsReplaced) {
+  const fs::path out = TempDir() / "stale.h5";
+  fs::remove(out);
+  std::ofstream(out.string() + ".tmp") << "left by a crashed run";
+  const Outcome o = RunBench("--scene " + WriteScene("tiny.toml", kTiny) +
+                             " --integrators sbdf2 --h 0.01 --reference none --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_TRUE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
 }
 
 TEST(ResultFile, AppearsOnlyOnCommit) {
