@@ -175,8 +175,9 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
   const auto write = [&](const std::vector<MatrixN3>& frames, bool every, const std::string& name,
                          const std::string& units) {
     if (frames.empty()) return;
-    const std::string path = g + "/" + name + (every || frames.size() <= 2 ? "" : "_ends");
-    if (every || frames.size() <= 2) f.WriteFrames(path, frames, units);
+    const bool all = every || frames.size() <= 2;
+    const std::string path = g + "/" + name + (all ? "" : "_ends");
+    if (all) f.WriteFrames(path, frames, units);
     else f.WriteFrames(path, {frames.front(), frames.back()}, units);
     f.WriteFrameViews(path, g + "/frame_views/" + name + "_");
   };
@@ -317,8 +318,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     if (table.reference->energy_rate_W) f.SetAttribute("/reference", "energy_rate_W", *table.reference->energy_rate_W);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
     if (write_frames)
-      WriteTrajectoryFrames(f, "/reference", ref->trajectory, frames_mode != "none",
-                            frames_mode == "all" || frames_mode == "ends");
+      WriteTrajectoryFrames(f, "/reference", ref->trajectory, true, frames_mode == "all" || frames_mode == "ends");
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
     for (const StepStats& s : ref->step_stats)

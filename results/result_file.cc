@@ -13,10 +13,13 @@
 
 #include "git_commit.h"  // generated at build time
 #include "model/interrupt.h"
+#include "results/hdf5_util.h"
 #include "results/run_table.h"
 
 namespace clothbench {
 namespace {
+
+using internal::Handle;
 
 // zlib level of the frame datasets: 4 compresses these doubles within a few
 // per cent of level 9 at a fraction of its time.
@@ -26,15 +29,6 @@ hid_t Check(hid_t id, const std::string& what, const std::string& file) {
   if (id < 0) throw ResultError(fmt::format("{}: HDF5 error: {}", file, what));
   return id;
 }
-
-// Closes an HDF5 handle when it goes out of scope.
-struct Handle {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~Handle() {
-    if (id >= 0) close(id);
-  }
-};
 
 }  // namespace
 
@@ -211,14 +205,7 @@ void ResultFile::WriteFrameViews(const std::string& frames_path, const std::stri
 }
 
 void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows) {
-  Handle mem{H5Tcreate(H5T_COMPOUND, sizeof(StepRecord)), H5Tclose};
-  H5Tinsert(mem.id, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
-  H5Tinsert(mem.id, "h", HOFFSET(StepRecord, h), H5T_NATIVE_DOUBLE);
-  H5Tinsert(mem.id, "updates", HOFFSET(StepRecord, updates), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
+  Handle mem{internal::StepRecordType(), H5Tclose};
   const hsize_t dims[1] = {rows.size()};
   Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
   Handle ds{Check(H5Dcreate2(file_, path.c_str(), mem.id, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),

@@ -3,21 +3,17 @@
 #include "results/result_reader.h"
 
 #include <algorithm>
+#include <sstream>
 
 #include <fmt/format.h>
 #include <hdf5.h>
 
+#include "results/hdf5_util.h"
+
 namespace clothbench {
 namespace {
 
-// Closes an HDF5 handle when it goes out of scope.
-struct Handle {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~Handle() {
-    if (id >= 0) close(id);
-  }
-};
+using internal::Handle;
 
 std::optional<AttributeValue> ReadAttribute(hid_t attr) {
   Handle type{H5Aget_type(attr), H5Tclose};
@@ -221,14 +217,7 @@ MatrixN3 ResultReader::Frame(const std::string& dataset, std::size_t k) const {
 
 std::vector<StepRecord> ResultReader::StepStats(const std::string& dataset) const {
   const std::vector<std::size_t> shape = Shape(dataset);
-  Handle mem{H5Tcreate(H5T_COMPOUND, sizeof(StepRecord)), H5Tclose};
-  H5Tinsert(mem.id, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
-  H5Tinsert(mem.id, "h", HOFFSET(StepRecord, h), H5T_NATIVE_DOUBLE);
-  H5Tinsert(mem.id, "updates", HOFFSET(StepRecord, updates), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
-  H5Tinsert(mem.id, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
+  Handle mem{internal::StepRecordType(), H5Tclose};
   return ReadAll<StepRecord>(file_, path_, dataset, mem.id, shape);
 }
 
@@ -303,12 +292,8 @@ RunTable ReadRunTable(const ResultReader& f) {
   if (f.Exists("/work_precision/targets")) {
     EqualAccuracyTable w;
     w.targets = f.Doubles("/work_precision/targets");
-    const std::string labels = str("/work_precision", "labels");
-    for (std::size_t b = 0; b <= labels.size() && !labels.empty();) {
-      const std::size_t e = std::min(labels.find(',', b), labels.size());
-      w.labels.push_back(labels.substr(b, e - b));
-      b = e + 1;
-    }
+    std::stringstream labels(str("/work_precision", "labels"));  // comma-separated
+    for (std::string label; std::getline(labels, label, ',');) w.labels.push_back(label);
     const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
     const std::vector<double> ratio = f.Doubles("/work_precision/ratio_to_cvode");
     const std::size_t cols = w.targets.size();

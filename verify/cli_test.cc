@@ -16,32 +16,18 @@
 #include <vector>
 
 #include "results/result_file.h"
+#include "verify/cli_helpers.h"
 
 namespace clothbench {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Outcome {
-  int exit_code;
-  std::string err;
-};
+using testing::Outcome;
 
-fs::path TempDir() {
-  fs::path d = fs::temp_directory_path() / ("clothbench_cli_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path TempDir() { return testing::TempDir("clothbench_cli_"); }
 
-Outcome RunBench(const std::string& args) {
-  const fs::path err = TempDir() / "stderr.txt";
-  const std::string cmd = std::string(CLOTHBENCH_BENCH_BINARY) + " " + args + " > /dev/null 2> " + err.string();
-  const int rc = std::system(cmd.c_str());
-  std::ifstream in(err);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, ss.str()};
-}
+Outcome RunBench(const std::string& args) { return testing::RunCommand(CLOTHBENCH_BENCH_BINARY, args, TempDir()); }
 
 std::string WriteScene(const std::string& name, const std::string& text) {
   const fs::path p = TempDir() / name;
@@ -49,24 +35,7 @@ std::string WriteScene(const std::string& name, const std::string& text) {
   return p.string();
 }
 
-const char* kTiny = R"(name = "tiny"
-t_end = 0.04
-frame_dt = 0.01
-h = 0.01
-[grid]
-nu = 4
-nv = 3
-size = [0.3, 0.2]
-[material]
-tension = [100.0, 100.0]
-tension_damping = 0.1
-shear = 1.0
-bend = [1e-5, 1e-5]
-[constraints]
-fixed = ["corner:u0v1", "corner:u1v1"]
-[solver]
-cg_tolerance = 1e-10
-)";
+const char* const kTiny = testing::kTinyScene;
 
 void ExpectOneLineError(const Outcome& o, const std::string& needle, int code = 2) {
   EXPECT_EQ(o.exit_code, code) << o.err;
@@ -266,8 +235,9 @@ TEST(BenchCli, InterruptedRunLeavesNoFinalFile) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// SIGINT and SIGTERM in the middle of a run (XPBD with 256 substeps per
-// 0.01 s step runs ~2.5 s; the signal comes after 1 s): the run stops after
+// SIGINT and SIGTERM in the middle of a run (XPBD with 1024 substeps per
+// 0.01 s step would run ~9 s here; the signal comes after 1 s, so a machine
+// up to ~9× faster still receives it mid-run): the run stops after
 // the current step and exits 128 + signal with one line, leaving neither
 // the result file nor its .tmp.
 TEST(BenchCli, SignalsLeaveNoFileAndExit128PlusSignal) {
@@ -275,7 +245,7 @@ TEST(BenchCli, SignalsLeaveNoFileAndExit128PlusSignal) {
     const fs::path out = TempDir() / (std::string("signal_") + sig + ".h5");
     const fs::path err = TempDir() / "signal_err.txt";
     const std::string cmd = std::string("timeout --preserve-status -s ") + sig + " 1 " + CLOTHBENCH_BENCH_BINARY +
-                            " --integrators xpbd --h 0.01 --substeps 256 --reference none --out " + out.string() +
+                            " --integrators xpbd --h 0.01 --substeps 1024 --reference none --out " + out.string() +
                             " > /dev/null 2> " + err.string();
     const int rc = std::system(cmd.c_str());
     ASSERT_TRUE(WIFEXITED(rc)) << sig;
@@ -374,6 +344,7 @@ TEST(BenchCli, MeshObstaclesAreStoredForTheXdmf) {
   std::vector<double> v(24);
   const hid_t ds = H5Dopen2(f, "/scene/obstacles/0/vertices", H5P_DEFAULT);
   ASSERT_GE(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), 0);
+  // 1e-15: scale and translate in double, a few ulps of 0.5.
   for (int k = 0; k < 8; ++k) EXPECT_NEAR(std::abs(v[3 * k + 2] + 0.5), 0.05, 1e-15) << k;
   H5Dclose(ds);
   H5Fclose(f);
@@ -384,14 +355,14 @@ TEST(BenchCli, MeshObstaclesAreStoredForTheXdmf) {
   EXPECT_NE(xml.str().find(R"(<Topology TopologyType="Triangle" NumberOfElements="12">)"), std::string::npos);
 }
 
-// Progress: a run longer than 2 s (XPBD with 256 substeps per 0.01 s step,
-// ~2.5 s here) draws a progress line on stderr when stderr is a terminal
+// Progress: a run longer than 2 s (XPBD with 512 substeps per 0.01 s step,
+// ~4.6 s here, so it stays above 2 s on a machine twice as fast) draws a progress line on stderr when stderr is a terminal
 // (util-linux `script` provides one), nothing with --quiet, and nothing
 // when stderr is a file.
 TEST(BenchCli, ProgressOnlyOnATerminal) {
   const fs::path out = TempDir() / "progress.h5", tty = TempDir() / "tty.txt";
   const std::string run = std::string(CLOTHBENCH_BENCH_BINARY) +
-                          " --integrators xpbd --h 0.01 --substeps 256 --reference none --frames none --out " +
+                          " --integrators xpbd --h 0.01 --substeps 512 --reference none --frames none --out " +
                           out.string();
   if (std::system("command -v script > /dev/null") != 0) GTEST_FAIL() << "util-linux script is missing";
   for (const bool quiet : {false, true}) {
@@ -401,11 +372,11 @@ TEST(BenchCli, ProgressOnlyOnATerminal) {
     std::ifstream in(tty);
     std::stringstream ss;
     ss << in.rdbuf();
-    const bool drawn = ss.str().find("xpbd h = 0.01 s/256: t = ") != std::string::npos &&
+    const bool drawn = ss.str().find("xpbd h = 0.01 s/512: t = ") != std::string::npos &&
                        ss.str().find(" s elapsed, ~") != std::string::npos;
     EXPECT_EQ(drawn, !quiet) << ss.str();
   }
-  const Outcome o = RunBench("--integrators xpbd --h 0.01 --substeps 256 --reference none --frames none --out " +
+  const Outcome o = RunBench("--integrators xpbd --h 0.01 --substeps 512 --reference none --frames none --out " +
                              out.string());
   EXPECT_EQ(o.exit_code, 0);
   EXPECT_TRUE(o.err.empty()) << o.err;

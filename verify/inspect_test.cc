@@ -18,35 +18,20 @@
 
 #include "results/result_reader.h"
 #include "results/run_table.h"
+#include "verify/cli_helpers.h"
 
 namespace clothbench {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Outcome {
-  int exit_code;
-  std::string out, err;
-};
+using testing::Outcome;
+using testing::Slurp;
 
-fs::path TempDir() {
-  fs::path d = fs::temp_directory_path() / ("clothbench_inspect_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+fs::path TempDir() { return testing::TempDir("clothbench_inspect_"); }
 
 Outcome RunCommand(const std::string& binary, const std::string& args) {
-  const fs::path out = TempDir() / "stdout.txt", err = TempDir() / "stderr.txt";
-  const std::string cmd = binary + " " + args + " > " + out.string() + " 2> " + err.string();
-  const int rc = std::system(cmd.c_str());
-  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, Slurp(out), Slurp(err)};
+  return testing::RunCommand(binary, args, TempDir());
 }
 
 std::vector<std::string> Lines(const std::string& text) {
@@ -56,24 +41,6 @@ std::vector<std::string> Lines(const std::string& text) {
   return lines;
 }
 
-const char* kTiny = R"(name = "tiny"
-t_end = 0.04
-frame_dt = 0.01
-h = 0.01
-[grid]
-nu = 4
-nv = 3
-size = [0.3, 0.2]
-[material]
-tension = [100.0, 100.0]
-tension_damping = 0.1
-shear = 1.0
-bend = [1e-5, 1e-5]
-[constraints]
-fixed = ["corner:u0v1", "corner:u1v1"]
-[solver]
-cg_tolerance = 1e-10
-)";
 
 // One bench_integrators run shared by the tests: fixed-step, Newton,
 // substepped and adaptive rows (every kind of h|rtol column, footnotes,
@@ -82,7 +49,7 @@ class InspectTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     scene_ = (TempDir() / "tiny.toml").string();
-    std::ofstream(scene_) << kTiny;
+    std::ofstream(scene_) << testing::kTinyScene;
     file_ = (TempDir() / "tiny.h5").string();
     printed_ = new Outcome(RunCommand(CLOTHBENCH_BENCH_BINARY, "--scene " + scene_ +
                                                             " --integrators sbdf2,bdf2/newton,xpbd,cvode --h 0.01,0.005 "

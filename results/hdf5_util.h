@@ -1,0 +1,36 @@
+// Internal to clothbench::results: what the HDF5 writer and reader share.
+#ifndef CLOTHBENCH_RESULTS_HDF5_UTIL_H_
+#define CLOTHBENCH_RESULTS_HDF5_UTIL_H_
+
+#include <hdf5.h>
+
+#include "results/result_file.h"
+
+namespace clothbench::internal {
+
+// Closes an HDF5 handle when it goes out of scope.
+struct Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+// The compound type of a step_stats row (StepRecord) in memory; close with
+// H5Tclose.
+inline hid_t StepRecordType() {
+  const hid_t t = H5Tcreate(H5T_COMPOUND, sizeof(StepRecord));
+  H5Tinsert(t, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
+  H5Tinsert(t, "h", HOFFSET(StepRecord, h), H5T_NATIVE_DOUBLE);
+  H5Tinsert(t, "updates", HOFFSET(StepRecord, updates), H5T_NATIVE_INT32);
+  H5Tinsert(t, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
+  H5Tinsert(t, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
+  H5Tinsert(t, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
+  H5Tinsert(t, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
+  return t;
+}
+
+}  // namespace clothbench::internal
+
+#endif  // CLOTHBENCH_RESULTS_HDF5_UTIL_H_
