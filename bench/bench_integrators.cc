@@ -107,8 +107,10 @@ double AvailableBytes() {
 // 44.9e6 entries at 10⁶, METIS); the SUNDIALS references a 3N×3N Jacobian
 // (~117 entries per particle row triple) and its KLU factor with fill,
 // taken as 4 kB per particle (an upper estimate, not a measurement).
+// Every attempted step keeps a StepStats in the run and a StepRecord in its
+// row until the file is written (`step_records` of all rows, ~100 bytes each).
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
-                 std::size_t n_eta, const std::string& reference) {
+                 std::size_t n_eta, const std::string& reference, double step_records) {
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
@@ -122,7 +124,7 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
     if (m.solver == NonlinearSolver::kNewton || m.entry->tangent) tangent = true;
   }
   if (reference != "none") rows += 1.0;
-  double bytes = n * (25.0 * 24.0 + 200.0) + rows * frames * 2.0 * 24.0 * n;
+  double bytes = n * (25.0 * 24.0 + 200.0) + rows * frames * 2.0 * 24.0 * n + step_records * 100.0;
   if (scene.solver.preconditioner == PreconditionerType::kCholesky) bytes += n * 45.0 * 12.0;
   if (sundials) bytes += n * 4096.0;
   // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α, its
@@ -133,9 +135,9 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
   if (available > 0.0 && bytes > 0.8 * available)
     throw UsageError(fmt::format(
         "{}: grid.nu × grid.nv = {} × {} = {:.0f} particles: this run needs about {:.1f} GB ({:.0f} frames × {:.0f} "
-        "runs kept), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
+        "runs kept, {:.3g} step records), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
         "--reference none, or smaller nu/nv",
-        scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, available / 1e9));
+        scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, step_records, available / 1e9));
 }
 
 // Refuses, before any computing, an --out whose folder cannot be created or
@@ -220,7 +222,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     rr.steps = ref->steps;
     rr.wall_time_s = ref->wall_time_in_seconds;
     const EnergySeries e = ComputeEnergies(sys, ref->trajectory);
-    if (e.t.size() >= 2) rr.energy_rate_W = e.Rate();
+    if (e.t.size() >= 2 && std::isfinite(e.Rate())) rr.energy_rate_W = e.Rate();
     t.reference = rr;
   }
   for (const Row& r : rows) {
@@ -253,8 +255,8 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
       q.error_max_m = r.err->rms_max;
       q.error_mean_m = r.err->mean_at_end;
     }
-    q.observed_order = r.order;
-    if (r.ok && r.energy.t.size() >= 2) q.energy_rate_W = r.energy.Rate();
+    if (r.order && std::isfinite(*r.order)) q.observed_order = r.order;
+    if (r.ok && r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) q.energy_rate_W = r.energy.Rate();
     t.runs.push_back(std::move(q));
   }
   if (wp) t.work_precision = *wp;
@@ -616,7 +618,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg;
-  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0;
+  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
@@ -668,6 +670,9 @@ int Main(int argc, char** argv) {
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
                  "once per --cg-tolerances value (and write HDF5)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
+  app.add_option("--time-limit", time_limit,
+                 "wall-time budget of each run [s] (default 3600): a run past it ends with status time_limit and the "
+                 "other rows still run and are written");
   app.add_flag("--quiet", quiet, "no progress line on stderr (it is shown only when stderr is a terminal and a run takes "
                                  "more than 2 s)");
   app.add_option("--plot", plot_dir,
@@ -678,7 +683,7 @@ int Main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 2;
   }
   InstallInterruptHandlers();
@@ -705,10 +710,15 @@ int Main(int argc, char** argv) {
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {
-      if (!std::isfinite(t_end) || !(t_end > 0.0)) throw UsageError(fmt::format("--t-end: {} is not a positive number", t_end));
+      if (!std::isfinite(t_end) || !(t_end > 0.0) || t_end > 1e6)
+        throw UsageError(fmt::format("--t-end: {} is not a number in (0, 1e6] s", t_end));
       scene.t_end = t_end;
       scene.frame_dt = std::min(scene.frame_dt, t_end);
+      scene.h = std::min(scene.h, t_end);
+      CheckRunLength(scene, fmt::format("--t-end {:g} on {}", t_end, scene.source));
     }
+    if (!std::isfinite(time_limit) || !(time_limit > 0.0))
+      throw UsageError(fmt::format("--time-limit: {} is not a positive number of seconds", time_limit));
     if (app.count("--cg-tolerance")) {
       if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
         throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
@@ -780,6 +790,7 @@ int Main(int argc, char** argv) {
     // --h / --rtols, each method's defaults (DefaultRowParams).
     std::vector<std::vector<std::pair<double, int>>> params(methods.size());
     std::vector<std::size_t> n_params;
+    double step_records = 0.0;  // fixed-step and substepped rows; adaptive ones take far fewer
     for (std::size_t k = 0; k < methods.size(); ++k) {
       const RowMethod& m = methods[k];
       const DefaultParams d = DefaultRowParams(m);
@@ -801,8 +812,19 @@ int Main(int argc, char** argv) {
         for (double r : rtols.empty() ? d.rtols : rtols) ps.emplace_back(r, 1);
       }
       n_params.push_back(ps.size());
+      // The longest fixed-step or substepped run must stay within the step limit.
+      if (m.kind() != StepKind::kAdaptive)
+        for (const auto& [h, n] : ps) {
+          step_records += std::ceil(scene.t_end / h * n) * static_cast<double>(m.uses_pcg() ? etas.size() : 1);
+          if (scene.t_end / h * n > kMaxStepsPerRun)
+            throw UsageError(fmt::format("{}: {} at h = {:g} s{} needs t_end/h = {:.3g} steps, more than the limit of "
+                                         "{:g} (solver/run.h, RunLimits)",
+                                         hs.empty() ? "scene h" : (n > 1 ? "--h/--substeps" : "--h"), m.label(), h,
+                                         n > 1 ? fmt::format(" with {} substeps", n) : "", scene.t_end / h * n,
+                                         kMaxStepsPerRun));
+        }
     }
-    CheckMemory(scene, methods, n_params, etas.size(), reference);
+    CheckMemory(scene, methods, n_params, etas.size(), reference, step_records);
     if (!plot_dir.empty()) {
       try {
         CheckPlotDir(plot_dir);
@@ -817,7 +839,9 @@ int Main(int argc, char** argv) {
     const ParticleSystem sys(scene);
     TerminalProgress progress(!quiet);
     std::optional<RunSummary> ref;
-    ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt};
+    RunLimits limits;
+    limits.time_limit_s = time_limit;
+    ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt, limits};
     if (reference != "none" && !sys.obstacles().empty()) {
       // CVODE and IDA have no collision response: on obstacle scenes the
       // reference is a self-convergence run, BDF(2) at h_min/16 (without
@@ -841,7 +865,7 @@ int Main(int argc, char** argv) {
     }
 
     std::vector<Row> rows;
-    const RunContext ctx{arkode_table};
+    const RunContext ctx{arkode_table, limits};
     for (std::size_t mk = 0; mk < methods.size(); ++mk) {
       const RowMethod& m = methods[mk];
       for (double eta : m.uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
@@ -882,16 +906,20 @@ int Main(int argc, char** argv) {
     if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
     return 0;
   } catch (const UsageError& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 2;
   } catch (const SceneError& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 2;
   } catch (const Interrupted& e) {
     fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written\n", SignalName(e.signal));
     return 128 + e.signal;
+  } catch (const std::bad_alloc&) {
+    fmt::print(stderr, "bench_integrators: out of memory although the run fitted the memory estimate; no result file "
+                       "written (use --frames ends|none or fewer rows)\n");
+    return 1;
   } catch (const std::exception& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", e.what());
+    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 1;
   }
 }

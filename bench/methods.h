@@ -44,6 +44,7 @@ inline std::string_view ToString(StepKind k) {
 /// Settings shared by all rows of one invocation.
 struct RunContext {
   std::string arkode_table = "ARK324L2SA";
+  RunLimits limits{};  ///< wall time and steps of every row (--time-limit)
 };
 
 struct MethodEntry {
@@ -239,9 +240,9 @@ struct RowMethod {
                           (sys.obstacles().empty() ? "" : ",obstacles");
       }
       // Error-controlled rows start at the scene's h; the controller takes over.
-      r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s});
+      r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
     } else {
-      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt}, spec, ctx);
+      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, spec, ctx);
     }
     row.ok = r.ok;
     row.status = r.status;

@@ -2,6 +2,7 @@
 #include "model/particle_system.h"
 
 #include <Eigen/Geometry>
+#include <fmt/format.h>
 
 namespace clothbench {
 
@@ -56,7 +57,13 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   lk_ = laplacian([](const Spring& s) { return s.stiffness; });
   ld_ = laplacian([](const Spring& s) { return s.damping; });
 
-  for (const ObstacleSpec& o : scene.obstacles) obstacles_.emplace_back(o);
+  for (std::size_t k = 0; k < scene.obstacles.size(); ++k) {
+    try {
+      obstacles_.emplace_back(scene.obstacles[k]);
+    } catch (const std::runtime_error& e) {  // an unreadable, empty or misplaced mesh
+      throw SceneError(fmt::format("{}: obstacle[{}].path: {}", scene.source, k, e.what()));
+    }
+  }
   fixed_ = scene.fixed;
   fixed_mask_.assign(static_cast<std::size_t>(n_), 0);
   for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;

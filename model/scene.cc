@@ -86,6 +86,29 @@ bool SolverSpec::IsValid(std::string* error) const {
   return true;
 }
 
+std::string EscapeControl(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\n') out += "\\n";
+    else if (c == '\t') out += "\\t";
+    else if (c == '\r') out += "\\r";
+    else if (u < 0x20 || u == 0x7f) out += fmt::format("\\x{:02x}", u);
+    else out += c;
+  }
+  return out;
+}
+
+void CheckRunLength(const Scene& s, const std::string& source) {
+  if (s.t_end / s.frame_dt > kMaxFramesPerRun)
+    throw SceneError(fmt::format("{}: frame_dt: t_end/frame_dt = {:g}/{:g} = {:.3g} frames exceeds the limit of {:g}",
+                                 source, s.t_end, s.frame_dt, s.t_end / s.frame_dt, kMaxFramesPerRun));
+  if (s.t_end / s.h > kMaxStepsPerRun)
+    throw SceneError(fmt::format("{}: h: t_end/h = {:g}/{:g} = {:.3g} steps exceeds the limit of {:g}", source,
+                                 s.t_end, s.h, s.t_end / s.h, kMaxStepsPerRun));
+}
+
 namespace {
 
 // Reads one TOML table, remembering which keys were consumed so that unknown
@@ -108,10 +131,17 @@ class TableReader {
     const toml::node* n = Get(key);
     if (!n) return fallback;
     if (auto d = n->value<double>()) {
-      if (!std::isfinite(*d)) Fail(key, "must be a finite number");
+      if (!std::isfinite(*d) || std::abs(*d) > kMaxMagnitude)
+        Fail(key, fmt::format("must be a finite number of magnitude at most {:g}", kMaxMagnitude));
       return *d;
     }
     Fail(key, "must be a number");
+  }
+  /// A number in [lo, hi] (the stated physical range of the key).
+  double Range(std::string_view key, double fallback, double lo, double hi, std::string_view units) {
+    const double d = Number(key, fallback);
+    if (!(d >= lo && d <= hi)) Fail(key, fmt::format("must be in [{:g}, {:g}]{} (got {:g})", lo, hi, units, d));
+    return d;
   }
   double NonNegative(std::string_view key, double fallback) {
     const double d = Number(key, fallback);
@@ -156,6 +186,7 @@ class TableReader {
     for (std::size_t k = 0; k < K; ++k) {
       auto d = (*a)[k].value<double>();
       if (!d || !std::isfinite(*d) || (non_negative && *d < 0.0)) Fail(key, rule);
+      if (std::abs(*d) > kMaxMagnitude) Fail(key, fmt::format("{} of magnitude at most {:g}", rule, kMaxMagnitude));
       out[k] = *d;
     }
     return out;
@@ -263,6 +294,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   s.name = top.String("name", s.name);
   if (s.name.empty()) top.Fail("name", "must not be empty");
   s.t_end = top.Positive("t_end", s.t_end);
+  if (s.t_end > 1e6) top.Fail("t_end", fmt::format("must be <= 1e6 s (got {:g})", s.t_end));
   s.frame_dt = top.Positive("frame_dt", s.frame_dt);
   s.h = top.Positive("h", s.h);
   if (s.frame_dt > s.t_end) top.Fail("frame_dt", "must be <= t_end");
@@ -271,10 +303,18 @@ Scene ParseScene(std::string_view text, const std::string& source) {
     TableReader g(top.SubTable("grid"), top.Child("grid"), source);
     s.grid.nu = g.Integer("nu", s.grid.nu, 2);
     s.grid.nv = g.Integer("nv", s.grid.nv, 2);
+    if (double(s.grid.nu) * double(s.grid.nv) > kMaxParticles)
+      g.Fail("nv", fmt::format("nu × nv = {} × {} exceeds the limit of {:g} particles", s.grid.nu, s.grid.nv,
+                               kMaxParticles));
     auto size = g.Numbers<2>("size", s.grid.size, true);
     if (!(size[0] > 0 && size[1] > 0)) g.Fail("size", "must be 2 positive numbers [m]");
+    if (size[0] > 1e4 || size[1] > 1e4) g.Fail("size", "must be at most 1e4 m per side");
+    if (size[0] / (s.grid.nu - 1) < 1e-6 || size[1] / (s.grid.nv - 1) < 1e-6)
+      g.Fail("size", fmt::format("gives a particle spacing size/(n - 1) below 1e-6 m ({:g} m, {:g} m)",
+                                 size[0] / (s.grid.nu - 1), size[1] / (s.grid.nv - 1)));
     s.grid.size = size;
     s.grid.origin = g.Vec3("origin", s.grid.origin);
+    if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6) g.Fail("origin", "must have coordinates of magnitude at most 1e6 m");
     s.grid.u_axis = g.Vec3("u_axis", s.grid.u_axis);
     s.grid.v_axis = g.Vec3("v_axis", s.grid.v_axis);
     if (std::abs(s.grid.u_axis.norm() - 1.0) > 1e-9) g.Fail("u_axis", "must be a unit vector");
@@ -285,7 +325,9 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   {
     TableReader m(top.SubTable("material"), top.Child("material"), source);
     MaterialSpec& mat = s.material;
-    mat.density = m.Positive("density", mat.density);
+    // Cloth is 0.05–1 kg/m²: the floor keeps masses normal doubles and
+    // h²k/(ρl²) finite.
+    mat.density = m.Range("density", mat.density, 1e-6, 1e6, " kg/m²");
     mat.tension = m.Numbers<2>("tension", mat.tension, true);
     mat.tension_damping = m.NonNegative("tension_damping", mat.tension_damping);
     mat.tension_model = m.Choice("tension_model", mat.tension_model, {TensionModel::kSplit, TensionModel::kLinear});
@@ -302,20 +344,22 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   {
     TableReader f(top.SubTable("forces"), top.Child("forces"), source);
     s.forces.gravity = f.Vec3("gravity", s.forces.gravity);
+    if (s.forces.gravity.norm() > 1e4) f.Fail("gravity", "must have a magnitude of at most 1e4 m/s²");
     if (const toml::table* wt = f.SubTable("wind")) {
       TableReader w(wt, f.Child("wind"), source);
       WindSpec wind;
       wind.direction = w.Vec3("direction", wind.direction);
-      wind.constant = w.Number("constant", wind.constant);
-      wind.angular_frequency = w.Number("angular_frequency", wind.angular_frequency);
-      wind.drag = w.NonNegative("drag", wind.drag);
-      wind.lift = w.NonNegative("lift", wind.lift);
+      if (wind.direction.norm() > 1e3) w.Fail("direction", "must have a magnitude of at most 1e3");
+      wind.constant = w.Range("constant", wind.constant, -1e3, 1e3, "");
+      wind.angular_frequency = w.Range("angular_frequency", wind.angular_frequency, -1e6, 1e6, " rad/s");
+      wind.drag = w.Range("drag", wind.drag, 0.0, 1e6, "");
+      wind.lift = w.Range("lift", wind.lift, 0.0, 1e6, "");
       w.RejectUnknown();
       s.forces.wind = wind;
     }
     if (const toml::table* at = f.SubTable("air")) {
       TableReader a(at, f.Child("air"), source);
-      s.forces.air = a.NonNegative("coefficient", 0.0);
+      s.forces.air = a.Range("coefficient", 0.0, 0.0, 1e6, " kg/(m² s)");
       a.RejectUnknown();
     }
     f.RejectUnknown();
@@ -396,8 +440,10 @@ Scene ParseScene(std::string_view text, const std::string& source) {
       else if (type == "mesh") spec.type = ObstacleType::kMesh;
       else o.Fail("type", fmt::format("must be \"plane\", \"sphere\", \"box\", \"cylinder\" or \"mesh\" (got \"{}\")", type));
       if (spec.type != ObstacleType::kMesh) spec.center = o.Vec3("center", spec.center);
+      if (spec.center.cwiseAbs().maxCoeff() > 1e6) o.Fail("center", "must have coordinates of magnitude at most 1e6 m");
       spec.collision_distance = o.Positive("collision_distance", spec.collision_distance);
-      spec.friction = o.NonNegative("friction", spec.friction);
+      if (spec.collision_distance > 1e3) o.Fail("collision_distance", "must be at most 1e3 m");
+      spec.friction = o.Range("friction", spec.friction, 0.0, 1e3, "");
       spec.relaxation = o.Positive("relaxation", spec.relaxation);
       if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
       switch (spec.type) {
@@ -408,16 +454,19 @@ Scene ParseScene(std::string_view text, const std::string& source) {
           break;
         case ObstacleType::kSphere:
           spec.radius = o.Positive("radius", 0.0);
+          if (spec.radius > 1e6) o.Fail("radius", "must be at most 1e6 m");
           break;
         case ObstacleType::kBox: {
           auto size = o.Numbers<3>("size", {0.0, 0.0, 0.0}, true);
-          if (!(size[0] > 0 && size[1] > 0 && size[2] > 0)) o.Fail("size", "must be 3 positive edge lengths [m]");
+          if (!(size[0] > 0 && size[1] > 0 && size[2] > 0) || std::max({size[0], size[1], size[2]}) > 1e6)
+            o.Fail("size", "must be 3 positive edge lengths of at most 1e6 m");
           spec.size = Vector3(size[0], size[1], size[2]);
           break;
         }
         case ObstacleType::kCylinder:
           spec.radius = o.Positive("radius", 0.0);
           spec.height = o.Positive("height", 0.0);
+          if (spec.radius > 1e6 || spec.height > 1e6) o.Fail(spec.radius > 1e6 ? "radius" : "height", "must be at most 1e6 m");
           break;
         case ObstacleType::kMesh: {
           // Relative paths are relative to the scene file (or, for a
@@ -434,9 +483,12 @@ Scene ParseScene(std::string_view text, const std::string& source) {
             o.Fail("path", fmt::format("mesh file \"{}\" not found (scripts/setup extracts CGAL's data into data/)",
                                        p.string()));
           spec.path = p.string();
-          spec.scale = o.Positive("scale", 1.0);
+          spec.scale = o.Range("scale", 1.0, 1e-6, 1e6, "");
           spec.rotate = o.Vec3("rotate", spec.rotate);
+          if (spec.rotate.cwiseAbs().maxCoeff() > 3600) o.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
           spec.translate = o.Vec3("translate", spec.translate);
+          if (spec.translate.cwiseAbs().maxCoeff() > 1e6)
+            o.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
           break;
         }
       }
@@ -457,7 +509,10 @@ Scene ParseScene(std::string_view text, const std::string& source) {
           if (!spec.keyframes.empty() && !(key.t > spec.keyframes.back().t))
             kr.Fail("t", fmt::format("must be greater than the previous keyframe's t = {}", spec.keyframes.back().t));
           key.translate = kr.Vec3("translate", key.translate);
+          if (key.translate.cwiseAbs().maxCoeff() > 1e6)
+            kr.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
           key.rotate = kr.Vec3("rotate", key.rotate);
+          if (key.rotate.cwiseAbs().maxCoeff() > 3600) kr.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
           kr.RejectUnknown();
           spec.keyframes.push_back(key);
         }
@@ -468,6 +523,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   }
   top.RejectUnknown();
   if (s.h > s.t_end) top.Fail("h", "must be <= t_end");
+  CheckRunLength(s, source);
   return s;
 }
 

@@ -16,6 +16,8 @@
 
 namespace clothbench {
 
+struct Scene;
+
 /// Thrown for a bad scene: the message is one line naming the source (file),
 /// the key and the rule it broke, e.g.
 /// `scenes/x.toml: material.tension: must be 2 numbers >= 0`.
@@ -23,6 +25,24 @@ class SceneError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// Limits of a run that every scene and command line is held to before
+/// anything is computed (docs/scenes.md, "Limits"): the steps t_end/h of a
+/// fixed-step run, the frames t_end/frame_dt kept, and the particles nu·nv.
+inline constexpr double kMaxStepsPerRun = 1e7;
+inline constexpr double kMaxFramesPerRun = 1e6;
+inline constexpr double kMaxParticles = 1e7;
+/// The largest magnitude any scene number may have (a stated limit far
+/// beyond every physical value, so that products of two never overflow).
+inline constexpr double kMaxMagnitude = 1e12;
+
+/// `text` for a one-line message: control characters (and DEL) become
+/// escapes (\n, \t, \r, \xNN); printable text and UTF-8 are kept.
+std::string EscapeControl(std::string_view text);
+
+/// Checks t_end, frame_dt and h of `scene` against kMaxFramesPerRun and
+/// kMaxStepsPerRun. @throws SceneError "<source>: <key>: <rule>".
+void CheckRunLength(const Scene& scene, const std::string& source);
 
 enum class BendModel { kNone, kMembrane, kThinPlate };
 /// "split": springs with rest length l_e, IMEX split F_lin + F_nl (SPEC §2.1).

@@ -44,6 +44,12 @@ TriangleMesh::TriangleMesh(const std::string& path, double scale, const Vector3&
   for (auto v : impl_->mesh.vertices()) {
     const Point& p = impl_->mesh.point(v);
     const Vector3 q = rot * (scale * Vector3(p.x(), p.y(), p.z())) + translate;
+    // Placed vertices beyond 1e6 m (or non-finite ones in the file) would
+    // overflow the distance queries' squared lengths.
+    if (!q.allFinite() || q.cwiseAbs().maxCoeff() > 1e6)
+      throw std::runtime_error(fmt::format("\"{}\": a vertex placed at ({:g}, {:g}, {:g}) is not finite or beyond "
+                                           "1e6 m (check the file, scale and translate)",
+                                           path, q.x(), q.y(), q.z()));
     impl_->mesh.point(v) = Point(q.x(), q.y(), q.z());
   }
   impl_->tree = std::make_unique<Tree>(faces(impl_->mesh).first, faces(impl_->mesh).second, impl_->mesh);

@@ -21,14 +21,34 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   double solver_seconds = 0.0, t = 0.0;
   MatrixN3 frame, frame_v;
   bool ok = true;
+  BlowUpGuard guard(system);
+  guard.Check(0.0, res->trajectory.positions[0], res->trajectory.velocities[0], &res->status, &res->message);
+  const auto wall_start = Clock::now();
+  long steps = 0;
   while (ok && next < frames.size()) {
     const auto t0 = Clock::now();
     const int flag = d.step(&t);
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     solver_seconds += seconds;
+    ++steps;
     if (flag < 0) {
       res->status = d.flag_name(flag);
       res->message = error.empty() ? "step failed with " + res->status : error;
+      ok = false;
+      break;
+    }
+    if (options.limits.time_limit_s > 0.0 &&
+        std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s) {
+      res->status = "time_limit";
+      res->message = fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
+                                 options.limits.time_limit_s, t, steps);
+      ok = false;
+      break;
+    }
+    if (steps >= options.limits.max_steps && t < options.t_end) {
+      res->status = "step_limit";
+      res->message = fmt::format("{} internal steps reached t = {:.6g} s of t_end = {:g} s (mxstep of the run is {})",
+                                 steps, t, options.t_end, options.limits.max_steps);
       ok = false;
       break;
     }
@@ -49,6 +69,10 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       } else if (const int f = d.state_at(frames[next], &frame, &frame_v); f < 0) {
         res->status = d.flag_name(f);
         res->message = error.empty() ? "dense output failed with " + res->status : error;
+        ok = false;
+        break;
+      }
+      if (!guard.Check(frames[next], frame, frame_v, &res->status, &res->message)) {
         ok = false;
         break;
       }

@@ -18,6 +18,9 @@ struct ReferenceOptions {
   int max_order = 5;       ///< BDF order limit (1..5)
   double t_end = 1.0;      ///< [s]
   double frame_dt = 0.01;  ///< [s]
+  /// Wall time and internal steps (mxstep over the whole run): status
+  /// "time_limit" or "step_limit" when reached.
+  RunLimits limits{};
   double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
 };
 
@@ -42,7 +45,10 @@ struct OneStepDriver {
 
 /// Runs the one-step loop (the Debian build has no monitoring) storing the
 /// step history and the frames 0, frame_dt, …, t_end. `error` holds the
-/// message of the SUNDIALS error handler, if any.
+/// message of the SUNDIALS error handler, if any. Every frame passes the
+/// BlowUpGuard (a failing one is not kept: status "non_finite" or
+/// "energy_growth"); options.limits end the run with "time_limit" or
+/// "step_limit".
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
                const std::string& error, RunSummary* res);
 

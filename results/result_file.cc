@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
@@ -28,6 +29,16 @@ constexpr unsigned kDeflateLevel = 4;
 hid_t Check(hid_t id, const std::string& what, const std::string& file) {
   if (id < 0) throw ResultError(fmt::format("{}: HDF5 error: {}", file, what));
   return id;
+}
+
+// The last line of the rule "never store a non-finite number": the runs end
+// at a blow-up (solver/run.h, BlowUpGuard) and derived attributes that would
+// be non-finite are left out, so a non-finite dataset value is a bug; the
+// file is not written (the .tmp is removed by unwinding).
+void RequireFinite(const double* values, std::size_t n, const std::string& dataset, const std::string& file) {
+  for (std::size_t k = 0; k < n; ++k)
+    if (!std::isfinite(values[k]))
+      throw ResultError(fmt::format("{}: {}[{}] = {} is not finite; no file is written", file, dataset, k, values[k]));
 }
 
 }  // namespace
@@ -85,6 +96,7 @@ void WriteScalarAttribute(hid_t file, const std::string& path, const std::string
 }  // namespace
 
 void ResultFile::SetAttribute(const std::string& object, const std::string& name, double value) {
+  if (!std::isfinite(value)) return;  // a non-finite attribute is left out (docs/results-schema.md)
   WriteScalarAttribute(file_, path_, object, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
 }
 
@@ -120,6 +132,7 @@ void ResultFile::WriteString(const std::string& path, const std::string& value) 
 }
 
 void ResultFile::WriteVector(const std::string& path, const std::vector<double>& values, const std::string& units) {
+  RequireFinite(values.data(), values.size(), path, path_);
   const hsize_t dims[1] = {values.size()};
   WriteRaw(file_, path_, path, 1, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(), values.empty());
   if (!units.empty()) SetAttribute(path, "units", units);
@@ -127,6 +140,7 @@ void ResultFile::WriteVector(const std::string& path, const std::vector<double>&
 
 void ResultFile::WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values,
                             const std::string& units) {
+  RequireFinite(values.data(), values.size(), path, path_);
   const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
   WriteRaw(file_, path_, path, 2, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(), values.empty());
   if (!units.empty()) SetAttribute(path, "units", units);
@@ -141,6 +155,7 @@ void ResultFile::WriteVectors3(const std::string& path, const std::vector<Vector
   std::vector<double> buf;
   buf.reserve(rows.size() * 3);
   for (const Vector3& r : rows) buf.insert(buf.end(), {r.x(), r.y(), r.z()});
+  RequireFinite(buf.data(), buf.size(), path, path_);
   const hsize_t dims[2] = {rows.size(), 3};
   WriteRaw(file_, path_, path, 2, dims, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, buf.data(), buf.empty());
   SetAttribute(path, "units", units);
@@ -172,6 +187,7 @@ void ResultFile::WriteFrames(const std::string& path, const std::vector<MatrixN3
     for (hsize_t p = 0; p < n; ++p)
       for (hsize_t c = 0; c < 3; ++c)
         buf[p * 3 + c] = frames[k](static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c));
+    RequireFinite(buf.data(), buf.size(), fmt::format("{}[{}]", path, k), path_);
     const hsize_t start[3] = {k, 0, 0};
     H5Sselect_hyperslab(space.id, H5S_SELECT_SET, start, nullptr, count, nullptr);
     Check(H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, mem.id, space.id, H5P_DEFAULT, buf.data()), "cannot write " + path, path_);
@@ -205,6 +221,10 @@ void ResultFile::WriteFrameViews(const std::string& frames_path, const std::stri
 }
 
 void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows) {
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const double v[3] = {rows[k].t, rows[k].h, rows[k].solve_time_s};
+    RequireFinite(v, 3, fmt::format("{}[{}]", path, k), path_);
+  }
   Handle mem{internal::StepRecordType(), H5Tclose};
   const hsize_t dims[1] = {rows.size()};
   Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};

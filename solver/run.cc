@@ -66,6 +66,48 @@ double ExternalPower(const ParticleSystem& sys, double t, const MatrixN3& x, con
 
 }  // namespace
 
+BlowUpGuard::BlowUpGuard(const ParticleSystem& system) : sys_(system) {
+  const Scene& s = system.scene();
+  const double diagonal = std::hypot(s.grid.size[0], s.grid.size[1]);
+  e_ref_ = system.masses().sum() * (s.forces.gravity.norm() * diagonal + 1.0);
+  if (system.has_external_work()) f_ext_.resize(system.num_particles(), 3);
+}
+
+bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message) {
+  if (!x.allFinite() || !v.allFinite()) {
+    *status = "non_finite";
+    *message = fmt::format("the state became non-finite by t = {:.6g} s", t);
+    return false;
+  }
+  const double e = sys_.Energies(x, v).total();
+  if (sys_.has_external_work()) {
+    f_ext_.setZero();
+    sys_.AddExternalForces(t, x, v, &f_ext_);
+    const double power = (f_ext_.array() * v.array()).sum();
+    if (!first_) work_ += 0.5 * (t - t_prev_) * (power + power_);
+    power_ = power;
+  }
+  t_prev_ = t;
+  if (first_) {
+    e0_ = e;
+    first_ = false;
+  }
+  if (!std::isfinite(e) || !std::isfinite(work_)) {
+    *status = "non_finite";
+    *message = fmt::format("the energy became non-finite by t = {:.6g} s", t);
+    return false;
+  }
+  const double gain = e - work_ - e0_;
+  if (gain > kEnergyGrowthFactor * e_ref_) {
+    *status = "energy_growth";
+    *message = fmt::format("energy gain E - W_ext - E(0) = {:.3e} J at t = {:.6g} s exceeds {:g} E_ref = {:.3e} J "
+                           "(a blow-up)",
+                           gain, t, kEnergyGrowthFactor, kEnergyGrowthFactor * e_ref_);
+    return false;
+  }
+  return true;
+}
+
 RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options) {
   std::string why;
   if (!options.IsValid(&why) || !system.scene().solver.IsValid(&why)) {
@@ -110,11 +152,15 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   if (track_work) sum.trajectory.external_work.assign(frames.size(), 0.0);
   MatrixN3 f_ext(system.num_particles(), 3);
   double work = 0.0, power = track_work ? ExternalPower(system, 0.0, engine.x(), engine.v(), &f_ext) : 0.0;
-  sum.step_stats.reserve(static_cast<std::size_t>(std::ceil(options.t_end / options.h)) + 64);
+  sum.step_stats.reserve(static_cast<std::size_t>(
+      std::min(std::ceil(options.t_end / options.h), static_cast<double>(options.limits.max_steps))) + 64);
   sum.trajectory.times.push_back(0.0);
   sum.trajectory.positions[0] = engine.x();
   sum.trajectory.velocities[0] = engine.v();
   std::size_t next_frame = 1;
+  BlowUpGuard guard(system);
+  guard.Check(0.0, engine.x(), engine.v(), &sum.status, &sum.message);  // E(0); the rest state is finite
+  long attempts = 0;
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();
   const double h_nominal = options.h;
@@ -142,6 +188,23 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     sum.fixed_point_updates += st.updates;
     sum.cg_iterations += st.cg_iterations;
     sum.step_stats.push_back(st);
+    ++attempts;
+    const auto fail = [&](std::string_view status, std::string message) {
+      sum.ok = false;
+      sum.status = std::string(status);
+      sum.message = std::move(message);
+    };
+    if (options.limits.time_limit_s > 0.0 &&
+        std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s) {
+      fail("time_limit", fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
+                                     options.limits.time_limit_s, engine.t(), attempts));
+      break;
+    }
+    if (attempts >= options.limits.max_steps && engine.t() < options.t_end - 1e-12 * options.t_end) {
+      fail("step_limit", fmt::format("{} step attempts reached t = {:.6g} s of t_end = {:g} s (the limit is {})",
+                                     attempts, engine.t(), options.t_end, options.limits.max_steps));
+      break;
+    }
 
     if (st.status != StepStatus::kOk) {
       ++sum.rejected_steps;
@@ -166,6 +229,10 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       }
       continue;
     }
+    if (!engine.x().allFinite() || !engine.v().allFinite()) {
+      fail("non_finite", fmt::format("the state became non-finite in the step to t = {:.6g} s", engine.t()));
+      break;
+    }
     ++sum.steps;
     if (consecutive_rejections == 0 && !controlled) ++fixed_step_index;
     consecutive_rejections = 0;
@@ -184,10 +251,17 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       const double s = (frames[next_frame] - t0s) / step;
       Hermite(x_prev, v_prev, engine.x(), engine.v(), step, s, &sum.trajectory.positions[next_frame],
               &sum.trajectory.velocities[next_frame]);
+      // A frame that fails the guard is not kept (the run keeps the ones before).
+      if (!guard.Check(frames[next_frame], sum.trajectory.positions[next_frame],
+                       sum.trajectory.velocities[next_frame], &sum.status, &sum.message)) {
+        sum.ok = false;
+        break;
+      }
       if (track_work) sum.trajectory.external_work[next_frame] = work0 + std::min(s, 1.0) * (work - work0);
       sum.trajectory.times.push_back(frames[next_frame]);
       ++next_frame;
     }
+    if (!sum.ok) break;
 
     // Step-size selection.
     if (error_control) {

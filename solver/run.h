@@ -18,6 +18,21 @@ namespace clothbench {
 /// is not a multiple of frame_dt).
 std::vector<double> FrameTimes(double t_end, double frame_dt);
 
+/// Bounds every run is held to, whatever method steps it (docs/verification.md,
+/// "Blow-ups and limits"). A run that reaches one ends with a failure status
+/// at that step and keeps the frames it reached.
+struct RunLimits {
+  /// The most steps a run may take: fixed-step runs asking for more are
+  /// refused before computing (bench_integrators), controlled and SUNDIALS
+  /// runs that take more (counting rejected attempts; SUNDIALS' mxstep
+  /// over the whole run) end with status "step_limit".
+  static constexpr double kMaxSteps = 1e7;
+  /// Wall-time budget of one run [s] (bench_integrators --time-limit); <= 0:
+  /// none. A run past it ends after the current step with "time_limit".
+  double time_limit_s = 3600.0;
+  long max_steps = static_cast<long>(kMaxSteps);
+};
+
 struct RunOptions {
   double h = 0.01;          ///< nominal (fixed) step [s]
   double t_end = 1.0;       ///< [s]
@@ -25,6 +40,7 @@ struct RunOptions {
   /// The step control, tolerances and limits; nullptr: the scene's
   /// (system.scene().solver). Must outlive the run.
   const SolverSpec* solver = nullptr;
+  RunLimits limits{};
   /// false with `error` naming the field, its value and the rule.
   bool IsValid(std::string* error) const;
 };
@@ -77,10 +93,39 @@ struct RunSummary {
   std::string BriefReport() const;
 };
 
+/// Detects a blow-up at a frame (docs/verification.md, "Blow-ups and
+/// limits"): a non-finite state or energy, status "non_finite", or an energy
+/// gain E(t) − W_ext(t) − E(0) > kEnergyGrowthFactor · E_ref, status
+/// "energy_growth", with E_ref = Σ m (|g| L + 1 m²/s²) [J] (L the sheet's
+/// diagonal): a thousand times the energy gravity can release over the sheet
+/// plus that of every particle moving at 1 m/s, which no cloth motion of a
+/// passive model reaches (a gain of 1e3 E_ref is speeds of ~150 m/s on a
+/// 1 m sheet). W_ext is the work of wind and air drag, integrated over the
+/// frames by the trapezoidal rule (as results/metrics.h does).
+class BlowUpGuard {
+ public:
+  static constexpr double kEnergyGrowthFactor = 1e3;
+  explicit BlowUpGuard(const ParticleSystem& system);
+  /// Checks the frame at time t [s] with N×3 positions x [m] and velocities v
+  /// [m/s]; frames must come in increasing t, the first at t = 0. Returns
+  /// true if the frame is sound, else false with `status` ("non_finite" |
+  /// "energy_growth") and a one-line `message` naming t and the values.
+  bool Check(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message);
+  double energy_reference() const { return e_ref_; }
+
+ private:
+  const ParticleSystem& sys_;
+  double e_ref_ = 0.0, e0_ = 0.0, work_ = 0.0, power_ = 0.0, t_prev_ = 0.0;
+  bool first_ = true;
+  MatrixN3 f_ext_;
+};
+
 /// Integrates `system` from rest (x = rest positions, v = 0) to t_end.
 /// Never throws: invalid options give status "invalid_options"; a numerical
-/// failure gives the failing StepStatus, and the trajectory holds the frames
-/// reached.
+/// failure gives the failing StepStatus, a blow-up "non_finite" or
+/// "energy_growth" (BlowUpGuard, at every frame; the state is also checked
+/// for finiteness after every step), and the limits "time_limit" or
+/// "step_limit"; the trajectory holds the frames reached.
 RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options);
 
 /// The same driver for any stepper built on `system` (the peers). Reset to

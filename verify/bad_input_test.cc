@@ -1,0 +1,184 @@
+// Every class of bad input and runaway run, through bench_integrators end to
+// end (docs/verification.md, "Bad input, blow-ups and limits"):
+//  - refused before computing: exit 2, one line naming the key or option and
+//    the rule (control characters escaped), and no file;
+//  - accepted but numerically hopeless: the run ends with a failure status
+//    (non_finite, energy_growth, time_limit), the other rows complete, and
+//    the file stores no non-finite number anywhere.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "results/result_reader.h"
+#include "verify/cli_helpers.h"
+#include "verify/hdf5_scan.h"
+
+namespace clothbench {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::Outcome;
+
+fs::path Dir() { return testing::TempDir("clothbench_bad_input_"); }
+
+Outcome RunBench(const std::string& args) { return testing::RunCommand(CLOTHBENCH_BENCH_BINARY, args, Dir()); }
+
+std::string WriteScene(const std::string& name, const std::string& text) {
+  const fs::path p = Dir() / name;
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+// `text` with its first `from` replaced by `to`.
+std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+const std::string kTiny = testing::kTinyScene;
+
+// One refusal: exit 2, exactly one line containing `needle`, no file, no .tmp.
+void ExpectRefused(const std::string& args, const std::string& needle) {
+  const fs::path out = Dir() / "refused.h5";
+  fs::remove(out);
+  const Outcome o = RunBench(args + " --out " + out.string());
+  EXPECT_EQ(o.exit_code, 2) << args << "\n" << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << args << "\n" << o.err;
+  EXPECT_NE(o.err.find(needle), std::string::npos) << args << "\n" << o.err;
+  EXPECT_FALSE(fs::exists(out)) << args;
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp")) << args;
+}
+
+std::string Scene(const std::string& name, const std::string& text) { return "--scene " + WriteScene(name, text); }
+
+TEST(BadInput, OutOfRangeSceneValuesAreRefusedBeforeComputing) {
+  // Absurd times: billions of steps or frames, or t_end beyond 1e6 s.
+  ExpectRefused(Scene("t_end.toml", Replace(kTiny, "t_end = 0.04", "t_end = 1e300")), "t_end: must be a finite number");
+  ExpectRefused(Scene("t_end2.toml", Replace(kTiny, "t_end = 0.04", "t_end = 1e7")), "t_end: must be <= 1e6 s");
+  ExpectRefused(Scene("steps.toml", Replace(Replace(kTiny, "t_end = 0.04", "t_end = 2e5"), "frame_dt = 0.01", "frame_dt = 1")),
+                "h: t_end/h = 200000/0.01 = 2e+07 steps exceeds the limit of 1e+07");
+  ExpectRefused(Scene("frame.toml", Replace(kTiny, "frame_dt = 0.01", "frame_dt = 1e-310")), "frame_dt: t_end/frame_dt");
+  ExpectRefused(Scene("h.toml", Replace(kTiny, "h = 0.01", "h = 1e-12")), "h: t_end/h");
+  // A denormal or absurd density, tension, air drag or gravity.
+  ExpectRefused(Scene("rho.toml", Replace(kTiny, "[material]\n", "[material]\ndensity = 1e-310\n")),
+                "material.density: must be in [1e-06, 1e+06] kg/m²");
+  ExpectRefused(Scene("k.toml", Replace(kTiny, "[100.0, 100.0]", "[1e300, 100.0]")), "material.tension");
+  ExpectRefused(Scene("air.toml", kTiny + "[forces.air]\ncoefficient = 1e300\n"), "forces.air.coefficient");
+  ExpectRefused(Scene("air2.toml", kTiny + "[forces.air]\ncoefficient = 1e9\n"), "forces.air.coefficient: must be in");
+  ExpectRefused(Scene("g.toml", kTiny + "[forces]\ngravity = [0, 0, -1e6]\n"), "forces.gravity");
+  // Grids: too many particles (before the memory estimate), sub-micron spacing.
+  ExpectRefused(Scene("n.toml", Replace(Replace(kTiny, "nu = 4", "nu = 100000"), "nv = 3", "nv = 100000")),
+                "grid.nv: nu × nv = 100000 × 100000 exceeds the limit");
+  ExpectRefused(Scene("dx.toml", Replace(kTiny, "size = [0.3, 0.2]", "size = [1e-9, 0.2]")), "grid.size");
+  // Obstacles far away or absurdly large.
+  const std::string sphere = "\n[[obstacle]]\ntype = \"sphere\"\nradius = 0.1\ncenter = ";
+  ExpectRefused(Scene("far.toml", kTiny + sphere + "[1e300, 0, 0]\n"), "obstacle[0].center");
+  ExpectRefused(Scene("far2.toml", kTiny + sphere + "[1e7, 0, 0]\n"), "obstacle[0].center: must have coordinates");
+}
+
+TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {
+  const std::string mesh = "\n[[obstacle]]\ntype = \"mesh\"\npath = \"";
+  const std::string cube = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
+  ExpectRefused(Scene("scale.toml", kTiny + mesh + cube + "\"\nscale = 1e308\n"), "obstacle[0].scale");
+  ExpectRefused(Scene("scale2.toml", kTiny + mesh + cube + "\"\nscale = 1e5\ntranslate = [0, 0, -9.5e5]\n"),
+                "obstacle[0].path: ");
+  std::ofstream(Dir() / "empty.off").close();
+  ExpectRefused(Scene("empty.toml", kTiny + mesh + (Dir() / "empty.off").string() + "\"\n"),
+                "obstacle[0].path: cannot read a polygon mesh");
+  std::ofstream(Dir() / "garbage.off") << "OFF\n3 1 0\n0 0 0\n1 0\n";
+  ExpectRefused(Scene("garbage.toml", kTiny + mesh + (Dir() / "garbage.off").string() + "\"\n"),
+                "obstacle[0].path: cannot read a polygon mesh");
+  ExpectRefused(Scene("nomesh.toml", kTiny + mesh + "/nonexistent.off\"\n"), "obstacle[0].path: mesh file");
+}
+
+TEST(BadInput, OutOfRangeOptionsAreRefusedBeforeComputing) {
+  const std::string tiny = Scene("tiny.toml", kTiny);
+  ExpectRefused(tiny + " --t-end 1e300", "--t-end: 1e+300 is not a number in (0, 1e6] s");
+  ExpectRefused(tiny + " --t-end 1e5", "--t-end 100000 on");
+  ExpectRefused(tiny + " --t-end nan", "--t-end");
+  ExpectRefused(tiny + " --integrators sbdf2 --h 1e-12", "--h: sbdf2 at h = 1e-12 s needs t_end/h = 4e+10 steps");
+  ExpectRefused(tiny + " --integrators xpbd --h 0.01 --substeps 1000000 --t-end 1",
+                "--h/--substeps: xpbd at h = 0.01 s with 1000000 substeps");
+  ExpectRefused(tiny + " --time-limit 0", "--time-limit");
+  ExpectRefused(tiny + " --time-limit -5", "--time-limit");
+}
+
+TEST(BadInput, ControlCharactersAreEscapedIntoOneLine) {
+  // A newline and a bell inside a quoted value: the message stays one line
+  // and shows them as escapes.
+  ExpectRefused(Scene("ctl.toml", kTiny + "preconditioner = \"ic0\\nrm -rf\\u0007\"\n"), "(got \"ic0\\nrm -rf\\x07\")");
+  ExpectRefused(Scene("tiny.toml", kTiny) + " --integrators \"$(printf 'sbdf2\\nbdf2')\"", "sbdf2\\nbdf2");
+}
+
+// A blown-up explicit run (symplectic Euler far beyond its stability limit
+// h < 2/ω ≈ 6e-4 s at k = 1e5 N/m) and a very large air drag treated
+// explicitly: each row ends with a failure status at the step where it
+// blew up, keeps the frames before, and the file holds no non-finite value
+// while the stable SBDF(2) row next to it is ok.
+TEST(BadInput, BlowUpsEndWithAStatusAndStoreNoNonFinite) {
+  const std::string stiff = Replace(kTiny, "[100.0, 100.0]", "[1e5, 1e5]");
+  const fs::path out = Dir() / "blowup.h5";
+  const Outcome o =
+      RunBench(Scene("stiff.toml", Replace(stiff, "t_end = 0.04", "t_end = 1.0")) +
+               " --integrators symplectic_euler,imex_euler,sbdf2 --h 0.01 --reference cvode --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const testing::NonFiniteScan scan = testing::ScanForNonFinite(out.string());
+  EXPECT_GT(scan.values, 1000);
+  EXPECT_TRUE(scan.offenders.empty()) << scan.offenders.front();
+  const ResultReader r(out.string());
+  const std::string se = "/runs/symplectic_euler_h0.01";
+  const std::string status = r.String(se, "status").value_or("");
+  EXPECT_TRUE(status == "non_finite" || status == "energy_growth") << status;
+  EXPECT_FALSE(r.Double(se, "energy_rate_W").has_value());
+  EXPECT_FALSE(r.Double(se, "error_rms_m").has_value());
+  // Frames up to the failure: fewer than the 101 of a complete run, at least t = 0.
+  const std::size_t kept = r.Shape(se + "/times")[0];
+  EXPECT_GE(kept, 1u);
+  EXPECT_LT(kept, 101u);
+  EXPECT_EQ(r.String("/runs/sbdf2_h0.01", "status").value_or(""), "ok");
+
+  // Air drag of 1e6 kg/(m² s) on 0.01 kg particles is explicit in every
+  // method (the drag term is not in A_α): h·c/m ~ 1e6 ≫ 2.
+  const fs::path out2 = Dir() / "air.h5";
+  const Outcome o2 = RunBench(Scene("air.toml", kTiny + "[forces.air]\ncoefficient = 1e6\n") +
+                              " --integrators imex_euler,sbdf2,cvode --rtols 1e-3 --h 0.01 --reference none --out " +
+                              out2.string());
+  ASSERT_EQ(o2.exit_code, 0) << o2.err;
+  const testing::NonFiniteScan scan2 = testing::ScanForNonFinite(out2.string());
+  EXPECT_GT(scan2.values, 100);
+  EXPECT_TRUE(scan2.offenders.empty()) << scan2.offenders.front();
+  const ResultReader r2(out2.string());
+  for (const std::string& run : r2.Children("/runs")) {
+    const std::string s = r2.String("/runs/" + run, "status").value_or("");
+    // Either a sound run or a failure status; "ok" must mean finite energies
+    // below the growth bound, which the scan and the guard assert.
+    EXPECT_FALSE(s.empty()) << run;
+  }
+}
+
+// A wall-time budget: CVODE at rtol 1e-10 on a stiff 30×30 sheet takes far
+// more than 0.2 s here, so it ends with time_limit after the step that
+// passed the budget, and the SBDF(2) row still completes and is written.
+TEST(BadInput, TimeLimitEndsARunAndTheOthersComplete) {
+  std::string big = Replace(Replace(kTiny, "nu = 4", "nu = 30"), "nv = 3", "nv = 30");
+  big = Replace(Replace(big, "[100.0, 100.0]", "[1e4, 1e4]"), "t_end = 0.04", "t_end = 1.0");
+  const fs::path out = Dir() / "limit.h5";
+  const Outcome o = RunBench(Scene("limit.toml", big) +
+                             " --integrators cvode,sbdf2 --rtols 1e-10 --h 0.01 --reference none --time-limit 0.2 --out " +
+                             out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const ResultReader r(out.string());
+  EXPECT_EQ(r.String("/runs/cvode_rtol1e-10", "status").value_or(""), "time_limit");
+  const std::string message = r.String("/runs/cvode_rtol1e-10", "message").value_or("");
+  EXPECT_NE(message.find("--time-limit 0.2 s"), std::string::npos) << message;
+  EXPECT_EQ(r.String("/runs/sbdf2_h0.01", "status").value_or(""), "ok");
+  EXPECT_TRUE(testing::ScanForNonFinite(out.string()).offenders.empty());
+}
+
+}  // namespace
+}  // namespace clothbench
