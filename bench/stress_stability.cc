@@ -12,10 +12,21 @@
 //              method stops working at that h);
 //   work       fixed-point (or Newton) updates and CG iterations per step.
 //
-//   stress_stability [--scenes LIST] [--integrators LIST] [--nonlinear-solver LIST]
+// Cells are independent: under mpirun (or srun) they are dealt round-robin
+// over the ranks and rank 0 prints and writes the same file as a serial run;
+// every finished cell is appended to <out>.journal, so that an interrupted
+// sweep rerun with the same arguments computes only the missing cells
+// (bench/sweep.h).
+//
+//   [mpirun -n K] stress_stability [--scenes LIST] [--integrators LIST] [--nonlinear-solver LIST]
 //                    [--stiffness LIST] [--h LIST] [--steps N] [--side N] [--out FILE.h5]
+//                    [--max-cells N] [--plot DIR]
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -27,12 +38,17 @@
 #include "bench/methods.h"
 #include "bench/plot.h"
 #include "bench/signals.h"
+#include "bench/sweep.h"
 #include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/stability_map.h"
 
 namespace clothbench {
 namespace {
+
+/// Exit status of a sweep stopped by --max-cells before its last cell
+/// (EX_TEMPFAIL of sysexits.h: rerun to continue).
+constexpr int kExitPartial = 75;
 
 std::vector<std::string> Split(const std::string& s) {
   std::vector<std::string> out;
@@ -54,17 +70,28 @@ std::vector<double> ParseList(const std::string& s, const std::string& opt) {
     }
     if (pos != item.size() || !(v > 0.0) || !std::isfinite(v))
       throw std::invalid_argument(fmt::format("{}: \"{}\" is not a positive number", opt, item));
+    if (std::find(out.begin(), out.end(), v) != out.end())
+      throw std::invalid_argument(fmt::format("{}: {:g} is listed twice", opt, v));
     out.push_back(v);
   }
+  if (out.empty()) throw std::invalid_argument(fmt::format("{}: empty list", opt));
   return out;
 }
 
+// One cell of the sweep, in the order of the printed maps.
+struct CellSpec {
+  std::size_t scene, method;
+  double h, stiffness;
+};
+
 int Main(int argc, char** argv) {
+  SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench stability maps over numerical stiffness and step size"};
   std::string scenes_arg = "hanging_sheet,swinging_sheet", integrators_arg, stiffness_arg = "0.1,1,1e2,1e4,1e6,1e8",
               h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5", nonlinear_arg = "fixed_point",
               plot_dir;
   int steps = 200, side = 10;
+  long max_cells = 0;
   app.add_option("--scenes", scenes_arg, "built-in scene names or files (default hanging_sheet,swinging_sheet)");
   app.add_option("--integrators", integrators_arg,
                  "default: the five thesis methods and symplectic_euler; also baraff_witkin, and NAME/newton for the "
@@ -76,17 +103,27 @@ int Main(int argc, char** argv) {
   app.add_option("--h", h_arg, "step sizes [s]");
   app.add_option("--steps", steps, "steps per cell (default 200)")->check(CLI::Range(1, 1000000));
   app.add_option("--side", side, "particles per side (default 10; spacing from the scene)")->check(CLI::Range(3, 200));
-  app.add_option("--out", out, "result file");
+  app.add_option("--out", out, "result file; finished cells are journalled in <out>.journal until it is complete");
+  app.add_option("--max-cells", max_cells,
+                 "compute at most N cells not yet in the journal, then stop with exit status 75 and keep the journal "
+                 "(a sweep in slices, e.g. under a batch time limit); rerun the same command to continue")
+      ->check(CLI::Range(1L, 1000000000L));
   app.add_option("--plot", plot_dir, "after writing the results, draw the maps into DIR with scripts/plot (PNG, SVG)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
+    return comm.root() ? app.exit(e) : 0;
   } catch (const CLI::ParseError& e) {
-    fmt::print(stderr, "stress_stability: {}\n", e.what());
+    if (comm.root()) fmt::print(stderr, "stress_stability: {}\n", EscapeControl(e.what()));
     return 2;
   }
   InstallInterruptHandlers();
+  // Every rank validates the same arguments and reaches the same verdict;
+  // rank 0 alone prints.
+  const auto refuse = [&comm](const std::string& what) {
+    if (comm.root()) fmt::print(stderr, "stress_stability: {}\n", EscapeControl(what));
+    return 2;
+  };
   try {
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
@@ -98,15 +135,99 @@ int Main(int argc, char** argv) {
     std::vector<NonlinearSolver> solvers;
     for (const std::string& n : Split(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
     const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
+    for (std::size_t a = 0; a < methods.size(); ++a)
+      for (std::size_t b = 0; b < a; ++b)
+        if (methods[a].label() == methods[b].label())
+          throw std::invalid_argument(fmt::format("--integrators: {} is listed twice", methods[a].label()));
     const std::vector<double> stiff = ParseList(stiffness_arg, "--stiffness"), hs = ParseList(h_arg, "--h");
     std::vector<Scene> scenes;
     for (const std::string& name : Split(scenes_arg)) {
       scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
+      for (std::size_t b = 0; b + 1 < scenes.size(); ++b)
+        if (scenes[b].name == scenes.back().name)
+          throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", scenes.back().name));
+    }
+    if (!plot_dir.empty()) CheckPlotDir(plot_dir);
+    {
+      std::filesystem::path folder = std::filesystem::path(out).parent_path();
+      if (folder.empty()) folder = ".";
+      std::error_code ec;
+      if (comm.root()) std::filesystem::create_directories(folder, ec);
+      comm.Barrier();
+      if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
+        throw std::invalid_argument(fmt::format("--out: folder \"{}\" {}", folder.string(),
+                                                ec ? "cannot be created: " + ec.message() : "is not writable"));
+      if (std::filesystem::is_directory(out)) throw std::invalid_argument(fmt::format("--out: \"{}\" is a directory", out));
     }
 
-    if (!plot_dir.empty()) CheckPlotDir(plot_dir);
+    std::vector<CellSpec> cells;
+    for (std::size_t sc = 0; sc < scenes.size(); ++sc)
+      for (std::size_t m = 0; m < methods.size(); ++m)
+        for (double h : hs)
+          for (double s : stiff) cells.push_back({sc, m, h, s});
+    // The journal's key: every argument that changes a cell's result.
+    std::string key = fmt::format("steps={} side={} stiffness=", steps, side);
+    for (double s : stiff) key += fmt::format("{:a},", s);
+    key += " h=";
+    for (double h : hs) key += fmt::format("{:a},", h);
+    key += " integrators=";
+    for (const RowMethod& m : methods) key += m.label() + ",";
+    key += " scenes=";
+    for (const Scene& sc : scenes) key += fmt::format("{}:{},", sc.name, Fnv1a64(sc.toml));
+    SweepJournal journal(out + ".journal", key, cells.size(), comm);
+
+    const std::size_t n = cells.size();
+    std::vector<int32_t> outcome(n, 0), done(n, 0);
+    std::vector<double> upd(n, 0.0), cgs(n, 0.0), excess(n, 0.0);
+    std::vector<std::size_t> missing;
+    for (std::size_t k = 0; k < n; ++k) {
+      const auto it = journal.done().find(static_cast<long>(k));
+      if (it == journal.done().end()) {
+        missing.push_back(k);
+      } else if (comm.root()) {  // summed onto rank 0: only rank 0 contributes journalled cells
+        outcome[k] = it->second.outcome;
+        done[k] = it->second.steps;
+        upd[k] = it->second.updates;
+        cgs[k] = it->second.cg;
+        excess[k] = it->second.excess;
+      }
+    }
+    const std::size_t to_compute =
+        max_cells > 0 ? std::min(missing.size(), static_cast<std::size_t>(max_cells)) : missing.size();
+    if (comm.root() && (missing.size() < n || comm.size() > 1 || to_compute < missing.size()))
+      fmt::print("{} of {} cells from {}; computing {} on {} rank{}\n", n - missing.size(), n, journal.path(),
+                 to_compute, comm.size(), comm.size() > 1 ? "s" : "");
+    for (std::size_t j = 0; j < to_compute; ++j) {
+      if (!comm.Owns(j)) continue;
+      ThrowIfInterrupted();  // between cells; the journal keeps the finished ones
+      const std::size_t k = missing[j];
+      const CellSpec& cs = cells[k];
+      const RowMethod& m = methods[cs.method];
+      const StabilityCell c = RunStabilityCell(
+          scenes[cs.scene], [&m](const ParticleSystem& sys, const SolverSpec& spec) { return m.Make(sys, spec); },
+          cs.h, cs.stiffness, steps);
+      outcome[k] = c.outcome;
+      done[k] = c.steps;
+      upd[k] = c.updates_per_step;
+      cgs[k] = c.cg_per_step;
+      excess[k] = c.energy_excess;
+      journal.Append(static_cast<long>(k), {c.outcome, c.steps, c.updates_per_step, c.cg_per_step, c.energy_excess});
+    }
+    comm.SumToRoot(&outcome);
+    comm.SumToRoot(&done);
+    comm.SumToRoot(&upd);
+    comm.SumToRoot(&cgs);
+    comm.SumToRoot(&excess);
+    if (!comm.root()) return 0;
+    if (to_compute < missing.size()) {
+      fmt::print("stopped after {} cells (--max-cells): {} of {} done; rerun the same command to continue ({})\n",
+                 to_compute, n - missing.size() + to_compute, n, journal.path());
+      return kExitPartial;
+    }
+
     ResultFile f(out);
     WriteProvenance(f);
+    f.SetAttribute("/", "mpi_ranks", static_cast<long>(comm.size()));
     f.CreateGroup("/stress");
     f.WriteVector("/stress/stiffness", stiff, "");
     f.WriteVector("/stress/h", hs, "s");
@@ -115,6 +236,8 @@ int Main(int argc, char** argv) {
     f.SetAttribute("/stress", "outcome_codes", std::string(kStabilityOutcomeCodes));
     f.SetAttribute("/stress", "bounded_margin", std::string("E(t) - W_ext(t) <= E(0) + 1e-3 sum(m)|g| diag"));
     const int nh = static_cast<int>(hs.size()), ns = static_cast<int>(stiff.size());
+    const std::size_t per_map = hs.size() * stiff.size();
+    std::size_t k0 = 0;  // first cell of the current map
     for (const Scene& scene : scenes) {
       fmt::print("\n{} ({}×{} particles, {} steps per cell, max_updates 30, cg_tolerance 1e-6, no retries)\n",
                  scene.name, side, side, steps);
@@ -122,53 +245,59 @@ int Main(int argc, char** argv) {
                  "NaN@n non-finite state, CG@n PCG failed, FP@n fixed point not converged in 30 updates, FPdiv@n fixed "
                  "point diverged, NW@n Newton not converged in 30 updates, NWdiv@n Newton diverged\n");
       for (const RowMethod& m : methods) {
-        std::vector<int32_t> outcome, done;
-        std::vector<double> upd, cgs, excess;
         fmt::print("\n{:<24} {:>8}", m.label(), "h \\ S");
         for (double s : stiff) fmt::print(" {:>12g}", s);
         fmt::print("\n");
-        for (double h : hs) {
-          fmt::print("{:<24} {:>8g}", "", h);
-          for (double s : stiff) {
-            ThrowIfInterrupted();  // between cells; unwinding removes the .tmp
-            const StabilityCell c = RunStabilityCell(
-                scene, [&m](const ParticleSystem& sys, const SolverSpec& spec) { return m.Make(sys, spec); }, h, s,
-                steps);
-            outcome.push_back(c.outcome);
-            done.push_back(c.steps);
-            upd.push_back(c.updates_per_step);
-            cgs.push_back(c.cg_per_step);
-            excess.push_back(c.energy_excess);
+        for (std::size_t i = 0; i < hs.size(); ++i) {
+          fmt::print("{:<24} {:>8g}", "", hs[i]);
+          for (std::size_t j = 0; j < stiff.size(); ++j) {
+            const std::size_t k = k0 + i * stiff.size() + j;
+            StabilityCell c;
+            c.outcome = outcome[k];
+            c.steps = done[k];
+            c.updates_per_step = upd[k];
+            c.cg_per_step = cgs[k];
             fmt::print(" {:>12}", StabilityCellText(c));
           }
           fmt::print("\n");
         }
+        const auto slice = [&](const auto& v) {
+          using T = typename std::decay_t<decltype(v)>::value_type;
+          return std::vector<T>(v.begin() + static_cast<std::ptrdiff_t>(k0),
+                                v.begin() + static_cast<std::ptrdiff_t>(k0 + per_map));
+        };
         const std::string g = fmt::format("/stress/{}/{}", scene.name, m.id());
         f.CreateGroup(g);
-        f.WriteTable(g + "/outcome", nh, ns, outcome);
-        f.WriteTable(g + "/steps_completed", nh, ns, done);
-        f.WriteTable(g + "/updates_per_step", nh, ns, upd, "");
-        f.WriteTable(g + "/cg_per_step", nh, ns, cgs, "");
-        f.WriteTable(g + "/energy_excess", nh, ns, excess, "");
+        f.WriteTable(g + "/outcome", nh, ns, slice(outcome));
+        f.WriteTable(g + "/steps_completed", nh, ns, slice(done));
+        f.WriteTable(g + "/updates_per_step", nh, ns, slice(upd), "");
+        f.WriteTable(g + "/cg_per_step", nh, ns, slice(cgs), "");
+        f.WriteTable(g + "/energy_excess", nh, ns, slice(excess), "");
+        k0 += per_map;
       }
     }
     f.Commit();
-    fmt::print("\nmachine: {}, {} hardware threads, {}, commit {}\nresults: {}\n", HostName(),
-               std::thread::hardware_concurrency(), CompilerId(), GitCommit(), out);
+    journal.Remove();
+    fmt::print("\nmachine: {}, {} hardware threads, {} MPI rank{}, {}, commit {}\nresults: {}\n", HostName(),
+               std::thread::hardware_concurrency(), comm.size(), comm.size() > 1 ? "s" : "", CompilerId(), GitCommit(),
+               out);
     if (!plot_dir.empty()) Plot("stress_stability", out, plot_dir);
     return 0;
   } catch (const SceneError& e) {
-    fmt::print(stderr, "stress_stability: {}\n", e.what());
-    return 2;
+    return refuse(e.what());
   } catch (const std::invalid_argument& e) {
-    fmt::print(stderr, "stress_stability: {}\n", e.what());
-    return 2;
+    return refuse(e.what());
+  } catch (const SweepJournal::Mismatch& e) {
+    return refuse(e.what());
   } catch (const Interrupted& e) {
-    fmt::print(stderr, "stress_stability: interrupted by {}; no result file written\n", SignalName(e.signal));
-    return 128 + e.signal;
+    if (comm.root())
+      fmt::print(stderr, "stress_stability: interrupted by {}; no result file written, finished cells kept in {}.journal\n",
+                 SignalName(e.signal), out);
+    comm.Abort(128 + e.signal);
   } catch (const std::exception& e) {
-    fmt::print(stderr, "stress_stability: {}\n", e.what());
-    return 1;
+    fmt::print(stderr, "stress_stability: {}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
+               EscapeControl(e.what()));
+    comm.Abort(1);
   }
 }
 

@@ -1,0 +1,163 @@
+// stress_stability as a sweep (bench/sweep.h): under `mpirun -n 2` it writes
+// the same maps as the serial run, bit for bit; a sweep stopped part-way
+// (--max-cells, or SIGINT) keeps <out>.journal and no result file, and the
+// rerun computes only the missing cells and writes the same maps; a journal
+// of other arguments is refused.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "results/result_reader.h"
+#include "verify/cli_helpers.h"
+
+namespace clothbench {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::Outcome;
+
+fs::path Dir() { return testing::TempDir("clothbench_sweep_"); }
+
+// Two scenes × two methods × 4 h × 6 stiffness = 96 cells of 40 steps on
+// 10×10 particles: well under a second.
+const std::string kSweep = " --scenes hanging_sheet,swinging_sheet --integrators sbdf2,bdf2 --steps 40";
+constexpr long kCells = 96;
+
+Outcome Sweep(const std::string& args, const std::string& launcher = "") {
+  return testing::RunCommand(launcher + CLOTHBENCH_STRESS_BINARY, args, Dir());
+}
+
+// `mpirun -n <ranks>` with Open MPI's consent to run as root (CI runs as
+// root) and to place 2 ranks on fewer cores.
+std::string MpiRun(int ranks) {
+  return "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 " + std::string(CLOTHBENCH_MPIEXEC) + " -n " +
+         std::to_string(ranks) + " --oversubscribe ";
+}
+
+long JournalCells(const fs::path& journal) {
+  std::ifstream in(journal);
+  std::string line;
+  long n = 0;
+  while (std::getline(in, line)) n += line.rfind("cell ", 0) == 0;
+  return n;
+}
+
+// Every dataset under /stress, bit for bit, and the same list of groups.
+void ExpectSameMaps(const fs::path& a, const fs::path& b) {
+  const ResultReader ra(a.string()), rb(b.string());
+  ASSERT_EQ(ra.Children("/stress"), rb.Children("/stress"));
+  EXPECT_EQ(ra.Doubles("/stress/stiffness"), rb.Doubles("/stress/stiffness"));
+  EXPECT_EQ(ra.Doubles("/stress/h"), rb.Doubles("/stress/h"));
+  int maps = 0;
+  for (const std::string& scene : ra.Children("/stress")) {
+    if (scene == "stiffness" || scene == "h") continue;
+    ASSERT_EQ(ra.Children("/stress/" + scene), rb.Children("/stress/" + scene));
+    for (const std::string& method : ra.Children("/stress/" + scene)) {
+      const std::string g = "/stress/" + scene + "/" + method;
+      EXPECT_EQ(ra.Ints(g + "/outcome"), rb.Ints(g + "/outcome")) << g;
+      EXPECT_EQ(ra.Ints(g + "/steps_completed"), rb.Ints(g + "/steps_completed")) << g;
+      for (const char* d : {"/updates_per_step", "/cg_per_step", "/energy_excess"})
+        EXPECT_EQ(ra.Doubles(g + d), rb.Doubles(g + d)) << g << d;
+      ++maps;
+    }
+  }
+  EXPECT_EQ(maps, 4);
+}
+
+// The printed maps without the lines that name the file, the machine or
+// the journal.
+std::string Maps(const std::string& out) {
+  std::stringstream in(out), kept;
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("machine:", 0) != 0 && line.rfind("results:", 0) != 0 && line.find("cells from") == std::string::npos)
+      kept << line << "\n";
+  return kept.str();
+}
+
+TEST(Sweep, TwoMpiRanksWriteTheSameMapsAsTheSerialRun) {
+  const fs::path serial = Dir() / "serial.h5", mpi = Dir() / "mpi.h5";
+  const Outcome a = Sweep(kSweep + " --out " + serial.string());
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const Outcome b = Sweep(kSweep + " --out " + mpi.string(), MpiRun(2));
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  EXPECT_NE(b.out.find("0 of 96 cells from " + mpi.string() + ".journal; computing 96 on 2 ranks"), std::string::npos)
+      << b.out;
+  ExpectSameMaps(serial, mpi);
+  EXPECT_EQ(Maps(a.out), Maps(b.out));  // rank 0 alone prints, the same maps
+  EXPECT_EQ(ResultReader(mpi.string()).Long("/", "mpi_ranks").value_or(0), 2);
+  EXPECT_FALSE(fs::exists(mpi.string() + ".journal"));
+  EXPECT_FALSE(fs::exists(serial.string() + ".journal"));
+}
+
+TEST(Sweep, AStoppedSweepResumesWithOnlyTheMissingCells) {
+  const fs::path whole = Dir() / "whole.h5", sliced = Dir() / "sliced.h5";
+  const fs::path journal = sliced.string() + ".journal";
+  fs::remove(journal);
+  ASSERT_EQ(Sweep(kSweep + " --out " + whole.string()).exit_code, 0);
+  // First slice: 30 cells, exit 75, the journal holds them, no file.
+  const Outcome first = Sweep(kSweep + " --max-cells 30 --out " + sliced.string());
+  EXPECT_EQ(first.exit_code, 75) << first.err;
+  EXPECT_NE(first.out.find("stopped after 30 cells (--max-cells): 30 of 96 done"), std::string::npos) << first.out;
+  EXPECT_EQ(JournalCells(journal), 30);
+  EXPECT_FALSE(fs::exists(sliced));
+  EXPECT_FALSE(fs::exists(sliced.string() + ".tmp"));
+  // Second slice on two MPI ranks: 40 more.
+  const Outcome second = Sweep(kSweep + " --max-cells 40 --out " + sliced.string(), MpiRun(2));
+  EXPECT_EQ(second.exit_code, 75) << second.err;
+  EXPECT_NE(second.out.find("30 of 96 cells from " + journal.string() + "; computing 40 on 2 ranks"), std::string::npos)
+      << second.out;
+  EXPECT_EQ(JournalCells(journal), 70);
+  // The rest: only the 26 missing cells are computed; the journal is
+  // removed with the complete file, which equals the uninterrupted run's.
+  const Outcome last = Sweep(kSweep + " --out " + sliced.string());
+  ASSERT_EQ(last.exit_code, 0) << last.err;
+  EXPECT_NE(last.out.find("70 of 96 cells from " + journal.string() + "; computing 26 on 1 rank"), std::string::npos)
+      << last.out;
+  EXPECT_FALSE(fs::exists(journal));
+  ExpectSameMaps(whole, sliced);
+}
+
+TEST(Sweep, AJournalOfOtherArgumentsIsRefused) {
+  const fs::path out = Dir() / "other.h5";
+  const fs::path journal = out.string() + ".journal";
+  fs::remove(journal);
+  ASSERT_EQ(Sweep(kSweep + " --max-cells 3 --out " + out.string()).exit_code, 75);
+  const Outcome o = Sweep(" --scenes hanging_sheet,swinging_sheet --integrators sbdf2,bdf2 --steps 41 --out " + out.string());
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find(journal.string() + ": was written by a sweep with other arguments"), std::string::npos) << o.err;
+  EXPECT_EQ(JournalCells(journal), 3);  // left as it was
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// SIGINT in the middle of a sweep (600 steps per cell: ~10 s here, the
+// signal after 1 s): exit 130 with one line, no file, no .tmp, and the
+// journal keeps the cells finished before it.
+TEST(Sweep, SigintKeepsTheJournalAndLeavesNoFile) {
+  const fs::path out = Dir() / "sigint.h5";
+  const fs::path journal = out.string() + ".journal", err = Dir() / "sigint_err.txt";
+  fs::remove(journal);
+  const std::string cmd = std::string("timeout --preserve-status -s INT 1 ") + CLOTHBENCH_STRESS_BINARY +
+                          " --steps 600 --out " + out.string() + " > /dev/null 2> " + err.string();
+  const int rc = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(rc));
+  EXPECT_EQ(WEXITSTATUS(rc), 130);
+  const std::string text = testing::Slurp(err);
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+  EXPECT_NE(text.find("interrupted by SIGINT"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  EXPECT_TRUE(fs::exists(journal));
+  const long cells = JournalCells(journal);
+  EXPECT_GE(cells, 1);
+  EXPECT_LT(cells, 48 * 6);  // interrupted: not all 2 scenes × 6 methods × 24 cells
+}
+
+}  // namespace
+}  // namespace clothbench
