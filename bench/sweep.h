@@ -125,12 +125,14 @@ class SweepJournal {
   /// `comm.Barrier()`. @throws Mismatch if the header is not this key.
   SweepJournal(std::string path, std::string key, std::size_t cells, const SweepComm& comm)
       : path_(std::move(path)), header_(fmt::format("clothbench sweep journal 1 cells={} {}", cells, key)) {
+    bool created = true;
     if (comm.root() && !std::filesystem::exists(path_)) {
       std::ofstream out(path_);
       out << header_ << "\n";
-      if (!out) throw Mismatch(fmt::format("{}: cannot be written", path_));
+      created = static_cast<bool>(out);
     }
-    comm.Barrier();
+    comm.Barrier();  // every rank reaches it, so that none waits for a rank that failed
+    if (!created) throw Mismatch(fmt::format("{}: cannot be written", path_));
     std::ifstream in(path_);
     std::string line;
     if (!std::getline(in, line)) throw Mismatch(fmt::format("{}: cannot be read", path_));
