@@ -13,6 +13,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -25,7 +27,9 @@
 #include "bench/methods.h"
 #include "bench/plot.h"
 #include "bench/progress.h"
+#include "bench/run_codec.h"
 #include "bench/signals.h"
+#include "bench/sweep.h"
 #include "model/particle_system.h"
 #include "model/triangle_mesh.h"
 #include "reference/cvode_reference.h"
@@ -45,6 +49,23 @@ namespace {
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// The journal's key: the scene's text and the command's arguments, except
+// those that change no result (--max-runs, --plot, --quiet), so that a rerun
+// of the same command, sliced or not, finds its journal.
+std::string JournalKey(int argc, char** argv, const Scene& scene) {
+  std::string key = fmt::format("bench_integrators journal 1 scene={} args=", Fnv1a64(scene.toml));
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--max-runs" || a == "--plot") {
+      ++i;
+      continue;
+    }
+    if (a.rfind("--max-runs=", 0) == 0 || a.rfind("--plot=", 0) == 0 || a == "--quiet") continue;
+    key += EscapeControl(a) + " ";
+  }
+  return key;
+}
 
 std::vector<std::string> SplitList(const std::string& s) {
   std::vector<std::string> out;
@@ -265,11 +286,12 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
-                  const RunTable& table) {
+                  const RunTable& table, long mpi_ranks) {
   const std::string& frames_mode = table.frames;
   const bool write_frames = frames_mode != "none";
   ResultFile f(path);
   WriteProvenance(f);
+  f.SetAttribute("/", "mpi_ranks", mpi_ranks);
   f.CreateGroup("/scene");
   WriteSceneRecord(f, table);
   f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
@@ -616,12 +638,14 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
 }
 
 int Main(int argc, char** argv) {
+  SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
+  long max_runs = 0;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
@@ -670,6 +694,10 @@ int Main(int argc, char** argv) {
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
                  "once per --cg-tolerances value (and write HDF5)");
   app.add_option("--out", out, "result file (default: results/<scene>.h5)");
+  app.add_option("--max-runs", max_runs,
+                 "compute at most N runs (the reference counts as one) not yet in <out>.journal/, then stop with exit "
+                 "status 75 and keep the journal; rerun the same command to continue")
+      ->check(CLI::Range(1L, 1000000000L));
   app.add_option("--time-limit", time_limit,
                  "wall-time budget of each run [s] (default 3600): a run past it ends with status time_limit and the "
                  "other rows still run and are written");
@@ -681,9 +709,9 @@ int Main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
+    return comm.root() ? app.exit(e) : 0;
   } catch (const CLI::ParseError& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
+    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 2;
   }
   InstallInterruptHandlers();
@@ -702,6 +730,7 @@ int Main(int argc, char** argv) {
       for (double e : etas)
         if (!(e < 1.0)) throw UsageError(fmt::format("--cg-tolerances: {:g} must be in (0, 1)", e));
     }
+    if (!table.empty() && !comm.root()) return 0;  // the thesis tables run on rank 0 alone
     if (!table.empty())
       return RunThesisTable(table, out,
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner))
@@ -836,91 +865,191 @@ int Main(int argc, char** argv) {
     if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
     CheckOutputFolder(out);
 
+    // The sweep: the reference (task 0, if any) and every row in table
+    // order. Under mpirun/srun the tasks are dealt over the ranks and rank 0
+    // assembles, prints and writes; every finished task is journalled in
+    // <out>.journal/, so that the same command rerun after an interruption
+    // computes only the missing ones (bench/sweep.h).
+    struct RowTask {
+      std::size_t mk, block;  // method; block of rows whose observed orders chain (method, η)
+      double eta, param;
+      int substeps;
+    };
+    std::vector<RowTask> row_tasks;
+    {
+      std::size_t block = 0;
+      for (std::size_t mk = 0; mk < methods.size(); ++mk)
+        for (double eta : methods[mk].uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
+          for (const auto& [p, n] : params[mk]) row_tasks.push_back({mk, block, eta, p, n});
+          ++block;
+        }
+    }
+    const long n_ref = reference != "none" ? 1 : 0;
+    const long n_tasks = n_ref + static_cast<long>(row_tasks.size());
+    // The model last: it loads the mesh obstacles, whose errors are refusals
+    // too; the journal exists only for a run that is not refused.
     const ParticleSystem sys(scene);
-    TerminalProgress progress(!quiet);
-    std::optional<RunSummary> ref;
+    RecordJournal journal(out + ".journal", JournalKey(argc, argv, scene), comm);
+    std::vector<long> missing;
+    std::size_t stored = 0;
+    if (comm.root()) {
+      const std::vector<long> have = journal.Stored();
+      for (long k = 0; k < n_tasks; ++k)
+        if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
+      stored = static_cast<std::size_t>(n_tasks) - missing.size();
+    }
+    comm.Broadcast(&missing);
+    const std::size_t to_compute =
+        max_runs > 0 ? std::min(missing.size(), static_cast<std::size_t>(max_runs)) : missing.size();
+    if (comm.root() && (stored > 0 || comm.size() > 1 || to_compute < missing.size()))
+      fmt::print("{} of {} runs from {}; computing {} on {} rank{}\n", stored, n_tasks, journal.path(), to_compute,
+                 comm.size(), comm.size() > 1 ? "s" : "");
+
+    TerminalProgress progress(!quiet && comm.root());
     RunLimits limits;
     limits.time_limit_s = time_limit;
     ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt, limits};
-    if (reference != "none" && !sys.obstacles().empty()) {
-      // CVODE and IDA have no collision response: on obstacle scenes the
-      // reference is a self-convergence run, BDF(2) at h_min/16 (without
-      // --h: h/128) with tight
-      // CG and fixed-point tolerances.
-      const double h_ref = (hs.empty() ? scene.h / 8.0 : *std::min_element(hs.begin(), hs.end())) / 16.0;
-      progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), scene.t_end);
-      ref = SelfConvergenceReference(scene, h_ref);
-      if (!ref->ok) {
+    // CVODE and IDA have no collision response: on obstacle scenes the
+    // reference is a self-convergence run, BDF(2) at h_min/16 (without
+    // --h: h/128) with tight CG and fixed-point tolerances.
+    const bool self_convergence = !sys.obstacles().empty();
+    const double h_ref = (hs.empty() ? scene.h / 8.0 : *std::min_element(hs.begin(), hs.end())) / 16.0;
+    const auto reference_failed = [&](const RunSummary& r) {
+      if (journal.Stored().empty()) journal.Remove();  // nothing to resume
+      if (self_convergence)
         fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
-                   ref->message);
-        return 1;
-      }
-    } else if (reference != "none") {
-      progress.Start(fmt::format("reference {} rtol {:g}", reference, ref_rtol), scene.t_end);
-      ref = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
-      if (!ref->ok) {
-        fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, ref->message);
-        return 1;
-      }
-    }
-
-    std::vector<Row> rows;
+                   r.message);
+      else
+        fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, r.message);
+      return 1;
+    };
     const RunContext ctx{arkode_table, limits};
-    for (std::size_t mk = 0; mk < methods.size(); ++mk) {
-      const RowMethod& m = methods[mk];
-      for (double eta : m.uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
-        SolverSpec spec = scene.solver;
-        spec.cg_tolerance = eta;
-        const std::size_t first = rows.size();
-        for (const auto& [p, n] : params[mk]) {
-          progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), p)
-                         : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), p, n)
-                                                             : fmt::format("{} h = {:g} s", m.label(), p),
-                         scene.t_end);
-          rows.push_back(m.Run(sys, scene, spec, p, ctx, n));
-          if (etas.size() > 1 && m.uses_pcg()) {
-            rows.back().id += fmt::format("_eta{:g}", eta);
-            rows.back().label += fmt::format(" eta={:g}", eta);
-          }
-          Row& r = rows.back();
-          if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
-          if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
-          const std::size_t k = rows.size() - 1;
-          // Observed order against the (sub)step h/n; none between two rows with the same one.
-          const auto step = [](const Row& q) { return q.substeps > 0 ? q.h / q.substeps : q.h; };
-          if (m.kind() != StepKind::kAdaptive && k > first && r.err && rows[k - 1].err && step(rows[k - 1]) != step(r))
-            r.order = ObservedOrder(step(rows[k - 1]), rows[k - 1].err->rms_at_end, step(r), r.err->rms_at_end);
-        }
+    std::map<long, RunSummary> own_ref;
+    std::map<long, Row> own_rows;
+    std::vector<std::pair<long, std::string>> outgoing;
+    bool journal_ok = true;
+    const auto journal_store = [&](long k, const std::string& bytes) {
+      if (!journal_ok) return;
+      try {
+        journal.Store(k, bytes);
+      } catch (const std::exception& e) {  // a full disk ends journalling, not the run
+        journal_ok = false;
+        fmt::print(stderr, "bench_integrators: {}; continuing without the journal\n", EscapeControl(e.what()));
       }
+    };
+    for (std::size_t j = 0; j < to_compute; ++j) {
+      if (!comm.Owns(j)) continue;
+      const long k = missing[j];
+      if (k < n_ref) {
+        RunSummary r;
+        if (self_convergence) {
+          progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), scene.t_end);
+          r = SelfConvergenceReference(scene, h_ref);
+        } else {
+          progress.Start(fmt::format("reference {} rtol {:g}", reference, ref_rtol), scene.t_end);
+          r = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
+        }
+        if (!r.ok && comm.size() == 1) return reference_failed(r);  // serial: before any row
+        std::string bytes = EncodeSummary(r);
+        if (r.ok) journal_store(k, bytes);  // a failed reference is computed again by a rerun
+        if (comm.root()) own_ref.emplace(k, std::move(r));
+        else outgoing.emplace_back(k, std::move(bytes));
+        continue;
+      }
+      const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
+      const RowMethod& m = methods[t.mk];
+      SolverSpec spec = scene.solver;
+      spec.cg_tolerance = t.eta;
+      progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), t.param)
+                     : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.substeps)
+                                                         : fmt::format("{} h = {:g} s", m.label(), t.param),
+                     scene.t_end);
+      Row r = m.Run(sys, scene, spec, t.param, ctx, t.substeps);
+      if (etas.size() > 1 && m.uses_pcg()) {
+        r.id += fmt::format("_eta{:g}", t.eta);
+        r.label += fmt::format(" eta={:g}", t.eta);
+      }
+      std::string bytes = EncodeRun(r);
+      journal_store(k, bytes);
+      if (comm.root()) own_rows.emplace(k, std::move(r));
+      else outgoing.emplace_back(k, std::move(bytes));
     }
     progress.Finish();
+    std::vector<std::pair<long, std::string>> received = comm.GatherToRoot(std::move(outgoing));
+    if (!comm.root()) return 0;
+    if (to_compute < missing.size()) {
+      fmt::print("stopped after {} runs (--max-runs): {} of {} done; rerun the same command to continue ({})\n",
+                 to_compute, stored + to_compute, n_tasks, journal.path());
+      return kExitPartial;
+    }
+    // Assemble in task order: own results, then other ranks', then the journal's.
+    std::map<long, std::string> bytes_of(std::make_move_iterator(received.begin()),
+                                         std::make_move_iterator(received.end()));
+    const auto bytes = [&](long k) {
+      const auto it = bytes_of.find(k);
+      return it != bytes_of.end() ? std::move(it->second) : journal.Load(k);
+    };
+    std::optional<RunSummary> ref;
+    if (n_ref) {
+      try {
+        ref = own_ref.count(0) ? std::move(own_ref.at(0)) : DecodeSummary(bytes(0));
+      } catch (const std::runtime_error& e) {
+        throw std::runtime_error(fmt::format("{}: run 0: {}; delete the folder and rerun", journal.path(), e.what()));
+      }
+      if (!ref->ok) return reference_failed(*ref);
+    }
+    std::vector<Row> rows;
+    for (std::size_t i = 0; i < row_tasks.size(); ++i) {
+      const long k = n_ref + static_cast<long>(i);
+      try {
+        rows.push_back(own_rows.count(k) ? std::move(own_rows.at(k)) : DecodeRun(bytes(k)));
+      } catch (const std::runtime_error& e) {
+        throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
+      }
+      Row& r = rows.back();
+      if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
+      if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
+      // Observed order against the (sub)step h/n within one block; none
+      // between two rows with the same one.
+      const auto step = [](const Row& q) { return q.substeps > 0 ? q.h / q.substeps : q.h; };
+      if (methods[row_tasks[i].mk].kind() != StepKind::kAdaptive && i > 0 &&
+          row_tasks[i - 1].block == row_tasks[i].block && r.err && rows[i - 1].err && step(rows[i - 1]) != step(r))
+        r.order = ObservedOrder(step(rows[i - 1]), rows[i - 1].err->rms_at_end, step(r), r.err->rms_at_end);
+    }
     const EqualAccuracyTable wp = WorkPrecision(rows, targets);
     const RunTable run_table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);
     if (!work_precision_only) PrintRunTable(stdout, run_table);
     if (ref) PrintWorkPrecision(stdout, wp);
     if (!series.empty()) WriteSeries(series, rows);
-    WriteResults(out, scene, sys, ref, ref_opts, rows, run_table);
+    WriteResults(out, scene, sys, ref, ref_opts, rows, run_table, comm.size());
+    journal.Remove();
     const std::string xdmf = WriteXdmf(out);
     fmt::print("results: {}\n", out);
     if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
     if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
     return 0;
-  } catch (const UsageError& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
+  } catch (const UsageError& e) {  // every rank refuses the same input; rank 0 says so
+    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 2;
   } catch (const SceneError& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
+    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
+    return 2;
+  } catch (const SweepJournal::Mismatch& e) {
+    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
     return 2;
   } catch (const Interrupted& e) {
-    fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written\n", SignalName(e.signal));
-    return 128 + e.signal;
+    if (comm.root())
+      fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written, finished runs kept in {}.journal\n",
+                 SignalName(e.signal), out);
+    comm.Abort(128 + e.signal);
   } catch (const std::bad_alloc&) {
     fmt::print(stderr, "bench_integrators: out of memory although the run fitted the memory estimate; no result file "
                        "written (use --frames ends|none or fewer rows)\n");
-    return 1;
+    comm.Abort(1);
   } catch (const std::exception& e) {
-    fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
-    return 1;
+    fmt::print(stderr, "bench_integrators: {}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
+               EscapeControl(e.what()));
+    comm.Abort(1);
   }
 }
 

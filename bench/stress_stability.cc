@@ -46,10 +46,6 @@
 namespace clothbench {
 namespace {
 
-/// Exit status of a sweep stopped by --max-cells before its last cell
-/// (EX_TEMPFAIL of sysexits.h: rerun to continue).
-constexpr int kExitPartial = 75;
-
 std::vector<std::string> Split(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream ss(s);

@@ -1,4 +1,5 @@
-// What a sweep of independent cells (the stability maps) needs to outgrow
+// What a sweep of independent cells (the stability maps, the rows of
+// bench_integrators) needs to outgrow
 // one machine and one sitting:
 //  - SweepComm: MPI (Open MPI, or any MPI under Slurm's srun) when the
 //    process was started by a launcher, else one rank without MPI at all;
@@ -6,7 +7,8 @@
 //    onto rank 0, which alone prints and writes.
 //  - SweepJournal: `<out>.journal`, one line per finished cell appended as
 //    it completes, so that an interrupted sweep rerun with the same
-//    arguments computes only the missing cells.
+//    arguments computes only the missing cells; RecordJournal: the same for
+//    cells that are whole runs, one file each.
 // docs/verification.md, "Sweeps on many machines, and resuming them".
 #ifndef CLOTHBENCH_BENCH_SWEEP_H_
 #define CLOTHBENCH_BENCH_SWEEP_H_
@@ -19,19 +21,27 @@
 #include <mpi.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
 
 namespace clothbench {
+
+/// Exit status of a sweep stopped by --max-cells / --max-runs before its
+/// last cell (EX_TEMPFAIL of sysexits.h: rerun to continue).
+inline constexpr int kExitPartial = 75;
 
 /// True if a launcher started this process as one rank of a job: Open MPI's
 /// mpirun (OMPI_COMM_WORLD_SIZE), PMIx launchers such as Slurm's srun
@@ -79,6 +89,49 @@ class SweepComm {
     std::vector<int32_t> out(v->size(), 0);
     MPI_Reduce(v->data(), out.data(), static_cast<int>(v->size()), MPI_INT32_T, MPI_SUM, 0, MPI_COMM_WORLD);
     if (root()) *v = std::move(out);
+  }
+  /// Rank 0's `v` on every rank.
+  void Broadcast(std::vector<long>* v) const {
+    if (!mpi_ || size_ == 1) return;
+    long n = static_cast<long>(v->size());
+    MPI_Bcast(&n, 1, MPI_LONG, 0, MPI_COMM_WORLD);
+    v->resize(static_cast<std::size_t>(n));
+    MPI_Bcast(v->data(), static_cast<int>(n), MPI_LONG, 0, MPI_COMM_WORLD);
+  }
+  /// Every rank's (index, bytes) records onto rank 0, which returns all of
+  /// them (its own included) in rank order; the other ranks return none.
+  /// Records travel in pieces of at most 1 GiB (MPI counts are int).
+  std::vector<std::pair<long, std::string>> GatherToRoot(std::vector<std::pair<long, std::string>> mine) const {
+    if (!mpi_ || size_ == 1) return mine;
+    static constexpr std::size_t kPiece = std::size_t{1} << 30;
+    const auto send = [](const char* data, std::size_t n) {
+      for (std::size_t at = 0; at < n; at += kPiece)
+        MPI_Send(data + at, static_cast<int>(std::min(kPiece, n - at)), MPI_BYTE, 0, 0, MPI_COMM_WORLD);
+    };
+    if (!root()) {
+      long count = static_cast<long>(mine.size());
+      MPI_Send(&count, 1, MPI_LONG, 0, 0, MPI_COMM_WORLD);
+      for (const auto& [index, bytes] : mine) {
+        const long head[2] = {index, static_cast<long>(bytes.size())};
+        MPI_Send(head, 2, MPI_LONG, 0, 0, MPI_COMM_WORLD);
+        send(bytes.data(), bytes.size());
+      }
+      return {};
+    }
+    for (int r = 1; r < size_; ++r) {
+      long count = 0;
+      MPI_Recv(&count, 1, MPI_LONG, r, 0, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      for (long k = 0; k < count; ++k) {
+        long head[2] = {0, 0};
+        MPI_Recv(head, 2, MPI_LONG, r, 0, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        std::string bytes(static_cast<std::size_t>(head[1]), '\0');
+        for (std::size_t at = 0; at < bytes.size(); at += kPiece)
+          MPI_Recv(bytes.data() + at, static_cast<int>(std::min(kPiece, bytes.size() - at)), MPI_BYTE, r, 0,
+                   MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        mine.emplace_back(head[0], std::move(bytes));
+      }
+    }
+    return mine;
   }
   /// Ends every rank of the job with `code` (a rank that stops alone would
   /// leave the others waiting in SumToRoot).
@@ -190,6 +243,74 @@ class SweepJournal {
   std::string path_, header_;
   std::map<long, JournalCell> done_;
   int fd_ = -1;
+};
+
+/// The journal of a sweep whose cells are whole runs (bench_integrators):
+/// the folder `<out>.journal/` with `key` (the sweep's canonical arguments)
+/// and one `<index>.run` per finished cell, written to a temporary name and
+/// renamed, so that a cell is either complete or absent. Rank 0 creates and
+/// reads it; every rank stores its own cells (a file system all ranks
+/// share, as the output folder is on a cluster).
+class RecordJournal {
+ public:
+  /// @throws SweepJournal::Mismatch if the folder holds another key.
+  RecordJournal(std::string path, const std::string& key, const SweepComm& comm) : path_(std::move(path)) {
+    namespace fs = std::filesystem;
+    bool ok = true;
+    std::string found;
+    if (comm.root()) {
+      std::error_code ec;
+      fs::create_directories(path_, ec);
+      const fs::path k = fs::path(path_) / "key";
+      if (!fs::exists(k)) {
+        std::ofstream(k) << key;
+      }
+      std::ifstream in(k);
+      found.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      ok = !ec && static_cast<bool>(in);
+    }
+    comm.Barrier();
+    if (!comm.root()) return;
+    if (!ok) throw SweepJournal::Mismatch(fmt::format("{}: cannot be created or read", path_));
+    if (found != key)
+      throw SweepJournal::Mismatch(fmt::format("{}: was written by a run with other arguments (\"{}\", not \"{}\"); rerun "
+                                               "that command, or delete the folder to start afresh",
+                                               path_, found.substr(0, 200), key.substr(0, 200)));
+  }
+
+  const std::string& path() const { return path_; }
+
+  /// Rank 0: the indices of the stored cells.
+  std::vector<long> Stored() const {
+    std::vector<long> out;
+    for (const auto& e : std::filesystem::directory_iterator(path_)) {
+      const std::string name = e.path().filename().string();
+      if (e.path().extension() != ".run") continue;
+      char* end = nullptr;
+      const long k = std::strtol(name.c_str(), &end, 10);
+      if (end && std::string(end) == ".run" && k >= 0) out.push_back(k);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+  std::string Load(long index) const {
+    std::ifstream in(Entry(index), std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  void Store(long index, const std::string& bytes) const {
+    const std::string tmp = Entry(index) + ".part";
+    {
+      std::ofstream out(tmp, std::ios::binary);
+      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+      if (!out) throw std::runtime_error(fmt::format("{}: cannot store run {}", path_, index));
+    }
+    std::filesystem::rename(tmp, Entry(index));
+  }
+  void Remove() const { std::filesystem::remove_all(path_); }
+
+ private:
+  std::string Entry(long index) const { return fmt::format("{}/{}.run", path_, index); }
+  std::string path_;
 };
 
 }  // namespace clothbench

@@ -42,7 +42,8 @@ std::string Replace(std::string text, const std::string& from, const std::string
 
 const std::string kTiny = testing::kTinyScene;
 
-// One refusal: exit 2, exactly one line containing `needle`, no file, no .tmp.
+// One refusal: exit 2, exactly one line containing `needle`, no file, no
+// .tmp, no journal.
 void ExpectRefused(const std::string& args, const std::string& needle) {
   const fs::path out = Dir() / "refused.h5";
   fs::remove(out);
@@ -52,6 +53,7 @@ void ExpectRefused(const std::string& args, const std::string& needle) {
   EXPECT_NE(o.err.find(needle), std::string::npos) << args << "\n" << o.err;
   EXPECT_FALSE(fs::exists(out)) << args;
   EXPECT_FALSE(fs::exists(out.string() + ".tmp")) << args;
+  EXPECT_FALSE(fs::exists(out.string() + ".journal")) << args;  // a refused run leaves no journal either
 }
 
 std::string Scene(const std::string& name, const std::string& text) { return "--scene " + WriteScene(name, text); }

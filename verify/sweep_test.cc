@@ -1,8 +1,9 @@
-// stress_stability as a sweep (bench/sweep.h): under `mpirun -n 2` it writes
-// the same maps as the serial run, bit for bit; a sweep stopped part-way
-// (--max-cells, or SIGINT) keeps <out>.journal and no result file, and the
-// rerun computes only the missing cells and writes the same maps; a journal
-// of other arguments is refused.
+// stress_stability and bench_integrators as sweeps (bench/sweep.h): under
+// `mpirun -n 2` they write the serial run's file (bit for bit; for
+// bench_integrators all but timings and the machine); a sweep stopped
+// part-way (--max-cells, --max-runs, SIGINT) keeps <out>.journal and no
+// result file, and the rerun computes only the missing cells and writes the
+// same file; a journal of other arguments is refused.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 
 #include "results/result_reader.h"
 #include "verify/cli_helpers.h"
+#include "verify/hdf5_scan.h"
 
 namespace clothbench {
 namespace {
@@ -78,6 +80,99 @@ std::string Maps(const std::string& out) {
     if (line.rfind("machine:", 0) != 0 && line.rfind("results:", 0) != 0 && line.find("cells from") == std::string::npos)
       kept << line << "\n";
   return kept.str();
+}
+
+// bench_integrators: 13 runs (the CVODE reference, 2 × sbdf2, 2 ×
+// bdf2/newton, 4 × xpbd, 2 × cvode, 2 × arkode) of the tiny scene.
+const std::string kRows = " --integrators sbdf2,bdf2/newton,xpbd,cvode,arkode --h 0.01,0.005 --substeps 1,4 "
+                          "--rtols 1e-3,1e-4";
+constexpr long kRuns = 13;
+
+Outcome Bench(const std::string& args, const std::string& launcher = "") {
+  static const std::string scene = [] {
+    const fs::path p = Dir() / "tiny.toml";
+    std::ofstream(p) << testing::kTinyScene;
+    return p.string();
+  }();
+  return testing::RunCommand(launcher + CLOTHBENCH_BENCH_BINARY, " --scene " + scene + args, Dir());
+}
+
+// What may differ between two runs of the same rows: timings, what is
+// derived from them (the equal-accuracy table) and the machine.
+bool TimingOrMachine(const std::string& key) {
+  for (const char* s : {"_time_s", "solve_time_s", "work_precision", "@created", "@host", "@mpi_ranks"})
+    if (key.find(s) != std::string::npos) return true;
+  return false;
+}
+
+void ExpectSameRuns(const fs::path& a, const fs::path& b) {
+  testing::FileContents ca = testing::ReadContents(a.string()), cb = testing::ReadContents(b.string());
+  std::erase_if(ca, [](const auto& kv) { return TimingOrMachine(kv.first); });
+  std::erase_if(cb, [](const auto& kv) { return TimingOrMachine(kv.first); });
+  EXPECT_GT(ca.size(), 500u);  // every run's frames, energies, step statistics and attributes
+  ASSERT_EQ(ca.size(), cb.size());
+  for (const auto& [key, bytes] : ca) {
+    const auto it = cb.find(key);
+    ASSERT_NE(it, cb.end()) << key;
+    EXPECT_EQ(bytes, it->second) << key;
+  }
+}
+
+std::size_t RunFiles(const fs::path& journal) {
+  std::size_t n = 0;
+  if (fs::is_directory(journal))
+    for (const auto& e : fs::directory_iterator(journal)) n += e.path().extension() == ".run";
+  return n;
+}
+
+TEST(Sweep, BenchIntegratorsOnTwoRanksWritesTheSerialFile) {
+  const fs::path serial = Dir() / "rows_serial.h5", mpi = Dir() / "rows_mpi.h5";
+  const Outcome a = Bench(kRows + " --out " + serial.string());
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const Outcome b = Bench(kRows + " --out " + mpi.string(), MpiRun(2));
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  EXPECT_NE(b.out.find("0 of 13 runs from " + mpi.string() + ".journal; computing 13 on 2 ranks"), std::string::npos)
+      << b.out;
+  ExpectSameRuns(serial, mpi);
+  EXPECT_EQ(ResultReader(mpi.string()).Long("/", "mpi_ranks").value_or(0), 2);
+  EXPECT_FALSE(fs::exists(mpi.string() + ".journal"));
+  EXPECT_FALSE(fs::exists(serial.string() + ".journal"));
+}
+
+TEST(Sweep, BenchIntegratorsResumesWithOnlyTheMissingRuns) {
+  const fs::path whole = Dir() / "rows_whole.h5", sliced = Dir() / "rows_sliced.h5";
+  const fs::path journal = sliced.string() + ".journal";
+  fs::remove_all(journal);
+  ASSERT_EQ(Bench(kRows + " --out " + whole.string()).exit_code, 0);
+  const Outcome first = Bench(kRows + " --max-runs 5 --out " + sliced.string());
+  EXPECT_EQ(first.exit_code, 75) << first.err;
+  EXPECT_NE(first.out.find("stopped after 5 runs (--max-runs): 5 of 13 done"), std::string::npos) << first.out;
+  EXPECT_EQ(RunFiles(journal), 5u);
+  EXPECT_FALSE(fs::exists(sliced));
+  EXPECT_FALSE(fs::exists(sliced.string() + ".tmp"));
+  const Outcome second = Bench(kRows + " --max-runs 4 --out " + sliced.string(), MpiRun(2));
+  EXPECT_EQ(second.exit_code, 75) << second.err;
+  EXPECT_EQ(RunFiles(journal), 9u);
+  const Outcome last = Bench(kRows + " --out " + sliced.string() + " --quiet");
+  ASSERT_EQ(last.exit_code, 0) << last.err;
+  EXPECT_NE(last.out.find("9 of 13 runs from " + journal.string() + "; computing 4 on 1 rank"), std::string::npos)
+      << last.out;
+  EXPECT_FALSE(fs::exists(journal));
+  ExpectSameRuns(whole, sliced);
+  static_assert(kRuns == 13);
+}
+
+TEST(Sweep, BenchIntegratorsRefusesAJournalOfOtherArguments) {
+  const fs::path out = Dir() / "rows_other.h5";
+  const fs::path journal = out.string() + ".journal";
+  fs::remove_all(journal);
+  ASSERT_EQ(Bench(kRows + " --max-runs 2 --out " + out.string()).exit_code, 75);
+  const Outcome o = Bench(" --integrators sbdf2 --h 0.01 --out " + out.string());
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find(journal.string() + ": was written by a run with other arguments"), std::string::npos) << o.err;
+  EXPECT_EQ(RunFiles(journal), 2u);
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(Sweep, TwoMpiRanksWriteTheSameMapsAsTheSerialRun) {

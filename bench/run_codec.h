@@ -1,0 +1,216 @@
+// A run's results as bytes, bit for bit: what bench_integrators sends from
+// one MPI rank to rank 0 and keeps in its journal (bench/sweep.h). Only
+// what a rank computes travels; energies, errors and observed orders are
+// derived on rank 0 exactly as in a serial run.
+#ifndef CLOTHBENCH_BENCH_RUN_CODEC_H_
+#define CLOTHBENCH_BENCH_RUN_CODEC_H_
+
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <vector>
+
+#include "bench/methods.h"
+
+namespace clothbench {
+
+class ByteWriter {
+ public:
+  template <class T>
+  void Pod(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    buf_.append(reinterpret_cast<const char*>(&v), sizeof(T));
+  }
+  void Str(const std::string& s) {
+    Pod<uint64_t>(s.size());
+    buf_ += s;
+  }
+  template <class T>
+  void Vec(const std::vector<T>& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    Pod<uint64_t>(v.size());
+    buf_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  }
+  void Frames(const std::vector<MatrixN3>& frames) {
+    Pod<uint64_t>(frames.size());
+    for (const MatrixN3& f : frames) {
+      Pod<int64_t>(f.rows());
+      buf_.append(reinterpret_cast<const char*>(f.data()), static_cast<std::size_t>(f.size()) * sizeof(double));
+    }
+  }
+  std::string Take() { return std::move(buf_); }
+
+ private:
+  std::string buf_;
+};
+
+/// Reads what ByteWriter wrote. @throws std::runtime_error on truncated or
+/// malformed bytes (a damaged journal entry).
+class ByteReader {
+ public:
+  explicit ByteReader(std::string_view bytes) : b_(bytes) {}
+  template <class T>
+  T Pod() {
+    T v;
+    Need(sizeof(T));
+    std::memcpy(&v, b_.data() + at_, sizeof(T));
+    at_ += sizeof(T);
+    return v;
+  }
+  std::string Str() {
+    const auto n = Pod<uint64_t>();
+    Need(n);
+    std::string s(b_.substr(at_, n));
+    at_ += n;
+    return s;
+  }
+  template <class T>
+  std::vector<T> Vec() {
+    const auto n = Pod<uint64_t>();
+    if (n > b_.size() / sizeof(T) + 1) throw std::runtime_error("malformed run record");
+    Need(n * sizeof(T));
+    std::vector<T> v(n);
+    std::memcpy(v.data(), b_.data() + at_, n * sizeof(T));
+    at_ += n * sizeof(T);
+    return v;
+  }
+  std::vector<MatrixN3> Frames() {
+    const auto n = Pod<uint64_t>();
+    if (n > b_.size()) throw std::runtime_error("malformed run record");
+    std::vector<MatrixN3> frames(n);
+    for (MatrixN3& f : frames) {
+      const auto rows = Pod<int64_t>();
+      if (rows < 0 || static_cast<uint64_t>(rows) > b_.size()) throw std::runtime_error("malformed run record");
+      const std::size_t bytes = static_cast<std::size_t>(rows) * 3 * sizeof(double);
+      Need(bytes);
+      f.resize(rows, 3);
+      std::memcpy(f.data(), b_.data() + at_, bytes);
+      at_ += bytes;
+    }
+    return frames;
+  }
+  bool done() const { return at_ == b_.size(); }
+
+ private:
+  void Need(std::size_t n) const {
+    if (n > b_.size() - at_) throw std::runtime_error("truncated run record");
+  }
+  std::string_view b_;
+  std::size_t at_ = 0;
+};
+
+namespace internal {
+
+inline void PutTrajectory(ByteWriter& w, const Trajectory& t) {
+  w.Vec(t.times);
+  w.Frames(t.positions);
+  w.Frames(t.velocities);
+  w.Vec(t.external_work);
+}
+inline Trajectory GetTrajectory(ByteReader& r) {
+  Trajectory t;
+  t.times = r.Vec<double>();
+  t.positions = r.Frames();
+  t.velocities = r.Frames();
+  t.external_work = r.Vec<double>();
+  return t;
+}
+inline void PutSundials(ByteWriter& w, const std::optional<SundialsStats>& s) {
+  w.Pod<uint8_t>(s.has_value());
+  if (s) w.Pod(*s);
+}
+inline std::optional<SundialsStats> GetSundials(ByteReader& r) {
+  if (!r.Pod<uint8_t>()) return std::nullopt;
+  return r.Pod<SundialsStats>();
+}
+
+}  // namespace internal
+
+/// One row's run as MethodRun::Run returned it (energy, err and order are
+/// not included: rank 0 derives them).
+inline std::string EncodeRun(const MethodRun& m) {
+  ByteWriter w;
+  for (const std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms,
+                               &m.constraints, &m.status, &m.message})
+    w.Str(*s);
+  w.Pod(m.kind);
+  w.Pod(m.h);
+  w.Pod(m.substeps);
+  w.Pod(m.rtol);
+  w.Pod(m.cg_tolerance);
+  w.Pod<uint8_t>(m.ok);
+  for (long v : {m.steps, m.updates, m.cg, m.rejected, m.error_test_failures}) w.Pod(v);
+  for (double v : {m.solver_time, m.wall_time, m.setup_time, m.stiffness}) w.Pod(v);
+  internal::PutTrajectory(w, m.traj);
+  w.Vec(m.steps_table);
+  w.Vec(m.bdf_order);
+  internal::PutSundials(w, m.sundials);
+  return w.Take();
+}
+
+inline MethodRun DecodeRun(std::string_view bytes) {
+  ByteReader r(bytes);
+  MethodRun m;
+  for (std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms, &m.constraints,
+                         &m.status, &m.message})
+    *s = r.Str();
+  m.kind = r.Pod<StepKind>();
+  m.h = r.Pod<double>();
+  m.substeps = r.Pod<int>();
+  m.rtol = r.Pod<double>();
+  m.cg_tolerance = r.Pod<double>();
+  m.ok = r.Pod<uint8_t>() != 0;
+  for (long* v : {&m.steps, &m.updates, &m.cg, &m.rejected, &m.error_test_failures}) *v = r.Pod<long>();
+  for (double* v : {&m.solver_time, &m.wall_time, &m.setup_time, &m.stiffness}) *v = r.Pod<double>();
+  m.traj = internal::GetTrajectory(r);
+  m.steps_table = r.Vec<StepRecord>();
+  m.bdf_order = r.Vec<double>();
+  m.sundials = internal::GetSundials(r);
+  if (!r.done()) throw std::runtime_error("malformed run record");
+  return m;
+}
+
+/// The reference run.
+inline std::string EncodeSummary(const RunSummary& s) {
+  ByteWriter w;
+  w.Str(s.integrator);
+  w.Str(s.status);
+  w.Str(s.message);
+  w.Pod(s.h);
+  w.Pod<uint8_t>(s.ok);
+  for (int v : {s.steps, s.rejected_steps, s.error_test_failures, s.matrix_rebuilds}) w.Pod(v);
+  w.Pod(s.fixed_point_updates);
+  w.Pod(s.cg_iterations);
+  for (double v : {s.solver_time_in_seconds, s.setup_time_in_seconds, s.wall_time_in_seconds}) w.Pod(v);
+  w.Vec(s.step_stats);
+  internal::PutTrajectory(w, s.trajectory);
+  internal::PutSundials(w, s.sundials);
+  return w.Take();
+}
+
+inline RunSummary DecodeSummary(std::string_view bytes) {
+  ByteReader r(bytes);
+  RunSummary s;
+  s.integrator = r.Str();
+  s.status = r.Str();
+  s.message = r.Str();
+  s.h = r.Pod<double>();
+  s.ok = r.Pod<uint8_t>() != 0;
+  for (int* v : {&s.steps, &s.rejected_steps, &s.error_test_failures, &s.matrix_rebuilds}) *v = r.Pod<int>();
+  s.fixed_point_updates = r.Pod<long>();
+  s.cg_iterations = r.Pod<long>();
+  for (double* v : {&s.solver_time_in_seconds, &s.setup_time_in_seconds, &s.wall_time_in_seconds}) *v = r.Pod<double>();
+  s.step_stats = r.Vec<StepStats>();
+  s.trajectory = internal::GetTrajectory(r);
+  s.sundials = internal::GetSundials(r);
+  if (!r.done()) throw std::runtime_error("malformed run record");
+  return s;
+}
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_BENCH_RUN_CODEC_H_
