@@ -488,7 +488,7 @@ struct CountDistance {
 };
 
 int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner,
-                   std::vector<NonlinearSolver> solvers, std::vector<double> etas) {
+                   std::vector<NonlinearSolver> solvers, std::vector<double> etas, SweepComm& comm) {
   std::vector<ThesisRow> rows;
   if (which == "3.1") {
     rows = {{"bdf2", 1e4, 160, 803, 1160, -1}, {"bdf2", 1e4, 1600, 198, 538, -1}, {"bdf2", 1e5, 1600, 377, 566, -1},
@@ -505,13 +505,136 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   if (preconditioner) base.solver.preconditioner = *preconditioner;
   if (etas.empty()) etas = {base.solver.cg_tolerance};
   if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
+  CheckOutputFolder(out);
+  // One block of rows on `s` (k and d taken from each row), one table per η.
+  struct Block {
+    std::string scene_name;
+    Scene scene;
+    std::vector<ThesisRow> rows;
+    double h_ref;
+  };
+  std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
+  if (which == "3.2") {
+    // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
+    Scene av = BuiltinScene("avatar_drape");
+    if (preconditioner) av.solver.preconditioner = *preconditioner;
+    const double kd = av.material.tension[0], dd = av.material.tension_damping;
+    blocks.push_back({"avatar_drape", av,
+                      {{"imex_euler", kd, dd, 500, 17198, 152.7},
+                       {"implicit_euler", kd, dd, 1654, 21424, 204.9},
+                       {"sbdf2", kd, dd, 500, 15360, 169.5},
+                       {"bdf2", kd, dd, 1431, 19307, 194.4},
+                       {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}},
+                      av.h / 16.0});
+  }
+  const auto scene_of = [&](std::size_t b, const ThesisRow& tr) {
+    Scene s = blocks[b].scene;
+    s.material.tension = {tr.k, tr.k};
+    s.material.tension_damping = tr.d;
+    return s;
+  };
+  // The table is a sweep in two phases, each dealt over the MPI ranks
+  // (bench/sweep.h): first the references, one per (block, k, d), whose
+  // end positions every rank then has; then every (η, row, method) run,
+  // whose counters and e_rms go to rank 0, which prints and writes.
+  // ref_of[b][i] indexes row i's reference in `ref_keys`.
+  std::vector<std::pair<std::size_t, std::size_t>> ref_keys;  // (block, first row with that k, d)
+  std::vector<std::vector<std::size_t>> ref_of(blocks.size());
+  for (std::size_t b = 0; b < blocks.size(); ++b)
+    for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
+      const ThesisRow& tr = blocks[b].rows[i];
+      std::size_t j = 0;
+      while (j < i && !(blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d)) ++j;
+      if (j < i) {
+        ref_of[b].push_back(ref_of[b][j]);
+        continue;
+      }
+      ref_keys.emplace_back(b, i);
+      ref_of[b].push_back(ref_keys.size() - 1);
+    }
+  // A reference as bytes: ok, message and the positions at t_end.
+  std::vector<std::pair<long, std::string>> mine;
+  for (std::size_t j = 0; j < ref_keys.size(); ++j) {
+    if (!comm.Owns(j)) continue;
+    const auto [b, i] = ref_keys[j];
+    const RunSummary r = SelfConvergenceReference(scene_of(b, blocks[b].rows[i]), blocks[b].h_ref);
+    ByteWriter w;
+    w.Pod<uint8_t>(r.ok);
+    w.Str(r.message);
+    w.Frames({r.trajectory.positions.empty() ? MatrixN3() : r.trajectory.positions.back()});
+    mine.emplace_back(static_cast<long>(j), w.Take());
+  }
+  std::vector<std::pair<long, std::string>> refs_bytes = comm.GatherToRoot(std::move(mine));
+  comm.Broadcast(&refs_bytes);
+  struct RefEnd {
+    bool ok = false;
+    std::string message;
+    MatrixN3 x_end;
+  };
+  std::vector<RefEnd> refs(ref_keys.size());
+  for (const auto& [j, bytes] : refs_bytes) {
+    ByteReader r(bytes);
+    RefEnd& e = refs[static_cast<std::size_t>(j)];
+    e.ok = r.Pod<uint8_t>() != 0;
+    e.message = r.Str();
+    e.x_end = r.Frames().at(0);
+  }
+  // Phase 2: one task per (η, block, row, method) in print order.
+  struct RowTask {
+    std::size_t eta, b, i;
+    RowMethod m;
+  };
+  std::vector<RowTask> tasks;
+  for (std::size_t e = 0; e < etas.size(); ++e)
+    for (std::size_t b = 0; b < blocks.size(); ++b)
+      for (std::size_t i = 0; i < blocks[b].rows.size(); ++i)
+        for (const RowMethod& m : ExpandMethods({blocks[b].rows[i].method}, solvers, "--table"))
+          tasks.push_back({e, b, i, m});
+  mine.clear();
+  for (std::size_t k = 0; k < tasks.size(); ++k) {
+    if (!comm.Owns(k)) continue;
+    const RowTask& t = tasks[k];
+    Scene s = scene_of(t.b, blocks[t.b].rows[t.i]);
+    s.solver.cg_tolerance = etas[t.eta];
+    const ParticleSystem sys(s);
+    const std::unique_ptr<Stepper> stepper = t.m.Make(sys, s.solver);
+    RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
+    // e_rms at t_end against the row's reference (a complete run has every frame).
+    double err = -1.0;
+    const RefEnd& ref = refs[ref_of[t.b][t.i]];
+    if (r.ok && ref.ok && !r.trajectory.positions.empty()) {
+      const double e = ErrorRms(r.trajectory.positions.back(), ref.x_end);
+      if (std::isfinite(e)) err = e;
+    }
+    r.trajectory = Trajectory();
+    r.step_stats.clear();
+    ByteWriter w;
+    w.Str(EncodeSummary(r));
+    w.Pod(err);
+    mine.emplace_back(static_cast<long>(k), w.Take());
+  }
+  std::vector<std::pair<long, std::string>> results = comm.GatherToRoot(std::move(mine));
+  if (!comm.root()) return 0;
+  std::vector<std::pair<RunSummary, double>> row_results(tasks.size());
+  for (const auto& [k, bytes] : results) {
+    ByteReader r(bytes);
+    row_results[static_cast<std::size_t>(k)] = {DecodeSummary(r.Str()), r.Pod<double>()};
+  }
+
   fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, "
              "preconditioner {}); thesis numbers from the OCR (SPEC §9, thesis: IC(0)), thesis machine: "
              "Pentium III 660 MHz\n",
              which, base.h, base.t_end, ToString(base.solver.preconditioner));
   if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");
+  for (std::size_t j = 0; j < ref_keys.size(); ++j)
+    if (!refs[j].ok) {
+      const auto [b, i] = ref_keys[j];
+      fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
+                 blocks[b].h_ref, blocks[b].scene_name, blocks[b].rows[i].k, blocks[b].rows[i].d, refs[j].message);
+    }
   ResultFile f(out);
   WriteProvenance(f);
+  f.SetAttribute("/", "mpi_ranks", static_cast<long>(comm.size()));
   f.CreateGroup("/table");
   f.SetAttribute("/table", "name", std::string("Table ") + which);
   f.WriteString("/table/scene_toml", base.toml);
@@ -544,50 +667,9 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     f.SetAttribute(g, "thesis_cg_iterations", tr.cg);
     if (tr.time_s > 0) f.SetAttribute(g, "thesis_solver_time_s", tr.time_s);
   };
-  // One block of rows on `s` (k and d taken from each row), one table per η.
-  struct Block {
-    std::string scene_name;
-    Scene scene;
-    std::vector<ThesisRow> rows;
-    double h_ref;
-  };
-  std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
-  if (which == "3.2") {
-    // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
-    Scene av = BuiltinScene("avatar_drape");
-    if (preconditioner) av.solver.preconditioner = *preconditioner;
-    const double kd = av.material.tension[0], dd = av.material.tension_damping;
-    blocks.push_back({"avatar_drape", av,
-                      {{"imex_euler", kd, dd, 500, 17198, 152.7},
-                       {"implicit_euler", kd, dd, 1654, 21424, 204.9},
-                       {"sbdf2", kd, dd, 500, 15360, 169.5},
-                       {"bdf2", kd, dd, 1431, 19307, 194.4},
-                       {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}},
-                      av.h / 16.0});
-  }
-  // References: one per (block, k, d), computed once for all η; ref_of[b][i]
-  // indexes row i's in `references`.
-  std::vector<RunSummary> references;
-  std::vector<std::vector<std::size_t>> ref_of(blocks.size());
-  for (std::size_t b = 0; b < blocks.size(); ++b)
-    for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
-      const ThesisRow& tr = blocks[b].rows[i];
-      std::size_t j = 0;
-      while (j < i && !(blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d)) ++j;
-      if (j < i) {
-        ref_of[b].push_back(ref_of[b][j]);
-        continue;
-      }
-      Scene s = blocks[b].scene;
-      s.material.tension = {tr.k, tr.k};
-      s.material.tension_damping = tr.d;
-      references.push_back(SelfConvergenceReference(s, blocks[b].h_ref));
-      if (!references.back().ok)
-        fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
-                   blocks[b].h_ref, blocks[b].scene_name, tr.k, tr.d, references.back().message);
-      ref_of[b].push_back(references.size() - 1);
-    }
-  for (double eta : etas) {
+  std::size_t k = 0;
+  for (std::size_t e = 0; e < etas.size(); ++e) {
+    const double eta = etas[e];
     CountDistance distance;
     fmt::print("\ncg_tolerance = {:g}\n", eta);
     for (std::size_t b = 0; b < blocks.size(); ++b) {
@@ -601,19 +683,10 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                  "rej", "status");
       for (std::size_t i = 0; i < blk.rows.size(); ++i) {
         const ThesisRow& tr = blk.rows[i];
-        Scene s = blk.scene;
-        s.material.tension = {tr.k, tr.k};
-        s.material.tension_damping = tr.d;
-        s.solver.cg_tolerance = eta;
-        const ParticleSystem sys(s);
-        for (const RowMethod& m : ExpandMethods({tr.method}, solvers, "--table")) {
-          const std::unique_ptr<Stepper> stepper = m.Make(sys, s.solver);
-          const RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
-          std::optional<double> err;
-          const RunSummary& ref = references[ref_of[b][i]];
-          if (r.ok && ref.ok)
-            if (const auto e = CompareTrajectories(r.trajectory.positions, ref.trajectory.positions))
-              err = e->rms_at_end;
+        for (; k < tasks.size() && tasks[k].eta == e && tasks[k].b == b && tasks[k].i == i; ++k) {
+          const RowMethod& m = tasks[k].m;
+          const auto& [r, e_rms] = row_results[k];
+          const std::optional<double> err = e_rms >= 0.0 ? std::optional(e_rms) : std::nullopt;
           if (r.ok) {
             distance.Add(r.fixed_point_updates, tr.updates);
             distance.Add(r.cg_iterations, tr.cg);
@@ -633,9 +706,9 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   }
   f.Commit();
   fmt::print("\nratio = our solver time / thesis solver time. e_rms_m: at t_end against BDF(2) at h/64 (tablecloth) or "
-             "h/16 (avatar) with cg_tolerance 1e-10 and fixed-point tolerance 1e-12 m/s.\nmachine: {}, {}, commit "
-             "{}\nresults: {}\n",
-             HostName(), CompilerId(), GitCommit(), out);
+             "h/16 (avatar) with cg_tolerance 1e-10 and fixed-point tolerance 1e-12 m/s.\nmachine: {}, {}, {} MPI "
+             "rank{}, commit {}\nresults: {}\n",
+             HostName(), CompilerId(), comm.size(), comm.size() > 1 ? "s" : "", GitCommit(), out);
   return 0;
 }
 
@@ -732,12 +805,11 @@ int Main(int argc, char** argv) {
       for (double e : etas)
         if (!(e < 1.0)) throw UsageError(fmt::format("--cg-tolerances: {:g} must be in (0, 1)", e));
     }
-    if (!table.empty() && !comm.root()) return 0;  // the thesis tables run on rank 0 alone
     if (!table.empty())
       return RunThesisTable(table, out,
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner))
                                                           : std::nullopt,
-                            solvers, etas);
+                            solvers, etas, comm);
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {

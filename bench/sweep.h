@@ -98,6 +98,22 @@ class SweepComm {
     v->resize(static_cast<std::size_t>(n));
     MPI_Bcast(v->data(), static_cast<int>(n), MPI_LONG, 0, MPI_COMM_WORLD);
   }
+  /// Rank 0's (index, bytes) records on every rank.
+  void Broadcast(std::vector<std::pair<long, std::string>>* records) const {
+    if (!mpi_ || size_ == 1) return;
+    static constexpr std::size_t kPiece = std::size_t{1} << 30;
+    long count = static_cast<long>(records->size());
+    MPI_Bcast(&count, 1, MPI_LONG, 0, MPI_COMM_WORLD);
+    records->resize(static_cast<std::size_t>(count));
+    for (auto& [index, bytes] : *records) {
+      long head[2] = {index, static_cast<long>(bytes.size())};
+      MPI_Bcast(head, 2, MPI_LONG, 0, MPI_COMM_WORLD);
+      index = head[0];
+      bytes.resize(static_cast<std::size_t>(head[1]));
+      for (std::size_t at = 0; at < bytes.size(); at += kPiece)
+        MPI_Bcast(bytes.data() + at, static_cast<int>(std::min(kPiece, bytes.size() - at)), MPI_BYTE, 0, MPI_COMM_WORLD);
+    }
+  }
   /// Every rank's (index, bytes) records onto rank 0, which returns all of
   /// them (its own included) in rank order; the other ranks return none.
   /// Records travel in pieces of at most 1 GiB (MPI counts are int).

@@ -105,11 +105,11 @@ bool TimingOrMachine(const std::string& key) {
   return false;
 }
 
-void ExpectSameRuns(const fs::path& a, const fs::path& b) {
+void ExpectSameRuns(const fs::path& a, const fs::path& b, std::size_t min_values = 500) {
   testing::FileContents ca = testing::ReadContents(a.string()), cb = testing::ReadContents(b.string());
   std::erase_if(ca, [](const auto& kv) { return TimingOrMachine(kv.first); });
   std::erase_if(cb, [](const auto& kv) { return TimingOrMachine(kv.first); });
-  EXPECT_GT(ca.size(), 500u);  // every run's frames, energies, step statistics and attributes
+  EXPECT_GT(ca.size(), min_values);  // every run's frames, energies, step statistics and attributes
   ASSERT_EQ(ca.size(), cb.size());
   for (const auto& [key, bytes] : ca) {
     const auto it = cb.find(key);
@@ -173,6 +173,19 @@ TEST(Sweep, BenchIntegratorsRefusesAJournalOfOtherArguments) {
   EXPECT_NE(o.err.find(journal.string() + ": was written by a run with other arguments"), std::string::npos) << o.err;
   EXPECT_EQ(RunFiles(journal), 2u);
   EXPECT_FALSE(fs::exists(out));
+}
+
+// Table 3.1 (4 self-convergence references, 4 BDF(2) rows; ~14 s serial
+// here): on 2 ranks the same counts, e_rms and attributes, timings aside.
+TEST(Sweep, ThesisTableOnTwoRanksWritesTheSerialFile) {
+  const fs::path serial = Dir() / "table_serial.h5", mpi = Dir() / "table_mpi.h5";
+  const Outcome a = testing::RunCommand(CLOTHBENCH_BENCH_BINARY, " --table 3.1 --out " + serial.string(), Dir());
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const Outcome b = testing::RunCommand(MpiRun(2) + CLOTHBENCH_BENCH_BINARY, " --table 3.1 --out " + mpi.string(), Dir());
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  ExpectSameRuns(serial, mpi, 60);  // 4 rows × 15 attributes and the table's own
+  EXPECT_EQ(ResultReader(mpi.string()).Long("/", "mpi_ranks").value_or(0), 2);
+  EXPECT_NE(b.out.find("2 MPI ranks"), std::string::npos) << b.out;
 }
 
 TEST(Sweep, TwoMpiRanksWriteTheSameMapsAsTheSerialRun) {
