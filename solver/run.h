@@ -26,7 +26,7 @@ struct RunLimits {
   /// refused before computing (bench_integrators), controlled and SUNDIALS
   /// runs that take more (counting rejected attempts; SUNDIALS' mxstep
   /// over the whole run) end with status "step_limit".
-  static constexpr double kMaxSteps = 1e7;
+  static constexpr double kMaxSteps = kMaxStepsPerRun;  // model/scene.h
   /// Wall-time budget of one run [s] (bench_integrators --time-limit); <= 0:
   /// none. A run past it ends after the current step with "time_limit".
   double time_limit_s = 3600.0;
