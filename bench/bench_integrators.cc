@@ -7,7 +7,6 @@
 //                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
 //                     [--reference-rtol R] [--rtols LIST] [--substeps LIST]
 //                     [--cg-tolerance ETA] [--cg-tolerances LIST] [--work-precision]
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -16,7 +15,6 @@
 #include <iterator>
 #include <map>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -24,6 +22,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/cli_args.h"
 #include "bench/methods.h"
 #include "bench/plot.h"
 #include "bench/progress.h"
@@ -45,11 +44,6 @@
 namespace clothbench {
 namespace {
 
-/// Bad command-line input: reported as one line, exit code 2.
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
 // The journal's key: the scene's text and the command's arguments, except
 // those that change no result (--max-runs, --plot, --quiet), so that a rerun
 // of the same command, sliced or not, finds its journal.
@@ -65,39 +59,6 @@ std::string JournalKey(int argc, char** argv, const Scene& scene) {
     key += EscapeControl(a) + " ";
   }
   return key;
-}
-
-std::vector<std::string> SplitList(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    const auto b = item.find_first_not_of(" \t"), e = item.find_last_not_of(" \t");
-    if (b == std::string::npos) throw UsageError(fmt::format("empty item in list \"{}\"", s));
-    out.push_back(item.substr(b, e - b + 1));
-  }
-  if (out.empty()) throw UsageError(fmt::format("empty list \"{}\"", s));
-  return out;
-}
-
-std::vector<double> ParsePositiveList(const std::string& s, const std::string& option) {
-  std::vector<double> out;
-  for (const std::string& item : SplitList(s)) {
-    std::size_t pos = 0;
-    double v = 0.0;
-    try {
-      v = std::stod(item, &pos);
-    } catch (...) {
-      pos = 0;
-    }
-    if (pos != item.size() || !std::isfinite(v) || !(v > 0.0))
-      throw UsageError(fmt::format("{}: \"{}\" is not a positive number", option, item));
-    // Two equal entries would give two rows with one id: refused up front.
-    if (std::find(out.begin(), out.end(), v) != out.end())
-      throw UsageError(fmt::format("{}: {:g} is listed twice", option, v));
-    out.push_back(v);
-  }
-  return out;
 }
 
 PreconditionerType ParsePreconditioner(const std::string& name) {
@@ -161,18 +122,6 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
         "runs kept, {:.3g} step records), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
         "--reference none, or smaller nu/nv",
         scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, step_records, available / 1e9));
-}
-
-// Refuses, before any computing, an --out whose folder cannot be created or
-// written.
-void CheckOutputFolder(const std::string& out) {
-  std::filesystem::path folder = std::filesystem::path(out).parent_path();
-  if (folder.empty()) folder = ".";
-  std::error_code ec;
-  std::filesystem::create_directories(folder, ec);
-  if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
-    throw UsageError(fmt::format("--out: folder \"{}\" {}", folder.string(),
-                                 ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
 }
 
 using Row = MethodRun;
@@ -790,6 +739,11 @@ int Main(int argc, char** argv) {
     return 2;
   }
   InstallInterruptHandlers();
+  // Every rank refuses the same input; rank 0 says so.
+  const auto refuse = [&comm](const std::string& what) {
+    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(what));
+    return 2;
+  };
 
   try {
     std::vector<NonlinearSolver> solvers;
@@ -936,7 +890,6 @@ int Main(int argc, char** argv) {
       }
     }
     if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
-    if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
     CheckOutputFolder(out);
 
     // The sweep: the reference (task 0, if any) and every row in table
@@ -1102,15 +1055,12 @@ int Main(int argc, char** argv) {
     if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
     if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
     return 0;
-  } catch (const UsageError& e) {  // every rank refuses the same input; rank 0 says so
-    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
-    return 2;
+  } catch (const UsageError& e) {
+    return refuse(e.what());
   } catch (const SceneError& e) {
-    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
-    return 2;
+    return refuse(e.what());
   } catch (const SweepJournal::Mismatch& e) {
-    if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(e.what()));
-    return 2;
+    return refuse(e.what());
   } catch (const Interrupted& e) {
     if (comm.root())
       fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written, finished runs kept in {}.journal\n",

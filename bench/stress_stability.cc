@@ -21,13 +21,11 @@
 //   [mpirun -n K] stress_stability [--scenes LIST] [--integrators LIST] [--nonlinear-solver LIST]
 //                    [--stiffness LIST] [--h LIST] [--steps N] [--side N] [--out FILE.h5]
 //                    [--max-cells N] [--plot DIR]
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -35,6 +33,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/cli_args.h"
 #include "bench/methods.h"
 #include "bench/plot.h"
 #include "bench/signals.h"
@@ -45,34 +44,6 @@
 
 namespace clothbench {
 namespace {
-
-std::vector<std::string> Split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(item);
-  return out;
-}
-
-std::vector<double> ParseList(const std::string& s, const std::string& opt) {
-  std::vector<double> out;
-  for (const std::string& item : Split(s)) {
-    std::size_t pos = 0;
-    double v = 0.0;
-    try {
-      v = std::stod(item, &pos);
-    } catch (...) {
-      pos = 0;
-    }
-    if (pos != item.size() || !(v > 0.0) || !std::isfinite(v))
-      throw std::invalid_argument(fmt::format("{}: \"{}\" is not a positive number", opt, item));
-    if (std::find(out.begin(), out.end(), v) != out.end())
-      throw std::invalid_argument(fmt::format("{}: {:g} is listed twice", opt, v));
-    out.push_back(v);
-  }
-  if (out.empty()) throw std::invalid_argument(fmt::format("{}: empty list", opt));
-  return out;
-}
 
 // One cell of the sweep, in the order of the printed maps.
 struct CellSpec {
@@ -126,35 +97,25 @@ int Main(int argc, char** argv) {
       for (Method m : AllMethods()) names.emplace_back(ToString(m));
       names.emplace_back(ToString(Method::kSymplecticEuler));
     } else {
-      names = Split(integrators_arg);
+      names = SplitList(integrators_arg);
     }
     std::vector<NonlinearSolver> solvers;
-    for (const std::string& n : Split(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+    for (const std::string& n : SplitList(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
     const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
     for (std::size_t a = 0; a < methods.size(); ++a)
       for (std::size_t b = 0; b < a; ++b)
         if (methods[a].label() == methods[b].label())
           throw std::invalid_argument(fmt::format("--integrators: {} is listed twice", methods[a].label()));
-    const std::vector<double> stiff = ParseList(stiffness_arg, "--stiffness"), hs = ParseList(h_arg, "--h");
+    const std::vector<double> stiff = ParsePositiveList(stiffness_arg, "--stiffness"), hs = ParsePositiveList(h_arg, "--h");
     std::vector<Scene> scenes;
-    for (const std::string& name : Split(scenes_arg)) {
+    for (const std::string& name : SplitList(scenes_arg)) {
       scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
       for (std::size_t b = 0; b + 1 < scenes.size(); ++b)
         if (scenes[b].name == scenes.back().name)
           throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", scenes.back().name));
     }
     if (!plot_dir.empty()) CheckPlotDir(plot_dir);
-    {
-      std::filesystem::path folder = std::filesystem::path(out).parent_path();
-      if (folder.empty()) folder = ".";
-      std::error_code ec;
-      if (comm.root()) std::filesystem::create_directories(folder, ec);
-      comm.Barrier();
-      if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
-        throw std::invalid_argument(fmt::format("--out: folder \"{}\" {}", folder.string(),
-                                                ec ? "cannot be created: " + ec.message() : "is not writable"));
-      if (std::filesystem::is_directory(out)) throw std::invalid_argument(fmt::format("--out: \"{}\" is a directory", out));
-    }
+    CheckOutputFolder(out);
 
     std::vector<CellSpec> cells;
     for (std::size_t sc = 0; sc < scenes.size(); ++sc)

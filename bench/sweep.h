@@ -101,7 +101,6 @@ class SweepComm {
   /// Rank 0's (index, bytes) records on every rank.
   void Broadcast(std::vector<std::pair<long, std::string>>* records) const {
     if (!mpi_ || size_ == 1) return;
-    static constexpr std::size_t kPiece = std::size_t{1} << 30;
     long count = static_cast<long>(records->size());
     MPI_Bcast(&count, 1, MPI_LONG, 0, MPI_COMM_WORLD);
     records->resize(static_cast<std::size_t>(count));
@@ -116,10 +115,9 @@ class SweepComm {
   }
   /// Every rank's (index, bytes) records onto rank 0, which returns all of
   /// them (its own included) in rank order; the other ranks return none.
-  /// Records travel in pieces of at most 1 GiB (MPI counts are int).
+  /// Records travel in pieces of at most kPiece bytes.
   std::vector<std::pair<long, std::string>> GatherToRoot(std::vector<std::pair<long, std::string>> mine) const {
     if (!mpi_ || size_ == 1) return mine;
-    static constexpr std::size_t kPiece = std::size_t{1} << 30;
     const auto send = [](const char* data, std::size_t n) {
       for (std::size_t at = 0; at < n; at += kPiece)
         MPI_Send(data + at, static_cast<int>(std::min(kPiece, n - at)), MPI_BYTE, 0, 0, MPI_COMM_WORLD);
@@ -159,6 +157,8 @@ class SweepComm {
   }
 
  private:
+  /// Largest message of the byte transfers (MPI counts are int).
+  static constexpr std::size_t kPiece = std::size_t{1} << 30;
   bool mpi_ = false, aborted_ = false;
   int rank_ = 0, size_ = 1;
 };

@@ -102,9 +102,12 @@ void ParticleSystem::AddExternalForces(double t, const MatrixN3& x, const Matrix
 EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) const {
   EnergyBreakdown e;
   const MaterialSpec& mat = scene_.material;
-  e.kinetic = 0.5 * (mass_.asDiagonal() * v).cwiseProduct(v).sum();
-  e.momentum = (mass_.transpose() * v).transpose();
-  e.gravity = -(mass_.transpose() * (x * scene_.forces.gravity)).value();
+  // Lazy expressions only: no temporaries (the blow-up guard evaluates
+  // this inside the step loop).
+  const Vector3& g = scene_.forces.gravity;
+  e.kinetic = 0.5 * v.rowwise().squaredNorm().cwiseProduct(mass_).sum();
+  e.momentum = v.transpose() * mass_;
+  e.gravity = -(x.col(0) * g.x() + x.col(1) * g.y() + x.col(2) * g.z()).cwiseProduct(mass_).sum();
   const bool linear = mat.tension_model == TensionModel::kLinear;
   for (const Spring& s : springs_) {
     const double len = (x.row(s.b) - x.row(s.a)).norm();

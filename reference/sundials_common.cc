@@ -21,8 +21,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   double solver_seconds = 0.0, t = 0.0;
   MatrixN3 frame, frame_v;
   bool ok = true;
-  BlowUpGuard guard(system);
-  guard.Check(0.0, res->trajectory.positions[0], res->trajectory.velocities[0], &res->status, &res->message);
+  BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0]);
   const auto wall_start = Clock::now();
   long steps = 0;
   while (ok && next < frames.size()) {

@@ -66,11 +66,13 @@ double ExternalPower(const ParticleSystem& sys, double t, const MatrixN3& x, con
 
 }  // namespace
 
-BlowUpGuard::BlowUpGuard(const ParticleSystem& system) : sys_(system) {
+BlowUpGuard::BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0) : sys_(system) {
   const Scene& s = system.scene();
   const double diagonal = std::hypot(s.grid.size[0], s.grid.size[1]);
   e_ref_ = system.masses().sum() * (s.forces.gravity.norm() * diagonal + 1.0);
   if (system.has_external_work()) f_ext_.resize(system.num_particles(), 3);
+  e0_ = system.Energies(x0, v0).total();
+  if (system.has_external_work()) power_ = ExternalPower(system, 0.0, x0, v0, &f_ext_);
 }
 
 bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message) {
@@ -80,18 +82,10 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, std::str
     return false;
   }
   const double e = sys_.Energies(x, v).total();
-  if (sys_.has_external_work()) {
-    f_ext_.setZero();
-    sys_.AddExternalForces(t, x, v, &f_ext_);
-    const double power = (f_ext_.array() * v.array()).sum();
-    if (!first_) work_ += 0.5 * (t - t_prev_) * (power + power_);
-    power_ = power;
-  }
+  const double power = sys_.has_external_work() ? ExternalPower(sys_, t, x, v, &f_ext_) : 0.0;
+  work_ += 0.5 * (t - t_prev_) * (power + power_);
+  power_ = power;
   t_prev_ = t;
-  if (first_) {
-    e0_ = e;
-    first_ = false;
-  }
   if (!std::isfinite(e) || !std::isfinite(work_)) {
     *status = "non_finite";
     *message = fmt::format("the energy became non-finite by t = {:.6g} s", t);
@@ -158,8 +152,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.trajectory.positions[0] = engine.x();
   sum.trajectory.velocities[0] = engine.v();
   std::size_t next_frame = 1;
-  BlowUpGuard guard(system);
-  guard.Check(0.0, engine.x(), engine.v(), &sum.status, &sum.message);  // E(0); the rest state is finite
+  BlowUpGuard guard(system, engine.x(), engine.v());
   long attempts = 0;
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();

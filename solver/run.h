@@ -99,16 +99,19 @@ struct RunSummary {
 /// "energy_growth", with E_ref = Σ m (|g| L + 1 m²/s²) [J] (L the sheet's
 /// diagonal): a thousand times the energy gravity can release over the sheet
 /// plus that of every particle moving at 1 m/s, which no cloth motion of a
-/// passive model reaches (a gain of 1e3 E_ref is speeds of ~150 m/s on a
-/// 1 m sheet). W_ext is the work of wind and air drag, integrated over the
-/// frames by the trapezoidal rule (as results/metrics.h does).
+/// passive model reaches (a gain of 1e3 E_ref is speeds of ~150 m/s when
+/// L = 1 m). W_ext is the work of wind and air drag, integrated over the
+/// frames by the trapezoidal rule (as results/metrics.h does). Check does
+/// not allocate (it runs inside the step loop).
 class BlowUpGuard {
  public:
   static constexpr double kEnergyGrowthFactor = 1e3;
-  explicit BlowUpGuard(const ParticleSystem& system);
+  /// The run's initial state at t = 0: N×3 positions x0 [m] and velocities
+  /// v0 [m/s] (finite), whose energy is E(0).
+  BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0);
   /// Checks the frame at time t [s] with N×3 positions x [m] and velocities v
-  /// [m/s]; frames must come in increasing t, the first at t = 0. Returns
-  /// true if the frame is sound, else false with `status` ("non_finite" |
+  /// [m/s]; frames must come in increasing t after 0. Returns true if the
+  /// frame is sound, else false with `status` ("non_finite" |
   /// "energy_growth") and a one-line `message` naming t and the values.
   bool Check(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message);
   double energy_reference() const { return e_ref_; }
@@ -116,7 +119,6 @@ class BlowUpGuard {
  private:
   const ParticleSystem& sys_;
   double e_ref_ = 0.0, e0_ = 0.0, work_ = 0.0, power_ = 0.0, t_prev_ = 0.0;
-  bool first_ = true;
   MatrixN3 f_ext_;
 };
 

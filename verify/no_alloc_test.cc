@@ -13,6 +13,7 @@
 #include "peers/baraff_witkin.h"
 #include "peers/xpbd.h"
 #include "solver/integrator.h"
+#include "solver/run.h"
 #include "solver/tangent.h"
 
 extern "C" void* __libc_malloc(std::size_t);
@@ -58,6 +59,27 @@ TEST(StepLoop, DoesNotAllocate) {
     EXPECT_TRUE(ok) << ToString(m);
     EXPECT_EQ(g_allocations.load(), 0) << ToString(m);
   }
+}
+
+// The blow-up guard runs inside RunStepper's step loop at every frame: its
+// energy and external-work evaluation must not allocate either (the wind
+// sheet has bending, shear, gravity and wind, so every energy term and the
+// external power are evaluated).
+TEST(StepLoop, BlowUpGuardDoesNotAllocate) {
+  const ParticleSystem sys(BuiltinScene("wind_sheet"));
+  ASSERT_TRUE(sys.has_external_work());
+  MatrixN3 x = sys.rest_positions(), v = MatrixN3::Constant(sys.num_particles(), 3, 0.1);
+  BlowUpGuard guard(sys, x, MatrixN3::Zero(sys.num_particles(), 3));
+  std::string status, message;
+  status.reserve(32);
+  message.reserve(256);
+  g_allocations = 0;
+  g_counting = true;
+  bool ok = true;
+  for (int k = 1; k <= 5; ++k) ok &= guard.Check(0.01 * k, x, v, &status, &message);
+  g_counting = false;
+  EXPECT_TRUE(ok) << message;
+  EXPECT_EQ(g_allocations.load(), 0);
 }
 
 // Newton on J_α (refreshed at every iterate and frozen per step, with each

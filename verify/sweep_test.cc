@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -106,7 +107,8 @@ bool TimingOrMachine(const std::string& key) {
 }
 
 void ExpectSameRuns(const fs::path& a, const fs::path& b, std::size_t min_values = 500) {
-  testing::FileContents ca = testing::ReadContents(a.string()), cb = testing::ReadContents(b.string());
+  std::map<std::string, std::string> ca = testing::ReadContents(a.string()).values,
+                                     cb = testing::ReadContents(b.string()).values;
   std::erase_if(ca, [](const auto& kv) { return TimingOrMachine(kv.first); });
   std::erase_if(cb, [](const auto& kv) { return TimingOrMachine(kv.first); });
   EXPECT_GT(ca.size(), min_values);  // every run's frames, energies, step statistics and attributes

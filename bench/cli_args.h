@@ -1,0 +1,78 @@
+// Command-line pieces the executables share: the usage error every
+// refusal throws, comma-separated lists, and the --out check. Each refusal
+// is one line naming the option and the rule (exit 2, docs/scenes.md
+// "Limits").
+#ifndef CLOTHBENCH_BENCH_CLI_ARGS_H_
+#define CLOTHBENCH_BENCH_CLI_ARGS_H_
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+namespace clothbench {
+
+/// Bad command-line input: reported as one line, exit code 2.
+struct UsageError : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+/// The items of a comma-separated list, trimmed. @throws UsageError for an
+/// empty list or item.
+inline std::vector<std::string> SplitList(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const auto b = item.find_first_not_of(" \t"), e = item.find_last_not_of(" \t");
+    if (b == std::string::npos) throw UsageError(fmt::format("empty item in list \"{}\"", s));
+    out.push_back(item.substr(b, e - b + 1));
+  }
+  if (out.empty()) throw UsageError(fmt::format("empty list \"{}\"", s));
+  return out;
+}
+
+/// A list of finite positive numbers, each once (two equal entries would
+/// give two rows or cells with one name). @throws UsageError naming `option`.
+inline std::vector<double> ParsePositiveList(const std::string& s, const std::string& option) {
+  std::vector<double> out;
+  for (const std::string& item : SplitList(s)) {
+    std::size_t pos = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(item, &pos);
+    } catch (...) {
+      pos = 0;
+    }
+    if (pos != item.size() || !std::isfinite(v) || !(v > 0.0))
+      throw UsageError(fmt::format("{}: \"{}\" is not a positive number", option, item));
+    if (std::find(out.begin(), out.end(), v) != out.end())
+      throw UsageError(fmt::format("{}: {:g} is listed twice", option, v));
+    out.push_back(v);
+  }
+  return out;
+}
+
+/// Refuses, before any computing, an --out that is a directory or whose
+/// folder cannot be created or written (the folder is created).
+inline void CheckOutputFolder(const std::string& out) {
+  if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
+  std::filesystem::path folder = std::filesystem::path(out).parent_path();
+  if (folder.empty()) folder = ".";
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
+    throw UsageError(fmt::format("--out: folder \"{}\" {}", folder.string(),
+                                 ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
+}
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_BENCH_CLI_ARGS_H_
