@@ -1,13 +1,18 @@
 // Microbenchmarks of the kernels of a step (Google Benchmark): explicit
 // forces g(t,x,v), one filtered-PCG solve per preconditioner, one step per
-// integrator, and the sparse force Jacobian used by CVODE. Sheets of
-// side×side particles 0.04 m apart with the default scene's material.
+// integrator, the sparse force Jacobian used by CVODE (closed form and the
+// AutoDiff oracle), and one refresh of the tangent matrix J_α (Newton,
+// Baraff–Witkin). Sheets of side×side particles 0.04 m apart with the
+// default scene's material.
 //
 //   build/bench/bench_kernels [--benchmark_filter=REGEX]
+#include <cmath>
+
 #include <benchmark/benchmark.h>
 
 #include "model/particle_system.h"
 #include "solver/integrator.h"
+#include "solver/tangent.h"
 
 namespace clothbench {
 namespace {
@@ -20,8 +25,22 @@ Scene SquareScene(int side) {
   return s;
 }
 
-// A deformed, moving state: the sheet after 0.2 s of swinging (BDF(2)).
+// A deformed, moving state: the sheet after 0.2 s of swinging (BDF(2));
+// above 40×40 a smooth fold with a velocity field of the same shape (the
+// swing would dominate the benchmark's setup).
 void SwungState(const ParticleSystem& sys, MatrixN3* x, MatrixN3* v) {
+  if (sys.num_particles() > 1600) {
+    *x = sys.rest_positions();
+    v->setZero(sys.num_particles(), 3);
+    for (int p = 0; p < sys.num_particles(); ++p) {
+      const double u = (*x)(p, 0), w = (*x)(p, 1);
+      (*x)(p, 2) += 0.05 * std::sin(4.0 * u) * std::cos(3.0 * w);
+      (*x)(p, 0) *= 1.0 + 0.01 * std::cos(5.0 * w);
+      (*v)(p, 2) = 0.3 * std::cos(2.0 * u + w);
+      (*v)(p, 0) = 0.1 * std::sin(3.0 * w);
+    }
+    return;
+  }
   StepEngine e(sys, Method::kBdf2, sys.scene().solver);
   e.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
   for (int k = 0; k < 80; ++k) e.Step(0.0025);
@@ -39,7 +58,7 @@ void BM_ExplicitForces(benchmark::State& state) {
   }
   state.SetComplexityN(sys.num_particles());
 }
-BENCHMARK(BM_ExplicitForces)->ArgNames({"side"})->Arg(10)->Arg(20)->Arg(40)->Complexity(benchmark::oN);
+BENCHMARK(BM_ExplicitForces)->ArgNames({"side"})->Arg(10)->Arg(20)->Arg(40)->Arg(316)->Complexity(benchmark::oN);
 
 void BM_FilteredPcg(benchmark::State& state) {
   const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
@@ -137,7 +156,40 @@ void BM_ForceJacobian(benchmark::State& state) {
   }
   state.counters["triplets"] = static_cast<double>(dx.size() + dv.size());
 }
-BENCHMARK(BM_ForceJacobian)->ArgName("side")->Arg(20);
+BENCHMARK(BM_ForceJacobian)->ArgName("side")->Arg(20)->Arg(316);
+
+// The same triplets by forward-mode AutoDiff of the force kernels (the test
+// oracle of the closed forms; what every Jacobian cost before them).
+void BM_ForceJacobianAutoDiff(benchmark::State& state) {
+  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  std::vector<Triplet> dx, dv;
+  for (auto _ : state) {
+    dx.clear();
+    dv.clear();
+    for (const auto& term : sys.terms()) term->AddJacobianAutoDiff(0.2, x, v, &dx, &dv);
+    benchmark::DoNotOptimize(dx.data());
+  }
+}
+BENCHMARK(BM_ForceJacobianAutoDiff)->ArgName("side")->Arg(20);
+
+// One refresh of J_α = M − αh ∂f/∂v − α²h² ∂f/∂x with every term (clamped
+// springs, symmetrised as Baraff–Witkin uses it): closed-form blocks
+// accumulated into the fixed pattern. Compare with BM_ExplicitForces at the
+// same side.
+void BM_TangentUpdate(benchmark::State& state) {
+  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
+  for (auto _ : state) {
+    ts.Update(0.2, x, v, 0.01);
+    benchmark::DoNotOptimize(ts.matrix().valuePtr());
+  }
+  state.counters["nnz"] = static_cast<double>(ts.matrix().nonZeros());
+}
+BENCHMARK(BM_TangentUpdate)->ArgName("side")->Arg(20)->Arg(316);
 
 }  // namespace
 }  // namespace clothbench

@@ -1,7 +1,12 @@
-// Force terms (SPEC §2). Stencil terms are written once as a kernel templated
-// on the scalar type: with double it gives the force, with forward-mode
-// automatic differentiation (Eigen AutoDiffScalar) the exact Jacobian blocks.
+// Force terms (docs/model.md, thesis Ch. 2). Stencil terms are written once
+// as a force kernel templated on the scalar type: with double it gives the
+// force, with forward-mode automatic differentiation (Eigen AutoDiffScalar)
+// the Jacobian that tests the closed-form Jacobian blocks each kernel
+// derives by hand (Blocks(); derivations beside each kernel and in
+// docs/model.md, "Closed-form Jacobians").
 #include "model/force_terms.h"
+
+#include "model/block_scatter.h"
 
 #include <array>
 #include <cmath>
@@ -88,6 +93,47 @@ struct Patch {
   }
 };
 
+// The unit vertex normal n̂ of Patch::Normal and its derivatives
+// dn[k] = ∂n̂/∂x_k for the 9 slots of the 3×3 box. A quad's normal is
+// nf = st (p × q) with p = x_st − x_0, q = x_0t − x_s0, and
+// d(p × q) = −[q]× dp + [p]× dq, so ∂nf/∂x_st = −st[q]×, ∂nf/∂x_0 = st[q]×,
+// ∂nf/∂x_0t = st[p]×, ∂nf/∂x_s0 = −st[p]×; a normalisation u = w/|w| has
+// ∂u = (I − ûûᵀ)/|w| ∂w, once per quad and once for the mean.
+template <int K>
+Vector3 NormalAndDerivative(const Patch<double, K>& patch, std::array<Matrix3, 9>* dn) {
+  Vector3 n = Vector3::Zero();
+  for (Matrix3& d : *dn) d.setZero();
+  for (int s : {1, -1})
+    for (int t : {1, -1}) {
+      if (!patch.Has(s, 0) || !patch.Has(0, t) || !patch.Has(s, t)) continue;
+      const double st = static_cast<double>(s * t);
+      const Vector3 p = patch.At(s, t) - patch.At(0, 0), q = patch.At(0, t) - patch.At(s, 0);
+      const Vector3 nf = p.cross(q) * st;
+      const double len = nf.norm();
+      const Vector3 fh = nf / len;
+      const Matrix3 proj = (Matrix3::Identity() - fh * fh.transpose()) * (st / len);
+      n += fh;
+      const Matrix3 dq = proj * Skew(q), dp = proj * Skew(p);
+      (*dn)[static_cast<std::size_t>(Slot(s, t))] -= dq;
+      (*dn)[0] += dq;
+      (*dn)[static_cast<std::size_t>(Slot(0, t))] += dp;
+      (*dn)[static_cast<std::size_t>(Slot(s, 0))] -= dp;
+    }
+  const double len = n.norm();
+  const Vector3 nh = n / len;
+  const Matrix3 proj = (Matrix3::Identity() - nh * nh.transpose()) / len;
+  for (Matrix3& d : *dn) d = proj * d;
+  return nh;
+}
+
+// Per-slot weights of a kernel's linear part: s = Σ_k wx_k x_k + Σ_k wv_k v_k
+// (the bending stencils' difference operators; they depend only on which
+// neighbours exist, so they are computed once per validity mask).
+template <int K>
+struct LinearWeights {
+  std::array<double, K> x{}, v{};
+};
+
 // Scatter made parallel and deterministic: the items (stencil centres or
 // springs) write their `outputs` force vectors into a buffer, then each
 // particle sums its buffer entries in item order, which is the order of the
@@ -146,11 +192,14 @@ struct GatherLists {
 };
 
 // Generic term over per-centre stencils of K particles; the kernel writes
-// forces into the first Kernel::kOutputs slots.
+// forces into the first Kernel::kOutputs slots, and its closed-form
+// Jacobian as Kernel::kBlocks 3×3 blocks ∂f_a/∂x_b (and ∂f_a/∂v_b) for the
+// slot pairs Kernel::kBlockSlots.
 template <class Kernel>
 class StencilTerm final : public ForceTerm {
  public:
   static constexpr int K = Kernel::kNodes;
+  static constexpr int kBlocks = Kernel::kBlocks;
   struct Centre {
     std::array<int, K> nodes{};
     std::uint32_t valid = 0;
@@ -162,9 +211,27 @@ class StencilTerm final : public ForceTerm {
     if (Kernel::kOutputs > 1 && static_cast<int>(centres_.size()) >= kParallelMinimum)
       gather_ = GatherLists(num_particles, centres_.size(), Kernel::kOutputs,
                             [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
+    colouring_ = Colouring(num_particles, centres_.size(), Kernel::kOutputs,
+                           [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
+    if constexpr (Kernel::kLinear) {
+      // One weight set per validity mask (a grid has a few dozen).
+      weight_set_.resize(centres_.size());
+      std::vector<std::uint32_t> masks;
+      for (std::size_t c = 0; c < centres_.size(); ++c) {
+        const std::uint32_t m = centres_[c].valid;
+        std::size_t k = 0;
+        while (k < masks.size() && masks[k] != m) ++k;
+        if (k == masks.size()) {
+          masks.push_back(m);
+          weights_.push_back(kernel_.Weights(m));
+        }
+        weight_set_[c] = static_cast<int>(k);
+      }
+    }
   }
 
   std::string_view name() const override { return name_; }
+  bool depends_on_velocity() const override { return kernel_.uses_velocity(); }
 
   // Serial below kParallelMinimum centres. Above it, the centres are split
   // over the OpenMP threads: a kernel with one output writes only its own
@@ -201,31 +268,91 @@ class StencilTerm final : public ForceTerm {
     }
   }
 
-  // Forward-mode AutoDiff over the stencil's positions, and over its
-  // velocities only if the kernel uses them (damping, wind, air): the
-  // derivative vectors are then half as long, and so is the cost. A kernel
-  // that does not use v emits no dfdv triplets at all (uses_velocity() is
-  // fixed for a term, so the pattern never changes).
+  // Closed-form blocks as triplets: every centre writes its fixed number of
+  // triplets at its own offset, so the centres run on the OpenMP threads
+  // with a result independent of the thread count. A kernel that does not
+  // use v emits no dfdv triplets (the pattern never changes).
   void AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                    std::vector<Triplet>* dfdv) const override {
+    constexpr std::size_t kPer = static_cast<std::size_t>(kBlocks) * 9;
+    const bool with_v = kernel_.uses_velocity();
+    const std::size_t bx = dfdx->size(), bv = dfdv->size();
+    dfdx->resize(bx + centres_.size() * kPer);
+    if (with_v) dfdv->resize(bv + centres_.size() * kPer);
+    Triplet* out_x = dfdx->data() + bx;
+    Triplet* out_v = with_v ? dfdv->data() + bv : nullptr;
+    const auto n = static_cast<std::ptrdiff_t>(centres_.size());
+#pragma omp parallel for schedule(static) if (n >= kBlockParallelMinimum)
+    for (std::ptrdiff_t ci = 0; ci < n; ++ci) {
+      const Centre& c = centres_[static_cast<std::size_t>(ci)];
+      std::array<Matrix3, kBlocks> jx, jv;
+      Blocks(t, x, v, static_cast<std::size_t>(ci), &jx, &jv);
+      std::size_t pos = static_cast<std::size_t>(ci) * kPer;
+      for (int k = 0; k < kBlocks; ++k) {
+        const int row = 3 * c.nodes[Kernel::kBlockSlots[k][0]], col = 3 * c.nodes[Kernel::kBlockSlots[k][1]];
+        for (int r = 0; r < 3; ++r)
+          for (int q = 0; q < 3; ++q, ++pos) {
+            out_x[pos] = Triplet(row + r, col + q, jx[k](r, q));
+            if (with_v) out_v[pos] = Triplet(row + r, col + q, jv[k](r, q));
+          }
+      }
+    }
+  }
+
+  // Forward-mode AutoDiff over the stencil's positions, and over its
+  // velocities only if the kernel uses them (damping, wind, air): the
+  // derivative vectors are then half as long. Emits the triplets of every
+  // (output, node) slot pair, so its pattern is a superset of AddJacobian's.
+  void AddJacobianAutoDiff(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                           std::vector<Triplet>* dfdv) const override {
     if (kernel_.uses_velocity())
       JacobianPass<true>(t, x, v, dfdx, dfdv);
     else
       JacobianPass<false>(t, x, v, dfdx, dfdv);
   }
 
+  void JacobianBlocks(std::vector<BlockPair>* blocks) const override {
+    blocks->reserve(blocks->size() + centres_.size() * static_cast<std::size_t>(kBlocks));
+    for (const Centre& c : centres_)
+      for (int k = 0; k < kBlocks; ++k)
+        blocks->push_back({c.nodes[Kernel::kBlockSlots[k][0]], c.nodes[Kernel::kBlockSlots[k][1]]});
+  }
+
+  void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
+                          double* dfdv) const override {
+    const bool with_v = kernel_.uses_velocity();
+    colouring_.ForEach(
+        [&](std::size_t ci) {
+          std::array<Matrix3, kBlocks> jx, jv;
+          Blocks(t, x, v, ci, &jx, &jv);
+          const int* p = pos + 3 * static_cast<std::size_t>(kBlocks) * ci;
+          for (int k = 0; k < kBlocks; ++k) AddBlock(jx[static_cast<std::size_t>(k)], p + 3 * k, dfdx);
+          if (with_v)
+            for (int k = 0; k < kBlocks; ++k) AddBlock(jv[static_cast<std::size_t>(k)], p + 3 * k, dfdv);
+        },
+        kBlockParallelMinimum);
+  }
+
  private:
+  void Blocks(double t, const MatrixN3& x, const MatrixN3& v, std::size_t ci, std::array<Matrix3, kBlocks>* jx,
+              std::array<Matrix3, kBlocks>* jv) const {
+    const Centre& c = centres_[ci];
+    std::array<Vector3, K> xs, vs;
+    for (int k = 0; k < K; ++k) {
+      xs[static_cast<std::size_t>(k)] = x.row(c.nodes[static_cast<std::size_t>(k)]).transpose();
+      vs[static_cast<std::size_t>(k)] = v.row(c.nodes[static_cast<std::size_t>(k)]).transpose();
+    }
+    const LinearWeights<K>* w = nullptr;
+    if constexpr (Kernel::kLinear) w = &weights_[static_cast<std::size_t>(weight_set_[ci])];
+    kernel_.Blocks(t, c.valid, c.weight, w, xs, vs, *jx, *jv);
+  }
+
   template <bool kVelocity>
   void JacobianPass(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                     std::vector<Triplet>* dfdv) const {
     constexpr int D = kVelocity ? 6 * K : 3 * K;
     using Derivs = Eigen::Matrix<double, D, 1>;
     using AD = Eigen::AutoDiffScalar<Derivs>;
-    // Every centre writes its fixed number of triplets at its own offset,
-    // so the centres run on the OpenMP threads with a result independent of
-    // the thread count (AutoDiff costs microseconds per centre: threads pay
-    // off from a few hundred centres). resize() keeps the capacity: no
-    // allocation after the first call.
     constexpr std::size_t kPer = static_cast<std::size_t>(Kernel::kOutputs) * 9 * K;
     const std::size_t bx = dfdx->size(), bv = dfdv->size();
     dfdx->resize(bx + centres_.size() * kPer);
@@ -278,6 +405,9 @@ class StencilTerm final : public ForceTerm {
   Kernel kernel_;
   std::vector<Centre> centres_;
   mutable GatherLists gather_;  // kOutputs > 1 and many centres only
+  Colouring colouring_;         // of the centres by the particles they write
+  std::vector<LinearWeights<K>> weights_;  // Kernel::kLinear only: one set per validity mask
+  std::vector<int> weight_set_;            // of each centre
 };
 
 // Builds one centre per particle with the first K patch slots.
@@ -305,13 +435,32 @@ std::vector<typename StencilTerm<Kernel>::Centre> GridCentres(const GridGeometry
   return out;
 }
 
-// --- Shear, energy form (SPEC §2.2) -----------------------------------------
+// Slot pairs (output, node) of a kernel whose single output is the centre.
+template <int K>
+constexpr std::array<std::array<int, 2>, K> CentreRowSlots() {
+  std::array<std::array<int, 2>, K> out{};
+  for (int k = 0; k < K; ++k) out[static_cast<std::size_t>(k)] = {0, k};
+  return out;
+}
+
+// --- Shear, energy form (thesis (2.16), (2.21)) ----------------------------
 // γ = ⟨a, b⟩, a = (x_r − x_l)/Δu, b = (x_u − x_d)/Δv, one-sided on the border
 // (missing neighbour := centre, spacing halves). E = ½ μ γ² lu lv and the
 // Rayleigh dissipation ½ d_s γ̇² lu lv give F = −(μ γ + d_s γ̇) lu lv ∂γ/∂x.
+//
+// Jacobian: with σ = μ a·b + d_s (ȧ·b + a·ḃ), s = σ lu lv and the slot
+// weights ea = ∂a/∂x_k = (0, 1/Δu, −1/Δu, 0, 0), eb = (0, 0, 0, 1/Δv, −1/Δv),
+// ∂σ/∂x_k = ea_k (μ b + d_s ḃ) + eb_k (μ a + d_s ȧ), ∂σ/∂v_k = d_s (ea_k b + eb_k a).
+// Output o has f_o = c_o s u_o (c = −1/Δu, 1/Δu, −1/Δv, 1/Δv; u = b, b, a, a), so
+// ∂f_o/∂x_k = c_o (lu lv u_o ∂σ/∂x_kᵀ + s ∂u_o/∂x_k I) and ∂f_o/∂v_k = c_o lu lv u_o ∂σ/∂v_kᵀ.
 struct ShearKernel {
   static constexpr int kNodes = 5;    // centre, r, l, u, d
   static constexpr int kOutputs = 5;
+  static constexpr bool kLinear = false;
+  static constexpr int kBlocks = 16;  // outputs r, l, u, d × nodes r, l, u, d (the centre enters no term)
+  static constexpr std::array<std::array<int, 2>, 16> kBlockSlots = {
+      {{1, 1}, {1, 2}, {1, 3}, {1, 4}, {2, 1}, {2, 2}, {2, 3}, {2, 4},
+       {3, 1}, {3, 2}, {3, 3}, {3, 4}, {4, 1}, {4, 2}, {4, 3}, {4, 4}}};
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double mu, damping, lu, lv;
   template <class S>
@@ -329,22 +478,103 @@ struct ShearKernel {
     f[3] -= s * a / dv;
     f[4] += s * a / dv;
   }
+  void Blocks(double, std::uint32_t valid, double, const LinearWeights<5>*, const std::array<Vector3, 5>& x,
+              const std::array<Vector3, 5>& v, std::array<Matrix3, 16>& jx, std::array<Matrix3, 16>& jv) const {
+    const double du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
+    const double dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
+    const Vector3 a = (x[1] - x[2]) / du, b = (x[3] - x[4]) / dv;
+    const Vector3 ad = (v[1] - v[2]) / du, bd = (v[3] - v[4]) / dv;
+    double sigma = mu * a.dot(b);
+    if (damping != 0.0) sigma += damping * (ad.dot(b) + a.dot(bd));
+    const double area = lu * lv, s = sigma * area;
+    const double ea[5] = {0.0, 1.0 / du, -1.0 / du, 0.0, 0.0}, eb[5] = {0.0, 0.0, 0.0, 1.0 / dv, -1.0 / dv};
+    const Vector3 ga = mu * b + damping * bd, gb = mu * a + damping * ad;  // ∂σ/∂a, ∂σ/∂b
+    const double c[5] = {0.0, -1.0 / du, 1.0 / du, -1.0 / dv, 1.0 / dv};
+    for (int o = 1; o <= 4; ++o) {
+      const Vector3& u = o <= 2 ? b : a;
+      const double* eu = o <= 2 ? eb : ea;
+      for (int k = 1; k <= 4; ++k) {
+        const std::size_t blk = static_cast<std::size_t>(4 * (o - 1) + (k - 1));
+        const Vector3 px = ea[k] * ga + eb[k] * gb;
+        jx[blk].noalias() = (c[o] * area) * u * px.transpose();
+        jx[blk].diagonal().array() += c[o] * s * eu[k];
+        if (damping != 0.0) jv[blk].noalias() = (c[o] * area * damping) * u * (ea[k] * b + eb[k] * a).transpose();
+      }
+    }
+  }
 };
+
+// --- Normal-projected bending, the membrane (2.25, Alg. 3) and thin-plate
+// (2.26, Alg. 4) models ------------------------------------------------------
+// Both are f_0 = ±A (s·n̂) n̂ with A = lu lv and s = Σ_k wx_k x_k + Σ_k wv_k v_k
+// linear in the stencil (the curvature operator and its viscosity), so
+// ∂f_0/∂x_k = ±A (wx_k n̂n̂ᵀ + (n̂ sᵀ + (s·n̂) I) ∂n̂/∂x_k) and
+// ∂f_0/∂v_k = ±A wv_k n̂n̂ᵀ (∂n̂/∂x_k from NormalAndDerivative, zero outside
+// the 3×3 box).
+template <int K>
+void ProjectedBlocks(double sign, double area, const LinearWeights<K>& w, const Vector3& s,
+                     const Patch<double, K>& px, bool damping, std::array<Matrix3, K>& jx, std::array<Matrix3, K>& jv) {
+  std::array<Matrix3, 9> dn;
+  const Vector3 n = NormalAndDerivative(px, &dn);
+  const Matrix3 nn = n * n.transpose();
+  Matrix3 m = n * s.transpose();
+  m.diagonal().array() += s.dot(n);
+  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+    jx[k] = (sign * area * w.x[k]) * nn;
+    if (k < 9) jx[k].noalias() += (sign * area) * m * dn[k];
+    if (damping) jv[k] = (sign * area * w.v[k]) * nn;
+  }
+}
+
+// Weights of a kernel's linear part: its Stiff/Damp operator on unit
+// vectors in slot k.
+template <int K, class Kernel>
+LinearWeights<K> WeightsOf(const Kernel& kernel, std::uint32_t valid) {
+  LinearWeights<K> w;
+  for (int k = 0; k < K; ++k) {
+    std::array<Vector3, K> e;
+    for (Vector3& ek : e) ek.setZero();
+    e[static_cast<std::size_t>(k)] = Vector3::UnitX();
+    const Patch<double, K> p{e, valid};
+    w.x[static_cast<std::size_t>(k)] = kernel.template Stiff<double>(p).x();
+    w.v[static_cast<std::size_t>(k)] = kernel.template Damp<double>(p).x();
+  }
+  return w;
+}
 
 // --- Membrane bending (2.25), Alg. 3 ----------------------------------------
 struct MembraneKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
+  static constexpr bool kLinear = true;
+  static constexpr int kBlocks = 9;
+  static constexpr std::array<std::array<int, 2>, 9> kBlockSlots = CentreRowSlots<9>();
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double bu, bv, damping, lu, lv;
+  template <class S>
+  V3<S> Stiff(const Patch<S, 9>& px) const {
+    return bu * px.Lu(0, 0, lu) + bv * px.Lv(0, 0, lv);
+  }
+  template <class S>
+  V3<S> Damp(const Patch<S, 9>& pv) const {
+    return damping * (pv.Lu(0, 0, lu) + pv.Lv(0, 0, lv));
+  }
+  LinearWeights<9> Weights(std::uint32_t valid) const { return WeightsOf<9>(*this, valid); }
   template <class S>
   void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>& v,
                 std::array<V3<S>, 9>& f) const {
     const Patch<S, 9> px{x, valid}, pv{v, valid};
-    V3<S> s = bu * px.Lu(0, 0, lu) + bv * px.Lv(0, 0, lv);
-    if (damping != 0.0) s += damping * (pv.Lu(0, 0, lu) + pv.Lv(0, 0, lv));
+    V3<S> s = Stiff(px);
+    if (damping != 0.0) s += Damp(pv);
     const V3<S> n = px.Normal();
     f[0] += (s.dot(n) * (lu * lv)) * n;
+  }
+  void Blocks(double, std::uint32_t valid, double, const LinearWeights<9>* w, const std::array<Vector3, 9>& x,
+              const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>& jv) const {
+    const Patch<double, 9> px{x, valid}, pv{v, valid};
+    Vector3 s = Stiff(px);
+    if (damping != 0.0) s += Damp(pv);
+    ProjectedBlocks<9>(1.0, lu * lv, *w, s, px, damping != 0.0, jx, jv);
   }
 };
 
@@ -354,6 +584,9 @@ struct MembraneKernel {
 struct ThinPlateKernel {
   static constexpr int kNodes = 13;
   static constexpr int kOutputs = 1;
+  static constexpr bool kLinear = true;
+  static constexpr int kBlocks = 13;
+  static constexpr std::array<std::array<int, 2>, 13> kBlockSlots = CentreRowSlots<13>();
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double bu, bv, damping, lu, lv;
 
@@ -366,15 +599,31 @@ struct ThinPlateKernel {
     if (wv != 0.0 && p.Has(0, 1) && p.Has(0, -1)) out += wv * (R(0, 1) - 2.0 * R(0, 0) + R(0, -1)) / (lv * lv);
     return out;
   }
+  template <class S>
+  V3<S> Stiff(const Patch<S, 13>& px) const {
+    return BiLaplacian(px, bu, bv, lu, lv);
+  }
+  template <class S>
+  V3<S> Damp(const Patch<S, 13>& pv) const {
+    return BiLaplacian(pv, damping, damping, lu, lv);
+  }
+  LinearWeights<13> Weights(std::uint32_t valid) const { return WeightsOf<13>(*this, valid); }
 
   template <class S>
   void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 13>& x, const std::array<V3<S>, 13>& v,
                 std::array<V3<S>, 13>& f) const {
     const Patch<S, 13> px{x, valid};
-    V3<S> s = BiLaplacian(px, bu, bv, lu, lv);
-    if (damping != 0.0) s += BiLaplacian(Patch<S, 13>{v, valid}, damping, damping, lu, lv);
+    V3<S> s = Stiff(px);
+    if (damping != 0.0) s += Damp(Patch<S, 13>{v, valid});
     const V3<S> n = px.Normal();
     f[0] -= (s.dot(n) * (lu * lv)) * n;
+  }
+  void Blocks(double, std::uint32_t valid, double, const LinearWeights<13>* w, const std::array<Vector3, 13>& x,
+              const std::array<Vector3, 13>& v, std::array<Matrix3, 13>& jx, std::array<Matrix3, 13>& jv) const {
+    const Patch<double, 13> px{x, valid};
+    Vector3 s = Stiff(px);
+    if (damping != 0.0) s += Damp(Patch<double, 13>{v, valid});
+    ProjectedBlocks<13>(-1.0, lu * lv, *w, s, px, damping != 0.0, jx, jv);
   }
 };
 
@@ -382,9 +631,18 @@ struct ThinPlateKernel {
 // Slots: centre i, its u-neighbour j (left, right on the border), its
 // v-neighbour k (lower j−1, upper on the border). τ1 = C ε_11 acts along the
 // v-edge (i,k), τ2 = C ε_22 along the u-edge (i,j).
+//
+// Jacobian: with du = x_j − x_i, dv = x_k − x_i and unit vectors û, v̂,
+// f_u = τ1 v̂ and f_v = τ2 û have ∂f_u/∂du = (C/lu) v̂ûᵀ,
+// ∂f_u/∂dv = τ1 (I − v̂v̂ᵀ)/|dv|, ∂f_v/∂du = τ2 (I − ûûᵀ)/|du|,
+// ∂f_v/∂dv = (C/lv) ûv̂ᵀ; f_i = f_u + f_v, f_j = −f_v, f_k = −f_u.
 struct TransverseKernel {
   static constexpr int kNodes = 3;
   static constexpr int kOutputs = 3;
+  static constexpr bool kLinear = false;
+  static constexpr int kBlocks = 9;
+  static constexpr std::array<std::array<int, 2>, 9> kBlockSlots = {
+      {{0, 0}, {0, 1}, {0, 2}, {1, 0}, {1, 1}, {1, 2}, {2, 0}, {2, 1}, {2, 2}}};
   bool uses_velocity() const { return false; }  ///< whether f depends on v
   double c1122, lu, lv;
   template <class S>
@@ -399,29 +657,70 @@ struct TransverseKernel {
     f[2] -= fu;
     f[1] -= fv;
   }
+  void Blocks(double, std::uint32_t, double, const LinearWeights<3>*, const std::array<Vector3, 3>& x,
+              const std::array<Vector3, 3>&, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>&) const {
+    const Vector3 du = x[1] - x[0], dv = x[2] - x[0];
+    const double nu = du.norm(), nv = dv.norm();
+    const Vector3 uh = du / nu, vh = dv / nv;
+    const double tau1 = c1122 * (nu / lu - 1.0), tau2 = c1122 * (nv / lv - 1.0);
+    const Matrix3 fu_du = (c1122 / lu) * vh * uh.transpose();
+    const Matrix3 fu_dv = (tau1 / nv) * (Matrix3::Identity() - vh * vh.transpose());
+    const Matrix3 fv_du = (tau2 / nu) * (Matrix3::Identity() - uh * uh.transpose());
+    const Matrix3 fv_dv = (c1122 / lv) * uh * vh.transpose();
+    // ∂f_u, ∂f_v with respect to x_i (slot 0), x_j (1), x_k (2).
+    const Matrix3 fu[3] = {-(fu_du + fu_dv), fu_du, fu_dv};
+    const Matrix3 fv[3] = {-(fv_du + fv_dv), fv_du, fv_dv};
+    for (int b = 0; b < 3; ++b) {
+      jx[static_cast<std::size_t>(b)] = fu[b] + fv[b];   // f_i
+      jx[static_cast<std::size_t>(3 + b)] = -fv[b];      // f_j
+      jx[static_cast<std::size_t>(6 + b)] = -fu[b];      // f_k
+    }
+  }
 };
 
 // --- Wind (2.35, 2.36) ------------------------------------------------------
+// f_0 = A ((d − l)(f_w·n̂) n̂ + l f_w) with drag d, lift l, node area A, so
+// ∂f_0/∂x_k = A (d − l)(n̂ f_wᵀ + (f_w·n̂) I) ∂n̂/∂x_k.
 struct WindKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
+  static constexpr bool kLinear = false;
+  static constexpr int kBlocks = 9;
+  static constexpr std::array<std::array<int, 2>, 9> kBlockSlots = CentreRowSlots<9>();
   bool uses_velocity() const { return false; }  ///< whether f depends on v
   WindSpec w;
+  Vector3 Field(double t) const { return (w.constant + std::sin(w.angular_frequency * t)) * w.direction; }
   template <class S>
   void Evaluate(double t, std::uint32_t valid, double area, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>&,
                 std::array<V3<S>, 9>& f) const {
-    const Vector3 fw = (w.constant + std::sin(w.angular_frequency * t)) * w.direction;
+    const Vector3 fw = Field(t);
     const V3<S> n = Patch<S, 9>{x, valid}.Normal();
     const S fn = n.dot(fw.cast<S>());
     const V3<S> normal = fn * n;
     f[0] += area * (w.drag * normal + w.lift * (fw.cast<S>() - normal));
   }
+  void Blocks(double t, std::uint32_t valid, double area, const LinearWeights<9>*, const std::array<Vector3, 9>& x,
+              const std::array<Vector3, 9>&, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>&) const {
+    const Vector3 fw = Field(t);
+    std::array<Matrix3, 9> dn;
+    const Vector3 n = NormalAndDerivative(Patch<double, 9>{x, valid}, &dn);
+    Matrix3 m = n * fw.transpose();
+    m.diagonal().array() += fw.dot(n);
+    m *= area * (w.drag - w.lift);
+    for (std::size_t k = 0; k < 9; ++k) jx[k].noalias() = m * dn[k];
+  }
 };
 
-// --- Air resistance (2.37): always opposes v (SPEC §2.5) --------------------
+// --- Air resistance (2.37): always opposes v (thesis §2.5) ------------------
+// f_0 = −c A |q| v̂ with q = v·n̂, v̂ = v/|v|, so with σ = sign q (+1 at 0, as
+// AutoDiff's |·|): ∂f_0/∂x_k = −c A σ v̂ (vᵀ ∂n̂/∂x_k) and
+// ∂f_0/∂v_0 = −c A (σ v̂ n̂ᵀ + (|q|/|v|)(I − v̂v̂ᵀ)).
 struct AirKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
+  static constexpr bool kLinear = false;
+  static constexpr int kBlocks = 9;
+  static constexpr std::array<std::array<int, 2>, 9> kBlockSlots = CentreRowSlots<9>();
   bool uses_velocity() const { return true; }  ///< whether f depends on v
   double c_air;
   template <class S>
@@ -432,6 +731,21 @@ struct AirKernel {
     if (!(speed > 1e-12)) return;  // v/|v| undefined at rest; the force is 0 there
     const V3<S> n = Patch<S, 9>{x, valid}.Normal();
     f[0] -= (c_air * area * abs(v[0].dot(n)) / speed) * v[0];
+  }
+  void Blocks(double, std::uint32_t valid, double area, const LinearWeights<9>*, const std::array<Vector3, 9>& x,
+              const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>& jv) const {
+    for (std::size_t k = 0; k < 9; ++k) {
+      jx[k].setZero();
+      jv[k].setZero();
+    }
+    const double speed = v[0].norm();
+    if (!(speed > 1e-12)) return;
+    std::array<Matrix3, 9> dn;
+    const Vector3 n = NormalAndDerivative(Patch<double, 9>{x, valid}, &dn);
+    const Vector3 vh = v[0] / speed;
+    const double q = v[0].dot(n), sigma = q < 0.0 ? -1.0 : 1.0, c = c_air * area;
+    for (std::size_t k = 0; k < 9; ++k) jx[k].noalias() = (-c * sigma) * vh * (v[0].transpose() * dn[k]);
+    jv[0] = (-c * sigma) * vh * n.transpose() - (c * std::abs(q) / speed) * (Matrix3::Identity() - vh * vh.transpose());
   }
 };
 
@@ -444,12 +758,42 @@ class TensionNonlinear final : public ForceTerm {
     return (-s.stiffness * s.rest_length / d.norm()) * d;
   }
   TensionNonlinear(std::vector<Spring> springs, int num_particles) : springs_(std::move(springs)) {
+    auto end = [this](std::size_t s, int k) { return k == 0 ? springs_[s].a : springs_[s].b; };
     if (static_cast<std::ptrdiff_t>(springs_.size()) >= kParallelMinimum)
-      gather_ = GatherLists(num_particles, springs_.size(), 2, [this](std::size_t s, int k) {
-        return k == 0 ? springs_[s].a : springs_[s].b;
-      });
+      gather_ = GatherLists(num_particles, springs_.size(), 2, end);
+    colouring_ = Colouring(num_particles, springs_.size(), 2, end);
   }
   std::string_view name() const override { return "tension_nonlinear"; }
+  bool depends_on_velocity() const override { return false; }
+  // ∂F_nl,a/∂x_b = −s_e l_e (I − d̂d̂ᵀ)/|d|; ∂/∂x_a is its negative.
+  static Matrix3 Block(const MatrixN3& x, const Spring& s) {
+    const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
+    const double len = d.norm();
+    const Vector3 dh = d / len;
+    return (-s.stiffness * s.rest_length / len) * (Matrix3::Identity() - dh * dh.transpose());
+  }
+  // Blocks (a, b), (a, a), (b, a), (b, b) of every spring.
+  void JacobianBlocks(std::vector<BlockPair>* blocks) const override {
+    for (const Spring& s : springs_) {
+      blocks->push_back({s.a, s.b});
+      blocks->push_back({s.a, s.a});
+      blocks->push_back({s.b, s.a});
+      blocks->push_back({s.b, s.b});
+    }
+  }
+  void AccumulateJacobian(double, const MatrixN3& x, const MatrixN3&, const int* pos, double* dfdx,
+                          double*) const override {
+    colouring_.ForEach(
+        [&](std::size_t k) {
+          const Matrix3 kab = Block(x, springs_[k]);
+          const int* p = pos + 12 * k;
+          AddBlock(kab, p, dfdx);
+          AddBlock(-kab, p + 3, dfdx);
+          AddBlock(kab, p + 6, dfdx);
+          AddBlock(-kab, p + 9, dfdx);
+        },
+        kBlockParallelMinimum);
+  }
   // Serial for few springs; else per-spring forces on the OpenMP threads,
   // gathered per particle in spring order (bit-identical, see GatherLists).
   void AddForce(double, const MatrixN3& x, const MatrixN3&, MatrixN3* f) const override {
@@ -471,14 +815,10 @@ class TensionNonlinear final : public ForceTerm {
     }
     gather_.AddTo(f, [](int e) { return (e & 1) != 0; });
   }
-  // ∂F_nl,a/∂x_b = −s_e l_e (I − d̂d̂ᵀ)/|d|; ∂/∂x_a is its negative.
   void AddJacobian(double, const MatrixN3& x, const MatrixN3&, std::vector<Triplet>* dfdx,
                    std::vector<Triplet>*) const override {
     for (const Spring& s : springs_) {
-      const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
-      const double len = d.norm();
-      const Vector3 dh = d / len;
-      const Eigen::Matrix3d kab = (-s.stiffness * s.rest_length / len) * (Eigen::Matrix3d::Identity() - dh * dh.transpose());
+      const Matrix3 kab = Block(x, s);
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) {
           dfdx->emplace_back(3 * s.a + r, 3 * s.b + c, kab(r, c));
@@ -492,6 +832,7 @@ class TensionNonlinear final : public ForceTerm {
  private:
   std::vector<Spring> springs_;
   mutable GatherLists gather_;  // many springs only
+  Colouring colouring_;         // of the springs by their end particles
 };
 
 class Gravity final : public ForceTerm {
@@ -500,6 +841,9 @@ class Gravity final : public ForceTerm {
   std::string_view name() const override { return "gravity"; }
   void AddForce(double, const MatrixN3&, const MatrixN3&, MatrixN3* f) const override { *f += force_; }
   void AddJacobian(double, const MatrixN3&, const MatrixN3&, std::vector<Triplet>*, std::vector<Triplet>*) const override {}
+  bool depends_on_velocity() const override { return false; }
+  void JacobianBlocks(std::vector<BlockPair>*) const override {}
+  void AccumulateJacobian(double, const MatrixN3&, const MatrixN3&, const int*, double*, double*) const override {}
 
  private:
   MatrixN3 force_;

@@ -23,12 +23,33 @@ class ForceTerm {
   /// @param t time [s]; @param x N×3 positions [m]; @param v N×3 velocities [m/s]
   /// @param f N×3 forces [N], accumulated into. Does not allocate.
   virtual void AddForce(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const = 0;
-  /// Appends the exact Jacobian blocks of g_k: ∂g/∂x and ∂g/∂v as 3N×3N
-  /// triplets with interleaved index 3p + c. Duplicates are to be summed.
-  /// The triplet pattern does not depend on (t, x, v), so a sparse
-  /// factorisation can keep its symbolic analysis.
+  /// Appends the exact Jacobian of g_k, in closed form: ∂g/∂x [N/m] and
+  /// ∂g/∂v [N s/m] as 3N×3N triplets with interleaved index 3p + c.
+  /// Duplicates are to be summed. The triplet pattern does not depend on
+  /// (t, x, v), so a sparse factorisation can keep its symbolic analysis.
   virtual void AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                            std::vector<Triplet>* dfdv) const = 0;
+  /// The same Jacobian by forward-mode automatic differentiation of the
+  /// force kernel (Eigen's AutoDiffScalar), on the same triplet pattern: the
+  /// test oracle of the closed forms. Terms whose force is written by hand
+  /// (springs, gravity) return their closed form.
+  virtual void AddJacobianAutoDiff(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                                   std::vector<Triplet>* dfdv) const {
+    AddJacobian(t, x, v, dfdx, dfdv);
+  }
+  /// True if g_k depends on v (damping, air): AccumulateJacobian then writes
+  /// ∂g/∂v.
+  virtual bool depends_on_velocity() const = 0;
+  /// Appends the (row particle, column particle) pairs of the 3×3 blocks
+  /// that AccumulateJacobian writes, in its order. Fixed for the term.
+  virtual void JacobianBlocks(std::vector<BlockPair>* blocks) const = 0;
+  /// Adds ∂g/∂x into `dfdx` and, if depends_on_velocity(), ∂g/∂v into
+  /// `dfdv`: value arrays of a compressed column-major 3N×3N matrix, block
+  /// k of JacobianBlocks() at positions pos[3k … 3k+2] (BlockPositions).
+  /// Closed form, threaded, bit-identical for any thread count; no
+  /// allocation. @param t [s]; @param x, v N×3 [m], [m/s]
+  virtual void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
+                                  double* dfdv) const = 0;
 };
 
 /// One spring of the tension model (SPEC §2.1): a u- or v-edge.

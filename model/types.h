@@ -2,6 +2,8 @@
 #ifndef CLOTHBENCH_MODEL_TYPES_H_
 #define CLOTHBENCH_MODEL_TYPES_H_
 
+#include <array>
+
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
@@ -18,6 +20,8 @@ using Vector3 = Eigen::Vector3d;
 /// Compressed sparse matrix used for L_K, L_D and A_α (N×N).
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 using Triplet = Eigen::Triplet<double, int>;
+/// A 3×3 block of a 3N×3N matrix: (row particle, column particle).
+using BlockPair = std::array<int, 2>;
 
 /// Kernels over particles, springs or matrix columns (forces, A·x) run on the
 /// OpenMP threads from this many items up; below it a parallel region costs

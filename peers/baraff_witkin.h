@@ -54,6 +54,7 @@ class BaraffWitkin : public Stepper {
   /// kNonFinite on failure (the state is then unchanged). No allocation.
   StepStats Step(double h) override;
   double t() const override { return t_; }
+  void SetTime(double t) override { t_ = t; }
   const MatrixN3& x() const override { return x0_; }
   const MatrixN3& v() const override { return v0_; }
   bool single_update() const override { return true; }

@@ -52,6 +52,7 @@ class Xpbd : public Stepper {
   /// the state becomes non-finite. No allocation.
   StepStats Step(double h) override;
   double t() const override { return t_; }
+  void SetTime(double t) override { t_ = t; }
   const MatrixN3& x() const override { return x0_; }
   const MatrixN3& v() const override { return v0_; }
   bool single_update() const override { return true; }

@@ -137,6 +137,10 @@ class Stepper {
   /// stats.status says why. No allocation.
   virtual StepStats Step(double h) = 0;
   virtual double t() const = 0;
+  /// Sets the clock to t [s] without touching the state or the history. The
+  /// run driver puts a fixed-step run back on its grid t₀ + n·h after every
+  /// step, so that the clock does not drift by the round-off of summing h.
+  virtual void SetTime(double t) = 0;
   virtual const MatrixN3& x() const = 0;
   virtual const MatrixN3& v() const = 0;
   /// True if every step does exactly one update (IMEX, linearised methods):
@@ -171,6 +175,7 @@ class StepEngine : public Stepper {
   StepStats Step(double h) override;
 
   double t() const override { return t_; }
+  void SetTime(double t) override { t_ = t; }
   const MatrixN3& x() const override { return x0_; }
   const MatrixN3& v() const override { return v0_; }
   bool single_update() const override { return IsImex(method_); }

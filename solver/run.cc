@@ -168,10 +168,29 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.status = "ok";
 
   while (engine.t() < options.t_end - 1e-12 * options.t_end) {
-    double target = engine.t() + h;
-    if (!controlled && consecutive_rejections == 0) target = static_cast<double>(fixed_step_index + 1) * h_nominal;
-    if (target > options.t_end - 1e-9 * h) target = options.t_end;
-    const double step = target - engine.t();
+    // Fixed steps (docs/model.md, "Fixed steps"): the step is h itself, the
+    // same double every step, and the clock is set to n·h after each step
+    // instead of summing h, so αh, and with it A_α and its preconditioner,
+    // stays bit-equal from step to step. The last step is a whole h when
+    // t_end = n·h to within 1e-9 h, else the remainder t_end − n·h. After a
+    // rejection the driver steps with the reduced h and returns to the grid
+    // at its next point.
+    const bool on_grid = !controlled && consecutive_rejections == 0;
+    const double t_start = engine.t();
+    double target = 0.0, step = 0.0;
+    if (on_grid) {
+      target = static_cast<double>(fixed_step_index + 1) * h_nominal;
+      const bool at_grid_point = t_start == static_cast<double>(fixed_step_index) * h_nominal;
+      step = at_grid_point ? h_nominal : target - t_start;
+      if (target > options.t_end - 1e-9 * h_nominal) {
+        if (!at_grid_point || std::abs(target - options.t_end) > 1e-9 * h_nominal) step = options.t_end - t_start;
+        target = options.t_end;
+      }
+    } else {
+      target = t_start + h;
+      if (target > options.t_end - 1e-9 * h) target = options.t_end;
+      step = target - t_start;
+    }
 
     x_prev = engine.x();
     v_prev = engine.v();
@@ -227,7 +246,11 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       break;
     }
     ++sum.steps;
-    if (consecutive_rejections == 0 && !controlled) ++fixed_step_index;
+    if (on_grid) {
+      engine.SetTime(target);  // n·h, not the running sum
+      sum.step_stats.back().t = target;
+      ++fixed_step_index;
+    }
     consecutive_rejections = 0;
     ReportProgress(engine.t());
 
@@ -239,9 +262,10 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       power = power1;
     }
     // Frames inside (t0, t1].
-    const double t0s = engine.t() - step;
+    const double t0s = t_start;
     while (next_frame < frames.size() && frames[next_frame] <= engine.t() + 1e-9 * step) {
-      const double s = (frames[next_frame] - t0s) / step;
+      // A frame at (or within round-off past) the step's end is its state.
+      const double s = frames[next_frame] >= engine.t() ? 1.0 : (frames[next_frame] - t0s) / step;
       Hermite(x_prev, v_prev, engine.x(), engine.v(), step, s, &sum.trajectory.positions[next_frame],
               &sum.trajectory.velocities[next_frame]);
       // A frame that fails the guard is not kept (the run keeps the ones before).

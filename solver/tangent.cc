@@ -1,119 +1,190 @@
-// J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (SPEC §2.1, §11; Baraff & Witkin 1998).
+// J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (docs/model.md, "Newton tangent";
+// Baraff & Witkin 1998, eq. 18), assembled from closed-form 3×3 blocks.
 #include "solver/tangent.h"
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
 
 namespace clothbench {
 namespace {
 
-// Value index of entry (row, col) in a compressed column-major matrix.
-int Position(const SparseMatrix& m, int row, int col) {
-  const int* begin = m.innerIndexPtr() + m.outerIndexPtr()[col];
-  const int* end = m.innerIndexPtr() + m.outerIndexPtr()[col + 1];
-  const int* it = std::lower_bound(begin, end, row);
-  // Every entry looked up is in the pattern by construction; a miss would
-  // write into another entry, so it is a logic error.
-  if (it == end || *it != row) throw std::logic_error("TangentSystem: entry outside the pattern");
-  return static_cast<int>(it - m.innerIndexPtr());
+// The compressed column-major 3N×3N pattern of the block pairs, their
+// transposes and the diagonal blocks, every block dense (3×3). Built per
+// block column with counting, then sorted and deduplicated per column.
+SparseMatrix BlockPattern(int n, const std::vector<BlockPair>& blocks) {
+  std::vector<std::size_t> start(static_cast<std::size_t>(n) + 1, 0);
+  for (const BlockPair& b : blocks) {
+    ++start[static_cast<std::size_t>(b[1]) + 1];
+    ++start[static_cast<std::size_t>(b[0]) + 1];
+  }
+  for (std::size_t p = 0; p < static_cast<std::size_t>(n); ++p) start[p + 1] += start[p] + 1;  // + the diagonal
+  std::vector<int> rows(start.back());
+  std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+  for (int p = 0; p < n; ++p) rows[fill[static_cast<std::size_t>(p)]++] = p;
+  for (const BlockPair& b : blocks) {
+    rows[fill[static_cast<std::size_t>(b[1])]++] = b[0];
+    rows[fill[static_cast<std::size_t>(b[0])]++] = b[1];
+  }
+  std::vector<int> count(static_cast<std::size_t>(n));
+#pragma omp parallel for schedule(static) if (n >= kParallelMinimum)
+  for (int p = 0; p < n; ++p) {
+    auto first = rows.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(p)]);
+    auto last = rows.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(p) + 1]);
+    std::sort(first, last);
+    count[static_cast<std::size_t>(p)] = static_cast<int>(std::unique(first, last) - first);
+  }
+  Eigen::Index nnz = 0;
+  for (int c : count) nnz += 9 * static_cast<Eigen::Index>(c);
+  SparseMatrix m(3 * n, 3 * n);
+  m.resizeNonZeros(nnz);
+  int* outer = m.outerIndexPtr();
+  int* inner = m.innerIndexPtr();
+  int pos = 0;
+  for (int p = 0; p < n; ++p)
+    for (int q = 0; q < 3; ++q) {
+      outer[3 * p + q] = pos;
+      const std::size_t s = start[static_cast<std::size_t>(p)];
+      for (int k = 0; k < count[static_cast<std::size_t>(p)]; ++k)
+        for (int r = 0; r < 3; ++r) inner[pos++] = 3 * rows[s + static_cast<std::size_t>(k)] + r;
+    }
+  outer[3 * n] = pos;
+  m.coeffs().setZero();
+  return m;
 }
 
 }  // namespace
 
 TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions& options)
     : sys_(system), options_(options) {
-  const int n3 = 3 * system.num_particles();
-  Collect(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
-  // Pattern: ∂f/∂x, ∂f/∂v, the diagonal, and the transpose of all (so that
-  // the symmetric part lives on the same pattern), each set of triplets
-  // reduced to a sparse matrix first: no copy of the triplet lists (at 10⁶
-  // particles they hold several hundred million entries).
-  SparseMatrix px(n3, n3), pv(n3, n3), eye(n3, n3);
-  px.setFromTriplets(dfdx_.begin(), dfdx_.end());
-  pv.setFromTriplets(dfdv_.begin(), dfdv_.end());
-  eye.setIdentity();
-  SparseMatrix sum = px + pv + eye;
-  px = SparseMatrix();
-  pv = SparseMatrix();
-  j_ = SparseMatrix(sum.transpose()) + sum;
-  j_.makeCompressed();
-  j_.coeffs().setZero();
-  pos_x_.resize(dfdx_.size());
-  pos_v_.resize(dfdv_.size());
-  for (std::size_t k = 0; k < dfdx_.size(); ++k) pos_x_[k] = Position(j_, dfdx_[k].row(), dfdx_[k].col());
-  for (std::size_t k = 0; k < dfdv_.size(); ++k) pos_v_[k] = Position(j_, dfdv_[k].row(), dfdv_[k].col());
-  diag_pos_.resize(static_cast<std::size_t>(n3));
-  for (int k = 0; k < n3; ++k) diag_pos_[static_cast<std::size_t>(k)] = Position(j_, k, k);
-  if (options_.symmetrize)
-    for (int col = 0; col < n3; ++col)
-      for (int pos = j_.outerIndexPtr()[col]; pos < j_.outerIndexPtr()[col + 1]; ++pos)
-        if (j_.innerIndexPtr()[pos] < col) {
-          upper_pos_.push_back(pos);
-          lower_pos_.push_back(Position(j_, col, j_.innerIndexPtr()[pos]));
-        }
-}
-
-void TangentSystem::Collect(double t, const MatrixN3& x, const MatrixN3& v) {
-  dfdx_.clear();
-  dfdv_.clear();
-  const bool linear = sys_.scene().material.tension_model == TensionModel::kLinear;
-  // Springs: ∂F_a/∂x_b = s_e [c (I − d̂d̂ᵀ) + d̂d̂ᵀ], c = 1 − l_e/|d| (clamped
-  // at 0 with kClamp); ∂F_a/∂x_a is its negative. Damping c_e (v_b − v_a),
-  // (3.18): ∂F_a/∂v_b = c_e I.
-  for (const Spring& s : sys_.springs()) {
-    const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
-    const double len = d.norm();
-    const double rest = linear ? 0.0 : s.rest_length;
-    double c = len > 0.0 ? 1.0 - rest / len : 1.0;
-    if (options_.projection == TangentProjection::kClamp) c = std::max(c, 0.0);
-    const Vector3 dh = len > 0.0 ? Vector3(d / len) : Vector3::Zero();
-    const Eigen::Matrix3d dd = dh * dh.transpose();
-    // The "linear" tension model (zero rest length) has c = 1: s_e I.
-    const Eigen::Matrix3d kk = s.stiffness * (c * (Eigen::Matrix3d::Identity() - dd) + dd);
-    for (int r = 0; r < 3; ++r)
-      for (int q = 0; q < 3; ++q) {
-        dfdx_.emplace_back(3 * s.a + r, 3 * s.b + q, kk(r, q));
-        dfdx_.emplace_back(3 * s.a + r, 3 * s.a + q, -kk(r, q));
-        dfdx_.emplace_back(3 * s.b + r, 3 * s.a + q, kk(r, q));
-        dfdx_.emplace_back(3 * s.b + r, 3 * s.b + q, -kk(r, q));
-      }
-    if (s.damping > 0.0)
-      for (int r = 0; r < 3; ++r) {
-        dfdv_.emplace_back(3 * s.a + r, 3 * s.b + r, s.damping);
-        dfdv_.emplace_back(3 * s.a + r, 3 * s.a + r, -s.damping);
-        dfdv_.emplace_back(3 * s.b + r, 3 * s.a + r, s.damping);
-        dfdv_.emplace_back(3 * s.b + r, 3 * s.b + r, -s.damping);
-      }
+  const int n = system.num_particles();
+  const std::vector<Spring>& springs = system.springs();
+  std::vector<BlockPair> blocks;
+  blocks.reserve(4 * springs.size());
+  for (const Spring& s : springs) {
+    blocks.push_back({s.a, s.b});
+    blocks.push_back({s.a, s.a});
+    blocks.push_back({s.b, s.a});
+    blocks.push_back({s.b, s.b});
   }
-  if (!options_.include_explicit_terms) return;
-  for (const auto& term : sys_.terms()) {
-    if (term->name() == "tension_nonlinear") continue;  // in the spring blocks above
-    term->AddJacobian(t, x, v, &dfdx_, &dfdv_);
+  const std::size_t spring_blocks = blocks.size();
+  std::vector<std::size_t> term_begin;
+  bool velocity = system.has_tension_damping();
+  if (options_.include_explicit_terms)
+    for (const auto& term : system.terms()) {
+      if (term->name() == "tension_nonlinear") continue;  // in the spring blocks
+      std::vector<BlockPair> tb;
+      term->JacobianBlocks(&tb);
+      if (tb.empty()) continue;  // gravity
+      terms_.push_back(term.get());
+      term_begin.push_back(blocks.size());
+      blocks.insert(blocks.end(), tb.begin(), tb.end());
+      velocity = velocity || term->depends_on_velocity();
+    }
+  j_ = BlockPattern(n, blocks);
+  const std::vector<int> pos = BlockPositions(j_, blocks);
+  spring_pos_.assign(pos.begin(), pos.begin() + static_cast<std::ptrdiff_t>(3 * spring_blocks));
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const std::size_t end = k + 1 < terms_.size() ? term_begin[k + 1] : blocks.size();
+    term_pos_.emplace_back(pos.begin() + static_cast<std::ptrdiff_t>(3 * term_begin[k]),
+                           pos.begin() + static_cast<std::ptrdiff_t>(3 * end));
   }
+  spring_colouring_ = Colouring(n, springs.size(), 2, [&springs](std::size_t s, int k) {
+    return k == 0 ? springs[s].a : springs[s].b;
+  });
+  kx_.setZero(j_.nonZeros());
+  if (velocity) kv_.setZero(j_.nonZeros());
+  diag_pos_.resize(3 * static_cast<std::size_t>(n));
+  transpose_pos_.resize(static_cast<std::size_t>(j_.nonZeros()));
+  const int* outer = j_.outerIndexPtr();
+  const int* inner = j_.innerIndexPtr();
+#pragma omp parallel for schedule(static) if (n >= kParallelMinimum)
+  for (int col = 0; col < 3 * n; ++col)
+    for (int e = outer[col]; e < outer[col + 1]; ++e) {
+      const int row = inner[e];
+      const int* it = std::lower_bound(inner + outer[row], inner + outer[row + 1], col);  // the pattern is symmetric
+      transpose_pos_[static_cast<std::size_t>(e)] = static_cast<int>(it - inner);
+      if (row == col) diag_pos_[static_cast<std::size_t>(col)] = e;
+    }
 }
 
 void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h) {
-  Collect(t, x, v);
-  Eigen::Map<Eigen::VectorXd> vals(j_.valuePtr(), j_.nonZeros());
-  vals.setZero();
+  const Eigen::Index nnz = j_.nonZeros();
+  kx_.setZero();
+  if (kv_.size()) kv_.setZero();
+  // Springs: ∂F_a/∂x_b = s_e [c (I − d̂d̂ᵀ) + d̂d̂ᵀ], c = 1 − l_e/|d| (clamped
+  // at 0 with kClamp); ∂F_a/∂x_a is its negative. Damping c_e (v_b − v_a),
+  // (3.18): ∂F_a/∂v_b = c_e I.
+  const std::vector<Spring>& springs = sys_.springs();
+  const bool linear = sys_.scene().material.tension_model == TensionModel::kLinear;
+  const bool clamp = options_.projection == TangentProjection::kClamp;
+  double* kx = kx_.data();
+  double* kv = kv_.size() ? kv_.data() : nullptr;
+  spring_colouring_.ForEach(
+      [&](std::size_t k) {
+        const Spring& s = springs[k];
+        const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
+        const double len = d.norm();
+        const double rest = linear ? 0.0 : s.rest_length;
+        double c = len > 0.0 ? 1.0 - rest / len : 1.0;
+        if (clamp) c = std::max(c, 0.0);
+        const Vector3 dh = len > 0.0 ? Vector3(d / len) : Vector3::Zero();
+        // The "linear" tension model (zero rest length) has c = 1: s_e I.
+        Matrix3 kk = (s.stiffness * (1.0 - c)) * dh * dh.transpose();
+        kk.diagonal().array() += s.stiffness * c;
+        const int* p = spring_pos_.data() + 12 * k;
+        AddBlock(kk, p, kx);
+        AddBlock(-kk, p + 3, kx);
+        AddBlock(kk, p + 6, kx);
+        AddBlock(-kk, p + 9, kx);
+        if (s.damping > 0.0) {
+          const Matrix3 cd = s.damping * Matrix3::Identity();
+          AddBlock(cd, p, kv);
+          AddBlock(-cd, p + 3, kv);
+          AddBlock(cd, p + 6, kv);
+          AddBlock(-cd, p + 9, kv);
+        }
+      },
+      kBlockParallelMinimum);
+  for (std::size_t k = 0; k < terms_.size(); ++k) terms_[k]->AccumulateJacobian(t, x, v, term_pos_[k].data(), kx, kv);
+
+  // J_α = M − αh ∂f/∂v − α²h² ∂f/∂x, then (J + Jᵀ)/2 if options_.symmetrize.
+  double* vals = j_.valuePtr();
   const double cx = -alpha_h * alpha_h, cv = -alpha_h;
-  for (std::size_t k = 0; k < dfdx_.size(); ++k) vals(pos_x_[k]) += cx * dfdx_[k].value();
-  for (std::size_t k = 0; k < dfdv_.size(); ++k) vals(pos_v_[k]) += cv * dfdv_[k].value();
+#pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
+  for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = cx * kx[e] + (kv ? cv * kv[e] : 0.0);
   const Eigen::VectorXd& m = sys_.masses();
-  for (std::size_t k = 0; k < diag_pos_.size(); ++k) vals(diag_pos_[k]) += m(static_cast<Eigen::Index>(k / 3));
-  for (std::size_t k = 0; k < upper_pos_.size(); ++k) {  // (J + Jᵀ)/2 if options_.symmetrize
-    const double mean = 0.5 * (vals(upper_pos_[k]) + vals(lower_pos_[k]));
-    vals(upper_pos_[k]) = vals(lower_pos_[k]) = mean;
+  for (std::size_t k = 0; k < diag_pos_.size(); ++k) vals[diag_pos_[k]] += m(static_cast<Eigen::Index>(k / 3));
+  if (options_.symmetrize) {
+#pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
+    for (Eigen::Index e = 0; e < nnz; ++e) {
+      const int te = transpose_pos_[static_cast<std::size_t>(e)];
+      if (te > e) {  // each pair once, by its first entry
+        const double mean = 0.5 * (vals[e] + vals[te]);
+        vals[e] = vals[te] = mean;
+      }
+    }
   }
 }
 
 void TangentSystem::AddJacobianProducts(double cx, const MatrixN3& u, double cv, const MatrixN3& w,
                                         MatrixN3* out) const {
-  if (cx != 0.0)
-    for (const Triplet& e : dfdx_) (*out)(e.row() / 3, e.row() % 3) += cx * e.value() * u(e.col() / 3, e.col() % 3);
-  if (cv != 0.0)
-    for (const Triplet& e : dfdv_) (*out)(e.row() / 3, e.row() % 3) += cv * e.value() * w(e.col() / 3, e.col() % 3);
+  // Row i of K u is column i of Kᵀ: the entries of column i on the
+  // symmetric pattern, with their values read at the transposed positions.
+  const int n3 = static_cast<int>(j_.rows());
+  const int* outer = j_.outerIndexPtr();
+  const int* inner = j_.innerIndexPtr();
+  const bool with_v = cv != 0.0 && kv_.size();
+#pragma omp parallel for schedule(static) if (n3 >= 3 * kParallelMinimum)
+  for (int i = 0; i < n3; ++i) {
+    double sum = 0.0;
+    for (int e = outer[i]; e < outer[i + 1]; ++e) {
+      const int j = inner[e];
+      const int te = transpose_pos_[static_cast<std::size_t>(e)];
+      if (cx != 0.0) sum += cx * kx_[te] * u(j / 3, j % 3);
+      if (with_v) sum += cv * kv_[te] * w(j / 3, j % 3);
+    }
+    (*out)(i / 3, i % 3) += sum;
+  }
 }
 
 }  // namespace clothbench

@@ -8,6 +8,7 @@
 
 #include <vector>
 
+#include "model/block_scatter.h"
 #include "model/particle_system.h"
 
 namespace clothbench {
@@ -22,7 +23,7 @@ namespace clothbench {
 struct TangentOptions {
   TangentProjection projection = TangentProjection::kClamp;
   /// true: the Jacobians of the explicit stencil terms (shear, bending,
-  /// transverse contraction, wind, air; exact, by AutoDiff) enter J_α;
+  /// transverse contraction, wind, air; exact, in closed form) enter J_α;
   /// false: only tension (springs and their damping) and the mass.
   bool include_explicit_terms = true;
   /// true: store the symmetric part (J_α + J_αᵀ)/2, the matrix a conjugate
@@ -36,11 +37,14 @@ struct TangentOptions {
   bool symmetrize = false;
 };
 
-/// J_α on a fixed pattern. Update() recomputes the values in place and does
-/// not allocate (triplet buffers keep their capacity).
+/// J_α on a fixed pattern. Update() recomputes the values in place from the
+/// closed-form Jacobian blocks of the springs and the force terms
+/// (ForceTerm::AccumulateJacobian), accumulated straight into the pattern
+/// through value positions computed once: no triplets, no sorting, no
+/// allocation; threaded and bit-identical for any thread count.
 class TangentSystem {
  public:
-  /// Builds the pattern from the scene's terms (allocates).
+  /// Builds the pattern from the blocks of the scene's terms (allocates).
   TangentSystem(const ParticleSystem& system, const TangentOptions& options);
 
   /// J_α at the state (t, x, v) for the product αh [s].
@@ -57,16 +61,18 @@ class TangentSystem {
   const TangentOptions& options() const { return options_; }
 
  private:
-  // Appends ∂f/∂x and ∂f/∂v of every included term, in a fixed order.
-  void Collect(double t, const MatrixN3& x, const MatrixN3& v);
-
   const ParticleSystem& sys_;
   TangentOptions options_;
   SparseMatrix j_;
-  std::vector<Triplet> dfdx_, dfdv_;   // reused buffers (capacity kept)
-  std::vector<int> pos_x_, pos_v_;     // value index in j_ of each triplet
-  std::vector<int> diag_pos_;          // value index of each diagonal entry (3p + c)
-  std::vector<int> upper_pos_, lower_pos_;  // value indices of (i, j) and (j, i), i < j
+  // ∂f/∂x [N/m] and ∂f/∂v [N s/m] on j_'s pattern (kv_ empty when no term
+  // depends on v).
+  Eigen::VectorXd kx_, kv_;
+  std::vector<const ForceTerm*> terms_;      // the explicit terms that enter J_α
+  std::vector<std::vector<int>> term_pos_;   // their block positions
+  std::vector<int> spring_pos_;              // 4 blocks per spring
+  Colouring spring_colouring_;               // of the springs by their end particles
+  std::vector<int> diag_pos_;                // value index of each diagonal entry (3p + c)
+  std::vector<int> transpose_pos_;           // value index of (j, i) for the entry (i, j)
 };
 
 }  // namespace clothbench
