@@ -93,36 +93,56 @@ struct Patch {
   }
 };
 
-// The unit vertex normal n̂ of Patch::Normal and its derivatives
-// dn[k] = ∂n̂/∂x_k for the 9 slots of the 3×3 box. A quad's normal is
-// nf = st (p × q) with p = x_st − x_0, q = x_0t − x_s0, and
-// d(p × q) = −[q]× dp + [p]× dq, so ∂nf/∂x_st = −st[q]×, ∂nf/∂x_0 = st[q]×,
-// ∂nf/∂x_0t = st[p]×, ∂nf/∂x_s0 = −st[p]×; a normalisation u = w/|w| has
-// ∂u = (I − ûûᵀ)/|w| ∂w, once per quad and once for the mean.
-template <int K>
-Vector3 NormalAndDerivative(const Patch<double, K>& patch, std::array<Matrix3, 9>* dn) {
+// The unit vertex normal n̂ of Patch::Normal and the products
+// out[k] = G ∂n̂/∂x_k for the 9 slots of the 3×3 box, with G = left(n̂) a
+// 3×3 matrix the caller derives from n̂. A quad's normal is nf = st (p × q)
+// with p = x_st − x_0, q = x_0t − x_s0, and d(p × q) = −[q]× dp + [p]× dq, so
+// ∂nf/∂x_st = −st[q]×, ∂nf/∂x_0 = st[q]×, ∂nf/∂x_0t = st[p]×,
+// ∂nf/∂x_s0 = −st[p]×; a normalisation u = w/|w| has ∂u = (I − ûûᵀ)/|w| ∂w,
+// once per quad and once for the mean n = Σ nf/|nf|. G is carried through
+// the projections from the left (rank-one updates), so each quad costs one
+// product with each skew matrix.
+template <int K, class LeftOf>
+Vector3 NormalJacobian(const Patch<double, K>& patch, LeftOf left, std::array<Matrix3, 9>* out) {
+  struct Quad {
+    int s, t;
+    Vector3 p, q, fh;
+    double scale;  // st/|nf|
+  };
+  std::array<Quad, 4> quads;
+  int nq = 0;
   Vector3 n = Vector3::Zero();
-  for (Matrix3& d : *dn) d.setZero();
   for (int s : {1, -1})
     for (int t : {1, -1}) {
       if (!patch.Has(s, 0) || !patch.Has(0, t) || !patch.Has(s, t)) continue;
+      Quad& f = quads[static_cast<std::size_t>(nq++)];
+      f.s = s;
+      f.t = t;
+      f.p = patch.At(s, t) - patch.At(0, 0);
+      f.q = patch.At(0, t) - patch.At(s, 0);
       const double st = static_cast<double>(s * t);
-      const Vector3 p = patch.At(s, t) - patch.At(0, 0), q = patch.At(0, t) - patch.At(s, 0);
-      const Vector3 nf = p.cross(q) * st;
+      const Vector3 nf = f.p.cross(f.q) * st;
       const double len = nf.norm();
-      const Vector3 fh = nf / len;
-      const Matrix3 proj = (Matrix3::Identity() - fh * fh.transpose()) * (st / len);
-      n += fh;
-      const Matrix3 dq = proj * Skew(q), dp = proj * Skew(p);
-      (*dn)[static_cast<std::size_t>(Slot(s, t))] -= dq;
-      (*dn)[0] += dq;
-      (*dn)[static_cast<std::size_t>(Slot(0, t))] += dp;
-      (*dn)[static_cast<std::size_t>(Slot(s, 0))] -= dp;
+      f.fh = nf / len;
+      f.scale = st / len;
+      n += f.fh;
     }
   const double len = n.norm();
   const Vector3 nh = n / len;
-  const Matrix3 proj = (Matrix3::Identity() - nh * nh.transpose()) / len;
-  for (Matrix3& d : *dn) d = proj * d;
+  Matrix3 g = left(nh);
+  g -= (g * nh) * nh.transpose();  // G (I − n̂n̂ᵀ)/|n|
+  g /= len;
+  for (Matrix3& o : *out) o.setZero();
+  for (int k = 0; k < nq; ++k) {
+    const Quad& f = quads[static_cast<std::size_t>(k)];
+    Matrix3 h = g - (g * f.fh) * f.fh.transpose();  // · (I − f̂f̂ᵀ) st/|nf|
+    h *= f.scale;
+    const Matrix3 hq = h * Skew(f.q), hp = h * Skew(f.p);
+    (*out)[static_cast<std::size_t>(Slot(f.s, f.t))] -= hq;
+    (*out)[0] += hq;
+    (*out)[static_cast<std::size_t>(Slot(0, f.t))] += hp;
+    (*out)[static_cast<std::size_t>(Slot(f.s, 0))] -= hp;
+  }
   return nh;
 }
 
@@ -509,20 +529,31 @@ struct ShearKernel {
 // Both are f_0 = ±A (s·n̂) n̂ with A = lu lv and s = Σ_k wx_k x_k + Σ_k wv_k v_k
 // linear in the stencil (the curvature operator and its viscosity), so
 // ∂f_0/∂x_k = ±A (wx_k n̂n̂ᵀ + (n̂ sᵀ + (s·n̂) I) ∂n̂/∂x_k) and
-// ∂f_0/∂v_k = ±A wv_k n̂n̂ᵀ (∂n̂/∂x_k from NormalAndDerivative, zero outside
+// ∂f_0/∂v_k = ±A wv_k n̂n̂ᵀ (∂n̂/∂x_k from NormalJacobian, zero outside
 // the 3×3 box).
 template <int K>
-void ProjectedBlocks(double sign, double area, const LinearWeights<K>& w, const Vector3& s,
-                     const Patch<double, K>& px, bool damping, std::array<Matrix3, K>& jx, std::array<Matrix3, K>& jv) {
-  std::array<Matrix3, 9> dn;
-  const Vector3 n = NormalAndDerivative(px, &dn);
+void ProjectedBlocks(double sign, double area, const LinearWeights<K>& w, const Patch<double, K>& px,
+                     const std::array<Vector3, K>& v, bool damping, std::array<Matrix3, K>& jx,
+                     std::array<Matrix3, K>& jv) {
+  Vector3 s = Vector3::Zero();  // the linear part from its weights (a missing slot has weight 0)
+  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.x[k] * px.x[k];
+  if (damping)
+    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.v[k] * v[k];
+  std::array<Matrix3, 9> gdn;
+  const double c = sign * area;
+  const Vector3 n = NormalJacobian(
+      px,
+      [&](const Vector3& nh) {
+        Matrix3 m = nh * s.transpose();
+        m.diagonal().array() += s.dot(nh);
+        return Matrix3(c * m);
+      },
+      &gdn);
   const Matrix3 nn = n * n.transpose();
-  Matrix3 m = n * s.transpose();
-  m.diagonal().array() += s.dot(n);
   for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
-    jx[k] = (sign * area * w.x[k]) * nn;
-    if (k < 9) jx[k].noalias() += (sign * area) * m * dn[k];
-    if (damping) jv[k] = (sign * area * w.v[k]) * nn;
+    jx[k] = (c * w.x[k]) * nn;
+    if (k < 9) jx[k] += gdn[k];
+    if (damping) jv[k] = (c * w.v[k]) * nn;
   }
 }
 
@@ -571,10 +602,7 @@ struct MembraneKernel {
   }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<9>* w, const std::array<Vector3, 9>& x,
               const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>& jv) const {
-    const Patch<double, 9> px{x, valid}, pv{v, valid};
-    Vector3 s = Stiff(px);
-    if (damping != 0.0) s += Damp(pv);
-    ProjectedBlocks<9>(1.0, lu * lv, *w, s, px, damping != 0.0, jx, jv);
+    ProjectedBlocks<9>(1.0, lu * lv, *w, Patch<double, 9>{x, valid}, v, damping != 0.0, jx, jv);
   }
 };
 
@@ -620,10 +648,7 @@ struct ThinPlateKernel {
   }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<13>* w, const std::array<Vector3, 13>& x,
               const std::array<Vector3, 13>& v, std::array<Matrix3, 13>& jx, std::array<Matrix3, 13>& jv) const {
-    const Patch<double, 13> px{x, valid};
-    Vector3 s = Stiff(px);
-    if (damping != 0.0) s += Damp(Patch<double, 13>{v, valid});
-    ProjectedBlocks<13>(-1.0, lu * lv, *w, s, px, damping != 0.0, jx, jv);
+    ProjectedBlocks<13>(-1.0, lu * lv, *w, Patch<double, 13>{x, valid}, v, damping != 0.0, jx, jv);
   }
 };
 
@@ -702,12 +727,15 @@ struct WindKernel {
   void Blocks(double t, std::uint32_t valid, double area, const LinearWeights<9>*, const std::array<Vector3, 9>& x,
               const std::array<Vector3, 9>&, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>&) const {
     const Vector3 fw = Field(t);
-    std::array<Matrix3, 9> dn;
-    const Vector3 n = NormalAndDerivative(Patch<double, 9>{x, valid}, &dn);
-    Matrix3 m = n * fw.transpose();
-    m.diagonal().array() += fw.dot(n);
-    m *= area * (w.drag - w.lift);
-    for (std::size_t k = 0; k < 9; ++k) jx[k].noalias() = m * dn[k];
+    const double c = area * (w.drag - w.lift);
+    NormalJacobian(
+        Patch<double, 9>{x, valid},
+        [&](const Vector3& n) {
+          Matrix3 m = n * fw.transpose();
+          m.diagonal().array() += fw.dot(n);
+          return Matrix3(c * m);
+        },
+        &jx);
   }
 };
 
@@ -740,11 +768,17 @@ struct AirKernel {
     }
     const double speed = v[0].norm();
     if (!(speed > 1e-12)) return;
-    std::array<Matrix3, 9> dn;
-    const Vector3 n = NormalAndDerivative(Patch<double, 9>{x, valid}, &dn);
     const Vector3 vh = v[0] / speed;
-    const double q = v[0].dot(n), sigma = q < 0.0 ? -1.0 : 1.0, c = c_air * area;
-    for (std::size_t k = 0; k < 9; ++k) jx[k].noalias() = (-c * sigma) * vh * (v[0].transpose() * dn[k]);
+    const double c = c_air * area;
+    double q = 0.0, sigma = 1.0;
+    const Vector3 n = NormalJacobian(
+        Patch<double, 9>{x, valid},
+        [&](const Vector3& nh) {
+          q = v[0].dot(nh);
+          sigma = q < 0.0 ? -1.0 : 1.0;
+          return Matrix3((-c * sigma) * vh * v[0].transpose());
+        },
+        &jx);
     jv[0] = (-c * sigma) * vh * n.transpose() - (c * std::abs(q) / speed) * (Matrix3::Identity() - vh * vh.transpose());
   }
 };

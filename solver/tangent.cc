@@ -79,6 +79,7 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
       term_begin.push_back(blocks.size());
       blocks.insert(blocks.end(), tb.begin(), tb.end());
       velocity = velocity || term->depends_on_velocity();
+      kv_constant_ = kv_constant_ && !term->depends_on_velocity();
     }
   j_ = BlockPattern(n, blocks);
   const std::vector<int> pos = BlockPositions(j_, blocks);
@@ -105,20 +106,19 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
       transpose_pos_[static_cast<std::size_t>(e)] = static_cast<int>(it - inner);
       if (row == col) diag_pos_[static_cast<std::size_t>(col)] = e;
     }
+  if (kv_.size() && kv_constant_) {  // the springs' damping c_e I, once
+    Eigen::VectorXd unused = Eigen::VectorXd::Zero(kx_.size());
+    AddSprings(system.rest_positions(), unused.data(), kv_.data());
+  }
 }
 
-void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h) {
-  const Eigen::Index nnz = j_.nonZeros();
-  kx_.setZero();
-  if (kv_.size()) kv_.setZero();
+void TangentSystem::AddSprings(const MatrixN3& x, double* kx, double* kv) const {
   // Springs: ∂F_a/∂x_b = s_e [c (I − d̂d̂ᵀ) + d̂d̂ᵀ], c = 1 − l_e/|d| (clamped
   // at 0 with kClamp); ∂F_a/∂x_a is its negative. Damping c_e (v_b − v_a),
   // (3.18): ∂F_a/∂v_b = c_e I.
   const std::vector<Spring>& springs = sys_.springs();
   const bool linear = sys_.scene().material.tension_model == TensionModel::kLinear;
   const bool clamp = options_.projection == TangentProjection::kClamp;
-  double* kx = kx_.data();
-  double* kv = kv_.size() ? kv_.data() : nullptr;
   spring_colouring_.ForEach(
       [&](std::size_t k) {
         const Spring& s = springs[k];
@@ -136,7 +136,7 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
         AddBlock(-kk, p + 3, kx);
         AddBlock(kk, p + 6, kx);
         AddBlock(-kk, p + 9, kx);
-        if (s.damping > 0.0) {
+        if (kv && s.damping > 0.0) {
           const Matrix3 cd = s.damping * Matrix3::Identity();
           AddBlock(cd, p, kv);
           AddBlock(-cd, p + 3, kv);
@@ -145,24 +145,44 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
         }
       },
       kBlockParallelMinimum);
+}
+
+void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h) {
+  const Eigen::Index nnz = j_.nonZeros();
+  kx_.setZero();
+  double* kx = kx_.data();
+  double* kv = kv_.size() ? kv_.data() : nullptr;
+  if (kv && !kv_constant_) kv_.setZero();
+  AddSprings(x, kx, kv_constant_ ? nullptr : kv);
   for (std::size_t k = 0; k < terms_.size(); ++k) terms_[k]->AccumulateJacobian(t, x, v, term_pos_[k].data(), kx, kv);
 
-  // J_α = M − αh ∂f/∂v − α²h² ∂f/∂x, then (J + Jᵀ)/2 if options_.symmetrize.
-  double* vals = j_.valuePtr();
+  // J_α = M − αh ∂f/∂v − α²h² ∂f/∂x, or its symmetric part (J + Jᵀ)/2 if
+  // options_.symmetrize (M is diagonal: its own symmetric part), in one pass
+  // over the entries; the constant part comes from base_.
+  const int* tp = transpose_pos_.data();
+  const bool sym = options_.symmetrize;
   const double cx = -alpha_h * alpha_h, cv = -alpha_h;
-#pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
-  for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = cx * kx[e] + (kv ? cv * kv[e] : 0.0);
-  const Eigen::VectorXd& m = sys_.masses();
-  for (std::size_t k = 0; k < diag_pos_.size(); ++k) vals[diag_pos_[k]] += m(static_cast<Eigen::Index>(k / 3));
-  if (options_.symmetrize) {
+  if (alpha_h != base_alpha_h_) {
+    base_.setZero(nnz);
+    if (kv && kv_constant_)
+      for (Eigen::Index e = 0; e < nnz; ++e) base_[e] = sym ? 0.5 * cv * (kv[e] + kv[tp[e]]) : cv * kv[e];
+    const Eigen::VectorXd& m = sys_.masses();
+    for (std::size_t k = 0; k < diag_pos_.size(); ++k) base_[diag_pos_[k]] += m(static_cast<Eigen::Index>(k / 3));
+    base_alpha_h_ = alpha_h;
+  }
+  double* vals = j_.valuePtr();
+  const double* base = base_.data();
+  const double* kvar = kv_constant_ ? nullptr : kv;  // ∂f/∂v of this state
+  if (sym) {
+    const double hx = 0.5 * cx, hv = 0.5 * cv;
 #pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
     for (Eigen::Index e = 0; e < nnz; ++e) {
-      const int te = transpose_pos_[static_cast<std::size_t>(e)];
-      if (te > e) {  // each pair once, by its first entry
-        const double mean = 0.5 * (vals[e] + vals[te]);
-        vals[e] = vals[te] = mean;
-      }
+      const int te = tp[e];
+      vals[e] = base[e] + hx * (kx[e] + kx[te]) + (kvar ? hv * (kvar[e] + kvar[te]) : 0.0);
     }
+  } else {
+#pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
+    for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = base[e] + cx * kx[e] + (kvar ? cv * kvar[e] : 0.0);
   }
 }
 

@@ -64,9 +64,18 @@ class TangentSystem {
   const ParticleSystem& sys_;
   TangentOptions options_;
   SparseMatrix j_;
-  // ∂f/∂x [N/m] and ∂f/∂v [N s/m] on j_'s pattern (kv_ empty when no term
-  // depends on v).
+  // ∂f/∂x [N/m] and ∂f/∂v [N s/m] on j_'s pattern. kv_ is empty when
+  // nothing depends on v, and constant (the springs' damping, set once) when
+  // no explicit term in J_α depends on v.
   Eigen::VectorXd kx_, kv_;
+  bool kv_constant_ = true;
+  // M − αh ∂f/∂v with a constant ∂f/∂v (symmetrised if so) for base_alpha_h_:
+  // what J_α adds to −α²h² ∂f/∂x, kept while αh does not change.
+  Eigen::VectorXd base_;
+  double base_alpha_h_ = -1.0;
+  // Adds the springs' stiffness blocks at x to kx (and their damping blocks
+  // to kv if not null).
+  void AddSprings(const MatrixN3& x, double* kx, double* kv) const;
   std::vector<const ForceTerm*> terms_;      // the explicit terms that enter J_α
   std::vector<std::vector<int>> term_pos_;   // their block positions
   std::vector<int> spring_pos_;              // 4 blocks per spring
