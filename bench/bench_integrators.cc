@@ -111,10 +111,13 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
   double bytes = n * (25.0 * 24.0 + 200.0) + (rows + 1.0) * frames * 2.0 * 24.0 * n + step_records * 100.0;
   if (scene.solver.preconditioner == PreconditionerType::kCholesky) bytes += n * 45.0 * 12.0;
   if (sundials) bytes += n * 4096.0;
-  // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α, its
-  // Jacobian triplets and its preconditioner: 18.6 kB per particle (measured
-  // peak RSS 18.55 GB for baraff_witkin on the 10⁶-particle large_sheet).
-  if (tangent) bytes += n * 18.6e3;
+  // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α with
+  // ∂f/∂x, ∂f/∂v, its constant part and transpose positions on its pattern,
+  // and its preconditioner: 6.5 kB per particle (measured peak RSS 7.76 GB
+  // for baraff_witkin on the 10⁶-particle large_sheet, `/usr/bin/time -v
+  // build/bench/bench_integrators --scene large_sheet --integrators
+  // baraff_witkin --h 0.01 --reference none --frames none`).
+  if (tangent) bytes += n * 6.5e3;
   const double available = AvailableBytes();
   if (available > 0.0 && bytes > 0.8 * available)
     throw UsageError(fmt::format(
@@ -673,11 +676,12 @@ int Main(int argc, char** argv) {
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
-                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,symplectic_euler,"
+                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,sbdf3,symplectic_euler,"
                  "baraff_witkin,xpbd,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
-                 "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error) "
+                 "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error), "
+                 "arkode may name a higher-order IMEX pair (arkode/ark4: ARK436L2SA, arkode/ark5: ARK548L2SA) "
                  "(default: the five methods, the Newton variants of implicit_euler, bdf2 and implicit_midpoint, "
-                 "baraff_witkin, xpbd, sbdf2/error, bdf2/newton/error, arkode and cvode)");
+                 "sbdf3, baraff_witkin, xpbd, sbdf2/error, bdf2/newton/error, arkode, arkode/ark4, arkode/ark5 and cvode)");
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
                  "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
@@ -801,11 +805,14 @@ int Main(int argc, char** argv) {
             scene.solver.nonlinear_solver != NonlinearSolver::kNewton)
           names.push_back(std::string(ToString(m)) + "/newton");
       }
+      names.emplace_back(ToString(Method::kSbdf3));
       names.emplace_back(kBaraffWitkinName);
       names.emplace_back(kXpbdName);
       names.emplace_back("sbdf2/error");
       names.emplace_back("bdf2/newton/error");
       names.emplace_back(kArkodeName);
+      names.emplace_back(std::string(kArkodeName) + "/ark4");
+      names.emplace_back(std::string(kArkodeName) + "/ark5");
       names.emplace_back("cvode");
     } else {
       names = SplitList(integrators_arg);
@@ -1036,11 +1043,16 @@ int Main(int argc, char** argv) {
       Row& r = rows.back();
       if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
       if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
-      // Observed order against the (sub)step h/n within one block; none
+      // Observed order against the (sub)step h/n within one block, and for
+      // adaptive rows against the mean accepted step t_end/steps; none
       // between two rows with the same one.
-      const auto step = [](const Row& q) { return q.substeps > 0 ? q.h / q.substeps : q.h; };
-      if (methods[row_tasks[i].mk].kind() != StepKind::kAdaptive && i > 0 &&
-          row_tasks[i - 1].block == row_tasks[i].block && r.err && rows[i - 1].err && step(rows[i - 1]) != step(r))
+      const bool adaptive = methods[row_tasks[i].mk].kind() == StepKind::kAdaptive;
+      const auto step = [&](const Row& q) {
+        if (adaptive) return q.steps > 0 ? scene.t_end / static_cast<double>(q.steps) : 0.0;
+        return q.substeps > 0 ? q.h / q.substeps : q.h;
+      };
+      if (i > 0 && row_tasks[i - 1].block == row_tasks[i].block && r.err && rows[i - 1].err &&
+          step(rows[i - 1]) != step(r) && step(r) > 0.0 && step(rows[i - 1]) > 0.0)
         r.order = ObservedOrder(step(rows[i - 1]), rows[i - 1].err->rms_at_end, step(r), r.err->rms_at_end);
     }
     const EqualAccuracyTable wp = WorkPrecision(rows, targets);

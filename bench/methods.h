@@ -85,6 +85,7 @@ inline const std::vector<MethodEntry>& Registry() {
       {"bdf2", kFixed, "solver", true, true, true, true, false, false, MakeEngine<Method::kBdf2>, nullptr},
       {"implicit_midpoint", kFixed, "solver", true, false, true, true, false, false,
        MakeEngine<Method::kImplicitMidpoint>, nullptr},
+      {"sbdf3", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kSbdf3>, nullptr},
       {"symplectic_euler", kFixed, "solver", false, false, true, false, false, false,
        MakeEngine<Method::kSymplecticEuler>, nullptr},
       {kBaraffWitkinName, kFixed, "peers", false, false, true, true, true, false,
@@ -158,12 +159,24 @@ struct MethodRun {
   double stiffness = 0.0;
 };
 
+/// The ARKODE IMEX pair of an arkode row modifier: "ark4" is ARK436L2SA
+/// (Kennedy & Carpenter 2003, order 4), "ark5" ARK548L2SA (order 5); ""
+/// for any other modifier.
+inline std::string ArkodeRowTable(std::string_view modifier) {
+  if (modifier == "ark4") return "ARK436L2SA";
+  if (modifier == "ark5") return "ARK548L2SA";
+  return "";
+}
+
 /// One row's method: a registry entry with its nonlinear solver and, for
 /// SBDF(2)/BDF(2), error control.
 struct RowMethod {
   const MethodEntry* entry = nullptr;
   NonlinearSolver solver = NonlinearSolver::kFixedPoint;
   bool error_control = false;
+  /// arkode rows "arkode/ark4" and "arkode/ark5": the ARKODE IMEX pair of
+  /// that order (ArkodeRowTable); empty: the invocation's --arkode-table.
+  std::string arkode_modifier;
 
   std::string name() const { return std::string(entry->name); }
   StepKind kind() const { return error_control ? StepKind::kAdaptive : entry->kind; }
@@ -172,6 +185,7 @@ struct RowMethod {
     std::string s = name();
     if (solver == NonlinearSolver::kNewton) s += "/newton";
     if (error_control) s += "/error";
+    if (!arkode_modifier.empty()) s += "/" + arkode_modifier;
     return s;
   }
   /// The label as an HDF5 group-name part ("bdf2_newton").
@@ -231,6 +245,8 @@ struct RowMethod {
       row.stiffness = scene.NumericalStiffness(scene.h);
     }
     RunSummary r;
+    RunContext row_ctx = ctx;
+    if (!arkode_modifier.empty()) row_ctx.arkode_table = ArkodeRowTable(arkode_modifier);
     if (entry->make) {
       const SolverSpec s = Settings(spec, param);
       const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
@@ -242,7 +258,7 @@ struct RowMethod {
       // Error-controlled rows start at the scene's h; the controller takes over.
       r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
     } else {
-      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, spec, ctx);
+      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, spec, row_ctx);
     }
     row.ok = r.ok;
     row.status = r.status;
@@ -290,9 +306,19 @@ struct RowMethod {
 ///  - baraff_witkin: 3.0e-3 m at h/8, 7.8e-4 m at h/32.
 ///  - xpbd: frame steps h and h/16 with --substeps 1,4,16,64 give
 ///    substeps h/1 … h/1024: 0.19 … 2.7e-3 m at h/256 and ≈ 6.7e-4 m at h/1024.
+///  - sbdf3: 4.2e-1, 4.6e-2, 1.7e-4, 2.2e-5 m at h, h/2, h/4, h/8; at h and
+///    h/2 it gains energy (+294 W and +2.2 W: BDF3 is not A-stable), so its
+///    rows start at h/4.
 ///  - cvode, sbdf2/error, bdf2/newton/error: rtol 1e-2 … 1e-7; arkode
 ///    1e-2 … 1e-6 (its error is 1.7e-4 m already at rtol 1e-3; rtol 1e-7
 ///    alone costs 9.6 s).
+///  - arkode/ark4 (ARK436L2SA): 1.1e-3, 2.9e-5, 1.7e-6, 1.4e-7, 1.2e-8 m at
+///    rtol 1e-2 … 1e-6; arkode/ark5 (ARK548L2SA): 2.0e-5 m at rtol 1e-2
+///    with 51 error-test failures, then 1.5e-6, 7.7e-7, 6.6e-9, 5.5e-10 m at
+///    rtol 1e-3 … 1e-6 (below ~1e-9 m the CVODE reference at rtol 1e-10 is
+///    the limit). `bench_integrators --integrators
+///    sbdf2,sbdf3,arkode,arkode/ark4,arkode/ark5,cvode` with sbdf3 at
+///    h … h/8 and the arkode rows at rtol 1e-2 … 1e-7.
 struct DefaultParams {
   std::vector<double> h_factors;  ///< fixed-step and substepped rows: h = factor × scene h
   std::vector<double> rtols;      ///< adaptive rows
@@ -308,7 +334,10 @@ inline DefaultParams DefaultRowParams(const RowMethod& m) {
   if (label == "implicit_midpoint") return {{1.0, 1.0 / 2, 1.0 / 4}, {}};
   if (label == "baraff_witkin") return {{1.0 / 8, 1.0 / 32}, {}};
   if (label == "xpbd") return {{1.0, 1.0 / 16}, {}};
+  if (label == "sbdf3") return {{1.0 / 4, 1.0 / 8, 1.0 / 16}, {}};
   if (label == "arkode") return {{}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}};
+  if (label == "arkode/ark4") return {{}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}};
+  if (label == "arkode/ark5") return {{}, {1e-3, 1e-4, 1e-5, 1e-6}};
   return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, rtols};
 }
 
@@ -344,7 +373,9 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
           fmt::format("{}: unknown integrator \"{}\" (expected {})", option, full, KnownMethodNames()));
     bool solver_named = false;
     for (std::size_t k = 1; k < parts.size(); ++k) {
-      if (parts[k] == "error") {
+      if (r.entry->name == kArkodeName && !ArkodeRowTable(parts[k]).empty() && r.arkode_modifier.empty()) {
+        r.arkode_modifier = parts[k];
+      } else if (parts[k] == "error") {
         if (!r.entry->error_control)
           throw std::invalid_argument(
               fmt::format("{}: \"{}\": only sbdf2 and bdf2 run under error control (/error)", option, full));

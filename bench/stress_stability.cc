@@ -95,6 +95,7 @@ int Main(int argc, char** argv) {
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
       for (Method m : AllMethods()) names.emplace_back(ToString(m));
+      names.emplace_back(ToString(Method::kSbdf3));
       names.emplace_back(ToString(Method::kSymplecticEuler));
     } else {
       names = SplitList(integrators_arg);

@@ -59,7 +59,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   }
   fmt::print(out,
              "\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
-             "frame step/substeps of substepped rows (xpbd).\n");
+             "frame step/substeps of substepped rows (xpbd).\n"
+             "order: observed order between consecutive rows, against h (h/substeps); adaptive rows against their "
+             "mean step t_end/steps.\n");
   for (const RunRecord& r : t.runs)
     if (r.step_kind == "substepped") {
       fmt::print(out,

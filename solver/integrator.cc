@@ -16,6 +16,7 @@ std::string_view ToString(Method m) {
     case Method::kBdf2: return "bdf2";
     case Method::kImplicitMidpoint: return "implicit_midpoint";
     case Method::kSymplecticEuler: return "symplectic_euler";
+    case Method::kSbdf3: return "sbdf3";
   }
   return "?";
 }
@@ -24,6 +25,7 @@ std::optional<Method> MethodFromString(std::string_view s) {
   for (Method m : AllMethods())
     if (ToString(m) == s) return m;
   if (s == ToString(Method::kSymplecticEuler)) return Method::kSymplecticEuler;
+  if (s == ToString(Method::kSbdf3)) return Method::kSbdf3;
   return std::nullopt;
 }
 
@@ -33,7 +35,7 @@ const std::vector<Method>& AllMethods() {
   return kAll;
 }
 
-bool IsImex(Method m) { return m == Method::kImexEuler || m == Method::kSbdf2; }
+bool IsImex(Method m) { return m == Method::kImexEuler || m == Method::kSbdf2 || m == Method::kSbdf3; }
 
 bool IsFullyImplicit(Method m) {
   return m == Method::kImplicitEuler || m == Method::kBdf2 || m == Method::kImplicitMidpoint;
@@ -42,6 +44,7 @@ bool IsFullyImplicit(Method m) {
 bool IsExplicit(Method m) { return m == Method::kSymplecticEuler; }
 
 int MethodOrder(Method m) {
+  if (m == Method::kSbdf3) return 3;
   return (m == Method::kImexEuler || m == Method::kImplicitEuler || m == Method::kSymplecticEuler) ? 1 : 2;
 }
 
@@ -136,6 +139,8 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
       solver.step_control == StepControl::kError && (method == Method::kSbdf2 || method == Method::kBdf2);
   if (error_control_)
     for (MatrixN3* m : {&xm2_, &vm2_, &a_init_}) m->setZero(n, 3);
+  if (method == Method::kSbdf3)
+    for (MatrixN3* m : {&xm2_, &vm2_, &gm2_}) m->setZero(n, 3);
 }
 
 void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -147,6 +152,7 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   have_g0_ = false;
   h_prev_ = h_prev2_ = 0.0;
   history_ = 0;
+  sbdf3_history_ = 0;
   contacts_.Reset();
   if (error_control_) {
     // v̇ at the start, the exact slope of the error estimate's predictors.
@@ -176,6 +182,12 @@ StepStats StepEngine::StepImpl(double h) {
   Method m = method_;
   const bool multistep = method_ == Method::kSbdf2 || method_ == Method::kBdf2;
   if (multistep && !have_history_) m = method_ == Method::kSbdf2 ? Method::kImexEuler : Method::kImplicitEuler;
+  // SBDF(3): the IMEX midpoint start step, then SBDF(2) until three equal
+  // steps give the BDF3 history.
+  const bool sbdf3_start = method_ == Method::kSbdf3 && sbdf3_history_ == 0;
+  if (sbdf3_start) m = Method::kImplicitMidpoint;
+  if (method_ == Method::kSbdf3 && !sbdf3_start && (sbdf3_history_ < 2 || h != h_prev_ || h_prev_ != h_prev2_))
+    m = Method::kSbdf2;
   const bool imex = IsImex(m);
 
   // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)).
@@ -213,6 +225,19 @@ StepStats StepEngine::StepImpl(double h) {
       xg0_ = xhat_;
       t_g = t_ + h;
       break;
+    case Method::kSbdf3:
+      // Ascher, Ruuth & Wetton (1995), SBDF with k = 3 at a constant step:
+      // z₁ = (18 z₀ − 9 z₋₁ + 2 z₋₂)/11 + (6/11) h ż₁ for z = x, v, so
+      // A_{6/11} v₁ = M v̂ − (6/11) h L_K x̂ + (6/11) h ĝ.
+      alpha = beta = gamma = gamma_g = 6.0 / 11.0;
+      xhat_ = (18.0 / 11.0) * x0_ - (9.0 / 11.0) * xm1_ + (2.0 / 11.0) * xm2_;
+      vhat_ = (18.0 / 11.0) * v0_ - (9.0 / 11.0) * vm1_ + (2.0 / 11.0) * vm2_;
+      b0_.noalias() = mass.asDiagonal() * vhat_;
+      tmp_.noalias() = lk * xhat_;
+      b0_ -= (alpha * h) * tmp_;
+      xg0_ = xhat_;
+      t_g = t_ + h;
+      break;
     case Method::kImplicitMidpoint:
       // (3.26): x₁ = x₀ + (h/2)(v₀ + v₁), x_m = x₀ + (h/4)(v₀ + v₁),
       // A_½ v₁ = M v₀ − h L_K (x₀ + (h/4) v₀) − (h/2) L_D v₀ + h g(t₀ + h/2, x_m, v_m).
@@ -245,14 +270,18 @@ StepStats StepEngine::StepImpl(double h) {
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (SPEC §2.5)
   }
 
-  // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for SBDF(2).
-  if (imex) {
+  // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for
+  // SBDF(2) and SBDF(3). SBDF(3)'s start step evaluates g₀ too, for the
+  // history.
+  if (imex || sbdf3_start) {
     if (!have_g0_) {
       sys_.ExplicitForces(t_, x0_, v0_, &g0_);
       have_g0_ = true;
     }
     if (m == Method::kSbdf2)
       g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (SPEC §4)
+    else if (m == Method::kSbdf3)
+      g_ = 3.0 * g0_ - 3.0 * gm1_ + gm2_;  // ĝ, third order at a constant step
     else
       g_ = g0_;
   }
@@ -265,9 +294,12 @@ StepStats StepEngine::StepImpl(double h) {
   // With contacts and CgReference::kFixedOnly, η is relative to ‖S_F b‖:
   // only the fixed particles' rows are left out (see CgReference).
   const bool fixed_only_norm = contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly;
-  const int max_updates = imex ? 1 : opts_.max_updates;
+  // SBDF(3)'s start is the midpoint rule with exactly two updates: g at
+  // the midpoint of the first update's v₁ (an O(h²) midpoint state) gives a
+  // local error O(h³), which keeps the method third order.
+  const int max_updates = imex ? 1 : sbdf3_start ? 2 : opts_.max_updates;
   bool converged = false;
-  if (!imex && tangent_) {
+  if (!imex && !sbdf3_start && tangent_) {
     converged = NewtonIterate(h, alpha, beta, gamma_g, t_g, midpoint, fixed_only_norm, &st);
     if (!converged) return st;
   }
@@ -299,7 +331,7 @@ StepStats StepEngine::StepImpl(double h) {
     // Alg. 6 line 11: converged when the PCG needed 0 iterations (the new
     // g did not move the solution beyond the CG tolerance); optionally also
     // when max |Δv| ≤ fixed_point_tolerance.
-    if (imex || last_pcg_.iterations == 0 ||
+    if (imex || (sbdf3_start && u == 1) || last_pcg_.iterations == 0 ||
         (opts_.fixed_point_tolerance > 0.0 && (v1_ - vprev_).cwiseAbs().maxCoeff() <= opts_.fixed_point_tolerance)) {
       converged = true;
       break;
@@ -512,11 +544,15 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
 bool StepEngine::Commit(double h) {
   if (!x1_.allFinite() || !v1_.allFinite()) return false;
   // (x₋₁, v₋₁, g₋₁) ← (x₀, v₀, g₀), (x₀, v₀) ← (x₁, v₁). Swaps, no copies.
-  if (error_control_) {  // (x₋₂, v₋₂) ← (x₋₁, v₋₁) for the error estimate
+  if (error_control_ || method_ == Method::kSbdf3) {  // (x₋₂, v₋₂) ← (x₋₁, v₋₁): error estimate, SBDF(3)
     xm2_.swap(xm1_);
     vm2_.swap(vm1_);
     h_prev2_ = h_prev_;
     history_ = std::min(history_ + 1, 2);
+  }
+  if (method_ == Method::kSbdf3) {
+    gm2_.swap(gm1_);
+    sbdf3_history_ = std::min(sbdf3_history_ + 1, 2);
   }
   xm1_.swap(x0_);
   x0_.swap(x1_);

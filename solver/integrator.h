@@ -22,23 +22,31 @@
 
 namespace clothbench {
 
-/// The five thesis integrators and the explicit baseline symplectic Euler
-/// (semi-implicit Euler: v₁ = v₀ + h M⁻¹ f(t₀, x₀, v₀), x₁ = x₀ + h v₁).
-enum class Method { kImexEuler, kImplicitEuler, kSbdf2, kBdf2, kImplicitMidpoint, kSymplecticEuler };
+/// The five thesis integrators, the explicit baseline symplectic Euler
+/// (semi-implicit Euler: v₁ = v₀ + h M⁻¹ f(t₀, x₀, v₀), x₁ = x₀ + h v₁), and
+/// SBDF(3), the third-order IMEX BDF of Ascher, Ruuth & Wetton (1995):
+/// BDF3 on the linear part, g extrapolated to third order,
+///   x₁ = x̂ + (6/11) h v₁,  A_{6/11} v₁ = M v̂ − (6/11) h L_K x̂ + (6/11) h ĝ,
+/// x̂ = (18 x₀ − 9 x₋₁ + 2 x₋₂)/11 (v̂ likewise), ĝ = 3 g₀ − 3 g₋₁ + g₋₂,
+/// for three equal steps; it starts with one IMEX midpoint step (two
+/// updates of the midpoint rule, local error O(h³)) and one SBDF(2) step,
+/// and takes an SBDF(2) step wherever the last three steps differ.
+enum class Method { kImexEuler, kImplicitEuler, kSbdf2, kBdf2, kImplicitMidpoint, kSymplecticEuler, kSbdf3 };
 std::string_view ToString(Method m);
 /// Parses "imex_euler", "implicit_euler", "sbdf2", "bdf2", "implicit_midpoint",
-/// "symplectic_euler".
+/// "symplectic_euler", "sbdf3".
 std::optional<Method> MethodFromString(std::string_view s);
 /// The five thesis integrators in table order (the bench default).
 const std::vector<Method>& AllMethods();
-/// IMEX methods (IMEX Euler, SBDF(2)) do exactly one update per step.
+/// IMEX methods (IMEX Euler, SBDF(2), SBDF(3)) do exactly one update per
+/// step (SBDF(3)'s start step two).
 bool IsImex(Method m);
 /// Fully implicit methods (implicit Euler, BDF(2), implicit midpoint) iterate
 /// with a nonlinear solver (fixed point or Newton).
 bool IsFullyImplicit(Method m);
 /// Explicit methods solve no linear system (symplectic Euler).
 bool IsExplicit(Method m);
-/// Classical order of convergence (1 or 2).
+/// Classical order of convergence (1, 2 or 3).
 int MethodOrder(Method m);
 
 /// Variable-step BDF(2) coefficients for ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)):
@@ -230,6 +238,9 @@ class StepEngine : public Stepper {
   MatrixN3 xm2_, vm2_, a_init_;
   double h_prev2_ = 0.0;
   int history_ = 0;
+  // SBDF(3): g₋₂, and the accepted steps since Reset (capped at 2).
+  MatrixN3 gm2_;
+  int sbdf3_history_ = 0;
 
   // Scratch, allocated once.
   MatrixN3 g0_, g_, b0_, b_, xhat_, vhat_, xg0_, vg_, xg_, v1_, x1_, tmp_, vprev_;
