@@ -214,30 +214,28 @@ StepStats StepEngine::StepImpl(double h) {
       break;
     case Method::kSbdf2:
     case Method::kBdf2:
+    case Method::kSbdf3: {
       // (3.30), (3.35), (3.36): x₁ = c1 x₀ − c2 x₋₁ + c3 h v₁,
       // A_c3 v₁ = M(c1 v₀ − c2 v₋₁) − c3 h L_K (c1 x₀ − c2 x₋₁) + c3 h ĝ.
-      alpha = beta = gamma = gamma_g = c3;
-      xhat_ = c1 * x0_ - c2 * xm1_;
-      vhat_ = c1 * v0_ - c2 * vm1_;
-      b0_.noalias() = mass.asDiagonal() * vhat_;
-      tmp_.noalias() = lk * xhat_;
-      b0_ -= (c3 * h) * tmp_;
-      xg0_ = xhat_;
-      t_g = t_ + h;
-      break;
-    case Method::kSbdf3:
-      // Ascher, Ruuth & Wetton (1995), SBDF with k = 3 at a constant step:
+      // SBDF(3) (Ascher, Ruuth & Wetton 1995, k = 3, constant step):
       // z₁ = (18 z₀ − 9 z₋₁ + 2 z₋₂)/11 + (6/11) h ż₁ for z = x, v, so
       // A_{6/11} v₁ = M v̂ − (6/11) h L_K x̂ + (6/11) h ĝ.
-      alpha = beta = gamma = gamma_g = 6.0 / 11.0;
-      xhat_ = (18.0 / 11.0) * x0_ - (9.0 / 11.0) * xm1_ + (2.0 / 11.0) * xm2_;
-      vhat_ = (18.0 / 11.0) * v0_ - (9.0 / 11.0) * vm1_ + (2.0 / 11.0) * vm2_;
+      const bool third = m == Method::kSbdf3;
+      alpha = beta = gamma = gamma_g = third ? 6.0 / 11.0 : c3;
+      if (third) {
+        xhat_ = (18.0 / 11.0) * x0_ - (9.0 / 11.0) * xm1_ + (2.0 / 11.0) * xm2_;
+        vhat_ = (18.0 / 11.0) * v0_ - (9.0 / 11.0) * vm1_ + (2.0 / 11.0) * vm2_;
+      } else {
+        xhat_ = c1 * x0_ - c2 * xm1_;
+        vhat_ = c1 * v0_ - c2 * vm1_;
+      }
       b0_.noalias() = mass.asDiagonal() * vhat_;
       tmp_.noalias() = lk * xhat_;
       b0_ -= (alpha * h) * tmp_;
       xg0_ = xhat_;
       t_g = t_ + h;
       break;
+    }
     case Method::kImplicitMidpoint:
       // (3.26): x₁ = x₀ + (h/2)(v₀ + v₁), x_m = x₀ + (h/4)(v₀ + v₁),
       // A_½ v₁ = M v₀ − h L_K (x₀ + (h/4) v₀) − (h/2) L_D v₀ + h g(t₀ + h/2, x_m, v_m).
