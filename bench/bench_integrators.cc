@@ -679,9 +679,11 @@ int Main(int argc, char** argv) {
                  "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,sbdf3,symplectic_euler,"
                  "baraff_witkin,xpbd,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
                  "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error), "
-                 "arkode may name a higher-order IMEX pair (arkode/ark4: ARK436L2SA, arkode/ark5: ARK548L2SA) "
-                 "(default: the five methods, the Newton variants of implicit_euler, bdf2 and implicit_midpoint, "
-                 "sbdf3, baraff_witkin, xpbd, sbdf2/error, bdf2/newton/error, arkode, arkode/ark4, arkode/ark5 and cvode)");
+                 "arkode may name a higher-order IMEX pair (arkode/ark4: ARK436L2SA, arkode/ark5: ARK548L2SA), "
+                 "cvode solves its Newton systems reduced to the velocities with the PCG (cvode/klu: KLU on the "
+                 "first-order system) (default: the five methods, the Newton variants of implicit_euler, bdf2 and "
+                 "implicit_midpoint, sbdf3, baraff_witkin, xpbd, sbdf2/error, bdf2/newton/error, arkode, arkode/ark4, "
+                 "arkode/ark5, cvode and cvode/klu)");
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
                  "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
@@ -814,6 +816,7 @@ int Main(int argc, char** argv) {
       names.emplace_back(std::string(kArkodeName) + "/ark4");
       names.emplace_back(std::string(kArkodeName) + "/ark5");
       names.emplace_back("cvode");
+      names.emplace_back("cvode/klu");
     } else {
       names = SplitList(integrators_arg);
     }

@@ -45,6 +45,7 @@ inline std::string_view ToString(StepKind k) {
 struct RunContext {
   std::string arkode_table = "ARK324L2SA";
   RunLimits limits{};  ///< wall time and steps of every row (--time-limit)
+  std::string variant;  ///< the row's variant (RowMethod::variant)
 };
 
 struct MethodEntry {
@@ -64,6 +65,8 @@ struct MethodEntry {
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                                const RunContext& ctx);
+  /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
+  std::vector<std::string_view> variants = {};
 };
 
 namespace internal {
@@ -101,11 +104,15 @@ inline const std::vector<MethodEntry>& Registry() {
       {kArkodeName, kAdaptive, "peers", false, false, false, true, false, false, nullptr,
        [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
          return RunArkode(sys, o, ctx.arkode_table, &spec);
-       }},
-      {"cvode", kAdaptive, "reference", false, false, false, false, false, true, nullptr,
-       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec&, const RunContext&) {
-         return RunCvode(sys, o);
-       }},
+       },
+       {"ark4", "ark5"}},
+      // cvode: the reduced velocity solve with the scene's PCG; cvode/klu:
+      // KLU on the 6N×6N first-order Jacobian (the reference's solver).
+      {"cvode", kAdaptive, "reference", false, false, false, true, true, true, nullptr,
+       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
+         return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
+       },
+       {"klu"}},
       {"ida", kAdaptive, "reference", false, false, false, false, false, true, nullptr,
        [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec&, const RunContext&) {
          return RunIda(sys, o);
@@ -174,9 +181,11 @@ struct RowMethod {
   const MethodEntry* entry = nullptr;
   NonlinearSolver solver = NonlinearSolver::kFixedPoint;
   bool error_control = false;
-  /// arkode rows "arkode/ark4" and "arkode/ark5": the ARKODE IMEX pair of
-  /// that order (ArkodeRowTable); empty: the invocation's --arkode-table.
-  std::string arkode_modifier;
+  /// A method's variant, the last part of its label: for arkode "ark4" and
+  /// "ark5", the IMEX pair of that order (ArkodeRowTable; none: the
+  /// invocation's --arkode-table); for cvode and ida "klu", KLU on the
+  /// first-order Jacobian instead of the reduced solve.
+  std::string variant;
 
   std::string name() const { return std::string(entry->name); }
   StepKind kind() const { return error_control ? StepKind::kAdaptive : entry->kind; }
@@ -185,7 +194,7 @@ struct RowMethod {
     std::string s = name();
     if (solver == NonlinearSolver::kNewton) s += "/newton";
     if (error_control) s += "/error";
-    if (!arkode_modifier.empty()) s += "/" + arkode_modifier;
+    if (!variant.empty()) s += "/" + variant;
     return s;
   }
   /// The label as an HDF5 group-name part ("bdf2_newton").
@@ -197,7 +206,7 @@ struct RowMethod {
   }
   bool fully_implicit() const { return entry->nonlinear_solver; }
   /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
-  bool uses_pcg() const { return entry->pcg; }
+  bool uses_pcg() const { return entry->pcg && variant != "klu"; }
   /// `spec` with this row's nonlinear solver and, under error control, the
   /// step control and tolerance `rtol` (= atol).
   SolverSpec Settings(SolverSpec spec, double rtol = 0.0) const {
@@ -246,7 +255,8 @@ struct RowMethod {
     }
     RunSummary r;
     RunContext row_ctx = ctx;
-    if (!arkode_modifier.empty()) row_ctx.arkode_table = ArkodeRowTable(arkode_modifier);
+    if (!ArkodeRowTable(variant).empty()) row_ctx.arkode_table = ArkodeRowTable(variant);
+    row_ctx.variant = variant;
     if (entry->make) {
       const SolverSpec s = Settings(spec, param);
       const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
@@ -373,8 +383,9 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
           fmt::format("{}: unknown integrator \"{}\" (expected {})", option, full, KnownMethodNames()));
     bool solver_named = false;
     for (std::size_t k = 1; k < parts.size(); ++k) {
-      if (r.entry->name == kArkodeName && !ArkodeRowTable(parts[k]).empty() && r.arkode_modifier.empty()) {
-        r.arkode_modifier = parts[k];
+      if (r.variant.empty() && std::find(r.entry->variants.begin(), r.entry->variants.end(), parts[k]) !=
+                                   r.entry->variants.end()) {
+        r.variant = parts[k];
       } else if (parts[k] == "error") {
         if (!r.entry->error_control)
           throw std::invalid_argument(

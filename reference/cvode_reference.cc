@@ -1,8 +1,10 @@
 // CVODE reference (SPEC §8).
 #include "reference/cvode_reference.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <memory>
 
 #include <cvode/cvode.h>
 #include <fmt/format.h>
@@ -10,6 +12,10 @@
 #include <sundials/sundials_context.h>
 #include <sunlinsol/sunlinsol_klu.h>
 #include <sunmatrix/sunmatrix_sparse.h>
+
+#include "solver/integrator.h"
+#include "solver/pcg.h"
+#include "solver/tangent.h"
 
 namespace clothbench {
 namespace {
@@ -82,13 +88,225 @@ class FreeDofOde {
   SparseMatrix jac_;
 };
 
+// CVODE's user data: the ODE, and the reduced solve of row `cvode`.
+struct CvodeUser {
+  FreeDofOde* ode = nullptr;
+  class ReducedNewtonSolve* reduced = nullptr;
+};
+
 int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
-  static_cast<FreeDofOde*>(user)->Rhs(t, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
+  static_cast<CvodeUser*>(user)->ode->Rhs(t, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
   return 0;
 }
 
 int JacFn(realtype t, N_Vector y, N_Vector, SUNMatrix jac, void* user, N_Vector, N_Vector, N_Vector) {
-  return internal::CopyToSunSparse(static_cast<FreeDofOde*>(user)->Jacobian(t, N_VGetArrayPointer(y)), jac);
+  return internal::CopyToSunSparse(static_cast<CvodeUser*>(user)->ode->Jacobian(t, N_VGetArrayPointer(y)), jac);
+}
+
+// The reduced Newton solve of CVODE on the free DOFs (docs/model.md,
+// "CVODE's reduced solve"): with y = [x; v] and J = [[0, I], [M⁻¹K, M⁻¹D]]
+// (K = ∂f/∂x, D = ∂f/∂v), (I − γJ) [δx; δv] = [r_x; r_v] is
+// δx = r_x + γ δv and (M − γD − γ²K) δv = M r_v + γ K r_x, the tangent
+// system J_α of solver/tangent.h at αh = γ.
+class ReducedNewtonSolve {
+ public:
+  ReducedNewtonSolve(const ParticleSystem& sys, const SolverSpec& spec)
+      : sys_(sys),
+        spec_(spec),
+        map_(sys),
+        n_(sys.num_particles()),
+        nf_(map_.num_free()),
+        tangent_(sys, TangentOptions{spec.tangent_projection, spec.tangent_explicit_terms, true}),
+        pre_(spec.preconditioner) {
+    const auto start = std::chrono::steady_clock::now();
+    if (spec.preconditioner == PreconditionerType::kCholesky || spec.preconditioner == PreconditionerType::kAmg)
+      laplacian_ = std::make_unique<SystemMatrix>(sys, spec.preconditioner, spec.cholesky_ordering);
+    pre_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
+    filter_.Reserve(n_);
+    for (int p : sys.fixed()) filter_.Fix(p);
+    work_.Resize(n_);
+    for (MatrixN3* m : {&x_, &v_, &rx_, &rv_, &rhs_}) m->setZero(n_, 3);
+    dv_.setZero(n_, 3);
+    br_.setZero(n_, 3);
+    setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+
+  // CVODE's setup (psetup): the Jacobian at (t, y) unless jok, J_γ, and the
+  // preconditioner of J_γ. Returns 0, or 1 (recoverable) if the
+  // preconditioner could not be built.
+  int Setup(double t, const double* y, bool jok, int* jcur, double gamma) {
+    const auto start = std::chrono::steady_clock::now();
+    if (!jok || jacobian_evaluations_ == 0) {
+      map_.PositionsFromY(y, &x_);
+      map_.VelocitiesFromY(y, &v_);
+      tangent_.Update(t, x_, v_, gamma);
+      ++jacobian_evaluations_;
+      *jcur = 1;
+    } else {
+      tangent_.SetAlphaH(gamma);
+      *jcur = 0;
+    }
+    bool ok = !laplacian_ || laplacian_->Update(gamma);
+    ok = ok && pre_.Factorize(tangent_.matrix());
+    ++setups_;
+    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return ok ? 0 : 1;
+  }
+
+  // δ = (I − γJ)⁻¹ r through the reduced system; the matrix follows γ, the
+  // preconditioner is the last setup's. CVLS's stop for iterative solvers
+  // is ‖w ∘ ((I − γJ) δ − r)‖₂ < tol with CVODE's error weights w; the x
+  // rows are solved exactly and the v rows' residual is M⁻¹ times the
+  // PCG's, so ‖res‖₂ ≤ tol / max_v(w/m) is sufficient. Without weights
+  // (w == nullptr) the PCG stops at the scene's η.
+  PcgStatus Solve(double gamma, const double* r, double* delta, const double* w, double tol) {
+    if (gamma != tangent_.alpha_h()) tangent_.SetAlphaH(gamma);
+    rx_.setZero();
+    rv_.setZero();
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) {
+        rx_(map_.particle(k), c) = r[3 * k + c];
+        rv_(map_.particle(k), c) = r[3 * nf_ + 3 * k + c];
+      }
+    rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
+    tangent_.AddJacobianProducts(gamma, rx_, 0.0, rx_, &rhs_);
+    br_ = rhs_;
+    dv_.setZero();
+    PcgOptions opts{spec_.cg_tolerance, spec_.cg_max_iterations};
+    if (w && tol > 0.0) {
+      double wmax = 0.0;
+      for (int k = 0; k < nf_; ++k)
+        for (int c = 0; c < 3; ++c)
+          wmax = std::max(wmax, w[3 * nf_ + 3 * k + c] / sys_.masses()(map_.particle(k)));
+      if (wmax > 0.0) {
+        opts.tolerance = 1.0;
+        opts.rhs_norm = tol / wmax;
+      }
+    }
+    const PcgSummary s = FilteredPcg(tangent_.matrix(), br_, filter_, pre_, opts, &dv_, &work_);
+    last_iterations_ = s.iterations;
+    total_iterations_ += s.iterations;
+    last_residual_ = s.residual_norm;
+    for (int k = 0; k < nf_; ++k)
+      for (int c = 0; c < 3; ++c) {
+        const double d = dv_(map_.particle(k), c);
+        delta[3 * nf_ + 3 * k + c] = d;
+        delta[3 * k + c] = r[3 * k + c] + gamma * d;
+      }
+    return s.status;
+  }
+  int last_iterations() const { return last_iterations_; }
+  long total_iterations() const { return total_iterations_; }
+  double last_residual() const { return last_residual_; }
+  long jacobian_evaluations() const { return jacobian_evaluations_; }
+  long setups() const { return setups_; }
+  double setup_seconds() const {
+    return setup_seconds_ + (laplacian_ ? laplacian_->setup_seconds() : 0.0);
+  }
+
+ private:
+  const ParticleSystem& sys_;
+  const SolverSpec& spec_;
+  internal::FreeDofMap map_;
+  int n_, nf_;
+  TangentSystem tangent_;
+  std::unique_ptr<SystemMatrix> laplacian_;  // "cholesky", "amg": A_γ's preconditioner
+  TangentPreconditioner pre_;
+  VelocityFilter filter_;
+  TangentPcgWorkspace work_;
+  MatrixN3 x_, v_, rx_, rv_, rhs_;
+  MatrixN3R dv_, br_;
+  int last_iterations_ = 0;
+  long total_iterations_ = 0, jacobian_evaluations_ = 0, setups_ = 0;
+  double last_residual_ = 0.0, setup_seconds_ = 0.0;
+};
+
+// The custom SUNLinearSolver: SUNLINEARSOLVER_ITERATIVE without a matrix.
+// CVLS hands it its preconditioner-setup wrapper (setpreconditioner), and
+// its setup calls that wrapper, which calls PrecSetup below with CVODE's
+// jok and γ: the Jacobian is re-evaluated exactly when CVODE's heuristics
+// (msbj, dgmax, convergence failures) ask. The PCG stops at CVLS's own
+// tolerance for iterative solvers (eplifac = 0.05 of the Newton test, in
+// CVODE's weighted norm), as with CVODE's Krylov solvers.
+struct ReducedContent {
+  ReducedNewtonSolve* solve = nullptr;
+  void* cvode_mem = nullptr;
+  void* p_data = nullptr;
+  SUNPSetupFn p_setup = nullptr;
+  N_Vector weights = nullptr;  // CVODE's error weights (not owned)
+  int last_flag = 0;
+};
+ReducedContent* Content(SUNLinearSolver s) { return static_cast<ReducedContent*>(s->content); }
+
+SUNLinearSolver_Type ReducedType(SUNLinearSolver) { return SUNLINEARSOLVER_ITERATIVE; }
+SUNLinearSolver_ID ReducedId(SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; }
+int ReducedSetATimes(SUNLinearSolver, void*, SUNATimesFn) { return SUNLS_SUCCESS; }
+int ReducedSetPreconditioner(SUNLinearSolver s, void* p_data, SUNPSetupFn p_setup, SUNPSolveFn) {
+  Content(s)->p_data = p_data;
+  Content(s)->p_setup = p_setup;
+  return SUNLS_SUCCESS;
+}
+int ReducedSetScalingVectors(SUNLinearSolver s, N_Vector s1, N_Vector) {
+  Content(s)->weights = s1;
+  return SUNLS_SUCCESS;
+}
+int ReducedInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
+int ReducedSetup(SUNLinearSolver s, SUNMatrix) {
+  ReducedContent* c = Content(s);
+  const int flag = c->p_setup ? c->p_setup(c->p_data) : 0;
+  return c->last_flag = flag == 0 ? SUNLS_SUCCESS : SUNLS_PSET_FAIL_REC;
+}
+int ReducedSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype tol) {
+  ReducedContent* c = Content(s);
+  double gamma = 0.0;
+  if (CVodeGetCurrentGamma(c->cvode_mem, &gamma) != CV_SUCCESS) return c->last_flag = SUNLS_PACKAGE_FAIL_UNREC;
+  const PcgStatus st = c->solve->Solve(gamma, N_VGetArrayPointer(b), N_VGetArrayPointer(x),
+                                       c->weights ? N_VGetArrayPointer(c->weights) : nullptr, tol);
+  // A CG failure is recoverable: CVODE retries with a new setup or a smaller h.
+  return c->last_flag = st == PcgStatus::kConverged ? SUNLS_SUCCESS : SUNLS_CONV_FAIL;
+}
+int ReducedNumIters(SUNLinearSolver s) { return Content(s)->solve->last_iterations(); }
+realtype ReducedResNorm(SUNLinearSolver s) { return Content(s)->solve->last_residual(); }
+sunindextype ReducedLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
+int ReducedFree(SUNLinearSolver s) {
+  if (!s) return SUNLS_SUCCESS;
+  delete Content(s);
+  s->content = nullptr;
+  SUNLinSolFreeEmpty(s);
+  return SUNLS_SUCCESS;
+}
+
+SUNLinearSolver NewReducedSolver(SUNContext ctx, ReducedNewtonSolve* solve) {
+  SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
+  if (!s) return nullptr;
+  s->ops->gettype = ReducedType;
+  s->ops->getid = ReducedId;
+  s->ops->setatimes = ReducedSetATimes;
+  s->ops->setpreconditioner = ReducedSetPreconditioner;
+  s->ops->setscalingvectors = ReducedSetScalingVectors;
+  s->ops->initialize = ReducedInitialize;
+  s->ops->setup = ReducedSetup;
+  s->ops->solve = ReducedSolve;
+  s->ops->numiters = ReducedNumIters;
+  s->ops->resnorm = ReducedResNorm;
+  s->ops->lastflag = ReducedLastFlag;
+  s->ops->free = ReducedFree;
+  s->content = new ReducedContent{solve};
+  return s;
+}
+
+// CVLS's preconditioner setup: CVODE's jok and γ reach the reduced solve.
+int PrecSetup(realtype t, N_Vector y, N_Vector, booleantype jok, booleantype* jcur, realtype gamma, void* user) {
+  int cur = 0;
+  const int flag =
+      static_cast<CvodeUser*>(user)->reduced->Setup(t, N_VGetArrayPointer(y), jok != SUNFALSE, &cur, gamma);
+  *jcur = cur ? SUNTRUE : SUNFALSE;
+  return flag;
+}
+// Never called: the solve above does not apply CVLS's preconditioner.
+int PrecSolve(realtype, N_Vector, N_Vector, N_Vector r, N_Vector z, realtype, realtype, int, void*) {
+  N_VScale(1.0, r, z);
+  return 0;
 }
 
 // RAII owner of the SUNDIALS objects.
@@ -110,12 +328,19 @@ struct CvodeHandles {
 
 }  // namespace
 
-RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
+namespace {
+
+// CVODE with KLU (reduced == nullptr) or the reduced solve with `reduced`'s
+// settings.
+RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec* reduced) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   RunSummary res;
   res.integrator = "cvode";
   FreeDofOde ode(system);
+  std::unique_ptr<ReducedNewtonSolve> solve;
+  if (reduced) solve = std::make_unique<ReducedNewtonSolve>(system, *reduced);
+  CvodeUser user{&ode, solve.get()};
   CvodeHandles h;
   std::string err;
 
@@ -129,20 +354,28 @@ RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& option
   h.dky = N_VNew_Serial(n, h.ctx);
   MatrixN3 v0 = MatrixN3::Zero(system.num_particles(), 3);
   ode.map().ToY(system.rest_positions(), v0, N_VGetArrayPointer(h.y));
-  const SparseMatrix& j0 = ode.Jacobian(0.0, N_VGetArrayPointer(h.y));
-  h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);
-  h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
-  SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD: the Jacobian pattern is structurally symmetric
   h.mem = CVodeCreate(CV_BDF, h.ctx);
-  const bool ok = check(CVodeSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "CVodeSetErrHandlerFn") &&
-                  check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
-                  check(CVodeSetUserData(h.mem, &ode), "CVodeSetUserData") &&
-                  check(CVodeSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "CVodeSStolerances") &&
-                  check(CVodeSetLinearSolver(h.mem, h.ls, h.a), "CVodeSetLinearSolver") &&
-                  check(CVodeSetJacFn(h.mem, JacFn), "CVodeSetJacFn") &&
-                  check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
-                  check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&
-                  check(CVodeSetMaxNumSteps(h.mem, 100000000L), "CVodeSetMaxNumSteps");
+  if (solve) {
+    h.ls = NewReducedSolver(h.ctx, solve.get());
+    Content(h.ls)->cvode_mem = h.mem;
+  } else {
+    const SparseMatrix& j0 = ode.Jacobian(0.0, N_VGetArrayPointer(h.y));
+    h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);
+    h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
+    SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD: the Jacobian pattern is structurally symmetric
+  }
+  bool ok = check(CVodeSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "CVodeSetErrHandlerFn") &&
+            check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
+            check(CVodeSetUserData(h.mem, &user), "CVodeSetUserData") &&
+            check(CVodeSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "CVodeSStolerances") &&
+            check(CVodeSetLinearSolver(h.mem, h.ls, h.a), "CVodeSetLinearSolver") &&
+            check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
+            check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&
+            check(CVodeSetMaxNumSteps(h.mem, 100000000L), "CVodeSetMaxNumSteps");
+  if (ok && solve)
+    ok = check(CVodeSetPreconditioner(h.mem, PrecSetup, PrecSolve), "CVodeSetPreconditioner");
+  else if (ok)
+    ok = check(CVodeSetJacFn(h.mem, JacFn), "CVodeSetJacFn");
   if (ok) {
     internal::OneStepDriver d;
     d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };
@@ -174,9 +407,24 @@ RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& option
   CVodeGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
   CVodeGetNumJacEvals(h.mem, &st.nje);
   CVodeGetNumLinSolvSetups(h.mem, &st.nsetups);
+  if (solve) {
+    st.nli = solve->total_iterations();
+    st.nje = solve->jacobian_evaluations();
+    res.setup_time_in_seconds = solve->setup_seconds();
+  }
   internal::SummariseCounters(&res);
   res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
+}
+
+}  // namespace
+
+RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
+  return RunCvodeWith(system, options, nullptr);
+}
+
+RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec) {
+  return RunCvodeWith(system, options, &spec);
 }
 
 }  // namespace clothbench

@@ -13,7 +13,21 @@ namespace clothbench {
 
 /// Integrates `system` from rest to options.t_end; frames by CVODE's dense
 /// output (CVodeGetDky). Never throws for solver failure: see status.
+/// The Newton systems (I − γJ) δ = r are solved by KLU on the 6N×6N
+/// first-order Jacobian (row `cvode/klu`, and the reference).
 RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options);
+
+/// The same CVODE integration with the reduced velocity solve (row `cvode`,
+/// docs/model.md "CVODE's reduced solve"): a custom SUNLinearSolver
+/// eliminates δx = r_x + γ δv from (I − γJ) δ = r and solves
+///   (M − γ ∂f/∂v − γ² ∂f/∂x) δv = M r_v + γ ∂f/∂x r_x
+/// with the filtered PCG on the closed-form tangent system (clamped and
+/// symmetrised as `spec.tangent_projection` says) and `spec.preconditioner`,
+/// to CVODE's own linear tolerance for iterative solvers. The Jacobian is evaluated when CVODE's setup
+/// asks for it (jok false), the matrix follows γ, and the preconditioner is
+/// refactorised at CVODE's setups only. Counters: nje = Jacobian
+/// evaluations, nsetups = preconditioner setups, nli = PCG iterations.
+RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec);
 
 }  // namespace clothbench
 

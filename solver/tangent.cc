@@ -148,14 +148,19 @@ void TangentSystem::AddSprings(const MatrixN3& x, double* kx, double* kv) const 
 }
 
 void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h) {
-  const Eigen::Index nnz = j_.nonZeros();
   kx_.setZero();
   double* kx = kx_.data();
   double* kv = kv_.size() ? kv_.data() : nullptr;
   if (kv && !kv_constant_) kv_.setZero();
   AddSprings(x, kx, kv_constant_ ? nullptr : kv);
   for (std::size_t k = 0; k < terms_.size(); ++k) terms_[k]->AccumulateJacobian(t, x, v, term_pos_[k].data(), kx, kv);
+  SetAlphaH(alpha_h);
+}
 
+void TangentSystem::SetAlphaH(double alpha_h) {
+  const Eigen::Index nnz = j_.nonZeros();
+  const double* kx = kx_.data();
+  const double* kv = kv_.size() ? kv_.data() : nullptr;
   // J_α = M − αh ∂f/∂v − α²h² ∂f/∂x, or its symmetric part (J + Jᵀ)/2 if
   // options_.symmetrize (M is diagonal: its own symmetric part), in one pass
   // over the entries; the constant part comes from base_.
@@ -184,6 +189,7 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
 #pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
     for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = base[e] + cx * kx[e] + (kvar ? cv * kvar[e] : 0.0);
   }
+  alpha_h_ = alpha_h;
 }
 
 void TangentSystem::AddJacobianProducts(double cx, const MatrixN3& u, double cv, const MatrixN3& w,

@@ -51,6 +51,13 @@ class TangentSystem {
   /// @param x, v N×3 positions [m] and velocities [m/s].
   void Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h);
 
+  /// J_α for another αh [s] with the force Jacobians of the last Update
+  /// (one pass over the entries; CVODE's γ changes without a Jacobian
+  /// evaluation). No allocation.
+  void SetAlphaH(double alpha_h);
+  /// The αh of the current matrix [s].
+  double alpha_h() const { return alpha_h_; }
+
   /// out += cx (∂f/∂x) u + cv (∂f/∂v) w with the force Jacobians of the last
   /// Update (as assembled: clamped if so, not symmetrised).
   /// @param u, w, out N×3 (row p, column c is entry 3p + c). No allocation.
@@ -73,6 +80,7 @@ class TangentSystem {
   // what J_α adds to −α²h² ∂f/∂x, kept while αh does not change.
   Eigen::VectorXd base_;
   double base_alpha_h_ = -1.0;
+  double alpha_h_ = -1.0;
   // Adds the springs' stiffness blocks at x to kx (and their damping blocks
   // to kv if not null).
   void AddSprings(const MatrixN3& x, double* kx, double* kv) const;
