@@ -71,7 +71,7 @@ class ImexOde {
   }
   // (I − γ J_I) δ = r by δv from (M + γ L_D + γ² L_K) δv = M r_v − γ L_K r_x
   // and δx = r_x + γ δv. Returns the PCG status.
-  PcgStatus Solve(double gamma, const double* r, double* delta) {
+  PcgStatus Solve(double gamma, const double* r, double* delta, const double* w, double tol) {
     if (!sysmat_.Update(gamma)) return PcgStatus::kBreakdown;
     rx_.setZero();
     rv_.setZero();
@@ -84,8 +84,10 @@ class ImexOde {
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
     rhs_ -= gamma * tmp_;
     dv_.setZero();
-    const PcgSummary s = FilteredPcg(sysmat_.matrix(), rhs_, filter_, sysmat_.preconditioner(),
-                                     {spec_.cg_tolerance, spec_.cg_max_iterations}, &dv_, &work_);
+    const PcgSummary s =
+        FilteredPcg(sysmat_.matrix(), rhs_, filter_, sysmat_.preconditioner(),
+                    internal::PcgStopForTolerance(map_, sys_.masses(), w, tol, {spec_.cg_tolerance, spec_.cg_max_iterations}),
+                    &dv_, &work_);
     last_iterations_ = s.iterations;
     total_iterations_ += s.iterations;
     last_residual_ = s.residual_norm;
@@ -133,59 +135,6 @@ int ExplicitRhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
 int ImplicitRhs(realtype, N_Vector y, N_Vector ydot, void* user) {
   static_cast<ImexOde*>(user)->Implicit(N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
   return 0;
-}
-
-// The custom SUNLinearSolver: SUNLINEARSOLVER_ITERATIVE (no SUNMatrix; ARKLS
-// then hands the right-hand side and takes the solution), solved through
-// ImexOde::Solve with γ from ARKStepGetCurrentGamma. ARKLS's tolerance is
-// not used: the PCG stops at the scene's η, the same for every method.
-struct ReducedSolverContent {
-  ImexOde* ode = nullptr;
-  void* arkode_mem = nullptr;
-  int last_flag = 0;
-};
-ReducedSolverContent* Content(SUNLinearSolver s) { return static_cast<ReducedSolverContent*>(s->content); }
-
-SUNLinearSolver_Type ReducedGetType(SUNLinearSolver) { return SUNLINEARSOLVER_ITERATIVE; }
-SUNLinearSolver_ID ReducedGetId(SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; }
-int ReducedSetATimes(SUNLinearSolver, void*, SUNATimesFn) { return SUNLS_SUCCESS; }
-int ReducedInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
-int ReducedSetup(SUNLinearSolver, SUNMatrix) { return SUNLS_SUCCESS; }
-int ReducedSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype) {
-  ReducedSolverContent* c = Content(s);
-  double gamma = 0.0;
-  if (ARKStepGetCurrentGamma(c->arkode_mem, &gamma) != ARK_SUCCESS) return c->last_flag = SUNLS_PACKAGE_FAIL_UNREC;
-  const PcgStatus st = c->ode->Solve(gamma, N_VGetArrayPointer(b), N_VGetArrayPointer(x));
-  // A CG failure is recoverable: ARKODE retries the step with a smaller h.
-  c->last_flag = st == PcgStatus::kConverged ? SUNLS_SUCCESS : SUNLS_CONV_FAIL;
-  return c->last_flag;
-}
-int ReducedNumIters(SUNLinearSolver s) { return Content(s)->ode->last_iterations(); }
-realtype ReducedResNorm(SUNLinearSolver s) { return Content(s)->ode->last_residual(); }
-sunindextype ReducedLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
-int ReducedFree(SUNLinearSolver s) {
-  if (!s) return SUNLS_SUCCESS;
-  delete Content(s);
-  s->content = nullptr;
-  SUNLinSolFreeEmpty(s);
-  return SUNLS_SUCCESS;
-}
-
-SUNLinearSolver NewReducedSolver(SUNContext ctx, ImexOde* ode) {
-  SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
-  if (!s) return nullptr;
-  s->ops->gettype = ReducedGetType;
-  s->ops->getid = ReducedGetId;
-  s->ops->setatimes = ReducedSetATimes;
-  s->ops->initialize = ReducedInitialize;
-  s->ops->setup = ReducedSetup;
-  s->ops->solve = ReducedSolve;
-  s->ops->numiters = ReducedNumIters;
-  s->ops->resnorm = ReducedResNorm;
-  s->ops->lastflag = ReducedLastFlag;
-  s->ops->free = ReducedFree;
-  s->content = new ReducedSolverContent{ode, nullptr, 0};
-  return s;
 }
 
 struct ArkodeHandles {
@@ -251,8 +200,25 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   h.dky = N_VNew_Serial(n, h.ctx);
   ode.map().ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), N_VGetArrayPointer(h.y));
   h.mem = ARKStepCreate(ExplicitRhs, ImplicitRhs, 0.0, h.y, h.ctx);
-  h.ls = NewReducedSolver(h.ctx, &ode);
-  Content(h.ls)->arkode_mem = h.mem;
+  // The custom SUNLinearSolver (reference/sundials_common.h) solves ARKLS's
+  // systems through ImexOde::Solve with γ from ARKStepGetCurrentGamma, the
+  // PCG stopping at ARKLS's own tolerance for iterative solvers in its
+  // weighted norm (internal::PcgStopForTolerance).
+  {
+    ImexOde* ip = &ode;
+    void* mem = h.mem;
+    internal::CustomSolverHooks hooks;
+    hooks.solve = [ip, mem](const double* b, double* x, const double* w, double tol) {
+      double gamma = 0.0;
+      if (ARKStepGetCurrentGamma(mem, &gamma) != ARK_SUCCESS) return static_cast<int>(SUNLS_PACKAGE_FAIL_UNREC);
+      // A CG failure is recoverable: ARKODE retries the step with a smaller h.
+      return ip->Solve(gamma, b, x, w, tol) == PcgStatus::kConverged ? static_cast<int>(SUNLS_SUCCESS)
+                                                                      : static_cast<int>(SUNLS_CONV_FAIL);
+    };
+    hooks.iterations = [ip] { return ip->last_iterations(); };
+    hooks.residual = [ip] { return ip->last_residual(); };
+    h.ls = internal::NewCustomLinearSolver(h.ctx, std::move(hooks));
+  }
   const bool ok = check(ARKStepSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "ARKStepSetErrHandlerFn") &&
                   check(ARKStepSetUserData(h.mem, &ode), "ARKStepSetUserData") &&
                   check(ARKStepSetTableNum(h.mem, pair->implicit_table, pair->explicit_table), "ARKStepSetTableNum") &&

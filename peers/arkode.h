@@ -7,7 +7,9 @@
 // SUNLinearSolver that eliminates δx = r_x + γ δv:
 //   (M + γ L_D + γ² L_K) δv = M r_v − γ L_K r_x,
 // the step engine's A_α with αh = γ, solved by the filtered PCG with the
-// scene's preconditioner and CG tolerance η (SPEC §5).
+// scene's preconditioner, stopping at ARKLS's own tolerance for iterative
+// solvers in ARKODE's weighted norm (reference/sundials_common.h,
+// PcgStopForTolerance).
 #ifndef CLOTHBENCH_PEERS_ARKODE_H_
 #define CLOTHBENCH_PEERS_ARKODE_H_
 

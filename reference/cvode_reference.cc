@@ -154,11 +154,8 @@ class ReducedNewtonSolve {
   }
 
   // δ = (I − γJ)⁻¹ r through the reduced system; the matrix follows γ, the
-  // preconditioner is the last setup's. CVLS's stop for iterative solvers
-  // is ‖w ∘ ((I − γJ) δ − r)‖₂ < tol with CVODE's error weights w; the x
-  // rows are solved exactly and the v rows' residual is M⁻¹ times the
-  // PCG's, so ‖res‖₂ ≤ tol / max_v(w/m) is sufficient. Without weights
-  // (w == nullptr) the PCG stops at the scene's η.
+  // preconditioner is the last setup's. The PCG stops at CVLS's tolerance
+  // tol on ‖w ∘ residual‖₂ (internal::PcgStopForTolerance).
   PcgStatus Solve(double gamma, const double* r, double* delta, const double* w, double tol) {
     if (gamma != tangent_.alpha_h()) tangent_.SetAlphaH(gamma);
     rx_.setZero();
@@ -172,17 +169,8 @@ class ReducedNewtonSolve {
     tangent_.AddJacobianProducts(gamma, rx_, 0.0, rx_, &rhs_);
     br_ = rhs_;
     dv_.setZero();
-    PcgOptions opts{spec_.cg_tolerance, spec_.cg_max_iterations};
-    if (w && tol > 0.0) {
-      double wmax = 0.0;
-      for (int k = 0; k < nf_; ++k)
-        for (int c = 0; c < 3; ++c)
-          wmax = std::max(wmax, w[3 * nf_ + 3 * k + c] / sys_.masses()(map_.particle(k)));
-      if (wmax > 0.0) {
-        opts.tolerance = 1.0;
-        opts.rhs_norm = tol / wmax;
-      }
-    }
+    const PcgOptions opts = internal::PcgStopForTolerance(map_, sys_.masses(), w, tol,
+                                                          {spec_.cg_tolerance, spec_.cg_max_iterations});
     const PcgSummary s = FilteredPcg(tangent_.matrix(), br_, filter_, pre_, opts, &dv_, &work_);
     last_iterations_ = s.iterations;
     total_iterations_ += s.iterations;
@@ -220,80 +208,6 @@ class ReducedNewtonSolve {
   long total_iterations_ = 0, jacobian_evaluations_ = 0, setups_ = 0;
   double last_residual_ = 0.0, setup_seconds_ = 0.0;
 };
-
-// The custom SUNLinearSolver: SUNLINEARSOLVER_ITERATIVE without a matrix.
-// CVLS hands it its preconditioner-setup wrapper (setpreconditioner), and
-// its setup calls that wrapper, which calls PrecSetup below with CVODE's
-// jok and γ: the Jacobian is re-evaluated exactly when CVODE's heuristics
-// (msbj, dgmax, convergence failures) ask. The PCG stops at CVLS's own
-// tolerance for iterative solvers (eplifac = 0.05 of the Newton test, in
-// CVODE's weighted norm), as with CVODE's Krylov solvers.
-struct ReducedContent {
-  ReducedNewtonSolve* solve = nullptr;
-  void* cvode_mem = nullptr;
-  void* p_data = nullptr;
-  SUNPSetupFn p_setup = nullptr;
-  N_Vector weights = nullptr;  // CVODE's error weights (not owned)
-  int last_flag = 0;
-};
-ReducedContent* Content(SUNLinearSolver s) { return static_cast<ReducedContent*>(s->content); }
-
-SUNLinearSolver_Type ReducedType(SUNLinearSolver) { return SUNLINEARSOLVER_ITERATIVE; }
-SUNLinearSolver_ID ReducedId(SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; }
-int ReducedSetATimes(SUNLinearSolver, void*, SUNATimesFn) { return SUNLS_SUCCESS; }
-int ReducedSetPreconditioner(SUNLinearSolver s, void* p_data, SUNPSetupFn p_setup, SUNPSolveFn) {
-  Content(s)->p_data = p_data;
-  Content(s)->p_setup = p_setup;
-  return SUNLS_SUCCESS;
-}
-int ReducedSetScalingVectors(SUNLinearSolver s, N_Vector s1, N_Vector) {
-  Content(s)->weights = s1;
-  return SUNLS_SUCCESS;
-}
-int ReducedInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
-int ReducedSetup(SUNLinearSolver s, SUNMatrix) {
-  ReducedContent* c = Content(s);
-  const int flag = c->p_setup ? c->p_setup(c->p_data) : 0;
-  return c->last_flag = flag == 0 ? SUNLS_SUCCESS : SUNLS_PSET_FAIL_REC;
-}
-int ReducedSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype tol) {
-  ReducedContent* c = Content(s);
-  double gamma = 0.0;
-  if (CVodeGetCurrentGamma(c->cvode_mem, &gamma) != CV_SUCCESS) return c->last_flag = SUNLS_PACKAGE_FAIL_UNREC;
-  const PcgStatus st = c->solve->Solve(gamma, N_VGetArrayPointer(b), N_VGetArrayPointer(x),
-                                       c->weights ? N_VGetArrayPointer(c->weights) : nullptr, tol);
-  // A CG failure is recoverable: CVODE retries with a new setup or a smaller h.
-  return c->last_flag = st == PcgStatus::kConverged ? SUNLS_SUCCESS : SUNLS_CONV_FAIL;
-}
-int ReducedNumIters(SUNLinearSolver s) { return Content(s)->solve->last_iterations(); }
-realtype ReducedResNorm(SUNLinearSolver s) { return Content(s)->solve->last_residual(); }
-sunindextype ReducedLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
-int ReducedFree(SUNLinearSolver s) {
-  if (!s) return SUNLS_SUCCESS;
-  delete Content(s);
-  s->content = nullptr;
-  SUNLinSolFreeEmpty(s);
-  return SUNLS_SUCCESS;
-}
-
-SUNLinearSolver NewReducedSolver(SUNContext ctx, ReducedNewtonSolve* solve) {
-  SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
-  if (!s) return nullptr;
-  s->ops->gettype = ReducedType;
-  s->ops->getid = ReducedId;
-  s->ops->setatimes = ReducedSetATimes;
-  s->ops->setpreconditioner = ReducedSetPreconditioner;
-  s->ops->setscalingvectors = ReducedSetScalingVectors;
-  s->ops->initialize = ReducedInitialize;
-  s->ops->setup = ReducedSetup;
-  s->ops->solve = ReducedSolve;
-  s->ops->numiters = ReducedNumIters;
-  s->ops->resnorm = ReducedResNorm;
-  s->ops->lastflag = ReducedLastFlag;
-  s->ops->free = ReducedFree;
-  s->content = new ReducedContent{solve};
-  return s;
-}
 
 // CVLS's preconditioner setup: CVODE's jok and γ reach the reduced solve.
 int PrecSetup(realtype t, N_Vector y, N_Vector, booleantype jok, booleantype* jcur, realtype gamma, void* user) {
@@ -356,8 +270,25 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   ode.map().ToY(system.rest_positions(), v0, N_VGetArrayPointer(h.y));
   h.mem = CVodeCreate(CV_BDF, h.ctx);
   if (solve) {
-    h.ls = NewReducedSolver(h.ctx, solve.get());
-    Content(h.ls)->cvode_mem = h.mem;
+    // CVLS hands the custom solver its preconditioner-setup wrapper, which
+    // calls PrecSetup with CVODE's jok and γ: the Jacobian is re-evaluated
+    // exactly when CVODE's heuristics (msbj, dgmax, convergence failures)
+    // ask. The PCG stops at CVLS's own tolerance for iterative solvers
+    // (eplifac = 0.05 of the Newton test, in CVODE's weighted norm), as
+    // with CVODE's Krylov solvers.
+    ReducedNewtonSolve* rs = solve.get();
+    void* mem = h.mem;
+    internal::CustomSolverHooks hooks;
+    hooks.solve = [rs, mem](const double* b, double* x, const double* w, double tol) {
+      double gamma = 0.0;
+      if (CVodeGetCurrentGamma(mem, &gamma) != CV_SUCCESS) return static_cast<int>(SUNLS_PACKAGE_FAIL_UNREC);
+      // A CG failure is recoverable: CVODE retries with a new setup or a smaller h.
+      return rs->Solve(gamma, b, x, w, tol) == PcgStatus::kConverged ? static_cast<int>(SUNLS_SUCCESS)
+                                                                      : static_cast<int>(SUNLS_CONV_FAIL);
+    };
+    hooks.iterations = [rs] { return rs->last_iterations(); };
+    hooks.residual = [rs] { return rs->last_residual(); };
+    h.ls = internal::NewCustomLinearSolver(h.ctx, std::move(hooks));
   } else {
     const SparseMatrix& j0 = ode.Jacobian(0.0, N_VGetArrayPointer(h.y));
     h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);

@@ -1,5 +1,6 @@
 #include "reference/sundials_common.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include <fmt/format.h>
@@ -139,6 +140,86 @@ bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const s
     res->message = error.empty() ? fmt::format("{} failed with {}", call, res->status) : error;
   }
   return flag >= 0;
+}
+
+namespace {
+
+struct CustomContent {
+  CustomSolverHooks hooks;
+  void* p_data = nullptr;
+  SUNPSetupFn p_setup = nullptr;
+  N_Vector weights = nullptr;  // the package's (not owned)
+  int last_flag = 0;
+};
+CustomContent* Content(SUNLinearSolver s) { return static_cast<CustomContent*>(s->content); }
+
+SUNLinearSolver_Type CustomType(SUNLinearSolver) { return SUNLINEARSOLVER_ITERATIVE; }
+SUNLinearSolver_ID CustomId(SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; }
+int CustomSetATimes(SUNLinearSolver, void*, SUNATimesFn) { return SUNLS_SUCCESS; }
+int CustomSetPreconditioner(SUNLinearSolver s, void* p_data, SUNPSetupFn p_setup, SUNPSolveFn) {
+  Content(s)->p_data = p_data;
+  Content(s)->p_setup = p_setup;
+  return SUNLS_SUCCESS;
+}
+int CustomSetScalingVectors(SUNLinearSolver s, N_Vector s1, N_Vector) {
+  Content(s)->weights = s1;
+  return SUNLS_SUCCESS;
+}
+int CustomInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
+int CustomSetup(SUNLinearSolver s, SUNMatrix) {
+  CustomContent* c = Content(s);
+  const int flag = c->p_setup ? c->p_setup(c->p_data) : 0;
+  return c->last_flag = flag == 0 ? SUNLS_SUCCESS : SUNLS_PSET_FAIL_REC;
+}
+int CustomSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype tol) {
+  CustomContent* c = Content(s);
+  return c->last_flag = c->hooks.solve(N_VGetArrayPointer(b), N_VGetArrayPointer(x),
+                                       c->weights ? N_VGetArrayPointer(c->weights) : nullptr, tol);
+}
+int CustomNumIters(SUNLinearSolver s) { return Content(s)->hooks.iterations(); }
+realtype CustomResNorm(SUNLinearSolver s) { return Content(s)->hooks.residual(); }
+sunindextype CustomLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
+int CustomFree(SUNLinearSolver s) {
+  if (!s) return SUNLS_SUCCESS;
+  delete Content(s);
+  s->content = nullptr;
+  SUNLinSolFreeEmpty(s);
+  return SUNLS_SUCCESS;
+}
+
+}  // namespace
+
+SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks) {
+  SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
+  if (!s) return nullptr;
+  s->ops->gettype = CustomType;
+  s->ops->getid = CustomId;
+  s->ops->setatimes = CustomSetATimes;
+  s->ops->setpreconditioner = CustomSetPreconditioner;
+  s->ops->setscalingvectors = CustomSetScalingVectors;
+  s->ops->initialize = CustomInitialize;
+  s->ops->setup = CustomSetup;
+  s->ops->solve = CustomSolve;
+  s->ops->numiters = CustomNumIters;
+  s->ops->resnorm = CustomResNorm;
+  s->ops->lastflag = CustomLastFlag;
+  s->ops->free = CustomFree;
+  s->content = new CustomContent{std::move(hooks)};
+  return s;
+}
+
+PcgOptions PcgStopForTolerance(const FreeDofMap& map, const Eigen::VectorXd& masses, const double* w, double tol,
+                               const PcgOptions& fallback) {
+  if (!w || !(tol > 0.0)) return fallback;
+  const int nf = map.num_free();
+  double wmax = 0.0;
+  for (int k = 0; k < nf; ++k)
+    for (int c = 0; c < 3; ++c) wmax = std::max(wmax, w[3 * nf + 3 * k + c] / masses(map.particle(k)));
+  if (!(wmax > 0.0)) return fallback;
+  PcgOptions o = fallback;
+  o.tolerance = 1.0;
+  o.rhs_norm = tol / wmax;
+  return o;
 }
 
 int CopyToSunSparse(const SparseMatrix& j, void* sun_matrix) {

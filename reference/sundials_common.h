@@ -7,7 +7,10 @@
 #include <string>
 #include <vector>
 
+#include <sundials/sundials_linearsolver.h>
+
 #include "model/particle_system.h"
+#include "solver/pcg.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -86,6 +89,34 @@ void StoreErrorMessage(int code, const char* module, const char* function, char*
 /// text `error` or "<call> failed with <flag>". Returns flag >= 0.
 bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
                RunSummary* res);
+
+/// What a matrix-free custom linear solver does (NewCustomLinearSolver).
+struct CustomSolverHooks {
+  /// x = (I − γJ)⁻¹ b approximately: b, x the package's vectors; w its
+  /// error weights (nullptr until it sets them) and tol its tolerance on
+  /// ‖w ∘ residual‖₂. Returns a SUNLS_* flag.
+  std::function<int(const double* b, double* x, const double* w, double tol)> solve;
+  std::function<int()> iterations;   ///< of the last solve
+  std::function<double()> residual;  ///< of the last solve
+};
+
+/// A custom SUNLinearSolver of type SUNLINEARSOLVER_ITERATIVE without a
+/// matrix, for CVODE and ARKODE: the package's linear-solver interface
+/// (CVLS, ARKLS) hands it its preconditioner-setup wrapper, which its setup
+/// calls (so a user preconditioner setup set with CVodeSetPreconditioner or
+/// ARKStepSetPreconditioner sees the package's jok and γ), and its error
+/// weights (setscalingvectors); the solve and counters are `hooks`'. The
+/// package's ATimes and preconditioner solve are not used. nullptr if
+/// SUNDIALS cannot allocate it.
+SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks);
+
+/// The PCG stop that meets a SUNDIALS iterative tolerance for a reduced
+/// velocity solve: the package asks for ‖w ∘ res‖₂ < tol over y = [x; v]
+/// (free DOFs, `map`); the x rows are solved exactly and the v rows'
+/// residual is M⁻¹ times the PCG's, so ‖res_PCG‖₂ ≤ tol / max_v(w/m)
+/// suffices. Returns `fallback` (the scene's η) when w is nullptr or tol ≤ 0.
+PcgOptions PcgStopForTolerance(const FreeDofMap& map, const Eigen::VectorXd& masses, const double* w, double tol,
+                               const PcgOptions& fallback);
 
 /// Copies a compressed-column Eigen matrix into a SUNDIALS CSC matrix
 /// (reallocating if needed). Returns 0 or −1.
