@@ -960,7 +960,7 @@ int Main(int argc, char** argv) {
         fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, r.message);
       return 1;
     };
-    const RunContext ctx{arkode_table, limits};
+    const RunContext ctx{arkode_table, limits, ""};
     std::map<long, RunSummary> own_ref;
     std::map<long, Row> own_rows;
     std::vector<std::pair<long, std::string>> outgoing;

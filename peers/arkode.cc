@@ -205,19 +205,10 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   // PCG stopping at ARKLS's own tolerance for iterative solvers in its
   // weighted norm (internal::PcgStopForTolerance).
   {
-    ImexOde* ip = &ode;
     void* mem = h.mem;
-    internal::CustomSolverHooks hooks;
-    hooks.solve = [ip, mem](const double* b, double* x, const double* w, double tol) {
-      double gamma = 0.0;
-      if (ARKStepGetCurrentGamma(mem, &gamma) != ARK_SUCCESS) return static_cast<int>(SUNLS_PACKAGE_FAIL_UNREC);
-      // A CG failure is recoverable: ARKODE retries the step with a smaller h.
-      return ip->Solve(gamma, b, x, w, tol) == PcgStatus::kConverged ? static_cast<int>(SUNLS_SUCCESS)
-                                                                      : static_cast<int>(SUNLS_CONV_FAIL);
-    };
-    hooks.iterations = [ip] { return ip->last_iterations(); };
-    hooks.residual = [ip] { return ip->last_residual(); };
-    h.ls = internal::NewCustomLinearSolver(h.ctx, std::move(hooks));
+    h.ls = internal::NewCustomLinearSolver(h.ctx, internal::ReducedSolveHooks(&ode, [mem](double* gamma) {
+                                             return ARKStepGetCurrentGamma(mem, gamma) == ARK_SUCCESS;
+                                           }));
   }
   const bool ok = check(ARKStepSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "ARKStepSetErrHandlerFn") &&
                   check(ARKStepSetUserData(h.mem, &ode), "ARKStepSetUserData") &&

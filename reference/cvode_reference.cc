@@ -276,19 +276,11 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
     // ask. The PCG stops at CVLS's own tolerance for iterative solvers
     // (eplifac = 0.05 of the Newton test, in CVODE's weighted norm), as
     // with CVODE's Krylov solvers.
-    ReducedNewtonSolve* rs = solve.get();
     void* mem = h.mem;
-    internal::CustomSolverHooks hooks;
-    hooks.solve = [rs, mem](const double* b, double* x, const double* w, double tol) {
-      double gamma = 0.0;
-      if (CVodeGetCurrentGamma(mem, &gamma) != CV_SUCCESS) return static_cast<int>(SUNLS_PACKAGE_FAIL_UNREC);
-      // A CG failure is recoverable: CVODE retries with a new setup or a smaller h.
-      return rs->Solve(gamma, b, x, w, tol) == PcgStatus::kConverged ? static_cast<int>(SUNLS_SUCCESS)
-                                                                      : static_cast<int>(SUNLS_CONV_FAIL);
-    };
-    hooks.iterations = [rs] { return rs->last_iterations(); };
-    hooks.residual = [rs] { return rs->last_residual(); };
-    h.ls = internal::NewCustomLinearSolver(h.ctx, std::move(hooks));
+    h.ls = internal::NewCustomLinearSolver(
+        h.ctx, internal::ReducedSolveHooks(solve.get(), [mem](double* gamma) {
+          return CVodeGetCurrentGamma(mem, gamma) == CV_SUCCESS;
+        }));
   } else {
     const SparseMatrix& j0 = ode.Jacobian(0.0, N_VGetArrayPointer(h.y));
     h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);

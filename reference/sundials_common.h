@@ -110,6 +110,24 @@ struct CustomSolverHooks {
 /// SUNDIALS cannot allocate it.
 SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks);
 
+/// The hooks of a reduced solve `s` (Solve(γ, b, x, w, tol) → PcgStatus,
+/// last_iterations(), last_residual()) with γ from `current_gamma(&γ)`
+/// (false: the package could not say).
+template <class ReducedSolve, class CurrentGamma>
+CustomSolverHooks ReducedSolveHooks(ReducedSolve* s, CurrentGamma current_gamma) {
+  CustomSolverHooks hooks;
+  hooks.solve = [s, current_gamma](const double* b, double* x, const double* w, double tol) {
+    double gamma = 0.0;
+    if (!current_gamma(&gamma)) return static_cast<int>(SUNLS_PACKAGE_FAIL_UNREC);
+    // A CG failure is recoverable: the package retries with a new setup or a smaller step.
+    return s->Solve(gamma, b, x, w, tol) == PcgStatus::kConverged ? static_cast<int>(SUNLS_SUCCESS)
+                                                                   : static_cast<int>(SUNLS_CONV_FAIL);
+  };
+  hooks.iterations = [s] { return s->last_iterations(); };
+  hooks.residual = [s] { return s->last_residual(); };
+  return hooks;
+}
+
 /// The PCG stop that meets a SUNDIALS iterative tolerance for a reduced
 /// velocity solve: the package asks for ‖w ∘ res‖₂ < tol over y = [x; v]
 /// (free DOFs, `map`); the x rows are solved exactly and the v rows'
