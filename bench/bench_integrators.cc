@@ -220,6 +220,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     q.updates = r.updates;
     q.cg_iterations = r.cg;
     q.rejected = r.rejected;
+    q.cg_unconverged = r.cg_unconverged;
     q.error_test_failures = r.error_test_failures;
     q.solver_time_s = r.solver_time;
     q.wall_time_s = r.wall_time;
@@ -318,7 +319,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     }
     if (r.cg_tolerance > 0.0) {
       f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
-      f.SetAttribute(g, "preconditioner", std::string(ToString(scene.solver.preconditioner)));
+      f.SetAttribute(g, "preconditioner",
+                     r.preconditioner.empty() ? std::string(ToString(scene.solver.preconditioner)) : r.preconditioner);
       f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
       f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
     }
@@ -677,12 +679,12 @@ int Main(int argc, char** argv) {
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   app.add_option("--integrators", integrators_arg,
                  "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,sbdf3,symplectic_euler,"
-                 "baraff_witkin,xpbd,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
+                 "baraff_witkin,blender,xpbd,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
                  "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error), "
                  "arkode may name a higher-order IMEX pair (arkode/ark4: ARK436L2SA, arkode/ark5: ARK548L2SA), "
                  "cvode solves its Newton systems reduced to the velocities with the PCG (cvode/klu: KLU on the "
                  "first-order system) (default: the five methods, the Newton variants of implicit_euler, bdf2 and "
-                 "implicit_midpoint, sbdf3, baraff_witkin, xpbd, sbdf2/error, bdf2/newton/error, arkode, arkode/ark4, "
+                 "implicit_midpoint, sbdf3, baraff_witkin, blender, xpbd, sbdf2/error, bdf2/newton/error, arkode, arkode/ark4, "
                  "arkode/ark5, cvode and cvode/klu)");
   app.add_option("--nonlinear-solver", nonlinear_arg,
                  "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
@@ -809,6 +811,7 @@ int Main(int argc, char** argv) {
       }
       names.emplace_back(ToString(Method::kSbdf3));
       names.emplace_back(kBaraffWitkinName);
+      names.emplace_back(kBlenderName);
       names.emplace_back(kXpbdName);
       names.emplace_back("sbdf2/error");
       names.emplace_back("bdf2/newton/error");
@@ -960,7 +963,7 @@ int Main(int argc, char** argv) {
         fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, r.message);
       return 1;
     };
-    const RunContext ctx{arkode_table, limits, ""};
+    const RunContext ctx{arkode_table, limits, "", app.count("--preconditioner") > 0};
     std::map<long, RunSummary> own_ref;
     std::map<long, Row> own_rows;
     std::vector<std::pair<long, std::string>> outgoing;

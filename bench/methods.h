@@ -46,6 +46,9 @@ struct RunContext {
   std::string arkode_table = "ARK324L2SA";
   RunLimits limits{};  ///< wall time and steps of every row (--time-limit)
   std::string variant;  ///< the row's variant (RowMethod::variant)
+  /// True if the command line named the preconditioner (--preconditioner):
+  /// it then holds for every row, MethodEntry::best_preconditioner included.
+  bool preconditioner_from_cli = false;
 };
 
 struct MethodEntry {
@@ -67,6 +70,10 @@ struct MethodEntry {
                                const RunContext& ctx);
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
+  /// The preconditioner that measures best for this method, used instead
+  /// of the scene's unless --preconditioner names one (the measurement is
+  /// beside the entry).
+  std::optional<PreconditionerType> best_preconditioner = std::nullopt;
 };
 
 namespace internal {
@@ -91,9 +98,23 @@ inline const std::vector<MethodEntry>& Registry() {
       {"sbdf3", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kSbdf3>, nullptr},
       {"symplectic_euler", kFixed, "solver", false, false, true, false, false, false,
        MakeEngine<Method::kSymplecticEuler>, nullptr},
+      // baraff_witkin's best preconditioner is the A_α factor: on the default
+      // scene at h = 0.01, 0.00125, 0.0003125 s its solver time is 0.124,
+      // 0.554, 1.835 s with "cholesky", 0.174, 0.876, 3.149 s with the
+      // scene's "ic0" (IC(0) of J refactorised every step), 0.230, 0.693,
+      // 2.048 s with 3×3 block Jacobi and 0.281, 0.635, 1.878 s with none
+      // (`bench_integrators --integrators baraff_witkin --h
+      // 0.01,0.00125,0.0003125 --preconditioner P`).
       {kBaraffWitkinName, kFixed, "peers", false, false, true, true, true, false,
        [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec);
+       },
+       nullptr, {}, PreconditionerType::kCholesky},
+      // Blender's solver as it ships (peers/baraff_witkin.h): its own CG
+      // settings, so the scene's η does not apply.
+      {kBlenderName, kFixed, "peers", false, false, true, false, true, false,
+       [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
+         return std::make_unique<BaraffWitkin>(sys, spec, BaraffWitkinOptions{true});
        },
        nullptr},
       {kXpbdName, kSubstepped, "peers", false, false, true, false, false, false,
@@ -151,9 +172,11 @@ struct MethodRun {
   /// as constraints ("gravity,bend_thin_plate"); empty otherwise.
   std::string explicit_terms;
   std::string constraints;  ///< xpbd: "tension,shear,obstacles" (those present)
+  std::string preconditioner;  ///< the preconditioner the row used (rows with a PCG)
   bool ok = false;
   std::string status, message;
   long steps = 0, updates = 0, cg = 0, rejected = 0, error_test_failures = -1;
+  long cg_unconverged = 0;  ///< accepted steps that kept an unconverged CG solve (blender)
   double solver_time = 0.0, wall_time = 0.0, setup_time = -1.0;
   Trajectory traj;
   std::vector<StepRecord> steps_table;
@@ -253,12 +276,16 @@ struct RowMethod {
       row.id = fmt::format("{}_rtol{:g}", id(), param);
       row.stiffness = scene.NumericalStiffness(scene.h);
     }
+    SolverSpec row_spec = spec;
+    if (entry->best_preconditioner && !ctx.preconditioner_from_cli)
+      row_spec.preconditioner = *entry->best_preconditioner;
+    if (uses_pcg()) row.preconditioner = std::string(ToString(row_spec.preconditioner));
     RunSummary r;
     RunContext row_ctx = ctx;
     if (!ArkodeRowTable(variant).empty()) row_ctx.arkode_table = ArkodeRowTable(variant);
     row_ctx.variant = variant;
     if (entry->make) {
-      const SolverSpec s = Settings(spec, param);
+      const SolverSpec s = Settings(row_spec, param);
       const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
       if (const auto* x = dynamic_cast<const Xpbd*>(stepper.get())) {
         for (const std::string& t : x->explicit_terms()) row.explicit_terms += (row.explicit_terms.empty() ? "" : ",") + t;
@@ -268,7 +295,7 @@ struct RowMethod {
       // Error-controlled rows start at the scene's h; the controller takes over.
       r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
     } else {
-      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, spec, row_ctx);
+      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, row_spec, row_ctx);
     }
     row.ok = r.ok;
     row.status = r.status;
@@ -277,6 +304,7 @@ struct RowMethod {
     row.updates = r.fixed_point_updates;
     row.cg = r.cg_iterations;
     row.rejected = r.rejected_steps;
+    row.cg_unconverged = std::max(r.cg_unconverged_steps, 0);
     row.error_test_failures = error_control || r.sundials ? r.error_test_failures : -1;
     row.solver_time = r.solver_time_in_seconds;
     row.setup_time = r.setup_time_in_seconds;
@@ -313,7 +341,9 @@ struct RowMethod {
 ///    halved, so no run reaches 1e-3 m.
 ///  - bdf2/newton: 7.9e-3, 2.7e-3, 7.4e-4 m at 4h, 2h, h.
 ///  - implicit_midpoint/newton: 4.0e-3, 9.9e-4, 2.5e-4 m at 4h, 2h, h.
-///  - baraff_witkin: 3.0e-3 m at h/8, 7.8e-4 m at h/32.
+///  - baraff_witkin: 3.0e-3 m at h/8, 7.5e-4 m at h/32; blender: 2.8e-3 m
+///    and 6.4e-4 m (`bench_integrators --integrators baraff_witkin,blender
+///    --h 0.01,0.005,0.0025,0.00125,0.000625,0.0003125`).
 ///  - xpbd: frame steps h and h/16 with --substeps 1,4,16,64 give
 ///    substeps h/1 … h/1024: 0.19 … 2.7e-3 m at h/256 and ≈ 6.7e-4 m at h/1024.
 ///  - sbdf3: 4.2e-1, 4.6e-2, 1.7e-4, 2.2e-5 m at h, h/2, h/4, h/8; at h and
@@ -342,7 +372,7 @@ inline DefaultParams DefaultRowParams(const RowMethod& m) {
   if (label == "sbdf2") return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}, {}};
   if (label == "bdf2/newton" || label == "implicit_midpoint/newton") return {{4.0, 2.0, 1.0}, {}};
   if (label == "implicit_midpoint") return {{1.0, 1.0 / 2, 1.0 / 4}, {}};
-  if (label == "baraff_witkin") return {{1.0 / 8, 1.0 / 32}, {}};
+  if (label == "baraff_witkin" || label == "blender") return {{1.0 / 8, 1.0 / 32}, {}};
   if (label == "xpbd") return {{1.0, 1.0 / 16}, {}};
   if (label == "sbdf3") return {{1.0 / 4, 1.0 / 8, 1.0 / 16}, {}};
   if (label == "arkode") return {{}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}};

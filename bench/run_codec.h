@@ -135,7 +135,7 @@ inline std::optional<SundialsStats> GetSundials(ByteReader& r) {
 inline std::string EncodeRun(const MethodRun& m) {
   ByteWriter w;
   for (const std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms,
-                               &m.constraints, &m.status, &m.message})
+                               &m.constraints, &m.status, &m.message, &m.preconditioner})
     w.Str(*s);
   w.Pod(m.kind);
   w.Pod(m.h);
@@ -143,7 +143,7 @@ inline std::string EncodeRun(const MethodRun& m) {
   w.Pod(m.rtol);
   w.Pod(m.cg_tolerance);
   w.Pod<uint8_t>(m.ok);
-  for (long v : {m.steps, m.updates, m.cg, m.rejected, m.error_test_failures}) w.Pod(v);
+  for (long v : {m.steps, m.updates, m.cg, m.rejected, m.error_test_failures, m.cg_unconverged}) w.Pod(v);
   for (double v : {m.solver_time, m.wall_time, m.setup_time, m.stiffness}) w.Pod(v);
   internal::PutTrajectory(w, m.traj);
   w.Vec(m.steps_table);
@@ -156,7 +156,7 @@ inline MethodRun DecodeRun(std::string_view bytes) {
   ByteReader r(bytes);
   MethodRun m;
   for (std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms, &m.constraints,
-                         &m.status, &m.message})
+                         &m.status, &m.message, &m.preconditioner})
     *s = r.Str();
   m.kind = r.Pod<StepKind>();
   m.h = r.Pod<double>();
@@ -164,7 +164,8 @@ inline MethodRun DecodeRun(std::string_view bytes) {
   m.rtol = r.Pod<double>();
   m.cg_tolerance = r.Pod<double>();
   m.ok = r.Pod<uint8_t>() != 0;
-  for (long* v : {&m.steps, &m.updates, &m.cg, &m.rejected, &m.error_test_failures}) *v = r.Pod<long>();
+  for (long* v : {&m.steps, &m.updates, &m.cg, &m.rejected, &m.error_test_failures, &m.cg_unconverged})
+    *v = r.Pod<long>();
   for (double* v : {&m.solver_time, &m.wall_time, &m.setup_time, &m.stiffness}) *v = r.Pod<double>();
   m.traj = internal::GetTrajectory(r);
   m.steps_table = r.Vec<StepRecord>();
@@ -182,7 +183,7 @@ inline std::string EncodeSummary(const RunSummary& s) {
   w.Str(s.message);
   w.Pod(s.h);
   w.Pod<uint8_t>(s.ok);
-  for (int v : {s.steps, s.rejected_steps, s.error_test_failures, s.matrix_rebuilds}) w.Pod(v);
+  for (int v : {s.steps, s.rejected_steps, s.error_test_failures, s.matrix_rebuilds, s.cg_unconverged_steps}) w.Pod(v);
   w.Pod(s.fixed_point_updates);
   w.Pod(s.cg_iterations);
   for (double v : {s.solver_time_in_seconds, s.setup_time_in_seconds, s.wall_time_in_seconds}) w.Pod(v);
@@ -200,7 +201,8 @@ inline RunSummary DecodeSummary(std::string_view bytes) {
   s.message = r.Str();
   s.h = r.Pod<double>();
   s.ok = r.Pod<uint8_t>() != 0;
-  for (int* v : {&s.steps, &s.rejected_steps, &s.error_test_failures, &s.matrix_rebuilds}) *v = r.Pod<int>();
+  for (int* v : {&s.steps, &s.rejected_steps, &s.error_test_failures, &s.matrix_rebuilds, &s.cg_unconverged_steps})
+    *v = r.Pod<int>();
   s.fixed_point_updates = r.Pod<long>();
   s.cg_iterations = r.Pod<long>();
   for (double* v : {&s.solver_time_in_seconds, &s.setup_time_in_seconds, &s.wall_time_in_seconds}) *v = r.Pod<double>();

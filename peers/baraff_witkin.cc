@@ -8,7 +8,7 @@
 namespace clothbench {
 namespace {
 
-TangentOptions Options(const SolverSpec& s) {
+TangentOptions TangentSettings(const SolverSpec& s) {
   TangentOptions o;
   o.projection = s.tangent_projection;
   o.include_explicit_terms = s.tangent_explicit_terms;
@@ -18,12 +18,33 @@ TangentOptions Options(const SolverSpec& s) {
 
 }  // namespace
 
-BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solver)
-    : sys_(system), opts_(solver), tangent_(system, Options(solver)), precond_(solver.preconditioner), contacts_(system) {
+namespace {
+
+// Blender's cg_filtered (implicit_blender.cc, commit 1a675d0c): no
+// preconditioner (c = r), conjgrad_epsilon = 0.01, conjgrad_looplimit = 100.
+SolverSpec AsShipped(SolverSpec s, bool blender) {
+  if (blender) {
+    s.preconditioner = PreconditionerType::kNone;
+    s.cg_tolerance = 0.01;
+    s.cg_max_iterations = 100;
+    s.cg_reference = CgReference::kFiltered;
+  }
+  return s;
+}
+
+}  // namespace
+
+BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solver, BaraffWitkinOptions options)
+    : sys_(system),
+      opts_(AsShipped(solver, options.blender)),
+      blender_(options.blender),
+      tangent_(system, TangentSettings(opts_)),
+      precond_(opts_.preconditioner),
+      contacts_(system) {
   const auto start = std::chrono::steady_clock::now();
   const int n = system.num_particles();
-  if (solver.preconditioner == PreconditionerType::kCholesky || solver.preconditioner == PreconditionerType::kAmg)
-    laplacian_ = std::make_unique<SystemMatrix>(system, solver.preconditioner, solver.cholesky_ordering);
+  if (opts_.preconditioner == PreconditionerType::kCholesky || opts_.preconditioner == PreconditionerType::kAmg)
+    laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering);
   precond_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
   work_.Resize(n);
   filter_.Reserve(n);
@@ -31,6 +52,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &f_, &rhs_, &x1_, &v1_}) m->setZero(n, 3);
   vr_.setZero(n, 3);
   br_.setZero(n, 3);
+  rhs_r_.setZero(n, 3);
   setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -83,15 +105,24 @@ StepStats BaraffWitkin::Step(double h) {
   TangentProduct(tangent_.matrix(), vr_, &br_);
   br_ += rhs_;
 
-  // η relative to ‖S_F b‖ (or ‖S b‖), as for the thesis' methods (CgReference).
+  // η relative to the Δv form's right-hand side b_Δ = h (f₀ + h ∂f/∂x v₀):
+  // ‖S_F b_Δ‖ (CgReference::kFixedOnly, with contacts) or ‖S b_Δ‖. The
+  // residual b − J v = b_Δ − J Δv is the same in both forms; only the
+  // reference norm is the Δv form's.
   const double free_norm = FreeRowsNorm(br_, sys_.fixed());
+  rhs_r_ = rhs_;
+  if (!(contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly)) filter_.Project(&rhs_r_);
   const double reference =
-      contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly ? free_norm : -1.0;
+      contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly ? FreeRowsNorm(rhs_r_, sys_.fixed())
+                                                                            : rhs_r_.norm();
   const PcgSummary pcg = FilteredPcg(tangent_.matrix(), br_, filter_, precond_,
                                      PcgOptions{opts_.cg_tolerance, opts_.cg_max_iterations, reference}, &vr_, &work_);
   st.cg_iterations = pcg.iterations;
   st.pcg_status = pcg.status;
-  if (pcg.status != PcgStatus::kConverged) {
+  // Blender keeps Vnew = V + dV whatever cg_filtered returned
+  // (SIM_mass_spring_solve_velocities); a non-finite solve is still a failure.
+  const bool kept = blender_ && pcg.status == PcgStatus::kMaxIterations;
+  if (pcg.status != PcgStatus::kConverged && !kept) {
     st.status = pcg.status == PcgStatus::kNonFinite ? StepStatus::kNonFinite : StepStatus::kCgFailed;
     return finish();
   }

@@ -19,8 +19,16 @@
 
 namespace clothbench {
 
-/// The integrator name used by the executables and result files.
+/// The integrator names used by the executables and result files: the
+/// method at its best, and Blender's solver as it ships.
 inline constexpr std::string_view kBaraffWitkinName = "baraff_witkin";
+inline constexpr std::string_view kBlenderName = "blender";
+
+struct BaraffWitkinOptions {
+  /// Blender's cg_filtered as it ships (BaraffWitkin); false: the scene's
+  /// solver settings.
+  bool blender = false;
+};
 
 /// One linearised implicit Euler step per time step (order 1).
 ///
@@ -37,9 +45,18 @@ inline constexpr std::string_view kBaraffWitkinName = "baraff_witkin";
 ///  - Shear, bending and the other stencil terms enter ∂f/∂x exactly
 ///    (AutoDiff) when tangent_explicit_terms is true; Blender models them as
 ///    springs with spring Jacobians. J is symmetrised, (J + Jᵀ)/2, for CG.
-///  - Precision and the CG stop: double precision and the scene's
-///    cg_tolerance relative to ‖S_F b‖ (Blender: single precision, a loose
-///    relative tolerance and at most 100 iterations).
+///  - The CG stop: ‖S r‖ ≤ η ‖S_F b_Δ‖ in the Δv form, b_Δ = h (f₀ + h ∂f/∂x v₀)
+///    (Baraff & Witkin's and Blender's right-hand side; the velocity form's
+///    b = J v₀ + b_Δ would be dominated by the momentum M v₀), with the
+///    scene's η and preconditioner; a step whose CG fails is rejected.
+///  - `blender` (BaraffWitkinOptions::blender) is the solver as Blender ships it
+///    (implicit_blender.cc at commit 1a675d0c, cg_filtered and
+///    SIM_mass_spring_solve_velocities): no preconditioner,
+///    conjgrad_epsilon = 0.01 on ‖S r‖/‖S B‖, conjgrad_looplimit = 100, and
+///    Vnew = V + dV whatever cg_filtered returned, so an unconverged Δv is
+///    kept (StepStats::pcg_status = kMaxIterations on an accepted step). It
+///    differs from Blender in double precision (Blender: float), in the
+///    force model above, and in solving for v₁ = v₀ + Δv (the same system).
 ///  - Unknown: v₁ = v₀ + Δv (the filter prescribes velocities, Blender's z
 ///    prescribes Δv); the same linear system.
 class BaraffWitkin : public Stepper {
@@ -47,7 +64,7 @@ class BaraffWitkin : public Stepper {
   /// @param system the model (must outlive the stepper)
   /// @param solver cg_tolerance, cg_max_iterations, preconditioner,
   ///        cg_reference, tangent_projection, tangent_explicit_terms
-  BaraffWitkin(const ParticleSystem& system, const SolverSpec& solver);
+  BaraffWitkin(const ParticleSystem& system, const SolverSpec& solver, BaraffWitkinOptions options = {});
 
   void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
   /// One step of size h [s]: status kCgFailed / kPreconditionerFailed /
@@ -64,6 +81,7 @@ class BaraffWitkin : public Stepper {
  private:
   const ParticleSystem& sys_;
   SolverSpec opts_;
+  bool blender_ = false;
   TangentSystem tangent_;
   std::unique_ptr<SystemMatrix> laplacian_;  // A_α's preconditioner ("cholesky", "amg" only)
   TangentPreconditioner precond_;
@@ -75,7 +93,7 @@ class BaraffWitkin : public Stepper {
   int rebuilds_ = 0;
   double setup_seconds_ = 0.0;
   MatrixN3 x0_, v0_, xm1_, f_, rhs_, x1_, v1_;
-  MatrixN3R vr_, br_;
+  MatrixN3R vr_, br_, rhs_r_;
 };
 
 }  // namespace clothbench

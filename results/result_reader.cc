@@ -277,6 +277,7 @@ RunTable ReadRunTable(const ResultReader& f) {
     r.updates = f.Long(g, "fixed_point_updates").value_or(0);
     r.cg_iterations = f.Long(g, "cg_iterations").value_or(0);
     r.rejected = f.Long(g, "rejected_steps").value_or(0);
+    r.cg_unconverged = f.Long(g, "cg_unconverged_steps").value_or(0);
     r.error_test_failures = f.Long(g, "error_test_failures").value_or(-1);
     r.solver_time_s = f.Double(g, "solver_time_s").value_or(0.0);
     r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
@@ -333,6 +334,7 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
   f.SetAttribute(g, "fixed_point_updates", r.updates);
   f.SetAttribute(g, "cg_iterations", r.cg_iterations);
   f.SetAttribute(g, "rejected_steps", r.rejected);
+  if (r.cg_unconverged > 0) f.SetAttribute(g, "cg_unconverged_steps", r.cg_unconverged);
   f.SetAttribute(g, "solver_time_s", r.solver_time_s);
   if (r.setup_time_s >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time_s);
   f.SetAttribute(g, "wall_time_s", r.wall_time_s);

@@ -55,6 +55,8 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     if (r.ok() && r.rejected > 0)
       fmt::print(out, "{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
                  r.error_test_failures > 0 ? fmt::format(", {} by the error test", r.error_test_failures) : "");
+    if (r.cg_unconverged > 0)
+      fmt::print(out, "{:<24} ({} steps kept an unconverged CG solve at the iteration cap)\n", "", r.cg_unconverged);
     if (!r.ok() && !r.message.empty()) fmt::print(out, "{:<24} ({})\n", "", r.message);
   }
   fmt::print(out,

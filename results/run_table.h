@@ -38,6 +38,7 @@ struct RunRecord {
   std::string message;       ///< failure message (empty when ok)
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
   long error_test_failures = -1;  ///< adaptive rows; −1: not applicable
+  long cg_unconverged = 0;        ///< accepted steps that kept an unconverged CG solve (blender)
   double solver_time_s = 0.0, wall_time_s = 0.0;
   double setup_time_s = -1.0;     ///< < 0: not measured
   double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step

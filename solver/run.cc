@@ -130,7 +130,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     sum.message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
     return sum;
   }
-  sum.steps = sum.rejected_steps = sum.error_test_failures = 0;
+  sum.steps = sum.rejected_steps = sum.error_test_failures = sum.cg_unconverged_steps = 0;
   sum.fixed_point_updates = sum.cg_iterations = 0;
   double solver_seconds = 0.0;
 
@@ -246,6 +246,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       break;
     }
     ++sum.steps;
+    if (st.pcg_status != PcgStatus::kConverged) ++sum.cg_unconverged_steps;  // kept by the stepper
     if (on_grid) {
       engine.SetTime(target);  // n·h, not the running sum
       sum.step_stats.back().t = target;

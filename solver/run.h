@@ -73,6 +73,9 @@ struct RunSummary {
   int steps = -1;                   ///< accepted steps
   int rejected_steps = -1;          ///< attempts rejected and retried with a smaller h
   int error_test_failures = -1;     ///< of those, rejected by the local error test (step_control = "error")
+  /// Accepted steps whose linear solve stopped unconverged at the CG
+  /// iteration cap and was kept (the `blender` row, as Blender ships).
+  int cg_unconverged_steps = -1;
   long fixed_point_updates = -1;    ///< linear solves, over all attempts
   long cg_iterations = -1;          ///< PCG iterations, over all attempts
   int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds
