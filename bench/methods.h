@@ -134,10 +134,13 @@ inline const std::vector<MethodEntry>& Registry() {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
        {"klu"}},
-      {"ida", kAdaptive, "reference", false, false, false, false, false, true, nullptr,
-       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec&, const RunContext&) {
-         return RunIda(sys, o);
-       }},
+      // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
+      // residual Jacobian (the reference's solver).
+      {"ida", kAdaptive, "reference", false, false, false, true, true, true, nullptr,
+       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
+         return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
+       },
+       {"klu"}},
   };
   return r;
 }

@@ -1,7 +1,9 @@
 // IDA reference (SPEC §8).
 #include "reference/ida_reference.h"
 
+#include <algorithm>
 #include <chrono>
+#include <memory>
 
 #include <fmt/format.h>
 #include <ida/ida.h>
@@ -9,6 +11,10 @@
 #include <sundials/sundials_context.h>
 #include <sunlinsol/sunlinsol_klu.h>
 #include <sunmatrix/sunmatrix_sparse.h>
+
+#include "solver/integrator.h"
+#include "solver/pcg.h"
+#include "solver/tangent.h"
 
 namespace clothbench {
 namespace {
@@ -116,14 +122,137 @@ class ResidualForm {
   SparseMatrix jac_;
 };
 
+// IDA's reduced Newton solve (RunIdaReduced): y = [x; v] over all
+// particles, fixed particles algebraic.
+class IdaReducedSolve {
+ public:
+  IdaReducedSolve(const ParticleSystem& sys, const SolverSpec& spec)
+      : sys_(sys),
+        spec_(spec),
+        n_(sys.num_particles()),
+        tangent_(sys, TangentOptions{spec.tangent_projection, spec.tangent_explicit_terms, true}),
+        pre_(spec.preconditioner) {
+    const auto start = std::chrono::steady_clock::now();
+    if (spec.preconditioner == PreconditionerType::kCholesky || spec.preconditioner == PreconditionerType::kAmg)
+      laplacian_ = std::make_unique<SystemMatrix>(sys, spec.preconditioner, spec.cholesky_ordering);
+    pre_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
+    filter_.Reserve(n_);
+    for (int p : sys.fixed()) filter_.Fix(p);
+    work_.Resize(n_);
+    for (MatrixN3* m : {&x_, &v_, &w_, &u_, &rhs_}) m->setZero(n_, 3);
+    dv_.setZero(n_, 3);
+    br_.setZero(n_, 3);
+    setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+
+  // IDA's setup: the Jacobian at (t, y) (IDA has no jok: every setup is
+  // a new Jacobian), J_γ with γ = 1/c_j, and its preconditioner.
+  int Setup(double t, const double* y, double cj) {
+    const auto start = std::chrono::steady_clock::now();
+    for (int p = 0; p < n_; ++p)
+      for (int c = 0; c < 3; ++c) {
+        x_(p, c) = y[3 * p + c];
+        v_(p, c) = y[3 * n_ + 3 * p + c];
+      }
+    const double gamma = 1.0 / cj;
+    tangent_.Update(t, x_, v_, gamma);
+    ++jacobian_evaluations_;
+    bool ok = !laplacian_ || laplacian_->Update(gamma);
+    ok = ok && pre_.Factorize(tangent_.matrix());
+    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return ok ? 0 : 1;
+  }
+
+  // δ from the reduced system (see RunIdaReduced); `cj` is IDA's current
+  // c_j. The x rows are solved exactly and the free v rows' residual is c_j
+  // times the PCG's, so ‖res_PCG‖₂ ≤ tol / (c_j max w_v) meets IDALS's stop.
+  PcgStatus Solve(double cj, const double* b, double* delta, const double* w, double tol) {
+    const double g = 1.0 / cj;
+    if (g != tangent_.alpha_h()) tangent_.SetAlphaH(g);
+    double wmax = 0.0;
+    for (int p = 0; p < n_; ++p) {
+      const bool fixed = sys_.is_fixed(p);
+      for (int c = 0; c < 3; ++c) {
+        const double bx = b[3 * p + c], bv = b[3 * n_ + 3 * p + c];
+        w_(p, c) = fixed ? bx / g : bx;
+        u_(p, c) = fixed ? bv : 0.0;
+        rhs_(p, c) = fixed ? 0.0 : g * bv;
+        if (w && !fixed) wmax = std::max(wmax, w[3 * n_ + 3 * p + c]);
+      }
+    }
+    tangent_.AddJacobianProducts(g * g, w_, g, u_, &rhs_);
+    br_ = rhs_;
+    dv_.setZero();
+    const PcgSummary s =
+        FilteredPcg(tangent_.matrix(), br_, filter_, pre_,
+                    internal::PcgStopForTolerance(cj * wmax, w ? tol : 0.0, {spec_.cg_tolerance, spec_.cg_max_iterations}),
+                    &dv_, &work_);
+    last_iterations_ = s.iterations;
+    total_iterations_ += s.iterations;
+    last_residual_ = s.residual_norm;
+    for (int p = 0; p < n_; ++p) {
+      const bool fixed = sys_.is_fixed(p);
+      for (int c = 0; c < 3; ++c) {
+        const int ix = 3 * p + c, iv = 3 * n_ + 3 * p + c;
+        if (fixed) {
+          delta[ix] = b[ix];
+          delta[iv] = b[iv];
+        } else {
+          delta[iv] = dv_(p, c);
+          delta[ix] = g * (b[ix] + dv_(p, c));
+        }
+      }
+    }
+    return s.status;
+  }
+  int last_iterations() const { return last_iterations_; }
+  long total_iterations() const { return total_iterations_; }
+  double last_residual() const { return last_residual_; }
+  long jacobian_evaluations() const { return jacobian_evaluations_; }
+  double setup_seconds() const {
+    return setup_seconds_ + (laplacian_ ? laplacian_->setup_seconds() : 0.0);
+  }
+
+ private:
+  const ParticleSystem& sys_;
+  const SolverSpec& spec_;
+  int n_;
+  TangentSystem tangent_;
+  std::unique_ptr<SystemMatrix> laplacian_;
+  TangentPreconditioner pre_;
+  VelocityFilter filter_;
+  TangentPcgWorkspace work_;
+  MatrixN3 x_, v_, w_, u_, rhs_;
+  MatrixN3R dv_, br_;
+  int last_iterations_ = 0;
+  long total_iterations_ = 0, jacobian_evaluations_ = 0;
+  double last_residual_ = 0.0, setup_seconds_ = 0.0;
+};
+
+// IDA's user data: the residual form, and the reduced solve of row `ida`.
+struct IdaUser {
+  ResidualForm* form = nullptr;
+  IdaReducedSolve* reduced = nullptr;
+};
+
 int ResFn(realtype t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
-  static_cast<ResidualForm*>(user)->Residual(t, N_VGetArrayPointer(y), N_VGetArrayPointer(yp), N_VGetArrayPointer(r));
+  static_cast<IdaUser*>(user)->form->Residual(t, N_VGetArrayPointer(y), N_VGetArrayPointer(yp),
+                                              N_VGetArrayPointer(r));
   return 0;
 }
 
 int JacFn(realtype t, realtype cj, N_Vector y, N_Vector, N_Vector, SUNMatrix jac, void* user, N_Vector, N_Vector,
           N_Vector) {
-  return internal::CopyToSunSparse(static_cast<ResidualForm*>(user)->Jacobian(t, cj, N_VGetArrayPointer(y)), jac);
+  return internal::CopyToSunSparse(static_cast<IdaUser*>(user)->form->Jacobian(t, cj, N_VGetArrayPointer(y)), jac);
+}
+
+int PrecSetup(realtype t, N_Vector y, N_Vector, N_Vector, realtype cj, void* user) {
+  return static_cast<IdaUser*>(user)->reduced->Setup(t, N_VGetArrayPointer(y), cj);
+}
+// Never called: the reduced solve does not apply IDALS's preconditioner.
+int PrecSolve(realtype, N_Vector, N_Vector, N_Vector, N_Vector r, N_Vector z, realtype, realtype, void*) {
+  N_VScale(1.0, r, z);
+  return 0;
 }
 
 struct IdaHandles {
@@ -144,12 +273,17 @@ struct IdaHandles {
 
 }  // namespace
 
-RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options) {
+namespace {
+
+RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec* reduced) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   RunSummary res;
   res.integrator = "ida";
   ResidualForm form(system);
+  std::unique_ptr<IdaReducedSolve> solve;
+  if (reduced) solve = std::make_unique<IdaReducedSolve>(system, *reduced);
+  IdaUser user{&form, solve.get()};
   IdaHandles h;
   std::string err;
   auto check = [&](int flag, const char* call) {
@@ -164,22 +298,35 @@ RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options)
   h.dky = N_VNew_Serial(n, h.ctx);
   form.Initial(N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
   form.Ids(N_VGetArrayPointer(h.id));
-  const SparseMatrix& j0 = form.Jacobian(0.0, 1.0, N_VGetArrayPointer(h.y));
-  h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);
-  h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
-  SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD
   h.mem = IDACreate(h.ctx);
-  const bool ok = check(IDASetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "IDASetErrHandlerFn") &&
+  if (solve) {
+    // IDALS hands the custom solver its preconditioner-setup wrapper: IDA's
+    // setups evaluate the Jacobian; the PCG stops at IDALS's own tolerance.
+    void* mem = h.mem;
+    h.ls = internal::NewCustomLinearSolver(h.ctx, internal::ReducedSolveHooks(solve.get(), [mem](double* cj) {
+                                             return IDAGetCurrentCj(mem, cj) == IDA_SUCCESS;
+                                           }),
+                                           h.y);
+  } else {
+    const SparseMatrix& j0 = form.Jacobian(0.0, 1.0, N_VGetArrayPointer(h.y));
+    h.a = SUNSparseMatrix(n, n, j0.nonZeros(), CSC_MAT, h.ctx);
+    h.ls = SUNLinSol_KLU(h.y, h.a, h.ctx);
+    SUNLinSol_KLUSetOrdering(h.ls, 0);  // AMD
+  }
+  bool ok = check(IDASetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "IDASetErrHandlerFn") &&
                   check(IDAInit(h.mem, ResFn, 0.0, h.y, h.yp), "IDAInit") &&
-                  check(IDASetUserData(h.mem, &form), "IDASetUserData") &&
+                  check(IDASetUserData(h.mem, &user), "IDASetUserData") &&
                   check(IDASStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "IDASStolerances") &&
                   check(IDASetId(h.mem, h.id), "IDASetId") &&
                   check(IDASetSuppressAlg(h.mem, SUNTRUE), "IDASetSuppressAlg") &&
                   check(IDASetLinearSolver(h.mem, h.ls, h.a), "IDASetLinearSolver") &&
-                  check(IDASetJacFn(h.mem, JacFn), "IDASetJacFn") &&
                   check(IDASetMaxOrd(h.mem, options.max_order), "IDASetMaxOrd") &&
                   check(IDASetStopTime(h.mem, options.t_end), "IDASetStopTime") &&
                   check(IDASetMaxNumSteps(h.mem, 100000000L), "IDASetMaxNumSteps");
+  if (ok && solve)
+    ok = check(IDASetPreconditioner(h.mem, PrecSetup, PrecSolve), "IDASetPreconditioner");
+  else if (ok)
+    ok = check(IDASetJacFn(h.mem, JacFn), "IDASetJacFn");
   if (ok) {
     internal::OneStepDriver d;
     d.step = [&](double* t) { return IDASolve(h.mem, options.t_end, t, h.y, h.yp, IDA_ONE_STEP); };
@@ -205,9 +352,24 @@ RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options)
   IDAGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
   IDAGetNumJacEvals(h.mem, &st.nje);
   IDAGetNumLinSolvSetups(h.mem, &st.nsetups);
+  if (solve) {
+    st.nli = solve->total_iterations();
+    st.nje = solve->jacobian_evaluations();
+    res.setup_time_in_seconds = solve->setup_seconds();
+  }
   internal::SummariseCounters(&res);
   res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
+}
+
+}  // namespace
+
+RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options) {
+  return RunIdaWith(system, options, nullptr);
+}
+
+RunSummary RunIdaReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec) {
+  return RunIdaWith(system, options, &spec);
 }
 
 }  // namespace clothbench

@@ -16,6 +16,16 @@ namespace clothbench {
 /// output (IDAGetDky). Never throws for solver failure: see status.
 RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options);
 
+/// The same IDA integration with the reduced velocity solve (row `ida`,
+/// docs/model.md "CVODE's reduced solve"): with γ = 1/c_j the Newton system
+/// dF/dy + c_j dF/dẏ reduces on the free particles to
+///   (M − γ ∂f/∂v − γ² ∂f/∂x) δv = γ r_v + γ² ∂f/∂x w + γ ∂f/∂v u,
+/// δx = γ (r_x + δv), w = r_x (free) or r_x/γ (fixed), u = r_v on the fixed
+/// particles, whose rows are δx = r_x, δv = r_v. Solved by the filtered PCG
+/// on the closed-form tangent with `spec.preconditioner`, refactorised and
+/// with a new Jacobian at IDA's setups, stopping at IDALS's own tolerance.
+RunSummary RunIdaReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec);
+
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_REFERENCE_IDA_REFERENCE_H_

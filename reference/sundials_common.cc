@@ -1,6 +1,7 @@
 #include "reference/sundials_common.h"
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 
 #include <fmt/format.h>
@@ -149,6 +150,7 @@ struct CustomContent {
   void* p_data = nullptr;
   SUNPSetupFn p_setup = nullptr;
   N_Vector weights = nullptr;  // the package's (not owned)
+  N_Vector resid = nullptr;    // owned; zero (IDALS asks for it, never reads it)
   int last_flag = 0;
 };
 CustomContent* Content(SUNLinearSolver s) { return static_cast<CustomContent*>(s->content); }
@@ -179,8 +181,10 @@ int CustomSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype t
 int CustomNumIters(SUNLinearSolver s) { return Content(s)->hooks.iterations(); }
 realtype CustomResNorm(SUNLinearSolver s) { return Content(s)->hooks.residual(); }
 sunindextype CustomLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
+N_Vector CustomResid(SUNLinearSolver s) { return Content(s)->resid; }
 int CustomFree(SUNLinearSolver s) {
   if (!s) return SUNLS_SUCCESS;
+  if (Content(s)->resid) N_VDestroy(Content(s)->resid);
   delete Content(s);
   s->content = nullptr;
   SUNLinSolFreeEmpty(s);
@@ -189,7 +193,7 @@ int CustomFree(SUNLinearSolver s) {
 
 }  // namespace
 
-SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks) {
+SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks, N_Vector like) {
   SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
   if (!s) return nullptr;
   s->ops->gettype = CustomType;
@@ -205,20 +209,29 @@ SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks) {
   s->ops->lastflag = CustomLastFlag;
   s->ops->free = CustomFree;
   s->content = new CustomContent{std::move(hooks)};
+  if (like) {
+    Content(s)->resid = N_VClone(like);
+    N_VConst(0.0, Content(s)->resid);
+    s->ops->resid = CustomResid;
+  }
   return s;
 }
 
 PcgOptions PcgStopForTolerance(const FreeDofMap& map, const Eigen::VectorXd& masses, const double* w, double tol,
                                const PcgOptions& fallback) {
-  if (!w || !(tol > 0.0)) return fallback;
+  if (!w) return fallback;
   const int nf = map.num_free();
   double wmax = 0.0;
   for (int k = 0; k < nf; ++k)
     for (int c = 0; c < 3; ++c) wmax = std::max(wmax, w[3 * nf + 3 * k + c] / masses(map.particle(k)));
-  if (!(wmax > 0.0)) return fallback;
+  return PcgStopForTolerance(wmax, tol, fallback);
+}
+
+PcgOptions PcgStopForTolerance(double max_scaled_weight, double tol, const PcgOptions& fallback) {
+  if (!(tol > 0.0) || !(max_scaled_weight > 0.0) || !std::isfinite(max_scaled_weight)) return fallback;
   PcgOptions o = fallback;
   o.tolerance = 1.0;
-  o.rhs_norm = tol / wmax;
+  o.rhs_norm = tol / max_scaled_weight;
   return o;
 }
 

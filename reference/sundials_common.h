@@ -106,9 +106,11 @@ struct CustomSolverHooks {
 /// calls (so a user preconditioner setup set with CVodeSetPreconditioner or
 /// ARKStepSetPreconditioner sees the package's jok and γ), and its error
 /// weights (setscalingvectors); the solve and counters are `hooks`'. The
-/// package's ATimes and preconditioner solve are not used. nullptr if
+/// package's ATimes and preconditioner solve are not used. `like` (a state
+/// vector) gives the zero residual vector IDALS requires of iterative
+/// solvers (its `resid`); nullptr leaves that operation out. nullptr if
 /// SUNDIALS cannot allocate it.
-SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks);
+SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks, N_Vector like = nullptr);
 
 /// The hooks of a reduced solve `s` (Solve(γ, b, x, w, tol) → PcgStatus,
 /// last_iterations(), last_residual()) with γ from `current_gamma(&γ)`
@@ -135,6 +137,9 @@ CustomSolverHooks ReducedSolveHooks(ReducedSolve* s, CurrentGamma current_gamma)
 /// suffices. Returns `fallback` (the scene's η) when w is nullptr or tol ≤ 0.
 PcgOptions PcgStopForTolerance(const FreeDofMap& map, const Eigen::VectorXd& masses, const double* w, double tol,
                                const PcgOptions& fallback);
+/// The same stop from the largest factor s_i w_i between the PCG's residual
+/// and the package's weighted one (‖res_PCG‖₂ ≤ tol / max_i s_i w_i).
+PcgOptions PcgStopForTolerance(double max_scaled_weight, double tol, const PcgOptions& fallback);
 
 /// Copies a compressed-column Eigen matrix into a SUNDIALS CSC matrix
 /// (reallocating if needed). Returns 0 or −1.

@@ -73,8 +73,8 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
       break;
     }
   fmt::print(out,
-             "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode and arkode: "
-             "our PCG's iterations in the reduced velocity solve; cvode/klu, ida: 0, the direct KLU solver).\n");
+             "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, ida, arkode: "
+             "our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the direct KLU solver).\n");
   fmt::print(out,
              "setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the "
              "preconditioner.\n");

@@ -86,6 +86,23 @@ TEST_P(ReferenceAgreementTest, ReducedCvodeMatchesKluCvode) {
   EXPECT_GE(r.sundials->nje, 1);
 }
 
+// IDA with the reduced velocity solve (row `ida`) against CVODE with KLU,
+// the same bound and reasoning as above.
+TEST_P(ReferenceAgreementTest, ReducedIdaMatchesKluCvode) {
+  const Scene s = FirstPart(GetParam());
+  const ParticleSystem sys(s);
+  const RunSummary c = RunCvode(sys, Options(s)), i = RunIdaReduced(sys, Options(s), s.solver);
+  const auto e = Compare(i, c);
+  ASSERT_TRUE(e.has_value());
+  std::printf("[ ida reduced vs cvode klu ] %-14s rtol 1e-8: max_t e_rms = %.2e m (cvode %ld steps, ida %ld steps, "
+              "%ld Jacobians, %ld PCG iterations)\n",
+              GetParam(), e->rms_max, c.sundials->nst, i.sundials->nst, i.sundials->nje, i.sundials->nli);
+  EXPECT_LT(e->rms_max, 1e-6);
+  EXPECT_GT(i.sundials->nli, 0);
+  for (int p : sys.fixed())
+    EXPECT_LT((i.trajectory.positions.back().row(p) - sys.rest_positions().row(p)).norm(), 1e-12);
+}
+
 INSTANTIATE_TEST_SUITE_P(ThesisScenes, ReferenceAgreementTest,
                          ::testing::Values("swinging_sheet", "hanging_sheet", "wind_sheet", "hanging_tablecloth"),
                          [](const auto& param_info) { return std::string(param_info.param); });
