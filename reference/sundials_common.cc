@@ -191,7 +191,51 @@ int CustomFree(SUNLinearSolver s) {
   return SUNLS_SUCCESS;
 }
 
+struct TimedContent {
+  SUNLinearSolver inner = nullptr;
+  double* seconds = nullptr;
+};
+TimedContent* Timed(SUNLinearSolver s) { return static_cast<TimedContent*>(s->content); }
+SUNLinearSolver_Type TimedType(SUNLinearSolver s) { return SUNLinSolGetType(Timed(s)->inner); }
+SUNLinearSolver_ID TimedId(SUNLinearSolver s) { return SUNLinSolGetID(Timed(s)->inner); }
+int TimedInitialize(SUNLinearSolver s) { return SUNLinSolInitialize(Timed(s)->inner); }
+int TimedSetup(SUNLinearSolver s, SUNMatrix a) {
+  const auto start = std::chrono::steady_clock::now();
+  const int flag = SUNLinSolSetup(Timed(s)->inner, a);
+  *Timed(s)->seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return flag;
+}
+int TimedSolve(SUNLinearSolver s, SUNMatrix a, N_Vector x, N_Vector b, realtype tol) {
+  return SUNLinSolSolve(Timed(s)->inner, a, x, b, tol);
+}
+sunindextype TimedLastFlag(SUNLinearSolver s) { return SUNLinSolLastFlag(Timed(s)->inner); }
+int TimedFree(SUNLinearSolver s) {
+  if (!s) return SUNLS_SUCCESS;
+  SUNLinSolFree(Timed(s)->inner);
+  delete Timed(s);
+  s->content = nullptr;
+  SUNLinSolFreeEmpty(s);
+  return SUNLS_SUCCESS;
+}
+
 }  // namespace
+
+SUNLinearSolver NewTimedLinearSolver(SUNContext ctx, SUNLinearSolver inner, double* seconds) {
+  SUNLinearSolver s = inner ? SUNLinSolNewEmpty(ctx) : nullptr;
+  if (!s) {
+    if (inner) SUNLinSolFree(inner);
+    return nullptr;
+  }
+  s->ops->gettype = TimedType;
+  s->ops->getid = TimedId;
+  s->ops->initialize = TimedInitialize;
+  s->ops->setup = TimedSetup;
+  s->ops->solve = TimedSolve;
+  s->ops->lastflag = TimedLastFlag;
+  s->ops->free = TimedFree;
+  s->content = new TimedContent{inner, seconds};
+  return s;
+}
 
 SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks, N_Vector like) {
   SUNLinearSolver s = SUNLinSolNewEmpty(ctx);

@@ -112,6 +112,12 @@ struct CustomSolverHooks {
 /// SUNDIALS cannot allocate it.
 SUNLinearSolver NewCustomLinearSolver(SUNContext ctx, CustomSolverHooks hooks, N_Vector like = nullptr);
 
+/// Wraps a direct SUNLinearSolver (KLU) so that the wall time of its
+/// setups (symbolic analysis and numeric factorisations) is added to
+/// `*seconds`; every other operation is forwarded. Takes ownership of
+/// `inner`. nullptr if SUNDIALS cannot allocate it.
+SUNLinearSolver NewTimedLinearSolver(SUNContext ctx, SUNLinearSolver inner, double* seconds);
+
 /// The hooks of a reduced solve `s` (Solve(γ, b, x, w, tol) → PcgStatus,
 /// last_iterations(), last_residual()) with γ from `current_gamma(&γ)`
 /// (false: the package could not say).
