@@ -317,6 +317,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
                              {"ncfn", r.sundials->ncfn}, {"nje", r.sundials->nje}, {"nsetups", r.sundials->nsetups}})
         if (v >= 0) f.SetAttribute(g, name, v);
     }
+    if (!r.sundials_settings.empty()) f.SetAttribute(g, "sundials_settings", r.sundials_settings);
     if (r.cg_tolerance > 0.0) {
       f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
       f.SetAttribute(g, "preconditioner",
@@ -696,6 +697,11 @@ int Main(int argc, char** argv) {
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference, "cvode | ida | none");
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
+  std::string cvode_setting_arg;
+  app.add_option("--cvode-setting", cvode_setting_arg,
+                 "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
+                 "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05; "
+                 "stored as the runs' sundials_settings");
   app.add_option("--rtols", rtols_arg,
                  "rtol (= atol) list of the adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error (default "
                  "1e-2,…,1e-7; arkode 1e-2,…,1e-6)");
@@ -799,6 +805,14 @@ int Main(int argc, char** argv) {
     if (reference != "cvode" && reference != "ida" && reference != "none")
       throw UsageError(fmt::format("--reference: \"{}\" must be cvode, ida or none", reference));
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
+    CvodeSettings cvode_settings;
+    if (app.count("--cvode-setting"))
+      for (const std::string& kv : SplitList(cvode_setting_arg)) {
+        const std::size_t eq = kv.find('=');
+        std::string why;
+        if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
+          throw UsageError(fmt::format("--cvode-setting: {}", why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
+      }
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
       // The five methods with the scene's nonlinear solver, each fully
@@ -963,7 +977,7 @@ int Main(int argc, char** argv) {
         fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, r.message);
       return 1;
     };
-    const RunContext ctx{arkode_table, limits, "", app.count("--preconditioner") > 0};
+    const RunContext ctx{arkode_table, limits, "", app.count("--preconditioner") > 0, cvode_settings};
     std::map<long, RunSummary> own_ref;
     std::map<long, Row> own_rows;
     std::vector<std::pair<long, std::string>> outgoing;

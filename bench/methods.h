@@ -49,6 +49,7 @@ struct RunContext {
   /// True if the command line named the preconditioner (--preconditioner):
   /// it then holds for every row, MethodEntry::best_preconditioner included.
   bool preconditioner_from_cli = false;
+  CvodeSettings cvode{};  ///< --cvode-setting
 };
 
 struct MethodEntry {
@@ -176,6 +177,7 @@ struct MethodRun {
   std::string explicit_terms;
   std::string constraints;  ///< xpbd: "tension,shear,obstacles" (those present)
   std::string preconditioner;  ///< the preconditioner the row used (rows with a PCG)
+  std::string sundials_settings;  ///< cvode rows: CvodeSettings::ToString()
   bool ok = false;
   std::string status, message;
   long steps = 0, updates = 0, cg = 0, rejected = 0, error_test_failures = -1;
@@ -298,7 +300,8 @@ struct RowMethod {
       // Error-controlled rows start at the scene's h; the controller takes over.
       r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
     } else {
-      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, row_spec, row_ctx);
+      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec,
+                           row_ctx);
     }
     row.ok = r.ok;
     row.status = r.status;
@@ -314,6 +317,7 @@ struct RowMethod {
     row.wall_time = r.wall_time_in_seconds;
     row.traj = std::move(r.trajectory);
     row.sundials = r.sundials;
+    row.sundials_settings = r.settings;
     for (const StepStats& st : r.step_stats) {
       row.steps_table.push_back(
           {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time});

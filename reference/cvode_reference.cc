@@ -311,6 +311,13 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
     ok = check(CVodeSetPreconditioner(h.mem, PrecSetup, PrecSolve), "CVodeSetPreconditioner");
   else if (ok)
     ok = check(CVodeSetJacFn(h.mem, JacFn), "CVodeSetJacFn");
+  const CvodeSettings& cs = options.cvode;
+  ok = ok && check(CVodeSetLSetupFrequency(h.mem, cs.lsetup_frequency), "CVodeSetLSetupFrequency") &&
+       check(CVodeSetJacEvalFrequency(h.mem, cs.jac_eval_frequency), "CVodeSetJacEvalFrequency") &&
+       check(CVodeSetDeltaGammaMaxLSetup(h.mem, cs.dgmax_lsetup), "CVodeSetDeltaGammaMaxLSetup") &&
+       check(CVodeSetStabLimDet(h.mem, cs.stab_lim_det ? SUNTRUE : SUNFALSE), "CVodeSetStabLimDet") &&
+       (!solve || check(CVodeSetEpsLin(h.mem, cs.eps_lin), "CVodeSetEpsLin"));
+  res.settings = cs.ToString();
   if (ok) {
     internal::OneStepDriver d;
     d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };

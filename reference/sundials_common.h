@@ -15,6 +15,21 @@
 
 namespace clothbench {
 
+/// CVODE's linear-solver setup knobs (CVODE's defaults unless set), as a
+/// SUNDIALS user would tune them; measured in docs/model.md.
+struct CvodeSettings {
+  long lsetup_frequency = 20;   ///< CVodeSetLSetupFrequency (msbp)
+  long jac_eval_frequency = 51; ///< CVodeSetJacEvalFrequency (msbj)
+  double dgmax_lsetup = 0.3;    ///< CVodeSetDeltaGammaMaxLSetup
+  bool stab_lim_det = false;    ///< CVodeSetStabLimDet
+  double eps_lin = 0.05;        ///< CVodeSetEpsLin (linear tolerance factor of iterative solvers)
+  /// "lsetup_frequency=20,jac_eval_frequency=51,…": what a run stores.
+  std::string ToString() const;
+  /// Sets `key` (a field name above) from `value`; false with `error` if
+  /// the key is unknown or the value out of range.
+  bool Set(const std::string& key, const std::string& value, std::string* error);
+};
+
 struct ReferenceOptions {
   double rtol = 1e-10;     ///< relative tolerance
   double atol = -1.0;      ///< absolute tolerance [m, m/s]; < 0: atol = rtol
@@ -24,6 +39,7 @@ struct ReferenceOptions {
   /// Wall time and internal steps (mxstep over the whole run): status
   /// "time_limit" or "step_limit" when reached.
   RunLimits limits{};
+  CvodeSettings cvode{};  ///< CVODE runs only
   double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
 };
 

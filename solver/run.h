@@ -91,6 +91,8 @@ struct RunSummary {
   std::vector<StepStats> step_stats;
   Trajectory trajectory;
   std::optional<SundialsStats> sundials;  ///< SUNDIALS runs only
+  /// The solver's own settings as "key=value,…" (CVODE runs: CvodeSettings).
+  std::string settings;
 
   /// One line: status, steps, updates, CG iterations, times.
   std::string BriefReport() const;
