@@ -3,12 +3,12 @@
 // force term lists the 3×3 blocks (row particle, column particle) it writes,
 // the caller turns that list into value positions once, and the step loop
 // only adds block values at those positions. The items that write blocks
-// (stencil centres, springs) are chunked and the chunks coloured so that no
-// two chunks of one colour write the same row particle: a colour runs on the
-// OpenMP threads without write conflicts, colours run one after the other,
-// and every entry is summed in the same order whatever the thread count
-// (bit-identical).
-// Colouring::ForEach is threaded in sources compiled with OpenMP.
+// (stencil centres, springs) are grouped into chunks of particles and the
+// chunks coloured so that no two chunks of one colour write the same row
+// particle: a colour runs on the OpenMP threads without write conflicts,
+// colours run one after the other, and every entry is summed in the same
+// order whatever the thread count (bit-identical).
+// ChunkColouring::ForEach is threaded in sources compiled with OpenMP.
 #ifndef CLOTHBENCH_MODEL_BLOCK_SCATTER_H_
 #define CLOTHBENCH_MODEL_BLOCK_SCATTER_H_
 
@@ -27,72 +27,42 @@ namespace clothbench {
 
 using Matrix3 = Eigen::Matrix3d;
 
-/// Closed-form Jacobians run a colour on the OpenMP threads from this many
-/// items (stencil centres, springs) up; an item costs about a microsecond.
+/// Closed-form Jacobians run on the OpenMP threads from this many particles
+/// up; an item (stencil centre, spring) costs about a microsecond.
 constexpr std::ptrdiff_t kBlockParallelMinimum = 2048;
 
-/// Items grouped into chunks of consecutive items, and the chunks coloured
-/// greedily so that no two chunks of one colour write the same row particle.
-/// A colour's chunks run on the OpenMP threads, the items of a chunk in
-/// order on one thread (consecutive stencil centres touch neighbouring
-/// memory, so a chunk stays in cache); colours run one after the other.
-/// Every entry is therefore summed in one fixed order for any thread count.
-class Colouring {
+/// Chunks of items (stencil centres and springs of a range of particles)
+/// coloured greedily so that no two chunks of one colour write the same row
+/// particle. A colour's chunks run on the OpenMP threads, each chunk's items
+/// in order on one thread (neighbouring particles: a chunk's writes stay in
+/// cache); colours run one after the other. Every entry is therefore summed
+/// in one fixed order for any thread count.
+class ChunkColouring {
  public:
-  /// Items per chunk (the chunk size doubles until 64 colours suffice).
-  static constexpr std::size_t kChunk = 512;
-
-  Colouring() = default;
-  /// @param num_particles N; @param items item count
-  /// @param rows_per_item how many row particles each item writes
-  /// @param row row(item, k), the k-th row particle of an item
-  template <class RowOf>
-  Colouring(int num_particles, std::size_t items, int rows_per_item, RowOf row) {
-    for (chunk_ = kChunk;; chunk_ *= 2)
-      if (TryColour(num_particles, items, rows_per_item, row)) return;
-  }
-  int num_colours() const { return static_cast<int>(starts_.size()) - 1; }
-
-  /// Calls f(item) for every item, colour by colour; the chunks of a colour
-  /// on the OpenMP threads when the items number at least
-  /// `parallel_minimum`.
-  template <class F>
-  void ForEach(F f, std::ptrdiff_t parallel_minimum) const {
-    const bool parallel = static_cast<std::ptrdiff_t>(items_) >= parallel_minimum;
-    for (std::size_t c = 0; c + 1 < starts_.size(); ++c) {
-      const auto begin = static_cast<std::ptrdiff_t>(starts_[c]), end = static_cast<std::ptrdiff_t>(starts_[c + 1]);
-#ifdef _OPENMP
-#pragma omp parallel for schedule(static) if (parallel && end - begin > 1)
-#endif
-      for (std::ptrdiff_t i = begin; i < end; ++i) {
-        const std::size_t first = order_[static_cast<std::size_t>(i)] * chunk_;
-        const std::size_t last = std::min(first + chunk_, items_);
-        for (std::size_t item = first; item < last; ++item) f(item);
-      }
-    }
-    (void)parallel;
-  }
-
- private:
-  template <class RowOf>
-  bool TryColour(int num_particles, std::size_t items, int rows_per_item, RowOf row) {
-    items_ = items;
-    const std::size_t chunks = (items + chunk_ - 1) / chunk_;
+  ChunkColouring() = default;
+  /// @param num_particles N; @param chunks chunk count
+  /// @param rows_of rows_of(chunk, visit) calls visit(p) for every row
+  ///        particle p the chunk writes
+  /// @return whether 64 colours sufficed (else the object is empty: use
+  ///         larger chunks)
+  template <class RowsOf>
+  bool Build(int num_particles, std::size_t chunks, RowsOf rows_of) {
     std::vector<std::uint64_t> used(static_cast<std::size_t>(num_particles), 0);
     std::vector<int> colour(chunks);
     int colours = 0;
     for (std::size_t k = 0; k < chunks; ++k) {
-      const std::size_t first = k * chunk_, last = std::min(first + chunk_, items);
       std::uint64_t forbidden = 0;
-      for (std::size_t i = first; i < last; ++i)
-        for (int r = 0; r < rows_per_item; ++r) forbidden |= used[static_cast<std::size_t>(row(i, r))];
-      if (forbidden == ~std::uint64_t{0}) return false;
+      rows_of(k, [&](int p) { forbidden |= used[static_cast<std::size_t>(p)]; });
+      if (forbidden == ~std::uint64_t{0}) {
+        starts_.clear();
+        order_.clear();
+        return false;
+      }
       int c = 0;
       while ((forbidden >> c) & 1u) ++c;
       colour[k] = c;
       colours = std::max(colours, c + 1);
-      for (std::size_t i = first; i < last; ++i)
-        for (int r = 0; r < rows_per_item; ++r) used[static_cast<std::size_t>(row(i, r))] |= std::uint64_t{1} << c;
+      rows_of(k, [&](int p) { used[static_cast<std::size_t>(p)] |= std::uint64_t{1} << c; });
     }
     starts_.assign(static_cast<std::size_t>(colours) + 1, 0);
     for (int c : colour) ++starts_[static_cast<std::size_t>(c) + 1];
@@ -102,8 +72,23 @@ class Colouring {
     for (std::size_t k = 0; k < chunks; ++k) order_[fill[static_cast<std::size_t>(colour[k])]++] = k;
     return true;
   }
+  int num_colours() const { return starts_.empty() ? 0 : static_cast<int>(starts_.size()) - 1; }
 
-  std::size_t chunk_ = kChunk, items_ = 0;
+  /// Calls f(chunk) for every chunk, colour by colour; the chunks of a
+  /// colour on the OpenMP threads if `parallel`.
+  template <class F>
+  void ForEach(F f, bool parallel) const {
+    for (std::size_t c = 0; c + 1 < starts_.size(); ++c) {
+      const auto begin = static_cast<std::ptrdiff_t>(starts_[c]), end = static_cast<std::ptrdiff_t>(starts_[c + 1]);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (parallel && end - begin > 1)
+#endif
+      for (std::ptrdiff_t i = begin; i < end; ++i) f(order_[static_cast<std::size_t>(i)]);
+    }
+    (void)parallel;
+  }
+
+ private:
   std::vector<std::size_t> starts_, order_;  // chunks by colour
 };
 

@@ -231,8 +231,6 @@ class StencilTerm final : public ForceTerm {
     if (Kernel::kOutputs > 1 && static_cast<int>(centres_.size()) >= kParallelMinimum)
       gather_ = GatherLists(num_particles, centres_.size(), Kernel::kOutputs,
                             [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
-    colouring_ = Colouring(num_particles, centres_.size(), Kernel::kOutputs,
-                           [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
     if constexpr (Kernel::kLinear) {
       // One weight set per validity mask (a grid has a few dozen).
       weight_set_.resize(centres_.size());
@@ -338,19 +336,19 @@ class StencilTerm final : public ForceTerm {
         blocks->push_back({c.nodes[Kernel::kBlockSlots[k][0]], c.nodes[Kernel::kBlockSlots[k][1]]});
   }
 
+  std::size_t jacobian_items() const override { return centres_.size(); }
+
   void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
-                          double* dfdv) const override {
+                          double* dfdv, std::size_t first, std::size_t last) const override {
     const bool with_v = kernel_.uses_velocity();
-    colouring_.ForEach(
-        [&](std::size_t ci) {
-          std::array<Matrix3, kBlocks> jx, jv;
-          Blocks(t, x, v, ci, &jx, &jv);
-          const int* p = pos + 3 * static_cast<std::size_t>(kBlocks) * ci;
-          for (int k = 0; k < kBlocks; ++k) AddBlock(jx[static_cast<std::size_t>(k)], p + 3 * k, dfdx);
-          if (with_v)
-            for (int k = 0; k < kBlocks; ++k) AddBlock(jv[static_cast<std::size_t>(k)], p + 3 * k, dfdv);
-        },
-        kBlockParallelMinimum);
+    for (std::size_t ci = first; ci < last; ++ci) {
+      std::array<Matrix3, kBlocks> jx, jv;
+      Blocks(t, x, v, ci, &jx, &jv);
+      const int* p = pos + 3 * static_cast<std::size_t>(kBlocks) * ci;
+      for (int k = 0; k < kBlocks; ++k) AddBlock(jx[static_cast<std::size_t>(k)], p + 3 * k, dfdx);
+      if (with_v)
+        for (int k = 0; k < kBlocks; ++k) AddBlock(jv[static_cast<std::size_t>(k)], p + 3 * k, dfdv);
+    }
   }
 
  private:
@@ -425,7 +423,6 @@ class StencilTerm final : public ForceTerm {
   Kernel kernel_;
   std::vector<Centre> centres_;
   mutable GatherLists gather_;  // kOutputs > 1 and many centres only
-  Colouring colouring_;         // of the centres by the particles they write
   std::vector<LinearWeights<K>> weights_;  // Kernel::kLinear only: one set per validity mask
   std::vector<int> weight_set_;            // of each centre
 };
@@ -795,7 +792,6 @@ class TensionNonlinear final : public ForceTerm {
     auto end = [this](std::size_t s, int k) { return k == 0 ? springs_[s].a : springs_[s].b; };
     if (static_cast<std::ptrdiff_t>(springs_.size()) >= kParallelMinimum)
       gather_ = GatherLists(num_particles, springs_.size(), 2, end);
-    colouring_ = Colouring(num_particles, springs_.size(), 2, end);
   }
   std::string_view name() const override { return "tension_nonlinear"; }
   bool depends_on_velocity() const override { return false; }
@@ -815,18 +811,17 @@ class TensionNonlinear final : public ForceTerm {
       blocks->push_back({s.b, s.b});
     }
   }
-  void AccumulateJacobian(double, const MatrixN3& x, const MatrixN3&, const int* pos, double* dfdx,
-                          double*) const override {
-    colouring_.ForEach(
-        [&](std::size_t k) {
-          const Matrix3 kab = Block(x, springs_[k]);
-          const int* p = pos + 12 * k;
-          AddBlock(kab, p, dfdx);
-          AddBlock(-kab, p + 3, dfdx);
-          AddBlock(kab, p + 6, dfdx);
-          AddBlock(-kab, p + 9, dfdx);
-        },
-        kBlockParallelMinimum);
+  std::size_t jacobian_items() const override { return springs_.size(); }
+  void AccumulateJacobian(double, const MatrixN3& x, const MatrixN3&, const int* pos, double* dfdx, double*,
+                          std::size_t first, std::size_t last) const override {
+    for (std::size_t k = first; k < last; ++k) {
+      const Matrix3 kab = Block(x, springs_[k]);
+      const int* p = pos + 12 * k;
+      AddBlock(kab, p, dfdx);
+      AddBlock(-kab, p + 3, dfdx);
+      AddBlock(kab, p + 6, dfdx);
+      AddBlock(-kab, p + 9, dfdx);
+    }
   }
   // Serial for few springs; else per-spring forces on the OpenMP threads,
   // gathered per particle in spring order (bit-identical, see GatherLists).
@@ -866,7 +861,6 @@ class TensionNonlinear final : public ForceTerm {
  private:
   std::vector<Spring> springs_;
   mutable GatherLists gather_;  // many springs only
-  Colouring colouring_;         // of the springs by their end particles
 };
 
 class Gravity final : public ForceTerm {
@@ -877,7 +871,9 @@ class Gravity final : public ForceTerm {
   void AddJacobian(double, const MatrixN3&, const MatrixN3&, std::vector<Triplet>*, std::vector<Triplet>*) const override {}
   bool depends_on_velocity() const override { return false; }
   void JacobianBlocks(std::vector<BlockPair>*) const override {}
-  void AccumulateJacobian(double, const MatrixN3&, const MatrixN3&, const int*, double*, double*) const override {}
+  std::size_t jacobian_items() const override { return 0; }
+  void AccumulateJacobian(double, const MatrixN3&, const MatrixN3&, const int*, double*, double*, std::size_t,
+                          std::size_t) const override {}
 
  private:
   MatrixN3 force_;

@@ -41,15 +41,19 @@ class ForceTerm {
   /// ∂g/∂v.
   virtual bool depends_on_velocity() const = 0;
   /// Appends the (row particle, column particle) pairs of the 3×3 blocks
-  /// that AccumulateJacobian writes, in its order. Fixed for the term.
+  /// that AccumulateJacobian writes, item by item (stencil centres in
+  /// particle order, springs), the same number per item. Fixed for the term.
   virtual void JacobianBlocks(std::vector<BlockPair>* blocks) const = 0;
-  /// Adds ∂g/∂x into `dfdx` and, if depends_on_velocity(), ∂g/∂v into
-  /// `dfdv`: value arrays of a compressed column-major 3N×3N matrix, block
-  /// k of JacobianBlocks() at positions pos[3k … 3k+2] (BlockPositions).
-  /// Closed form, threaded, bit-identical for any thread count; no
+  /// The number of items whose blocks JacobianBlocks lists.
+  virtual std::size_t jacobian_items() const = 0;
+  /// Adds the blocks of items [first, last) of ∂g/∂x into `dfdx` and, if
+  /// depends_on_velocity(), of ∂g/∂v into `dfdv`: value arrays of a
+  /// compressed column-major 3N×3N matrix, block k of JacobianBlocks() at
+  /// positions pos[3k … 3k+2] (BlockPositions). Closed form, serial (the
+  /// caller runs item ranges that write disjoint rows on its threads); no
   /// allocation. @param t [s]; @param x, v N×3 [m], [m/s]
   virtual void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
-                                  double* dfdv) const = 0;
+                                  double* dfdv, std::size_t first, std::size_t last) const = 0;
 };
 
 /// One spring of the tension model (SPEC §2.1): a u- or v-edge.

@@ -89,9 +89,42 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
     term_pos_.emplace_back(pos.begin() + static_cast<std::ptrdiff_t>(3 * term_begin[k]),
                            pos.begin() + static_cast<std::ptrdiff_t>(3 * end));
   }
-  spring_colouring_ = Colouring(n, springs.size(), 2, [&springs](std::size_t s, int k) {
-    return k == 0 ? springs[s].a : springs[s].b;
-  });
+  // The fused sweep's chunks: springs by their end a, term items in
+  // proportion (stencil terms have one centre per particle, in particle
+  // order); chunks double in size until 64 colours suffice.
+  std::vector<std::size_t> items, per_item;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    items.push_back(terms_[k]->jacobian_items());
+    const std::size_t end = k + 1 < terms_.size() ? term_begin[k + 1] : blocks.size();
+    per_item.push_back(items.back() ? (end - term_begin[k]) / items.back() : 0);
+  }
+  const auto item_at = [&](std::size_t k, std::size_t chunk_start) {  // first item of term k in a chunk
+    return std::min(items[k], (chunk_start * items[k] + static_cast<std::size_t>(n) - 1) / static_cast<std::size_t>(n));
+  };
+  for (chunk_ = 512;; chunk_ *= 2) {
+    const std::size_t chunks = (static_cast<std::size_t>(n) + chunk_ - 1) / chunk_;
+    spring_begin_.assign(chunks + 1, 0);
+    for (const Spring& sp : springs) ++spring_begin_[static_cast<std::size_t>(sp.a) / chunk_ + 1];
+    for (std::size_t c = 0; c < chunks; ++c) spring_begin_[c + 1] += spring_begin_[c];
+    spring_order_.resize(springs.size());
+    std::vector<std::size_t> fill(spring_begin_.begin(), spring_begin_.end() - 1);
+    for (std::size_t sp = 0; sp < springs.size(); ++sp)
+      spring_order_[fill[static_cast<std::size_t>(springs[sp].a) / chunk_]++] = sp;
+    item_begin_.assign(terms_.size(), std::vector<std::size_t>(chunks + 1, 0));
+    for (std::size_t k = 0; k < terms_.size(); ++k)
+      for (std::size_t c = 0; c <= chunks; ++c) item_begin_[k][c] = item_at(k, std::min(c * chunk_, static_cast<std::size_t>(n)));
+    const bool ok = colouring_.Build(n, chunks, [&](std::size_t c, auto visit) {
+      for (std::size_t q = spring_begin_[c]; q < spring_begin_[c + 1]; ++q) {
+        visit(springs[spring_order_[q]].a);
+        visit(springs[spring_order_[q]].b);
+      }
+      for (std::size_t k = 0; k < terms_.size(); ++k)
+        for (std::size_t b = term_begin[k] + item_begin_[k][c] * per_item[k];
+             b < term_begin[k] + item_begin_[k][c + 1] * per_item[k]; ++b)
+          visit(blocks[b][0]);
+    });
+    if (ok) break;
+  }
   kx_.setZero(j_.nonZeros());
   if (velocity) kv_.setZero(j_.nonZeros());
   diag_pos_.resize(3 * static_cast<std::size_t>(n));
@@ -108,43 +141,37 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
     }
   if (kv_.size() && kv_constant_) {  // the springs' damping c_e I, once
     Eigen::VectorXd unused = Eigen::VectorXd::Zero(kx_.size());
-    AddSprings(system.rest_positions(), unused.data(), kv_.data());
+    for (std::size_t k = 0; k < springs.size(); ++k) AddSpring(k, system.rest_positions(), unused.data(), kv_.data());
   }
 }
 
-void TangentSystem::AddSprings(const MatrixN3& x, double* kx, double* kv) const {
-  // Springs: ∂F_a/∂x_b = s_e [c (I − d̂d̂ᵀ) + d̂d̂ᵀ], c = 1 − l_e/|d| (clamped
-  // at 0 with kClamp); ∂F_a/∂x_a is its negative. Damping c_e (v_b − v_a),
-  // (3.18): ∂F_a/∂v_b = c_e I.
-  const std::vector<Spring>& springs = sys_.springs();
+void TangentSystem::AddSpring(std::size_t k, const MatrixN3& x, double* kx, double* kv) const {
+  // ∂F_a/∂x_b = s_e [c (I − d̂d̂ᵀ) + d̂d̂ᵀ], c = 1 − l_e/|d| (clamped at 0 with
+  // kClamp); ∂F_a/∂x_a is its negative. Damping c_e (v_b − v_a), (3.18):
+  // ∂F_a/∂v_b = c_e I.
+  const Spring& s = sys_.springs()[k];
   const bool linear = sys_.scene().material.tension_model == TensionModel::kLinear;
-  const bool clamp = options_.projection == TangentProjection::kClamp;
-  spring_colouring_.ForEach(
-      [&](std::size_t k) {
-        const Spring& s = springs[k];
-        const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
-        const double len = d.norm();
-        const double rest = linear ? 0.0 : s.rest_length;
-        double c = len > 0.0 ? 1.0 - rest / len : 1.0;
-        if (clamp) c = std::max(c, 0.0);
-        const Vector3 dh = len > 0.0 ? Vector3(d / len) : Vector3::Zero();
-        // The "linear" tension model (zero rest length) has c = 1: s_e I.
-        Matrix3 kk = (s.stiffness * (1.0 - c)) * dh * dh.transpose();
-        kk.diagonal().array() += s.stiffness * c;
-        const int* p = spring_pos_.data() + 12 * k;
-        AddBlock(kk, p, kx);
-        AddBlock(-kk, p + 3, kx);
-        AddBlock(kk, p + 6, kx);
-        AddBlock(-kk, p + 9, kx);
-        if (kv && s.damping > 0.0) {
-          const Matrix3 cd = s.damping * Matrix3::Identity();
-          AddBlock(cd, p, kv);
-          AddBlock(-cd, p + 3, kv);
-          AddBlock(cd, p + 6, kv);
-          AddBlock(-cd, p + 9, kv);
-        }
-      },
-      kBlockParallelMinimum);
+  const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
+  const double len = d.norm();
+  const double rest = linear ? 0.0 : s.rest_length;
+  double c = len > 0.0 ? 1.0 - rest / len : 1.0;
+  if (options_.projection == TangentProjection::kClamp) c = std::max(c, 0.0);
+  const Vector3 dh = len > 0.0 ? Vector3(d / len) : Vector3::Zero();
+  // The "linear" tension model (zero rest length) has c = 1: s_e I.
+  Matrix3 kk = (s.stiffness * (1.0 - c)) * dh * dh.transpose();
+  kk.diagonal().array() += s.stiffness * c;
+  const int* p = spring_pos_.data() + 12 * k;
+  AddBlock(kk, p, kx);
+  AddBlock(-kk, p + 3, kx);
+  AddBlock(kk, p + 6, kx);
+  AddBlock(-kk, p + 9, kx);
+  if (kv && s.damping > 0.0) {
+    const Matrix3 cd = s.damping * Matrix3::Identity();
+    AddBlock(cd, p, kv);
+    AddBlock(-cd, p + 3, kv);
+    AddBlock(cd, p + 6, kv);
+    AddBlock(-cd, p + 9, kv);
+  }
 }
 
 void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, double alpha_h) {
@@ -152,8 +179,16 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
   double* kx = kx_.data();
   double* kv = kv_.size() ? kv_.data() : nullptr;
   if (kv && !kv_constant_) kv_.setZero();
-  AddSprings(x, kx, kv_constant_ ? nullptr : kv);
-  for (std::size_t k = 0; k < terms_.size(); ++k) terms_[k]->AccumulateJacobian(t, x, v, term_pos_[k].data(), kx, kv);
+  double* spring_kv = kv_constant_ ? nullptr : kv;
+  // One sweep over the chunks: a chunk's springs, then each term's items,
+  // while the chunk's entries are in cache.
+  colouring_.ForEach(
+      [&](std::size_t c) {
+        for (std::size_t q = spring_begin_[c]; q < spring_begin_[c + 1]; ++q) AddSpring(spring_order_[q], x, kx, spring_kv);
+        for (std::size_t k = 0; k < terms_.size(); ++k)
+          terms_[k]->AccumulateJacobian(t, x, v, term_pos_[k].data(), kx, kv, item_begin_[k][c], item_begin_[k][c + 1]);
+      },
+      sys_.num_particles() >= kBlockParallelMinimum);
   SetAlphaH(alpha_h);
 }
 
@@ -178,16 +213,24 @@ void TangentSystem::SetAlphaH(double alpha_h) {
   double* vals = j_.valuePtr();
   const double* base = base_.data();
   const double* kvar = kv_constant_ ? nullptr : kv;  // ∂f/∂v of this state
-  if (sym) {
-    const double hx = 0.5 * cx, hv = 0.5 * cv;
+  // Separate loops with and without a state-dependent ∂f/∂v, so that the
+  // common one (constant ∂f/∂v) has no branch.
+  const double hx = 0.5 * cx, hv = 0.5 * cv;
+  if (sym && kvar) {
 #pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
     for (Eigen::Index e = 0; e < nnz; ++e) {
       const int te = tp[e];
-      vals[e] = base[e] + hx * (kx[e] + kx[te]) + (kvar ? hv * (kvar[e] + kvar[te]) : 0.0);
+      vals[e] = base[e] + hx * (kx[e] + kx[te]) + hv * (kvar[e] + kvar[te]);
     }
+  } else if (sym) {
+#pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
+    for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = base[e] + hx * (kx[e] + kx[tp[e]]);
+  } else if (kvar) {
+#pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
+    for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = base[e] + cx * kx[e] + cv * kvar[e];
   } else {
 #pragma omp parallel for schedule(static) if (nnz >= 9 * kParallelMinimum)
-    for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = base[e] + cx * kx[e] + (kvar ? cv * kvar[e] : 0.0);
+    for (Eigen::Index e = 0; e < nnz; ++e) vals[e] = base[e] + cx * kx[e];
   }
   alpha_h_ = alpha_h;
 }

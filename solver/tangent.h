@@ -81,13 +81,19 @@ class TangentSystem {
   Eigen::VectorXd base_;
   double base_alpha_h_ = -1.0;
   double alpha_h_ = -1.0;
-  // Adds the springs' stiffness blocks at x to kx (and their damping blocks
-  // to kv if not null).
-  void AddSprings(const MatrixN3& x, double* kx, double* kv) const;
+  // Adds spring k's stiffness blocks at x to kx (and its damping blocks to
+  // kv if not null).
+  void AddSpring(std::size_t k, const MatrixN3& x, double* kx, double* kv) const;
   std::vector<const ForceTerm*> terms_;      // the explicit terms that enter J_α
   std::vector<std::vector<int>> term_pos_;   // their block positions
   std::vector<int> spring_pos_;              // 4 blocks per spring
-  Colouring spring_colouring_;               // of the springs by their end particles
+  // The fused sweep: chunks of chunk_ particles; chunk k holds the springs
+  // spring_order_[spring_begin_[k] … spring_begin_[k+1]) (by their end a)
+  // and items item_begin_[t][k] … item_begin_[t][k+1] of term t.
+  std::size_t chunk_ = 0;
+  std::vector<std::size_t> spring_begin_, spring_order_;
+  std::vector<std::vector<std::size_t>> item_begin_;
+  ChunkColouring colouring_;
   std::vector<int> diag_pos_;                // value index of each diagonal entry (3p + c)
   std::vector<int> transpose_pos_;           // value index of (j, i) for the entry (i, j)
 };
