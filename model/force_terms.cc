@@ -137,7 +137,13 @@ Vector3 NormalJacobian(const Patch<double, K>& patch, LeftOf left, std::array<Ma
     const Quad& f = quads[static_cast<std::size_t>(k)];
     Matrix3 h = g - (g * f.fh) * f.fh.transpose();  // · (I − f̂f̂ᵀ) st/|nf|
     h *= f.scale;
-    const Matrix3 hq = h * Skew(f.q), hp = h * Skew(f.p);
+    // Row i of H [a]× is (H_i × a)ᵀ: three cross products per skew product.
+    Matrix3 hq, hp;
+    for (int i = 0; i < 3; ++i) {
+      const Vector3 r = h.row(i).transpose();
+      hq.row(i) = r.cross(f.q).transpose();
+      hp.row(i) = r.cross(f.p).transpose();
+    }
     (*out)[static_cast<std::size_t>(Slot(f.s, f.t))] -= hq;
     (*out)[0] += hq;
     (*out)[static_cast<std::size_t>(Slot(0, f.t))] += hp;

@@ -56,6 +56,7 @@ SparseMatrix BlockPattern(int n, const std::vector<BlockPair>& blocks) {
 
 TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions& options)
     : sys_(system), options_(options) {
+  linear_tension_ = system.scene().material.tension_model == TensionModel::kLinear;
   const int n = system.num_particles();
   const std::vector<Spring>& springs = system.springs();
   std::vector<BlockPair> blocks;
@@ -145,12 +146,12 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
   }
 }
 
-void TangentSystem::AddSpring(std::size_t k, const MatrixN3& x, double* kx, double* kv) const {
+inline void TangentSystem::AddSpring(std::size_t k, const MatrixN3& x, double* kx, double* kv) const {
   // ∂F_a/∂x_b = s_e [c (I − d̂d̂ᵀ) + d̂d̂ᵀ], c = 1 − l_e/|d| (clamped at 0 with
   // kClamp); ∂F_a/∂x_a is its negative. Damping c_e (v_b − v_a), (3.18):
   // ∂F_a/∂v_b = c_e I.
   const Spring& s = sys_.springs()[k];
-  const bool linear = sys_.scene().material.tension_model == TensionModel::kLinear;
+  const bool linear = linear_tension_;
   const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
   const double len = d.norm();
   const double rest = linear ? 0.0 : s.rest_length;

@@ -84,6 +84,7 @@ class TangentSystem {
   // Adds spring k's stiffness blocks at x to kx (and its damping blocks to
   // kv if not null).
   void AddSpring(std::size_t k, const MatrixN3& x, double* kx, double* kv) const;
+  bool linear_tension_ = false;  // tension_model = "linear": zero rest length
   std::vector<const ForceTerm*> terms_;      // the explicit terms that enter J_α
   std::vector<std::vector<int>> term_pos_;   // their block positions
   std::vector<int> spring_pos_;              // 4 blocks per spring
