@@ -150,6 +150,15 @@ int Main(int argc, char** argv) {
         excess[k] = it->second.excess;
       }
     }
+    // Rank 0's list for every rank: the ranks read the journal after one
+    // barrier, and rank 0 may append its first cells before another rank
+    // has read it; a rank with a shorter list would deal the cells
+    // differently (cells computed twice, others never).
+    {
+      std::vector<long> list(missing.begin(), missing.end());
+      comm.Broadcast(&list);
+      missing.assign(list.begin(), list.end());
+    }
     const std::size_t to_compute =
         max_cells > 0 ? std::min(missing.size(), static_cast<std::size_t>(max_cells)) : missing.size();
     if (comm.root() && (missing.size() < n || comm.size() > 1 || to_compute < missing.size()))
