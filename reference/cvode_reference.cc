@@ -119,53 +119,30 @@ int JacFn(realtype t, N_Vector y, N_Vector, SUNMatrix jac, void* user, N_Vector,
 class ReducedNewtonSolve {
  public:
   ReducedNewtonSolve(const ParticleSystem& sys, const SolverSpec& spec)
-      : sys_(sys),
-        spec_(spec),
-        map_(sys),
-        n_(sys.num_particles()),
-        nf_(map_.num_free()),
-        tangent_(sys, TangentOptions{spec.tangent_projection, spec.tangent_explicit_terms, true}),
-        pre_(spec.preconditioner) {
-    const auto start = std::chrono::steady_clock::now();
-    if (spec.preconditioner == PreconditionerType::kCholesky || spec.preconditioner == PreconditionerType::kAmg)
-      laplacian_ = std::make_unique<SystemMatrix>(sys, spec.preconditioner, spec.cholesky_ordering);
-    pre_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
-    filter_.Reserve(n_);
-    for (int p : sys.fixed()) filter_.Fix(p);
-    work_.Resize(n_);
-    for (MatrixN3* m : {&x_, &v_, &rx_, &rv_, &rhs_}) m->setZero(n_, 3);
-    dv_.setZero(n_, 3);
-    br_.setZero(n_, 3);
-    setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      : sys_(sys), spec_(spec), map_(sys), nf_(map_.num_free()), tangent_(sys, spec) {
+    for (MatrixN3* m : {&x_, &v_, &rx_, &rv_, &rhs_}) m->setZero(sys.num_particles(), 3);
+    dv_.setZero(sys.num_particles(), 3);
+    br_.setZero(sys.num_particles(), 3);
   }
 
   // CVODE's setup (psetup): the Jacobian at (t, y) unless jok, J_γ, and the
   // preconditioner of J_γ. Returns 0, or 1 (recoverable) if the
   // preconditioner could not be built.
   int Setup(double t, const double* y, bool jok, int* jcur, double gamma) {
-    const auto start = std::chrono::steady_clock::now();
-    if (!jok || jacobian_evaluations_ == 0) {
+    if (!jok || tangent_.jacobian_evaluations() == 0) {  // the first setup evaluates whatever jok says
       map_.PositionsFromY(y, &x_);
       map_.VelocitiesFromY(y, &v_);
-      tangent_.Update(t, x_, v_, gamma);
-      ++jacobian_evaluations_;
-      *jcur = 1;
-    } else {
-      tangent_.SetAlphaH(gamma);
-      *jcur = 0;
     }
-    bool ok = !laplacian_ || laplacian_->Update(gamma);
-    ok = ok && pre_.Factorize(tangent_.matrix());
-    ++setups_;
-    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return ok ? 0 : 1;
+    const long before = tangent_.jacobian_evaluations();
+    const int flag = tangent_.Setup(t, x_, v_, gamma, !jok);
+    *jcur = tangent_.jacobian_evaluations() > before ? 1 : 0;
+    return flag;
   }
 
   // δ = (I − γJ)⁻¹ r through the reduced system; the matrix follows γ, the
   // preconditioner is the last setup's. The PCG stops at CVLS's tolerance
   // tol on ‖w ∘ residual‖₂ (internal::PcgStopForTolerance).
   PcgStatus Solve(double gamma, const double* r, double* delta, const double* w, double tol) {
-    if (gamma != tangent_.alpha_h()) tangent_.SetAlphaH(gamma);
     rx_.setZero();
     rv_.setZero();
     for (int k = 0; k < nf_; ++k)
@@ -176,45 +153,30 @@ class ReducedNewtonSolve {
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
     tangent_.AddJacobianProducts(gamma, rx_, 0.0, rx_, &rhs_);
     br_ = rhs_;
-    dv_.setZero();
-    const PcgOptions opts = internal::PcgStopForTolerance(map_, sys_.masses(), w, tol,
-                                                          {spec_.cg_tolerance, spec_.cg_max_iterations});
-    const PcgSummary s = FilteredPcg(tangent_.matrix(), br_, filter_, pre_, opts, &dv_, &work_);
-    last_iterations_ = s.iterations;
-    total_iterations_ += s.iterations;
-    last_residual_ = s.residual_norm;
+    const PcgStatus status = tangent_.Solve(
+        gamma, br_,
+        internal::PcgStopForTolerance(map_, sys_.masses(), w, tol, {spec_.cg_tolerance, spec_.cg_max_iterations}),
+        &dv_);
     for (int k = 0; k < nf_; ++k)
       for (int c = 0; c < 3; ++c) {
         const double d = dv_(map_.particle(k), c);
         delta[3 * nf_ + 3 * k + c] = d;
         delta[3 * k + c] = r[3 * k + c] + gamma * d;
       }
-    return s.status;
+    return status;
   }
-  int last_iterations() const { return last_iterations_; }
-  long total_iterations() const { return total_iterations_; }
-  double last_residual() const { return last_residual_; }
-  long jacobian_evaluations() const { return jacobian_evaluations_; }
-  long setups() const { return setups_; }
-  double setup_seconds() const {
-    return setup_seconds_ + (laplacian_ ? laplacian_->setup_seconds() : 0.0);
-  }
+  const internal::ReducedTangent& tangent() const { return tangent_; }
+  int last_iterations() const { return tangent_.last_iterations(); }
+  double last_residual() const { return tangent_.last_residual(); }
 
  private:
   const ParticleSystem& sys_;
   const SolverSpec& spec_;
   internal::FreeDofMap map_;
-  int n_, nf_;
-  TangentSystem tangent_;
-  std::unique_ptr<SystemMatrix> laplacian_;  // "cholesky", "amg": A_γ's preconditioner
-  TangentPreconditioner pre_;
-  VelocityFilter filter_;
-  TangentPcgWorkspace work_;
+  int nf_;
+  internal::ReducedTangent tangent_;
   MatrixN3 x_, v_, rx_, rv_, rhs_;
   MatrixN3R dv_, br_;
-  int last_iterations_ = 0;
-  long total_iterations_ = 0, jacobian_evaluations_ = 0, setups_ = 0;
-  double last_residual_ = 0.0, setup_seconds_ = 0.0;
 };
 
 // CVLS's preconditioner setup: CVODE's jok and γ reach the reduced solve.
@@ -350,9 +312,9 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   CVodeGetNumJacEvals(h.mem, &st.nje);
   CVodeGetNumLinSolvSetups(h.mem, &st.nsetups);
   if (solve) {
-    st.nli = solve->total_iterations();
-    st.nje = solve->jacobian_evaluations();
-    res.setup_time_in_seconds = solve->setup_seconds();
+    st.nli = solve->tangent().total_iterations();
+    st.nje = solve->tangent().jacobian_evaluations();
+    res.setup_time_in_seconds = solve->tangent().setup_seconds();
   } else {
     res.setup_time_in_seconds = klu_seconds + ode.jacobian_seconds();
   }

@@ -137,40 +137,21 @@ class ResidualForm {
 class IdaReducedSolve {
  public:
   IdaReducedSolve(const ParticleSystem& sys, const SolverSpec& spec)
-      : sys_(sys),
-        spec_(spec),
-        n_(sys.num_particles()),
-        tangent_(sys, TangentOptions{spec.tangent_projection, spec.tangent_explicit_terms, true}),
-        pre_(spec.preconditioner) {
-    const auto start = std::chrono::steady_clock::now();
-    if (spec.preconditioner == PreconditionerType::kCholesky || spec.preconditioner == PreconditionerType::kAmg)
-      laplacian_ = std::make_unique<SystemMatrix>(sys, spec.preconditioner, spec.cholesky_ordering);
-    pre_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
-    filter_.Reserve(n_);
-    for (int p : sys.fixed()) filter_.Fix(p);
-    work_.Resize(n_);
+      : sys_(sys), spec_(spec), n_(sys.num_particles()), tangent_(sys, spec) {
     for (MatrixN3* m : {&x_, &v_, &w_, &u_, &rhs_}) m->setZero(n_, 3);
     dv_.setZero(n_, 3);
     br_.setZero(n_, 3);
-    setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
 
   // IDA's setup: the Jacobian at (t, y) (IDA has no jok: every setup is
   // a new Jacobian), J_γ with γ = 1/c_j, and its preconditioner.
   int Setup(double t, const double* y, double cj) {
-    const auto start = std::chrono::steady_clock::now();
     for (int p = 0; p < n_; ++p)
       for (int c = 0; c < 3; ++c) {
         x_(p, c) = y[3 * p + c];
         v_(p, c) = y[3 * n_ + 3 * p + c];
       }
-    const double gamma = 1.0 / cj;
-    tangent_.Update(t, x_, v_, gamma);
-    ++jacobian_evaluations_;
-    bool ok = !laplacian_ || laplacian_->Update(gamma);
-    ok = ok && pre_.Factorize(tangent_.matrix());
-    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return ok ? 0 : 1;
+    return tangent_.Setup(t, x_, v_, 1.0 / cj, true);
   }
 
   // δ from the reduced system (see RunIdaReduced); `cj` is IDA's current
@@ -178,7 +159,6 @@ class IdaReducedSolve {
   // times the PCG's, so ‖res_PCG‖₂ ≤ tol / (c_j max w_v) meets IDALS's stop.
   PcgStatus Solve(double cj, const double* b, double* delta, const double* w, double tol) {
     const double g = 1.0 / cj;
-    if (g != tangent_.alpha_h()) tangent_.SetAlphaH(g);
     double wmax = 0.0;
     for (int p = 0; p < n_; ++p) {
       const bool fixed = sys_.is_fixed(p);
@@ -192,14 +172,9 @@ class IdaReducedSolve {
     }
     tangent_.AddJacobianProducts(g * g, w_, g, u_, &rhs_);
     br_ = rhs_;
-    dv_.setZero();
-    const PcgSummary s =
-        FilteredPcg(tangent_.matrix(), br_, filter_, pre_,
-                    internal::PcgStopForTolerance(cj * wmax, w ? tol : 0.0, {spec_.cg_tolerance, spec_.cg_max_iterations}),
-                    &dv_, &work_);
-    last_iterations_ = s.iterations;
-    total_iterations_ += s.iterations;
-    last_residual_ = s.residual_norm;
+    const PcgStatus status = tangent_.Solve(
+        g, br_, internal::PcgStopForTolerance(cj * wmax, w ? tol : 0.0, {spec_.cg_tolerance, spec_.cg_max_iterations}),
+        &dv_);
     for (int p = 0; p < n_; ++p) {
       const bool fixed = sys_.is_fixed(p);
       for (int c = 0; c < 3; ++c) {
@@ -213,30 +188,19 @@ class IdaReducedSolve {
         }
       }
     }
-    return s.status;
+    return status;
   }
-  int last_iterations() const { return last_iterations_; }
-  long total_iterations() const { return total_iterations_; }
-  double last_residual() const { return last_residual_; }
-  long jacobian_evaluations() const { return jacobian_evaluations_; }
-  double setup_seconds() const {
-    return setup_seconds_ + (laplacian_ ? laplacian_->setup_seconds() : 0.0);
-  }
+  const internal::ReducedTangent& tangent() const { return tangent_; }
+  int last_iterations() const { return tangent_.last_iterations(); }
+  double last_residual() const { return tangent_.last_residual(); }
 
  private:
   const ParticleSystem& sys_;
   const SolverSpec& spec_;
   int n_;
-  TangentSystem tangent_;
-  std::unique_ptr<SystemMatrix> laplacian_;
-  TangentPreconditioner pre_;
-  VelocityFilter filter_;
-  TangentPcgWorkspace work_;
+  internal::ReducedTangent tangent_;
   MatrixN3 x_, v_, w_, u_, rhs_;
   MatrixN3R dv_, br_;
-  int last_iterations_ = 0;
-  long total_iterations_ = 0, jacobian_evaluations_ = 0;
-  double last_residual_ = 0.0, setup_seconds_ = 0.0;
 };
 
 // IDA's user data: the residual form, and the reduced solve of row `ida`.
@@ -365,9 +329,9 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
   IDAGetNumJacEvals(h.mem, &st.nje);
   IDAGetNumLinSolvSetups(h.mem, &st.nsetups);
   if (solve) {
-    st.nli = solve->total_iterations();
-    st.nje = solve->jacobian_evaluations();
-    res.setup_time_in_seconds = solve->setup_seconds();
+    st.nli = solve->tangent().total_iterations();
+    st.nje = solve->tangent().jacobian_evaluations();
+    res.setup_time_in_seconds = solve->tangent().setup_seconds();
   } else {
     res.setup_time_in_seconds = klu_seconds + form.jacobian_seconds();
   }

@@ -256,6 +256,47 @@ int TimedFree(SUNLinearSolver s) {
 
 }  // namespace
 
+ReducedTangent::ReducedTangent(const ParticleSystem& sys, const SolverSpec& spec)
+    : tangent_(sys, TangentOptions{spec.tangent_projection, spec.tangent_explicit_terms, true}),
+      pre_(spec.preconditioner) {
+  const auto start = std::chrono::steady_clock::now();
+  if (spec.preconditioner == PreconditionerType::kCholesky || spec.preconditioner == PreconditionerType::kAmg)
+    laplacian_ = std::make_unique<SystemMatrix>(sys, spec.preconditioner, spec.cholesky_ordering);
+  pre_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
+  filter_.Reserve(sys.num_particles());
+  for (int p : sys.fixed()) filter_.Fix(p);
+  work_.Resize(sys.num_particles());
+  setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+int ReducedTangent::Setup(double t, const MatrixN3& x, const MatrixN3& v, double gamma, bool evaluate) {
+  const auto start = std::chrono::steady_clock::now();
+  if (evaluate || jacobian_evaluations_ == 0) {
+    tangent_.Update(t, x, v, gamma);
+    ++jacobian_evaluations_;
+  } else {
+    tangent_.SetAlphaH(gamma);
+  }
+  bool ok = !laplacian_ || laplacian_->Update(gamma);
+  ok = ok && pre_.Factorize(tangent_.matrix());
+  setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return ok ? 0 : 1;
+}
+
+PcgStatus ReducedTangent::Solve(double gamma, const MatrixN3R& b, const PcgOptions& options, MatrixN3R* dv) {
+  if (gamma != tangent_.alpha_h()) tangent_.SetAlphaH(gamma);
+  dv->setZero();
+  const PcgSummary s = FilteredPcg(tangent_.matrix(), b, filter_, pre_, options, dv, &work_);
+  last_iterations_ = s.iterations;
+  total_iterations_ += s.iterations;
+  last_residual_ = s.residual_norm;
+  return s.status;
+}
+
+double ReducedTangent::setup_seconds() const {
+  return setup_seconds_ + (laplacian_ ? laplacian_->setup_seconds() : 0.0);
+}
+
 SUNLinearSolver NewTimedLinearSolver(SUNContext ctx, SUNLinearSolver inner, double* seconds) {
   SUNLinearSolver s = inner ? SUNLinSolNewEmpty(ctx) : nullptr;
   if (!s) {

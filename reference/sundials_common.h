@@ -4,13 +4,16 @@
 #define CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <sundials/sundials_linearsolver.h>
 
 #include "model/particle_system.h"
+#include "solver/integrator.h"
 #include "solver/pcg.h"
+#include "solver/tangent.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -151,6 +154,44 @@ CustomSolverHooks ReducedSolveHooks(ReducedSolve* s, CurrentGamma current_gamma)
   hooks.residual = [s] { return s->last_residual(); };
   return hooks;
 }
+
+/// The tangent system J_γ = M − γ ∂f/∂v − γ² ∂f/∂x of a reduced
+/// SUNDIALS Newton solve (CVODE's and IDA's rows; docs/model.md "CVODE's
+/// reduced solve"): the closed-form, clamped and symmetrised tangent, the
+/// scene's preconditioner (refactorised at the package's setups only), the
+/// fixed particles' filter, and the filtered PCG with its counters.
+class ReducedTangent {
+ public:
+  ReducedTangent(const ParticleSystem& sys, const SolverSpec& spec);
+  /// A setup: the Jacobian at (t, x, v) if `evaluate` (else J follows γ
+  /// with the last one), and the preconditioner of J_γ. Returns 0, or 1
+  /// (recoverable) if the preconditioner could not be built.
+  int Setup(double t, const MatrixN3& x, const MatrixN3& v, double gamma, bool evaluate);
+  /// J_γ dv = b by the filtered PCG (fixed particles' dv = 0), the matrix
+  /// at `gamma`, the preconditioner of the last setup. @param dv N×3
+  /// row-major, overwritten. No allocation.
+  PcgStatus Solve(double gamma, const MatrixN3R& b, const PcgOptions& options, MatrixN3R* dv);
+  /// out += cx ∂f/∂x u + cv ∂f/∂v w (the last Jacobian).
+  void AddJacobianProducts(double cx, const MatrixN3& u, double cv, const MatrixN3& w, MatrixN3* out) const {
+    tangent_.AddJacobianProducts(cx, u, cv, w, out);
+  }
+  int last_iterations() const { return last_iterations_; }
+  long total_iterations() const { return total_iterations_; }
+  double last_residual() const { return last_residual_; }
+  long jacobian_evaluations() const { return jacobian_evaluations_; }
+  /// Construction, Jacobian evaluations and preconditioner setups [s].
+  double setup_seconds() const;
+
+ private:
+  TangentSystem tangent_;
+  std::unique_ptr<SystemMatrix> laplacian_;  // "cholesky", "amg": A_γ's preconditioner
+  TangentPreconditioner pre_;
+  VelocityFilter filter_;
+  TangentPcgWorkspace work_;
+  int last_iterations_ = 0;
+  long total_iterations_ = 0, jacobian_evaluations_ = 0;
+  double last_residual_ = 0.0, setup_seconds_ = 0.0;
+};
 
 /// The PCG stop that meets a SUNDIALS iterative tolerance for a reduced
 /// velocity solve: the package asks for ‖w ∘ res‖₂ < tol over y = [x; v]
