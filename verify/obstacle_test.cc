@@ -24,6 +24,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include "model/obstacle.h"
@@ -108,9 +110,12 @@ TEST(ObstacleMotion, MovingMeshCubeMatchesAnalyticBox) {
   EXPECT_GT(compared, 500);
 }
 
-// Writes an OFF file of quads in the plane z = 0: each [x0, x1] × [-1, 1].
+// Writes an OFF file of quads in the plane z = 0: each [x0, x1] × [-1, 1],
+// named after the process (ctest runs the tests of this file as parallel
+// processes, which must not write one file).
 std::string WriteQuadsOff(const std::string& name, const std::vector<std::pair<double, double>>& spans) {
-  const std::string path = (std::filesystem::temp_directory_path() / name).string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name)).string();
   std::ofstream off(path);
   off << "OFF\n" << 4 * spans.size() << " " << 2 * spans.size() << " 0\n";
   for (auto [x0, x1] : spans) off << x0 << " -1 0\n" << x1 << " -1 0\n" << x1 << " 1 0\n" << x0 << " 1 0\n";
