@@ -73,13 +73,7 @@ class ImexOde {
   // and δx = r_x + γ δv. Returns the PCG status.
   PcgStatus Solve(double gamma, const double* r, double* delta, const double* w, double tol) {
     if (!sysmat_.Update(gamma)) return PcgStatus::kBreakdown;
-    rx_.setZero();
-    rv_.setZero();
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) {
-        rx_(map_.particle(k), c) = r[3 * k + c];
-        rv_(map_.particle(k), c) = r[3 * nf_ + 3 * k + c];
-      }
+    map_.SplitY(r, &rx_, &rv_);
     tmp_.noalias() = sys_.stiffness_laplacian() * rx_;
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
     rhs_ -= gamma * tmp_;

@@ -143,13 +143,7 @@ class ReducedNewtonSolve {
   // preconditioner is the last setup's. The PCG stops at CVLS's tolerance
   // tol on ‖w ∘ residual‖₂ (internal::PcgStopForTolerance).
   PcgStatus Solve(double gamma, const double* r, double* delta, const double* w, double tol) {
-    rx_.setZero();
-    rv_.setZero();
-    for (int k = 0; k < nf_; ++k)
-      for (int c = 0; c < 3; ++c) {
-        rx_(map_.particle(k), c) = r[3 * k + c];
-        rv_(map_.particle(k), c) = r[3 * nf_ + 3 * k + c];
-      }
+    map_.SplitY(r, &rx_, &rv_);
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
     tangent_.AddJacobianProducts(gamma, rx_, 0.0, rx_, &rhs_);
     br_ = rhs_;

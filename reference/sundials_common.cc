@@ -159,6 +159,17 @@ void FreeDofMap::PositionsFromY(const double* y, MatrixN3* x) const {
     for (int c = 0; c < 3; ++c) (*x)(particle(k), c) = y[3 * k + c];
 }
 
+void FreeDofMap::SplitY(const double* y, MatrixN3* x, MatrixN3* v) const {
+  const int nf = num_free();
+  x->setZero();
+  v->setZero();
+  for (int k = 0; k < nf; ++k)
+    for (int c = 0; c < 3; ++c) {
+      (*x)(particle(k), c) = y[3 * k + c];
+      (*v)(particle(k), c) = y[3 * nf + 3 * k + c];
+    }
+}
+
 void FreeDofMap::VelocitiesFromY(const double* y, MatrixN3* v) const {
   const int nf = num_free();
   v->setZero(sys_.num_particles(), 3);

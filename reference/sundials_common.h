@@ -92,6 +92,9 @@ class FreeDofMap {
   void PositionsFromY(const double* y, MatrixN3* x) const;
   /// N×3 velocities from y, fixed particles 0.
   void VelocitiesFromY(const double* y, MatrixN3* v) const;
+  /// The x and v halves of a vector over y (a residual, a correction) as
+  /// N×3 arrays with zero rows for fixed particles. No allocation (x, v N×3).
+  void SplitY(const double* y, MatrixN3* x, MatrixN3* v) const;
 
  private:
   const ParticleSystem& sys_;
