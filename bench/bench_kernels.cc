@@ -191,6 +191,23 @@ void BM_TangentUpdate(benchmark::State& state) {
 }
 BENCHMARK(BM_TangentUpdate)->ArgName("side")->Arg(20)->Arg(316);
 
+// J_α's values for a new αh from the stored force Jacobians (the pass that
+// follows every Update, and CVODE's γ change without a Jacobian evaluation).
+void BM_TangentSetAlphaH(benchmark::State& state) {
+  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
+  ts.Update(0.2, x, v, 0.01);
+  for (auto _ : state) {
+    ts.SetAlphaH(0.01);
+    benchmark::DoNotOptimize(ts.matrix().valuePtr());
+  }
+  const double bytes = 8.0 * 3.0 * static_cast<double>(ts.matrix().nonZeros());  // read ∂f/∂x, write J_α (+ its RFO)
+  state.counters["floor_GBps"] = benchmark::Counter(bytes, benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_TangentSetAlphaH)->ArgName("side")->Arg(20)->Arg(316);
+
 }  // namespace
 }  // namespace clothbench
 

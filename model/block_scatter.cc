@@ -1,4 +1,4 @@
-// Value positions of 3×3 blocks in a compressed column-major pattern.
+// Value positions of 3×3 blocks in the row storage of a symmetric pattern.
 #include "model/block_scatter.h"
 
 #include <algorithm>
@@ -9,10 +9,12 @@ std::vector<int> BlockPositions(const SparseMatrix& m, const std::vector<BlockPa
   std::vector<int> pos(3 * blocks.size());
   const int* outer = m.outerIndexPtr();
   const int* inner = m.innerIndexPtr();
+  // Row 3a + r of the row storage is column 3a + r of m's arrays (the
+  // pattern is symmetric); its entries of block column b start at 3b.
   for (std::size_t k = 0; k < blocks.size(); ++k) {
-    const int row = 3 * blocks[k][0];
+    const int row = 3 * blocks[k][1];
     for (int q = 0; q < 3; ++q) {
-      const int col = 3 * blocks[k][1] + q;
+      const int col = 3 * blocks[k][0] + q;
       const int* begin = inner + outer[col];
       const int* end = inner + outer[col + 1];
       const int* it = std::lower_bound(begin, end, row);

@@ -1,5 +1,5 @@
 // Closed-form Jacobians accumulated straight into a fixed compressed
-// column-major 3N×3N pattern (docs/model.md, "Tangent assembly"): every
+// row-major 3N×3N pattern (docs/model.md, "Tangent assembly"): every
 // force term lists the 3×3 blocks (row particle, column particle) it writes,
 // the caller turns that list into value positions once, and the step loop
 // only adds block values at those positions. The items that write blocks
@@ -92,19 +92,23 @@ class ChunkColouring {
   std::vector<std::size_t> starts_, order_;  // chunks by colour
 };
 
-/// Value positions of blocks in a compressed column-major matrix `m` whose
-/// pattern holds them: 3 per block, the index of entry (3a, 3b + q) for
-/// q = 0, 1, 2 (rows 3a + 1 and 3a + 2 follow it in its column).
+/// Value positions of blocks in the compressed row storage of a matrix
+/// whose pattern is that of `m` (symmetric, stored compressed column-major:
+/// row i of the row storage is column i of m's arrays). Per block (a, b):
+/// 3 positions, the index of entry (3a + r, 3b) for r = 0, 1, 2 (entries
+/// (3a + r, 3b + 1) and (3a + r, 3b + 2) follow it in its row). A term's
+/// blocks are rows of its item's particles, so a row storage keeps an
+/// item's writes together (a stencil centre's row is one stretch).
 /// @throws std::logic_error if a block is not in the pattern
 std::vector<int> BlockPositions(const SparseMatrix& m, const std::vector<BlockPair>& blocks);
 
-/// vals[pos[q] + r] += b(r, q): one block at its three column positions.
+/// vals[pos[r] + q] += b(r, q): one block at its three row positions.
 EIGEN_ALWAYS_INLINE void AddBlock(const Matrix3& b, const int* pos, double* vals) {
-  for (int q = 0; q < 3; ++q) {
-    double* d = vals + pos[q];
-    d[0] += b(0, q);
-    d[1] += b(1, q);
-    d[2] += b(2, q);
+  for (int r = 0; r < 3; ++r) {
+    double* d = vals + pos[r];
+    d[0] += b(r, 0);
+    d[1] += b(r, 1);
+    d[2] += b(r, 2);
   }
 }
 

@@ -362,9 +362,12 @@ class StencilTerm final : public ForceTerm {
               std::array<Matrix3, kBlocks>* jv) const {
     const Centre& c = centres_[ci];
     std::array<Vector3, K> xs, vs;
+    const bool with_v = kernel_.uses_velocity();
     for (int k = 0; k < K; ++k) {
       xs[static_cast<std::size_t>(k)] = x.row(c.nodes[static_cast<std::size_t>(k)]).transpose();
-      vs[static_cast<std::size_t>(k)] = v.row(c.nodes[static_cast<std::size_t>(k)]).transpose();
+      // v only where the kernel reads it (damping, air); else unread.
+      vs[static_cast<std::size_t>(k)] =
+          with_v ? Vector3(v.row(c.nodes[static_cast<std::size_t>(k)]).transpose()) : Vector3::Zero();
     }
     const LinearWeights<K>* w = nullptr;
     if constexpr (Kernel::kLinear) w = &weights_[static_cast<std::size_t>(weight_set_[ci])];

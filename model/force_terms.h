@@ -48,8 +48,8 @@ class ForceTerm {
   virtual std::size_t jacobian_items() const = 0;
   /// Adds the blocks of items [first, last) of ∂g/∂x into `dfdx` and, if
   /// depends_on_velocity(), of ∂g/∂v into `dfdv`: value arrays of a
-  /// compressed column-major 3N×3N matrix, block k of JacobianBlocks() at
-  /// positions pos[3k … 3k+2] (BlockPositions). Closed form, serial (the
+  /// compressed row-major 3N×3N matrix, block k of JacobianBlocks() at
+  /// row positions pos[3k … 3k+2] (BlockPositions, AddBlock). Closed form, serial (the
   /// caller runs item ranges that write disjoint rows on its threads); no
   /// allocation. @param t [s]; @param x, v N×3 [m], [m/s]
   virtual void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,

@@ -71,7 +71,9 @@ class TangentSystem {
   const ParticleSystem& sys_;
   TangentOptions options_;
   SparseMatrix j_;
-  // ∂f/∂x [N/m] and ∂f/∂v [N s/m] on j_'s pattern. kv_ is empty when
+  // ∂f/∂x [N/m] and ∂f/∂v [N s/m] on j_'s pattern in row storage (entry e
+  // of column j, row i of j_'s arrays holds ∂f_j/∂x_i: a force term's
+  // blocks of one row particle lie together). kv_ is empty when
   // nothing depends on v, and constant (the springs' damping, set once) when
   // no explicit term in J_α depends on v.
   Eigen::VectorXd kx_, kv_;
@@ -97,6 +99,10 @@ class TangentSystem {
   ChunkColouring colouring_;
   std::vector<int> diag_pos_;                // value index of each diagonal entry (3p + c)
   std::vector<int> transpose_pos_;           // value index of (j, i) for the entry (i, j)
+  // The symmetric part's pass over the entries. Without ∂f/∂v (kv_ empty) base_ is the diagonal mass only: the pass
+  // skips it (kBase false) and the masses are added after.
+  template <bool kVelocity, bool kBase>
+  void SymmetricPass(double hx, double hv, const double* kvar);
 };
 
 }  // namespace clothbench
