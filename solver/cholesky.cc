@@ -6,8 +6,11 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <limits>
+
+#include <omp.h>
 
 namespace clothbench {
 
@@ -17,21 +20,35 @@ struct CholeskyFactor::Impl {
   cholmod_factor* factor = nullptr;  // supernodal where CHOLMOD chooses it: fast (BLAS-3) factorisation
   cholmod_factor* solver = nullptr;  // simplicial LLᵀ copy for the solves (see Factorize)
   std::vector<int> source;           // position in A's values of each entry of `upper`
-  // Solve workspace, reused (cholmod_solve2 allocates them once).
-  cholmod_dense* x = nullptr;
-  cholmod_dense* y = nullptr;
-  cholmod_dense* e = nullptr;
+  // Solve workspaces, reused (cholmod_solve2 allocates them once): lane 0
+  // solves columns 0 and 1 (or all three), lane 1 column 2, each with its
+  // own Common, on two OpenMP threads.
+  struct Lane {
+    cholmod_common common;
+    cholmod_dense* x = nullptr;
+    cholmod_dense* y = nullptr;
+    cholmod_dense* e = nullptr;
+  };
+  std::array<Lane, 2> lanes;
   bool factorized = false;
 
   Impl() {
     cholmod_start(&common);
     common.print = 0;
     common.error_handler = nullptr;
+    for (Lane& l : lanes) {
+      cholmod_start(&l.common);
+      l.common.print = 0;
+      l.common.error_handler = nullptr;
+    }
   }
   ~Impl() {
-    cholmod_free_dense(&x, &common);
-    cholmod_free_dense(&y, &common);
-    cholmod_free_dense(&e, &common);
+    for (Lane& l : lanes) {
+      cholmod_free_dense(&l.x, &l.common);
+      cholmod_free_dense(&l.y, &l.common);
+      cholmod_free_dense(&l.e, &l.common);
+      cholmod_finish(&l.common);
+    }
     cholmod_free_factor(&solver, &common);
     cholmod_free_factor(&factor, &common);
     cholmod_free_sparse(&upper, &common);
@@ -98,31 +115,56 @@ bool CholeskyFactor::Factorize(const SparseMatrix& a) {
   return true;
 }
 
-void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
-  Impl& m = *impl_;
-  const auto n = static_cast<size_t>(r.rows());
+namespace {
+
+// X = L⁻ᵀ L⁻¹ B for `ncol` columns of B starting at `col0` (column-major,
+// leading dimension n). cholmod_solve2 asks for its workspace Y as 4×n
+// (solves run in chunks of up to 4 columns) but leaves it shaped ncol×n,
+// and reallocates a workspace whose shape differs: restoring 4×n (same
+// storage) lets it reuse Y, so a solve allocates nothing after the first.
+bool SolveColumns(cholmod_factor* l, const double* b_data, std::size_t n, std::size_t ncol, cholmod_common* common,
+                  cholmod_dense** x, cholmod_dense** y, cholmod_dense** e) {
   cholmod_dense b{};
   b.nrow = n;
-  b.ncol = 3;
-  b.nzmax = 3 * n;
+  b.ncol = ncol;
+  b.nzmax = ncol * n;
   b.d = n;
-  b.x = const_cast<double*>(r.data());  // read only
+  b.x = const_cast<double*>(b_data);  // read only
   b.z = nullptr;
   b.xtype = CHOLMOD_REAL;
   b.dtype = CHOLMOD_DOUBLE;
-  // cholmod_solve2 asks for its workspace Y as 4×n (solves run in chunks
-  // of up to 4 columns) but leaves it shaped 3×n, and reallocates a
-  // workspace whose shape differs: restoring 4×n (same storage) lets it
-  // reuse Y, so a solve allocates nothing.
-  if (m.y && m.y->nrow == 3 && m.y->ncol == n && m.y->nzmax >= 4 * n) {
-    m.y->nrow = 4;
-    m.y->d = 4;
+  if (*y && (*y)->nrow == ncol && (*y)->ncol == n && (*y)->nzmax >= 4 * n) {
+    (*y)->nrow = 4;
+    (*y)->d = 4;
   }
-  if (!m.factorized || !cholmod_solve2(CHOLMOD_A, m.solver ? m.solver : m.factor, &b, nullptr, &m.x, nullptr, &m.y, &m.e, &m.common)) {
-    z->setConstant(std::numeric_limits<double>::quiet_NaN());  // the PCG reports cg_non_finite
-    return;
+  return cholmod_solve2(CHOLMOD_A, l, &b, nullptr, x, nullptr, y, e, common) != 0;
+}
+
+}  // namespace
+
+void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
+  Impl& m = *impl_;
+  const auto n = static_cast<std::size_t>(r.rows());
+  cholmod_factor* l = m.solver ? m.solver : m.factor;
+  // The columns are independent solves with the same L. CHOLMOD's
+  // simplicial solve is one thread and latency-bound (scalar loop with
+  // indirect addressing), so two threads, one on columns 0–1 and one on
+  // column 2, each reading L, take about half the time
+  // (docs/performance.md, BM_StepParts). Each lane has its own Common and
+  // workspaces; L is only read.
+  const bool split = n >= 4096 && omp_get_max_threads() >= 2;
+  bool ok[2] = {m.factorized, m.factorized};
+  if (m.factorized) {
+#pragma omp parallel for num_threads(2) schedule(static, 1) if (split)
+    for (int lane = 0; lane < 2; ++lane) {
+      if (lane == 1 && !split) continue;
+      Impl::Lane& ln = m.lanes[static_cast<std::size_t>(lane)];
+      const std::size_t col0 = lane == 0 ? 0 : 2, ncol = split ? (lane == 0 ? 2 : 1) : 3;
+      ok[lane] = SolveColumns(l, r.data() + col0 * n, n, ncol, &ln.common, &ln.x, &ln.y, &ln.e);
+      if (ok[lane]) std::memcpy(z->data() + col0 * n, ln.x->x, ncol * n * sizeof(double));
+    }
   }
-  std::memcpy(z->data(), m.x->x, 3 * n * sizeof(double));
+  if (!ok[0] || !ok[1]) z->setConstant(std::numeric_limits<double>::quiet_NaN());  // the PCG reports cg_non_finite
 }
 
 long CholeskyFactor::factor_nonzeros() const {
