@@ -700,7 +700,7 @@ int Main(int argc, char** argv) {
   std::string cvode_setting_arg;
   app.add_option("--cvode-setting", cvode_setting_arg,
                  "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
-                 "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05; "
+                 "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05, atol_v_scale=1 (atol of the velocities over that of the positions); "
                  "stored as the runs' sundials_settings");
   app.add_option("--rtols", rtols_arg,
                  "rtol (= atol) list of the adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error (default "

@@ -71,11 +71,38 @@ struct MethodEntry {
                                const RunContext& ctx);
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
-  /// The preconditioner that measures best for this method, used instead
-  /// of the scene's unless --preconditioner names one (the measurement is
-  /// beside the entry).
+  /// The preconditioner that measures best for this method's fixed-step,
+  /// substepped and SUNDIALS rows, used instead of the scene's unless
+  /// --preconditioner names one (the measurement is in kBestPreconditioner's
+  /// comment); nullopt: the scene's.
   std::optional<PreconditionerType> best_preconditioner = std::nullopt;
+  /// The same for its error-controlled rows ("/error"), whose step changes
+  /// and refactorises the preconditioner nearly every step.
+  std::optional<PreconditionerType> best_preconditioner_error = std::nullopt;
 };
+
+/// The default run's preconditioner for every method that uses the PCG:
+/// CHOLMOD's factor of A_α (for the Newton, Baraff–Witkin and SUNDIALS rows
+/// the preconditioner of their tangent system). The thesis' IC(0) stays the
+/// scenes' setting, used by --table and the stability maps.
+///
+/// Measured on the default scene (400 particles): the default run three
+/// times with each of `--preconditioner ic0`, `cholesky`, `jacobi` (and
+/// once with `amg`, slower than IC(0) for every method), each method's
+/// solver time summed over its rows, the least of the three runs. Against
+/// IC(0), the factor takes 0.75× for sbdf2, 0.90× sbdf3, 0.92× imex_euler,
+/// 0.99× implicit_euler, 0.82× bdf2, 0.85× implicit_midpoint, 0.68×/0.80×/
+/// 0.78× their Newton rows, 0.68× bdf2/newton/error, 0.66× baraff_witkin,
+/// 0.92× cvode, 0.92–0.95× the arkode rows (and 0.96× for ida, run alone
+/// twice with `--integrators ida`); 3×3 block Jacobi was never the
+/// fastest. The one exception is sbdf2/error: 1.111 s against 0.977 s with
+/// IC(0) (each change of h refactorises, and at 400 particles IC(0) is the
+/// cheaper factorisation), so it keeps the scene's. Rows without the PCG
+/// (blender, xpbd, cvode/klu) varied by 1–3 % between these runs, the
+/// timing noise of the minimum. At 10⁴–10⁶ particles the factor wins for
+/// SBDF(2) by 10–30× (docs/performance.md, bench_scaling), and it is the
+/// large_sheet scene's own setting.
+inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kCholesky;
 
 namespace internal {
 template <Method M>
@@ -88,29 +115,31 @@ std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec&
 inline const std::vector<MethodEntry>& Registry() {
   using internal::MakeEngine;
   constexpr auto kFixed = StepKind::kFixedStep, kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped;
+  constexpr auto kBest = kBestPreconditioner;
   static const std::vector<MethodEntry> r = {
-      {"imex_euler", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kImexEuler>, nullptr},
+      {"imex_euler", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kImexEuler>, nullptr,
+       {}, kBest},
       {"implicit_euler", kFixed, "solver", true, false, true, true, false, false, MakeEngine<Method::kImplicitEuler>,
-       nullptr},
-      {"sbdf2", kFixed, "solver", false, true, true, true, false, false, MakeEngine<Method::kSbdf2>, nullptr},
-      {"bdf2", kFixed, "solver", true, true, true, true, false, false, MakeEngine<Method::kBdf2>, nullptr},
+       nullptr, {}, kBest},
+      {"sbdf2", kFixed, "solver", false, true, true, true, false, false, MakeEngine<Method::kSbdf2>, nullptr, {}, kBest},
+      {"bdf2", kFixed, "solver", true, true, true, true, false, false, MakeEngine<Method::kBdf2>, nullptr, {}, kBest,
+       kBest},
       {"implicit_midpoint", kFixed, "solver", true, false, true, true, false, false,
-       MakeEngine<Method::kImplicitMidpoint>, nullptr},
-      {"sbdf3", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kSbdf3>, nullptr},
+       MakeEngine<Method::kImplicitMidpoint>, nullptr, {}, kBest},
+      {"sbdf3", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kSbdf3>, nullptr, {}, kBest},
       {"symplectic_euler", kFixed, "solver", false, false, true, false, false, false,
        MakeEngine<Method::kSymplecticEuler>, nullptr},
-      // baraff_witkin's best preconditioner is the A_α factor: on the default
-      // scene at h = 0.01, 0.00125, 0.0003125 s its solver time is 0.124,
-      // 0.554, 1.835 s with "cholesky", 0.174, 0.876, 3.149 s with the
-      // scene's "ic0" (IC(0) of J refactorised every step), 0.230, 0.693,
-      // 2.048 s with 3×3 block Jacobi and 0.281, 0.635, 1.878 s with none
+      // baraff_witkin: also measured at h = 0.01, 0.00125, 0.0003125 s alone
       // (`bench_integrators --integrators baraff_witkin --h
-      // 0.01,0.00125,0.0003125 --preconditioner P`).
+      // 0.01,0.00125,0.0003125 --preconditioner P`): solver time 0.124,
+      // 0.554, 1.835 s with "cholesky", 0.174, 0.876, 3.149 s with "ic0"
+      // (IC(0) of J refactorised every step), 0.230, 0.693, 2.048 s with 3×3
+      // block Jacobi and 0.281, 0.635, 1.878 s with none.
       {kBaraffWitkinName, kFixed, "peers", false, false, true, true, true, false,
        [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec);
        },
-       nullptr, {}, PreconditionerType::kCholesky},
+       nullptr, {}, kBest},
       // Blender's solver as it ships (peers/baraff_witkin.h): its own CG
       // settings, so the scene's η does not apply.
       {kBlenderName, kFixed, "peers", false, false, true, false, true, false,
@@ -127,21 +156,21 @@ inline const std::vector<MethodEntry>& Registry() {
        [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
          return RunArkode(sys, o, ctx.arkode_table, &spec);
        },
-       {"ark4", "ark5"}},
-      // cvode: the reduced velocity solve with the scene's PCG; cvode/klu:
+       {"ark4", "ark5"}, kBest},
+      // cvode: the reduced velocity solve with the PCG; cvode/klu:
       // KLU on the 6N×6N first-order Jacobian (the reference's solver).
       {"cvode", kAdaptive, "reference", false, false, false, true, true, true, nullptr,
        [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
-       {"klu"}},
+       {"klu"}, kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
       {"ida", kAdaptive, "reference", false, false, false, true, true, true, nullptr,
        [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
        },
-       {"klu"}},
+       {"klu"}, kBest},
   };
   return r;
 }
@@ -282,8 +311,9 @@ struct RowMethod {
       row.stiffness = scene.NumericalStiffness(scene.h);
     }
     SolverSpec row_spec = spec;
-    if (entry->best_preconditioner && !ctx.preconditioner_from_cli)
-      row_spec.preconditioner = *entry->best_preconditioner;
+    const std::optional<PreconditionerType>& best =
+        error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
+    if (best && !ctx.preconditioner_from_cli) row_spec.preconditioner = *best;
     if (uses_pcg()) row.preconditioner = std::string(ToString(row_spec.preconditioner));
     RunSummary r;
     RunContext row_ctx = ctx;

@@ -190,7 +190,7 @@ int PrecSolve(realtype, N_Vector, N_Vector, N_Vector r, N_Vector z, realtype, re
 // RAII owner of the SUNDIALS objects.
 struct CvodeHandles {
   SUNContext ctx = nullptr;
-  N_Vector y = nullptr, dky = nullptr;
+  N_Vector y = nullptr, dky = nullptr, atol = nullptr;
   SUNMatrix a = nullptr;
   SUNLinearSolver ls = nullptr;
   void* mem = nullptr;
@@ -198,6 +198,7 @@ struct CvodeHandles {
     if (mem) CVodeFree(&mem);
     if (ls) SUNLinSolFree(ls);
     if (a) SUNMatDestroy(a);
+    if (atol) N_VDestroy(atol);
     if (dky) N_VDestroy(dky);
     if (y) N_VDestroy(y);
     if (ctx) SUNContext_Free(&ctx);
@@ -207,6 +208,19 @@ struct CvodeHandles {
 }  // namespace
 
 namespace {
+
+// rtol and atol; with cvode.atol_v_scale ≠ 1 a vector atol, atol on the
+// positions and atol_v_scale · atol on the velocities (y = [x_free; v_free]).
+template <class Check>
+bool SetTolerances(void* mem, N_Vector y, const ReferenceOptions& options, N_Vector* atol, Check check) {
+  const double a = options.AbsoluteTolerance();
+  if (options.cvode.atol_v_scale == 1.0) return check(CVodeSStolerances(mem, options.rtol, a), "CVodeSStolerances");
+  const sunindextype n = N_VGetLength(y);
+  *atol = N_VClone(y);
+  double* w = N_VGetArrayPointer(*atol);
+  for (sunindextype k = 0; k < n; ++k) w[k] = k < n / 2 ? a : options.cvode.atol_v_scale * a;
+  return check(CVodeSVtolerances(mem, options.rtol, *atol), "CVodeSVtolerances");
+}
 
 // CVODE with KLU (reduced == nullptr) or the reduced solve with `reduced`'s
 // settings.
@@ -258,7 +272,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   bool ok = check(CVodeSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "CVodeSetErrHandlerFn") &&
             check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
             check(CVodeSetUserData(h.mem, &user), "CVodeSetUserData") &&
-            check(CVodeSStolerances(h.mem, options.rtol, options.AbsoluteTolerance()), "CVodeSStolerances") &&
+            SetTolerances(h.mem, h.y, options, &h.atol, check) &&
             check(CVodeSetLinearSolver(h.mem, h.ls, h.a), "CVodeSetLinearSolver") &&
             check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
             check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&

@@ -26,6 +26,10 @@ struct CvodeSettings {
   double dgmax_lsetup = 0.3;    ///< CVodeSetDeltaGammaMaxLSetup
   bool stab_lim_det = false;    ///< CVodeSetStabLimDet
   double eps_lin = 0.05;        ///< CVodeSetEpsLin (linear tolerance factor of iterative solvers)
+  /// The velocities' absolute tolerance over the positions' [1/s]: atol_v =
+  /// atol_v_scale · atol [m/s] (CVodeSVtolerances); 1 is CVODE's scalar
+  /// atol for both (CVodeSStolerances).
+  double atol_v_scale = 1.0;
   /// "lsetup_frequency=20,jac_eval_frequency=51,…": what a run stores.
   std::string ToString() const;
   /// Sets `key` (a field name above) from `value`; false with `error` if
