@@ -208,6 +208,8 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     q.layer = r.layer;
     q.step_kind = ToString(r.kind);
     q.nonlinear_solver = r.nonlinear_solver;
+    if (r.cg_tolerance > 0.0)
+      q.preconditioner = r.preconditioner.empty() ? std::string(ToString(scene.solver.preconditioner)) : r.preconditioner;
     q.h = r.h;
     q.rtol = r.rtol;
     q.substeps = r.substeps;

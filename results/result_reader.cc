@@ -265,6 +265,7 @@ RunTable ReadRunTable(const ResultReader& f) {
     r.layer = str(g, "layer");
     r.step_kind = str(g, "step_kind");
     r.nonlinear_solver = str(g, "nonlinear_solver");
+    r.preconditioner = str(g, "preconditioner");
     r.h = f.Double(g, "h").value_or(0.0);
     r.rtol = f.Double(g, "rtol").value_or(0.0);
     r.substeps = f.Long(g, "substeps").value_or(0);

@@ -1,7 +1,12 @@
 // The table bench_integrators prints, from a RunTable.
 #include "results/run_table.h"
 
+#include <algorithm>
+#include <utility>
+#include <vector>
+
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 namespace clothbench {
 namespace {
@@ -26,6 +31,18 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
              "solver: cg_tolerance {:g} ({}), preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
              "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
              t.cg_tolerance, t.cg_reference, t.preconditioner, t.max_updates, t.predictor, t.numerical_stiffness, t.h);
+  // Rows whose preconditioner is not the scene's (bench/methods.h: each
+  // method at its best), grouped by preconditioner in row order.
+  std::vector<std::pair<std::string, std::vector<std::string>>> other;  // preconditioner, its labels
+  for (const RunRecord& r : t.runs) {
+    if (r.preconditioner.empty() || r.preconditioner == t.preconditioner) continue;
+    auto it = std::find_if(other.begin(), other.end(), [&](const auto& o) { return o.first == r.preconditioner; });
+    if (it == other.end()) it = other.insert(other.end(), {r.preconditioner, {}});
+    if (std::find(it->second.begin(), it->second.end(), r.label) == it->second.end()) it->second.push_back(r.label);
+  }
+  for (const auto& [pre, labels] : other)
+    fmt::print(out, "preconditioner {} (each method's best, bench/methods.h) in rows: {}\n", pre,
+               fmt::join(labels, ", "));
   const auto& ref = t.reference;
   if (ref && ref->integrator == "bdf2_self_convergence")
     fmt::print(out,
