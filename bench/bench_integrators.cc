@@ -457,7 +457,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   } else {
     throw UsageError(fmt::format("--table: \"{}\" must be 3.1 or 3.2", which));
   }
-  if (out.empty()) out = fmt::format("results/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
+  if (out.empty()) out = fmt::format("out/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
   Scene base = BuiltinScene("tablecloth");
   if (preconditioner) base.solver.preconditioner = *preconditioner;
   if (etas.empty()) etas = {base.solver.cg_tolerance};
@@ -733,7 +733,7 @@ int Main(int argc, char** argv) {
   app.add_option("--table", table,
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
                  "once per --cg-tolerances value (and write HDF5)");
-  app.add_option("--out", out, "result file (default: results/<scene>.h5)");
+  app.add_option("--out", out, "result file (default: out/<scene>.h5)");
   app.add_option("--max-runs", max_runs,
                  "compute at most N runs (the reference counts as one) not yet in <out>.journal/, then stop with exit "
                  "status 75 and keep the journal; rerun the same command to continue")

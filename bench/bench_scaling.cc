@@ -15,7 +15,7 @@
 // factor_nnz (Cholesky) or amg_levels.
 //
 //   build/bench/bench_scaling [--benchmark_filter=REGEX]
-//                             [--benchmark_out=results/scaling.json --benchmark_out_format=json]
+//                             [--benchmark_out=out/scaling.json --benchmark_out_format=json]
 // SbdfStep/cholesky_amd: the factor with AMD ordering instead of METIS.
 // StepPart/*: one Cholesky solve, one A·x and one evaluation of the explicit
 // forces at 10⁵ and 10⁶ particles (the parts of a step).

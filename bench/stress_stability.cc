@@ -55,7 +55,7 @@ int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench stability maps over numerical stiffness and step size"};
   std::string scenes_arg = "hanging_sheet,swinging_sheet", integrators_arg, stiffness_arg = "0.1,1,1e2,1e4,1e6,1e8",
-              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "results/stress_stability.h5", nonlinear_arg = "fixed_point",
+              h_arg = "1e-4,1e-3,1e-2,1e-1", out = "out/stress_stability.h5", nonlinear_arg = "fixed_point",
               plot_dir;
   int steps = 200, side = 10;
   long max_cells = 0;
