@@ -918,7 +918,7 @@ int Main(int argc, char** argv) {
         throw UsageError(e.what());
       }
     }
-    if (out.empty()) out = fmt::format("results/{}.h5", scene.name);
+    if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     CheckOutputFolder(out);
 
     // The sweep: the reference (task 0, if any) and every row in table
