@@ -194,7 +194,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   h.dky = N_VNew_Serial(n, h.ctx);
   ode.map().ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), N_VGetArrayPointer(h.y));
   h.mem = ARKStepCreate(ExplicitRhs, ImplicitRhs, 0.0, h.y, h.ctx);
-  // The custom SUNLinearSolver (reference/sundials_common.h) solves ARKLS's
+  // The custom SUNLinearSolver (sundials/sundials_common.h) solves ARKLS's
   // systems through ImexOde::Solve with γ from ARKStepGetCurrentGamma, the
   // PCG stopping at ARKLS's own tolerance for iterative solvers in its
   // weighted norm (internal::PcgStopForTolerance).

@@ -8,7 +8,7 @@
 //   (M + γ L_D + γ² L_K) δv = M r_v − γ L_K r_x,
 // the step engine's A_α with αh = γ, solved by the filtered PCG with the
 // scene's preconditioner, stopping at ARKLS's own tolerance for iterative
-// solvers in ARKODE's weighted norm (reference/sundials_common.h,
+// solvers in ARKODE's weighted norm (sundials/sundials_common.h,
 // PcgStopForTolerance).
 #ifndef CLOTHBENCH_PEERS_ARKODE_H_
 #define CLOTHBENCH_PEERS_ARKODE_H_
@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
-#include "reference/sundials_common.h"
+#include "sundials/sundials_common.h"
 
 namespace clothbench {
 

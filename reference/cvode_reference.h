@@ -7,7 +7,7 @@
 #ifndef CLOTHBENCH_REFERENCE_CVODE_REFERENCE_H_
 #define CLOTHBENCH_REFERENCE_CVODE_REFERENCE_H_
 
-#include "reference/sundials_common.h"
+#include "sundials/sundials_common.h"
 
 namespace clothbench {
 

@@ -8,7 +8,7 @@
 #ifndef CLOTHBENCH_REFERENCE_IDA_REFERENCE_H_
 #define CLOTHBENCH_REFERENCE_IDA_REFERENCE_H_
 
-#include "reference/sundials_common.h"
+#include "sundials/sundials_common.h"
 
 namespace clothbench {
 

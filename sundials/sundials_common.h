@@ -1,7 +1,8 @@
-// Shared parts of the SUNDIALS references (SPEC §8): options, counters,
-// results, the one-step frame loop and the sparse-matrix copy.
-#ifndef CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
-#define CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
+// Shared parts of the SUNDIALS-driven methods, the references (CVODE, IDA)
+// and the ARKODE peer (SPEC §8): options, counters, results, the one-step
+// frame loop, the sparse-matrix copy and the reduced velocity solve.
+#ifndef CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
+#define CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
 
 #include <functional>
 #include <memory>
@@ -218,4 +219,4 @@ int CopyToSunSparse(const SparseMatrix& j, void* sun_matrix);
 }  // namespace internal
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_REFERENCE_SUNDIALS_COMMON_H_
+#endif  // CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_

@@ -1,4 +1,4 @@
-#include "reference/sundials_common.h"
+#include "sundials/sundials_common.h"
 
 #include <algorithm>
 #include <cmath>
