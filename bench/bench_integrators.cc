@@ -1,7 +1,7 @@
 // bench_integrators: integrates a cloth scene with the thesis' integrators at
 // several step sizes and with SUNDIALS CVODE, prints one table (steps,
 // updates, CG iterations, solver time, e_rms at t_end, observed order) and
-// stores everything in HDF5 (SPEC §9).
+// stores everything in HDF5 (docs/model.md §9).
 //
 //   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
 //                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
@@ -418,7 +418,7 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
   return r;
 }
 
-// Thesis tables (SPEC §9): Table 3.1 (BDF(2), tablecloth, (k, d) sweep) and
+// Thesis tables (docs/model.md §9): Table 3.1 (BDF(2), tablecloth, (k, d) sweep) and
 // Table 3.2 (all five methods on the tablecloth, 1 s, and on the avatar
 // drape, 5 s). Printed beside the thesis' OCR numbers, once per CG tolerance
 // η, with e_rms at t_end against a self-convergence reference (BDF(2) at
@@ -579,7 +579,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   }
 
   fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, "
-             "preconditioner {}); thesis numbers from the OCR (SPEC §9, thesis: IC(0)), thesis machine: "
+             "preconditioner {}); thesis numbers from the OCR (docs/model.md §9, thesis: IC(0)), thesis machine: "
              "Pentium III 660 MHz\n",
              which, base.h, base.t_end, ToString(base.solver.preconditioner));
   if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");

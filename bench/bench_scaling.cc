@@ -3,7 +3,7 @@
 // material), for each preconditioner of the filtered PCG, without contacts
 // and with a contact patch: a round table (cylinder) under the centre whose
 // top is δ/2 below the sheet, so that 10 % or 30 % of the sheet starts in
-// contact (SPEC §7).
+// contact (docs/model.md §7).
 //
 // Setup (outside the timing): the model, A_α's pattern, the preconditioner's
 // symbolic phase and step 1 (IMEX Euler, SBDF(2)'s start). Timed: steps 2–5,

@@ -58,7 +58,7 @@ struct MethodEntry {
   std::string_view layer;      ///< "solver", "peers" or "reference"
   bool nonlinear_solver;       ///< takes fixed_point | newton (fully implicit thesis methods)
   bool error_control;          ///< may run adaptively as "<name>/error" (SBDF(2), BDF(2))
-  bool collisions;             ///< has a collision response (SPEC §7)
+  bool collisions;             ///< has a collision response (docs/model.md §7)
   bool pcg;                    ///< solves with the filtered PCG (so the CG tolerance η applies)
   bool tangent;                ///< always holds the 3N×3N tangent system J_α (memory check)
   bool sparse_jacobian;        ///< holds a 6N×6N Jacobian and its KLU factor (memory check)

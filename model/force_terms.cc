@@ -80,7 +80,7 @@ struct Patch {
     return (At(di, dj + 1) - 2.0 * At(di, dj) + At(di, dj - 1)) / (lv * lv);
   }
   // Unit vertex normal at the centre: mean of the unit normals of the
-  // adjacent quads, each from the cross product of its diagonals (SPEC §2.3).
+  // adjacent quads, each from the cross product of its diagonals (docs/model.md §2.3).
   V3<S> Normal() const {
     V3<S> n = V3<S>::Zero();
     for (int s : {1, -1})
@@ -789,10 +789,10 @@ struct AirKernel {
   }
 };
 
-// --- Springs: nonlinear part of the IMEX split (SPEC §2.1) -----------------
+// --- Springs: nonlinear part of the IMEX split (docs/model.md §2.1) -----------------
 class TensionNonlinear final : public ForceTerm {
  public:
-  // F_nl on a (SPEC §2.1): −s_e l_e d/|d|, d = x_b − x_a.
+  // F_nl on a (docs/model.md §2.1): −s_e l_e d/|d|, d = x_b − x_a.
   static Vector3 Force(const MatrixN3& x, const Spring& s) {
     const Vector3 d = (x.row(s.b) - x.row(s.a)).transpose();
     return (-s.stiffness * s.rest_length / d.norm()) * d;

@@ -1,5 +1,5 @@
-// Force terms of the particle model (SPEC §2). The particle system assembles
-// only the terms a scene needs (SPEC §2.6): a term with zero coefficients is
+// Force terms of the particle model (docs/model.md §2). The particle system assembles
+// only the terms a scene needs (docs/model.md §2.6): a term with zero coefficients is
 // never constructed, so it costs nothing per step.
 #ifndef CLOTHBENCH_MODEL_FORCE_TERMS_H_
 #define CLOTHBENCH_MODEL_FORCE_TERMS_H_
@@ -56,7 +56,7 @@ class ForceTerm {
                                   double* dfdv, std::size_t first, std::size_t last) const = 0;
 };
 
-/// One spring of the tension model (SPEC §2.1): a u- or v-edge.
+/// One spring of the tension model (docs/model.md §2.1): a u- or v-edge.
 struct Spring {
   int a = 0, b = 0;           ///< particle indices
   double stiffness = 0.0;     ///< s_e = k_u lv/lu (u-edge) or k_v lu/lv [N/m]
@@ -72,18 +72,18 @@ struct GridGeometry {
 };
 
 /// F_nl = −s_e l_e d/|d| per spring: the explicit part of the IMEX split of
-/// tension (SPEC §2.1, §3.3.3, Desbrun et al.).
+/// tension (docs/model.md §2.1; thesis §3.3.3, Desbrun et al.).
 std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs, int num_particles);
 /// Gravity m_p g (§2.6).
 std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vector3& g);
-/// Shear in energy form E_s = Σ ½ μ γ² lu lv with viscosity d_s γ̇ (SPEC §2.2, (2.16), (2.21)).
+/// Shear in energy form E_s = Σ ½ μ γ² lu lv with viscosity d_s γ̇ (docs/model.md §2.2, (2.16), (2.21)).
 std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double damping);
-/// Membrane bending F = ⟨B_u s_uu + B_v s_vv + d_b Δv, N⟩N lu lv (SPEC §2.3, (2.25), Alg. 3).
+/// Membrane bending F = ⟨B_u s_uu + B_v s_vv + d_b Δv, N⟩N lu lv (docs/model.md §2.3, (2.25), Alg. 3).
 std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping);
 /// Thin-plate bending F = −⟨B_u s_uuuu + (B_u+B_v) s_uuvv + B_v s_vvvv + d_b Δ²v, N⟩N lu lv
-/// (SPEC §2.3, (2.26), Alg. 4).
+/// (docs/model.md §2.3, (2.26), Alg. 4).
 std::unique_ptr<ForceTerm> MakeThinPlateBend(const GridGeometry& geo, double bu, double bv, double damping);
-/// Transverse contraction σ_11 += C ε_22, σ_22 += C ε_11 (SPEC §2.4, (2.22), Alg. 5).
+/// Transverse contraction σ_11 += C ε_22, σ_22 += C ε_11 (docs/model.md §2.4, (2.22), Alg. 5).
 std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122);
 /// Wind (2.35, 2.36).
 std::unique_ptr<ForceTerm> MakeWind(const GridGeometry& geo, const WindSpec& wind);

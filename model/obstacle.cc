@@ -1,5 +1,5 @@
 // Signed distances, segment casts and keyframed rigid motion of obstacles
-// (SPEC §7; thesis §5.1, §6.2).
+// (docs/model.md §7; thesis §5.1, §6.2).
 #include "model/obstacle.h"
 
 #include "model/triangle_mesh.h"

@@ -1,4 +1,4 @@
-// Obstacles for collision response (SPEC §7, thesis ch. 4): analytic plane,
+// Obstacles for collision response (docs/model.md §7, thesis ch. 4): analytic plane,
 // sphere, box and cylinder (a round table is a cylinder with a top) and CGAL
 // triangle meshes. Each gives the signed distance of a point, the collision
 // direction D (outward normal of the closest surface point) and the first
@@ -79,7 +79,7 @@ struct ObstacleSpec {
   Vector3 size = Vector3::Zero();            ///< box edge lengths [m] (axis-aligned)
   double height = 0.0;                       ///< cylinder height below its top [m] (axis z)
   double collision_distance = 0.01;          ///< δ, thickness of the collision area [m]
-  double friction = 0.0;                     ///< Coulomb coefficient c_f (SPEC §2.5)
+  double friction = 0.0;                     ///< Coulomb coefficient c_f (docs/model.md §2.5)
   double relaxation = 0.5;                   ///< ω_r in (4.4), 0 < ω_r ≤ 1
   // Triangle meshes (OFF/OBJ/PLY through CGAL): x ↦ R(scale·x) + translate.
   std::string path;                          ///< resolved mesh file
@@ -107,7 +107,7 @@ class Obstacle {
     return SignedDistance(PoseAt(t), p, direction);
   }
   /// The first point where the segment a → b [m, world] enters the obstacle
-  /// at `pose` (SPEC §7, thesis §5.1's ray cast), or nothing if it does not
+  /// at `pose` (docs/model.md §7, thesis §5.1's ray cast), or nothing if it does not
   /// or a is already inside. Analytic obstacles are convex, so the signed
   /// distance along the segment is convex: its minimum is bracketed by
   /// golden-section search and the entry by bisection (to 1e-12 of the

@@ -1,4 +1,4 @@
-// Assembly of the particle model (SPEC §1, §2, §2.6).
+// Assembly of the particle model (docs/model.md §1, §2, §2.6).
 #include "model/particle_system.h"
 
 #include <Eigen/Geometry>
@@ -12,7 +12,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   const double lu = scene.lu(), lv = scene.lv();
   const MaterialSpec& mat = scene.material;
 
-  // Rest positions and lumped masses (SPEC §1). "area" halves border masses.
+  // Rest positions and lumped masses (docs/model.md §1). "area" halves border masses.
   rest_.resize(n_, 3);
   mass_.resize(n_);
   for (int j = 0; j < nv; ++j)
@@ -27,7 +27,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
       mass_(p) = mat.density * lu * lv * w;
     }
 
-  // Springs on u- and v-edges (SPEC §2.1, (2.20)).
+  // Springs on u- and v-edges (docs/model.md §2.1, (2.20)).
   for (int j = 0; j < nv; ++j)
     for (int i = 0; i < nu; ++i) {
       const int p = scene.Index(i, j);
@@ -68,7 +68,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   fixed_mask_.assign(static_cast<std::size_t>(n_), 0);
   for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;
 
-  // Explicit terms: only those with non-zero coefficients (SPEC §2.6).
+  // Explicit terms: only those with non-zero coefficients (docs/model.md §2.6).
   GridGeometry geo{nu, nv, lu, lv, mass_ / mat.density};
   if ((mat.tension[0] != 0.0 || mat.tension[1] != 0.0) && mat.tension_model == TensionModel::kSplit) {
     std::vector<Spring> stiff;
@@ -120,7 +120,7 @@ EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) c
   const bool bend = mat.bend_model != BendModel::kNone && (mat.bend[0] != 0.0 || mat.bend[1] != 0.0);
   for (int j = 0; j < nv; ++j)
     for (int i = 0; i < nu; ++i) {
-      // Shear strain γ with one-sided differences on the border (SPEC §2.2).
+      // Shear strain γ with one-sided differences on the border (docs/model.md §2.2).
       if (mat.shear != 0.0) {
         const int r = std::min(i + 1, nu - 1), l = std::max(i - 1, 0), u = std::min(j + 1, nv - 1), d = std::max(j - 1, 0);
         const Vector3 a = (at(r, j) - at(l, j)) / ((r - l) * lu), b = (at(i, u) - at(i, d)) / ((u - d) * lv);

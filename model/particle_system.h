@@ -1,7 +1,7 @@
-// The particle model of a scene (SPEC §1–2): masses, the stiff linear part
+// The particle model of a scene (docs/model.md §1–2): masses, the stiff linear part
 // −L_K x − L_D v (3.19), and the explicit terms g(t, x, v) of the split ODE
 // (3.20), assembled from the scene so that a term with zero coefficients is
-// never evaluated (SPEC §2.6).
+// never evaluated (docs/model.md §2.6).
 #ifndef CLOTHBENCH_MODEL_PARTICLE_SYSTEM_H_
 #define CLOTHBENCH_MODEL_PARTICLE_SYSTEM_H_
 
@@ -19,7 +19,7 @@ namespace clothbench {
 struct EnergyBreakdown {
   double kinetic = 0.0;    ///< ½ Σ m |v|²
   double tension = 0.0;    ///< ½ Σ s_e (|d| − l_e)² (split) or ½ Σ s_e |d|² (linear model)
-  double shear = 0.0;      ///< Σ ½ μ γ² lu lv, the energy whose gradient the shear term is (SPEC §2.2)
+  double shear = 0.0;      ///< Σ ½ μ γ² lu lv, the energy whose gradient the shear term is (docs/model.md §2.2)
   double bending = 0.0;    ///< ½ Σ lu lv (B_u ⟨s_uu,N⟩² + B_v ⟨s_vv,N⟩²): a diagnostic, see below
   double gravity = 0.0;    ///< −Σ m g·x
   Vector3 momentum = Vector3::Zero();  ///< Σ m v
@@ -36,7 +36,7 @@ class ParticleSystem {
   int num_particles() const { return n_; }
   /// N×3 rest positions x_p = origin + i lu u_axis + j lv v_axis [m].
   const MatrixN3& rest_positions() const { return rest_; }
-  /// N lumped masses m_p [kg] (SPEC §1).
+  /// N lumped masses m_p [kg] (docs/model.md §1).
   const Eigen::VectorXd& masses() const { return mass_; }
   /// L_K: N×N weighted graph Laplacian of the spring stiffnesses s_e [N/m]
   /// (3.19). Off-diagonals −s_e, diagonal the row sums; SPSD.
@@ -50,7 +50,7 @@ class ParticleSystem {
   /// Sorted flat indices of fixed particles; is_fixed(p) for lookup.
   const std::vector<int>& fixed() const { return fixed_; }
   bool is_fixed(int p) const { return fixed_mask_[static_cast<std::size_t>(p)] != 0; }
-  /// Obstacles of the scene (SPEC §7); empty: no detection at all.
+  /// Obstacles of the scene (docs/model.md §7); empty: no detection at all.
   const std::vector<Obstacle>& obstacles() const { return obstacles_; }
   /// The explicit terms in evaluation order.
   const std::vector<std::unique_ptr<ForceTerm>>& terms() const { return terms_; }

@@ -1,6 +1,6 @@
 // Scene description: the cloth grid, its material, external forces, fixed
 // particles and solver settings, read from TOML.
-// SPEC §1 (discretisation), §2 (forces), §5–6 (solver settings).
+// docs/model.md §1 (discretisation), §2 (forces), §5–6 (solver settings).
 #ifndef CLOTHBENCH_MODEL_SCENE_H_
 #define CLOTHBENCH_MODEL_SCENE_H_
 
@@ -45,12 +45,12 @@ std::string EscapeControl(std::string_view text);
 void CheckRunLength(const Scene& scene, const std::string& source);
 
 enum class BendModel { kNone, kMembrane, kThinPlate };
-/// "split": springs with rest length l_e, IMEX split F_lin + F_nl (SPEC §2.1).
+/// "split": springs with rest length l_e, IMEX split F_lin + F_nl (docs/model.md §2.1).
 /// "linear": zero-rest-length springs, f = −L_K x − L_D v only (F_nl absent):
 /// an exactly linear prestressed membrane, used by the modal order tests.
 enum class TensionModel { kSplit, kLinear };
 enum class MassLumping { kUniform, kArea };
-/// Preconditioner of the filtered PCG (SPEC §5): none, Jacobi (diag(A) ⊗ I₃),
+/// Preconditioner of the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃),
 /// IC(0) of A_α (the thesis' choice), a sparse Cholesky factor from CHOLMOD
 /// ("cholesky"), or one V-cycle of algebraic multigrid from hypre BoomerAMG
 /// ("amg").
@@ -59,8 +59,8 @@ enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg };
 enum class CholeskyOrdering { kMetis, kAmd };
 enum class Predictor { kConstantVelocity, kExtrapolate };
 enum class StepControl { kFixed, kIterations, kError };
-/// What the PCG tolerance is relative to (SPEC §5 and its deviation below).
-/// kFiltered: ‖S b‖₂ over every constraint, SPEC §5 literally.
+/// What the PCG tolerance is relative to (docs/model.md §5 and its deviation below).
+/// kFiltered: ‖S b‖₂ over every constraint, docs/model.md §5 literally.
 /// kFixedOnly: ‖S_F b‖₂, where S_F filters only the fixed (bilateral)
 /// particles and not the collision constraints. At resting contact the filter
 /// removes the whole load (gravity and the obstacle's reaction both act along
@@ -72,8 +72,8 @@ enum class StepControl { kFixed, kIterations, kError };
 enum class CgReference { kFixedOnly, kFiltered };
 /// Nonlinear solver of the fully implicit methods (implicit Euler, BDF(2),
 /// implicit midpoint). "fixed_point": Alg. 6, the thesis' simplified Newton
-/// method with the linear part A_α as matrix (SPEC §3.4.3). "newton": Newton's
-/// method with the tangent system J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (SPEC §11).
+/// method with the linear part A_α as matrix (thesis §3.4.3). "newton": Newton's
+/// method with the tangent system J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (docs/model.md §10).
 enum class NonlinearSolver { kFixedPoint, kNewton };
 /// When Newton refreshes J_α: at every iterate ("refresh"), or once per step
 /// at the predictor ("frozen", a chord method).
@@ -104,7 +104,7 @@ struct GridSpec {
   Vector3 v_axis = Vector3::UnitY();              ///< unit vector along v, orthogonal to u
 };
 
-/// Material constants per unit length of cloth (SPEC §1).
+/// Material constants per unit length of cloth (docs/model.md §1).
 struct MaterialSpec {
   double density = 1.0;                           ///< ρ [kg/m²]
   std::array<double, 2> tension = {1000.0, 1000.0};  ///< k_u, k_v [N/m], (2.20)
@@ -116,7 +116,7 @@ struct MaterialSpec {
   double bend_damping = 0.0;                      ///< d_b, (2.30)
   BendModel bend_model = BendModel::kThinPlate;   ///< (2.25) membrane | (2.26) thin plate
   double transverse = 0.0;                        ///< C_1122 [N/m], (2.22)
-  MassLumping mass_lumping = MassLumping::kUniform;  ///< SPEC §1
+  MassLumping mass_lumping = MassLumping::kUniform;  ///< docs/model.md §1
 };
 
 /// Oscillating wind (2.35, 2.36): f_w(t) = (a + sin(ω t)) w.
@@ -134,16 +134,16 @@ struct ForcesSpec {
   double air = 0.0;                            ///< c_air [kg/(m² s)], (2.37); 0: no term
 };
 
-/// Settings of the step engine (SPEC §5, §6).
+/// Settings of the step engine (docs/model.md §5, §6).
 struct SolverSpec {
-  double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (SPEC §5, see CgReference)
+  double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (docs/model.md §5, see CgReference)
   CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
   int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
   /// The CHOLMOD factor: fastest on the thesis scenes and at scale (docs/performance.md); the thesis scenes name "ic0" explicitly.
   PreconditionerType preconditioner = PreconditionerType::kCholesky;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
-  /// Iteration controller band (SPEC §6, §3.4.3): h grows by step_factor when
+  /// Iteration controller band (docs/model.md §6; thesis §3.4.3): h grows by step_factor when
   /// a step needed fewer than [0] updates and shrinks when it needed more than [1].
   std::array<int, 2> controller_updates = {3, 6};
   /// Fixed-point stop: 0 selects the thesis' rule (PCG needed 0 iterations);
@@ -158,7 +158,7 @@ struct SolverSpec {
   /// transverse, air) enter J_α; false: tension and mass only.
   bool tangent_explicit_terms = true;
   Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
-  /// fixed h; the thesis' iteration-count controller (SPEC §6); or local
+  /// fixed h; the thesis' iteration-count controller (docs/model.md §6); or local
   /// error control of SBDF(2)/BDF(2) against rtol/atol (docs/work-precision.md).
   StepControl step_control = StepControl::kFixed;
   double rtol = 1e-4;                ///< step_control = "error": relative tolerance
@@ -186,14 +186,14 @@ struct Scene {
   std::vector<std::string> fixed_specs;  ///< as written in the scene
   std::vector<int> fixed;                ///< resolved flat particle indices, sorted, unique
   SolverSpec solver;
-  std::vector<ObstacleSpec> obstacles;   ///< `[[obstacle]]` (SPEC §7); empty: no detection, no filter
+  std::vector<ObstacleSpec> obstacles;   ///< `[[obstacle]]` (docs/model.md §7); empty: no detection, no filter
   std::string source = "<memory>";       ///< file path or "<embedded>"
   std::string toml;                      ///< the scene's TOML text
 
   int num_particles() const { return grid.nu * grid.nv; }
   double lu() const { return grid.size[0] / (grid.nu - 1); }
   double lv() const { return grid.size[1] / (grid.nv - 1); }
-  /// Flat index p = i + nu·j (SPEC §1).
+  /// Flat index p = i + nu·j (docs/model.md §1).
   int Index(int i, int j) const { return i + grid.nu * j; }
   /// Numerical stiffness h²k/(ρl²) (§3.4.4) with the largest k_e/l_e² of u and v.
   double NumericalStiffness(double step) const;

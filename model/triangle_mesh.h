@@ -1,4 +1,4 @@
-// Triangle-mesh obstacles through CGAL (SPEC §7): OFF/OBJ/PLY input
+// Triangle-mesh obstacles through CGAL (docs/model.md §7): OFF/OBJ/PLY input
 // (CGAL::IO::read_polygon_mesh), a rigid placement (scale, rotation,
 // translation), closest-point queries on CGAL's AABB tree, and the inside
 // test of CGAL::Side_of_triangle_mesh for the sign of the distance. All CGAL

@@ -11,7 +11,7 @@ namespace clothbench {
 
 /// N×3 per-particle quantities (positions [m], velocities [m/s], forces [N]).
 /// Column-major: the x, y and z columns are contiguous, so the N×N Laplacians
-/// act on all three columns in one sparse product (SPEC §2.1, `L ⊗ I₃`).
+/// act on all three columns in one sparse product (docs/model.md §2.1, `L ⊗ I₃`).
 using MatrixN3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 /// The same N×3 quantities stored row-major: its data is the 3N vector with
 /// the interleaved index 3p + c of the tangent system J_α (solver/tangent.h).

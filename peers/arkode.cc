@@ -1,4 +1,4 @@
-// ARKODE ARKStep IMEX peer (SPEC §8, §11).
+// ARKODE ARKStep IMEX peer (docs/model.md §8, §10).
 #include "peers/arkode.h"
 
 #include <chrono>

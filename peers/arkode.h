@@ -1,5 +1,5 @@
 // ARKODE ARKStep (SUNDIALS 6.4) as the adaptive IMEX Runge–Kutta peer of the
-// SBDF family (SPEC §8, §11). On y = (x, v) of the free particles,
+// SBDF family (docs/model.md §8, §10). On y = (x, v) of the free particles,
 //   f_I(y) = (v, M⁻¹(−L_K x − L_D v))   implicit, declared linear (ARKStepSetLinear)
 //   f_E(t, y) = (0, M⁻¹ g(t, x, v))     explicit
 // (the split of (3.20); fixed particles are not unknowns, as in the CVODE

@@ -98,7 +98,7 @@ StepStats BaraffWitkin::Step(double h) {
   }
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
   sys_.Forces(t_, x0_, v0_, &f_);
-  if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (SPEC §2.5)
+  if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
   rhs_ = h * f_;
   tangent_.AddJacobianProducts(h * h, v0_, 0.0, v0_, &rhs_);
   vr_ = v0_;

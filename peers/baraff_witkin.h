@@ -3,8 +3,8 @@
 // linearised once per step with the full force Jacobians (eq. 16–18),
 //   (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f₀ + h ∂f/∂x v₀),   x₁ = x₀ + h (v₀ + Δv),
 // solved by the same filtered PCG, velocity filter S and (4.4) target as the
-// thesis' methods (SPEC §5, §7), with the same explicit Coulomb friction.
-// A peer of the thesis' integrators, not one of them (SPEC §11).
+// thesis' methods (docs/model.md §5, §7), with the same explicit Coulomb friction.
+// A peer of the thesis' integrators, not one of them (docs/model.md §10).
 #ifndef CLOTHBENCH_PEERS_BARAFF_WITKIN_H_
 #define CLOTHBENCH_PEERS_BARAFF_WITKIN_H_
 

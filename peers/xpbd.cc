@@ -1,5 +1,5 @@
 // XPBD with substeps (Macklin, Müller, Chentanez 2016; Macklin et al. 2019,
-// Algorithm 1; SPEC §11).
+// Algorithm 1; docs/model.md §10).
 #include "peers/xpbd.h"
 
 #include <chrono>
@@ -89,7 +89,7 @@ void Xpbd::PredictionForces(double t, const MatrixN3& x, const MatrixN3& v, Matr
   for (const ForceTerm* term : explicit_) term->AddForce(t, x, v, f);
 }
 
-// C = γ = ⟨a, b⟩, a = (p_r − p_l)/du, b = (p_u − p_d)/dv (SPEC §2.2), with
+// C = γ = ⟨a, b⟩, a = (p_r − p_l)/du, b = (p_u − p_d)/dv (docs/model.md §2.2), with
 // ∇_r C = b/du, ∇_l C = −b/du, ∇_u C = a/dv, ∇_d C = −a/dv; gradients of
 // slots that hold the same particle (the border) are summed first.
 void Xpbd::ProjectShear(double dt) {

@@ -2,17 +2,17 @@
 // Chentanez 2016, "XPBD: position-based simulation of compliant constrained
 // dynamics") in the "small steps" scheme (Macklin, Storey, Lu, Terdiman,
 // Chentanez, Jeschke, Müller 2019, Algorithm 1): a frame step h is split into
-// n substeps Δt = h/n with one constraint sweep each (SPEC §11). The model is
+// n substeps Δt = h/n with one constraint sweep each (docs/model.md §10). The model is
 // the scene's, expressed as constraints where it has a constraint form:
 //  - tension: each spring a distance constraint C = |x_b − x_a| − l_e with
 //    compliance α = 1/s_e (energy ½ s_e C², the same as §2.1);
-//  - tension damping c_e (v_b − v_a) (SPEC §2.1, isotropic as in the model):
+//  - tension damping c_e (v_b − v_a) (docs/model.md §2.1, isotropic as in the model):
 //    the damping term of XPBD Eq. 26 on the vector constraint C = x_b − x_a
 //    with β = c_e and zero stiffness (α → ∞), ProjectDamper. Eq. 26's
 //    damping on the distance constraint itself would damp only along the
 //    spring: a different model, whose trajectories do not converge to the
 //    reference's as Δt shrinks;
-//  - shear (μ > 0): one constraint per particle, C = γ_ij of SPEC §2.2, with
+//  - shear (μ > 0): one constraint per particle, C = γ_ij of docs/model.md §2.2, with
 //    α = 1/(μ lu lv) (energy ½ μ γ² lu lv) and β = d_s lu lv;
 //  - everything else (bending, transverse contraction, gravity, wind, air)
 //    as explicit forces in the velocity prediction (explicit_terms());
@@ -95,7 +95,7 @@ class Xpbd : public Stepper {
     double rest_length, compliance, damping;  // l_e [m], 1/s_e [m/N] (0: no stiffness), c_e [N s/m]
   };
   // γ_ij at particle c over its cross (c, r, l, u, d); a missing neighbour is
-  // c itself and its spacing halves (SPEC §2.2).
+  // c itself and its spacing halves (docs/model.md §2.2).
   struct ShearCross {
     std::array<int, 5> nodes;
     double du, dv;

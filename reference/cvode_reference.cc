@@ -1,4 +1,4 @@
-// CVODE reference (SPEC §8).
+// CVODE reference (docs/model.md §8).
 #include "reference/cvode_reference.h"
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-// SUNDIALS CVODE reference (SPEC §8): variable-order BDF with Newton
+// SUNDIALS CVODE reference (docs/model.md §8): variable-order BDF with Newton
 // iteration and KLU on the analytic sparse Jacobian, integrating
 //   ẋ = v,  v̇ = M⁻¹ f(t, x, v)                                        (3.13)
 // on the free degrees of freedom (fixed particles stay at rest). At

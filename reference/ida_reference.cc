@@ -1,4 +1,4 @@
-// IDA reference (SPEC §8).
+// IDA reference (docs/model.md §8).
 #include "reference/ida_reference.h"
 
 #include <algorithm>

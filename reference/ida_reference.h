@@ -1,4 +1,4 @@
-// SUNDIALS IDA reference (SPEC §8): the residual form
+// SUNDIALS IDA reference (docs/model.md §8): the residual form
 //   F(t, y, ẏ) = [ẋ − v ; M v̇ − f(t, x, v)]
 // over all particles, with fixed particles as algebraic equations
 // x_p − x_p^rest = 0, v_p = 0 (IDASetId, IDASetSuppressAlg), variable-order

@@ -1,4 +1,4 @@
-// Error measures and observed order (SPEC §9).
+// Error measures and observed order (docs/model.md §9).
 #ifndef CLOTHBENCH_RESULTS_METRICS_H_
 #define CLOTHBENCH_RESULTS_METRICS_H_
 
@@ -12,7 +12,7 @@
 
 namespace clothbench {
 
-/// e_rms = sqrt((1/N) Σ_p |x_p − x_p^ref|²) [m] (SPEC §9).
+/// e_rms = sqrt((1/N) Σ_p |x_p − x_p^ref|²) [m] (docs/model.md §9).
 double ErrorRms(const MatrixN3& x, const MatrixN3& ref);
 /// The thesis' "normalised by the number of nodes" error (1/N) Σ_p |x_p − x_p^ref| [m] (§2.8).
 double ErrorMean(const MatrixN3& x, const MatrixN3& ref);
@@ -27,7 +27,7 @@ struct TrajectoryErrors {
 /// that stopped early) or a value is not finite.
 std::optional<TrajectoryErrors> CompareTrajectories(const std::vector<MatrixN3>& run, const std::vector<MatrixN3>& ref);
 
-/// Observed order log(e1/e2)/log(h1/h2) between step sizes h1 > h2 (SPEC §9).
+/// Observed order log(e1/e2)/log(h1/h2) between step sizes h1 > h2 (docs/model.md §9).
 double ObservedOrder(double h1, double e1, double h2, double e2);
 
 /// Least-squares slope of log e against log h.

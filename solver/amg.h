@@ -1,4 +1,4 @@
-// Algebraic multigrid preconditioner of the filtered PCG (SPEC §5): one
+// Algebraic multigrid preconditioner of the filtered PCG (docs/model.md §5): one
 // V-cycle of hypre's BoomerAMG on the N×N matrix A_F (A_α with the fixed
 // particles decoupled, as for the Cholesky factor), applied to each of the
 // three coordinate columns. hypre links MPI; clothbench runs it as a single

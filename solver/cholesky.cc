@@ -1,4 +1,4 @@
-// CHOLMOD factor of A_F (SPEC §5). CHOLMOD is confined to this file.
+// CHOLMOD factor of A_F (docs/model.md §5). CHOLMOD is confined to this file.
 #include "solver/cholesky.h"
 
 #include "solver/decoupled.h"

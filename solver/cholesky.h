@@ -1,5 +1,5 @@
 // Sparse Cholesky factor of the N×N system matrix A_α through CHOLMOD
-// (SuiteSparse), the direct preconditioner of the filtered PCG (SPEC §5:
+// (SuiteSparse), the direct preconditioner of the filtered PCG (docs/model.md §5:
 // "a CHOLMOD factorisation of the unconstrained A_α, reused while h is
 // constant"). The symbolic analysis (fill-reducing ordering, supernodes) is
 // done once per pattern; the numeric factorisation is repeated only when the

@@ -1,4 +1,4 @@
-// Collision response (SPEC §7; thesis (4.3), (4.4), §5.1, §2.5).
+// Collision response (docs/model.md §7; thesis (4.3), (4.4), §5.1, §2.5).
 #include "solver/contact.h"
 
 #include <algorithm>
@@ -21,7 +21,7 @@ void ContactResponse::Reset() {
   release_tolerance_ = 0.0;
 }
 
-// Collision response (SPEC §7; thesis (4.3), (4.4), §5.1). A particle is
+// Collision response (docs/model.md §7; thesis (4.3), (4.4), §5.1). A particle is
 // constrained along a collision direction D when, against some obstacle at
 // its pose at t₀ (signed distance d, obstacle velocity v_obs at x₀,
 // relative velocity v_rel = v₀ − v_obs):
@@ -144,7 +144,7 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
     if (c.obstacle < 0) continue;
     c.direction = dir;
     filter->Constrain(p, dir, target_velocity);  // (4.4)
-    // Coulomb friction from the normal impulse of the last step (SPEC §2.5),
+    // Coulomb friction from the normal impulse of the last step (docs/model.md §2.5),
     // explicit, against the tangential velocity relative to the obstacle.
     // Its impulse is capped at m|v_t|: friction can stop a sliding particle
     // but never reverse it (uncapped, a round-off v_t of 1e-15 m/s got the

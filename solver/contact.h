@@ -1,5 +1,5 @@
-// Collision response through the velocity filter (SPEC §7; thesis (4.3),
-// (4.4), §5.1) with explicit Coulomb friction (SPEC §2.5), shared by the
+// Collision response through the velocity filter (docs/model.md §7; thesis (4.3),
+// (4.4), §5.1) with explicit Coulomb friction (docs/model.md §2.5), shared by the
 // thesis' methods (StepEngine) and the peers that use the same filter
 // (Baraff–Witkin). Contacts are set up once per step, from the state at its
 // start; the constraint impulses read after the solve decide release and
@@ -32,7 +32,7 @@ class ContactResponse {
   /// @return the number of colliding particles (Fig. 4.3). No allocation.
   int SetUp(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3* xm1, VelocityFilter* filter);
 
-  /// Coulomb friction forces of the step [N], N×3 (explicit; SPEC §2.5).
+  /// Coulomb friction forces of the step [N], N×3 (explicit; docs/model.md §2.5).
   const MatrixN3& friction() const { return friction_; }
 
   /// After a successful solve: the impulse that holds each contact,

@@ -1,5 +1,5 @@
 // The pattern of A_F, the matrix that the "cholesky" and "amg"
-// preconditioners build (SPEC §5): A_α with the rows and columns of the
+// preconditioners build (docs/model.md §5): A_α with the rows and columns of the
 // fixed particles decoupled (their off-diagonal entries dropped, the
 // diagonal kept). Internal to solver/.
 #ifndef CLOTHBENCH_SOLVER_DECOUPLED_H_

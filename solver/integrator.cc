@@ -1,4 +1,4 @@
-// Step engine (SPEC §3, §4, §6; thesis (3.21)–(3.36), Alg. 6).
+// Step engine (docs/model.md §3, §4, §6; thesis (3.21)–(3.36), Alg. 6).
 #include "solver/integrator.h"
 
 #include <algorithm>
@@ -96,7 +96,7 @@ SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type
 }
 
 bool SystemMatrix::Update(double alpha_h) {
-  if (alpha_h == alpha_h_) return true;  // cached while αh is constant (SPEC §3)
+  if (alpha_h == alpha_h_) return true;  // cached while αh is constant (docs/model.md §3)
   const auto start = std::chrono::steady_clock::now();
   Eigen::Map<Eigen::VectorXd> vals(a_.valuePtr(), a_.nonZeros());
   vals = m_vals_ + (alpha_h * alpha_h) * lk_vals_ + alpha_h * ld_vals_;  // (3.24), (3.31)
@@ -178,7 +178,7 @@ StepStats StepEngine::StepImpl(double h) {
   if (method_ == Method::kSymplecticEuler) return ExplicitStep(h, st);
 
   // Multistep methods start with a one-step method of the same family
-  // (SPEC §4): SBDF(2) with IMEX Euler, BDF(2) with implicit Euler.
+  // (docs/model.md §4): SBDF(2) with IMEX Euler, BDF(2) with implicit Euler.
   Method m = method_;
   const bool multistep = method_ == Method::kSbdf2 || method_ == Method::kBdf2;
   if (multistep && !have_history_) m = method_ == Method::kSbdf2 ? Method::kImexEuler : Method::kImplicitEuler;
@@ -190,7 +190,7 @@ StepStats StepEngine::StepImpl(double h) {
     m = Method::kSbdf2;
   const bool imex = IsImex(m);
 
-  // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)).
+  // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)).
   const double omega = have_history_ ? h / h_prev_ : 1.0;
   const Bdf2Coefficients bdf(omega);
   const double c1 = bdf.c1, c2 = bdf.c2, c3 = bdf.c3;
@@ -265,7 +265,7 @@ StepStats StepEngine::StepImpl(double h) {
   }
   if (contacts_.active()) {
     st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
-    b0_ += h * contacts_.friction();  // Coulomb friction, explicit (SPEC §2.5)
+    b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
   }
 
   // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for
@@ -277,7 +277,7 @@ StepStats StepEngine::StepImpl(double h) {
       have_g0_ = true;
     }
     if (m == Method::kSbdf2)
-      g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (SPEC §4)
+      g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (docs/model.md §4)
     else if (m == Method::kSbdf3)
       g_ = 3.0 * g0_ - 3.0 * gm1_ + gm2_;  // ĝ, third order at a constant step
     else
@@ -440,7 +440,7 @@ double StepEngine::ErrorNorm(double h, int* order) const {
   return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
 }
 
-// Newton's method for the fully implicit step (SPEC §11). The step equation
+// Newton's method for the fully implicit step (docs/model.md §10). The step equation
 // of every method is F(v₁) = A_α v₁ − b₀ − βh g(t_g, x̂_g + γ_g h v₁, v_g(v₁)) = 0
 // on the free directions (S F = 0, (I − S) v₁ = z), with v_g = v₁, or
 // (v₀ + v₁)/2 for the midpoint rule. Its Jacobian is exactly

@@ -1,11 +1,11 @@
 // The step engine: IMEX Euler, implicit Euler, SBDF(2), BDF(2) and implicit
 // midpoint for the split ODE (3.20), all through the fixed-point loop of
-// Alg. 6 with the filtered PCG (SPEC §3–6). Every method solves
+// Alg. 6 with the filtered PCG (docs/model.md §3–6). Every method solves
 //   A_α v₁ = b₀ + β h g(t_g, x_g(v₁), v_g(v₁)),  A_α = M + α²h² L_K + αh L_D  (3.24, 3.31)
 // with positions x₁ = x̂ + γ h v₁. IMEX methods do one update per step; the
 // fully implicit ones iterate to convergence, either with Alg. 6 (a
 // simplified Newton method with approximate Jacobian A_α, §3.4.3) or with
-// Newton's method on the tangent system J_α (SPEC §11, solver/tangent.h).
+// Newton's method on the tangent system J_α (docs/model.md §10, solver/tangent.h).
 #ifndef CLOTHBENCH_SOLVER_INTEGRATOR_H_
 #define CLOTHBENCH_SOLVER_INTEGRATOR_H_
 
@@ -49,7 +49,7 @@ bool IsExplicit(Method m);
 /// Classical order of convergence (1, 2 or 3).
 int MethodOrder(Method m);
 
-/// Variable-step BDF(2) coefficients for ω = h_n/h_{n−1} (SPEC §4, (3.28)–(3.32)):
+/// Variable-step BDF(2) coefficients for ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)):
 /// x₁ = c1 x₀ − c2 x₋₁ + c3 h ẋ₁ with c1 = (1+ω)²/(1+2ω), c2 = ω²/(1+2ω),
 /// c3 = (1+ω)/(1+2ω); 4/3, 1/3, 2/3 at ω = 1.
 struct Bdf2Coefficients {
@@ -79,7 +79,7 @@ enum class StepStatus {
 };
 std::string_view ToString(StepStatus s);
 
-/// Statistics of one attempted step (SPEC §6).
+/// Statistics of one attempted step (docs/model.md §6).
 struct StepStats {
   double t = 0.0;          ///< time at the end of the step [s]
   double h = 0.0;          ///< step size [s]
@@ -99,7 +99,7 @@ struct StepStats {
 };
 
 /// A_α = M + α²h² L_K + αh L_D on a fixed pattern, with its preconditioner,
-/// recomputed only when α·h changes (SPEC §3). The pattern and the
+/// recomputed only when α·h changes (docs/model.md §3). The pattern and the
 /// preconditioner's symbolic phase (IC(0) pattern, CHOLMOD analysis) are set
 /// up once, in the constructor. No allocation after construction, except
 /// inside CHOLMOD and hypre when αh changes.
@@ -175,7 +175,7 @@ class StepEngine : public Stepper {
 
   /// Sets the state at time t [s] with N×3 positions x [m] and velocities v
   /// [m/s] and forgets the history (multistep methods restart: SBDF(2) with
-  /// IMEX Euler, BDF(2) with implicit Euler, SPEC §4).
+  /// IMEX Euler, BDF(2) with implicit Euler, docs/model.md §4).
   void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
 
   /// Attempts one step of size h [s]. On success the state advances; on
@@ -200,7 +200,7 @@ class StepEngine : public Stepper {
 
  private:
   StepStats StepImpl(double h);
-  /// Newton's method for v₁ (SPEC §11): F(v) = A_α v − b₀ − βh g(t_g, x_g(v), v_g(v)),
+  /// Newton's method for v₁ (docs/model.md §10): F(v) = A_α v − b₀ − βh g(t_g, x_g(v), v_g(v)),
   /// J_α δ = −F on the free directions. Returns true when converged; on
   /// failure st->status says why.
   bool NewtonIterate(double h, double alpha, double beta, double gamma_g, double t_g, bool midpoint,

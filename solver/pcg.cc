@@ -1,4 +1,4 @@
-// Filtered PCG and its preconditioners (SPEC §5, thesis Alg. 7).
+// Filtered PCG and its preconditioners (docs/model.md §5, thesis Alg. 7).
 #include "solver/pcg.h"
 
 #include <cmath>
@@ -392,7 +392,7 @@ PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& fil
   Vec& q = w->q;
 
   if (filtered) filter.Impose(v);
-  // ‖S b‖ for the stopping rule (SPEC §5), unless the caller gave its own.
+  // ‖S b‖ for the stopping rule (docs/model.md §5), unless the caller gave its own.
   if (options.rhs_norm >= 0.0) {
     s.rhs_norm = options.rhs_norm;
   } else {

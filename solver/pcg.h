@@ -1,4 +1,4 @@
-// Filtered preconditioned conjugate gradients (SPEC §5; thesis Alg. 7,
+// Filtered preconditioned conjugate gradients (docs/model.md §5; thesis Alg. 7,
 // Baraff & Witkin 1998, in the form of Ascher & Boxerman 2003) for
 //   S (A v − b) = 0,   (I − S) v = z                                   (4.3)
 // where S is the per-particle velocity filter and A is either
@@ -25,9 +25,9 @@
 namespace clothbench {
 
 /// Per-particle velocity filter S_p = I − Σ c cᵀ with prescribed velocities
-/// along the constrained directions (SPEC §5). A fixed particle constrains all
+/// along the constrained directions (docs/model.md §5). A fixed particle constrains all
 /// three directions. Without constraints the projection is skipped entirely
-/// (SPEC §2.6).
+/// (docs/model.md §2.6).
 class VelocityFilter {
  public:
   /// Constrains all three directions of particle p to velocity `target` [m/s].
@@ -95,7 +95,7 @@ class IncompleteCholesky0 {
   double shift_ = 0.0;
 };
 
-/// Preconditioner for the filtered PCG (SPEC §5): none, Jacobi (diag(A) ⊗ I₃,
+/// Preconditioner for the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃,
 /// the block-diagonal 3×3 of A ⊗ I₃), IC(0) of A, a CHOLMOD factor of A_F or
 /// one BoomerAMG V-cycle on A_F (A_F: A with the fixed particles' rows and
 /// columns decoupled, see CholeskyFactor). Movable, not copyable.
@@ -137,7 +137,7 @@ class Preconditioner {
 void SymmetricProduct(const SparseMatrix& a, const MatrixN3& x, MatrixN3* y);
 
 /// ‖S_F b‖₂: the 2-norm of b over the particles not in `fixed` (the
-/// reference of the PCG tolerance with CgReference::kFixedOnly, SPEC §5).
+/// reference of the PCG tolerance with CgReference::kFixedOnly, docs/model.md §5).
 /// @param b N×3 (MatrixN3 or MatrixN3R) @param fixed particle indices
 template <class M>
 double FreeRowsNorm(const M& b, const std::vector<int>& fixed) {

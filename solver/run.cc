@@ -1,4 +1,4 @@
-// Run driver (SPEC §6).
+// Run driver (docs/model.md §6).
 #include "solver/run.h"
 
 #include <algorithm>

@@ -1,6 +1,6 @@
 // Runs one integrator over a scene's time interval: fixed steps or the
 // iteration-count controller, rejected steps retried with a smaller h, and
-// frames stored at 0, frame_dt, …, t_end (SPEC §6).
+// frames stored at 0, frame_dt, …, t_end (docs/model.md §6).
 #ifndef CLOTHBENCH_SOLVER_RUN_H_
 #define CLOTHBENCH_SOLVER_RUN_H_
 

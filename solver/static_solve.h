@@ -1,5 +1,5 @@
 // Static equilibrium f(x, v = 0) = 0 of the same discrete equations the
-// integrators solve (SPEC §9 chapter 2: "a static solve of the same
+// integrators solve (docs/model.md §9 chapter 2: "a static solve of the same
 // discrete equations"). Newton's method on the free coordinates with the
 // analytic sparse Jacobian (ParticleSystem::ForceJacobian), Eigen's SparseLU,
 // an adaptive Levenberg–Marquardt shift λ = rel·max|K_ii| for modes without

@@ -1,4 +1,4 @@
-// J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (docs/model.md, "Newton tangent";
+// J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (docs/model.md §10;
 // Baraff & Witkin 1998, eq. 18), assembled from closed-form 3×3 blocks.
 #include "solver/tangent.h"
 

@@ -1,5 +1,5 @@
 // The full (tangent) system of the fully implicit methods' Newton iteration
-// and of the Baraff–Witkin step (SPEC §11; Baraff & Witkin 1998, eq. 18):
+// and of the Baraff–Witkin step (docs/model.md §10; Baraff & Witkin 1998, eq. 18):
 //   J_α = M − αh ∂f/∂v − α²h² ∂f/∂x,
 // a 3N×3N matrix with interleaved index 3p + c, on a fixed sparsity pattern
 // (3×3 blocks per particle pair), refreshed in place.
@@ -14,7 +14,7 @@
 namespace clothbench {
 
 // TangentProjection (model/scene.h): how the spring blocks treat
-// compression. The exact spring Jacobian (SPEC §2.1) is
+// compression. The exact spring Jacobian (docs/model.md §2.1) is
 // s_e[(1 − l_e/|d|)(I − d̂d̂ᵀ) + d̂d̂ᵀ]; its transverse factor (1 − l_e/|d|)
 // is negative for a compressed spring, which makes ∂f/∂x indefinite. kClamp
 // uses max(0, 1 − l_e/|d|) (Choi & Ko 2002; Blender's implicit_blender.cc

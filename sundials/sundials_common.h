@@ -1,5 +1,5 @@
 // Shared parts of the SUNDIALS-driven methods, the references (CVODE, IDA)
-// and the ARKODE peer (SPEC §8): options, counters, results, the one-step
+// and the ARKODE peer (docs/model.md §8): options, counters, results, the one-step
 // frame loop, the sparse-matrix copy and the reduced velocity solve.
 #ifndef CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
 #define CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_

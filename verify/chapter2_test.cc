@@ -1,5 +1,5 @@
 // Chapter 2: spatial convergence to analytic equilibria
-// (SPEC §9 experiments 1–3; thesis §2.8, Fig. 2.11). Each experiment solves
+// (docs/model.md §9 experiments 1–3; thesis §2.8, Fig. 2.11). Each experiment solves
 // the static equilibrium f(x, 0) = 0 of the discrete model (solver/
 // static_solve.h) on n×n grids, n = 5, 9, 17, 33, and compares with the
 // continuum solution at the nodes: e = rms over nodes of |x − x_continuum|.
@@ -10,7 +10,7 @@
 // 1. Hanging textile: one edge fixed, in-plane body force f = ρg = 981 N/m²
 //    along the sheet, k = 1e4 N/m, tension only. Continuum (linear spring law
 //    along the fibre): u(s) = (f/k)(L s − s²/2). The uniform mass lumping
-//    (thesis, SPEC §1) gives the free-edge row a full cell's mass, i.e. an
+//    (thesis, docs/model.md §1) gives the free-edge row a full cell's mass, i.e. an
 //    extra load f l/2 per width at s = L, whose displacement (f l/2k) s is the
 //    whole discretisation error (second differences are exact on quadratics):
 //    derived rate 1.
@@ -34,7 +34,7 @@
 //    (rows rigid) gives 0.77, 0.92, 0.97, 0.98, … 1.00 up to n = 1025.
 //    FINDING: the contraction normal to the edge does not converge. The
 //    central-difference shear strain γ_j = (w_{j+1} − w_{j−1})/2l (Alg. 2's
-//    stencil, in the energy form of SPEC §2.2) has an odd–even null mode. The
+//    stencil, in the energy form of docs/model.md §2.2) has an odd–even null mode. The
 //    discrete w carries a checkerboard of amplitude O(l) whose slope is O(1),
 //    and the inextensible fibres turn Σ Δw²/2l into an O(1) extra
 //    contraction: the free edge contracts ≈1.24× the continuum value at every

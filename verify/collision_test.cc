@@ -1,4 +1,4 @@
-// Collisions (SPEC §7, thesis ch. 4).
+// Collisions (docs/model.md §7, thesis ch. 4).
 //
 // 1. Signed distances of the analytic obstacles at points where they are
 //    known in closed form (exact up to round-off: 1e-12).

@@ -1,4 +1,4 @@
-// Force terms (SPEC §2): exact Jacobians against central finite differences,
+// Force terms (docs/model.md §2): exact Jacobians against central finite differences,
 // conservation of momentum, invariance under rigid motions, and bending
 // that vanishes on a flat sheet and opposes curvature.
 //
@@ -81,7 +81,7 @@ TEST_P(JacobianTest, EveryTermMatchesCentralDifferences) {
 INSTANTIATE_TEST_SUITE_P(BendModels, JacobianTest, ::testing::Values(BendModel::kThinPlate, BendModel::kMembrane),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
-// The full-tension Jacobian has the closed form of SPEC §2.1:
+// The full-tension Jacobian has the closed form of docs/model.md §2.1:
 // ∂F_a/∂x_b = s_e[(1 − l_e/|d|) I + (l_e/|d|) d̂d̂ᵀ].
 TEST(Tension, FullSpringJacobianHasClosedForm) {
   Scene s;
@@ -165,7 +165,7 @@ TEST(Bending, FlatSheetHasZeroForceAndCurvedSheetRelaxes) {
   }
 }
 
-// Terms with zero coefficients are not assembled (SPEC §2.6).
+// Terms with zero coefficients are not assembled (docs/model.md §2.6).
 TEST(ParticleSystem, AssemblesOnlyNeededTerms) {
   Scene s;
   s.material.shear = 0.0;
@@ -180,7 +180,7 @@ TEST(ParticleSystem, AssemblesOnlyNeededTerms) {
             std::vector<std::string>({"tension_nonlinear", "shear", "bend_thin_plate", "transverse", "gravity", "wind", "air"}));
 }
 
-// L_K is a weighted graph Laplacian: symmetric, rows sum to zero (SPEC §2.1).
+// L_K is a weighted graph Laplacian: symmetric, rows sum to zero (docs/model.md §2.1).
 TEST(ParticleSystem, LaplacianProperties) {
   const ParticleSystem sys(DefaultScene());
   const Dense lk(sys.stiffness_laplacian());

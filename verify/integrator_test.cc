@@ -1,4 +1,4 @@
-// Step engine (SPEC §3–4, §6): BDF(2) coefficients, fixed particles,
+// Step engine (docs/model.md §3–4, §6): BDF(2) coefficients, fixed particles,
 // bit-for-bit reproducibility, failure as a status, the iteration controller.
 // The observed-order tests are in temporal_order_test.cc (label verify).
 #include <gtest/gtest.h>
@@ -79,7 +79,7 @@ TEST(StepEngine, InvalidOptionsAreReported) {
   EXPECT_NE(r2.BriefReport().find("h = -0.01"), std::string::npos) << r2.BriefReport();
 }
 
-// The iteration controller (SPEC §6) changes h and still reaches t_end and
+// The iteration controller (docs/model.md §6) changes h and still reaches t_end and
 // every frame.
 TEST(StepEngine, IterationControllerReachesEnd) {
   Scene s = DefaultScene();

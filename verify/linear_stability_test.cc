@@ -103,7 +103,7 @@ TEST_P(AmplificationTest, StepMatchesStabilityFunction) {
             default:
               break;
           }
-          // Multistep methods start with an implicit Euler step (SPEC §4).
+          // Multistep methods start with an implicit Euler step (docs/model.md §4).
           if (method == Method::kSbdf2 || method == Method::kBdf2) {
             if (n == 0) {
               expect = (id - h * j).lu().solve(prev[c]);

@@ -1,5 +1,5 @@
 // Newton's method for the fully implicit methods and the Baraff–Witkin peer
-// (SPEC §11):
+// (docs/model.md §10):
 // 1. Newton stops at the same discrete solution as the fixed point of
 //    Alg. 6 where both converge: both stop when ‖S F(v₁)‖ ≤ η‖S_F b‖, so
 //    their v₁ differ by at most 2η‖b‖/λ_min(J_α) per step.

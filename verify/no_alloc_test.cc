@@ -1,4 +1,4 @@
-// "Nothing allocates inside the step loop" (developers' brief; SPEC §3):
+// "Nothing allocates inside the step loop" (developers' brief; docs/model.md §3):
 // counts every malloc/calloc/realloc (operator new and Eigen both end in
 // malloc) during steps of every integrator, including a step with a new h
 // that rebuilds A_α and its IC(0) factor in place. Expected: exactly 0.

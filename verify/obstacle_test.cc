@@ -1,4 +1,4 @@
-// Obstacle geometry, keyframed motion and segment casts (SPEC §7,
+// Obstacle geometry, keyframed motion and segment casts (docs/model.md §7,
 // thesis §5.1 and §6.2).
 //
 // 1. Keyframed poses: halfway between two keyframes the translation is the
@@ -215,7 +215,7 @@ TEST(ObstacleCast, PredictedPathIntoANonConvexMeshIsStopped) {
     // position x₁ = x₀ + (h/2)(v₀ + v₁) overshoots to 0.03 + 0.005(−10 − 2)
     // = −0.03 m on the impact step: the velocity target cannot stop it
     // within the step (and a position target would bounce, see
-    // StepEngine::SetUpContacts); the old→new cast brings it back (next test).
+    // ContactResponse::SetUp); the old→new cast brings it back (next test).
     EXPECT_NEAR(engine.v().col(2).maxCoeff(), -2.0, 1e-9) << ToString(m);
     EXPECT_NEAR(engine.v().col(2).minCoeff(), -2.0, 1e-9) << ToString(m);
     const double z_expected = m == Method::kImplicitMidpoint ? -0.03 : 0.01;

@@ -1,4 +1,4 @@
-// Filtered PCG (SPEC §5, Alg. 7) against a dense direct solve.
+// Filtered PCG (docs/model.md §5, Alg. 7) against a dense direct solve.
 // Reference: with constrained directions C (orthonormal columns) and free
 // directions F = complement, the solution of S(Âv − b) = 0, (I−S)v = z is
 // v = F y + C z_c with (FᵀÂF) y = Fᵀ(b − Â C z_c), solved densely by LDLᵀ.

@@ -1,12 +1,12 @@
 // The choice of preconditioner changes the cost of a step, not its answer
-// (SPEC §5): trajectories with none, Jacobi, IC(0), the CHOLMOD factor and
+// (docs/model.md §5): trajectories with none, Jacobi, IC(0), the CHOLMOD factor and
 // BoomerAMG agree to within what the CG tolerance allows; the factor makes a
 // solve without contacts converge in one iteration; and the parallel kernels
 // (A·x over three columns, force terms above 20 000 particles) give the
 // serial result bit for bit, for any thread count.
 //
 // Tolerance of the trajectory comparison: each solve stops at
-// ‖r‖₂ ≤ η‖b‖₂ (SPEC §5), so its velocity differs from the exact solution by
+// ‖r‖₂ ≤ η‖b‖₂ (docs/model.md §5), so its velocity differs from the exact solution by
 // at most ‖A⁻¹‖ η ‖b‖₂ ≤ η ‖b‖₂/m_min, and ‖b‖₂ ≤ m_max √(3N) v_max (+ the
 // force impulses, of the same order here). Two preconditioners differ by
 // twice that per solve; over t_end this moves positions by at most

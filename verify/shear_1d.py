@@ -2,7 +2,7 @@
 """1-D analysis of chapter-2 experiment 2 (sheared textile), for the README.
 
 With inextensible rows and fibres the discrete sheared sheet is 1-D: row j
-translates by w_j along the fixed edge. The shear energy of SPEC §2.2 with
+translates by w_j along the fixed edge. The shear energy of docs/model.md §2.2 with
 Alg. 2's stencil is sum_j 1/2 mu gamma_j^2 l^2 with the central difference
 gamma_j = (w_{j+1} - w_{j-1})/2l (one-sided on the first and last rows), and
 uniform mass lumping loads every row with f l^2. Small angles: this is a

@@ -1,5 +1,5 @@
 // The tangent system J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (solver/tangent.h;
-// SPEC §2.1, §11).
+// docs/model.md §2.1, §10).
 // 1. Without the clamp, J_α equals M − αh ∂f/∂v − α²h² ∂f/∂x with ∂f from
 //    central differences of the total force (every term). Tolerance: the
 //    central-difference truncation error is O(ε² f''') with ε = 1e-6 m

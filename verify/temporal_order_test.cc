@@ -1,4 +1,4 @@
-// Temporal order (SPEC §9 chapter 3), measured two ways.
+// Temporal order (docs/model.md §9 chapter 3), measured two ways.
 //
 // 1. Against the exact modal solution of a linear scene (zero-rest-length
 //    springs, border fixed, proportional damping L_D = (d/k) L_K, gravity):

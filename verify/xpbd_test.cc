@@ -1,4 +1,4 @@
-// XPBD with substeps (peers/xpbd, SPEC §11).
+// XPBD with substeps (peers/xpbd, docs/model.md §10).
 //
 // 1. The projections against hand-computed two-particle cases (exact up to
 //    round-off, 1e-14): the distance constraint (XPBD Eq. 18), its damping
