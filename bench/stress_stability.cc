@@ -16,7 +16,7 @@
 // over the ranks and rank 0 prints and writes the same file as a serial run;
 // every finished cell is appended to <out>.journal, so that an interrupted
 // sweep rerun with the same arguments computes only the missing cells
-// (bench/sweep.h).
+// (harness/sweep.h).
 //
 //   [mpirun -n K] stress_stability [--scenes LIST] [--integrators LIST] [--nonlinear-solver LIST]
 //                    [--stiffness LIST] [--h LIST] [--steps N] [--side N] [--out FILE.h5]
@@ -33,11 +33,11 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include "bench/cli_args.h"
-#include "bench/methods.h"
+#include "harness/cli_args.h"
+#include "harness/methods.h"
 #include "bench/plot.h"
 #include "bench/signals.h"
-#include "bench/sweep.h"
+#include "harness/sweep.h"
 #include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/stability_map.h"

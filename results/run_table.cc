@@ -31,7 +31,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
              "solver: cg_tolerance {:g} ({}), preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
              "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
              t.cg_tolerance, t.cg_reference, t.preconditioner, t.max_updates, t.predictor, t.numerical_stiffness, t.h);
-  // Rows whose preconditioner is not the scene's (bench/methods.h: each
+  // Rows whose preconditioner is not the scene's (harness/methods.h: each
   // method at its best), grouped by preconditioner in row order.
   std::vector<std::pair<std::string, std::vector<std::string>>> other;  // preconditioner, its labels
   for (const RunRecord& r : t.runs) {
@@ -41,7 +41,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     if (std::find(it->second.begin(), it->second.end(), r.label) == it->second.end()) it->second.push_back(r.label);
   }
   for (const auto& [pre, labels] : other)
-    fmt::print(out, "preconditioner {} (each method's best, bench/methods.h) in rows: {}\n", pre,
+    fmt::print(out, "preconditioner {} (each method's best, harness/methods.h) in rows: {}\n", pre,
                fmt::join(labels, ", "));
   const auto& ref = t.reference;
   if (ref && ref->integrator == "bdf2_self_convergence")

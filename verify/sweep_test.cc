@@ -1,4 +1,4 @@
-// stress_stability and bench_integrators as sweeps (bench/sweep.h): under
+// stress_stability and bench_integrators as sweeps (harness/sweep.h): under
 // `mpirun -n 2` they write the serial run's file (bit for bit; for
 // bench_integrators all but timings and the machine); a sweep stopped
 // part-way (--max-cells, --max-runs, SIGINT) keeps <out>.journal and no

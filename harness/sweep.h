@@ -10,8 +10,8 @@
 //    arguments computes only the missing cells; RecordJournal: the same for
 //    cells that are whole runs, one file each.
 // docs/verification.md, "Sweeps on many machines, and resuming them".
-#ifndef CLOTHBENCH_BENCH_SWEEP_H_
-#define CLOTHBENCH_BENCH_SWEEP_H_
+#ifndef CLOTHBENCH_HARNESS_SWEEP_H_
+#define CLOTHBENCH_HARNESS_SWEEP_H_
 
 #include <fcntl.h>
 // The C API only (Open MPI's and MPICH's mpi.h would pull in the deprecated
@@ -331,4 +331,4 @@ class RecordJournal {
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_BENCH_SWEEP_H_
+#endif  // CLOTHBENCH_HARNESS_SWEEP_H_

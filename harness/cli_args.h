@@ -2,8 +2,8 @@
 // refusal throws, comma-separated lists, and the --out check. Each refusal
 // is one line naming the option and the rule (exit 2, docs/scenes.md
 // "Limits").
-#ifndef CLOTHBENCH_BENCH_CLI_ARGS_H_
-#define CLOTHBENCH_BENCH_CLI_ARGS_H_
+#ifndef CLOTHBENCH_HARNESS_CLI_ARGS_H_
+#define CLOTHBENCH_HARNESS_CLI_ARGS_H_
 
 #include <unistd.h>
 
@@ -75,4 +75,4 @@ inline void CheckOutputFolder(const std::string& out) {
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_BENCH_CLI_ARGS_H_
+#endif  // CLOTHBENCH_HARNESS_CLI_ARGS_H_

@@ -7,8 +7,8 @@
 // Row labels: the name, then "/newton" for a fully implicit method with
 // Newton's method, then "/error" for SBDF(2) and BDF(2) under local error
 // control (adaptive rows, docs/work-precision.md): "bdf2/newton/error".
-#ifndef CLOTHBENCH_BENCH_METHODS_H_
-#define CLOTHBENCH_BENCH_METHODS_H_
+#ifndef CLOTHBENCH_HARNESS_METHODS_H_
+#define CLOTHBENCH_HARNESS_METHODS_H_
 
 #include <algorithm>
 #include <memory>
@@ -483,4 +483,4 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_BENCH_METHODS_H_
+#endif  // CLOTHBENCH_HARNESS_METHODS_H_

@@ -1,9 +1,9 @@
 // A run's results as bytes, bit for bit: what bench_integrators sends from
-// one MPI rank to rank 0 and keeps in its journal (bench/sweep.h). Only
+// one MPI rank to rank 0 and keeps in its journal (harness/sweep.h). Only
 // what a rank computes travels; energies, errors and observed orders are
 // derived on rank 0 exactly as in a serial run.
-#ifndef CLOTHBENCH_BENCH_RUN_CODEC_H_
-#define CLOTHBENCH_BENCH_RUN_CODEC_H_
+#ifndef CLOTHBENCH_HARNESS_RUN_CODEC_H_
+#define CLOTHBENCH_HARNESS_RUN_CODEC_H_
 
 #include <cstdint>
 #include <cstring>
@@ -14,7 +14,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "bench/methods.h"
+#include "harness/methods.h"
 
 namespace clothbench {
 
@@ -215,4 +215,4 @@ inline RunSummary DecodeSummary(std::string_view bytes) {
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_BENCH_RUN_CODEC_H_
+#endif  // CLOTHBENCH_HARNESS_RUN_CODEC_H_

@@ -1,0 +1,73 @@
+// The memory estimate a run is checked against before any computing.
+#include "harness/memory_check.h"
+
+#include <fstream>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "harness/cli_args.h"
+
+namespace clothbench {
+
+// Bytes of memory available to this process (MemAvailable of
+// /proc/meminfo; 0 if unknown).
+double AvailableBytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  double kb = 0.0;
+  while (in >> key) {
+    if (key == "MemAvailable:" && (in >> kb)) return kb * 1024.0;
+    in.ignore(1 << 12, '\n');
+  }
+  return 0.0;
+}
+
+// Refuses, before any computing, a run whose frames and solver state would
+// not fit in memory. Estimate per particle [bytes]: 24 per N×3 matrix, of
+// which the step engine holds ~25 and every kept frame 2 (positions and
+// velocities, held for all rows until the file is written); A_α and the
+// Laplacians ~200; the CHOLMOD factor ~45 entries × 12 bytes (measured:
+// 44.9e6 entries at 10⁶, METIS); the SUNDIALS references a 3N×3N Jacobian
+// (~117 entries per particle row triple) and its KLU factor with fill,
+// taken as 4 kB per particle (an upper estimate, not a measurement).
+// Every attempted step keeps a StepStats in the run and a StepRecord in its
+// row until the file is written (`step_records` of all rows, ~100 bytes each).
+void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
+                 std::size_t n_eta, const std::string& reference, double step_records) {
+  const double n = scene.num_particles();
+  const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
+  double rows = 0.0;
+  bool sundials = reference != "none" && scene.obstacles.empty();
+  bool tangent = false;
+  for (std::size_t k = 0; k < methods.size(); ++k) {
+    const RowMethod& m = methods[k];
+    const double per = static_cast<double>(n_params[k]);
+    rows += per * static_cast<double>(m.uses_pcg() ? n_eta : 1);
+    if (m.entry->sparse_jacobian) sundials = true;
+    if (m.solver == NonlinearSolver::kNewton || m.entry->tangent) tangent = true;
+  }
+  if (reference != "none") rows += 1.0;
+  // (rows + 1): the frames of every row, and one more copy of a row's as the
+  // bytes that go to the journal and to rank 0 (harness/run_codec.h).
+  double bytes = n * (25.0 * 24.0 + 200.0) + (rows + 1.0) * frames * 2.0 * 24.0 * n + step_records * 100.0;
+  if (scene.solver.preconditioner == PreconditionerType::kCholesky) bytes += n * 45.0 * 12.0;
+  if (sundials) bytes += n * 4096.0;
+  // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α with
+  // ∂f/∂x, ∂f/∂v, its constant part and transpose positions on its pattern,
+  // and its preconditioner: 6.5 kB per particle (measured peak RSS 7.76 GB
+  // for baraff_witkin on the 10⁶-particle large_sheet, `/usr/bin/time -v
+  // build/bench/bench_integrators --scene large_sheet --integrators
+  // baraff_witkin --h 0.01 --reference none --frames none`).
+  if (tangent) bytes += n * 6.5e3;
+  const double available = AvailableBytes();
+  if (available > 0.0 && bytes > 0.8 * available)
+    throw UsageError(fmt::format(
+        "{}: grid.nu × grid.nv = {} × {} = {:.0f} particles: this run needs about {:.1f} GB ({:.0f} frames × {:.0f} "
+        "runs kept, {:.3g} step records), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
+        "--reference none, or smaller nu/nv",
+        scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, step_records, available / 1e9));
+}
+
+
+}  // namespace clothbench

@@ -1,0 +1,26 @@
+// Refusing a run that would not fit in memory, before any computing.
+#ifndef CLOTHBENCH_HARNESS_MEMORY_CHECK_H_
+#define CLOTHBENCH_HARNESS_MEMORY_CHECK_H_
+
+#include <string>
+#include <vector>
+
+#include "harness/methods.h"
+#include "model/scene.h"
+
+namespace clothbench {
+
+/// Bytes of memory available to this process (MemAvailable of
+/// /proc/meminfo; 0 if unknown).
+double AvailableBytes();
+
+/// @throws UsageError naming the scene and the estimate if the run's frames
+/// and solver state (methods × parameter counts × CG tolerances, the
+/// reference, `step_records` step records) would take more than 80 % of
+/// the available memory.
+void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
+                 std::size_t n_eta, const std::string& reference, double step_records);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_HARNESS_MEMORY_CHECK_H_

@@ -1,0 +1,303 @@
+// Result writing of bench_integrators: the run table, the HDF5 file
+// (docs/results-schema.md), the Fig. 4.3 series and the equal-accuracy table.
+#include "harness/result_writer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "model/triangle_mesh.h"
+#include "results/metrics.h"
+#include "results/result_file.h"
+#include "results/result_reader.h"
+#include "results/work_precision.h"
+
+namespace clothbench {
+
+using Row = MethodRun;
+
+
+void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
+  f.CreateGroup(g + "/energy");
+  f.WriteVector(g + "/energy/kinetic", e.kinetic, "J");
+  f.WriteVector(g + "/energy/tension", e.tension, "J");
+  f.WriteVector(g + "/energy/shear", e.shear, "J");
+  f.WriteVector(g + "/energy/bending", e.bending, "J");
+  f.WriteVector(g + "/energy/gravity", e.gravity, "J");
+  f.WriteVector(g + "/energy/external_work", e.external_work, "J");
+  f.WriteVector(g + "/energy/total", e.total, "J");
+  f.WriteVectors3(g + "/momentum", e.momentum, "kg m/s");
+}
+
+// Writes a trajectory's frames under group g: "positions" / "velocities"
+// [F, N, 3] at every frame (aligned with g/times) when `every_*` is set,
+// else "positions_ends" / "velocities_ends" [2, N, 3] at t = 0 and t_end;
+// plus per-frame views g/frame_views/<name>_<k> for XDMF readers.
+// Double-precision trajectories compress only ~1.2× losslessly, so which
+// frames are kept is what sets the file size (docs/results-schema.md).
+void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory& traj, bool every_position,
+                           bool every_velocity) {
+  const auto write = [&](const std::vector<MatrixN3>& frames, bool every, const std::string& name,
+                         const std::string& units) {
+    if (frames.empty()) return;
+    const bool all = every || frames.size() <= 2;
+    const std::string path = g + "/" + name + (all ? "" : "_ends");
+    if (all) f.WriteFrames(path, frames, units);
+    else f.WriteFrames(path, {frames.front(), frames.back()}, units);
+    f.WriteFrameViews(path, g + "/frame_views/" + name + "_");
+  };
+  write(traj.positions, every_position, "positions", "m");
+  write(traj.velocities, every_velocity, "velocities", "m/s");
+}
+
+// The table's content as plain data (results/run_table.h): what is printed
+// and what the file stores, so that clothbench_inspect can print it again.
+RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
+                      const ReferenceOptions& ref_opts, const std::vector<Row>& rows, const std::string& frames_mode,
+                      const EqualAccuracyTable* wp) {
+  RunTable t;
+  t.created = NowIso8601Utc();
+  t.git_commit = GitCommit();
+  t.host = HostName();
+  t.compiler = CompilerId();
+  t.build_type = BuildType();
+  t.hardware_threads = static_cast<long>(std::thread::hardware_concurrency());
+  t.scene_name = scene.name;
+  t.scene_source = scene.source;
+  for (const std::string& term : sys.TermNames()) t.explicit_terms += (t.explicit_terms.empty() ? "" : ",") + term;
+  t.frames = frames_mode;
+  t.n_particles = static_cast<long>(sys.num_particles());
+  t.n_fixed = static_cast<long>(sys.fixed().size());
+  t.t_end = scene.t_end;
+  t.frame_dt = scene.frame_dt;
+  t.h = scene.h;
+  t.numerical_stiffness = scene.NumericalStiffness(scene.h);
+  t.cg_tolerance = scene.solver.cg_tolerance;
+  t.cg_reference = ToString(scene.solver.cg_reference);
+  t.preconditioner = ToString(scene.solver.preconditioner);
+  t.predictor = ToString(scene.solver.predictor);
+  t.max_updates = scene.solver.max_updates;
+  if (ref) {
+    ReferenceRecord rr;
+    rr.integrator = ref->integrator;
+    if (ref->integrator == "bdf2_self_convergence") rr.h = ref->h;
+    else rr.rtol = ref_opts.rtol;
+    rr.steps = ref->steps;
+    rr.wall_time_s = ref->wall_time_in_seconds;
+    const EnergySeries e = ComputeEnergies(sys, ref->trajectory);
+    if (e.t.size() >= 2 && std::isfinite(e.Rate())) rr.energy_rate_W = e.Rate();
+    t.reference = rr;
+  }
+  for (const Row& r : rows) {
+    RunRecord q;
+    q.id = r.id;
+    q.label = r.label;
+    q.integrator = r.method;
+    q.layer = r.layer;
+    q.step_kind = ToString(r.kind);
+    q.nonlinear_solver = r.nonlinear_solver;
+    if (r.cg_tolerance > 0.0)
+      q.preconditioner = r.preconditioner.empty() ? std::string(ToString(scene.solver.preconditioner)) : r.preconditioner;
+    q.h = r.h;
+    q.rtol = r.rtol;
+    q.substeps = r.substeps;
+    q.cg_tolerance = r.cg_tolerance;
+    q.constraints = r.constraints;
+    q.explicit_terms = r.explicit_terms;
+    q.status = r.ok ? "ok" : r.status;
+    q.message = r.message;
+    q.steps = r.steps;
+    q.updates = r.updates;
+    q.cg_iterations = r.cg;
+    q.rejected = r.rejected;
+    q.cg_unconverged = r.cg_unconverged;
+    q.error_test_failures = r.error_test_failures;
+    q.solver_time_s = r.solver_time;
+    q.wall_time_s = r.wall_time;
+    q.setup_time_s = r.setup_time;
+    q.numerical_stiffness = r.stiffness;
+    if (r.err) {
+      q.error_rms_m = r.err->rms_at_end;
+      q.error_max_m = r.err->rms_max;
+      q.error_mean_m = r.err->mean_at_end;
+    }
+    if (r.order && std::isfinite(*r.order)) q.observed_order = r.order;
+    if (r.ok && r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) q.energy_rate_W = r.energy.Rate();
+    t.runs.push_back(std::move(q));
+  }
+  if (wp) t.work_precision = *wp;
+  return t;
+}
+
+void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
+                  const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
+                  const RunTable& table, long mpi_ranks) {
+  const std::string& frames_mode = table.frames;
+  const bool write_frames = frames_mode != "none";
+  ResultFile f(path);
+  WriteProvenance(f);
+  f.SetAttribute("/", "mpi_ranks", mpi_ranks);
+  f.CreateGroup("/scene");
+  WriteSceneRecord(f, table);
+  f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
+  // The grid's quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
+  // particle indices, counter-clockwise in (u, v).
+  {
+    const int nu = scene.grid.nu, nv = scene.grid.nv;
+    std::vector<int32_t> faces;
+    faces.reserve(static_cast<std::size_t>(4 * (nu - 1) * (nv - 1)));
+    for (int j = 0; j + 1 < nv; ++j)
+      for (int i = 0; i + 1 < nu; ++i)
+        for (int q : {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)})
+          faces.push_back(q);
+    f.WriteTable("/scene/faces", (nu - 1) * (nv - 1), 4, faces);
+  }
+  // Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
+  // motion not applied), for the XDMF file.
+  for (std::size_t k = 0; k < sys.obstacles().size(); ++k)
+    if (const TriangleMesh* mesh = sys.obstacles()[k].mesh()) {
+      const std::string o = fmt::format("/scene/obstacles/{}", k);
+      std::vector<double> vertices;
+      std::vector<int32_t> triangles;
+      mesh->Export(&vertices, &triangles);
+      f.CreateGroup(o);
+      f.SetAttribute(o, "path", sys.obstacles()[k].spec().path);
+      f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
+      f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
+    }
+  if (ref) {
+    f.CreateGroup("/reference");
+    f.SetAttribute("/reference", "integrator", ref->integrator);
+    if (ref->integrator == "bdf2_self_convergence") {
+      f.SetAttribute("/reference", "h", ref->h);
+      f.SetAttribute("/reference", "cg_tolerance", 1e-10);
+    } else {
+      f.SetAttribute("/reference", "rtol", ref_opts.rtol);
+      f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
+    }
+    f.SetAttribute("/reference", "wall_time_s", ref->wall_time_in_seconds);
+    f.SetAttribute("/reference", "solver_time_s", ref->solver_time_in_seconds);
+    f.SetAttribute("/reference", "steps", static_cast<long>(ref->steps));
+    f.SetAttribute("/reference", "fixed_point_updates", ref->fixed_point_updates);
+    f.SetAttribute("/reference", "cg_iterations", ref->cg_iterations);
+    if (const auto& s = ref->sundials)
+      for (auto [name, v] : {std::pair{"nst", s->nst}, {"nfe", s->nfe}, {"nni", s->nni}, {"nli", s->nli},
+                             {"netf", s->netf}, {"ncfn", s->ncfn}, {"nje", s->nje}, {"nsetups", s->nsetups}})
+        f.SetAttribute("/reference", name, v);
+    if (table.reference->energy_rate_W) f.SetAttribute("/reference", "energy_rate_W", *table.reference->energy_rate_W);
+    f.WriteVector("/reference/times", ref->trajectory.times, "s");
+    if (write_frames)
+      WriteTrajectoryFrames(f, "/reference", ref->trajectory, true, frames_mode == "all" || frames_mode == "ends");
+    WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
+    std::vector<StepRecord> st;
+    for (const StepStats& s : ref->step_stats)
+      st.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time});
+    f.WriteStepStats("/reference/step_stats", st);
+  }
+  f.CreateGroup("/runs");
+  std::string last_label;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const Row& r = rows[k];
+    const std::string g = "/runs/" + r.id;
+    f.CreateGroup(g);
+    WriteRunRecord(f, g, table.runs[k]);
+    if (r.sundials) {
+      for (auto [name, v] : {std::pair{"nst", r.sundials->nst}, {"nfe", r.sundials->nfe}, {"nfe_i", r.sundials->nfe_i},
+                             {"nni", r.sundials->nni}, {"nli", r.sundials->nli}, {"netf", r.sundials->netf},
+                             {"ncfn", r.sundials->ncfn}, {"nje", r.sundials->nje}, {"nsetups", r.sundials->nsetups}})
+        if (v >= 0) f.SetAttribute(g, name, v);
+    }
+    if (!r.sundials_settings.empty()) f.SetAttribute(g, "sundials_settings", r.sundials_settings);
+    if (r.cg_tolerance > 0.0) {
+      f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
+      f.SetAttribute(g, "preconditioner",
+                     r.preconditioner.empty() ? std::string(ToString(scene.solver.preconditioner)) : r.preconditioner);
+      f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
+      f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
+    }
+    f.WriteVector(g + "/times", r.traj.times, "s");
+    // --frames default: every frame of each label's first row (its largest
+    // h or rtol, where its motion differs most from the reference), the ends
+    // of the others.
+    const bool first_of_label = r.label != last_label;
+    last_label = r.label;
+    if (write_frames)
+      WriteTrajectoryFrames(f, g, r.traj,
+                            frames_mode == "all" || frames_mode == "positions" || frames_mode == "ends" ||
+                                (frames_mode == "default" && first_of_label),
+                            frames_mode == "all" || frames_mode == "ends");
+    WriteEnergy(f, g, r.energy);
+    if (!sys.obstacles().empty()) {
+      const PenetrationSeries pen = ComputePenetration(sys, r.traj);
+      const int frames = static_cast<int>(r.traj.times.size());
+      f.CreateGroup(g + "/penetration");
+      f.WriteTable(g + "/penetration/max_depth", frames, pen.obstacles, pen.max_depth, "m");
+      f.WriteTable(g + "/penetration/mean_depth", frames, pen.obstacles, pen.mean_depth, "m");
+      f.WriteTable(g + "/penetration/close_count", frames, pen.obstacles, pen.close);
+    }
+    f.WriteStepStats(g + "/step_stats", r.steps_table);
+    if (!r.bdf_order.empty()) f.WriteVector(g + "/method_order", r.bdf_order, "");
+  }
+  if (table.work_precision) WriteWorkPrecision(f, *table.work_precision);
+  f.Commit();
+}
+
+// Fig. 4.3: per-step CG iterations and colliding particles as CSV, and a
+// summary: the first impact, CG per step in the 0.1 s after it, and
+// fixed-point updates and CG per step over the last 0.3 s (resting contact).
+void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream csv(path);
+  if (!csv) throw std::runtime_error(fmt::format("--series: cannot write \"{}\"", path));
+  csv << "integrator,h,t,step_h,updates,cg_iterations,colliding,status\n";
+  fmt::print("\nFig. 4.3 series: {}\n{:<24} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
+             "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
+  for (const Row& r : rows) {
+    if (r.kind != StepKind::kFixedStep) continue;
+    double impact = -1.0, t_last = r.steps_table.empty() ? 0.0 : r.steps_table.back().t;
+    long cg_a = 0, n_a = 0, upd_b = 0, cg_b = 0, n_b = 0;
+    for (const StepRecord& s : r.steps_table) {
+      csv << fmt::format("{},{:g},{:.6f},{:.6g},{},{},{},{}\n", r.label, r.h, s.t, s.h, s.updates, s.cg_iterations,
+                         s.colliding, s.status);
+      if (s.status != 0) continue;
+      if (impact < 0.0 && s.colliding > 0) impact = s.t;
+      if (impact >= 0.0 && s.t <= impact + 0.1) cg_a += s.cg_iterations, ++n_a;
+      if (s.t > t_last - 0.3) upd_b += s.updates, cg_b += s.cg_iterations, ++n_b;
+    }
+    const double steps_b = n_b ? static_cast<double>(n_b) : 1.0;
+    fmt::print("{:<24} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}\n", r.label, r.h,
+               impact < 0 ? "none" : fmt::format("{:.2f}", impact),
+               n_a ? fmt::format("{:.1f}", static_cast<double>(cg_a) / static_cast<double>(n_a)) : "",
+               static_cast<double>(upd_b) / steps_b, static_cast<double>(cg_b) / steps_b,
+               r.steps_table.empty() ? 0 : r.steps_table.back().colliding);
+  }
+}
+
+std::string Sci(double v) { return fmt::format("{:.3e}", v); }
+
+// The equal-accuracy table (docs/work-precision.md): each row label's
+// (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
+EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets) {
+  std::vector<std::string> labels;
+  std::vector<std::vector<WorkPoint>> points;
+  for (const Row& r : rows) {
+    auto it = std::find(labels.begin(), labels.end(), r.label);
+    if (it == labels.end()) {
+      labels.push_back(r.label);
+      points.emplace_back();
+      it = labels.end() - 1;
+    }
+    if (r.ok && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time, r.err->rms_at_end});
+  }
+  return BuildEqualAccuracyTable(labels, points, targets, "cvode");
+}
+
+
+}  // namespace clothbench

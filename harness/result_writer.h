@@ -1,0 +1,43 @@
+// Turning a sweep's rows into the printed table, the HDF5 result file
+// (docs/results-schema.md), the Fig. 4.3 series and the equal-accuracy
+// table.
+#ifndef CLOTHBENCH_HARNESS_RESULT_WRITER_H_
+#define CLOTHBENCH_HARNESS_RESULT_WRITER_H_
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "harness/methods.h"
+#include "model/particle_system.h"
+#include "results/run_table.h"
+#include "results/work_precision.h"
+
+namespace clothbench {
+
+/// The table's content as plain data: what is printed and what the file
+/// stores, so that clothbench_inspect can print it again.
+/// @param ref the reference run, if any; @param wp the equal-accuracy table, if any
+RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
+                      const ReferenceOptions& ref_opts, const std::vector<MethodRun>& rows,
+                      const std::string& frames_mode, const EqualAccuracyTable* wp);
+
+/// Writes the result file `path` (atomically: a temporary file renamed on
+/// Commit) with the scene, the reference, every row and `table`'s records.
+/// @throws std::runtime_error if the file cannot be written
+void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
+                  const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts,
+                  const std::vector<MethodRun>& rows, const RunTable& table, long mpi_ranks);
+
+/// Fig. 4.3: per-step CG iterations and colliding particles as CSV at
+/// `path`, and a summary printed on stdout.
+/// @throws std::runtime_error if `path` cannot be written
+void WriteSeries(const std::string& path, const std::vector<MethodRun>& rows);
+
+/// The equal-accuracy table (docs/work-precision.md) of the rows at the
+/// e_rms `targets` [m], against the `cvode` row.
+EqualAccuracyTable WorkPrecision(const std::vector<MethodRun>& rows, const std::vector<double>& targets);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_HARNESS_RESULT_WRITER_H_

@@ -1,0 +1,302 @@
+// The thesis' Tables 3.1 and 3.2 beside ours (docs/thesis-tables.md).
+#include "harness/thesis_tables.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "harness/cli_args.h"
+#include "harness/methods.h"
+#include "harness/run_codec.h"
+#include "results/metrics.h"
+#include "results/result_file.h"
+#include "solver/run.h"
+
+namespace clothbench {
+namespace {
+
+std::string Sci(double v) { return fmt::format("{:.3e}", v); }
+
+}  // namespace
+
+// A tight self-convergence reference for obstacle scenes, where CVODE and
+// IDA have no collision response: BDF(2) at h_ref with CG tolerance 1e-10,
+// fixed-point tolerance 1e-12 m/s and up to 200 updates per step.
+RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
+  Scene tight = scene;
+  tight.solver.cg_tolerance = 1e-10;
+  tight.solver.fixed_point_tolerance = 1e-12;
+  tight.solver.max_updates = 200;
+  const ParticleSystem tight_sys(tight);
+  RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
+  r.integrator = "bdf2_self_convergence";
+  r.h = h_ref;
+  return r;
+}
+
+
+namespace {
+
+// Thesis tables (docs/model.md §9): Table 3.1 (BDF(2), tablecloth, (k, d) sweep) and
+// Table 3.2 (all five methods on the tablecloth, 1 s, and on the avatar
+// drape, 5 s). Printed beside the thesis' OCR numbers, once per CG tolerance
+// η, with e_rms at t_end against a self-convergence reference (BDF(2) at
+// h/64 on the tablecloth, h/16 on the avatar, tight tolerances), and
+// written to HDF5.
+struct ThesisRow {
+  std::string method;
+  double k, d;
+  long updates, cg;
+  double time_s;  // < 0: not given
+};
+
+// mean |log10(ours/thesis)| over the updates and CG counts of the rows:
+// how far a CG tolerance puts our counts from the thesis' (0: equal).
+struct CountDistance {
+  double sum = 0.0;
+  int terms = 0;
+  void Add(long ours, long thesis) {
+    if (ours <= 0 || thesis <= 0) return;
+    sum += std::abs(std::log10(static_cast<double>(ours) / static_cast<double>(thesis)));
+    ++terms;
+  }
+  double mean() const { return terms ? sum / terms : 0.0; }
+};
+
+}  // namespace
+
+int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner,
+                   std::vector<NonlinearSolver> solvers, std::vector<double> etas, SweepComm& comm) {
+  std::vector<ThesisRow> rows;
+  if (which == "3.1") {
+    rows = {{"bdf2", 1e4, 160, 803, 1160, -1}, {"bdf2", 1e4, 1600, 198, 538, -1}, {"bdf2", 1e5, 1600, 377, 566, -1},
+            {"bdf2", 1e3, 1600, 52, 52, -1}};
+  } else if (which == "3.2") {
+    rows = {{"imex_euler", 9000, 50, 100, 745, 1.69},    {"implicit_euler", 9000, 50, 206, 1038, 3.06},
+            {"sbdf2", 9000, 50, 100, 304, 1.57},         {"bdf2", 9000, 50, 122, 857, 2.57},
+            {"implicit_midpoint", 9000, 50, 494, 813, 4.39}};
+  } else {
+    throw UsageError(fmt::format("--table: \"{}\" must be 3.1 or 3.2", which));
+  }
+  if (out.empty()) out = fmt::format("out/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
+  Scene base = BuiltinScene("tablecloth");
+  if (preconditioner) base.solver.preconditioner = *preconditioner;
+  if (etas.empty()) etas = {base.solver.cg_tolerance};
+  if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
+  CheckOutputFolder(out);
+  // One block of rows on `s` (k and d taken from each row), one table per η.
+  struct Block {
+    std::string scene_name;
+    Scene scene;
+    std::vector<ThesisRow> rows;
+    double h_ref;
+  };
+  std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
+  if (which == "3.2") {
+    // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
+    Scene av = BuiltinScene("avatar_drape");
+    if (preconditioner) av.solver.preconditioner = *preconditioner;
+    const double kd = av.material.tension[0], dd = av.material.tension_damping;
+    blocks.push_back({"avatar_drape", av,
+                      {{"imex_euler", kd, dd, 500, 17198, 152.7},
+                       {"implicit_euler", kd, dd, 1654, 21424, 204.9},
+                       {"sbdf2", kd, dd, 500, 15360, 169.5},
+                       {"bdf2", kd, dd, 1431, 19307, 194.4},
+                       {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}},
+                      av.h / 16.0});
+  }
+  const auto scene_of = [&](std::size_t b, const ThesisRow& tr) {
+    Scene s = blocks[b].scene;
+    s.material.tension = {tr.k, tr.k};
+    s.material.tension_damping = tr.d;
+    return s;
+  };
+  // The table is a sweep in two phases, each dealt over the MPI ranks
+  // (harness/sweep.h): first the references, one per (block, k, d), whose
+  // end positions every rank then has; then every (η, row, method) run,
+  // whose counters and e_rms go to rank 0, which prints and writes.
+  // ref_of[b][i] indexes row i's reference in `ref_keys`.
+  std::vector<std::pair<std::size_t, std::size_t>> ref_keys;  // (block, first row with that k, d)
+  std::vector<std::vector<std::size_t>> ref_of(blocks.size());
+  for (std::size_t b = 0; b < blocks.size(); ++b)
+    for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
+      const ThesisRow& tr = blocks[b].rows[i];
+      std::size_t j = 0;
+      while (j < i && !(blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d)) ++j;
+      if (j < i) {
+        ref_of[b].push_back(ref_of[b][j]);
+        continue;
+      }
+      ref_keys.emplace_back(b, i);
+      ref_of[b].push_back(ref_keys.size() - 1);
+    }
+  // A reference as bytes: ok, message and the positions at t_end.
+  std::vector<std::pair<long, std::string>> mine;
+  for (std::size_t j = 0; j < ref_keys.size(); ++j) {
+    if (!comm.Owns(j)) continue;
+    const auto [b, i] = ref_keys[j];
+    const RunSummary r = SelfConvergenceReference(scene_of(b, blocks[b].rows[i]), blocks[b].h_ref);
+    ByteWriter w;
+    w.Pod<uint8_t>(r.ok);
+    w.Str(r.message);
+    w.Frames({r.trajectory.positions.empty() ? MatrixN3() : r.trajectory.positions.back()});
+    mine.emplace_back(static_cast<long>(j), w.Take());
+  }
+  std::vector<std::pair<long, std::string>> refs_bytes = comm.GatherToRoot(std::move(mine));
+  comm.Broadcast(&refs_bytes);
+  struct RefEnd {
+    bool ok = false;
+    std::string message;
+    MatrixN3 x_end;
+  };
+  std::vector<RefEnd> refs(ref_keys.size());
+  for (const auto& [j, bytes] : refs_bytes) {
+    ByteReader r(bytes);
+    RefEnd& e = refs[static_cast<std::size_t>(j)];
+    e.ok = r.Pod<uint8_t>() != 0;
+    e.message = r.Str();
+    e.x_end = r.Frames().at(0);
+  }
+  // Phase 2: one task per (η, block, row, method) in print order.
+  struct RowTask {
+    std::size_t eta, b, i;
+    RowMethod m;
+  };
+  std::vector<RowTask> tasks;
+  for (std::size_t e = 0; e < etas.size(); ++e)
+    for (std::size_t b = 0; b < blocks.size(); ++b)
+      for (std::size_t i = 0; i < blocks[b].rows.size(); ++i)
+        for (const RowMethod& m : ExpandMethods({blocks[b].rows[i].method}, solvers, "--table"))
+          tasks.push_back({e, b, i, m});
+  mine.clear();
+  for (std::size_t k = 0; k < tasks.size(); ++k) {
+    if (!comm.Owns(k)) continue;
+    const RowTask& t = tasks[k];
+    Scene s = scene_of(t.b, blocks[t.b].rows[t.i]);
+    s.solver.cg_tolerance = etas[t.eta];
+    const ParticleSystem sys(s);
+    const std::unique_ptr<Stepper> stepper = t.m.Make(sys, s.solver);
+    RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
+    // e_rms at t_end against the row's reference (a complete run has every frame).
+    double err = -1.0;
+    const RefEnd& ref = refs[ref_of[t.b][t.i]];
+    if (r.ok && ref.ok && !r.trajectory.positions.empty()) {
+      const double e = ErrorRms(r.trajectory.positions.back(), ref.x_end);
+      if (std::isfinite(e)) err = e;
+    }
+    r.trajectory = Trajectory();
+    r.step_stats.clear();
+    ByteWriter w;
+    w.Str(EncodeSummary(r));
+    w.Pod(err);
+    mine.emplace_back(static_cast<long>(k), w.Take());
+  }
+  std::vector<std::pair<long, std::string>> results = comm.GatherToRoot(std::move(mine));
+  if (!comm.root()) return 0;
+  std::vector<std::pair<RunSummary, double>> row_results(tasks.size());
+  for (const auto& [k, bytes] : results) {
+    ByteReader r(bytes);
+    row_results[static_cast<std::size_t>(k)] = {DecodeSummary(r.Str()), r.Pod<double>()};
+  }
+
+  fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, "
+             "preconditioner {}); thesis numbers from the OCR (docs/model.md §9, thesis: IC(0)), thesis machine: "
+             "Pentium III 660 MHz\n",
+             which, base.h, base.t_end, ToString(base.solver.preconditioner));
+  if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");
+  for (std::size_t j = 0; j < ref_keys.size(); ++j)
+    if (!refs[j].ok) {
+      const auto [b, i] = ref_keys[j];
+      fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
+                 blocks[b].h_ref, blocks[b].scene_name, blocks[b].rows[i].k, blocks[b].rows[i].d, refs[j].message);
+    }
+  ResultFile f(out);
+  WriteProvenance(f);
+  f.SetAttribute("/", "mpi_ranks", static_cast<long>(comm.size()));
+  f.CreateGroup("/table");
+  f.SetAttribute("/table", "name", std::string("Table ") + which);
+  f.WriteString("/table/scene_toml", base.toml);
+  f.SetAttribute("/table", "preconditioner", std::string(ToString(base.solver.preconditioner)));
+  f.WriteVector("/table/cg_tolerances", etas, "");
+  int index = 0;
+  // One HDF5 group per row: our counts and error beside the thesis'.
+  auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RowMethod& m, double eta,
+                       const RunSummary& r, std::optional<double> err, double h_ref) {
+    const std::string g = fmt::format("/table/row{}", index++);
+    f.CreateGroup(g);
+    f.SetAttribute(g, "scene", scene_name);
+    f.SetAttribute(g, "integrator", tr.method);
+    f.SetAttribute(g, "label", m.label());
+    if (m.fully_implicit()) f.SetAttribute(g, "nonlinear_solver", std::string(ToString(m.solver)));
+    f.SetAttribute(g, "k", tr.k);
+    f.SetAttribute(g, "d", tr.d);
+    f.SetAttribute(g, "cg_tolerance", eta);
+    f.SetAttribute(g, "status", r.status);
+    f.SetAttribute(g, "steps", static_cast<long>(r.steps));
+    f.SetAttribute(g, "rejected_steps", static_cast<long>(r.rejected_steps));
+    f.SetAttribute(g, "fixed_point_updates", r.fixed_point_updates);
+    f.SetAttribute(g, "cg_iterations", r.cg_iterations);
+    f.SetAttribute(g, "solver_time_s", r.solver_time_in_seconds);
+    if (err) {
+      f.SetAttribute(g, "error_rms_m", *err);
+      f.SetAttribute(g, "reference_h", h_ref);
+    }
+    f.SetAttribute(g, "thesis_updates", tr.updates);
+    f.SetAttribute(g, "thesis_cg_iterations", tr.cg);
+    if (tr.time_s > 0) f.SetAttribute(g, "thesis_solver_time_s", tr.time_s);
+  };
+  std::size_t k = 0;
+  for (std::size_t e = 0; e < etas.size(); ++e) {
+    const double eta = etas[e];
+    CountDistance distance;
+    fmt::print("\ncg_tolerance = {:g}\n", eta);
+    for (std::size_t b = 0; b < blocks.size(); ++b) {
+      const Block& blk = blocks[b];
+      if (b > 0)
+        fmt::print("\nDress → avatar_drape (scenes/avatar_drape.toml: 36×36 = 1296 particles on CGAL's man.off, k = "
+                   "{:g} N/m, d = {:g} N s/m, {:g} s, h = {:g} s)\n",
+                   blk.scene.material.tension[0], blk.scene.material.tension_damping, blk.scene.t_end, blk.scene.h);
+      fmt::print("{:<24} {:>8} {:>6} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9} {:>7} {:>10} | {:>6} {}\n", "method",
+                 "k_N/m", "d", "thesis_u", "thes_cg", "thesis_s", "updates", "cg", "solver_s", "ratio", "e_rms_m",
+                 "rej", "status");
+      for (std::size_t i = 0; i < blk.rows.size(); ++i) {
+        const ThesisRow& tr = blk.rows[i];
+        for (; k < tasks.size() && tasks[k].eta == e && tasks[k].b == b && tasks[k].i == i; ++k) {
+          const RowMethod& m = tasks[k].m;
+          const auto& [r, e_rms] = row_results[k];
+          const std::optional<double> err = e_rms >= 0.0 ? std::optional(e_rms) : std::nullopt;
+          if (r.ok) {
+            distance.Add(r.fixed_point_updates, tr.updates);
+            distance.Add(r.cg_iterations, tr.cg);
+          }
+          const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_in_seconds / tr.time_s) : "";
+          fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9.3f} {:>7} {:>10} | {:>6} {}\n",
+                     m.label(), tr.k, tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "",
+                     r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, ratio,
+                     err ? Sci(*err) : "", r.rejected_steps, r.status);
+          write_row(blk.scene_name, tr, m, eta, r, err, blk.h_ref);
+        }
+      }
+    }
+    fmt::print("distance to the thesis' counts at cg_tolerance {:g}: mean |log10(ours/thesis)| over updates and CG = "
+               "{:.3f} ({} counts)\n",
+               eta, distance.mean(), distance.terms);
+  }
+  f.Commit();
+  fmt::print("\nratio = our solver time / thesis solver time. e_rms_m: at t_end against BDF(2) at h/64 (tablecloth) or "
+             "h/16 (avatar) with cg_tolerance 1e-10 and fixed-point tolerance 1e-12 m/s.\nmachine: {}, {}, {} MPI "
+             "rank{}, commit {}\nresults: {}\n",
+             HostName(), CompilerId(), comm.size(), comm.size() > 1 ? "s" : "", GitCommit(), out);
+  return 0;
+}
+
+
+}  // namespace clothbench
