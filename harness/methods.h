@@ -54,21 +54,21 @@ struct RunContext {
 
 struct MethodEntry {
   std::string_view name;
-  StepKind kind;
-  std::string_view layer;      ///< "solver", "peers" or "reference"
-  bool nonlinear_solver;       ///< takes fixed_point | newton (fully implicit thesis methods)
-  bool error_control;          ///< may run adaptively as "<name>/error" (SBDF(2), BDF(2))
-  bool collisions;             ///< has a collision response (docs/model.md §7)
-  bool pcg;                    ///< solves with the filtered PCG (so the CG tolerance η applies)
-  bool tangent;                ///< always holds the 3N×3N tangent system J_α (memory check)
-  bool sparse_jacobian;        ///< holds a 6N×6N Jacobian and its KLU factor (memory check)
+  StepKind kind = StepKind::kFixedStep;
+  std::string_view layer;         ///< "solver", "peers" or "reference"
+  bool nonlinear_solver = false;  ///< takes fixed_point | newton (fully implicit thesis methods)
+  bool error_control = false;     ///< may run adaptively as "<name>/error" (SBDF(2), BDF(2))
+  bool collisions = false;        ///< has a collision response (docs/model.md §7)
+  bool pcg = false;               ///< solves with the filtered PCG (so the CG tolerance η applies)
+  bool tangent = false;           ///< always holds the 3N×3N tangent system J_α (memory check)
+  bool sparse_jacobian = false;   ///< holds a 6N×6N Jacobian and its KLU factor (memory check)
   /// Fixed-step and substepped methods (and error-controlled SBDF(2)/BDF(2)):
   /// the stepper on `sys` with settings `spec` (`substeps` per step for
   /// substepped ones); nullptr for the SUNDIALS-stepped ones.
-  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec, int substeps);
+  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec, int substeps) = nullptr;
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
-                               const RunContext& ctx);
+                          const RunContext& ctx) = nullptr;
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
   /// The preconditioner that measures best for this method's fixed-step,
@@ -114,63 +114,65 @@ std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec&
 /// Every method, in table order.
 inline const std::vector<MethodEntry>& Registry() {
   using internal::MakeEngine;
-  constexpr auto kFixed = StepKind::kFixedStep, kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped;
+  constexpr auto kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped;
   constexpr auto kBest = kBestPreconditioner;
   static const std::vector<MethodEntry> r = {
-      {"imex_euler", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kImexEuler>, nullptr,
-       {}, kBest},
-      {"implicit_euler", kFixed, "solver", true, false, true, true, false, false, MakeEngine<Method::kImplicitEuler>,
-       nullptr, {}, kBest},
-      {"sbdf2", kFixed, "solver", false, true, true, true, false, false, MakeEngine<Method::kSbdf2>, nullptr, {}, kBest},
-      {"bdf2", kFixed, "solver", true, true, true, true, false, false, MakeEngine<Method::kBdf2>, nullptr, {}, kBest,
-       kBest},
-      {"implicit_midpoint", kFixed, "solver", true, false, true, true, false, false,
-       MakeEngine<Method::kImplicitMidpoint>, nullptr, {}, kBest},
-      {"sbdf3", kFixed, "solver", false, false, true, true, false, false, MakeEngine<Method::kSbdf3>, nullptr, {}, kBest},
-      {"symplectic_euler", kFixed, "solver", false, false, true, false, false, false,
-       MakeEngine<Method::kSymplecticEuler>, nullptr},
+      {.name = "imex_euler", .layer = "solver", .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kImexEuler>, .best_preconditioner = kBest},
+      {.name = "implicit_euler", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kImplicitEuler>, .best_preconditioner = kBest},
+      {.name = "sbdf2", .layer = "solver", .error_control = true, .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kSbdf2>, .best_preconditioner = kBest},
+      {.name = "bdf2", .layer = "solver", .nonlinear_solver = true, .error_control = true, .collisions = true,
+       .pcg = true, .make = MakeEngine<Method::kBdf2>, .best_preconditioner = kBest,
+       .best_preconditioner_error = kBest},
+      {.name = "implicit_midpoint", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kImplicitMidpoint>, .best_preconditioner = kBest},
+      {.name = "sbdf3", .layer = "solver", .collisions = true, .pcg = true, .make = MakeEngine<Method::kSbdf3>,
+       .best_preconditioner = kBest},
+      {.name = "symplectic_euler", .layer = "solver", .collisions = true, .make = MakeEngine<Method::kSymplecticEuler>},
       // baraff_witkin: also measured at h = 0.01, 0.00125, 0.0003125 s alone
       // (`bench_integrators --integrators baraff_witkin --h
       // 0.01,0.00125,0.0003125 --preconditioner P`): solver time 0.124,
       // 0.554, 1.835 s with "cholesky", 0.174, 0.876, 3.149 s with "ic0"
       // (IC(0) of J refactorised every step), 0.230, 0.693, 2.048 s with 3×3
       // block Jacobi and 0.281, 0.635, 1.878 s with none.
-      {kBaraffWitkinName, kFixed, "peers", false, false, true, true, true, false,
-       [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
+      {.name = kBaraffWitkinName, .layer = "peers", .collisions = true, .pcg = true, .tangent = true,
+       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec);
        },
-       nullptr, {}, kBest},
+       .best_preconditioner = kBest},
       // Blender's solver as it ships (peers/baraff_witkin.h): its own CG
       // settings, so the scene's η does not apply.
-      {kBlenderName, kFixed, "peers", false, false, true, false, true, false,
-       [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
+      {.name = kBlenderName, .layer = "peers", .collisions = true, .tangent = true,
+       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec, BaraffWitkinOptions{true});
-       },
-       nullptr},
-      {kXpbdName, kSubstepped, "peers", false, false, true, false, false, false,
-       [](const ParticleSystem& sys, const SolverSpec&, int substeps) -> std::unique_ptr<Stepper> {
+       }},
+      {.name = kXpbdName, .kind = kSubstepped, .layer = "peers", .collisions = true,
+       .make = [](const ParticleSystem& sys, const SolverSpec&, int substeps) -> std::unique_ptr<Stepper> {
          return std::make_unique<Xpbd>(sys, substeps);
-       },
-       nullptr},
-      {kArkodeName, kAdaptive, "peers", false, false, false, true, false, false, nullptr,
-       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
-         return RunArkode(sys, o, ctx.arkode_table, &spec);
-       },
-       {"ark4", "ark5"}, kBest},
+       }},
+      {.name = kArkodeName, .kind = kAdaptive, .layer = "peers", .pcg = true,
+       .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                       const RunContext& ctx) { return RunArkode(sys, o, ctx.arkode_table, &spec); },
+       .variants = {"ark4", "ark5"}, .best_preconditioner = kBest},
       // cvode: the reduced velocity solve with the PCG; cvode/klu:
       // KLU on the 6N×6N first-order Jacobian (the reference's solver).
-      {"cvode", kAdaptive, "reference", false, false, false, true, true, true, nullptr,
-       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
+      {.name = "cvode", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true,
+       .sparse_jacobian = true,
+       .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                       const RunContext& ctx) {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
-       {"klu"}, kBest},
+       .variants = {"klu"}, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
-      {"ida", kAdaptive, "reference", false, false, false, true, true, true, nullptr,
-       [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec, const RunContext& ctx) {
+      {.name = "ida", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
+       .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                       const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
        },
-       {"klu"}, kBest},
+       .variants = {"klu"}, .best_preconditioner = kBest},
   };
   return r;
 }
