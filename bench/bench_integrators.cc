@@ -76,7 +76,7 @@ using Row = MethodRun;
 int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
-  std::string scene_path, integrators_arg, h_arg, reference = "cvode", out, rtols_arg;
+  std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
@@ -208,8 +208,9 @@ int Main(int argc, char** argv) {
     // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
     // leaves the frame datasets out of the file.
     if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
-    if (reference != "cvode" && reference != "ida" && reference != "none")
-      throw UsageError(fmt::format("--reference: \"{}\" must be cvode, ida or none", reference));
+    const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
+    if (reference != "none" && (!reference_entry || !reference_entry->reference))
+      throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
     CvodeSettings cvode_settings;
     if (app.count("--cvode-setting"))
@@ -407,7 +408,7 @@ int Main(int argc, char** argv) {
           r = SelfConvergenceReference(scene, h_ref);
         } else {
           progress.Start(fmt::format("reference {} rtol {:g}", reference, ref_rtol), scene.t_end);
-          r = reference == "ida" ? RunIda(sys, ref_opts) : RunCvode(sys, ref_opts);
+          r = reference_entry->reference(sys, ref_opts);
         }
         if (!r.ok && comm.size() == 1) return reference_failed(r);  // serial: before any row
         std::string bytes = EncodeSummary(r);

@@ -69,6 +69,10 @@ struct MethodEntry {
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                           const RunContext& ctx) = nullptr;
+  /// The method as the reference (--reference NAME): the tight run every
+  /// row's error is measured against (KLU on the analytic Jacobian);
+  /// nullptr if it cannot be one.
+  RunSummary (*reference)(const ParticleSystem& sys, const ReferenceOptions& o) = nullptr;
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
   /// The preconditioner that measures best for this method's fixed-step,
@@ -164,7 +168,7 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
-       .variants = {"klu"}, .best_preconditioner = kBest},
+       .reference = RunCvode, .variants = {"klu"}, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
       {.name = "ida", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
@@ -172,15 +176,31 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
        },
-       .variants = {"klu"}, .best_preconditioner = kBest},
+       .reference = RunIda, .variants = {"klu"}, .best_preconditioner = kBest},
   };
   return r;
 }
+
+/// The row every equal-accuracy ratio is relative to (docs/work-precision.md):
+/// CVODE with the reduced velocity solve.
+inline constexpr std::string_view kWorkPrecisionBaseline = "cvode";
+/// The default reference (--reference).
+inline constexpr std::string_view kDefaultReference = "cvode";
+
+/// The methods that can be the reference, for messages ("cvode, ida").
+inline std::string ReferenceNames();
 
 inline const MethodEntry* FindMethod(std::string_view name) {
   for (const MethodEntry& e : Registry())
     if (e.name == name) return &e;
   return nullptr;
+}
+
+inline std::string ReferenceNames() {
+  std::string s;
+  for (const MethodEntry& e : Registry())
+    if (e.reference) s += (s.empty() ? "" : ", ") + std::string(e.name);
+  return s;
 }
 
 /// The known names, for messages.

@@ -296,7 +296,7 @@ EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector
     }
     if (r.ok && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time, r.err->rms_at_end});
   }
-  return BuildEqualAccuracyTable(labels, points, targets, "cvode");
+  return BuildEqualAccuracyTable(labels, points, targets, std::string(kWorkPrecisionBaseline));
 }
 
 

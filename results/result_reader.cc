@@ -294,6 +294,7 @@ RunTable ReadRunTable(const ResultReader& f) {
   if (f.Exists("/work_precision/targets")) {
     EqualAccuracyTable w;
     w.targets = f.Doubles("/work_precision/targets");
+    w.reference = str("/work_precision", "reference_method");
     std::stringstream labels(str("/work_precision", "labels"));  // comma-separated
     for (std::string label; std::getline(labels, label, ',');) w.labels.push_back(label);
     const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
@@ -369,7 +370,7 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
 
 void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
   f.CreateGroup("/work_precision");
-  f.SetAttribute("/work_precision", "reference_method", std::string("cvode"));
+  f.SetAttribute("/work_precision", "reference_method", t.reference);
   f.SetAttribute("/work_precision", "measure",
                  std::string("solver_time_s at e_rms(t_end) = target, log-log interpolation between bracketing runs; "
                              "-1 where the runs do not bracket the target"));

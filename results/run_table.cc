@@ -105,7 +105,8 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
   fmt::print(out,
              "\nEqual accuracy: solver time [s] at e_rms(t_end) = target, interpolated log-log between the two runs "
-             "that bracket it (never extrapolated; '-': the runs do not bracket the target); x = ratio to cvode\n");
+             "that bracket it (never extrapolated; '-': the runs do not bracket the target); x = ratio to {}\n",
+             t.reference.empty() ? "the reference" : t.reference);
   fmt::print(out, "{:<28}", "method");
   for (double e : t.targets) fmt::print(out, " {:>22}", fmt::format("e_rms {:g} m", e));
   fmt::print(out, "\n");

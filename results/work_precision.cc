@@ -25,6 +25,7 @@ EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& label
   EqualAccuracyTable t;
   t.targets = targets;
   t.labels = labels;
+  t.reference = reference;
   int ref = -1;
   for (std::size_t m = 0; m < labels.size(); ++m)
     if (!reference.empty() && labels[m] == reference) ref = static_cast<int>(m);

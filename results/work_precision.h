@@ -33,6 +33,7 @@ struct EqualAccuracyTable {
   std::vector<std::vector<std::optional<double>>> cost; ///< [method][target] solver time [s]
   std::vector<std::vector<std::optional<double>>> ratio;///< cost / the reference method's cost
   std::vector<int> fastest;                             ///< per target: method index, −1 if none brackets it
+  std::string reference;                                ///< the label the ratios are relative to (may be absent)
 };
 
 /// @param labels  method labels; points[k] are the runs of labels[k]
