@@ -1,0 +1,181 @@
+// The Python module `clothbench` (pybind11): load a scene, run any registry
+// row by its command-line name, get the run as numpy arrays. The runs go
+// through the same harness as bench_integrators (harness/methods.h), so a
+// row's positions are bit-identical to the command line's.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstring>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <toml++/toml.h>
+
+#include "harness/methods.h"
+#include "model/particle_system.h"
+#include "model/scene.h"
+
+namespace py = pybind11;
+
+namespace clothbench {
+namespace {
+
+// Sets the dotted key `path` ("material.density") in `table` to a Python
+// scalar or list of numbers, creating tables on the way.
+void SetKey(toml::table& table, const std::string& path, const py::handle& value) {
+  toml::table* t = &table;
+  std::string rest = path;
+  for (std::size_t dot; (dot = rest.find('.')) != std::string::npos; rest = rest.substr(dot + 1)) {
+    const std::string key = rest.substr(0, dot);
+    if (!t->contains(key)) t->insert(key, toml::table{});
+    t = (*t)[key].as_table();
+    if (!t) throw py::key_error("override \"" + path + "\": \"" + key + "\" is not a table");
+  }
+  if (py::isinstance<py::bool_>(value)) t->insert_or_assign(rest, value.cast<bool>());
+  else if (py::isinstance<py::int_>(value)) t->insert_or_assign(rest, value.cast<long>());
+  else if (py::isinstance<py::float_>(value)) t->insert_or_assign(rest, value.cast<double>());
+  else if (py::isinstance<py::str>(value)) t->insert_or_assign(rest, value.cast<std::string>());
+  else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+    toml::array a;
+    for (const py::handle& x : value) {
+      if (py::isinstance<py::str>(x)) a.push_back(x.cast<std::string>());
+      else if (py::isinstance<py::int_>(x)) a.push_back(x.cast<long>());
+      else a.push_back(x.cast<double>());
+    }
+    t->insert_or_assign(rest, std::move(a));
+  } else {
+    throw py::type_error("override \"" + path + "\": a bool, number, string or list is expected");
+  }
+}
+
+// A built-in name, a file path, or TOML text (if it contains a newline or
+// '='), with dotted-key overrides.
+Scene MakeScene(const std::string& what, const py::dict& overrides) {
+  const bool text = what.find('\n') != std::string::npos || what.find('=') != std::string::npos;
+  Scene s = text ? ParseScene(what, "<python>") : LoadSceneOrBuiltin(what);
+  if (overrides.empty()) return s;
+  toml::table t = toml::parse(s.toml);
+  for (const auto& [k, v] : overrides) SetKey(t, k.cast<std::string>(), v);
+  std::ostringstream os;
+  os << t;
+  return ParseScene(os.str(), s.source + " (with overrides)");
+}
+
+py::array_t<double> Frames(const std::vector<MatrixN3>& frames, int n) {
+  py::array_t<double> a({static_cast<py::ssize_t>(frames.size()), static_cast<py::ssize_t>(n), py::ssize_t{3}});
+  auto m = a.mutable_unchecked<3>();
+  for (std::size_t f = 0; f < frames.size(); ++f)
+    for (int p = 0; p < n; ++p)
+      for (int c = 0; c < 3; ++c) m(static_cast<py::ssize_t>(f), p, c) = frames[f](p, c);
+  return a;
+}
+
+py::array StepStatsArray(const std::vector<StepRecord>& steps) {
+  py::list names, formats;
+  for (const char* n : {"t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s"}) names.append(n);
+  for (const char* f : {"f8", "f8", "i4", "i4", "i4", "i4", "f8"}) formats.append(f);
+  py::dict spec;
+  spec["names"] = names;
+  spec["formats"] = formats;
+  spec["offsets"] = py::make_tuple(offsetof(StepRecord, t), offsetof(StepRecord, h), offsetof(StepRecord, updates),
+                                   offsetof(StepRecord, cg_iterations), offsetof(StepRecord, status),
+                                   offsetof(StepRecord, colliding), offsetof(StepRecord, solve_time_s));
+  spec["itemsize"] = sizeof(StepRecord);
+  const py::module_ np = py::module_::import("numpy");
+  py::array a = np.attr("zeros")(steps.size(), np.attr("dtype")(spec));
+  if (a.itemsize() != static_cast<py::ssize_t>(sizeof(StepRecord))) throw std::logic_error("step_stats dtype");
+  if (!steps.empty()) std::memcpy(a.mutable_data(), steps.data(), steps.size() * sizeof(StepRecord));
+  return a;
+}
+
+// Runs one row. `method` is a command-line row name ("sbdf2",
+// "bdf2/newton", "sbdf2/error", "arkode/ark4", "cvode/klu", "xpbd");
+// `h` [s] for fixed-step and substepped rows, `rtol` for adaptive ones.
+py::dict Run(const py::object& scene_arg, const std::string& method, std::optional<double> h,
+             std::optional<double> rtol, int substeps, std::optional<double> cg_tolerance,
+             std::optional<std::string> preconditioner, std::optional<double> t_end, const py::dict& overrides) {
+  Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
+                                                   : scene_arg.cast<Scene>();
+  if (t_end) scene.t_end = *t_end;
+  const std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
+  if (rows.size() != 1) throw py::value_error("method \"" + method + "\" names " + std::to_string(rows.size()) + " rows");
+  const RowMethod& m = rows.front();
+  const bool adaptive = m.kind() == StepKind::kAdaptive;
+  if (adaptive && !rtol) throw py::value_error(method + " is adaptive: give rtol");
+  if (!adaptive && !h) throw py::value_error(method + " steps with h: give h [s]");
+  if (substeps < 1) throw py::value_error("substeps must be at least 1");
+  SolverSpec spec = scene.solver;
+  if (cg_tolerance) spec.cg_tolerance = *cg_tolerance;
+  RunContext ctx;
+  if (preconditioner) {
+    bool known = false;
+    for (PreconditionerType t : {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
+                                 PreconditionerType::kJacobi, PreconditionerType::kNone})
+      if (*preconditioner == ToString(t)) {
+        spec.preconditioner = scene.solver.preconditioner = t;
+        known = true;
+      }
+    if (!known) throw py::value_error("preconditioner \"" + *preconditioner + "\" must be ic0, cholesky, amg, jacobi or none");
+    ctx.preconditioner_from_cli = true;
+  }
+  const ParticleSystem sys(scene);
+  MethodRun r;
+  {
+    py::gil_scoped_release release;
+    r = m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps);
+  }
+  const int n = sys.num_particles();
+  py::dict out;
+  out["id"] = r.id;
+  out["label"] = r.label;
+  out["status"] = r.ok ? std::string("ok") : r.status;
+  out["message"] = r.message;
+  out["steps"] = r.steps;
+  out["updates"] = r.updates;
+  out["cg_iterations"] = r.cg;
+  out["solver_time_s"] = r.solver_time;
+  out["setup_time_s"] = r.setup_time;
+  out["preconditioner"] = r.preconditioner;
+  out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.traj.times.size()), r.traj.times.data());
+  out["positions"] = Frames(r.traj.positions, n);
+  out["velocities"] = Frames(r.traj.velocities, n);
+  out["step_stats"] = StepStatsArray(r.steps_table);
+  py::dict energy;
+  energy["kinetic"] = r.energy.kinetic;
+  energy["total"] = r.energy.total;
+  energy["external_work"] = r.energy.external_work;
+  out["energy"] = energy;
+  return out;
+}
+
+}  // namespace
+}  // namespace clothbench
+
+PYBIND11_MODULE(clothbench, m) {
+  using namespace clothbench;
+  m.doc() = "clothbench: the integrators of implicit cloth simulation (Hauth 2004) and their peers, from Python";
+  py::class_<Scene>(m, "Scene")
+      .def_readonly("name", &Scene::name)
+      .def_readonly("t_end", &Scene::t_end)
+      .def_readonly("h", &Scene::h)
+      .def_readonly("toml", &Scene::toml)
+      .def_property_readonly("num_particles", &Scene::num_particles);
+  m.def("load_scene", &MakeScene, py::arg("scene"), py::arg("overrides") = py::dict(),
+        "A built-in scene by name, a TOML file, or TOML text; `overrides` sets dotted keys "
+        "({'material.density': 0.2}). Raises ValueError (SceneError) on bad input.");
+  m.def("methods", [] {
+    std::vector<std::string> names;
+    for (const MethodEntry& e : Registry()) names.emplace_back(e.name);
+    return names;
+  });
+  m.def("run", &Run, py::arg("scene"), py::arg("method"), py::arg("h") = py::none(), py::arg("rtol") = py::none(),
+        py::arg("substeps") = 1, py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
+        py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
+        "Runs one row as bench_integrators does. Returns a dict: times [F], positions and velocities "
+        "[F, N, 3], step_stats (structured array), counts, times and status.");
+  py::register_exception<SceneError>(m, "SceneError", PyExc_ValueError);
+}
