@@ -18,6 +18,8 @@
 #include "harness/methods.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
+#include "results/metrics.h"
+#include "results/work_precision.h"
 
 namespace py = pybind11;
 
@@ -152,6 +154,81 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   return out;
 }
 
+
+// An N×3 numpy array as MatrixN3 (copied).
+MatrixN3 ToMatrix(const py::array_t<double, py::array::c_style | py::array::forcecast>& a) {
+  if (a.ndim() != 2 || a.shape(1) != 3) throw py::value_error("an N×3 array is expected");
+  MatrixN3 m(a.shape(0), 3);
+  auto r = a.unchecked<2>();
+  for (py::ssize_t p = 0; p < a.shape(0); ++p)
+    for (int c = 0; c < 3; ++c) m(p, c) = r(p, c);
+  return m;
+}
+
+// The reference run of `method` (a registry entry with a reference role)
+// at `rtol` [-], as --reference does.
+py::dict Reference(const py::object& scene_arg, const std::string& method, double rtol, std::optional<double> t_end,
+                   const py::dict& overrides) {
+  Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
+                                                   : scene_arg.cast<Scene>();
+  if (t_end) scene.t_end = *t_end;
+  const MethodEntry* e = FindMethod(method);
+  if (!e || !e->reference) throw py::value_error("reference \"" + method + "\" must be " + ReferenceNames());
+  if (!(rtol > 0.0)) throw py::value_error("rtol must be positive");
+  const ParticleSystem sys(scene);
+  ReferenceOptions o;
+  o.rtol = rtol;
+  o.t_end = scene.t_end;
+  o.frame_dt = scene.frame_dt;
+  RunSummary r;
+  {
+    py::gil_scoped_release release;
+    r = e->reference(sys, o);
+  }
+  py::dict out;
+  out["status"] = r.ok ? std::string("ok") : r.status;
+  out["steps"] = r.steps;
+  out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.trajectory.times.size()), r.trajectory.times.data());
+  out["positions"] = Frames(r.trajectory.positions, sys.num_particles());
+  out["velocities"] = Frames(r.trajectory.velocities, sys.num_particles());
+  return out;
+}
+
+// The default run's parameters of a row: h [s] or rtol values.
+std::vector<double> DefaultParamsOf(const py::object& scene_arg, const std::string& method) {
+  const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict())
+                                                         : scene_arg.cast<Scene>();
+  const std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
+  const DefaultParams d = DefaultRowParams(rows.front());
+  if (rows.front().kind() == StepKind::kAdaptive) return d.rtols;
+  std::vector<double> h;
+  for (double f : d.h_factors) h.push_back(f * scene.h);
+  return h;
+}
+
+// The equal-accuracy table (docs/work-precision.md) of {label: [(cost, e_rms), ...]}.
+py::dict EqualAccuracy(const std::vector<std::pair<std::string, std::vector<std::pair<double, double>>>>& runs,
+                       const std::vector<double>& targets, const std::string& baseline) {
+  std::vector<std::string> labels;
+  std::vector<std::vector<WorkPoint>> points;
+  for (const auto& [label, pts] : runs) {
+    labels.push_back(label);
+    points.emplace_back();
+    for (const auto& [cost, err] : pts) points.back().push_back({cost, err});
+  }
+  const EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
+  py::dict out;
+  out["targets"] = t.targets;
+  out["labels"] = t.labels;
+  out["cost"] = t.cost;
+  out["ratio"] = t.ratio;
+  std::vector<std::optional<std::string>> fastest;
+  for (int k : t.fastest) fastest.push_back(k >= 0 ? std::optional(t.labels[static_cast<std::size_t>(k)]) : std::nullopt);
+  out["fastest"] = fastest;
+  out["baseline"] = t.reference;
+  return out;
+}
+
 }  // namespace
 }  // namespace clothbench
 
@@ -177,5 +254,18 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
         "Runs one row as bench_integrators does. Returns a dict: times [F], positions and velocities "
         "[F, N, 3], step_stats (structured array), counts, times and status.");
+  m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
+        py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
+        "The reference run (CVODE or IDA with KLU, as --reference): times, positions, velocities.");
+  m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
+        "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");
+  m.def("error_rms", [](const py::array_t<double>& x, const py::array_t<double>& ref) {
+    return ErrorRms(ToMatrix(x), ToMatrix(ref));
+  }, py::arg("x"), py::arg("ref"), "e_rms = sqrt((1/N) sum_p |x_p - ref_p|^2) [m] of two N×3 arrays.");
+  m.def("equal_accuracy", &EqualAccuracy, py::arg("runs"), py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
+        py::arg("baseline") = std::string(kWorkPrecisionBaseline),
+        "The equal-accuracy table of runs = [(label, [(solver_time_s, e_rms_m), ...]), ...] (runs in the order "
+        "of decreasing h or rtol): cost and ratio per label and target (None where the runs do not bracket it), "
+        "and the fastest label per target.");
   py::register_exception<SceneError>(m, "SceneError", PyExc_ValueError);
 }

@@ -58,3 +58,36 @@ def test_adaptive_row_and_step_stats():
     assert s.dtype.names == ("t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s")
     assert len(s) == r["steps"] + np.count_nonzero(s["status"] != 0)
     assert np.all(np.diff(s["t"][s["status"] == 0]) > 0)
+
+
+def test_error_against_the_reference_equals_the_command_line(tmp_path):
+    # e_rms(t_end) of a row against the CVODE reference: the module's
+    # reference and error_rms give the value bench_integrators stores.
+    out = tmp_path / "cli.h5"
+    subprocess.run([os.environ["CLOTHBENCH_BENCH_INTEGRATORS"], "--integrators", "sbdf2", "--h", "0.01",
+                    "--frames", "none", "--out", str(out), "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    ref = clothbench.reference("swinging_sheet")
+    r = clothbench.run("swinging_sheet", "sbdf2", h=0.01)
+    with h5py.File(out) as f:
+        assert f["runs/sbdf2_h0.01"].attrs["error_rms_m"] == clothbench.error_rms(r["positions"][-1],
+                                                                                 ref["positions"][-1])
+
+
+def test_equal_accuracy_interpolates_log_log():
+    # "a": 1 s at 1e-2 m, 4 s at 1e-4 m; at 1e-3 m, halfway in log e, the
+    # cost is the geometric mean 2 s (to round-off). "b" reaches 1e-3 m at
+    # 1.5 s: it is the fastest, and the baseline (ratio 1). 1e-5 m is
+    # bracketed by neither.
+    t = clothbench.equal_accuracy([("a", [(1.0, 1e-2), (4.0, 1e-4)]), ("b", [(1.0, 1e-1), (1.5, 1e-3)])],
+                                  targets=[1e-3, 1e-5], baseline="b")
+    assert t["labels"] == ["a", "b"]
+    assert abs(t["cost"][0][0] - 2.0) < 1e-12 and t["ratio"][1][0] == 1.0
+    assert abs(t["ratio"][0][0] - 2.0 / 1.5) < 1e-12
+    assert t["fastest"] == ["b", None] and t["cost"][0][1] is None
+
+
+def test_work_precision_example_runs(tmp_path):
+    example = os.path.join(os.path.dirname(__file__), "..", "examples", "work_precision.py")
+    p = subprocess.run(["/usr/bin/python3", example, "sbdf2", "cvode"], cwd=tmp_path, capture_output=True,
+                       text=True, check=True)
+    assert "fastest:" in p.stdout and (tmp_path / "out" / "work_precision.png").exists()
