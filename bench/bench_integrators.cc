@@ -24,6 +24,7 @@
 
 #include "harness/cli_args.h"
 #include "harness/memory_check.h"
+#include "harness/plan.h"
 #include "harness/result_writer.h"
 #include "harness/thesis_tables.h"
 #include "harness/methods.h"
@@ -220,30 +221,9 @@ int Main(int argc, char** argv) {
         if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
           throw UsageError(fmt::format("--cvode-setting: {}", why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
       }
-    std::vector<std::string> names;
-    if (integrators_arg.empty()) {
-      // The five methods with the scene's nonlinear solver, each fully
-      // implicit one also with Newton, Baraff–Witkin and CVODE.
-      for (Method m : AllMethods()) {
-        names.emplace_back(ToString(m));
-        if (IsFullyImplicit(m) && !app.count("--nonlinear-solver") &&
-            scene.solver.nonlinear_solver != NonlinearSolver::kNewton)
-          names.push_back(std::string(ToString(m)) + "/newton");
-      }
-      names.emplace_back(ToString(Method::kSbdf3));
-      names.emplace_back(kBaraffWitkinName);
-      names.emplace_back(kBlenderName);
-      names.emplace_back(kXpbdName);
-      names.emplace_back("sbdf2/error");
-      names.emplace_back("bdf2/newton/error");
-      names.emplace_back(kArkodeName);
-      names.emplace_back(std::string(kArkodeName) + "/ark4");
-      names.emplace_back(std::string(kArkodeName) + "/ark5");
-      names.emplace_back("cvode");
-      names.emplace_back("cvode/klu");
-    } else {
-      names = SplitList(integrators_arg);
-    }
+    const std::vector<std::string> names =
+        integrators_arg.empty() ? DefaultRowNames(scene.solver.nonlinear_solver, app.count("--nonlinear-solver") > 0)
+                                : SplitList(integrators_arg);
     if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
     std::vector<RowMethod> methods;
     try {
@@ -275,47 +255,9 @@ int Main(int argc, char** argv) {
         throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
       substeps.push_back(static_cast<int>(n));
     }
-    // Each row's (param, substeps) in run order: h or rtol decreasing;
-    // substepped rows by their substep h/n decreasing (ties: larger frame
-    // step first), so that consecutive rows refine one step size. Without
-    // --h / --rtols, each method's defaults (DefaultRowParams).
-    std::vector<std::vector<std::pair<double, int>>> params(methods.size());
-    std::vector<std::size_t> n_params;
-    double step_records = 0.0;  // fixed-step and substepped rows; adaptive ones take far fewer
-    for (std::size_t k = 0; k < methods.size(); ++k) {
-      const RowMethod& m = methods[k];
-      const DefaultParams d = DefaultRowParams(m);
-      std::vector<double> mh = hs;
-      if (mh.empty())
-        for (double f : d.h_factors)
-          if (f * scene.h <= scene.t_end) mh.push_back(f * scene.h);
-      if (mh.empty()) mh = {scene.h};
-      std::sort(mh.begin(), mh.end(), std::greater<>());
-      auto& ps = params[k];
-      if (m.kind() == StepKind::kSubstepped) {
-        for (double h : mh)
-          for (int n : substeps) ps.emplace_back(h, n);
-        std::stable_sort(ps.begin(), ps.end(),
-                         [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
-      } else if (m.kind() == StepKind::kFixedStep) {
-        for (double h : mh) ps.emplace_back(h, 1);
-      } else {
-        for (double r : rtols.empty() ? d.rtols : rtols) ps.emplace_back(r, 1);
-      }
-      n_params.push_back(ps.size());
-      // The longest fixed-step or substepped run must stay within the step limit.
-      if (m.kind() != StepKind::kAdaptive)
-        for (const auto& [h, n] : ps) {
-          step_records += std::ceil(scene.t_end / h * n) * static_cast<double>(m.uses_pcg() ? etas.size() : 1);
-          if (scene.t_end / h * n > kMaxStepsPerRun)
-            throw UsageError(fmt::format("{}: {} at h = {:g} s{} needs t_end/h = {:.3g} steps, more than the limit of "
-                                         "{:g} (solver/run.h, RunLimits)",
-                                         hs.empty() ? "scene h" : (n > 1 ? "--h/--substeps" : "--h"), m.label(), h,
-                                         n > 1 ? fmt::format(" with {} substeps", n) : "", scene.t_end / h * n,
-                                         kMaxStepsPerRun));
-        }
-    }
-    CheckMemory(scene, methods, n_params, etas.size(), reference, step_records);
+    const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
+    const auto& params = plan.params;
+    CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records);
     if (!plot_dir.empty()) {
       try {
         CheckPlotDir(plot_dir);

@@ -1,0 +1,73 @@
+// Planning a run from its options (harness/plan.h).
+#include "harness/plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include <fmt/format.h>
+
+#include "harness/cli_args.h"
+
+namespace clothbench {
+
+std::vector<std::string> DefaultRowNames(NonlinearSolver scene_solver, bool solver_from_cli) {
+  std::vector<std::string> names;
+  for (Method m : AllMethods()) {
+    names.emplace_back(ToString(m));
+    if (IsFullyImplicit(m) && !solver_from_cli && scene_solver != NonlinearSolver::kNewton)
+      names.push_back(std::string(ToString(m)) + "/newton");
+  }
+  for (std::string_view n : {std::string_view(ToString(Method::kSbdf3)), kBaraffWitkinName, kBlenderName, kXpbdName})
+    names.emplace_back(n);
+  names.emplace_back(std::string(ToString(Method::kSbdf2)) + "/error");
+  names.emplace_back(std::string(ToString(Method::kBdf2)) + "/newton/error");
+  names.emplace_back(kArkodeName);
+  names.emplace_back(std::string(kArkodeName) + "/ark4");
+  names.emplace_back(std::string(kArkodeName) + "/ark5");
+  names.emplace_back(kWorkPrecisionBaseline);
+  names.emplace_back(std::string(kWorkPrecisionBaseline) + "/klu");
+  return names;
+}
+
+RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<double>& hs,
+                 const std::vector<double>& rtols, const std::vector<int>& substeps, std::size_t n_eta) {
+  RowPlan plan;
+  plan.params.resize(methods.size());
+  for (std::size_t k = 0; k < methods.size(); ++k) {
+    const RowMethod& m = methods[k];
+    const DefaultParams d = DefaultRowParams(m);
+    std::vector<double> mh = hs;
+    if (mh.empty())
+      for (double f : d.h_factors)
+        if (f * scene.h <= scene.t_end) mh.push_back(f * scene.h);
+    if (mh.empty()) mh = {scene.h};
+    std::sort(mh.begin(), mh.end(), std::greater<>());
+    auto& ps = plan.params[k];
+    if (m.kind() == StepKind::kSubstepped) {
+      for (double h : mh)
+        for (int n : substeps) ps.emplace_back(h, n);
+      std::stable_sort(ps.begin(), ps.end(),
+                       [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
+    } else if (m.kind() == StepKind::kFixedStep) {
+      for (double h : mh) ps.emplace_back(h, 1);
+    } else {
+      for (double r : rtols.empty() ? d.rtols : rtols) ps.emplace_back(r, 1);
+    }
+    plan.n_params.push_back(ps.size());
+    // The longest fixed-step or substepped run must stay within the step limit.
+    if (m.kind() != StepKind::kAdaptive)
+      for (const auto& [h, n] : ps) {
+        plan.step_records += std::ceil(scene.t_end / h * n) * static_cast<double>(m.uses_pcg() ? n_eta : 1);
+        if (scene.t_end / h * n > kMaxStepsPerRun)
+          throw UsageError(fmt::format("{}: {} at h = {:g} s{} needs t_end/h = {:.3g} steps, more than the limit of "
+                                       "{:g} (solver/run.h, RunLimits)",
+                                       hs.empty() ? "scene h" : (n > 1 ? "--h/--substeps" : "--h"), m.label(), h,
+                                       n > 1 ? fmt::format(" with {} substeps", n) : "", scene.t_end / h * n,
+                                       kMaxStepsPerRun));
+      }
+  }
+  return plan;
+}
+
+}  // namespace clothbench
