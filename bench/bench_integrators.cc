@@ -10,39 +10,23 @@
 
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <iterator>
-#include <map>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/signals.h"
+#include "harness/bench_sweep.h"
 #include "harness/cli_args.h"
 #include "harness/memory_check.h"
-#include "harness/plan.h"
-#include "harness/result_writer.h"
-#include "harness/thesis_tables.h"
 #include "harness/methods.h"
-#include "bench/plot.h"
-#include "bench/progress.h"
-#include "harness/run_codec.h"
-#include "bench/signals.h"
+#include "harness/plan.h"
+#include "harness/plot.h"
 #include "harness/sweep.h"
+#include "harness/thesis_tables.h"
 #include "model/particle_system.h"
-#include "model/triangle_mesh.h"
-#include "reference/cvode_reference.h"
-#include "reference/ida_reference.h"
-#include "results/metrics.h"
-#include "results/result_file.h"
-#include "results/result_reader.h"
-#include "results/run_table.h"
-#include "results/xdmf.h"
-#include "results/work_precision.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -256,7 +240,6 @@ int Main(int argc, char** argv) {
       substeps.push_back(static_cast<int>(n));
     }
     const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
-    const auto& params = plan.params;
     CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records);
     if (!plot_dir.empty()) {
       try {
@@ -268,174 +251,10 @@ int Main(int argc, char** argv) {
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     CheckOutputFolder(out);
 
-    // The sweep: the reference (task 0, if any) and every row in table
-    // order. Under mpirun/srun the tasks are dealt over the ranks and rank 0
-    // assembles, prints and writes; every finished task is journalled in
-    // <out>.journal/, so that the same command rerun after an interruption
-    // computes only the missing ones (harness/sweep.h).
-    struct RowTask {
-      std::size_t mk, block;  // method; block of rows whose observed orders chain (method, η)
-      double eta, param;
-      int substeps;
-    };
-    std::vector<RowTask> row_tasks;
-    {
-      std::size_t block = 0;
-      for (std::size_t mk = 0; mk < methods.size(); ++mk)
-        for (double eta : methods[mk].uses_pcg() ? etas : std::vector<double>{scene.solver.cg_tolerance}) {
-          for (const auto& [p, n] : params[mk]) row_tasks.push_back({mk, block, eta, p, n});
-          ++block;
-        }
-    }
-    const long n_ref = reference != "none" ? 1 : 0;
-    const long n_tasks = n_ref + static_cast<long>(row_tasks.size());
-    // The model last: it loads the mesh obstacles, whose errors are refusals
-    // too; the journal exists only for a run that is not refused.
-    const ParticleSystem sys(scene);
-    RecordJournal journal(out + ".journal", JournalKey(argc, argv, scene), comm);
-    std::vector<long> missing;
-    std::size_t stored = 0;
-    if (comm.root()) {
-      const std::vector<long> have = journal.Stored();
-      for (long k = 0; k < n_tasks; ++k)
-        if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
-      stored = static_cast<std::size_t>(n_tasks) - missing.size();
-    }
-    comm.Broadcast(&missing);
-    const std::size_t to_compute =
-        max_runs > 0 ? std::min(missing.size(), static_cast<std::size_t>(max_runs)) : missing.size();
-    if (comm.root() && (stored > 0 || comm.size() > 1 || to_compute < missing.size()))
-      fmt::print("{} of {} runs from {}; computing {} on {} rank{}\n", stored, n_tasks, journal.path(), to_compute,
-                 comm.size(), comm.size() > 1 ? "s" : "");
-
-    TerminalProgress progress(!quiet && comm.root());
-    RunLimits limits;
-    limits.time_limit_s = time_limit;
-    ReferenceOptions ref_opts{ref_rtol, -1.0, 5, scene.t_end, scene.frame_dt, limits};
-    // CVODE and IDA have no collision response: on obstacle scenes the
-    // reference is a self-convergence run, BDF(2) at h_min/16 (without
-    // --h: h/128) with tight CG and fixed-point tolerances.
-    const bool self_convergence = !sys.obstacles().empty();
-    const double h_ref = (hs.empty() ? scene.h / 8.0 : *std::min_element(hs.begin(), hs.end())) / 16.0;
-    const auto reference_failed = [&](const RunSummary& r) {
-      if (journal.Stored().empty()) journal.Remove();  // nothing to resume
-      if (self_convergence)
-        fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
-                   r.message);
-      else
-        fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", reference, ref_rtol, r.message);
-      return 1;
-    };
-    const RunContext ctx{arkode_table, limits, "", app.count("--preconditioner") > 0, cvode_settings};
-    std::map<long, RunSummary> own_ref;
-    std::map<long, Row> own_rows;
-    std::vector<std::pair<long, std::string>> outgoing;
-    bool journal_ok = true;
-    const auto journal_store = [&](long k, const std::string& bytes) {
-      if (!journal_ok) return;
-      try {
-        journal.Store(k, bytes);
-      } catch (const std::exception& e) {  // a full disk ends journalling, not the run
-        journal_ok = false;
-        fmt::print(stderr, "bench_integrators: {}; continuing without the journal\n", EscapeControl(e.what()));
-      }
-    };
-    for (std::size_t j = 0; j < to_compute; ++j) {
-      if (!comm.Owns(j)) continue;
-      const long k = missing[j];
-      if (k < n_ref) {
-        RunSummary r;
-        if (self_convergence) {
-          progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), scene.t_end);
-          r = SelfConvergenceReference(scene, h_ref);
-        } else {
-          progress.Start(fmt::format("reference {} rtol {:g}", reference, ref_rtol), scene.t_end);
-          r = reference_entry->reference(sys, ref_opts);
-        }
-        if (!r.ok && comm.size() == 1) return reference_failed(r);  // serial: before any row
-        std::string bytes = EncodeSummary(r);
-        if (r.ok) journal_store(k, bytes);  // a failed reference is computed again by a rerun
-        if (comm.root()) own_ref.emplace(k, std::move(r));
-        else outgoing.emplace_back(k, std::move(bytes));
-        continue;
-      }
-      const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
-      const RowMethod& m = methods[t.mk];
-      SolverSpec spec = scene.solver;
-      spec.cg_tolerance = t.eta;
-      progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), t.param)
-                     : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.substeps)
-                                                         : fmt::format("{} h = {:g} s", m.label(), t.param),
-                     scene.t_end);
-      Row r = m.Run(sys, scene, spec, t.param, ctx, t.substeps);
-      if (etas.size() > 1 && m.uses_pcg()) {
-        r.id += fmt::format("_eta{:g}", t.eta);
-        r.label += fmt::format(" eta={:g}", t.eta);
-      }
-      std::string bytes = EncodeRun(r);
-      journal_store(k, bytes);
-      if (comm.root()) own_rows.emplace(k, std::move(r));
-      else outgoing.emplace_back(k, std::move(bytes));
-    }
-    progress.Finish();
-    std::vector<std::pair<long, std::string>> received = comm.GatherToRoot(std::move(outgoing));
-    if (!comm.root()) return 0;
-    if (to_compute < missing.size()) {
-      fmt::print("stopped after {} runs (--max-runs): {} of {} done; rerun the same command to continue ({})\n",
-                 to_compute, stored + to_compute, n_tasks, journal.path());
-      return kExitPartial;
-    }
-    // Assemble in task order: own results, then other ranks', then the journal's.
-    std::map<long, std::string> bytes_of(std::make_move_iterator(received.begin()),
-                                         std::make_move_iterator(received.end()));
-    const auto bytes = [&](long k) {
-      const auto it = bytes_of.find(k);
-      return it != bytes_of.end() ? std::move(it->second) : journal.Load(k);
-    };
-    std::optional<RunSummary> ref;
-    if (n_ref) {
-      try {
-        ref = own_ref.count(0) ? std::move(own_ref.at(0)) : DecodeSummary(bytes(0));
-      } catch (const std::runtime_error& e) {
-        throw std::runtime_error(fmt::format("{}: run 0: {}; delete the folder and rerun", journal.path(), e.what()));
-      }
-      if (!ref->ok) return reference_failed(*ref);
-    }
-    std::vector<Row> rows;
-    for (std::size_t i = 0; i < row_tasks.size(); ++i) {
-      const long k = n_ref + static_cast<long>(i);
-      try {
-        rows.push_back(own_rows.count(k) ? std::move(own_rows.at(k)) : DecodeRun(bytes(k)));
-      } catch (const std::runtime_error& e) {
-        throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
-      }
-      Row& r = rows.back();
-      if (r.ok) r.energy = ComputeEnergies(sys, r.traj);
-      if (ref && r.ok) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
-      // Observed order against the (sub)step h/n within one block, and for
-      // adaptive rows against the mean accepted step t_end/steps; none
-      // between two rows with the same one.
-      const bool adaptive = methods[row_tasks[i].mk].kind() == StepKind::kAdaptive;
-      const auto step = [&](const Row& q) {
-        if (adaptive) return q.steps > 0 ? scene.t_end / static_cast<double>(q.steps) : 0.0;
-        return q.substeps > 0 ? q.h / q.substeps : q.h;
-      };
-      if (i > 0 && row_tasks[i - 1].block == row_tasks[i].block && r.err && rows[i - 1].err &&
-          step(rows[i - 1]) != step(r) && step(r) > 0.0 && step(rows[i - 1]) > 0.0)
-        r.order = ObservedOrder(step(rows[i - 1]), rows[i - 1].err->rms_at_end, step(r), r.err->rms_at_end);
-    }
-    const EqualAccuracyTable wp = WorkPrecision(rows, targets);
-    const RunTable run_table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames_mode, ref ? &wp : nullptr);
-    if (!work_precision_only) PrintRunTable(stdout, run_table);
-    if (ref) PrintWorkPrecision(stdout, wp);
-    if (!series.empty()) WriteSeries(series, rows);
-    WriteResults(out, scene, sys, ref, ref_opts, rows, run_table, comm.size());
-    journal.Remove();
-    const std::string xdmf = WriteXdmf(out);
-    fmt::print("results: {}\n", out);
-    if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
-    if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
-    return 0;
+    BenchRun run{scene, methods, plan, etas, targets, hs, reference_entry, ref_rtol, out, plot_dir, series,
+                 frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
+                 app.count("--preconditioner") > 0, time_limit, max_runs, arkode_table, cvode_settings};
+    return RunBench(run, comm);
   } catch (const UsageError& e) {
     return refuse(e.what());
   } catch (const SceneError& e) {

@@ -35,7 +35,7 @@
 
 #include "harness/cli_args.h"
 #include "harness/methods.h"
-#include "bench/plot.h"
+#include "harness/plot.h"
 #include "bench/signals.h"
 #include "harness/sweep.h"
 #include "model/particle_system.h"

@@ -1,4 +1,4 @@
-// Progress of the run in flight, for a display such as bench/progress.h.
+// Progress of the run in flight, for a display such as harness/progress.h.
 // The step loops (RunStepper, the SUNDIALS one-step loop) report the
 // simulated time after every accepted step; without a sink that is one
 // relaxed atomic load (and one for the interrupt flag).

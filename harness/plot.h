@@ -1,7 +1,7 @@
 // --plot DIR of bench_integrators and stress_stability: runs scripts/plot
 // (Python, h5py + matplotlib) on the result file once it is written.
-#ifndef CLOTHBENCH_BENCH_PLOT_H_
-#define CLOTHBENCH_BENCH_PLOT_H_
+#ifndef CLOTHBENCH_HARNESS_PLOT_H_
+#define CLOTHBENCH_HARNESS_PLOT_H_
 
 #include <unistd.h>
 
@@ -54,4 +54,4 @@ inline bool Plot(const std::string& program, const std::string& file, const std:
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_BENCH_PLOT_H_
+#endif  // CLOTHBENCH_HARNESS_PLOT_H_

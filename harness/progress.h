@@ -3,8 +3,8 @@
 // time, elapsed and estimated remaining wall time. Shown only when stderr is
 // a terminal and a run has taken more than 2 s; redrawn at most 5 times a
 // second; the line is cleared when the run ends.
-#ifndef CLOTHBENCH_BENCH_PROGRESS_H_
-#define CLOTHBENCH_BENCH_PROGRESS_H_
+#ifndef CLOTHBENCH_HARNESS_PROGRESS_H_
+#define CLOTHBENCH_HARNESS_PROGRESS_H_
 
 #include <unistd.h>
 
@@ -70,4 +70,4 @@ class TerminalProgress : public ProgressSink {
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_BENCH_PROGRESS_H_
+#endif  // CLOTHBENCH_HARNESS_PROGRESS_H_

@@ -1,0 +1,46 @@
+// The sweep of bench_integrators: the reference and every planned row, dealt
+// over the MPI ranks and journalled, then the table, the equal-accuracy
+// table and the result file.
+#ifndef CLOTHBENCH_HARNESS_BENCH_SWEEP_H_
+#define CLOTHBENCH_HARNESS_BENCH_SWEEP_H_
+
+#include <string>
+#include <vector>
+
+#include "harness/methods.h"
+#include "harness/plan.h"
+#include "harness/sweep.h"
+#include "model/scene.h"
+
+namespace clothbench {
+
+/// Everything a bench_integrators run needs, validated by the caller.
+struct BenchRun {
+  Scene scene;                     ///< with the command line's overrides (t_end, η, preconditioner, frames)
+  std::vector<RowMethod> methods;  ///< the rows, in table order
+  RowPlan plan;                    ///< each method's h/rtol list (PlanRows)
+  std::vector<double> etas;        ///< CG tolerances (rows that use the PCG run once per value)
+  std::vector<double> targets;     ///< e_rms targets of the equal-accuracy table [m]
+  std::vector<double> hs;          ///< --h (empty: defaults); sets the self-convergence reference's h
+  const MethodEntry* reference = nullptr;  ///< the reference method (nullptr: none)
+  double ref_rtol = 1e-10;
+  std::string out, plot_dir, series;  ///< result file; --plot folder and --series CSV (empty: none)
+  std::string frames_mode;            ///< --frames
+  std::string journal_key;            ///< the journal's key (the scene and the command's arguments)
+  bool work_precision_only = false, quiet = false, preconditioner_from_cli = false;
+  double time_limit = 0.0;  ///< wall-time budget of each run [s]
+  long max_runs = 0;        ///< > 0: compute at most this many runs, then exit kExitPartial
+  std::string arkode_table;
+  CvodeSettings cvode;
+};
+
+/// Runs the sweep on this rank's share of the tasks; rank 0 assembles,
+/// prints the tables and writes `b.out` (and its XDMF, the series and the
+/// plots). @return 0, 1 if the reference failed, kExitPartial after
+/// --max-runs. @throws Interrupted on SIGINT/SIGTERM, std::runtime_error on
+/// an unreadable journal record or an unwritable file.
+int RunBench(const BenchRun& b, SweepComm& comm);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_HARNESS_BENCH_SWEEP_H_
