@@ -55,7 +55,9 @@ struct RunRecord {
 /// The reference the e_rms column is measured against (/reference).
 struct ReferenceRecord {
   std::string integrator;  ///< "cvode", "ida" or "bdf2_self_convergence"
-  double h = 0.0;          ///< self-convergence reference: its step [s]
+  double h = 0.0;          ///< self-convergence reference: its step [s]; 0 for CVODE/IDA
+  /// A fixed-step self-convergence run (obstacle scenes) rather than CVODE/IDA.
+  bool self_convergence() const { return h > 0.0; }
   double rtol = 0.0;       ///< CVODE/IDA: rtol = atol
   long steps = 0;
   double wall_time_s = 0.0;
