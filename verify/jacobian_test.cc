@@ -132,14 +132,14 @@ TEST(ClosedFormJacobian, BitIdenticalAcrossThreadCounts) {
   TangentSystem a(sys, {TangentProjection::kClamp, true, true}), b(sys, {TangentProjection::kClamp, true, true});
   const int n = sys.num_particles();
   MatrixN3 pa = MatrixN3::Zero(n, 3), pb = MatrixN3::Zero(n, 3);
-  const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  a.Update(0.3, x, v, 0.01);
-  a.AddJacobianProducts(1e-4, v, 1e-2, v, &pa);
-  omp_set_num_threads(2);
-  b.Update(0.3, x, v, 0.01);
-  b.AddJacobianProducts(1e-4, v, 1e-2, v, &pb);
-  omp_set_num_threads(threads);
+  testing::WithThreads(1, [&] {
+    a.Update(0.3, x, v, 0.01);
+    a.AddJacobianProducts(1e-4, v, 1e-2, v, &pa);
+  });
+  testing::WithThreads(2, [&] {
+    b.Update(0.3, x, v, 0.01);
+    b.AddJacobianProducts(1e-4, v, 1e-2, v, &pb);
+  });
   ASSERT_EQ(a.matrix().nonZeros(), b.matrix().nonZeros());
   const Eigen::Map<const Eigen::VectorXd> va(a.matrix().valuePtr(), a.matrix().nonZeros()),
       vb(b.matrix().valuePtr(), b.matrix().nonZeros());

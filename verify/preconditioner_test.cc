@@ -124,14 +124,14 @@ TEST(ParallelKernels, ProductAndForcesBitIdenticalAcrossThreadCounts) {
   const MatrixN3 eigen = sm.matrix() * x;
   MatrixN3 y1(sys.num_particles(), 3), y2(sys.num_particles(), 3), g1(sys.num_particles(), 3),
       g2(sys.num_particles(), 3);
-  const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  SymmetricProduct(sm.matrix(), x, &y1);
-  sys.ExplicitForces(0.3, x, v, &g1);
-  omp_set_num_threads(2);
-  SymmetricProduct(sm.matrix(), x, &y2);
-  sys.ExplicitForces(0.3, x, v, &g2);
-  omp_set_num_threads(threads);
+  testing::WithThreads(1, [&] {
+    SymmetricProduct(sm.matrix(), x, &y1);
+    sys.ExplicitForces(0.3, x, v, &g1);
+  });
+  testing::WithThreads(2, [&] {
+    SymmetricProduct(sm.matrix(), x, &y2);
+    sys.ExplicitForces(0.3, x, v, &g2);
+  });
   EXPECT_EQ((y1 - eigen).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ((y2 - eigen).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ((g1 - g2).cwiseAbs().maxCoeff(), 0.0);
@@ -151,12 +151,8 @@ TEST(ParallelKernels, CholeskySolveBitIdenticalAcrossThreadCounts) {
   MatrixN3 x, v;
   testing::PerturbedState(sys, 11, &x, &v);
   MatrixN3 z1(sys.num_particles(), 3), z2(sys.num_particles(), 3);
-  const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  sm.preconditioner().Apply(x, &z1);
-  omp_set_num_threads(2);
-  sm.preconditioner().Apply(x, &z2);
-  omp_set_num_threads(threads);
+  testing::WithThreads(1, [&] { sm.preconditioner().Apply(x, &z1); });
+  testing::WithThreads(2, [&] { sm.preconditioner().Apply(x, &z2); });
   EXPECT_EQ((z1 - z2).cwiseAbs().maxCoeff(), 0.0);
   // Rows of fixed particles are decoupled (identity) in the factor; compare
   // on the free rows.

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <random>
 
+#include <omp.h>
+
 #include "model/particle_system.h"
 
 namespace clothbench::testing {
@@ -104,6 +106,16 @@ inline Scene TableclothOnPlane(double t_end) {
   plane.normal = Vector3::UnitZ();
   s.t_end = t_end;
   return s;
+}
+
+/// Runs f() on `threads` OpenMP threads, then restores the thread count
+/// (the bit-identical-across-thread-counts tests).
+template <class F>
+void WithThreads(int threads, F f) {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  f();
+  omp_set_num_threads(before);
 }
 
 }  // namespace clothbench::testing
