@@ -49,15 +49,6 @@ std::string JournalKey(int argc, char** argv, const Scene& scene) {
   return key;
 }
 
-PreconditionerType ParsePreconditioner(const std::string& name) {
-  for (PreconditionerType t : {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
-                               PreconditionerType::kJacobi, PreconditionerType::kNone})
-    if (name == ToString(t)) return t;
-  throw UsageError(fmt::format("--preconditioner: \"{}\" must be ic0, cholesky, amg, jacobi or none", name));
-}
-
-using Row = MethodRun;
-
 int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
@@ -166,7 +157,7 @@ int Main(int argc, char** argv) {
     }
     if (!table.empty())
       return RunThesisTable(table, out,
-                            app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner))
+                            app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner, "--preconditioner"))
                                                           : std::nullopt,
                             solvers, etas, comm);
     // Validate everything before computing anything.
@@ -186,7 +177,7 @@ int Main(int argc, char** argv) {
         throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
       scene.solver.cg_tolerance = cg_tolerance;
     }
-    if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner);
+    if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
     if (frames_mode != "default" && frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" &&
         frames_mode != "none")
       throw UsageError(fmt::format("--frames: \"{}\" must be default, all, positions, ends or none", frames_mode));

@@ -17,12 +17,23 @@
 
 #include <fmt/format.h>
 
+#include "model/scene.h"
+
 namespace clothbench {
 
 /// Bad command-line input: reported as one line, exit code 2.
 struct UsageError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
+
+/// "ic0" | "cholesky" | "amg" | "jacobi" | "none".
+/// @throws UsageError naming `option` for any other name
+inline PreconditionerType ParsePreconditioner(const std::string& name, const std::string& option) {
+  for (PreconditionerType t : {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
+                               PreconditionerType::kJacobi, PreconditionerType::kNone})
+    if (name == ToString(t)) return t;
+  throw UsageError(fmt::format("{}: \"{}\" must be ic0, cholesky, amg, jacobi or none", option, name));
+}
 
 /// The items of a comma-separated list, trimmed. @throws UsageError for an
 /// empty list or item.

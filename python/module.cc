@@ -15,6 +15,7 @@
 
 #include <toml++/toml.h>
 
+#include "harness/cli_args.h"
 #include "harness/methods.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
@@ -114,14 +115,8 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   if (cg_tolerance) spec.cg_tolerance = *cg_tolerance;
   RunContext ctx;
   if (preconditioner) {
-    bool known = false;
-    for (PreconditionerType t : {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
-                                 PreconditionerType::kJacobi, PreconditionerType::kNone})
-      if (*preconditioner == ToString(t)) {
-        spec.preconditioner = scene.solver.preconditioner = t;
-        known = true;
-      }
-    if (!known) throw py::value_error("preconditioner \"" + *preconditioner + "\" must be ic0, cholesky, amg, jacobi or none");
+    // UsageError is a std::invalid_argument: Python sees a ValueError.
+    spec.preconditioner = scene.solver.preconditioner = ParsePreconditioner(*preconditioner, "preconditioner");
     ctx.preconditioner_from_cli = true;
   }
   const ParticleSystem sys(scene);
