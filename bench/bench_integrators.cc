@@ -55,6 +55,7 @@ int Main(int argc, char** argv) {
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
+  std::string tangent_terms;
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
@@ -101,6 +102,9 @@ int Main(int argc, char** argv) {
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
+  app.add_option("--tangent-terms", tangent_terms,
+                 "J_alpha's terms in every row that builds it: all | tension (tension and mass only); default: the "
+                 "scene's solver.tangent_explicit_terms, and each method's measured best (harness/methods.h)");
   app.add_option("--frames", frames_mode,
                  "which frames the file keeps (errors and energies always use every frame_dt): default: positions "
                  "every frame_dt for the reference and each method's first row, at t = 0 and t_end for the other "
@@ -178,6 +182,11 @@ int Main(int argc, char** argv) {
       scene.solver.cg_tolerance = cg_tolerance;
     }
     if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
+    if (app.count("--tangent-terms")) {
+      if (tangent_terms != "all" && tangent_terms != "tension")
+        throw UsageError(fmt::format("--tangent-terms: \"{}\" must be all or tension", EscapeControl(tangent_terms)));
+      scene.solver.tangent_explicit_terms = tangent_terms == "all";
+    }
     if (frames_mode != "default" && frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" &&
         frames_mode != "none")
       throw UsageError(fmt::format("--frames: \"{}\" must be default, all, positions, ends or none", frames_mode));
@@ -244,7 +253,8 @@ int Main(int argc, char** argv) {
 
     BenchRun run{scene, methods, plan, etas, targets, hs, reference_entry, ref_rtol, out, plot_dir, series,
                  frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
-                 app.count("--preconditioner") > 0, time_limit, max_runs, arkode_table, cvode_settings};
+                 app.count("--preconditioner") > 0, app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0,
+                 app.count("--tangent-terms") > 0, time_limit, max_runs, arkode_table, cvode_settings};
     return RunBench(run, comm);
   } catch (const UsageError& e) {
     return refuse(e.what());

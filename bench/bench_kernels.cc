@@ -6,9 +6,11 @@
 // default scene's material.
 //
 //   build/bench/bench_kernels [--benchmark_filter=REGEX]
+#include <chrono>
 #include <cmath>
 
 #include <benchmark/benchmark.h>
+#include <Eigen/CholmodSupport>
 
 #include "model/particle_system.h"
 #include "solver/integrator.h"
@@ -207,6 +209,53 @@ void BM_TangentSetAlphaH(benchmark::State& state) {
   state.counters["floor_GBps"] = benchmark::Counter(bytes, benchmark::Counter::kIsIterationInvariantRate);
 }
 BENCHMARK(BM_TangentSetAlphaH)->ArgName("side")->Arg(20)->Arg(316);
+
+// y = J_α x for the 3N×3N J_α (the PCG's product in Newton, Baraff–Witkin
+// and the SUNDIALS reduced solves). Floor: J's values and row indices, 12
+// bytes per entry.
+void BM_TangentProduct(benchmark::State& state) {
+  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
+  ts.Update(0.2, x, v, 0.01);
+  MatrixN3R u = MatrixN3R::Random(sys.num_particles(), 3), y(sys.num_particles(), 3);
+  for (auto _ : state) {
+    TangentProduct(ts.matrix(), u, &y);
+    benchmark::DoNotOptimize(y.data());
+  }
+  const double bytes = 12.0 * static_cast<double>(ts.matrix().nonZeros());
+  state.counters["nnz"] = static_cast<double>(ts.matrix().nonZeros());
+  state.counters["floor_GBps"] = benchmark::Counter(bytes, benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_TangentProduct)->ArgName("side")->Arg(20)->Arg(316);
+
+// A supernodal CHOLMOD factor (METIS) of the whole 3N×3N J_α, the
+// preconditioner Baraff–Witkin would need to converge in one CG iteration
+// (docs/newton.md): the symbolic analysis and one numeric factorisation,
+// with the factor's entries. Once per size: at side 316 it takes seconds.
+void BM_TangentCholmodFactor(benchmark::State& state) {
+  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
+  ts.Update(0.2, x, v, 0.01);
+  double lnz = 0.0, analysis = 0.0;
+  for (auto _ : state) {
+    Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> llt;
+    llt.cholmod().nmethods = 1;
+    llt.cholmod().method[0].ordering = CHOLMOD_METIS;
+    const auto start = std::chrono::steady_clock::now();
+    llt.analyzePattern(ts.matrix());
+    analysis = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    llt.factorize(ts.matrix());
+    if (llt.info() != Eigen::Success) state.SkipWithError("J_alpha not positive definite");
+    lnz = llt.cholmod().lnz;
+  }
+  state.counters["factor_nnz"] = lnz;
+  state.counters["analysis_s"] = analysis;
+}
+BENCHMARK(BM_TangentCholmodFactor)->ArgName("side")->Arg(100)->Arg(316)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace
 }  // namespace clothbench

@@ -81,7 +81,8 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
       fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", b.reference->name, b.ref_rtol, r.message);
     return 1;
   };
-  const RunContext ctx{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cvode};
+  const RunContext ctx{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
+                       b.tangent_terms_from_cli, b.cvode};
   std::map<long, RunSummary> own_ref;
   std::map<long, Row> own_rows;
   std::vector<std::pair<long, std::string>> outgoing;

@@ -27,7 +27,8 @@ struct BenchRun {
   std::string out, plot_dir, series;  ///< result file; --plot folder and --series CSV (empty: none)
   std::string frames_mode;            ///< --frames
   std::string journal_key;            ///< the journal's key (the scene and the command's arguments)
-  bool work_precision_only = false, quiet = false, preconditioner_from_cli = false;
+  bool work_precision_only = false, quiet = false, preconditioner_from_cli = false, cg_tolerance_from_cli = false,
+       tangent_terms_from_cli = false;
   double time_limit = 0.0;  ///< wall-time budget of each run [s]
   long max_runs = 0;        ///< > 0: compute at most this many runs, then exit kExitPartial
   std::string arkode_table;

@@ -49,6 +49,13 @@ struct RunContext {
   /// True if the command line named the preconditioner (--preconditioner):
   /// it then holds for every row, MethodEntry::best_preconditioner included.
   bool preconditioner_from_cli = false;
+  /// True if the command line named the CG tolerance (--cg-tolerance or
+  /// --cg-tolerances): it then holds for every row, MethodEntry::best_cg_tolerance
+  /// included.
+  bool cg_tolerance_from_cli = false;
+  /// True if the command line named J_α's terms (--tangent-terms): they then
+  /// hold for every row, MethodEntry::best_tangent_explicit_terms included.
+  bool tangent_terms_from_cli = false;
   CvodeSettings cvode{};  ///< --cvode-setting
 };
 
@@ -83,6 +90,13 @@ struct MethodEntry {
   /// The same for its error-controlled rows ("/error"), whose step changes
   /// and refactorises the preconditioner nearly every step.
   std::optional<PreconditionerType> best_preconditioner_error = std::nullopt;
+  /// The CG tolerance η that measures best for this method, used instead of
+  /// the scene's solver.cg_tolerance unless the command line names one
+  /// (the measurement is beside the entry); nullopt: the scene's.
+  std::optional<double> best_cg_tolerance = std::nullopt;
+  /// The same for SolverSpec::tangent_explicit_terms (whether the explicit
+  /// terms' Jacobians enter J_α) where the method holds J_α.
+  std::optional<bool> best_tangent_explicit_terms = std::nullopt;
 };
 
 /// The default run's preconditioner for every method that uses the PCG:
@@ -141,11 +155,34 @@ inline const std::vector<MethodEntry>& Registry() {
       // 0.554, 1.835 s with "cholesky", 0.174, 0.876, 3.149 s with "ic0"
       // (IC(0) of J refactorised every step), 0.230, 0.693, 2.048 s with 3×3
       // block Jacobi and 0.281, 0.635, 1.878 s with none.
+      // Its CG tolerance is Blender's conjgrad_epsilon, 10⁻², on the Δv
+      // form's ‖S r‖/‖S b_Δ‖ (the scenes' η = 10⁻⁶ is the thesis' velocity-
+      // form setting). Measured (`bench_integrators --integrators
+      // baraff_witkin --cg-tolerances 1e-6,1e-4,1e-3,1e-2`, default scene):
+      // e_rms 2.986e-3 / 2.961e-3 / 3.008e-3 m at h = 0.00125 s and
+      // 7.540e-4 / 7.541e-4 / 7.765e-4 m at h = 0.0003125 s for η = 10⁻⁶,
+      // 10⁻³, 10⁻² (+0.7 % and +3 % at 10⁻²), solver time 0.537 / 0.433 /
+      // 0.388 s and 1.734 / 1.534 / 1.439 s. On the 10⁶-particle sheet the
+      // final positions differ from the η = 10⁻⁶ run by 2.1·10⁻⁶ m rms
+      // after 1.4·10⁻² m of motion, and a step takes 2.6–2.9 s instead of
+      // 6.6–7.6 s (docs/newton.md).
+      // J_α of tension and mass only (tangent_explicit_terms = false; shear,
+      // bending and the other terms enter f₀ but not J): `bench_integrators
+      // --integrators baraff_witkin --h 0.01,0.00125 --tangent-terms all`
+      // and `tension` on the default scene: solver time 0.064 / 0.379 s with
+      // all terms, 0.032 / 0.163 s with tension (CG iterations 785 / 1655
+      // and 796 / 1660), e_rms 2.351e-2 / 3.008e-3 m and 2.206e-2 / 2.781e-3
+      // m. At h = 0.01 s on hanging_sheet, wind_sheet, tablecloth,
+      // hanging_tablecloth, round_table and swinging_box it takes 0.48–0.53×
+      // the solver time with the same CG counts (±3 %) and dE/dt to three
+      // digits. The Newton rows keep the scene's: their quadratic
+      // convergence needs the whole J (bdf2/newton at h = 0.01 s: 503
+      // instead of 300 updates, the same time).
       {.name = kBaraffWitkinName, .layer = "peers", .collisions = true, .pcg = true, .tangent = true,
        .make = [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec);
        },
-       .best_preconditioner = kBest},
+       .best_preconditioner = kBest, .best_cg_tolerance = 1e-2, .best_tangent_explicit_terms = false},
       // Blender's solver as it ships (peers/baraff_witkin.h): its own CG
       // settings, so the scene's η does not apply.
       {.name = kBlenderName, .layer = "peers", .collisions = true, .tangent = true,
@@ -228,6 +265,10 @@ struct MethodRun {
   std::string explicit_terms;
   std::string constraints;  ///< xpbd: "tension,shear,obstacles" (those present)
   std::string preconditioner;  ///< the preconditioner the row used (rows with a PCG)
+  /// Rows that build J_α (Newton, Baraff–Witkin, blender, the reduced
+  /// SUNDIALS solves): "all" (every term's Jacobian) or "tension" (tension
+  /// and mass only, SolverSpec::tangent_explicit_terms = false); else empty.
+  std::string tangent_terms;
   std::string sundials_settings;  ///< cvode rows: CvodeSettings::ToString()
   bool ok = false;
   std::string status, message;
@@ -286,6 +327,10 @@ struct RowMethod {
   bool fully_implicit() const { return entry->nonlinear_solver; }
   /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
   bool uses_pcg() const { return entry->pcg && variant != "klu"; }
+  /// Whether the row builds the 3N×3N tangent system J_α.
+  bool builds_tangent() const {
+    return (entry->tangent && variant != "klu") || solver == NonlinearSolver::kNewton;
+  }
   /// `spec` with this row's nonlinear solver and, under error control, the
   /// step control and tolerance `rtol` (= atol).
   SolverSpec Settings(SolverSpec spec, double rtol = 0.0) const {
@@ -317,7 +362,6 @@ struct RowMethod {
     row.layer = std::string(entry->layer);
     row.kind = kind();
     if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
-    if (uses_pcg()) row.cg_tolerance = spec.cg_tolerance;
     if (kind() == StepKind::kFixedStep) {
       row.h = param;
       row.id = fmt::format("{}_h{:g}", id(), param);
@@ -336,6 +380,11 @@ struct RowMethod {
     const std::optional<PreconditionerType>& best =
         error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
     if (best && !ctx.preconditioner_from_cli) row_spec.preconditioner = *best;
+    if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
+    if (uses_pcg()) row.cg_tolerance = row_spec.cg_tolerance;
+    if (entry->best_tangent_explicit_terms && !ctx.tangent_terms_from_cli)
+      row_spec.tangent_explicit_terms = *entry->best_tangent_explicit_terms;
+    if (builds_tangent()) row.tangent_terms = row_spec.tangent_explicit_terms ? "all" : "tension";
     if (uses_pcg()) row.preconditioner = std::string(ToString(row_spec.preconditioner));
     RunSummary r;
     RunContext row_ctx = ctx;

@@ -112,6 +112,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     q.cg_tolerance = r.cg_tolerance;
     q.constraints = r.constraints;
     q.explicit_terms = r.explicit_terms;
+    q.tangent_terms = r.tangent_terms;
     q.status = r.ok ? "ok" : r.status;
     q.message = r.message;
     q.steps = r.steps;

@@ -135,7 +135,8 @@ inline std::optional<SundialsStats> GetSundials(ByteReader& r) {
 inline std::string EncodeRun(const MethodRun& m) {
   ByteWriter w;
   for (const std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms,
-                               &m.constraints, &m.status, &m.message, &m.preconditioner, &m.sundials_settings})
+                               &m.constraints, &m.status, &m.message, &m.preconditioner, &m.sundials_settings,
+                               &m.tangent_terms})
     w.Str(*s);
   w.Pod(m.kind);
   w.Pod(m.h);
@@ -156,7 +157,7 @@ inline MethodRun DecodeRun(std::string_view bytes) {
   ByteReader r(bytes);
   MethodRun m;
   for (std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms, &m.constraints,
-                         &m.status, &m.message, &m.preconditioner, &m.sundials_settings})
+                         &m.status, &m.message, &m.preconditioner, &m.sundials_settings, &m.tangent_terms})
     *s = r.Str();
   m.kind = r.Pod<StepKind>();
   m.h = r.Pod<double>();

@@ -48,7 +48,11 @@ struct BaraffWitkinOptions {
 ///  - The CG stop: ‖S r‖ ≤ η ‖S_F b_Δ‖ in the Δv form, b_Δ = h (f₀ + h ∂f/∂x v₀)
 ///    (Baraff & Witkin's and Blender's right-hand side; the velocity form's
 ///    b = J v₀ + b_Δ would be dominated by the momentum M v₀), with the
-///    scene's η and preconditioner; a step whose CG fails is rejected.
+///    η and preconditioner of the SolverSpec it is given (the default run
+///    gives it Blender's η = 10⁻², the A_α factor and J_α of tension and mass
+///    only: harness/methods.h); a step whose CG fails is rejected. The CG
+///    starts from Δv = 0, as Blender's does (a warm start from the last Δv
+///    changes the method at a loose η: docs/newton.md).
 ///  - `blender` (BaraffWitkinOptions::blender) is the solver as Blender ships it
 ///    (implicit_blender.cc at commit 1a675d0c, cg_filtered and
 ///    SIM_mass_spring_solve_velocities): no preconditioner,

@@ -100,7 +100,8 @@ py::array StepStatsArray(const std::vector<StepRecord>& steps) {
 // `h` [s] for fixed-step and substepped rows, `rtol` for adaptive ones.
 py::dict Run(const py::object& scene_arg, const std::string& method, std::optional<double> h,
              std::optional<double> rtol, int substeps, std::optional<double> cg_tolerance,
-             std::optional<std::string> preconditioner, std::optional<double> t_end, const py::dict& overrides) {
+             std::optional<std::string> preconditioner, std::optional<std::string> tangent_terms,
+             std::optional<double> t_end, const py::dict& overrides) {
   Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
                                                    : scene_arg.cast<Scene>();
   if (t_end) scene.t_end = *t_end;
@@ -114,6 +115,13 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   SolverSpec spec = scene.solver;
   if (cg_tolerance) spec.cg_tolerance = *cg_tolerance;
   RunContext ctx;
+  ctx.cg_tolerance_from_cli = cg_tolerance.has_value();
+  if (tangent_terms) {
+    if (*tangent_terms != "all" && *tangent_terms != "tension")
+      throw py::value_error("tangent_terms: \"" + *tangent_terms + "\" must be all or tension");
+    spec.tangent_explicit_terms = *tangent_terms == "all";
+    ctx.tangent_terms_from_cli = true;
+  }
   if (preconditioner) {
     // UsageError is a std::invalid_argument: Python sees a ValueError.
     spec.preconditioner = scene.solver.preconditioner = ParsePreconditioner(*preconditioner, "preconditioner");
@@ -137,6 +145,8 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   out["solver_time_s"] = r.solver_time;
   out["setup_time_s"] = r.setup_time;
   out["preconditioner"] = r.preconditioner;
+  out["cg_tolerance"] = r.cg_tolerance;
+  out["tangent_terms"] = r.tangent_terms;
   out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.traj.times.size()), r.traj.times.data());
   out["positions"] = Frames(r.traj.positions, n);
   out["velocities"] = Frames(r.traj.velocities, n);
@@ -246,7 +256,7 @@ PYBIND11_MODULE(clothbench, m) {
   });
   m.def("run", &Run, py::arg("scene"), py::arg("method"), py::arg("h") = py::none(), py::arg("rtol") = py::none(),
         py::arg("substeps") = 1, py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
-        py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
+        py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
         "Runs one row as bench_integrators does. Returns a dict: times [F], positions and velocities "
         "[F, N, 3], step_stats (structured array), counts, times and status.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),

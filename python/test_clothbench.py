@@ -88,6 +88,25 @@ def test_equal_accuracy_interpolates_log_log():
 
 def test_work_precision_example_runs(tmp_path):
     example = os.path.join(os.path.dirname(__file__), "..", "examples", "work_precision.py")
+    # Its own matplotlib cache: ctest runs the plot tests at the same time,
+    # and two processes building one font cache can fail.
+    env = dict(os.environ, MPLCONFIGDIR=str(tmp_path / "mpl"))
     p = subprocess.run(["/usr/bin/python3", example, "sbdf2", "cvode"], cwd=tmp_path, capture_output=True,
-                       text=True, check=True)
+                       text=True, env=env)
+    assert p.returncode == 0, p.stderr
     assert "fastest:" in p.stdout and (tmp_path / "out" / "work_precision.png").exists()
+
+
+def test_method_best_settings_and_their_overrides():
+    # baraff_witkin's measured best (harness/methods.h): Blender's CG
+    # tolerance 1e-2 and J_alpha of tension and mass only, unless the call
+    # names its own; the run reports what it used.
+    r = clothbench.run("swinging_sheet", "baraff_witkin", h=0.01, t_end=0.05)
+    assert r["status"] == "ok" and r["cg_tolerance"] == 1e-2 and r["tangent_terms"] == "tension"
+    r = clothbench.run("swinging_sheet", "baraff_witkin", h=0.01, t_end=0.05, cg_tolerance=1e-6, tangent_terms="all")
+    assert r["status"] == "ok" and r["cg_tolerance"] == 1e-6 and r["tangent_terms"] == "all"
+    r = clothbench.run("swinging_sheet", "bdf2/newton", h=0.01, t_end=0.05)
+    assert r["cg_tolerance"] == 1e-6 and r["tangent_terms"] == "all"  # the scene's
+    assert clothbench.run("swinging_sheet", "sbdf2", h=0.01, t_end=0.05)["tangent_terms"] == ""
+    with pytest.raises(ValueError, match="tangent_terms"):
+        clothbench.run("swinging_sheet", "baraff_witkin", h=0.01, tangent_terms="some")

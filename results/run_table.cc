@@ -50,6 +50,25 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   for (const auto& [pre, labels] : other)
     fmt::print(out, "preconditioner {} (each method's best, harness/methods.h) in rows: {}\n", pre,
                fmt::join(labels, ", "));
+  // The same for the CG tolerance (a row's own η, not a --cg-tolerances sweep).
+  std::vector<std::pair<double, std::vector<std::string>>> other_eta;  // η, its labels
+  for (const RunRecord& r : t.runs) {
+    if (!(r.cg_tolerance > 0.0) || r.cg_tolerance == t.cg_tolerance || r.label.find(" eta=") != std::string::npos)
+      continue;
+    auto it = std::find_if(other_eta.begin(), other_eta.end(), [&](const auto& o) { return o.first == r.cg_tolerance; });
+    if (it == other_eta.end()) it = other_eta.insert(other_eta.end(), {r.cg_tolerance, {}});
+    if (std::find(it->second.begin(), it->second.end(), r.label) == it->second.end()) it->second.push_back(r.label);
+  }
+  std::vector<std::string> tension_only;  // rows whose J_α leaves out the explicit terms' Jacobians
+  for (const RunRecord& r : t.runs)
+    if (r.tangent_terms == "tension" && std::find(tension_only.begin(), tension_only.end(), r.label) == tension_only.end())
+      tension_only.push_back(r.label);
+  if (!tension_only.empty())
+    fmt::print(out, "J_alpha of tension and mass only (tangent_terms, harness/methods.h) in rows: {}\n",
+               fmt::join(tension_only, ", "));
+  for (const auto& [eta, labels] : other_eta)
+    fmt::print(out, "cg_tolerance {:g} (each method's best, harness/methods.h) in rows: {}\n", eta,
+               fmt::join(labels, ", "));
   const auto& ref = t.reference;
   if (ref && ref->self_convergence())
     fmt::print(out,

@@ -76,6 +76,7 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --no-such-flag" + o), "no-such-flag");
   ExpectOneLineError(RunBench(tiny + " --preconditioner ilu" + o), "--preconditioner: \"ilu\" must be");
   ExpectOneLineError(RunBench(tiny + " --frames some" + o), "--frames: \"some\" must be");
+  ExpectOneLineError(RunBench(tiny + " --tangent-terms some" + o), "--tangent-terms: \"some\" must be all or tension");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting foo=1" + o), "--cvode-setting: \"foo\" is not one of");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting eps_lin=-1" + o), "--cvode-setting: eps_lin=-1: must be");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting lsetup_frequency" + o), "is not KEY=VALUE");
