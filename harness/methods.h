@@ -29,6 +29,7 @@
 #include "reference/ida_reference.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
+#include "results/run_table.h"
 #include "solver/integrator.h"
 #include "solver/run.h"
 
@@ -247,43 +248,25 @@ inline std::string KnownMethodNames() {
   return s;
 }
 
-/// One run of one row: the summary every method returns. Counters −1 = not
-/// available for that method.
-struct MethodRun {
-  std::string id;                ///< HDF5 group name: "bdf2_newton_h0.01", "cvode_rtol1e-05"
-  std::string label;             ///< the row label ("bdf2/newton", "sbdf2/error", "cvode")
-  std::string method;            ///< the registry name ("bdf2")
-  std::string layer;             ///< "solver", "peers", "reference"
-  StepKind kind = StepKind::kFixedStep;
-  std::string nonlinear_solver;  ///< fully implicit thesis methods only
-  double h = 0.0;                ///< fixed-step rows: the step [s]; substepped rows: the frame step
-  int substeps = 0;              ///< substepped rows: substeps per frame step (Δt = h/substeps)
-  double rtol = 0.0;             ///< adaptive rows
-  double cg_tolerance = 0.0;     ///< η of the PCG; 0 for methods without it (cvode, ida, xpbd)
-  /// xpbd: the force terms applied explicitly in the prediction rather than
-  /// as constraints ("gravity,bend_thin_plate"); empty otherwise.
-  std::string explicit_terms;
-  std::string constraints;  ///< xpbd: "tension,shear,obstacles" (those present)
-  std::string preconditioner;  ///< the preconditioner the row used (rows with a PCG)
-  /// Rows that build J_α (Newton, Baraff–Witkin, blender, the reduced
-  /// SUNDIALS solves): "all" (every term's Jacobian) or "tension" (tension
-  /// and mass only, SolverSpec::tangent_explicit_terms = false); else empty.
-  std::string tangent_terms;
-  std::string sundials_settings;  ///< cvode rows: CvodeSettings::ToString()
-  bool ok = false;
-  std::string status, message;
-  long steps = 0, updates = 0, cg = 0, rejected = 0, error_test_failures = -1;
-  long cg_unconverged = 0;  ///< accepted steps that kept an unconverged CG solve (blender)
-  double solver_time = 0.0, wall_time = 0.0, setup_time = -1.0;
+/// One run of one row: its record (the attributes the table prints and the
+/// result file stores: results/run_table.h, the same record the journal
+/// codec and the reader use) and what the sweep derives the rest from. The
+/// error, order and energy fields of the record are filled by the caller
+/// against a reference.
+struct MethodRun : RunRecord {
   Trajectory traj;
   std::vector<StepRecord> steps_table;
-  std::vector<double> bdf_order;    ///< SUNDIALS rows: method order per step
+  std::vector<double> bdf_order;          ///< SUNDIALS rows: method order per step
   std::optional<SundialsStats> sundials;  ///< cvode, ida, arkode counters
   // Filled by the caller against a reference:
   std::optional<TrajectoryErrors> err;
-  std::optional<double> order;
   EnergySeries energy;
-  double stiffness = 0.0;
+
+  StepKind kind() const {
+    return step_kind == "adaptive"     ? StepKind::kAdaptive
+           : step_kind == "substepped" ? StepKind::kSubstepped
+                                       : StepKind::kFixedStep;
+  }
 };
 
 /// The ARKODE IMEX pair of an arkode row modifier: "ark4" is ARK436L2SA
@@ -353,28 +336,28 @@ struct RowMethod {
   /// and substepped rows (the frame step, split into `substeps`) and rtol
   /// (= atol) for adaptive ones; `spec` the solver settings (the scene's,
   /// with the invocation's overrides). Never throws for a numerical failure
-  /// (see MethodRun::status).
+  /// (see RunRecord::status).
   MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
                 const RunContext& ctx, int substeps = 1) const {
     MethodRun row;
     row.label = label();
-    row.method = name();
+    row.integrator = name();
     row.layer = std::string(entry->layer);
-    row.kind = kind();
+    row.step_kind = std::string(ToString(kind()));
     if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
     if (kind() == StepKind::kFixedStep) {
       row.h = param;
       row.id = fmt::format("{}_h{:g}", id(), param);
-      row.stiffness = scene.NumericalStiffness(param);
+      row.numerical_stiffness = scene.NumericalStiffness(param);
     } else if (kind() == StepKind::kSubstepped) {
       row.h = param;
       row.substeps = substeps;
       row.id = fmt::format("{}_h{:g}_n{}", id(), param, substeps);
-      row.stiffness = scene.NumericalStiffness(param / substeps);
+      row.numerical_stiffness = scene.NumericalStiffness(param / substeps);
     } else {
       row.rtol = param;
       row.id = fmt::format("{}_rtol{:g}", id(), param);
-      row.stiffness = scene.NumericalStiffness(scene.h);
+      row.numerical_stiffness = scene.NumericalStiffness(scene.h);
     }
     SolverSpec row_spec = spec;
     const std::optional<PreconditionerType>& best =
@@ -404,18 +387,17 @@ struct RowMethod {
       r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec,
                            row_ctx);
     }
-    row.ok = r.ok;
-    row.status = r.status;
+    row.status = r.ok ? "ok" : r.status;
     row.message = r.message;
     row.steps = r.steps;
     row.updates = r.fixed_point_updates;
-    row.cg = r.cg_iterations;
+    row.cg_iterations = r.cg_iterations;
     row.rejected = r.rejected_steps;
     row.cg_unconverged = std::max(r.cg_unconverged_steps, 0);
     row.error_test_failures = error_control || r.sundials ? r.error_test_failures : -1;
-    row.solver_time = r.solver_time_in_seconds;
-    row.setup_time = r.setup_time_in_seconds;
-    row.wall_time = r.wall_time_in_seconds;
+    row.solver_time_s = r.solver_time_in_seconds;
+    row.setup_time_s = r.setup_time_in_seconds;
+    row.wall_time_s = r.wall_time_in_seconds;
     row.traj = std::move(r.trajectory);
     row.sundials = r.sundials;
     row.sundials_settings = r.settings;

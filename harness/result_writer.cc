@@ -97,41 +97,14 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     t.reference = rr;
   }
   for (const Row& r : rows) {
-    RunRecord q;
-    q.id = r.id;
-    q.label = r.label;
-    q.integrator = r.method;
-    q.layer = r.layer;
-    q.step_kind = ToString(r.kind);
-    q.nonlinear_solver = r.nonlinear_solver;
-    if (r.cg_tolerance > 0.0)
-      q.preconditioner = r.preconditioner.empty() ? std::string(ToString(scene.solver.preconditioner)) : r.preconditioner;
-    q.h = r.h;
-    q.rtol = r.rtol;
-    q.substeps = r.substeps;
-    q.cg_tolerance = r.cg_tolerance;
-    q.constraints = r.constraints;
-    q.explicit_terms = r.explicit_terms;
-    q.tangent_terms = r.tangent_terms;
-    q.status = r.ok ? "ok" : r.status;
-    q.message = r.message;
-    q.steps = r.steps;
-    q.updates = r.updates;
-    q.cg_iterations = r.cg;
-    q.rejected = r.rejected;
-    q.cg_unconverged = r.cg_unconverged;
-    q.error_test_failures = r.error_test_failures;
-    q.solver_time_s = r.solver_time;
-    q.wall_time_s = r.wall_time;
-    q.setup_time_s = r.setup_time;
-    q.numerical_stiffness = r.stiffness;
+    RunRecord q = r;  // the record itself; the reference-derived fields below
     if (r.err) {
       q.error_rms_m = r.err->rms_at_end;
       q.error_max_m = r.err->rms_max;
       q.error_mean_m = r.err->mean_at_end;
     }
-    if (r.order && std::isfinite(*r.order)) q.observed_order = r.order;
-    if (r.ok && r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) q.energy_rate_W = r.energy.Rate();
+    if (q.observed_order && !std::isfinite(*q.observed_order)) q.observed_order.reset();
+    if (r.ok() && r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) q.energy_rate_W = r.energy.Rate();
     t.runs.push_back(std::move(q));
   }
   if (wp) t.work_precision = *wp;
@@ -216,11 +189,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
                              {"ncfn", r.sundials->ncfn}, {"nje", r.sundials->nje}, {"nsetups", r.sundials->nsetups}})
         if (v >= 0) f.SetAttribute(g, name, v);
     }
-    if (!r.sundials_settings.empty()) f.SetAttribute(g, "sundials_settings", r.sundials_settings);
     if (r.cg_tolerance > 0.0) {
       f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
-      f.SetAttribute(g, "preconditioner",
-                     r.preconditioner.empty() ? std::string(ToString(scene.solver.preconditioner)) : r.preconditioner);
       f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
       f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
     }
@@ -261,7 +231,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
   fmt::print("\nFig. 4.3 series: {}\n{:<24} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
              "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
   for (const Row& r : rows) {
-    if (r.kind != StepKind::kFixedStep) continue;
+    if (r.kind() != StepKind::kFixedStep) continue;
     double impact = -1.0, t_last = r.steps_table.empty() ? 0.0 : r.steps_table.back().t;
     long cg_a = 0, n_a = 0, upd_b = 0, cg_b = 0, n_b = 0;
     for (const StepRecord& s : r.steps_table) {
@@ -295,7 +265,7 @@ EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector
       points.emplace_back();
       it = labels.end() - 1;
     }
-    if (r.ok && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time, r.err->rms_at_end});
+    if (r.ok() && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time_s, r.err->rms_at_end});
   }
   return BuildEqualAccuracyTable(labels, points, targets, std::string(kWorkPrecisionBaseline));
 }

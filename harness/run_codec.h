@@ -130,22 +130,18 @@ inline std::optional<SundialsStats> GetSundials(ByteReader& r) {
 
 }  // namespace internal
 
-/// One row's run as MethodRun::Run returned it (energy, err and order are
-/// not included: rank 0 derives them).
+/// One row's run as MethodRun::Run returned it: its RunRecord (errors,
+/// order and energy excluded: rank 0 derives them) and its trajectory.
 inline std::string EncodeRun(const MethodRun& m) {
   ByteWriter w;
-  for (const std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms,
-                               &m.constraints, &m.status, &m.message, &m.preconditioner, &m.sundials_settings,
-                               &m.tangent_terms})
+  for (const std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
+                               &m.explicit_terms, &m.constraints, &m.status, &m.message, &m.preconditioner,
+                               &m.sundials_settings, &m.tangent_terms})
     w.Str(*s);
-  w.Pod(m.kind);
-  w.Pod(m.h);
-  w.Pod(m.substeps);
-  w.Pod(m.rtol);
-  w.Pod(m.cg_tolerance);
-  w.Pod<uint8_t>(m.ok);
-  for (long v : {m.steps, m.updates, m.cg, m.rejected, m.error_test_failures, m.cg_unconverged}) w.Pod(v);
-  for (double v : {m.solver_time, m.wall_time, m.setup_time, m.stiffness}) w.Pod(v);
+  for (double v : {m.h, m.rtol, m.cg_tolerance}) w.Pod(v);
+  for (long v : {m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.error_test_failures, m.cg_unconverged})
+    w.Pod(v);
+  for (double v : {m.solver_time_s, m.wall_time_s, m.setup_time_s, m.numerical_stiffness}) w.Pod(v);
   internal::PutTrajectory(w, m.traj);
   w.Vec(m.steps_table);
   w.Vec(m.bdf_order);
@@ -156,18 +152,15 @@ inline std::string EncodeRun(const MethodRun& m) {
 inline MethodRun DecodeRun(std::string_view bytes) {
   ByteReader r(bytes);
   MethodRun m;
-  for (std::string* s : {&m.id, &m.label, &m.method, &m.layer, &m.nonlinear_solver, &m.explicit_terms, &m.constraints,
-                         &m.status, &m.message, &m.preconditioner, &m.sundials_settings, &m.tangent_terms})
+  for (std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
+                         &m.explicit_terms, &m.constraints, &m.status, &m.message, &m.preconditioner,
+                         &m.sundials_settings, &m.tangent_terms})
     *s = r.Str();
-  m.kind = r.Pod<StepKind>();
-  m.h = r.Pod<double>();
-  m.substeps = r.Pod<int>();
-  m.rtol = r.Pod<double>();
-  m.cg_tolerance = r.Pod<double>();
-  m.ok = r.Pod<uint8_t>() != 0;
-  for (long* v : {&m.steps, &m.updates, &m.cg, &m.rejected, &m.error_test_failures, &m.cg_unconverged})
+  for (double* v : {&m.h, &m.rtol, &m.cg_tolerance}) *v = r.Pod<double>();
+  for (long* v : {&m.substeps, &m.steps, &m.updates, &m.cg_iterations, &m.rejected, &m.error_test_failures,
+                  &m.cg_unconverged})
     *v = r.Pod<long>();
-  for (double* v : {&m.solver_time, &m.wall_time, &m.setup_time, &m.stiffness}) *v = r.Pod<double>();
+  for (double* v : {&m.solver_time_s, &m.wall_time_s, &m.setup_time_s, &m.numerical_stiffness}) *v = r.Pod<double>();
   m.traj = internal::GetTrajectory(r);
   m.steps_table = r.Vec<StepRecord>();
   m.bdf_order = r.Vec<double>();

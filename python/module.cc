@@ -137,13 +137,13 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   py::dict out;
   out["id"] = r.id;
   out["label"] = r.label;
-  out["status"] = r.ok ? std::string("ok") : r.status;
+  out["status"] = r.status;
   out["message"] = r.message;
   out["steps"] = r.steps;
   out["updates"] = r.updates;
-  out["cg_iterations"] = r.cg;
-  out["solver_time_s"] = r.solver_time;
-  out["setup_time_s"] = r.setup_time;
+  out["cg_iterations"] = r.cg_iterations;
+  out["solver_time_s"] = r.solver_time_s;
+  out["setup_time_s"] = r.setup_time_s;
   out["preconditioner"] = r.preconditioner;
   out["cg_tolerance"] = r.cg_tolerance;
   out["tangent_terms"] = r.tangent_terms;

@@ -267,6 +267,7 @@ RunTable ReadRunTable(const ResultReader& f) {
     r.nonlinear_solver = str(g, "nonlinear_solver");
     r.preconditioner = str(g, "preconditioner");
     r.tangent_terms = str(g, "tangent_terms");
+    r.sundials_settings = str(g, "sundials_settings");
     r.h = f.Double(g, "h").value_or(0.0);
     r.rtol = f.Double(g, "rtol").value_or(0.0);
     r.substeps = f.Long(g, "substeps").value_or(0);
@@ -331,6 +332,8 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
   if (!r.constraints.empty()) f.SetAttribute(g, "constraints", r.constraints);
   if (!r.explicit_terms.empty()) f.SetAttribute(g, "explicit_terms", r.explicit_terms);
   if (!r.tangent_terms.empty()) f.SetAttribute(g, "tangent_terms", r.tangent_terms);
+  if (!r.preconditioner.empty()) f.SetAttribute(g, "preconditioner", r.preconditioner);
+  if (!r.sundials_settings.empty()) f.SetAttribute(g, "sundials_settings", r.sundials_settings);
   if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
   f.SetAttribute(g, "status", r.status);
   if (!r.message.empty()) f.SetAttribute(g, "message", r.message);

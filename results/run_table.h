@@ -20,7 +20,9 @@ namespace clothbench {
 /// The schema written by this build (root attribute "schema").
 inline constexpr const char* kResultSchema = "clothbench/2";
 
-/// One row of the table: the attributes of /runs/<id>.
+/// One run of one row: the attributes of /runs/<id>. The sweep fills it
+/// (harness MethodRun extends it with the trajectory), the journal codec
+/// stores it, the writer writes it and the reader reads it back.
 struct RunRecord {
   std::string id;            ///< group name under /runs
   std::string label;         ///< row label ("bdf2/newton", "xpbd", "cvode")
@@ -34,8 +36,9 @@ struct RunRecord {
   double rtol = 0.0;         ///< adaptive rows: rtol = atol
   long substeps = 0;         ///< substepped rows: substeps per frame step
   double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
-  std::string constraints;   ///< xpbd: the terms solved as constraints
-  std::string explicit_terms;///< xpbd: the terms applied in the prediction
+  std::string constraints;   ///< xpbd: the terms solved as constraints ("tension,shear,obstacles")
+  std::string explicit_terms;///< xpbd: the terms applied in the prediction ("gravity,bend_thin_plate")
+  std::string sundials_settings;  ///< cvode rows: the setup knobs ("lsetup_frequency=20,…")
   std::string status = "ok"; ///< "ok" or the failure status
   std::string message;       ///< failure message (empty when ok)
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
