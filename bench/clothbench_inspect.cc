@@ -76,7 +76,7 @@ void PrintSummary(const ResultReader& f, const RunTable& t) {
              t.frames.empty() ? "-" : t.frames);
   if (t.reference)
     fmt::print("reference: {}{}: {} steps, {:.2f} s\n", t.reference->integrator,
-               t.reference->self_convergence() ? fmt::format(" at h = {:g} s", t.reference->h)
+               IsSelfConvergence(*t.reference) ? fmt::format(" at h = {:g} s", t.reference->h)
                                                                    : fmt::format(" rtol {:g}", t.reference->rtol),
                t.reference->steps, t.reference->wall_time_s);
   else

@@ -86,12 +86,29 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
   t.predictor = ToString(scene.solver.predictor);
   t.max_updates = scene.solver.max_updates;
   if (ref) {
-    ReferenceRecord rr;
-    rr.integrator = ref->integrator;
-    if (ref->h > 0.0) rr.h = ref->h;  // a self-convergence run (RunSummary::h)
-    else rr.rtol = ref_opts.rtol;
+    // The reference as a run record: CVODE/IDA adaptive at ref_opts.rtol, or
+    // the fixed-step self-convergence run (RunSummary::h > 0).
+    RunRecord rr;
+    rr.id = "reference";
+    rr.integrator = rr.label = ref->integrator;
+    const bool self_convergence = ref->h > 0.0;
+    rr.layer = self_convergence ? "solver" : "reference";
+    rr.step_kind = std::string(ToString(self_convergence ? StepKind::kFixedStep : StepKind::kAdaptive));
+    if (self_convergence) {
+      rr.h = ref->h;
+      rr.cg_tolerance = 1e-10;
+    } else {
+      rr.rtol = ref_opts.rtol;
+    }
+    rr.status = ref->ok ? "ok" : ref->status;
+    rr.message = ref->message;
     rr.steps = ref->steps;
+    rr.updates = ref->fixed_point_updates;
+    rr.cg_iterations = ref->cg_iterations;
+    rr.solver_time_s = ref->solver_time_in_seconds;
     rr.wall_time_s = ref->wall_time_in_seconds;
+    rr.setup_time_s = ref->setup_time_in_seconds;
+    rr.numerical_stiffness = scene.NumericalStiffness(self_convergence ? ref->h : scene.h);
     const EnergySeries e = ComputeEnergies(sys, ref->trajectory);
     if (e.t.size() >= 2 && std::isfinite(e.Rate())) rr.energy_rate_W = e.Rate();
     t.reference = rr;
@@ -149,24 +166,13 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     }
   if (ref) {
     f.CreateGroup("/reference");
-    f.SetAttribute("/reference", "integrator", ref->integrator);
-    if (ref->h > 0.0) {  // a self-convergence run (RunSummary::h)
-      f.SetAttribute("/reference", "h", ref->h);
-      f.SetAttribute("/reference", "cg_tolerance", 1e-10);
-    } else {
-      f.SetAttribute("/reference", "rtol", ref_opts.rtol);
+    WriteRunRecord(f, "/reference", *table.reference);
+    if (!IsSelfConvergence(*table.reference))
       f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
-    }
-    f.SetAttribute("/reference", "wall_time_s", ref->wall_time_in_seconds);
-    f.SetAttribute("/reference", "solver_time_s", ref->solver_time_in_seconds);
-    f.SetAttribute("/reference", "steps", static_cast<long>(ref->steps));
-    f.SetAttribute("/reference", "fixed_point_updates", ref->fixed_point_updates);
-    f.SetAttribute("/reference", "cg_iterations", ref->cg_iterations);
     if (const auto& s = ref->sundials)
       for (auto [name, v] : {std::pair{"nst", s->nst}, {"nfe", s->nfe}, {"nni", s->nni}, {"nli", s->nli},
                              {"netf", s->netf}, {"ncfn", s->ncfn}, {"nje", s->nje}, {"nsetups", s->nsetups}})
         f.SetAttribute("/reference", name, v);
-    if (table.reference->energy_rate_W) f.SetAttribute("/reference", "energy_rate_W", *table.reference->energy_rate_W);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
     if (write_frames)
       WriteTrajectoryFrames(f, "/reference", ref->trajectory, true, frames_mode == "all" || frames_mode == "ends");

@@ -221,6 +221,44 @@ std::vector<StepRecord> ResultReader::StepStats(const std::string& dataset) cons
   return ReadAll<StepRecord>(file_, path_, dataset, mem.id, shape);
 }
 
+RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::string& id) {
+  const auto str = [&](const std::string& n) { return f.String(g, n).value_or(""); };
+  RunRecord r;
+  r.id = id;
+  r.label = str("label");
+  r.integrator = str("integrator");
+  r.layer = str("layer");
+  r.step_kind = str("step_kind");
+  r.nonlinear_solver = str("nonlinear_solver");
+  r.preconditioner = str("preconditioner");
+  r.tangent_terms = str("tangent_terms");
+  r.sundials_settings = str("sundials_settings");
+  r.h = f.Double(g, "h").value_or(0.0);
+  r.rtol = f.Double(g, "rtol").value_or(0.0);
+  r.substeps = f.Long(g, "substeps").value_or(0);
+  r.cg_tolerance = f.Double(g, "cg_tolerance").value_or(0.0);
+  r.constraints = str("constraints");
+  r.explicit_terms = str("explicit_terms");
+  r.status = str("status");
+  r.message = str("message");
+  r.steps = f.Long(g, "steps").value_or(0);
+  r.updates = f.Long(g, "fixed_point_updates").value_or(0);
+  r.cg_iterations = f.Long(g, "cg_iterations").value_or(0);
+  r.rejected = f.Long(g, "rejected_steps").value_or(0);
+  r.cg_unconverged = f.Long(g, "cg_unconverged_steps").value_or(0);
+  r.error_test_failures = f.Long(g, "error_test_failures").value_or(-1);
+  r.solver_time_s = f.Double(g, "solver_time_s").value_or(0.0);
+  r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
+  r.setup_time_s = f.Double(g, "setup_time_s").value_or(-1.0);
+  r.numerical_stiffness = f.Double(g, "numerical_stiffness").value_or(0.0);
+  r.error_rms_m = f.Double(g, "error_rms_m");
+  r.error_max_m = f.Double(g, "error_max_m");
+  r.error_mean_m = f.Double(g, "error_mean_m");
+  r.observed_order = f.Double(g, "observed_order");
+  r.energy_rate_W = f.Double(g, "energy_rate_W");
+  return r;
+}
+
 RunTable ReadRunTable(const ResultReader& f) {
   RunTable t;
   const auto str = [&](const std::string& o, const std::string& n) { return f.String(o, n).value_or(""); };
@@ -246,53 +284,8 @@ RunTable ReadRunTable(const ResultReader& f) {
   t.preconditioner = str("/scene", "solver_preconditioner");
   t.predictor = str("/scene", "solver_predictor");
   t.max_updates = f.Long("/scene", "solver_max_updates").value_or(0);
-  if (f.Exists("/reference")) {
-    ReferenceRecord r;
-    r.integrator = str("/reference", "integrator");
-    r.h = f.Double("/reference", "h").value_or(0.0);
-    r.rtol = f.Double("/reference", "rtol").value_or(0.0);
-    r.steps = f.Long("/reference", "steps").value_or(0);
-    r.wall_time_s = f.Double("/reference", "wall_time_s").value_or(0.0);
-    r.energy_rate_W = f.Double("/reference", "energy_rate_W");
-    t.reference = r;
-  }
-  for (const std::string& id : f.Children("/runs")) {
-    const std::string g = "/runs/" + id;
-    RunRecord r;
-    r.id = id;
-    r.label = str(g, "label");
-    r.integrator = str(g, "integrator");
-    r.layer = str(g, "layer");
-    r.step_kind = str(g, "step_kind");
-    r.nonlinear_solver = str(g, "nonlinear_solver");
-    r.preconditioner = str(g, "preconditioner");
-    r.tangent_terms = str(g, "tangent_terms");
-    r.sundials_settings = str(g, "sundials_settings");
-    r.h = f.Double(g, "h").value_or(0.0);
-    r.rtol = f.Double(g, "rtol").value_or(0.0);
-    r.substeps = f.Long(g, "substeps").value_or(0);
-    r.cg_tolerance = f.Double(g, "cg_tolerance").value_or(0.0);
-    r.constraints = str(g, "constraints");
-    r.explicit_terms = str(g, "explicit_terms");
-    r.status = str(g, "status");
-    r.message = str(g, "message");
-    r.steps = f.Long(g, "steps").value_or(0);
-    r.updates = f.Long(g, "fixed_point_updates").value_or(0);
-    r.cg_iterations = f.Long(g, "cg_iterations").value_or(0);
-    r.rejected = f.Long(g, "rejected_steps").value_or(0);
-    r.cg_unconverged = f.Long(g, "cg_unconverged_steps").value_or(0);
-    r.error_test_failures = f.Long(g, "error_test_failures").value_or(-1);
-    r.solver_time_s = f.Double(g, "solver_time_s").value_or(0.0);
-    r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
-    r.setup_time_s = f.Double(g, "setup_time_s").value_or(-1.0);
-    r.numerical_stiffness = f.Double(g, "numerical_stiffness").value_or(0.0);
-    r.error_rms_m = f.Double(g, "error_rms_m");
-    r.error_max_m = f.Double(g, "error_max_m");
-    r.error_mean_m = f.Double(g, "error_mean_m");
-    r.observed_order = f.Double(g, "observed_order");
-    r.energy_rate_W = f.Double(g, "energy_rate_W");
-    t.runs.push_back(std::move(r));
-  }
+  if (f.Exists("/reference")) t.reference = ReadRunRecord(f, "/reference", "reference");
+  for (const std::string& id : f.Children("/runs")) t.runs.push_back(ReadRunRecord(f, "/runs/" + id, id));
   if (f.Exists("/work_precision/targets")) {
     EqualAccuracyTable w;
     w.targets = f.Doubles("/work_precision/targets");

@@ -62,6 +62,10 @@ RunTable ReadRunTable(const ResultReader& file);
 
 /// Writes the attributes of one run group /runs/<id> that RunTable holds.
 void WriteRunRecord(ResultFile& file, const std::string& group, const RunRecord& run);
+/// The record WriteRunRecord wrote to `group` ("/runs/<id>" or
+/// "/reference"), with `id`; missing attributes keep RunRecord's defaults
+/// (status then empty).
+RunRecord ReadRunRecord(const ResultReader& file, const std::string& group, const std::string& id);
 /// Writes the /scene attributes and solver settings that RunTable holds
 /// (the group must exist).
 void WriteSceneRecord(ResultFile& file, const RunTable& table);

@@ -70,7 +70,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     fmt::print(out, "cg_tolerance {:g} (each method's best, harness/methods.h) in rows: {}\n", eta,
                fmt::join(labels, ", "));
   const auto& ref = t.reference;
-  if (ref && ref->self_convergence())
+  if (ref && IsSelfConvergence(*ref))
     fmt::print(out,
                "reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
                "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s\n",

@@ -56,17 +56,11 @@ struct RunRecord {
   bool ok() const { return status == "ok"; }
 };
 
-/// The reference the e_rms column is measured against (/reference).
-struct ReferenceRecord {
-  std::string integrator;  ///< "cvode", "ida" or "bdf2_self_convergence"
-  double h = 0.0;          ///< self-convergence reference: its step [s]; 0 for CVODE/IDA
-  /// A fixed-step self-convergence run (obstacle scenes) rather than CVODE/IDA.
-  bool self_convergence() const { return h > 0.0; }
-  double rtol = 0.0;       ///< CVODE/IDA: rtol = atol
-  long steps = 0;
-  double wall_time_s = 0.0;
-  std::optional<double> energy_rate_W;
-};
+/// True if `reference` (RunTable::reference) is a fixed-step
+/// self-convergence run (obstacle scenes: BDF(2) at h_min/16) rather than
+/// CVODE or IDA at an rtol.
+inline bool IsSelfConvergence(const RunRecord& reference) { return reference.step_kind == "fixed_step"; }
+
 
 /// Everything the printed table shows.
 struct RunTable {
@@ -85,7 +79,9 @@ struct RunTable {
   std::string cg_reference, preconditioner, predictor;
   long max_updates = 0;
 
-  std::optional<ReferenceRecord> reference;
+  /// The reference the e_rms column is measured against (/reference): the
+  /// same record as a row's, its errors and order empty.
+  std::optional<RunRecord> reference;
   std::vector<RunRecord> runs;  ///< in run order
   std::optional<EqualAccuracyTable> work_precision;
 };
