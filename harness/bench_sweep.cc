@@ -165,21 +165,8 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
     }
-    Row& r = rows.back();
-    if (r.ok()) r.energy = ComputeEnergies(sys, r.traj);
-    if (ref && r.ok()) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
-    // Observed order against the (sub)step h/n within one block, and for
-    // adaptive rows against the mean accepted step t_end/steps; none
-    // between two rows with the same one.
-    const bool adaptive = b.methods[row_tasks[i].mk].kind() == StepKind::kAdaptive;
-    const auto step = [&](const Row& q) {
-      if (adaptive) return q.steps > 0 ? b.scene.t_end / static_cast<double>(q.steps) : 0.0;
-      return q.substeps > 0 ? q.h / static_cast<double>(q.substeps) : q.h;
-    };
-    if (i > 0 && row_tasks[i - 1].block == row_tasks[i].block && r.err && rows[i - 1].err &&
-        step(rows[i - 1]) != step(r) && step(r) > 0.0 && step(rows[i - 1]) > 0.0)
-      r.observed_order = ObservedOrder(step(rows[i - 1]), rows[i - 1].err->rms_at_end, step(r), r.err->rms_at_end);
   }
+  CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, &rows);
   const EqualAccuracyTable wp = WorkPrecision(rows, b.targets);
   const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);

@@ -60,6 +60,32 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
 
 // The table's content as plain data (results/run_table.h): what is printed
 // and what the file stores, so that clothbench_inspect can print it again.
+void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, std::vector<MethodRun>* rows) {
+  const auto step = [&](const MethodRun& q) {
+    if (q.kind() == StepKind::kAdaptive) return q.steps > 0 ? t_end / static_cast<double>(q.steps) : 0.0;
+    return q.substeps > 0 ? q.h / static_cast<double>(q.substeps) : q.h;
+  };
+  for (std::size_t i = 0; i < rows->size(); ++i) {
+    MethodRun& r = (*rows)[i];
+    if (r.ok()) {
+      r.energy = ComputeEnergies(sys, r.traj);
+      if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
+    }
+    if (ref && r.ok()) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
+    if (r.err) {  // only where they exist: no NaN is ever written
+      r.error_rms_m = r.err->rms_at_end;
+      r.error_max_m = r.err->rms_max;
+      r.error_mean_m = r.err->mean_at_end;
+    }
+    if (i == 0) continue;
+    const MethodRun& p = (*rows)[i - 1];
+    if (p.label == r.label && r.err && p.err && step(p) != step(r) && step(r) > 0.0 && step(p) > 0.0) {
+      const double order = ObservedOrder(step(p), p.err->rms_at_end, step(r), r.err->rms_at_end);
+      if (std::isfinite(order)) r.observed_order = order;
+    }
+  }
+}
+
 RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                       const ReferenceOptions& ref_opts, const std::vector<Row>& rows, const std::string& frames_mode,
                       const EqualAccuracyTable* wp) {
@@ -113,17 +139,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     if (e.t.size() >= 2 && std::isfinite(e.Rate())) rr.energy_rate_W = e.Rate();
     t.reference = rr;
   }
-  for (const Row& r : rows) {
-    RunRecord q = r;  // the record itself; the reference-derived fields below
-    if (r.err) {
-      q.error_rms_m = r.err->rms_at_end;
-      q.error_max_m = r.err->rms_max;
-      q.error_mean_m = r.err->mean_at_end;
-    }
-    if (q.observed_order && !std::isfinite(*q.observed_order)) q.observed_order.reset();
-    if (r.ok() && r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) q.energy_rate_W = r.energy.Rate();
-    t.runs.push_back(std::move(q));
-  }
+  t.runs.assign(rows.begin(), rows.end());  // the records (CompareToReference filled errors and energies)
   if (wp) t.work_precision = *wp;
   return t;
 }

@@ -15,8 +15,16 @@
 
 namespace clothbench {
 
+/// Fills what each row's record derives from its trajectory: the energies
+/// and dE/dt, and against `ref` (if given) the errors and the observed order
+/// between consecutive rows of one label (against h/substeps; adaptive rows
+/// against their mean step t_end/steps; none between two rows with the same
+/// step). @param rows in table order
+void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, std::vector<MethodRun>* rows);
+
 /// The table's content as plain data: what is printed and what the file
-/// stores, so that clothbench_inspect can print it again.
+/// stores, so that clothbench_inspect can print it again. `rows` have been
+/// through CompareToReference (their records carry errors and energies).
 /// @param ref the reference run, if any; @param wp the equal-accuracy table, if any
 RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                       const ReferenceOptions& ref_opts, const std::vector<MethodRun>& rows,

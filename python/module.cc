@@ -7,7 +7,9 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
 #include <cstring>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -17,10 +19,13 @@
 
 #include "harness/cli_args.h"
 #include "harness/methods.h"
+#include "harness/result_writer.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "results/metrics.h"
+#include "results/result_reader.h"
 #include "results/work_precision.h"
+#include "solver/progress.h"
 
 namespace py = pybind11;
 
@@ -95,13 +100,79 @@ py::array StepStatsArray(const std::vector<StepRecord>& steps) {
   return a;
 }
 
+// Calls a Python `progress(t, t_end)` from the step loop, at most every
+// 0.2 s of wall time and at t_end (the GIL is taken only then). An exception
+// the callback raises stops the run after the current step and is raised
+// again by run().
+class PythonProgress : public ProgressSink {
+ public:
+  PythonProgress(py::function callback, double t_end) : callback_(std::move(callback)), t_end_(t_end) {
+    SetProgressSink(this);
+  }
+  ~PythonProgress() override { SetProgressSink(nullptr); }
+  PythonProgress(const PythonProgress&) = delete;
+  PythonProgress& operator=(const PythonProgress&) = delete;
+  void Update(double t) override {
+    const auto now = std::chrono::steady_clock::now();
+    if (t < t_end_ && now - last_ < std::chrono::milliseconds(200)) return;
+    last_ = now;
+    py::gil_scoped_acquire gil;
+    try {
+      callback_(t, t_end_);
+    } catch (py::error_already_set& e) {
+      error_ = std::make_unique<py::error_already_set>(std::move(e));
+      throw Stopped();
+    }
+  }
+  struct Stopped : std::runtime_error {
+    Stopped() : std::runtime_error("the progress callback raised") {}
+  };
+  // Re-raises the callback's exception, if it raised one.
+  void RethrowCallbackError() {
+    if (error_) throw std::move(*error_);
+  }
+
+ private:
+  py::function callback_;
+  double t_end_;
+  std::chrono::steady_clock::time_point last_{};
+  std::unique_ptr<py::error_already_set> error_;
+};
+
+// A RunRecord (a row of a result file, or its reference) as a dict of its
+// attributes; optional values are None.
+py::dict RecordDict(const RunRecord& r) {
+  py::dict d;
+  for (auto [k, v] : {std::pair<const char*, const std::string*>{"id", &r.id}, {"label", &r.label},
+                      {"integrator", &r.integrator}, {"layer", &r.layer}, {"step_kind", &r.step_kind},
+                      {"nonlinear_solver", &r.nonlinear_solver}, {"preconditioner", &r.preconditioner},
+                      {"tangent_terms", &r.tangent_terms}, {"sundials_settings", &r.sundials_settings},
+                      {"constraints", &r.constraints}, {"explicit_terms", &r.explicit_terms},
+                      {"status", &r.status}, {"message", &r.message}})
+    d[k] = *v;
+  for (auto [k, v] : {std::pair<const char*, double>{"h", r.h}, {"rtol", r.rtol}, {"cg_tolerance", r.cg_tolerance},
+                      {"solver_time_s", r.solver_time_s}, {"wall_time_s", r.wall_time_s},
+                      {"setup_time_s", r.setup_time_s}, {"numerical_stiffness", r.numerical_stiffness}})
+    d[k] = v;
+  for (auto [k, v] : {std::pair<const char*, long>{"substeps", r.substeps}, {"steps", r.steps},
+                      {"updates", r.updates}, {"cg_iterations", r.cg_iterations}, {"rejected", r.rejected},
+                      {"error_test_failures", r.error_test_failures}, {"cg_unconverged", r.cg_unconverged}})
+    d[k] = v;
+  for (auto [k, v] : {std::pair<const char*, const std::optional<double>*>{"error_rms_m", &r.error_rms_m},
+                      {"error_max_m", &r.error_max_m}, {"error_mean_m", &r.error_mean_m},
+                      {"observed_order", &r.observed_order}, {"energy_rate_W", &r.energy_rate_W}})
+    d[k] = *v ? py::cast(**v) : py::none();
+  return d;
+}
+
 // Runs one row. `method` is a command-line row name ("sbdf2",
 // "bdf2/newton", "sbdf2/error", "arkode/ark4", "cvode/klu", "xpbd");
 // `h` [s] for fixed-step and substepped rows, `rtol` for adaptive ones.
 py::dict Run(const py::object& scene_arg, const std::string& method, std::optional<double> h,
              std::optional<double> rtol, int substeps, std::optional<double> cg_tolerance,
              std::optional<std::string> preconditioner, std::optional<std::string> tangent_terms,
-             std::optional<double> t_end, const py::dict& overrides) {
+             std::optional<double> t_end, const py::dict& overrides, const py::object& progress,
+             const py::object& reference) {
   Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
                                                    : scene_arg.cast<Scene>();
   if (t_end) scene.t_end = *t_end;
@@ -127,26 +198,34 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
     spec.preconditioner = scene.solver.preconditioner = ParsePreconditioner(*preconditioner, "preconditioner");
     ctx.preconditioner_from_cli = true;
   }
-  const ParticleSystem sys(scene);
-  MethodRun r;
-  {
-    py::gil_scoped_release release;
-    r = m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps);
+  std::shared_ptr<RunSummary> ref;
+  if (!reference.is_none()) {
+    const py::dict d = reference.cast<py::dict>();
+    if (!d.contains("record")) throw py::value_error("reference: a dict returned by clothbench.reference() is expected");
+    ref = d["record"].cast<std::shared_ptr<RunSummary>>();
   }
+  const ParticleSystem sys(scene);
+  auto record = std::make_shared<MethodRun>();
+  MethodRun& r = *record;
+  {
+    std::optional<PythonProgress> sink;
+    if (!progress.is_none()) sink.emplace(progress.cast<py::function>(), scene.t_end);
+    try {
+      py::gil_scoped_release release;
+      r = m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps);
+    } catch (const PythonProgress::Stopped&) {
+      sink->RethrowCallbackError();
+      throw;
+    }
+  }
+  std::vector<MethodRun> one;  // errors and energies as the result file has them
+  one.push_back(std::move(r));
+  CompareToReference(sys, ref.get(), scene.t_end, &one);
+  r = std::move(one.front());
+  if (ref && r.ok() && !r.err)
+    throw py::value_error("reference: its frames do not match the run's (the same scene and t_end?)");
   const int n = sys.num_particles();
-  py::dict out;
-  out["id"] = r.id;
-  out["label"] = r.label;
-  out["status"] = r.status;
-  out["message"] = r.message;
-  out["steps"] = r.steps;
-  out["updates"] = r.updates;
-  out["cg_iterations"] = r.cg_iterations;
-  out["solver_time_s"] = r.solver_time_s;
-  out["setup_time_s"] = r.setup_time_s;
-  out["preconditioner"] = r.preconditioner;
-  out["cg_tolerance"] = r.cg_tolerance;
-  out["tangent_terms"] = r.tangent_terms;
+  py::dict out = RecordDict(r);  // the attributes a result file stores for the run (error_* None without reference)
   out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.traj.times.size()), r.traj.times.data());
   out["positions"] = Frames(r.traj.positions, n);
   out["velocities"] = Frames(r.traj.velocities, n);
@@ -156,6 +235,7 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   energy["total"] = r.energy.total;
   energy["external_work"] = r.energy.external_work;
   out["energy"] = energy;
+  out["record"] = record;  // for write_results
   return out;
 }
 
@@ -185,17 +265,95 @@ py::dict Reference(const py::object& scene_arg, const std::string& method, doubl
   o.rtol = rtol;
   o.t_end = scene.t_end;
   o.frame_dt = scene.frame_dt;
-  RunSummary r;
+  auto record = std::make_shared<RunSummary>();
+  RunSummary& r = *record;
   {
     py::gil_scoped_release release;
     r = e->reference(sys, o);
   }
   py::dict out;
+  out["method"] = method;
+  out["rtol"] = rtol;
+  out["record"] = record;  // for run(reference=...) and write_results
   out["status"] = r.ok ? std::string("ok") : r.status;
   out["steps"] = r.steps;
   out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.trajectory.times.size()), r.trajectory.times.data());
   out["positions"] = Frames(r.trajectory.positions, sys.num_particles());
   out["velocities"] = Frames(r.trajectory.velocities, sys.num_particles());
+  return out;
+}
+
+// Writes the result file `path` (docs/results-schema.md) of `runs` (dicts
+// from run(), in table order, all on `scene`) and `reference` (a dict from
+// reference(), or None), as bench_integrators writes it: errors, observed
+// orders and the equal-accuracy table at `targets` [m] against the
+// reference.
+void WriteResultFile(const std::string& path, const py::object& scene_arg, const py::list& runs,
+                     const py::object& reference, const std::string& frames, const std::vector<double>& targets) {
+  const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict())
+                                                         : scene_arg.cast<Scene>();
+  if (frames != "default" && frames != "positions" && frames != "all" && frames != "ends" && frames != "none")
+    throw py::value_error("frames: \"" + frames + "\" must be default, all, positions, ends or none");
+  const ParticleSystem sys(scene);
+  std::vector<MethodRun> rows;
+  for (const py::handle& d : runs) {
+    const py::dict run = d.cast<py::dict>();
+    if (!run.contains("record")) throw py::value_error("runs: dicts returned by clothbench.run() are expected");
+    rows.push_back(*run["record"].cast<std::shared_ptr<MethodRun>>());
+    const MethodRun& q = rows.back();
+    if (!q.traj.positions.empty() && q.traj.positions.front().rows() != sys.num_particles())
+      throw py::value_error("runs: " + q.id + " has " + std::to_string(q.traj.positions.front().rows()) +
+                            " particles, the scene " + std::to_string(sys.num_particles()));
+  }
+  std::optional<RunSummary> ref;
+  ReferenceOptions ref_opts;
+  ref_opts.t_end = scene.t_end;
+  ref_opts.frame_dt = scene.frame_dt;
+  if (!reference.is_none()) {
+    const py::dict d = reference.cast<py::dict>();
+    if (!d.contains("record")) throw py::value_error("reference: a dict returned by clothbench.reference() is expected");
+    ref = *d["record"].cast<std::shared_ptr<RunSummary>>();
+    ref_opts.rtol = d["rtol"].cast<double>();
+  }
+  py::gil_scoped_release release;
+  CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, &rows);
+  const EqualAccuracyTable wp = WorkPrecision(rows, targets);
+  const RunTable table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames, ref ? &wp : nullptr);
+  WriteResults(path, scene, sys, ref, ref_opts, rows, table, 1);
+}
+
+// A result file's records (ReadRunTable): provenance, scene, the reference
+// and every run as dicts of their attributes, and the equal-accuracy table.
+py::dict ReadResultFile(const std::string& path) {
+  const RunTable t = ReadRunTable(ResultReader(path));
+  py::dict out;
+  out["schema"] = t.schema;
+  out["git_commit"] = t.git_commit;
+  out["created"] = t.created;
+  py::dict scene;
+  scene["name"] = t.scene_name;
+  scene["source"] = t.scene_source;
+  scene["n_particles"] = t.n_particles;
+  scene["t_end"] = t.t_end;
+  scene["h"] = t.h;
+  scene["cg_tolerance"] = t.cg_tolerance;
+  scene["preconditioner"] = t.preconditioner;
+  out["scene"] = scene;
+  out["reference"] = t.reference ? py::object(RecordDict(*t.reference)) : py::none();
+  py::list runs;
+  for (const RunRecord& r : t.runs) runs.append(RecordDict(r));
+  out["runs"] = runs;
+  if (t.work_precision) {
+    py::dict w;
+    w["targets"] = t.work_precision->targets;
+    w["labels"] = t.work_precision->labels;
+    w["cost"] = t.work_precision->cost;
+    w["ratio"] = t.work_precision->ratio;
+    w["baseline"] = t.work_precision->reference;
+    out["work_precision"] = w;
+  } else {
+    out["work_precision"] = py::none();
+  }
   return out;
 }
 
@@ -240,6 +398,9 @@ py::dict EqualAccuracy(const std::vector<std::pair<std::string, std::vector<std:
 PYBIND11_MODULE(clothbench, m) {
   using namespace clothbench;
   m.doc() = "clothbench: the integrators of implicit cloth simulation (Hauth 2004) and their peers, from Python";
+  // Opaque handles kept in run() and reference() dicts for write_results.
+  py::class_<MethodRun, std::shared_ptr<MethodRun>>(m, "RunRecord");
+  py::class_<RunSummary, std::shared_ptr<RunSummary>>(m, "ReferenceRun");
   py::class_<Scene>(m, "Scene")
       .def_readonly("name", &Scene::name)
       .def_readonly("t_end", &Scene::t_end)
@@ -257,8 +418,20 @@ PYBIND11_MODULE(clothbench, m) {
   m.def("run", &Run, py::arg("scene"), py::arg("method"), py::arg("h") = py::none(), py::arg("rtol") = py::none(),
         py::arg("substeps") = 1, py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
         py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
-        "Runs one row as bench_integrators does. Returns a dict: times [F], positions and velocities "
-        "[F, N, 3], step_stats (structured array), counts, times and status.");
+        py::arg("progress") = py::none(), py::arg("reference") = py::none(),
+        "Runs one row as bench_integrators does (the GIL released). Returns a dict: times [F], positions and "
+        "velocities [F, N, 3], step_stats (structured array), counts, times, status, energies, and with "
+        "reference= (a dict from reference()) error_rms_m, error_max_m and error_mean_m. progress(t, t_end) is "
+        "called at most every 0.2 s; an exception it raises stops the run and is raised again.");
+  m.def("write_results", &WriteResultFile, py::arg("path"), py::arg("scene"), py::arg("runs"),
+        py::arg("reference") = py::none(), py::arg("frames") = std::string("default"),
+        py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
+        "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
+        "as the HDF5 result file bench_integrators writes (docs/results-schema.md). Raises RuntimeError if the "
+        "file cannot be written.");
+  m.def("read_results", &ReadResultFile, py::arg("path"),
+        "A result file's records: schema, scene, reference and runs (dicts of their attributes) and the "
+        "equal-accuracy table (work_precision). Arrays: read the file with h5py.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
         "The reference run (CVODE or IDA with KLU, as --reference): times, positions, velocities.");

@@ -110,3 +110,43 @@ def test_method_best_settings_and_their_overrides():
     assert clothbench.run("swinging_sheet", "sbdf2", h=0.01, t_end=0.05)["tangent_terms"] == ""
     with pytest.raises(ValueError, match="tangent_terms"):
         clothbench.run("swinging_sheet", "baraff_witkin", h=0.01, tangent_terms="some")
+
+
+def test_progress_callback_reports_and_can_stop_a_run():
+    seen = []
+    r = clothbench.run("swinging_sheet", "sbdf2", h=0.001, t_end=0.2, progress=lambda t, t_end: seen.append((t, t_end)))
+    assert r["status"] == "ok"
+    # Called at least at t_end (the 0.2 s throttle may skip the others), never past it.
+    assert seen and seen[-1] == (pytest.approx(0.2), 0.2) and all(t <= 0.2 + 1e-12 for t, _ in seen)
+
+    def stop(t, t_end):
+        raise KeyboardInterrupt("enough")
+
+    with pytest.raises(KeyboardInterrupt, match="enough"):
+        clothbench.run("swinging_sheet", "sbdf2", h=0.001, t_end=0.2, progress=stop)
+
+
+def test_result_file_written_from_python_matches_the_command_line(tmp_path):
+    # The same rows and reference through bench_integrators and through
+    # run/reference/write_results: the same records (counts, errors, orders,
+    # energies to the bit; times differ), read back by read_results.
+    cli = tmp_path / "cli.h5"
+    subprocess.run([os.environ["CLOTHBENCH_BENCH_INTEGRATORS"], "--integrators", "sbdf2", "--h", "0.01,0.005",
+                    "--out", str(cli), "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    scene = clothbench.load_scene("swinging_sheet")
+    ref = clothbench.reference(scene)
+    runs = [clothbench.run(scene, "sbdf2", h=h, reference=ref) for h in (0.01, 0.005)]
+    assert runs[0]["error_rms_m"] == clothbench.error_rms(runs[0]["positions"][-1], ref["positions"][-1])
+    py_file = tmp_path / "py.h5"
+    clothbench.write_results(str(py_file), scene, runs, reference=ref)
+    a, b = clothbench.read_results(str(cli)), clothbench.read_results(str(py_file))
+    assert a["schema"] == b["schema"] and a["scene"]["name"] == b["scene"]["name"] == "swinging_sheet"
+    assert b["reference"]["integrator"] == a["reference"]["integrator"] == "cvode"
+    assert len(a["runs"]) == len(b["runs"]) == 2
+    for x, y in zip(a["runs"], b["runs"]):
+        for key in ("id", "label", "steps", "cg_iterations", "preconditioner", "error_rms_m", "error_max_m",
+                    "observed_order", "energy_rate_W"):
+            assert x[key] == y[key], key
+    assert b["runs"][1]["observed_order"] is not None and b["work_precision"]["labels"] == ["sbdf2"]
+    with pytest.raises(ValueError, match="runs"):
+        clothbench.write_results(str(tmp_path / "bad.h5"), scene, [{"id": "x"}])
