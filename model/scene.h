@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "model/obstacle.h"
+#include "model/solver_spec.h"
 #include "model/types.h"
 
 namespace clothbench {
@@ -50,50 +51,9 @@ enum class BendModel { kNone, kMembrane, kThinPlate };
 /// an exactly linear prestressed membrane, used by the modal order tests.
 enum class TensionModel { kSplit, kLinear };
 enum class MassLumping { kUniform, kArea };
-/// Preconditioner of the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃),
-/// IC(0) of A_α (the thesis' choice), a sparse Cholesky factor from CHOLMOD
-/// ("cholesky"), or one V-cycle of algebraic multigrid from hypre BoomerAMG
-/// ("amg").
-enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg };
-/// Fill-reducing ordering of the CHOLMOD factor (solver key cholesky_ordering).
-enum class CholeskyOrdering { kMetis, kAmd };
-enum class Predictor { kConstantVelocity, kExtrapolate };
-enum class StepControl { kFixed, kIterations, kError };
-/// What the PCG tolerance is relative to (docs/model.md §5 and its deviation below).
-/// kFiltered: ‖S b‖₂ over every constraint, docs/model.md §5 literally.
-/// kFixedOnly: ‖S_F b‖₂, where S_F filters only the fixed (bilateral)
-/// particles and not the collision constraints. At resting contact the filter
-/// removes the whole load (gravity and the obstacle's reaction both act along
-/// D), so ‖S b‖ → 0 and η‖S b‖ falls below round-off: the thesis' fixed-point
-/// rule "PCG needed 0 iterations" can then never hold (measured: a flat cloth
-/// resting on a plane, BDF(2), 50 updates and a rejected step every step).
-/// ‖S_F b‖ keeps the load the obstacle carries in the scale. Without
-/// obstacles both are the same number.
-enum class CgReference { kFixedOnly, kFiltered };
-/// Nonlinear solver of the fully implicit methods (implicit Euler, BDF(2),
-/// implicit midpoint). "fixed_point": Alg. 6, the thesis' simplified Newton
-/// method with the linear part A_α as matrix (thesis §3.4.3). "newton": Newton's
-/// method with the tangent system J_α = M − αh ∂f/∂v − α²h² ∂f/∂x (docs/model.md §10).
-enum class NonlinearSolver { kFixedPoint, kNewton };
-/// When Newton refreshes J_α: at every iterate ("refresh"), or once per step
-/// at the predictor ("frozen", a chord method).
-enum class NewtonJacobian { kRefresh, kFrozen };
-/// How the tangent system treats compressed springs (solver/tangent.h):
-/// "clamp" keeps J_α definite with the transverse factor max(0, 1 − l_e/|d|)
-/// (Choi & Ko 2002); "none" is the exact spring Jacobian.
-enum class TangentProjection { kClamp, kNone };
-
 std::string_view ToString(BendModel m);
 std::string_view ToString(TensionModel m);
 std::string_view ToString(MassLumping m);
-std::string_view ToString(PreconditionerType p);
-std::string_view ToString(CholeskyOrdering o);
-std::string_view ToString(Predictor p);
-std::string_view ToString(StepControl s);
-std::string_view ToString(CgReference r);
-std::string_view ToString(NonlinearSolver s);
-std::string_view ToString(NewtonJacobian j);
-std::string_view ToString(TangentProjection p);
 
 struct GridSpec {
   int nu = 20;                                    ///< particles along u (>= 2)
@@ -132,46 +92,6 @@ struct ForcesSpec {
   Vector3 gravity = Vector3(0.0, 0.0, -9.81);  ///< [m/s²]
   std::optional<WindSpec> wind;                ///< absent: no wind term
   double air = 0.0;                            ///< c_air [kg/(m² s)], (2.37); 0: no term
-};
-
-/// Settings of the step engine (docs/model.md §5, §6).
-struct SolverSpec {
-  double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (docs/model.md §5, see CgReference)
-  CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
-  int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
-  /// The CHOLMOD factor: fastest on the thesis scenes and at scale (docs/performance.md); the thesis scenes name "ic0" explicitly.
-  PreconditionerType preconditioner = PreconditionerType::kCholesky;
-  CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
-  int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
-  /// Iteration controller band (docs/model.md §6; thesis §3.4.3): h grows by step_factor when
-  /// a step needed fewer than [0] updates and shrinks when it needed more than [1].
-  std::array<int, 2> controller_updates = {3, 6};
-  /// Fixed-point stop: 0 selects the thesis' rule (PCG needed 0 iterations);
-  /// > 0 stops when max |Δv| ≤ tol [m/s] as well.
-  double fixed_point_tolerance = 0.0;
-  /// Alg. 6 (the default and the thesis' reference) or Newton with J_α.
-  NonlinearSolver nonlinear_solver = NonlinearSolver::kFixedPoint;
-  /// Newton: J_α at every iterate or once per step (docs/newton.md).
-  NewtonJacobian newton_jacobian = NewtonJacobian::kRefresh;
-  TangentProjection tangent_projection = TangentProjection::kClamp;
-  /// Newton and Baraff–Witkin: the explicit terms' Jacobians (shear, bending,
-  /// transverse, air) enter J_α; false: tension and mass only.
-  bool tangent_explicit_terms = true;
-  Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
-  /// fixed h; the thesis' iteration-count controller (docs/model.md §6); or local
-  /// error control of SBDF(2)/BDF(2) against rtol/atol (docs/work-precision.md).
-  StepControl step_control = StepControl::kFixed;
-  double rtol = 1e-4;                ///< step_control = "error": relative tolerance
-  /// step_control = "error": absolute tolerance [m for x, m/s for v]; 0: atol = rtol.
-  double atol = 0.0;
-  double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
-  double step_factor = 2.0;          ///< controller grow/shrink factor (> 1)
-  double h_min = 1e-6;               ///< [s] smallest step before a run fails
-  double h_max = 0.0;                ///< [s] largest step of a controller; 0: scene h (iterations), t_end (error)
-  int max_rejections = 10;           ///< successive rejected attempts before a run fails
-
-  /// Ceres style: false with `error` naming the field, its value and the rule.
-  bool IsValid(std::string* error) const;
 };
 
 /// One scene: everything needed to build the particle system and run it.

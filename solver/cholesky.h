@@ -10,7 +10,7 @@
 #include <memory>
 #include <vector>
 
-#include "model/scene.h"
+#include "model/solver_spec.h"
 #include "model/types.h"
 
 namespace clothbench {

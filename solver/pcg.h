@@ -17,7 +17,7 @@
 #include <string_view>
 #include <vector>
 
-#include "model/scene.h"
+#include "model/solver_spec.h"
 #include "model/types.h"
 #include "solver/amg.h"
 #include "solver/cholesky.h"

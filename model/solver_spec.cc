@@ -1,0 +1,59 @@
+// Names and validation of the solver settings (model/solver_spec.h).
+#include "model/solver_spec.h"
+
+#include <fmt/format.h>
+
+namespace clothbench {
+
+std::string_view ToString(PreconditionerType p) {
+  switch (p) {
+    case PreconditionerType::kNone: return "none";
+    case PreconditionerType::kJacobi: return "jacobi";
+    case PreconditionerType::kIc0: return "ic0";
+    case PreconditionerType::kCholesky: return "cholesky";
+    case PreconditionerType::kAmg: return "amg";
+  }
+  return "?";
+}
+std::string_view ToString(CholeskyOrdering o) { return o == CholeskyOrdering::kMetis ? "metis" : "amd"; }
+std::string_view ToString(Predictor p) {
+  return p == Predictor::kConstantVelocity ? "constant" : "extrapolate";
+}
+std::string_view ToString(CgReference r) {
+  return r == CgReference::kFixedOnly ? "fixed_only" : "filtered";
+}
+std::string_view ToString(NonlinearSolver s) {
+  return s == NonlinearSolver::kFixedPoint ? "fixed_point" : "newton";
+}
+std::string_view ToString(NewtonJacobian j) {
+  return j == NewtonJacobian::kRefresh ? "refresh" : "frozen";
+}
+std::string_view ToString(TangentProjection p) {
+  return p == TangentProjection::kClamp ? "clamp" : "none";
+}
+std::string_view ToString(StepControl s) {
+  return s == StepControl::kFixed ? "fixed" : s == StepControl::kIterations ? "iterations" : "error";
+}
+
+bool SolverSpec::IsValid(std::string* error) const {
+  auto fail = [error](std::string msg) {
+    if (error) *error = std::move(msg);
+    return false;
+  };
+  if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0)) return fail(fmt::format("cg_tolerance = {} must be in (0, 1)", cg_tolerance));
+  if (cg_max_iterations < 1) return fail(fmt::format("cg_max_iterations = {} must be >= 1", cg_max_iterations));
+  if (max_updates < 1) return fail(fmt::format("max_updates = {} must be >= 1", max_updates));
+  if (controller_updates[0] < 1 || controller_updates[0] > controller_updates[1])
+    return fail(fmt::format("controller_updates = [{}, {}] must satisfy 1 <= lo <= hi", controller_updates[0],
+                            controller_updates[1]));
+  if (!(fixed_point_tolerance >= 0.0)) return fail(fmt::format("fixed_point_tolerance = {} must be >= 0", fixed_point_tolerance));
+  if (!(step_factor > 1.0)) return fail(fmt::format("step_factor = {} must be > 1", step_factor));
+  if (!(h_min > 0.0)) return fail(fmt::format("h_min = {} must be > 0", h_min));
+  if (!(h_max >= 0.0)) return fail(fmt::format("h_max = {} must be >= 0", h_max));
+  if (!(rtol > 0.0 && rtol < 1.0)) return fail(fmt::format("rtol = {} must be in (0, 1)", rtol));
+  if (!(atol >= 0.0)) return fail(fmt::format("atol = {} must be >= 0", atol));
+  if (max_rejections < 0) return fail(fmt::format("max_rejections = {} must be >= 0", max_rejections));
+  return true;
+}
+
+}  // namespace clothbench
