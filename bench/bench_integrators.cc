@@ -55,7 +55,7 @@ int Main(int argc, char** argv) {
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
-  std::string tangent_terms;
+  std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline);
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
@@ -102,6 +102,8 @@ int Main(int argc, char** argv) {
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
+  app.add_option("--baseline", baseline,
+                 "the row the equal-accuracy ratios are relative to (default cvode: CVODE with the reduced solve)");
   app.add_option("--tangent-terms", tangent_terms,
                  "J_alpha's terms in every row that builds it: all | tension (tension and mass only); default: the "
                  "scene's solver.tangent_explicit_terms, and each method's measured best (harness/methods.h)");
@@ -227,6 +229,12 @@ int Main(int argc, char** argv) {
       throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", arkode_table, known));
     }
     const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
+    if (app.count("--baseline") &&
+        std::none_of(methods.begin(), methods.end(), [&](const RowMethod& m) { return m.label() == baseline; })) {
+      std::string labels;
+      for (const RowMethod& m : methods) labels += (labels.empty() ? "" : ", ") + m.label();
+      throw UsageError(fmt::format("--baseline: \"{}\" is not a row of this run ({})", EscapeControl(baseline), labels));
+    }
     if (etas.empty()) etas = {scene.solver.cg_tolerance};
     std::vector<double> hs = h_arg.empty() ? std::vector<double>{} : ParsePositiveList(h_arg, "--h");
     for (double h : hs)
@@ -251,7 +259,7 @@ int Main(int argc, char** argv) {
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     CheckOutputFolder(out);
 
-    BenchRun run{scene, methods, plan, etas, targets, hs, reference_entry, ref_rtol, out, plot_dir, series,
+    BenchRun run{scene, methods, plan, etas, targets, baseline, hs, reference_entry, ref_rtol, out, plot_dir, series,
                  frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
                  app.count("--preconditioner") > 0, app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0,
                  app.count("--tangent-terms") > 0, time_limit, max_runs, arkode_table, cvode_settings};

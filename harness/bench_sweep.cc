@@ -167,7 +167,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
     }
   }
   CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets);
+  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline);
   const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);
   if (ref) PrintWorkPrecision(stdout, wp);

@@ -43,8 +43,10 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
 void WriteSeries(const std::string& path, const std::vector<MethodRun>& rows);
 
 /// The equal-accuracy table (docs/work-precision.md) of the rows at the
-/// e_rms `targets` [m], against the `cvode` row.
-EqualAccuracyTable WorkPrecision(const std::vector<MethodRun>& rows, const std::vector<double>& targets);
+/// e_rms `targets` [m], with ratios to the row labelled `baseline`
+/// (--baseline; kWorkPrecisionBaseline by default).
+EqualAccuracyTable WorkPrecision(const std::vector<MethodRun>& rows, const std::vector<double>& targets,
+                                 const std::string& baseline);
 
 }  // namespace clothbench
 

@@ -289,7 +289,8 @@ py::dict Reference(const py::object& scene_arg, const std::string& method, doubl
 // orders and the equal-accuracy table at `targets` [m] against the
 // reference.
 void WriteResultFile(const std::string& path, const py::object& scene_arg, const py::list& runs,
-                     const py::object& reference, const std::string& frames, const std::vector<double>& targets) {
+                     const py::object& reference, const std::string& frames, const std::vector<double>& targets,
+                     const std::string& baseline) {
   const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict())
                                                          : scene_arg.cast<Scene>();
   if (frames != "default" && frames != "positions" && frames != "all" && frames != "ends" && frames != "none")
@@ -317,7 +318,7 @@ void WriteResultFile(const std::string& path, const py::object& scene_arg, const
   }
   py::gil_scoped_release release;
   CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, targets);
+  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline);
   const RunTable table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames, ref ? &wp : nullptr);
   WriteResults(path, scene, sys, ref, ref_opts, rows, table, 1);
 }
@@ -349,6 +350,8 @@ py::dict ReadResultFile(const std::string& path) {
     w["labels"] = t.work_precision->labels;
     w["cost"] = t.work_precision->cost;
     w["ratio"] = t.work_precision->ratio;
+    w["upper_bound"] = t.work_precision->upper_bound;
+    w["min_error"] = t.work_precision->min_error;
     w["baseline"] = t.work_precision->reference;
     out["work_precision"] = w;
   } else {
@@ -385,6 +388,8 @@ py::dict EqualAccuracy(const std::vector<std::pair<std::string, std::vector<std:
   out["labels"] = t.labels;
   out["cost"] = t.cost;
   out["ratio"] = t.ratio;
+  out["upper_bound"] = t.upper_bound;
+  out["min_error"] = t.min_error;
   std::vector<std::optional<std::string>> fastest;
   for (int k : t.fastest) fastest.push_back(k >= 0 ? std::optional(t.labels[static_cast<std::size_t>(k)]) : std::nullopt);
   out["fastest"] = fastest;
@@ -426,6 +431,7 @@ PYBIND11_MODULE(clothbench, m) {
   m.def("write_results", &WriteResultFile, py::arg("path"), py::arg("scene"), py::arg("runs"),
         py::arg("reference") = py::none(), py::arg("frames") = std::string("default"),
         py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
+        py::arg("baseline") = std::string(kWorkPrecisionBaseline),
         "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
         "as the HDF5 result file bench_integrators writes (docs/results-schema.md). Raises RuntimeError if the "
         "file cannot be written.");

@@ -289,23 +289,32 @@ RunTable ReadRunTable(const ResultReader& f) {
   if (f.Exists("/work_precision/targets")) {
     EqualAccuracyTable w;
     w.targets = f.Doubles("/work_precision/targets");
-    w.reference = str("/work_precision", "reference_method");
+    w.reference = f.String("/work_precision", "baseline").value_or(str("/work_precision", "reference_method"));
     std::stringstream labels(str("/work_precision", "labels"));  // comma-separated
     for (std::string label; std::getline(labels, label, ',');) w.labels.push_back(label);
     const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
-    const std::vector<double> ratio = f.Doubles("/work_precision/ratio_to_cvode");
+    const std::vector<double> ratio =
+        f.Doubles(f.Exists("/work_precision/ratio") ? "/work_precision/ratio" : "/work_precision/ratio_to_cvode");
+    const std::vector<int32_t> bound =
+        f.Exists("/work_precision/upper_bound") ? f.Ints("/work_precision/upper_bound") : std::vector<int32_t>{};
+    const std::vector<double> min_error =
+        f.Exists("/work_precision/min_error") ? f.Doubles("/work_precision/min_error") : std::vector<double>{};
     const std::size_t cols = w.targets.size();
-    if (cost.size() != w.labels.size() * cols || ratio.size() != cost.size())
+    if (cost.size() != w.labels.size() * cols || ratio.size() != cost.size() ||
+        (!bound.empty() && bound.size() != cost.size()) || (!min_error.empty() && min_error.size() != w.labels.size()))
       throw ResultError(fmt::format("{}: /work_precision: {} labels × {} targets but {} cells", f.path(),
                                     w.labels.size(), cols, cost.size()));
     for (std::size_t m = 0; m < w.labels.size(); ++m) {
       w.cost.emplace_back();
       w.ratio.emplace_back();
+      w.upper_bound.emplace_back();
       for (std::size_t j = 0; j < cols; ++j) {
         const double c = cost[m * cols + j], q = ratio[m * cols + j];
         w.cost.back().push_back(c >= 0.0 ? std::optional(c) : std::nullopt);
         w.ratio.back().push_back(q >= 0.0 ? std::optional(q) : std::nullopt);
+        w.upper_bound.back().push_back(!bound.empty() && bound[m * cols + j] != 0);
       }
+      w.min_error.push_back(!min_error.empty() && min_error[m] > 0.0 ? std::optional(min_error[m]) : std::nullopt);
     }
     for (int32_t k : f.Ints("/work_precision/fastest")) w.fastest.push_back(k);
     t.work_precision = std::move(w);
@@ -368,23 +377,31 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
 
 void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
   f.CreateGroup("/work_precision");
-  f.SetAttribute("/work_precision", "reference_method", t.reference);
+  f.SetAttribute("/work_precision", "baseline", t.reference);
   f.SetAttribute("/work_precision", "measure",
-                 std::string("solver_time_s at e_rms(t_end) = target, log-log interpolation between bracketing runs; "
-                             "-1 where the runs do not bracket the target"));
+                 std::string("solver_time_s at e_rms(t_end) = target on each method's lower envelope of (error, "
+                             "solver_time_s) runs, log-log interpolation between adjacent envelope runs; upper_bound 1: "
+                             "the cheapest run already meets the target (cost <= that run's); -1 where no run reaches "
+                             "the target (min_error: the smallest error reached, -1 if every run failed)"));
   f.WriteVector("/work_precision/targets", t.targets, "m");
   std::string labels;
   for (const std::string& l : t.labels) labels += (labels.empty() ? "" : ",") + l;
   f.SetAttribute("/work_precision", "labels", labels);
   const int rows = static_cast<int>(t.labels.size()), cols = static_cast<int>(t.targets.size());
-  std::vector<double> cost, ratio;
-  for (int m = 0; m < rows; ++m)
-    for (int j = 0; j < cols; ++j) {
-      cost.push_back(t.cost[static_cast<std::size_t>(m)][static_cast<std::size_t>(j)].value_or(-1.0));
-      ratio.push_back(t.ratio[static_cast<std::size_t>(m)][static_cast<std::size_t>(j)].value_or(-1.0));
+  std::vector<double> cost, ratio, min_error;
+  std::vector<int32_t> bound;
+  for (std::size_t m = 0; m < static_cast<std::size_t>(rows); ++m) {
+    for (std::size_t j = 0; j < static_cast<std::size_t>(cols); ++j) {
+      cost.push_back(t.cost[m][j].value_or(-1.0));
+      ratio.push_back(t.ratio[m][j].value_or(-1.0));
+      bound.push_back(m < t.upper_bound.size() && t.upper_bound[m][j] ? 1 : 0);
     }
+    min_error.push_back(m < t.min_error.size() && t.min_error[m] ? *t.min_error[m] : -1.0);
+  }
   f.WriteTable("/work_precision/solver_time", rows, cols, cost, "s");
-  f.WriteTable("/work_precision/ratio_to_cvode", rows, cols, ratio, "");
+  f.WriteTable("/work_precision/ratio", rows, cols, ratio, "");
+  f.WriteTable("/work_precision/upper_bound", rows, cols, bound);
+  f.WriteVector("/work_precision/min_error", min_error, "m");
   std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
   f.WriteTable("/work_precision/fastest", 1, cols, fastest);
 }

@@ -130,19 +130,25 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
 
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
   fmt::print(out,
-             "\nEqual accuracy: solver time [s] at e_rms(t_end) = target, interpolated log-log between the two runs "
-             "that bracket it (never extrapolated; '-': the runs do not bracket the target); x = ratio to {}\n",
-             t.reference.empty() ? "the reference" : t.reference);
+             "\nEqual accuracy: solver time [s] at e_rms(t_end) = target on each method's lower envelope of (error, "
+             "time) runs, interpolated log-log between adjacent envelope runs (never extrapolated; '≤': its cheapest "
+             "run already meets the target; '- (min e)': no run reaches it, e the smallest error; '- (failed)': no run "
+             "ended ok); x = ratio to the baseline {}\n",
+             t.reference.empty() ? "(none)" : t.reference);
   fmt::print(out, "{:<28}", "method");
   for (double e : t.targets) fmt::print(out, " {:>22}", fmt::format("e_rms {:g} m", e));
   fmt::print(out, "\n");
   for (std::size_t m = 0; m < t.labels.size(); ++m) {
     fmt::print(out, "{:<28}", t.labels[m]);
     for (std::size_t j = 0; j < t.targets.size(); ++j) {
-      std::string cell = "-";
-      if (t.cost[m][j])
-        cell = t.ratio[m][j] ? fmt::format("{:.3f} s ({:.2f}x)", *t.cost[m][j], *t.ratio[m][j])
-                             : fmt::format("{:.3f} s", *t.cost[m][j]);
+      std::string cell = m < t.min_error.size() && t.min_error[m] ? fmt::format("- (min {:.1e} m)", *t.min_error[m])
+                         : m < t.min_error.size()                ? std::string("- (failed)")
+                                                                 : std::string("-");
+      if (t.cost[m][j]) {
+        const bool bound = m < t.upper_bound.size() && t.upper_bound[m][j];
+        cell = t.ratio[m][j] ? fmt::format("{}{:.3f} s ({:.2f}x)", bound ? "≤ " : "", *t.cost[m][j], *t.ratio[m][j])
+                             : fmt::format("{}{:.3f} s", bound ? "≤ " : "", *t.cost[m][j]);
+      }
       fmt::print(out, " {:>22}", cell);
     }
     fmt::print(out, "\n");

@@ -1,22 +1,41 @@
 #include "results/work_precision.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace clothbench {
 
-std::optional<double> CostAtError(const std::vector<WorkPoint>& points, double target) {
-  if (!(target > 0.0)) return std::nullopt;
+std::vector<WorkPoint> CostEnvelope(const std::vector<WorkPoint>& points) {
   std::vector<WorkPoint> p;
   for (const WorkPoint& w : points)
     if (w.cost > 0.0 && w.error > 0.0 && std::isfinite(w.cost) && std::isfinite(w.error)) p.push_back(w);
-  for (std::size_t k = 0; k + 1 < p.size(); ++k) {
-    const double e1 = p[k].error, e2 = p[k + 1].error;
-    if (!((e1 >= target && target >= e2) || (e1 <= target && target <= e2))) continue;
-    if (e1 == e2) return std::min(p[k].cost, p[k + 1].cost);
-    const double s = (std::log(target) - std::log(e1)) / (std::log(e2) - std::log(e1));
-    return std::exp(std::log(p[k].cost) + s * (std::log(p[k + 1].cost) - std::log(p[k].cost)));
+  std::sort(p.begin(), p.end(), [](const WorkPoint& a, const WorkPoint& b) {
+    return a.cost < b.cost || (a.cost == b.cost && a.error < b.error);
+  });
+  std::vector<WorkPoint> envelope;
+  for (const WorkPoint& w : p)  // keep a run only if it is more accurate than every cheaper one
+    if (envelope.empty() || w.error < envelope.back().error) envelope.push_back(w);
+  return envelope;
+}
+
+CostEstimate CostAtError(const std::vector<WorkPoint>& points, double target) {
+  CostEstimate c;
+  if (!(target > 0.0)) return c;
+  const std::vector<WorkPoint> p = CostEnvelope(points);
+  if (p.empty()) return c;
+  if (p.front().error <= target) {
+    c.cost = p.front().cost;
+    c.upper_bound = true;
+    return c;
   }
-  return std::nullopt;
+  for (std::size_t k = 0; k + 1 < p.size(); ++k) {
+    const double e1 = p[k].error, e2 = p[k + 1].error;  // e1 > e2
+    if (!(e1 > target && target >= e2)) continue;
+    const double s = (std::log(target) - std::log(e1)) / (std::log(e2) - std::log(e1));
+    c.cost = std::exp(std::log(p[k].cost) + s * (std::log(p[k + 1].cost) - std::log(p[k].cost)));
+    return c;
+  }
+  return c;
 }
 
 EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& labels,
@@ -31,8 +50,16 @@ EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& label
     if (!reference.empty() && labels[m] == reference) ref = static_cast<int>(m);
   for (std::size_t m = 0; m < labels.size(); ++m) {
     std::vector<std::optional<double>> row;
-    for (double e : targets) row.push_back(CostAtError(points[m], e));
+    std::vector<bool> bound;
+    for (double e : targets) {
+      const CostEstimate c = CostAtError(points[m], e);
+      row.push_back(c.cost);
+      bound.push_back(c.upper_bound);
+    }
     t.cost.push_back(row);
+    t.upper_bound.push_back(bound);
+    const std::vector<WorkPoint> envelope = CostEnvelope(points[m]);
+    t.min_error.push_back(envelope.empty() ? std::nullopt : std::optional(envelope.back().error));
   }
   for (std::size_t m = 0; m < labels.size(); ++m) {
     std::vector<std::optional<double>> row;

@@ -16,29 +16,47 @@ struct WorkPoint {
   double error = 0.0;
 };
 
-/// The cost at error `target`, interpolated log-log between the first two
-/// consecutive points (in the given order, e.g. h or rtol decreasing) whose
-/// errors bracket the target: log c = log c₁ + (log e* − log e₁)
-/// (log c₂ − log c₁)/(log e₂ − log e₁). Never extrapolates: nothing if no
-/// consecutive pair brackets the target. Points with a non-positive cost or
-/// error are skipped.
-std::optional<double> CostAtError(const std::vector<WorkPoint>& points, double target);
+/// The lower envelope of a method's runs: the runs no other run dominates
+/// (none is at most as costly and at most as wrong, and better in one), in
+/// order of increasing cost and so of strictly decreasing error. Points with
+/// a non-positive or non-finite cost or error are left out.
+std::vector<WorkPoint> CostEnvelope(const std::vector<WorkPoint>& points);
+
+/// A method's cost at a target error.
+struct CostEstimate {
+  /// The cost [s]; nothing if no run reaches the target.
+  std::optional<double> cost;
+  /// True if the cheapest run already meets the target: `cost` is then that
+  /// run's cost, an upper bound of the cost at the target ("≤ t s").
+  bool upper_bound = false;
+};
+
+/// The cost at error `target`, read off CostEnvelope(points): interpolated
+/// log-log between the two adjacent envelope points whose errors bracket the
+/// target, log c = log c₁ + (log e* − log e₁)(log c₂ − log c₁)/(log e₂ − log e₁);
+/// the cheapest run's cost as an upper bound if that run meets the target
+/// already; nothing if no run reaches it. Never extrapolates.
+CostEstimate CostAtError(const std::vector<WorkPoint>& points, double target);
 
 /// The equal-accuracy table: per method (row) and target (column) the
-/// interpolated cost, the ratio to the reference method's cost at the same
+/// envelope cost, the ratio to the baseline method's cost at the same
 /// target, and the fastest method per target.
 struct EqualAccuracyTable {
   std::vector<double> targets;                          ///< [m]
   std::vector<std::string> labels;                      ///< one per method
   std::vector<std::vector<std::optional<double>>> cost; ///< [method][target] solver time [s]
-  std::vector<std::vector<std::optional<double>>> ratio;///< cost / the reference method's cost
-  std::vector<int> fastest;                             ///< per target: method index, −1 if none brackets it
-  std::string reference;                                ///< the label the ratios are relative to (may be absent)
+  std::vector<std::vector<bool>> upper_bound;           ///< [method][target] cost is "≤" (CostEstimate)
+  std::vector<std::vector<std::optional<double>>> ratio;///< cost / the baseline's cost
+  std::vector<int> fastest;                             ///< per target: method index, −1 if none reaches it
+  /// Per method: its smallest error over the valid runs [m] (why a target
+  /// has no cost); nothing if no run is valid (all failed).
+  std::vector<std::optional<double>> min_error;
+  std::string reference;                                ///< the baseline label the ratios are relative to (may be absent)
 };
 
 /// @param labels  method labels; points[k] are the runs of labels[k]
-/// @param reference the label the ratio is relative to ("cvode"); empty or
-///                  absent: no ratios
+/// @param reference the baseline label the ratios are relative to
+///                  ("cvode"); empty or absent: no ratios
 EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& labels,
                                            const std::vector<std::vector<WorkPoint>>& points,
                                            const std::vector<double>& targets, const std::string& reference);

@@ -76,6 +76,8 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --no-such-flag" + o), "no-such-flag");
   ExpectOneLineError(RunBench(tiny + " --preconditioner ilu" + o), "--preconditioner: \"ilu\" must be");
   ExpectOneLineError(RunBench(tiny + " --frames some" + o), "--frames: \"some\" must be");
+  ExpectOneLineError(RunBench(tiny + " --integrators sbdf2 --baseline cvode" + o),
+                     "--baseline: \"cvode\" is not a row of this run (sbdf2)");
   ExpectOneLineError(RunBench(tiny + " --tangent-terms some" + o), "--tangent-terms: \"some\" must be all or tension");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting foo=1" + o), "--cvode-setting: \"foo\" is not one of");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting eps_lin=-1" + o), "--cvode-setting: eps_lin=-1: must be");

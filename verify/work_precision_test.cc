@@ -2,6 +2,7 @@
 // synthetic points with known answers.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "results/work_precision.h"
@@ -20,27 +21,72 @@ std::vector<WorkPoint> PowerLaw(const std::vector<double>& errors) {
 TEST(WorkPrecision, LogLogInterpolationIsExactOnAPowerLaw) {
   const std::vector<WorkPoint> p = PowerLaw({1e-1, 1e-2, 1e-3, 1e-4});
   for (double target : {5e-2, 1e-2, 3e-3, 2e-4}) {
-    const auto c = CostAtError(p, target);
-    ASSERT_TRUE(c.has_value()) << target;
-    EXPECT_NEAR(*c, 1e-3 / std::sqrt(target), 1e-12 * *c) << target;
+    const CostEstimate c = CostAtError(p, target);
+    ASSERT_TRUE(c.cost.has_value()) << target;
+    EXPECT_FALSE(c.upper_bound);
+    EXPECT_NEAR(*c.cost, 1e-3 / std::sqrt(target), 1e-12 * *c.cost) << target;
   }
 }
 
-TEST(WorkPrecision, NeverExtrapolates) {
+TEST(WorkPrecision, NeverExtrapolatesButBoundsFromAbove) {
   const std::vector<WorkPoint> p = PowerLaw({1e-1, 1e-2});
-  EXPECT_FALSE(CostAtError(p, 2e-1).has_value());
-  EXPECT_FALSE(CostAtError(p, 5e-3).has_value());
-  EXPECT_FALSE(CostAtError({}, 1e-2).has_value());
-  EXPECT_FALSE(CostAtError({{1.0, 1e-2}}, 1e-3).has_value());
+  // The cheapest run (e = 1e-1) already meets 2e-1: at most its cost.
+  const CostEstimate above = CostAtError(p, 2e-1);
+  ASSERT_TRUE(above.cost.has_value());
+  EXPECT_TRUE(above.upper_bound);
+  EXPECT_EQ(*above.cost, p[0].cost);
+  EXPECT_FALSE(CostAtError(p, 5e-3).cost.has_value());  // below every run: no number
+  EXPECT_FALSE(CostAtError({}, 1e-2).cost.has_value());
+  EXPECT_FALSE(CostAtError({{1.0, 1e-2}}, 1e-3).cost.has_value());
 }
 
-TEST(WorkPrecision, FirstBracketingPairInRunOrderAndInvalidPointsSkipped) {
-  // Errors not monotone: 1e-2 → 1e-4 → 1e-3. The first consecutive pair that
-  // brackets 1e-3 is (1e-2, 1e-4), at costs (1, 100): log-log midpoint 10.
+TEST(WorkPrecision, EnvelopeDropsDominatedRunsAndInvalidPoints) {
+  // Errors not monotone in run order: 1e-2 → 1e-4 → 1e-3. The run at
+  // (1000 s, 1e-3) is dominated by (100 s, 1e-4); the envelope is
+  // (1, 1e-2), (100, 1e-4), and 1e-3 lies at their log-log midpoint: 10 s.
   const std::vector<WorkPoint> p = {{1.0, 1e-2}, {-1.0, 5e-3}, {100.0, 1e-4}, {1000.0, 1e-3}};
-  const auto c = CostAtError(p, 1e-3);
-  ASSERT_TRUE(c.has_value());
-  EXPECT_NEAR(*c, 10.0, 1e-12);
+  const std::vector<WorkPoint> envelope = CostEnvelope(p);
+  ASSERT_EQ(envelope.size(), 2u);
+  EXPECT_EQ(envelope[1].cost, 100.0);
+  const CostEstimate c = CostAtError(p, 1e-3);
+  ASSERT_TRUE(c.cost.has_value());
+  EXPECT_NEAR(*c.cost, 10.0, 1e-12);
+}
+
+TEST(WorkPrecision, ACheaperMoreAccurateRunWins) {
+  // Fixed-point BDF(2)'s pattern: cost falls as h shrinks, because the
+  // fixed point needs fewer updates. The cheapest run (0.572 s) is also the
+  // most accurate, so every target it meets is "≤ 0.572 s".
+  const std::vector<WorkPoint> p = {{1.587, 2.3e-4}, {0.811, 1.1e-4}, {0.600, 4e-5}, {0.572, 1.4e-5}};
+  ASSERT_EQ(CostEnvelope(p).size(), 1u);
+  const CostEstimate c = CostAtError(p, 1e-4);
+  ASSERT_TRUE(c.cost.has_value());
+  EXPECT_TRUE(c.upper_bound);
+  EXPECT_EQ(*c.cost, 0.572);
+}
+
+// The invariant the table promises: no run is both cheaper than the reported
+// cost and at or below the target; a method with a run at or below the
+// target reports a number; one without reports none.
+TEST(WorkPrecision, NoRunBeatsTheReportedCost) {
+  unsigned state = 12345u;
+  const auto uniform = [&state]() {
+    state = state * 1664525u + 1013904223u;
+    return static_cast<double>(state >> 8) / static_cast<double>(1u << 24);
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    std::vector<WorkPoint> p;
+    const int n = 1 + trial % 7;
+    for (int k = 0; k < n; ++k) p.push_back({std::pow(10.0, -2.0 + 3.0 * uniform()), std::pow(10.0, -6.0 + 5.0 * uniform())});
+    for (double target : {1e-2, 1e-3, 1e-4, 1e-5}) {
+      const CostEstimate c = CostAtError(p, target);
+      const bool reachable = std::any_of(p.begin(), p.end(), [&](const WorkPoint& w) { return w.error <= target; });
+      ASSERT_EQ(c.cost.has_value(), reachable) << trial << " " << target;
+      if (!c.cost) continue;
+      for (const WorkPoint& w : p)
+        EXPECT_FALSE(w.cost < *c.cost * (1.0 - 1e-12) && w.error <= target) << trial << " " << target;
+    }
+  }
 }
 
 TEST(WorkPrecision, TableRatiosAndFastest) {
@@ -54,9 +100,12 @@ TEST(WorkPrecision, TableRatiosAndFastest) {
   EXPECT_NEAR(*t.cost[0][1], 2.0, 1e-12);
   EXPECT_NEAR(*t.ratio[0][1], 0.5, 1e-12);
   EXPECT_NEAR(*t.ratio[1][1], 1.0, 1e-12);
-  EXPECT_FALSE(t.cost[0][0].has_value());
-  EXPECT_FALSE(t.ratio[2][0].has_value());  // cvode does not bracket 1e-1
-  EXPECT_EQ(t.fastest[0], 2);
+  // a and cvode already meet 1e-1 with their cheapest run: upper bounds.
+  EXPECT_TRUE(t.upper_bound[0][0] && t.upper_bound[1][0]);
+  EXPECT_NEAR(*t.ratio[0][0], 0.5, 1e-12);
+  EXPECT_FALSE(t.cost[2][1].has_value());  // b never reaches 1e-3
+  EXPECT_NEAR(*t.min_error[2], 5e-2, 1e-15);
+  EXPECT_EQ(t.fastest[0], 2);  // b: 0.5 s ≤ a's 1.0 s bound at 1e-1
   EXPECT_EQ(t.fastest[1], 0);
 }
 
