@@ -55,7 +55,7 @@ int Main(int argc, char** argv) {
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
-  std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline);
+  std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline), error_metric = "final";
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
@@ -102,6 +102,9 @@ int Main(int argc, char** argv) {
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--preconditioner", preconditioner,
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
+  app.add_option("--error-metric", error_metric,
+                 "the error of the e_rms column, the observed orders, the equal-accuracy table and the plots: final "
+                 "(e_rms at t_end, default) | l2 (rms over the frames) | max (max over the frames)");
   app.add_option("--baseline", baseline,
                  "the row the equal-accuracy ratios are relative to (default cvode: CVODE with the reduced solve)");
   app.add_option("--tangent-terms", tangent_terms,
@@ -229,6 +232,9 @@ int Main(int argc, char** argv) {
       throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", arkode_table, known));
     }
     const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
+    const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
+    if (!metric)
+      throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));
     if (app.count("--baseline") &&
         std::none_of(methods.begin(), methods.end(), [&](const RowMethod& m) { return m.label() == baseline; })) {
       std::string labels;
@@ -259,7 +265,7 @@ int Main(int argc, char** argv) {
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     CheckOutputFolder(out);
 
-    BenchRun run{scene, methods, plan, etas, targets, baseline, hs, reference_entry, ref_rtol, out, plot_dir, series,
+    BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, hs, reference_entry, ref_rtol, out, plot_dir, series,
                  frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
                  app.count("--preconditioner") > 0, app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0,
                  app.count("--tangent-terms") > 0, time_limit, max_runs, arkode_table, cvode_settings};

@@ -90,7 +90,7 @@ void PrintSummary(const ResultReader& f, const RunTable& t) {
              "solver_s", "e_rms_m");
   for (const RunRecord& r : t.runs)
     fmt::print("{:<36} {:<10} {:>7} {:>8} {:>9} {:>10.3f} {:>11}\n", r.id, r.status, r.steps, r.updates,
-               r.cg_iterations, r.solver_time_s, Opt(r.error_rms_m));
+               r.cg_iterations, r.solver_time_s, Opt(r.error_final_m));
   if (t.work_precision)
     fmt::print("work_precision: {} methods × {} targets\n", t.work_precision->labels.size(),
                t.work_precision->targets.size());
@@ -100,7 +100,7 @@ void PrintRuns(const ResultReader& f, const RunTable& t, bool json) {
   if (!json) {
     for (const RunRecord& r : t.runs)
       fmt::print("{} label={} status={} steps={} updates={} cg_iterations={} solver_time_s={:.6g} e_rms_m={}\n", r.id,
-                 r.label, r.status, r.steps, r.updates, r.cg_iterations, r.solver_time_s, Opt(r.error_rms_m, "{:.6e}"));
+                 r.label, r.status, r.steps, r.updates, r.cg_iterations, r.solver_time_s, Opt(r.error_final_m, "{:.6e}"));
     return;
   }
   // Every scalar attribute of every run, plus its id and stored frames.
@@ -144,11 +144,11 @@ int Diff(const RunTable& a, const RunTable& b, const std::string& path_b, double
     const RunRecord& rb = *it->second;
     std::vector<std::string> flags;
     std::string rel = "-";
-    if (ra.error_rms_m && rb.error_rms_m) {
-      const double d = Relative(*ra.error_rms_m, *rb.error_rms_m);
+    if (ra.error_final_m && rb.error_final_m) {
+      const double d = Relative(*ra.error_final_m, *rb.error_final_m);
       rel = fmt::format("{:+.2e}", d);
       if (!(std::fabs(d) <= rtol)) flags.push_back("e_rms");
-    } else if (ra.error_rms_m.has_value() != rb.error_rms_m.has_value()) {
+    } else if (ra.error_final_m.has_value() != rb.error_final_m.has_value()) {
       flags.push_back("e_rms");
     }
     if (ra.status != rb.status) flags.push_back(fmt::format("status {}→{}", ra.status, rb.status));
@@ -159,8 +159,8 @@ int Diff(const RunTable& a, const RunTable& b, const std::string& path_b, double
     if (ratio > 1.0 + time_tolerance || ratio < 1.0 / (1.0 + time_tolerance)) flags.push_back("time");
     std::string joined;
     for (const std::string& s : flags) joined += (joined.empty() ? "" : ",") + s;
-    fmt::print("{:<36} {:>11} {:>11} {:>10} {:>13} {:>15} {:>17} {:>8.2f}  {}\n", ra.id, Opt(ra.error_rms_m),
-               Opt(rb.error_rms_m), rel, fmt::format("{}→{}", ra.steps, rb.steps),
+    fmt::print("{:<36} {:>11} {:>11} {:>10} {:>13} {:>15} {:>17} {:>8.2f}  {}\n", ra.id, Opt(ra.error_final_m),
+               Opt(rb.error_final_m), rel, fmt::format("{}→{}", ra.steps, rb.steps),
                fmt::format("{}→{}", ra.updates, rb.updates), fmt::format("{}→{}", ra.cg_iterations, rb.cg_iterations),
                ratio, joined);
     if (!flags.empty()) ++flagged;

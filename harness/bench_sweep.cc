@@ -166,9 +166,10 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
       throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
     }
   }
-  CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline);
-  const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr);
+  CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
+  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline, b.error_metric);
+  const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr,
+                                         b.error_metric);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);
   if (ref) PrintWorkPrecision(stdout, wp);
   if (!b.series.empty()) WriteSeries(b.series, rows);

@@ -22,6 +22,7 @@ struct BenchRun {
   std::vector<double> etas;        ///< CG tolerances (rows that use the PCG run once per value)
   std::vector<double> targets;     ///< e_rms targets of the equal-accuracy table [m]
   std::string baseline;            ///< the row label the equal-accuracy ratios are relative to (--baseline)
+  ErrorMetric error_metric = ErrorMetric::kFinal;  ///< --error-metric
   std::vector<double> hs;          ///< --h (empty: defaults); sets the self-convergence reference's h
   const MethodEntry* reference = nullptr;  ///< the reference method (nullptr: none)
   double ref_rtol = 1e-10;

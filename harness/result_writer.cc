@@ -60,7 +60,8 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
 
 // The table's content as plain data (results/run_table.h): what is printed
 // and what the file stores, so that clothbench_inspect can print it again.
-void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, std::vector<MethodRun>* rows) {
+void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, ErrorMetric metric,
+                        std::vector<MethodRun>* rows) {
   const auto step = [&](const MethodRun& q) {
     if (q.kind() == StepKind::kAdaptive) return q.steps > 0 ? t_end / static_cast<double>(q.steps) : 0.0;
     return q.substeps > 0 ? q.h / static_cast<double>(q.substeps) : q.h;
@@ -71,16 +72,20 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
       r.energy = ComputeEnergies(sys, r.traj);
       if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
     }
-    if (ref && r.ok()) r.err = CompareTrajectories(r.traj.positions, ref->trajectory.positions);
+    if (ref && r.ok()) r.err = CompareTrajectories(r.traj, ref->trajectory);
     if (r.err) {  // only where they exist: no NaN is ever written
-      r.error_rms_m = r.err->rms_at_end;
+      r.error_final_m = r.err->rms_at_end;
+      r.error_l2_m = r.err->rms_l2;
       r.error_max_m = r.err->rms_max;
       r.error_mean_m = r.err->mean_at_end;
+      r.error_final_mps = r.err->v_rms_at_end;
+      r.error_l2_mps = r.err->v_rms_l2;
+      r.error_max_mps = r.err->v_rms_max;
     }
     if (i == 0) continue;
     const MethodRun& p = (*rows)[i - 1];
     if (p.label == r.label && r.err && p.err && step(p) != step(r) && step(r) > 0.0 && step(p) > 0.0) {
-      const double order = ObservedOrder(step(p), p.err->rms_at_end, step(r), r.err->rms_at_end);
+      const double order = ObservedOrder(step(p), p.err->Of(metric), step(r), r.err->Of(metric));
       if (std::isfinite(order)) r.observed_order = order;
     }
   }
@@ -88,8 +93,9 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
 
 RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                       const ReferenceOptions& ref_opts, const std::vector<Row>& rows, const std::string& frames_mode,
-                      const EqualAccuracyTable* wp) {
+                      const EqualAccuracyTable* wp, ErrorMetric metric) {
   RunTable t;
+  t.error_metric = std::string(ToString(metric));
   t.created = NowIso8601Utc();
   t.git_commit = GitCommit();
   t.host = HostName();
@@ -152,6 +158,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   ResultFile f(path);
   WriteProvenance(f);
   f.SetAttribute("/", "mpi_ranks", mpi_ranks);
+  f.SetAttribute("/", "error_metric", table.error_metric);
   f.CreateGroup("/scene");
   WriteSceneRecord(f, table);
   f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
@@ -278,7 +285,7 @@ std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 // The equal-accuracy table (docs/work-precision.md): each row label's
 // (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
 EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets,
-                                 const std::string& baseline) {
+                                 const std::string& baseline, ErrorMetric metric) {
   std::vector<std::string> labels;
   std::vector<std::vector<WorkPoint>> points;
   for (const Row& r : rows) {
@@ -288,9 +295,11 @@ EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector
       points.emplace_back();
       it = labels.end() - 1;
     }
-    if (r.ok() && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time_s, r.err->rms_at_end});
+    if (r.ok() && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time_s, r.err->Of(metric)});
   }
-  return BuildEqualAccuracyTable(labels, points, targets, baseline);
+  EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
+  t.metric = std::string(ToString(metric));
+  return t;
 }
 
 

@@ -20,7 +20,9 @@ namespace clothbench {
 /// between consecutive rows of one label (against h/substeps; adaptive rows
 /// against their mean step t_end/steps; none between two rows with the same
 /// step). @param rows in table order
-void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, std::vector<MethodRun>* rows);
+/// @param metric the error norm of the observed orders
+void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, ErrorMetric metric,
+                        std::vector<MethodRun>* rows);
 
 /// The table's content as plain data: what is printed and what the file
 /// stores, so that clothbench_inspect can print it again. `rows` have been
@@ -28,7 +30,7 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
 /// @param ref the reference run, if any; @param wp the equal-accuracy table, if any
 RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                       const ReferenceOptions& ref_opts, const std::vector<MethodRun>& rows,
-                      const std::string& frames_mode, const EqualAccuracyTable* wp);
+                      const std::string& frames_mode, const EqualAccuracyTable* wp, ErrorMetric metric);
 
 /// Writes the result file `path` (atomically: a temporary file renamed on
 /// Commit) with the scene, the reference, every row and `table`'s records.
@@ -43,10 +45,10 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
 void WriteSeries(const std::string& path, const std::vector<MethodRun>& rows);
 
 /// The equal-accuracy table (docs/work-precision.md) of the rows at the
-/// e_rms `targets` [m], with ratios to the row labelled `baseline`
+/// error `targets` [m] of `metric`, with ratios to the row labelled `baseline`
 /// (--baseline; kWorkPrecisionBaseline by default).
 EqualAccuracyTable WorkPrecision(const std::vector<MethodRun>& rows, const std::vector<double>& targets,
-                                 const std::string& baseline);
+                                 const std::string& baseline, ErrorMetric metric);
 
 }  // namespace clothbench
 

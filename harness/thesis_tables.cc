@@ -246,7 +246,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     f.SetAttribute(g, "cg_iterations", r.cg_iterations);
     f.SetAttribute(g, "solver_time_s", r.solver_time_in_seconds);
     if (err) {
-      f.SetAttribute(g, "error_rms_m", *err);
+      f.SetAttribute(g, "error_final_m", *err);
       f.SetAttribute(g, "reference_h", h_ref);
     }
     f.SetAttribute(g, "thesis_updates", tr.updates);

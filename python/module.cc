@@ -158,8 +158,10 @@ py::dict RecordDict(const RunRecord& r) {
                       {"updates", r.updates}, {"cg_iterations", r.cg_iterations}, {"rejected", r.rejected},
                       {"error_test_failures", r.error_test_failures}, {"cg_unconverged", r.cg_unconverged}})
     d[k] = v;
-  for (auto [k, v] : {std::pair<const char*, const std::optional<double>*>{"error_rms_m", &r.error_rms_m},
-                      {"error_max_m", &r.error_max_m}, {"error_mean_m", &r.error_mean_m},
+  for (auto [k, v] : {std::pair<const char*, const std::optional<double>*>{"error_final_m", &r.error_final_m},
+                      {"error_l2_m", &r.error_l2_m}, {"error_max_m", &r.error_max_m}, {"error_mean_m", &r.error_mean_m},
+                      {"error_final_mps", &r.error_final_mps}, {"error_l2_mps", &r.error_l2_mps},
+                      {"error_max_mps", &r.error_max_mps},
                       {"observed_order", &r.observed_order}, {"energy_rate_W", &r.energy_rate_W}})
     d[k] = *v ? py::cast(**v) : py::none();
   return d;
@@ -220,7 +222,7 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   }
   std::vector<MethodRun> one;  // errors and energies as the result file has them
   one.push_back(std::move(r));
-  CompareToReference(sys, ref.get(), scene.t_end, &one);
+  CompareToReference(sys, ref.get(), scene.t_end, ErrorMetric::kFinal, &one);
   r = std::move(one.front());
   if (ref && r.ok() && !r.err)
     throw py::value_error("reference: its frames do not match the run's (the same scene and t_end?)");
@@ -290,7 +292,9 @@ py::dict Reference(const py::object& scene_arg, const std::string& method, doubl
 // reference.
 void WriteResultFile(const std::string& path, const py::object& scene_arg, const py::list& runs,
                      const py::object& reference, const std::string& frames, const std::vector<double>& targets,
-                     const std::string& baseline) {
+                     const std::string& baseline, const std::string& error_metric) {
+  const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
+  if (!metric) throw py::value_error("error_metric: \"" + error_metric + "\" must be final, l2 or max");
   const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict())
                                                          : scene_arg.cast<Scene>();
   if (frames != "default" && frames != "positions" && frames != "all" && frames != "ends" && frames != "none")
@@ -317,9 +321,9 @@ void WriteResultFile(const std::string& path, const py::object& scene_arg, const
     ref_opts.rtol = d["rtol"].cast<double>();
   }
   py::gil_scoped_release release;
-  CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline);
-  const RunTable table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames, ref ? &wp : nullptr);
+  CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, *metric, &rows);
+  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric);
+  const RunTable table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames, ref ? &wp : nullptr, *metric);
   WriteResults(path, scene, sys, ref, ref_opts, rows, table, 1);
 }
 
@@ -426,12 +430,12 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("progress") = py::none(), py::arg("reference") = py::none(),
         "Runs one row as bench_integrators does (the GIL released). Returns a dict: times [F], positions and "
         "velocities [F, N, 3], step_stats (structured array), counts, times, status, energies, and with "
-        "reference= (a dict from reference()) error_rms_m, error_max_m and error_mean_m. progress(t, t_end) is "
+        "reference= (a dict from reference()) error_final_m, error_l2_m, error_max_m (and _mps for the velocities). progress(t, t_end) is "
         "called at most every 0.2 s; an exception it raises stops the run and is raised again.");
   m.def("write_results", &WriteResultFile, py::arg("path"), py::arg("scene"), py::arg("runs"),
         py::arg("reference") = py::none(), py::arg("frames") = std::string("default"),
         py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
-        py::arg("baseline") = std::string(kWorkPrecisionBaseline),
+        py::arg("baseline") = std::string(kWorkPrecisionBaseline), py::arg("error_metric") = std::string("final"),
         "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
         "as the HDF5 result file bench_integrators writes (docs/results-schema.md). Raises RuntimeError if the "
         "file cannot be written.");

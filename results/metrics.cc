@@ -12,13 +12,53 @@ double ErrorMean(const MatrixN3& x, const MatrixN3& ref) {
   return (x - ref).rowwise().norm().sum() / static_cast<double>(x.rows());
 }
 
+std::string_view ToString(ErrorMetric m) {
+  return m == ErrorMetric::kL2 ? "l2" : m == ErrorMetric::kMax ? "max" : "final";
+}
+
+std::optional<ErrorMetric> ParseErrorMetric(std::string_view text) {
+  if (text == "final") return ErrorMetric::kFinal;
+  if (text == "l2") return ErrorMetric::kL2;
+  if (text == "max") return ErrorMetric::kMax;
+  return std::nullopt;
+}
+
+namespace {
+
+// e_rms at the last frame, its root mean square over the frames and its
+// maximum; false if a value is not finite.
+bool FrameNorms(const std::vector<MatrixN3>& run, const std::vector<MatrixN3>& ref, double* at_end, double* l2,
+                double* max) {
+  double sum = 0.0;
+  *max = 0.0;
+  for (std::size_t k = 0; k < run.size(); ++k) {
+    const double e = ErrorRms(run[k], ref[k]);
+    sum += e * e;
+    *max = std::max(*max, e);
+  }
+  *at_end = ErrorRms(run.back(), ref.back());
+  *l2 = std::sqrt(sum / static_cast<double>(run.size()));
+  return std::isfinite(*at_end) && std::isfinite(*l2) && std::isfinite(*max);
+}
+
+}  // namespace
+
 std::optional<TrajectoryErrors> CompareTrajectories(const std::vector<MatrixN3>& run, const std::vector<MatrixN3>& ref) {
   if (run.size() != ref.size() || run.empty()) return std::nullopt;
   TrajectoryErrors e;
-  for (std::size_t k = 0; k < run.size(); ++k) e.rms_max = std::max(e.rms_max, ErrorRms(run[k], ref[k]));
-  e.rms_at_end = ErrorRms(run.back(), ref.back());
+  if (!FrameNorms(run, ref, &e.rms_at_end, &e.rms_l2, &e.rms_max)) return std::nullopt;
   e.mean_at_end = ErrorMean(run.back(), ref.back());
-  if (!std::isfinite(e.rms_max) || !std::isfinite(e.rms_at_end)) return std::nullopt;
+  return e;
+}
+
+std::optional<TrajectoryErrors> CompareTrajectories(const Trajectory& run, const Trajectory& ref) {
+  std::optional<TrajectoryErrors> e = CompareTrajectories(run.positions, ref.positions);
+  if (!e || run.velocities.size() != run.positions.size() || ref.velocities.size() != ref.positions.size()) return e;
+  double at_end = 0.0, l2 = 0.0, max = 0.0;
+  if (!FrameNorms(run.velocities, ref.velocities, &at_end, &l2, &max)) return std::nullopt;
+  e->v_rms_at_end = at_end;
+  e->v_rms_l2 = l2;
+  e->v_rms_max = max;
   return e;
 }
 

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "model/particle_system.h"
@@ -17,15 +18,34 @@ double ErrorRms(const MatrixN3& x, const MatrixN3& ref);
 /// The thesis' "normalised by the number of nodes" error (1/N) Σ_p |x_p − x_p^ref| [m] (§2.8).
 double ErrorMean(const MatrixN3& x, const MatrixN3& ref);
 
+/// Which error norm the observed orders, the equal-accuracy table and the
+/// plots use (--error-metric; docs/work-precision.md): e_rms at t_end
+/// ("final"), the root mean square over the frames of the per-frame e_rms
+/// ("l2"), or its maximum over the frames ("max").
+enum class ErrorMetric { kFinal, kL2, kMax };
+std::string_view ToString(ErrorMetric m);
+/// "final", "l2" or "max"; nothing for any other text.
+std::optional<ErrorMetric> ParseErrorMetric(std::string_view text);
+
 struct TrajectoryErrors {
   double rms_at_end = 0.0;   ///< e_rms at the last frame [m]
+  double rms_l2 = 0.0;       ///< sqrt((1/F) Σ_f e_rms(f)²) over the F frames [m]
   double rms_max = 0.0;      ///< max over frames of e_rms [m]
   double mean_at_end = 0.0;  ///< (1/N) Σ|x − x_ref| at the last frame [m]
+  /// The same three of the velocities [m/s], if both runs kept them.
+  std::optional<double> v_rms_at_end, v_rms_l2, v_rms_max;
+  /// The position error of `metric` [m].
+  double Of(ErrorMetric metric) const {
+    return metric == ErrorMetric::kL2 ? rms_l2 : metric == ErrorMetric::kMax ? rms_max : rms_at_end;
+  }
 };
 
-/// Compares frame by frame. Returns nothing if the frame counts differ (a run
-/// that stopped early) or a value is not finite.
+/// Compares positions frame by frame. Returns nothing if the frame counts
+/// differ (a run that stopped early) or a value is not finite.
 std::optional<TrajectoryErrors> CompareTrajectories(const std::vector<MatrixN3>& run, const std::vector<MatrixN3>& ref);
+/// The same, and the velocities' errors where both trajectories hold every
+/// frame's velocities.
+std::optional<TrajectoryErrors> CompareTrajectories(const Trajectory& run, const Trajectory& ref);
 
 /// Observed order log(e1/e2)/log(h1/h2) between step sizes h1 > h2 (docs/model.md §9).
 double ObservedOrder(double h1, double e1, double h2, double e2);

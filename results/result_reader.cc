@@ -251,8 +251,13 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
   r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
   r.setup_time_s = f.Double(g, "setup_time_s").value_or(-1.0);
   r.numerical_stiffness = f.Double(g, "numerical_stiffness").value_or(0.0);
-  r.error_rms_m = f.Double(g, "error_rms_m");
+  r.error_final_m = f.Double(g, "error_final_m");
+  if (!r.error_final_m) r.error_final_m = f.Double(g, "error_rms_m");  // files before error_final_m
+  r.error_l2_m = f.Double(g, "error_l2_m");
   r.error_max_m = f.Double(g, "error_max_m");
+  r.error_final_mps = f.Double(g, "error_final_mps");
+  r.error_l2_mps = f.Double(g, "error_l2_mps");
+  r.error_max_mps = f.Double(g, "error_max_mps");
   r.error_mean_m = f.Double(g, "error_mean_m");
   r.observed_order = f.Double(g, "observed_order");
   r.energy_rate_W = f.Double(g, "energy_rate_W");
@@ -269,6 +274,7 @@ RunTable ReadRunTable(const ResultReader& f) {
   t.compiler = str("/", "compiler");
   t.build_type = str("/", "build_type");
   t.hardware_threads = f.Long("/", "hardware_threads").value_or(0);
+  t.error_metric = f.String("/", "error_metric").value_or("final");
   t.scene_name = str("/scene", "name");
   t.scene_source = str("/scene", "source");
   t.explicit_terms = str("/scene", "explicit_terms");
@@ -290,6 +296,7 @@ RunTable ReadRunTable(const ResultReader& f) {
     EqualAccuracyTable w;
     w.targets = f.Doubles("/work_precision/targets");
     w.reference = f.String("/work_precision", "baseline").value_or(str("/work_precision", "reference_method"));
+    w.metric = f.String("/work_precision", "error_metric").value_or("final");
     std::stringstream labels(str("/work_precision", "labels"));  // comma-separated
     for (std::string label; std::getline(labels, label, ',');) w.labels.push_back(label);
     const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
@@ -350,8 +357,12 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
   f.SetAttribute(g, "numerical_stiffness", r.numerical_stiffness);
   if (r.cg_tolerance > 0.0) f.SetAttribute(g, "cg_tolerance", r.cg_tolerance);
   // Errors only where they exist: no NaN is ever written.
-  if (r.error_rms_m) f.SetAttribute(g, "error_rms_m", *r.error_rms_m);
+  if (r.error_final_m) f.SetAttribute(g, "error_final_m", *r.error_final_m);
+  if (r.error_l2_m) f.SetAttribute(g, "error_l2_m", *r.error_l2_m);
   if (r.error_max_m) f.SetAttribute(g, "error_max_m", *r.error_max_m);
+  if (r.error_final_mps) f.SetAttribute(g, "error_final_mps", *r.error_final_mps);
+  if (r.error_l2_mps) f.SetAttribute(g, "error_l2_mps", *r.error_l2_mps);
+  if (r.error_max_mps) f.SetAttribute(g, "error_max_mps", *r.error_max_mps);
   if (r.error_mean_m) f.SetAttribute(g, "error_mean_m", *r.error_mean_m);
   if (r.observed_order) f.SetAttribute(g, "observed_order", *r.observed_order);
   if (r.energy_rate_W) f.SetAttribute(g, "energy_rate_W", *r.energy_rate_W);
@@ -378,6 +389,7 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
 void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
   f.CreateGroup("/work_precision");
   f.SetAttribute("/work_precision", "baseline", t.reference);
+  f.SetAttribute("/work_precision", "error_metric", t.metric);
   f.SetAttribute("/work_precision", "measure",
                  std::string("solver_time_s at e_rms(t_end) = target on each method's lower envelope of (error, "
                              "solver_time_s) runs, log-log interpolation between adjacent envelope runs; upper_bound 1: "

@@ -31,6 +31,15 @@ std::string JoinCommaSpace(const std::string& comma_separated) {
 
 }  // namespace
 
+// The run table's error column and the equal-accuracy header for an error
+// metric ("final", "l2", "max"; results/metrics.h ErrorMetric).
+std::string ErrorColumn(const std::string& metric) { return metric == "final" ? "e_rms_m" : "e_" + metric + "_m"; }
+std::string ErrorName(const std::string& metric) {
+  return metric == "l2" ? "e_l2 (rms over the frames of e_rms)"
+         : metric == "max" ? "e_max (max over the frames of e_rms)"
+                           : "e_rms(t_end)";
+}
+
 void PrintRunTable(std::FILE* out, const RunTable& t) {
   fmt::print(out, "scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", t.scene_name,
              t.scene_source, t.n_particles, t.n_fixed, t.t_end, JoinCommaSpace(t.explicit_terms));
@@ -82,7 +91,8 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   else
     fmt::print(out, "reference: none (error columns empty)\n");
   fmt::print(out, "\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol",
-             "steps", "updates", "cg_iters", "solver_s", "setup_s", "e_rms_m", "order", "dE/dt_W", "status");
+             "steps", "updates", "cg_iters", "solver_s", "setup_s", ErrorColumn(t.error_metric), "order", "dE/dt_W",
+             "status");
   std::string last;
   for (const RunRecord& r : t.runs) {
     if (!last.empty() && last != r.label) fmt::print(out, "\n");
@@ -93,7 +103,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.label, hcol,
                r.steps, r.updates, r.cg_iterations, r.solver_time_s,
                r.setup_time_s >= 0 ? fmt::format("{:.3f}", r.setup_time_s) : "",
-               r.error_rms_m ? Sci(*r.error_rms_m) : "", r.observed_order ? fmt::format("{:.2f}", *r.observed_order) : "",
+               r.Error(t.error_metric) ? Sci(*r.Error(t.error_metric)) : "", r.observed_order ? fmt::format("{:.2f}", *r.observed_order) : "",
                r.ok() && r.energy_rate_W ? Sci(*r.energy_rate_W) : "", r.status);
     if (r.ok() && r.rejected > 0)
       fmt::print(out, "{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
@@ -130,13 +140,14 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
 
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
   fmt::print(out,
-             "\nEqual accuracy: solver time [s] at e_rms(t_end) = target on each method's lower envelope of (error, "
+             "\nEqual accuracy: solver time [s] at {} = target on each method's lower envelope of (error, "
              "time) runs, interpolated log-log between adjacent envelope runs (never extrapolated; '≤': its cheapest "
              "run already meets the target; '- (min e)': no run reaches it, e the smallest error; '- (failed)': no run "
              "ended ok); x = ratio to the baseline {}\n",
-             t.reference.empty() ? "(none)" : t.reference);
+             ErrorName(t.metric), t.reference.empty() ? "(none)" : t.reference);
   fmt::print(out, "{:<28}", "method");
-  for (double e : t.targets) fmt::print(out, " {:>22}", fmt::format("e_rms {:g} m", e));
+  for (double e : t.targets)
+    fmt::print(out, " {:>22}", fmt::format("{} {:g} m", t.metric == "final" ? "e_rms" : "e_" + t.metric, e));
   fmt::print(out, "\n");
   for (std::size_t m = 0; m < t.labels.size(); ++m) {
     fmt::print(out, "{:<28}", t.labels[m]);

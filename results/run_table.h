@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "results/work_precision.h"
@@ -47,9 +48,16 @@ struct RunRecord {
   double solver_time_s = 0.0, wall_time_s = 0.0;
   double setup_time_s = -1.0;     ///< < 0: not measured
   double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step
-  std::optional<double> error_rms_m;     ///< e_rms at t_end against the reference [m]
+  std::optional<double> error_final_m;   ///< e_rms at t_end against the reference [m]
+  std::optional<double> error_l2_m;      ///< root mean square over the frames of e_rms [m]
   std::optional<double> error_max_m;     ///< largest e_rms over the frames [m]
   std::optional<double> error_mean_m;    ///< mean particle distance at t_end [m]
+  /// The same three for the velocities [m/s].
+  std::optional<double> error_final_mps, error_l2_mps, error_max_mps;
+  /// The position error of `metric` ("final", "l2", "max") [m], if measured.
+  std::optional<double> Error(std::string_view metric) const {
+    return metric == "l2" ? error_l2_m : metric == "max" ? error_max_m : error_final_m;
+  }
   std::optional<double> observed_order;  ///< against the previous row of the label
   std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext)/t_end [W]
 
@@ -82,6 +90,9 @@ struct RunTable {
   /// The reference the e_rms column is measured against (/reference): the
   /// same record as a row's, its errors and order empty.
   std::optional<RunRecord> reference;
+  /// The error norm of the e_rms column, the observed orders and the
+  /// equal-accuracy table: "final", "l2" or "max" (--error-metric).
+  std::string error_metric = "final";
   std::vector<RunRecord> runs;  ///< in run order
   std::optional<EqualAccuracyTable> work_precision;
 };

@@ -52,6 +52,7 @@ struct EqualAccuracyTable {
   /// has no cost); nothing if no run is valid (all failed).
   std::vector<std::optional<double>> min_error;
   std::string reference;                                ///< the baseline label the ratios are relative to (may be absent)
+  std::string metric = "final";                         ///< the error norm of the targets (results/metrics.h ErrorMetric)
 };
 
 /// @param labels  method labels; points[k] are the runs of labels[k]

@@ -137,7 +137,7 @@ TEST(BadInput, BlowUpsEndWithAStatusAndStoreNoNonFinite) {
   const std::string status = r.String(se, "status").value_or("");
   EXPECT_TRUE(status == "non_finite" || status == "energy_growth") << status;
   EXPECT_FALSE(r.Double(se, "energy_rate_W").has_value());
-  EXPECT_FALSE(r.Double(se, "error_rms_m").has_value());
+  EXPECT_FALSE(r.Double(se, "error_final_m").has_value());
   // Frames up to the failure: fewer than the 101 of a complete run, at least t = 0.
   const std::size_t kept = r.Shape(se + "/times")[0];
   EXPECT_GE(kept, 1u);

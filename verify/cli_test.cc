@@ -78,6 +78,7 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --frames some" + o), "--frames: \"some\" must be");
   ExpectOneLineError(RunBench(tiny + " --integrators sbdf2 --baseline cvode" + o),
                      "--baseline: \"cvode\" is not a row of this run (sbdf2)");
+  ExpectOneLineError(RunBench(tiny + " --error-metric rms" + o), "--error-metric: \"rms\" must be final, l2 or max");
   ExpectOneLineError(RunBench(tiny + " --tangent-terms some" + o), "--tangent-terms: \"some\" must be all or tension");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting foo=1" + o), "--cvode-setting: \"foo\" is not one of");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting eps_lin=-1" + o), "--cvode-setting: eps_lin=-1: must be");
@@ -120,7 +121,7 @@ TEST(BenchCli, CompleteRunWritesLayout) {
     EXPECT_GT(H5Oexists_by_name(f, obj, H5P_DEFAULT), 0) << obj;
   for (const char* attr : {"schema", "created", "git_commit", "host", "compiler", "build_type"})
     EXPECT_GT(H5Aexists(f, attr), 0) << attr;
-  EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "error_rms_m", H5P_DEFAULT), 0);
+  EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "error_final_m", H5P_DEFAULT), 0);
   EXPECT_GT(H5Aexists_by_name(f, "/runs/bdf2_h0.005", "observed_order", H5P_DEFAULT), 0);
   // --frames default: the label's first row (h = 0.01) keeps every frame,
   // [F, N, 3] with F = 5 frames (0, 0.01, …, 0.04) and N = 12; the second
@@ -194,7 +195,7 @@ TEST(BenchCli, FramesModesAndCompression) {
     EXPECT_EQ(H5Lexists(f, "/runs/sbdf2_h0.01/positions", H5P_DEFAULT) > 0, c.positions) << c.mode;
     EXPECT_EQ(H5Lexists(f, "/runs/sbdf2_h0.01/velocities", H5P_DEFAULT) > 0, c.velocities) << c.mode;
     EXPECT_EQ(H5Lexists(f, "/runs/sbdf2_h0.01/velocities_ends", H5P_DEFAULT) > 0, c.velocities_ends) << c.mode;
-    EXPECT_GT(H5Aexists_by_name(f, "/runs/sbdf2_h0.01", "error_rms_m", H5P_DEFAULT), 0) << c.mode;
+    EXPECT_GT(H5Aexists_by_name(f, "/runs/sbdf2_h0.01", "error_final_m", H5P_DEFAULT), 0) << c.mode;
     if (c.positions) {
       const hid_t ds = H5Dopen2(f, "/runs/sbdf2_h0.01/positions", H5P_DEFAULT);
       const hid_t dcpl = H5Dget_create_plist(ds);
@@ -226,7 +227,7 @@ TEST(BenchCli, NoReferenceLeavesErrorsOut) {
   const hid_t f = H5Fopen(out.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   ASSERT_GE(f, 0);
   EXPECT_EQ(H5Lexists(f, "/reference", H5P_DEFAULT), 0);
-  EXPECT_EQ(H5Aexists_by_name(f, "/runs/sbdf2_h0.01", "error_rms_m", H5P_DEFAULT), 0);
+  EXPECT_EQ(H5Aexists_by_name(f, "/runs/sbdf2_h0.01", "error_final_m", H5P_DEFAULT), 0);
   H5Fclose(f);
 }
 

@@ -20,6 +20,8 @@ def main(path):
         wp = f["work_precision"]
         labels = wp.attrs["labels"]
         labels = (labels.decode() if isinstance(labels, bytes) else labels).split(",")
+        metric = wp.attrs.get("error_metric", b"final")
+        key = f"error_{metric.decode() if isinstance(metric, bytes) else metric}_m"
         targets = wp["targets"][:]
         cost, bound = wp["solver_time"][:], wp["upper_bound"][:]
         runs = {}
@@ -27,8 +29,8 @@ def main(path):
             label = g.attrs["label"]
             label = label.decode() if isinstance(label, bytes) else label
             status = g.attrs["status"]
-            if (status.decode() if isinstance(status, bytes) else status) == "ok" and "error_rms_m" in g.attrs:
-                runs.setdefault(label, []).append((float(g.attrs["solver_time_s"]), float(g.attrs["error_rms_m"])))
+            if (status.decode() if isinstance(status, bytes) else status) == "ok" and key in g.attrs:
+                runs.setdefault(label, []).append((float(g.attrs["solver_time_s"]), float(g.attrs[key])))
         checked = 0
         for m, label in enumerate(labels):
             points = runs.get(label, [])

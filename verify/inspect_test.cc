@@ -97,7 +97,7 @@ TEST_F(InspectTest, ReaderReadsWhatTheWriterStored) {
   EXPECT_EQ(t.runs.back().id, "cvode_rtol1e-06");
   EXPECT_EQ(t.runs.back().step_kind, "adaptive");
   EXPECT_EQ(t.runs[2].nonlinear_solver, "newton");
-  ASSERT_TRUE(t.runs[1].error_rms_m.has_value());
+  ASSERT_TRUE(t.runs[1].error_final_m.has_value());
   ASSERT_TRUE(t.runs[1].observed_order.has_value());
   ASSERT_TRUE(t.work_precision.has_value());
   EXPECT_EQ(t.work_precision->labels.size(), 4u);
@@ -151,9 +151,9 @@ TEST_F(InspectTest, DiffFlagsAChangedErms) {
   EXPECT_NE(same.out.find("0 of 10 runs flagged"), std::string::npos) << same.out;
   // One run's e_rms 1e-3 larger (relative; far above the default --rtol
   // 1e-6): that run is flagged, the others are not, exit 1.
-  const double e = *ResultReader(file_).Double("/runs/bdf2_newton_h0.005", "error_rms_m");
+  const double e = *ResultReader(file_).Double("/runs/bdf2_newton_h0.005", "error_final_m");
   const std::string changed = (TempDir() / "changed.h5").string();
-  CopyWithAttribute(file_, changed, "/runs/bdf2_newton_h0.005", "error_rms_m", e * 1.001);
+  CopyWithAttribute(file_, changed, "/runs/bdf2_newton_h0.005", "error_final_m", e * 1.001);
   const Outcome d = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " diff " + changed);
   EXPECT_EQ(d.exit_code, 1) << d.out << d.err;
   EXPECT_NE(d.out.find("1 of 10 runs flagged"), std::string::npos) << d.out;

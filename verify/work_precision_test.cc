@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "model/trajectory.h"
+#include "results/metrics.h"
 #include "results/work_precision.h"
 
 namespace clothbench {
@@ -107,6 +109,37 @@ TEST(WorkPrecision, TableRatiosAndFastest) {
   EXPECT_NEAR(*t.min_error[2], 5e-2, 1e-15);
   EXPECT_EQ(t.fastest[0], 2);  // b: 0.5 s ≤ a's 1.0 s bound at 1e-1
   EXPECT_EQ(t.fastest[1], 0);
+}
+
+// The three error norms over frames (results/metrics.h) on a 3-frame,
+// 1-particle trajectory with known offsets 0, 3, 4 m: final 4 m, max 4 m,
+// l2 sqrt((0 + 9 + 16)/3) m; the velocities' offsets 1, 1, 2 m/s likewise.
+TEST(WorkPrecision, ErrorNormsOverFrames) {
+  Trajectory run, ref;
+  for (double dx : {0.0, 3.0, 4.0}) {
+    MatrixN3 x = MatrixN3::Zero(1, 3);
+    ref.positions.push_back(x);
+    x(0, 0) = dx;
+    run.positions.push_back(x);
+  }
+  for (double dv : {1.0, 1.0, 2.0}) {
+    MatrixN3 v = MatrixN3::Zero(1, 3);
+    ref.velocities.push_back(v);
+    v(0, 1) = dv;
+    run.velocities.push_back(v);
+  }
+  const std::optional<TrajectoryErrors> e = CompareTrajectories(run, ref);
+  ASSERT_TRUE(e.has_value());
+  EXPECT_DOUBLE_EQ(e->Of(ErrorMetric::kFinal), 4.0);
+  EXPECT_DOUBLE_EQ(e->Of(ErrorMetric::kMax), 4.0);
+  EXPECT_DOUBLE_EQ(e->Of(ErrorMetric::kL2), std::sqrt(25.0 / 3.0));
+  EXPECT_DOUBLE_EQ(*e->v_rms_at_end, 2.0);
+  EXPECT_DOUBLE_EQ(*e->v_rms_l2, std::sqrt(6.0 / 3.0));
+  EXPECT_DOUBLE_EQ(*e->v_rms_max, 2.0);
+  run.velocities.pop_back();  // velocities not kept for every frame: positions only
+  EXPECT_FALSE(CompareTrajectories(run, ref)->v_rms_at_end.has_value());
+  EXPECT_EQ(ParseErrorMetric("l2"), ErrorMetric::kL2);
+  EXPECT_FALSE(ParseErrorMetric("rms").has_value());
 }
 
 }  // namespace
