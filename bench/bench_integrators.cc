@@ -231,16 +231,17 @@ int Main(int argc, char** argv) {
       for (const std::string& t : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + t;
       throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", arkode_table, known));
     }
+    const std::string unused = UnusedOption(
+        methods, {app.count("--rtols") > 0, app.count("--substeps") > 0,
+                  app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--preconditioner") > 0,
+                  app.count("--nonlinear-solver") > 0, app.count("--arkode-table") > 0,
+                  app.count("--cvode-setting") > 0, app.count("--tangent-terms") > 0,
+                  app.count("--baseline") ? EscapeControl(baseline) : ""});
+    if (!unused.empty()) throw UsageError(unused);
     const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
     const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
     if (!metric)
       throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));
-    if (app.count("--baseline") &&
-        std::none_of(methods.begin(), methods.end(), [&](const RowMethod& m) { return m.label() == baseline; })) {
-      std::string labels;
-      for (const RowMethod& m : methods) labels += (labels.empty() ? "" : ", ") + m.label();
-      throw UsageError(fmt::format("--baseline: \"{}\" is not a row of this run ({})", EscapeControl(baseline), labels));
-    }
     if (etas.empty()) etas = {scene.solver.cg_tolerance};
     std::vector<double> hs = h_arg.empty() ? std::vector<double>{} : ParsePositiveList(h_arg, "--h");
     for (double h : hs)

@@ -410,6 +410,51 @@ struct RowMethod {
   }
 };
 
+/// The command-line options that only some rows read, and whether each was given.
+struct GivenOptions {
+  bool rtols = false, substeps = false, cg_tolerance = false, preconditioner = false, nonlinear_solver = false,
+       arkode_table = false, cvode_setting = false, tangent_terms = false;
+  std::string baseline;  ///< --baseline ROW; empty: not given
+};
+
+/// The first given option that no row of `rows` reads (or a --baseline
+/// that names no row), as "--rtols: no row
+/// of this run uses it (it applies to …)"; empty if every given option is
+/// used. An option nobody reads would otherwise be ignored silently.
+inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions& given) {
+  const auto any = [&](auto&& reads) { return std::any_of(rows.begin(), rows.end(), reads); };
+  const struct {
+    bool given, used;
+    const char *option, *rows;
+  } checks[] = {
+      {given.rtols, any([](const RowMethod& m) { return m.kind() == StepKind::kAdaptive; }), "--rtols",
+       "adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error"},
+      {given.substeps, any([](const RowMethod& m) { return m.kind() == StepKind::kSubstepped; }), "--substeps",
+       "substepped rows: xpbd"},
+      {given.cg_tolerance, any([](const RowMethod& m) { return m.uses_pcg(); }), "--cg-tolerance/--cg-tolerances",
+       "rows that solve with the PCG"},
+      {given.preconditioner, any([](const RowMethod& m) { return m.uses_pcg(); }), "--preconditioner",
+       "rows that solve with the PCG"},
+      {given.nonlinear_solver, any([](const RowMethod& m) { return m.fully_implicit(); }), "--nonlinear-solver",
+       "implicit_euler, bdf2, implicit_midpoint"},
+      {given.arkode_table, any([](const RowMethod& m) { return m.name() == kArkodeName && m.variant.empty(); }),
+       "--arkode-table", "arkode rows without /ark4 or /ark5"},
+      {given.cvode_setting, any([](const RowMethod& m) { return m.name() == "cvode"; }), "--cvode-setting",
+       "cvode rows"},
+      {given.tangent_terms, any([](const RowMethod& m) { return m.builds_tangent(); }), "--tangent-terms",
+       "rows that build J_alpha: Newton rows, baraff_witkin, blender, cvode, ida"},
+  };
+  for (const auto& c : checks)
+    if (c.given && !c.used)
+      return fmt::format("{}: no row of this run uses it (it applies to {})", c.option, c.rows);
+  if (!given.baseline.empty() && !any([&](const RowMethod& m) { return m.label() == given.baseline; })) {
+    std::string labels;
+    for (const RowMethod& m : rows) labels += (labels.empty() ? "" : ", ") + m.label();
+    return fmt::format("--baseline: \"{}\" is not a row of this run ({})", given.baseline, labels);
+  }
+  return "";
+}
+
 /// A row's default parameters when the command line gives none: step sizes
 /// as multiples of the scene's h (fixed-step rows; frame steps of
 /// substepped rows) and tolerances rtol (adaptive rows). Chosen on the

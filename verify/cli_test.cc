@@ -78,6 +78,13 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   ExpectOneLineError(RunBench(tiny + " --frames some" + o), "--frames: \"some\" must be");
   ExpectOneLineError(RunBench(tiny + " --integrators sbdf2 --baseline cvode" + o),
                      "--baseline: \"cvode\" is not a row of this run (sbdf2)");
+  ExpectOneLineError(RunBench(tiny + " --integrators sbdf2 --rtols 1e-3,1e-4" + o),
+                     "--rtols: no row of this run uses it (it applies to adaptive rows");
+  ExpectOneLineError(RunBench(tiny + " --integrators cvode --substeps 4" + o), "--substeps: no row of this run uses it");
+  ExpectOneLineError(RunBench(tiny + " --integrators xpbd --preconditioner amg" + o),
+                     "--preconditioner: no row of this run uses it");
+  ExpectOneLineError(RunBench(tiny + " --integrators sbdf2 --tangent-terms all" + o),
+                     "--tangent-terms: no row of this run uses it");
   ExpectOneLineError(RunBench(tiny + " --error-metric rms" + o), "--error-metric: \"rms\" must be final, l2 or max");
   ExpectOneLineError(RunBench(tiny + " --tangent-terms some" + o), "--tangent-terms: \"some\" must be all or tension");
   ExpectOneLineError(RunBench(tiny + " --cvode-setting foo=1" + o), "--cvode-setting: \"foo\" is not one of");
