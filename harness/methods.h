@@ -373,8 +373,16 @@ struct RowMethod {
     RunContext row_ctx = ctx;
     if (!ArkodeRowTable(variant).empty()) row_ctx.arkode_table = ArkodeRowTable(variant);
     row_ctx.variant = variant;
+    row.threads = KernelThreads();
+    if (uses_pcg()) {
+      row.predictor = std::string(ToString(row_spec.predictor));
+      row.cg_reference = std::string(ToString(row_spec.cg_reference));
+    }
+    if (solver == NonlinearSolver::kNewton) row.newton_jacobian = std::string(ToString(row_spec.newton_jacobian));
+    if (kind() == StepKind::kAdaptive) row.atol = param;  // rtol = atol for every adaptive row
     if (entry->make) {
       const SolverSpec s = Settings(row_spec, param);
+      row.step_control = std::string(ToString(s.step_control));
       const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
       if (const auto* x = dynamic_cast<const Xpbd*>(stepper.get())) {
         for (const std::string& t : x->explicit_terms()) row.explicit_terms += (row.explicit_terms.empty() ? "" : ",") + t;
@@ -384,6 +392,8 @@ struct RowMethod {
       // Error-controlled rows start at the scene's h; the controller takes over.
       r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
     } else {
+      row.step_control = "sundials";
+      if (name() == kArkodeName) row.arkode_table = row_ctx.arkode_table;
       r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec,
                            row_ctx);
     }

@@ -218,11 +218,6 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
                              {"ncfn", r.sundials->ncfn}, {"nje", r.sundials->nje}, {"nsetups", r.sundials->nsetups}})
         if (v >= 0) f.SetAttribute(g, name, v);
     }
-    if (r.cg_tolerance > 0.0) {
-      f.SetAttribute(g, "cg_reference", std::string(ToString(scene.solver.cg_reference)));
-      f.SetAttribute(g, "predictor", std::string(ToString(scene.solver.predictor)));
-      f.SetAttribute(g, "step_control", std::string(ToString(scene.solver.step_control)));
-    }
     f.WriteVector(g + "/times", r.traj.times, "s");
     // --frames default: every frame of each label's first row (its largest
     // h or rtol, where its motion differs most from the reference), the ends

@@ -136,10 +136,11 @@ inline std::string EncodeRun(const MethodRun& m) {
   ByteWriter w;
   for (const std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
                                &m.explicit_terms, &m.constraints, &m.status, &m.message, &m.preconditioner,
-                               &m.sundials_settings, &m.tangent_terms})
+                               &m.sundials_settings, &m.tangent_terms, &m.step_control, &m.predictor,
+                               &m.cg_reference, &m.newton_jacobian, &m.arkode_table})
     w.Str(*s);
-  for (double v : {m.h, m.rtol, m.cg_tolerance}) w.Pod(v);
-  for (long v : {m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.error_test_failures, m.cg_unconverged})
+  for (double v : {m.h, m.rtol, m.cg_tolerance, m.atol}) w.Pod(v);
+  for (long v : {m.threads, m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.error_test_failures, m.cg_unconverged})
     w.Pod(v);
   for (double v : {m.solver_time_s, m.wall_time_s, m.setup_time_s, m.numerical_stiffness}) w.Pod(v);
   internal::PutTrajectory(w, m.traj);
@@ -154,10 +155,11 @@ inline MethodRun DecodeRun(std::string_view bytes) {
   MethodRun m;
   for (std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
                          &m.explicit_terms, &m.constraints, &m.status, &m.message, &m.preconditioner,
-                         &m.sundials_settings, &m.tangent_terms})
+                         &m.sundials_settings, &m.tangent_terms, &m.step_control, &m.predictor, &m.cg_reference,
+                         &m.newton_jacobian, &m.arkode_table})
     *s = r.Str();
-  for (double* v : {&m.h, &m.rtol, &m.cg_tolerance}) *v = r.Pod<double>();
-  for (long* v : {&m.substeps, &m.steps, &m.updates, &m.cg_iterations, &m.rejected, &m.error_test_failures,
+  for (double* v : {&m.h, &m.rtol, &m.cg_tolerance, &m.atol}) *v = r.Pod<double>();
+  for (long* v : {&m.threads, &m.substeps, &m.steps, &m.updates, &m.cg_iterations, &m.rejected, &m.error_test_failures,
                   &m.cg_unconverged})
     *v = r.Pod<long>();
   for (double* v : {&m.solver_time_s, &m.wall_time_s, &m.setup_time_s, &m.numerical_stiffness}) *v = r.Pod<double>();

@@ -233,6 +233,13 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
   r.preconditioner = str("preconditioner");
   r.tangent_terms = str("tangent_terms");
   r.sundials_settings = str("sundials_settings");
+  r.step_control = str("step_control");
+  r.predictor = str("predictor");
+  r.cg_reference = str("cg_reference");
+  r.newton_jacobian = str("newton_jacobian");
+  r.arkode_table = str("arkode_table");
+  r.atol = f.Double(g, "atol").value_or(0.0);
+  r.threads = f.Long(g, "threads").value_or(0);
   r.h = f.Double(g, "h").value_or(0.0);
   r.rtol = f.Double(g, "rtol").value_or(0.0);
   r.substeps = f.Long(g, "substeps").value_or(0);
@@ -343,6 +350,12 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
   if (!r.tangent_terms.empty()) f.SetAttribute(g, "tangent_terms", r.tangent_terms);
   if (!r.preconditioner.empty()) f.SetAttribute(g, "preconditioner", r.preconditioner);
   if (!r.sundials_settings.empty()) f.SetAttribute(g, "sundials_settings", r.sundials_settings);
+  for (auto [name, v] : {std::pair<const char*, const std::string*>{"step_control", &r.step_control},
+                         {"predictor", &r.predictor}, {"cg_reference", &r.cg_reference},
+                         {"newton_jacobian", &r.newton_jacobian}, {"arkode_table", &r.arkode_table}})
+    if (!v->empty()) f.SetAttribute(g, name, *v);
+  if (r.atol > 0.0) f.SetAttribute(g, "atol", r.atol);
+  if (r.threads > 0) f.SetAttribute(g, "threads", r.threads);
   if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
   f.SetAttribute(g, "status", r.status);
   if (!r.message.empty()) f.SetAttribute(g, "message", r.message);

@@ -40,6 +40,14 @@ struct RunRecord {
   std::string constraints;   ///< xpbd: the terms solved as constraints ("tension,shear,obstacles")
   std::string explicit_terms;///< xpbd: the terms applied in the prediction ("gravity,bend_thin_plate")
   std::string sundials_settings;  ///< cvode rows: the setup knobs ("lsetup_frequency=20,…")
+  /// The settings the run used (not the scene's where the row overrides them):
+  /// step_control "fixed" | "iterations" | "error" (our steppers) or
+  /// "sundials" (SUNDIALS' own controller); predictor and cg_reference (rows
+  /// with the PCG); newton_jacobian "refresh" | "frozen" (Newton rows);
+  /// arkode_table (arkode rows).
+  std::string step_control, predictor, cg_reference, newton_jacobian, arkode_table;
+  double atol = 0.0;         ///< adaptive rows: atol (= rtol unless set)
+  long threads = 0;          ///< OpenMP threads of the kernels
   std::string status = "ok"; ///< "ok" or the failure status
   std::string message;       ///< failure message (empty when ok)
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;

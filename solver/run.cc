@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include <fmt/format.h>
+#include <omp.h>
 
 #include "solver/progress.h"
 
@@ -319,5 +320,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return sum;
 }
+
+int KernelThreads() { return omp_get_max_threads(); }
 
 }  // namespace clothbench

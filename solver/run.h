@@ -139,6 +139,10 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
 /// rest here.
 RunSummary RunStepper(const ParticleSystem& system, Stepper& stepper, const RunOptions& options);
 
+/// The OpenMP threads the kernels may use (omp_get_max_threads: OMP_NUM_THREADS
+/// or the hardware threads), stored with every run.
+int KernelThreads();
+
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_SOLVER_RUN_H_

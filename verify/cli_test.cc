@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "results/result_file.h"
+#include "results/result_reader.h"
+#include "results/run_table.h"
 #include "verify/cli_helpers.h"
 
 namespace clothbench {
@@ -397,6 +399,40 @@ TEST(BenchCli, ProgressOnlyOnATerminal) {
                              out.string());
   EXPECT_EQ(o.exit_code, 0);
   EXPECT_TRUE(o.err.empty()) << o.err;
+}
+
+// Every run stores the settings it actually ran with, whatever the scene
+// says: an option × row-kind walk (fixed-step, error-controlled, Newton,
+// SUNDIALS, ARKODE, substepped, Baraff–Witkin) read back from the file.
+TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
+  const fs::path out = TempDir() / "settings.h5";
+  const std::string scene = WriteScene("settings.toml", kTiny);
+  const Outcome o = RunBench("--scene " + scene + " --integrators sbdf2,sbdf2/error,bdf2/newton,cvode,arkode,xpbd," +
+                             "baraff_witkin --h 0.01 --rtols 1e-3 --substeps 2 --preconditioner jacobi " +
+                             "--cg-tolerance 1e-5 --tangent-terms all --arkode-table ARK437L2SA --reference none " +
+                             "--frames none --quiet --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const RunTable t = ReadRunTable(ResultReader(out.string()));
+  ASSERT_EQ(t.runs.size(), 7u);
+  for (const RunRecord& r : t.runs) {
+    SCOPED_TRACE(r.id);
+    EXPECT_EQ(r.status, "ok");
+    EXPECT_GT(r.threads, 0);
+    const bool pcg = r.integrator != "xpbd";
+    EXPECT_EQ(r.preconditioner, pcg ? "jacobi" : "");  // --preconditioner overrides each method's best
+    EXPECT_EQ(r.cg_tolerance, pcg ? 1e-5 : 0.0);       // and --cg-tolerance baraff_witkin's 1e-2
+    EXPECT_EQ(r.predictor, pcg ? "constant" : "");
+    const bool tangent = r.label == "bdf2/newton" || r.integrator == "cvode" || r.integrator == "baraff_witkin";
+    EXPECT_EQ(r.tangent_terms, tangent ? "all" : "");  // --tangent-terms overrides baraff_witkin's tension
+    EXPECT_EQ(r.newton_jacobian, r.label == "bdf2/newton" ? "refresh" : "");
+    EXPECT_EQ(r.arkode_table, r.integrator == "arkode" ? "ARK437L2SA" : "");
+    const bool sundials = r.integrator == "cvode" || r.integrator == "arkode";
+    EXPECT_EQ(r.step_control, sundials ? "sundials" : r.label == "sbdf2/error" ? "error" : "fixed");
+    EXPECT_EQ(r.step_kind, r.integrator == "xpbd" ? "substepped" : sundials || r.label == "sbdf2/error" ? "adaptive"
+                                                                                                         : "fixed_step");
+    if (r.step_kind == "adaptive") EXPECT_TRUE(r.rtol == 1e-3 && r.atol == 1e-3);
+    if (r.step_kind == "substepped") EXPECT_EQ(r.substeps, 2);
+  }
 }
 
 }  // namespace

@@ -99,9 +99,10 @@ Outcome Bench(const std::string& args, const std::string& launcher = "") {
 }
 
 // What may differ between two runs of the same rows: timings, what is
-// derived from them (the equal-accuracy table) and the machine.
+// derived from them (the equal-accuracy table) and the machine (host, MPI
+// ranks, OpenMP threads per rank).
 bool TimingOrMachine(const std::string& key) {
-  for (const char* s : {"_time_s", "solve_time_s", "work_precision", "@created", "@host", "@mpi_ranks"})
+  for (const char* s : {"_time_s", "solve_time_s", "work_precision", "@created", "@host", "@mpi_ranks", "@threads"})
     if (key.find(s) != std::string::npos) return true;
   return false;
 }
