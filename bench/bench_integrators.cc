@@ -53,7 +53,8 @@ int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
-  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s;
+  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 40.0;
+  int repeat = 0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline), error_metric = "final";
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
@@ -123,6 +124,10 @@ int Main(int argc, char** argv) {
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
                  "once per --cg-tolerances value (and write HDF5)");
   app.add_option("--out", out, "result file (default: out/<scene>.h5)");
+  app.add_option("--repeat", repeat, "timings per run: the least is reported, with the spread (default: 3 for runs "
+                 "under 2 s, 1 above, within --time-budget)")->check(CLI::Range(1, 1000));
+  app.add_option("--time-budget", time_budget, "wall time [s] all repetitions after a run's first may take together "
+                 "(default 40; ignored with --repeat)")->check(CLI::Range(0.0, 1e6));
   app.add_option("--max-runs", max_runs,
                  "compute at most N runs (the reference counts as one) not yet in <out>.journal/, then stop with exit "
                  "status 75 and keep the journal; rerun the same command to continue")
@@ -226,11 +231,7 @@ int Main(int argc, char** argv) {
           throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver, \"bdf2\" also "
                                        "names bdf2/newton)",
                                        methods[a].label()));
-    if (std::find(ArkodeTableNames().begin(), ArkodeTableNames().end(), arkode_table) == ArkodeTableNames().end()) {
-      std::string known;
-      for (const std::string& t : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + t;
-      throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", arkode_table, known));
-    }
+    CheckArkodeTable(arkode_table);
     const std::string unused = UnusedOption(
         methods, {app.count("--rtols") > 0, app.count("--substeps") > 0,
                   app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--preconditioner") > 0,
@@ -266,7 +267,7 @@ int Main(int argc, char** argv) {
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     CheckOutputFolder(out);
 
-    BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, hs, reference_entry, ref_rtol, out, plot_dir, series,
+    BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_entry, ref_rtol, out, plot_dir, series,
                  frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
                  app.count("--preconditioner") > 0, app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0,
                  app.count("--tangent-terms") > 0, time_limit, max_runs, arkode_table, cvode_settings};

@@ -2,6 +2,7 @@
 #include "harness/bench_sweep.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <iterator>
 #include <map>
@@ -64,6 +65,32 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
                comm.size(), comm.size() > 1 ? "s" : "");
 
   TerminalProgress progress(!b.quiet && comm.root());
+  // Repetitions (--repeat, --time-budget): later timings of a run reproduce
+  // its end state bit for bit (an error naming the row otherwise); the row
+  // keeps the least solver time, the median, the largest and the count.
+  double budget = b.time_budget;
+  const auto Repeat = [&](Row& r, const auto& run_again) {
+    std::vector<double> times = {r.solver_time_s};
+    const int k = b.repeat > 0 ? b.repeat : (r.solver_time_s < 2.0 ? 3 : 1);
+    while (r.ok() && static_cast<int>(times.size()) < k && (b.repeat > 0 || budget >= r.wall_time_s)) {
+      const auto start = std::chrono::steady_clock::now();
+      const Row again = run_again();
+      budget -= std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (!again.ok() || again.steps != r.steps || again.traj.positions.size() != r.traj.positions.size() ||
+          again.traj.positions.back() != r.traj.positions.back() ||
+          again.traj.velocities.back() != r.traj.velocities.back())
+        throw std::runtime_error(fmt::format("{}: timing {} of {} did not reproduce the first run's end state bit for "
+                                             "bit (steps {} vs {}, status {})",
+                                             r.id, times.size() + 1, k, again.steps, r.steps, again.status));
+      times.push_back(again.solver_time_s);
+    }
+    std::sort(times.begin(), times.end());
+    r.repeats = static_cast<long>(times.size());
+    r.solver_time_s = times.front();
+    r.solver_time_s_median = times.size() % 2 ? times[times.size() / 2]
+                                              : 0.5 * (times[times.size() / 2 - 1] + times[times.size() / 2]);
+    r.solver_time_s_max = times.back();
+  };
   RunLimits limits;
   limits.time_limit_s = b.time_limit;
   ReferenceOptions ref_opts{b.ref_rtol, -1.0, 5, b.scene.t_end, b.scene.frame_dt, limits};
@@ -96,6 +123,12 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
       fmt::print(stderr, "bench_integrators: {}; continuing without the journal\n", EscapeControl(e.what()));
     }
   };
+  const auto task_spec = [&](const RowTask& t) {
+    SolverSpec spec = b.scene.solver;
+    spec.cg_tolerance = t.eta;
+    return spec;
+  };
+  std::vector<std::pair<long, Row>> computed;  // this rank's rows, before their repetitions
   for (std::size_t j = 0; j < to_compute; ++j) {
     if (!comm.Owns(j)) continue;
     const long k = missing[j];
@@ -117,8 +150,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
     }
     const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
     const RowMethod& m = b.methods[t.mk];
-    SolverSpec spec = b.scene.solver;
-    spec.cg_tolerance = t.eta;
+    const SolverSpec spec = task_spec(t);
     progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), t.param)
                    : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.substeps)
                                                        : fmt::format("{} h = {:g} s", m.label(), t.param),
@@ -128,12 +160,22 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
       r.id += fmt::format("_eta{:g}", t.eta);
       r.label += fmt::format(" eta={:g}", t.eta);
     }
-    std::string bytes = EncodeRun(r);
-    journal_store(k, bytes);
-    if (comm.root()) own_rows.emplace(k, std::move(r));
-    else outgoing.emplace_back(k, std::move(bytes));
+    journal_store(k, EncodeRun(r));
+    computed.push_back({k, std::move(r)});
   }
   progress.Finish();
+  // The repetitions, cheapest runs first: within --time-budget the short
+  // runs, whose timings vary most, get their three timings whatever their
+  // place in the table.
+  std::sort(computed.begin(), computed.end(),
+            [](const auto& a, const auto& c) { return a.second.wall_time_s < c.second.wall_time_s; });
+  for (auto& [k, r] : computed) {
+    const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
+    Repeat(r, [&] { return b.methods[t.mk].Run(sys, b.scene, task_spec(t), t.param, ctx, t.substeps); });
+    if (r.repeats > 1) journal_store(k, EncodeRun(r));
+    if (comm.root()) own_rows.emplace(k, std::move(r));
+    else outgoing.emplace_back(k, EncodeRun(r));
+  }
   std::vector<std::pair<long, std::string>> received = comm.GatherToRoot(std::move(outgoing));
   if (!comm.root()) return 0;
   if (to_compute < missing.size()) {

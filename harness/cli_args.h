@@ -18,6 +18,7 @@
 #include <fmt/format.h>
 
 #include "model/scene.h"
+#include "peers/arkode.h"
 
 namespace clothbench {
 
@@ -72,6 +73,14 @@ inline std::vector<double> ParsePositiveList(const std::string& s, const std::st
 }
 
 /// Refuses, before any computing, an --out that is a directory or whose
+/// @throws UsageError if `name` is not one of ArkodeTableNames() (--arkode-table).
+inline void CheckArkodeTable(const std::string& name) {
+  if (std::find(ArkodeTableNames().begin(), ArkodeTableNames().end(), name) != ArkodeTableNames().end()) return;
+  std::string known;
+  for (const std::string& t : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + t;
+  throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", name, known));
+}
+
 /// folder cannot be created or written (the folder is created).
 inline void CheckOutputFolder(const std::string& out) {
   if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));

@@ -139,8 +139,8 @@ inline std::string EncodeRun(const MethodRun& m) {
                                &m.sundials_settings, &m.tangent_terms, &m.step_control, &m.predictor,
                                &m.cg_reference, &m.newton_jacobian, &m.arkode_table})
     w.Str(*s);
-  for (double v : {m.h, m.rtol, m.cg_tolerance, m.atol}) w.Pod(v);
-  for (long v : {m.threads, m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.error_test_failures, m.cg_unconverged})
+  for (double v : {m.h, m.rtol, m.cg_tolerance, m.atol, m.solver_time_s_median, m.solver_time_s_max}) w.Pod(v);
+  for (long v : {m.repeats, m.threads, m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.error_test_failures, m.cg_unconverged})
     w.Pod(v);
   for (double v : {m.solver_time_s, m.wall_time_s, m.setup_time_s, m.numerical_stiffness}) w.Pod(v);
   internal::PutTrajectory(w, m.traj);
@@ -158,8 +158,9 @@ inline MethodRun DecodeRun(std::string_view bytes) {
                          &m.sundials_settings, &m.tangent_terms, &m.step_control, &m.predictor, &m.cg_reference,
                          &m.newton_jacobian, &m.arkode_table})
     *s = r.Str();
-  for (double* v : {&m.h, &m.rtol, &m.cg_tolerance, &m.atol}) *v = r.Pod<double>();
-  for (long* v : {&m.threads, &m.substeps, &m.steps, &m.updates, &m.cg_iterations, &m.rejected, &m.error_test_failures,
+  for (double* v : {&m.h, &m.rtol, &m.cg_tolerance, &m.atol, &m.solver_time_s_median, &m.solver_time_s_max})
+    *v = r.Pod<double>();
+  for (long* v : {&m.repeats, &m.threads, &m.substeps, &m.steps, &m.updates, &m.cg_iterations, &m.rejected, &m.error_test_failures,
                   &m.cg_unconverged})
     *v = r.Pod<long>();
   for (double* v : {&m.solver_time_s, &m.wall_time_s, &m.setup_time_s, &m.numerical_stiffness}) *v = r.Pod<double>();

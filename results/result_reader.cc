@@ -255,6 +255,9 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
   r.cg_unconverged = f.Long(g, "cg_unconverged_steps").value_or(0);
   r.error_test_failures = f.Long(g, "error_test_failures").value_or(-1);
   r.solver_time_s = f.Double(g, "solver_time_s").value_or(0.0);
+  r.repeats = f.Long(g, "repeats").value_or(1);
+  r.solver_time_s_median = f.Double(g, "solver_time_s_median").value_or(r.solver_time_s);
+  r.solver_time_s_max = f.Double(g, "solver_time_s_max").value_or(r.solver_time_s);
   r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
   r.setup_time_s = f.Double(g, "setup_time_s").value_or(-1.0);
   r.numerical_stiffness = f.Double(g, "numerical_stiffness").value_or(0.0);
@@ -365,6 +368,9 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
   f.SetAttribute(g, "rejected_steps", r.rejected);
   if (r.cg_unconverged > 0) f.SetAttribute(g, "cg_unconverged_steps", r.cg_unconverged);
   f.SetAttribute(g, "solver_time_s", r.solver_time_s);
+  f.SetAttribute(g, "repeats", r.repeats);
+  f.SetAttribute(g, "solver_time_s_median", r.repeats > 1 ? r.solver_time_s_median : r.solver_time_s);
+  f.SetAttribute(g, "solver_time_s_max", r.repeats > 1 ? r.solver_time_s_max : r.solver_time_s);
   if (r.setup_time_s >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time_s);
   f.SetAttribute(g, "wall_time_s", r.wall_time_s);
   f.SetAttribute(g, "numerical_stiffness", r.numerical_stiffness);

@@ -90,9 +90,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
                ref->energy_rate_W ? fmt::format("{:.3e} W", *ref->energy_rate_W) : "-");
   else
     fmt::print(out, "reference: none (error columns empty)\n");
-  fmt::print(out, "\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator", "h|rtol",
-             "steps", "updates", "cg_iters", "solver_s", "setup_s", ErrorColumn(t.error_metric), "order", "dE/dt_W",
-             "status");
+  fmt::print(out, "\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>9} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator",
+             "h|rtol", "steps", "updates", "cg_iters", "solver_s", "spread", "setup_s", ErrorColumn(t.error_metric),
+             "order", "dE/dt_W", "status");
   std::string last;
   for (const RunRecord& r : t.runs) {
     if (!last.empty() && last != r.label) fmt::print(out, "\n");
@@ -100,8 +100,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     const std::string hcol = r.step_kind == "adaptive"     ? fmt::format("{:g}", r.rtol)
                              : r.step_kind == "substepped" ? fmt::format("{:g}/{}", r.h, r.substeps)
                                                            : fmt::format("{:g}", r.h);
-    fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>8} {:>11} {:>7} {:>11}  {}\n", r.label, hcol,
+    fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>9} {:>8} {:>11} {:>7} {:>11}  {}\n", r.label, hcol,
                r.steps, r.updates, r.cg_iterations, r.solver_time_s,
+               r.repeats > 1 ? fmt::format("{:.0f}%/{}", 100.0 * r.TimeSpread(), r.repeats) : "",
                r.setup_time_s >= 0 ? fmt::format("{:.3f}", r.setup_time_s) : "",
                r.Error(t.error_metric) ? Sci(*r.Error(t.error_metric)) : "", r.observed_order ? fmt::format("{:.2f}", *r.observed_order) : "",
                r.ok() && r.energy_rate_W ? Sci(*r.energy_rate_W) : "", r.status);
@@ -128,6 +129,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   fmt::print(out,
              "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, ida, arkode: "
              "our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the direct KLU solver).\n");
+  fmt::print(out,
+             "solver_s: the least of the run's timings; spread: (max - min)/min over them / their number (the first "
+             "computes the trajectory, the others reproduce it bit for bit).\n");
   fmt::print(out,
              "setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the "
              "preconditioner.\n");

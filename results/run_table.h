@@ -53,7 +53,15 @@ struct RunRecord {
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
   long error_test_failures = -1;  ///< adaptive rows; −1: not applicable
   long cg_unconverged = 0;        ///< accepted steps that kept an unconverged CG solve (blender)
+  /// Solver time [s]: the least over the `repeats` timings of the run (the
+  /// first computes the trajectory, the others reproduce it bit for bit).
   double solver_time_s = 0.0, wall_time_s = 0.0;
+  double solver_time_s_median = 0.0, solver_time_s_max = 0.0;  ///< over the repeats
+  long repeats = 1;
+  /// (max − min)/min of the solver time over the repeats; 0 for one timing.
+  double TimeSpread() const {
+    return repeats > 1 && solver_time_s > 0.0 ? (solver_time_s_max - solver_time_s) / solver_time_s : 0.0;
+  }
   double setup_time_s = -1.0;     ///< < 0: not measured
   double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step
   std::optional<double> error_final_m;   ///< e_rms at t_end against the reference [m]

@@ -435,5 +435,26 @@ TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
   }
 }
 
+// --repeat K times every run K times: the least solver time is reported with
+// the median and the largest, each later timing having reproduced the first
+// run's end state (else the run fails, which this exit code would show).
+TEST(BenchCli, RepeatTimesEveryRun) {
+  const fs::path out = TempDir() / "repeat.h5";
+  const Outcome o = RunBench("--scene " + WriteScene("repeat.toml", kTiny) +
+                             " --integrators sbdf2,cvode --h 0.01,0.005 --rtols 1e-3 --repeat 3 --reference none "
+                             "--frames none --quiet --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const RunTable t = ReadRunTable(ResultReader(out.string()));
+  ASSERT_EQ(t.runs.size(), 3u);
+  for (const RunRecord& r : t.runs) {
+    EXPECT_EQ(r.repeats, 3) << r.id;
+    EXPECT_LE(r.solver_time_s, r.solver_time_s_median) << r.id;
+    EXPECT_LE(r.solver_time_s_median, r.solver_time_s_max) << r.id;
+    EXPECT_GE(r.TimeSpread(), 0.0) << r.id;
+  }
+  ExpectOneLineError(RunBench("--scene " + WriteScene("repeat.toml", kTiny) + " --repeat 0 --out " + out.string()),
+                     "--repeat");
+}
+
 }  // namespace
 }  // namespace clothbench

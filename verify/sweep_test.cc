@@ -100,9 +100,10 @@ Outcome Bench(const std::string& args, const std::string& launcher = "") {
 
 // What may differ between two runs of the same rows: timings, what is
 // derived from them (the equal-accuracy table) and the machine (host, MPI
-// ranks, OpenMP threads per rank).
+// ranks, OpenMP threads per rank; the repetitions within --time-budget).
 bool TimingOrMachine(const std::string& key) {
-  for (const char* s : {"_time_s", "solve_time_s", "work_precision", "@created", "@host", "@mpi_ranks", "@threads"})
+  for (const char* s : {"_time_s", "solve_time_s", "work_precision", "@created", "@host", "@mpi_ranks", "@threads",
+                        "@repeats"})
     if (key.find(s) != std::string::npos) return true;
   return false;
 }
