@@ -290,7 +290,7 @@ EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector
       points.emplace_back();
       it = labels.end() - 1;
     }
-    if (r.ok() && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time_s, r.err->Of(metric)});
+    if (r.ok() && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time_s, r.err->Of(metric), r.TimeSpread()});
   }
   EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
   t.metric = std::string(ToString(metric));

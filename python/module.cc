@@ -355,6 +355,7 @@ py::dict ReadResultFile(const std::string& path) {
     w["cost"] = t.work_precision->cost;
     w["ratio"] = t.work_precision->ratio;
     w["upper_bound"] = t.work_precision->upper_bound;
+    w["tied"] = t.work_precision->tied;
     w["min_error"] = t.work_precision->min_error;
     w["baseline"] = t.work_precision->reference;
     out["work_precision"] = w;
@@ -393,6 +394,7 @@ py::dict EqualAccuracy(const std::vector<std::pair<std::string, std::vector<std:
   out["cost"] = t.cost;
   out["ratio"] = t.ratio;
   out["upper_bound"] = t.upper_bound;
+  out["tied"] = t.tied;
   out["min_error"] = t.min_error;
   std::vector<std::optional<std::string>> fastest;
   for (int k : t.fastest) fastest.push_back(k >= 0 ? std::optional(t.labels[static_cast<std::size_t>(k)]) : std::nullopt);

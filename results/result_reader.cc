@@ -334,6 +334,16 @@ RunTable ReadRunTable(const ResultReader& f) {
       w.min_error.push_back(!min_error.empty() && min_error[m] > 0.0 ? std::optional(min_error[m]) : std::nullopt);
     }
     for (int32_t k : f.Ints("/work_precision/fastest")) w.fastest.push_back(k);
+    if (f.Exists("/work_precision/tied")) {
+      const std::vector<int32_t> tied = f.Ints("/work_precision/tied");
+      if (tied.size() != cost.size())
+        throw ResultError(fmt::format("{}: /work_precision/tied: {} cells, {} expected", f.path(), tied.size(), cost.size()));
+      for (std::size_t j = 0; j < cols; ++j) {
+        w.tied.emplace_back();
+        for (std::size_t m = 0; m < w.labels.size(); ++m)
+          if (tied[j * w.labels.size() + m]) w.tied.back().push_back(static_cast<int>(m));
+      }
+    }
     t.work_precision = std::move(w);
   }
   return t;
@@ -433,6 +443,11 @@ void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
   f.WriteTable("/work_precision/ratio", rows, cols, ratio, "");
   f.WriteTable("/work_precision/upper_bound", rows, cols, bound);
   f.WriteVector("/work_precision/min_error", min_error, "m");
+  // tied [T, M]: 1 where the method is tied with the fastest at the target.
+  std::vector<int32_t> tied(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
+  for (std::size_t j = 0; j < t.tied.size(); ++j)
+    for (int m : t.tied[j]) tied[j * static_cast<std::size_t>(rows) + static_cast<std::size_t>(m)] = 1;
+  f.WriteTable("/work_precision/tied", cols, rows, tied);
   std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
   f.WriteTable("/work_precision/fastest", 1, cols, fastest);
 }

@@ -172,6 +172,14 @@ void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
   for (std::size_t j = 0; j < t.targets.size(); ++j)
     fmt::print(out, " {:>22}", t.fastest[j] >= 0 ? t.labels[static_cast<std::size_t>(t.fastest[j])] : "-");
   fmt::print(out, "\n");
+  // Methods the timings cannot rank against the fastest (within their spread).
+  for (std::size_t j = 0; j < t.targets.size() && j < t.tied.size(); ++j) {
+    if (t.tied[j].empty()) continue;
+    std::vector<std::string> names;
+    for (int m : t.tied[j]) names.push_back(t.labels[static_cast<std::size_t>(m)]);
+    fmt::print(out, "tied with the fastest at {:g} m (within the timing spread): {}\n", t.targets[j],
+               fmt::join(names, ", "));
+  }
 }
 
 }  // namespace clothbench

@@ -26,6 +26,7 @@ CostEstimate CostAtError(const std::vector<WorkPoint>& points, double target) {
   if (p.front().error <= target) {
     c.cost = p.front().cost;
     c.upper_bound = true;
+    c.spread = p.front().spread;
     return c;
   }
   for (std::size_t k = 0; k + 1 < p.size(); ++k) {
@@ -33,6 +34,7 @@ CostEstimate CostAtError(const std::vector<WorkPoint>& points, double target) {
     if (!(e1 > target && target >= e2)) continue;
     const double s = (std::log(target) - std::log(e1)) / (std::log(e2) - std::log(e1));
     c.cost = std::exp(std::log(p[k].cost) + s * (std::log(p[k + 1].cost) - std::log(p[k].cost)));
+    c.spread = std::max(p[k].spread, p[k + 1].spread);
     return c;
   }
   return c;
@@ -51,13 +53,16 @@ EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& label
   for (std::size_t m = 0; m < labels.size(); ++m) {
     std::vector<std::optional<double>> row;
     std::vector<bool> bound;
+    std::vector<double> spread;
     for (double e : targets) {
       const CostEstimate c = CostAtError(points[m], e);
       row.push_back(c.cost);
       bound.push_back(c.upper_bound);
+      spread.push_back(c.spread);
     }
     t.cost.push_back(row);
     t.upper_bound.push_back(bound);
+    t.spread.push_back(spread);
     const std::vector<WorkPoint> envelope = CostEnvelope(points[m]);
     t.min_error.push_back(envelope.empty() ? std::nullopt : std::optional(envelope.back().error));
   }
@@ -77,6 +82,15 @@ EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& label
       if (t.cost[m][j] && (best < 0 || *t.cost[m][j] < *t.cost[static_cast<std::size_t>(best)][j]))
         best = static_cast<int>(m);
     t.fastest.push_back(best);
+    std::vector<int> tied;
+    if (best >= 0) {
+      const std::size_t b = static_cast<std::size_t>(best);
+      for (std::size_t m = 0; m < labels.size(); ++m)
+        if (m != b && t.cost[m][j] &&
+            *t.cost[m][j] <= *t.cost[b][j] * (1.0 + std::max(t.spread[m][j], t.spread[b][j])))
+          tied.push_back(static_cast<int>(m));
+    }
+    t.tied.push_back(tied);
   }
   return t;
 }

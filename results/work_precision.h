@@ -14,6 +14,7 @@ namespace clothbench {
 struct WorkPoint {
   double cost = 0.0;
   double error = 0.0;
+  double spread = 0.0;  ///< (max − min)/min of the run's repeated timings; 0 for one
 };
 
 /// The lower envelope of a method's runs: the runs no other run dominates
@@ -29,6 +30,9 @@ struct CostEstimate {
   /// True if the cheapest run already meets the target: `cost` is then that
   /// run's cost, an upper bound of the cost at the target ("≤ t s").
   bool upper_bound = false;
+  /// The timing spread of the envelope runs the cost comes from (the larger
+  /// of the two bracketing runs'; the cheapest run's for a bound).
+  double spread = 0.0;
 };
 
 /// The cost at error `target`, read off CostEnvelope(points): interpolated
@@ -48,6 +52,11 @@ struct EqualAccuracyTable {
   std::vector<std::vector<bool>> upper_bound;           ///< [method][target] cost is "≤" (CostEstimate)
   std::vector<std::vector<std::optional<double>>> ratio;///< cost / the baseline's cost
   std::vector<int> fastest;                             ///< per target: method index, −1 if none reaches it
+  std::vector<std::vector<double>> spread;              ///< [method][target] timing spread of the cost
+  /// Per target: the other methods tied with the fastest, those whose cost
+  /// exceeds the fastest's by no more than the larger of their two timing
+  /// spreads (the timings cannot rank them).
+  std::vector<std::vector<int>> tied;
   /// Per method: its smallest error over the valid runs [m] (why a target
   /// has no cost); nothing if no run is valid (all failed).
   std::vector<std::optional<double>> min_error;

@@ -142,5 +142,19 @@ TEST(WorkPrecision, ErrorNormsOverFrames) {
   EXPECT_FALSE(ParseErrorMetric("rms").has_value());
 }
 
+// Two methods whose costs differ by less than their timing spread are tied:
+// the table names the fastest and the ties, not a ranking it cannot make.
+TEST(WorkPrecision, TiesWithinTheTimingSpread) {
+  const std::vector<std::string> labels = {"a", "b", "c"};
+  const std::vector<std::vector<WorkPoint>> pts = {{{1.00, 1e-4, 0.10}},   // 1.00 s, spread 10 %
+                                                   {{1.05, 1e-4, 0.02}},   // 5 % dearer: within a's spread
+                                                   {{1.20, 1e-4, 0.05}}};  // 20 % dearer: ranked
+  const EqualAccuracyTable t = BuildEqualAccuracyTable(labels, pts, {1e-3}, "");
+  EXPECT_EQ(t.fastest[0], 0);
+  ASSERT_EQ(t.tied[0].size(), 1u);
+  EXPECT_EQ(t.tied[0][0], 1);
+  EXPECT_DOUBLE_EQ(t.spread[1][0], 0.02);
+}
+
 }  // namespace
 }  // namespace clothbench
