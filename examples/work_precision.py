@@ -29,9 +29,9 @@ for row in rows:
     runs.append((row, points))
     plt.loglog([e for _, e in points], [t for t, _ in points], "o-", label=row)
 table = clothbench.equal_accuracy(runs)
-for label, costs, ratios in zip(table["labels"], table["cost"], table["ratio"]):
-    print(f"{label:14}" + "".join(f"{c:9.3f} s ({q:.2f}x)" if c is not None and q is not None else f"{'-':>20}"
-                                  for c, q in zip(costs, ratios)))
+for label, costs, ratios, bounds in zip(table["labels"], table["cost"], table["ratio"], table["upper_bound"]):
+    print(f"{label:14}" + "".join(f"{'≤' if b else '':>3}{c:6.3f} s ({q:.2f}x)" if c is not None and q is not None
+                                  else f"{'-':>20}" for c, q, b in zip(costs, ratios, bounds)))
 print("fastest:", table["fastest"])
 plt.xlabel("e_rms(t_end) [m]"), plt.ylabel("solver time [s]"), plt.legend(), plt.gca().invert_xaxis()
 os.makedirs("out", exist_ok=True)
