@@ -53,7 +53,7 @@ int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
-  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 40.0;
+  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 30.0;
   int repeat = 0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline), error_metric = "final";
@@ -127,7 +127,7 @@ int Main(int argc, char** argv) {
   app.add_option("--repeat", repeat, "timings per run: the least is reported, with the spread (default: 3 for runs "
                  "under 2 s, 1 above, within --time-budget)")->check(CLI::Range(1, 1000));
   app.add_option("--time-budget", time_budget, "wall time [s] all repetitions after a run's first may take together "
-                 "(default 40; ignored with --repeat)")->check(CLI::Range(0.0, 1e6));
+                 "(default 30; ignored with --repeat)")->check(CLI::Range(0.0, 1e6));
   app.add_option("--max-runs", max_runs,
                  "compute at most N runs (the reference counts as one) not yet in <out>.journal/, then stop with exit "
                  "status 75 and keep the journal; rerun the same command to continue")

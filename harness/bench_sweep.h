@@ -26,7 +26,7 @@ struct BenchRun {
   /// Timings per run (--repeat); 0: 3 for runs whose first timing is under
   /// 2 s, 1 above (DiffEqDevTools' rule).
   int repeat = 0;
-  double time_budget = 40.0;  ///< wall time [s] all repetitions after the first may take (--time-budget)
+  double time_budget = 30.0;  ///< wall time [s] all repetitions after the first may take (--time-budget)
   std::vector<double> hs;          ///< --h (empty: defaults); sets the self-convergence reference's h
   const MethodEntry* reference = nullptr;  ///< the reference method (nullptr: none)
   double ref_rtol = 1e-10;
