@@ -327,6 +327,25 @@ void WriteResultFile(const std::string& path, const py::object& scene_arg, const
   WriteResults(path, scene, sys, ref, ref_opts, rows, table, 1);
 }
 
+// An equal-accuracy table as a dict: targets, labels, cost, ratio,
+// upper_bound, tied, min_error (per method; None where every run failed),
+// fastest (labels; None where no method reaches a target) and baseline.
+py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
+  py::dict out;
+  out["targets"] = t.targets;
+  out["labels"] = t.labels;
+  out["cost"] = t.cost;
+  out["ratio"] = t.ratio;
+  out["upper_bound"] = t.upper_bound;
+  out["tied"] = t.tied;
+  out["min_error"] = t.min_error;
+  std::vector<std::optional<std::string>> fastest;
+  for (int k : t.fastest) fastest.push_back(k >= 0 ? std::optional(t.labels[static_cast<std::size_t>(k)]) : std::nullopt);
+  out["fastest"] = fastest;
+  out["baseline"] = t.reference;
+  return out;
+}
+
 // A result file's records (ReadRunTable): provenance, scene, the reference
 // and every run as dicts of their attributes, and the equal-accuracy table.
 py::dict ReadResultFile(const std::string& path) {
@@ -348,20 +367,7 @@ py::dict ReadResultFile(const std::string& path) {
   py::list runs;
   for (const RunRecord& r : t.runs) runs.append(RecordDict(r));
   out["runs"] = runs;
-  if (t.work_precision) {
-    py::dict w;
-    w["targets"] = t.work_precision->targets;
-    w["labels"] = t.work_precision->labels;
-    w["cost"] = t.work_precision->cost;
-    w["ratio"] = t.work_precision->ratio;
-    w["upper_bound"] = t.work_precision->upper_bound;
-    w["tied"] = t.work_precision->tied;
-    w["min_error"] = t.work_precision->min_error;
-    w["baseline"] = t.work_precision->reference;
-    out["work_precision"] = w;
-  } else {
-    out["work_precision"] = py::none();
-  }
+  out["work_precision"] = t.work_precision ? py::object(EqualAccuracyDict(*t.work_precision)) : py::none();
   return out;
 }
 
@@ -387,20 +393,7 @@ py::dict EqualAccuracy(const std::vector<std::pair<std::string, std::vector<std:
     points.emplace_back();
     for (const auto& [cost, err] : pts) points.back().push_back({cost, err});
   }
-  const EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
-  py::dict out;
-  out["targets"] = t.targets;
-  out["labels"] = t.labels;
-  out["cost"] = t.cost;
-  out["ratio"] = t.ratio;
-  out["upper_bound"] = t.upper_bound;
-  out["tied"] = t.tied;
-  out["min_error"] = t.min_error;
-  std::vector<std::optional<std::string>> fastest;
-  for (int k : t.fastest) fastest.push_back(k >= 0 ? std::optional(t.labels[static_cast<std::size_t>(k)]) : std::nullopt);
-  out["fastest"] = fastest;
-  out["baseline"] = t.reference;
-  return out;
+  return EqualAccuracyDict(BuildEqualAccuracyTable(labels, points, targets, baseline));
 }
 
 }  // namespace
