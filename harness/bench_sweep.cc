@@ -30,19 +30,14 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   // <out>.journal/, so that the same command rerun after an interruption
   // computes only the missing ones (harness/sweep.h).
   struct RowTask {
-    std::size_t mk, block;  // method; block of rows whose observed orders chain (method, η)
+    std::size_t mk;  // method
     double eta, param;
     int substeps;
   };
   std::vector<RowTask> row_tasks;
-  {
-    std::size_t block = 0;
-    for (std::size_t mk = 0; mk < b.methods.size(); ++mk)
-      for (double eta : b.methods[mk].uses_pcg() ? b.etas : std::vector<double>{b.scene.solver.cg_tolerance}) {
-        for (const auto& [p, n] : b.plan.params[mk]) row_tasks.push_back({mk, block, eta, p, n});
-        ++block;
-      }
-  }
+  for (std::size_t mk = 0; mk < b.methods.size(); ++mk)
+    for (double eta : b.methods[mk].uses_pcg() ? b.etas : std::vector<double>{b.scene.solver.cg_tolerance})
+      for (const auto& [p, n] : b.plan.params[mk]) row_tasks.push_back({mk, eta, p, n});
   const long n_ref = b.reference != nullptr ? 1 : 0;
   const long n_tasks = n_ref + static_cast<long>(row_tasks.size());
   // The model last: it loads the mesh obstacles, whose errors are refusals
