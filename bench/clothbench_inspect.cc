@@ -4,8 +4,10 @@
 //   clothbench_inspect FILE.h5 summary              scene, machine, commit, runs
 //   clothbench_inspect FILE.h5 table                the table bench_integrators printed
 //   clothbench_inspect FILE.h5 runs [--json]        one line (or JSON object) per run
+//   clothbench_inspect FILE.h5 work-precision [--error-metric final|l2|max]
 //   clothbench_inspect A.h5 diff B.h5 [--rtol R] [--time-tolerance T]
 //   clothbench_inspect FILE.h5 export RUN --frame K (--obj OUT | --ply OUT)
+//   clothbench_inspect FILE.h5 command RUN [--dir D] [--bench PATH]   shell script recomputing RUN
 //
 // Exit codes: 0; 1 for `diff` when a change is flagged; 2 for bad input (an
 // unreadable file, another schema, an unknown run or frame), one line.
@@ -21,6 +23,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "harness/reproduce.h"
 #include "results/result_reader.h"
 #include "results/run_table.h"
 
@@ -250,6 +253,18 @@ int Main(int argc, char** argv) {
   CLI::Option* o_obj = exp->add_option("--obj", obj, "write Wavefront OBJ");
   CLI::Option* o_ply = exp->add_option("--ply", ply, "write ASCII PLY");
   o_obj->excludes(o_ply);
+  std::string metric;
+  CLI::App* wp = app.add_subcommand("work-precision", "the equal-accuracy table, from the stored runs under an error "
+                                                      "norm of choice (same targets and baseline)");
+  wp->add_option("--error-metric", metric, "final | l2 | max (default: the file's)");
+  ReproduceOptions reproduce;
+  std::string rerun;
+  CLI::App* command = app.add_subcommand("command", "a shell script that writes the file's scene text to a scene file "
+                                                    "and runs bench_integrators with exactly the settings of RUN");
+  command->add_option("run", rerun, "run id (clothbench_inspect FILE runs)")->required();
+  command->add_option("--dir", reproduce.dir, "folder for the scene file and the result (default rerun-RUN)");
+  command->add_option("--bench", reproduce.bench,
+                      "bench_integrators to call (default: the one next to this executable)");
   try {
     app.parse(argc, argv);
     if (exp->parsed() && obj.empty() && ply.empty()) throw CLI::ValidationError("export: one of --obj or --ply is required");
@@ -279,6 +294,28 @@ int Main(int argc, char** argv) {
       return Diff(t, ReadRunTable(g), other, rtol, time_tolerance);
     } else if (exp->parsed()) {
       Export(f, run, frame, obj, ply);
+    } else if (wp->parsed()) {
+      if (!t.work_precision)
+        throw UsageError(fmt::format("work-precision: {} has no /work_precision (written with --reference none)", file));
+      if (metric.empty()) metric = t.error_metric;
+      if (metric != "final" && metric != "l2" && metric != "max")
+        throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", metric));
+      std::vector<const RunRecord*> records;
+      for (const RunRecord& r : t.runs) records.push_back(&r);
+      fmt::print("# {}: written {} by commit {}; errors: {}\n", file, t.created, t.git_commit, metric);
+      PrintWorkPrecision(stdout, WorkPrecisionOf(records, t.work_precision->targets, t.work_precision->reference, metric));
+    } else if (command->parsed()) {
+      if (reproduce.dir.empty()) reproduce.dir = "rerun-" + rerun;
+      if (command->count("--bench") == 0) {
+        std::error_code ec;
+        const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+        if (!ec) reproduce.bench = (self.parent_path() / "bench_integrators").string();
+      }
+      try {
+        fmt::print("{}", ReproduceScript(f, t, rerun, reproduce));
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(e.what());
+      }
     }
     return 0;
   } catch (const UsageError& e) {

@@ -72,7 +72,6 @@ inline std::vector<double> ParsePositiveList(const std::string& s, const std::st
   return out;
 }
 
-/// Refuses, before any computing, an --out that is a directory or whose
 /// @throws UsageError if `name` is not one of ArkodeTableNames() (--arkode-table).
 inline void CheckArkodeTable(const std::string& name) {
   if (std::find(ArkodeTableNames().begin(), ArkodeTableNames().end(), name) != ArkodeTableNames().end()) return;
@@ -81,6 +80,7 @@ inline void CheckArkodeTable(const std::string& name) {
   throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", name, known));
 }
 
+/// Refuses, before any computing, an --out that is a directory or whose
 /// folder cannot be created or written (the folder is created).
 inline void CheckOutputFolder(const std::string& out) {
   if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -183,7 +184,9 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
       std::vector<int32_t> triangles;
       mesh->Export(&vertices, &triangles);
       f.CreateGroup(o);
-      f.SetAttribute(o, "path", sys.obstacles()[k].spec().path);
+      // Absolute, so that the file names the mesh wherever it is read
+      // (clothbench_inspect's command links it next to the scene file).
+      f.SetAttribute(o, "path", std::filesystem::absolute(sys.obstacles()[k].spec().path).lexically_normal().string());
       f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
       f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
     }
@@ -277,24 +280,13 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 
-// The equal-accuracy table (docs/work-precision.md): each row label's
-// (solver time, e_rms at t_end) points in run order (h or rtol decreasing).
+// The equal-accuracy table (docs/work-precision.md) of the rows' records,
+// after CompareToReference filled their errors.
 EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets,
                                  const std::string& baseline, ErrorMetric metric) {
-  std::vector<std::string> labels;
-  std::vector<std::vector<WorkPoint>> points;
-  for (const Row& r : rows) {
-    auto it = std::find(labels.begin(), labels.end(), r.label);
-    if (it == labels.end()) {
-      labels.push_back(r.label);
-      points.emplace_back();
-      it = labels.end() - 1;
-    }
-    if (r.ok() && r.err) points[static_cast<std::size_t>(it - labels.begin())].push_back({r.solver_time_s, r.err->Of(metric), r.TimeSpread()});
-  }
-  EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
-  t.metric = std::string(ToString(metric));
-  return t;
+  std::vector<const RunRecord*> records;
+  for (const Row& r : rows) records.push_back(&r);
+  return WorkPrecisionOf(records, targets, baseline, ToString(metric));
 }
 
 

@@ -195,6 +195,21 @@ std::vector<int32_t> ResultReader::Ints(const std::string& dataset) const {
   return ReadAll<int32_t>(file_, path_, dataset, H5T_NATIVE_INT32, Shape(dataset));
 }
 
+std::string ResultReader::Text(const std::string& dataset) const {
+  if (!Exists(dataset)) throw ResultError(fmt::format("{}: no dataset {}", path_, dataset));
+  Handle ds{H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  Handle type{H5Dget_type(ds.id), H5Tclose};
+  Handle space{H5Dget_space(ds.id), H5Sclose};
+  if (ds.id < 0 || H5Tget_class(type.id) != H5T_STRING || H5Tis_variable_str(type.id) > 0 ||
+      H5Sget_simple_extent_type(space.id) != H5S_SCALAR)
+    throw ResultError(fmt::format("{}: {} is not a fixed-length string", path_, dataset));
+  std::string text(H5Tget_size(type.id), '\0');
+  if (H5Dread(ds.id, type.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, text.data()) < 0)
+    throw ResultError(fmt::format("{}: cannot read {}", path_, dataset));
+  text.erase(std::find_if(text.rbegin(), text.rend(), [](char c) { return c != '\0'; }).base(), text.end());
+  return text;
+}
+
 MatrixN3 ResultReader::Frame(const std::string& dataset, std::size_t k) const {
   const std::vector<std::size_t> shape = Shape(dataset);
   if (shape.size() != 3 || shape[2] != 3) throw ResultError(fmt::format("{}: {} is not [F, N, 3]", path_, dataset));

@@ -46,6 +46,10 @@ class ResultReader {
   std::vector<double> Doubles(const std::string& dataset) const;
   /// Any integer dataset flattened row-major. @throws ResultError if missing.
   std::vector<int32_t> Ints(const std::string& dataset) const;
+  /// A scalar string dataset (ResultFile::WriteString: /scene/toml), its
+  /// trailing NUL padding removed. @throws ResultError if missing or not a
+  /// string.
+  std::string Text(const std::string& dataset) const;
   /// Frame k of an [F, N, 3] dataset as N×3. @throws ResultError if k ≥ F.
   MatrixN3 Frame(const std::string& dataset, std::size_t k) const;
   /// A step_stats table. @throws ResultError if missing.

@@ -142,6 +142,25 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
              t.compiler, t.build_type, t.git_commit);
 }
 
+EqualAccuracyTable WorkPrecisionOf(const std::vector<const RunRecord*>& runs, const std::vector<double>& targets,
+                                   const std::string& baseline, std::string_view metric) {
+  std::vector<std::string> labels;
+  std::vector<std::vector<WorkPoint>> points;
+  for (const RunRecord* r : runs) {
+    auto it = std::find(labels.begin(), labels.end(), r->label);
+    if (it == labels.end()) {
+      labels.push_back(r->label);
+      points.emplace_back();
+      it = labels.end() - 1;
+    }
+    if (const std::optional<double> e = r->Error(metric); r->ok() && e)
+      points[static_cast<std::size_t>(it - labels.begin())].push_back({r->solver_time_s, *e, r->TimeSpread()});
+  }
+  EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
+  t.metric = std::string(metric);
+  return t;
+}
+
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
   fmt::print(out,
              "\nEqual accuracy: solver time [s] at {} = target on each method's lower envelope of (error, "

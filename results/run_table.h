@@ -118,6 +118,13 @@ struct RunTable {
 /// machine line.
 void PrintRunTable(std::FILE* out, const RunTable& table);
 
+/// The equal-accuracy table of `runs` (docs/work-precision.md): per row
+/// label, in order of first appearance, the (solver time, error, timing
+/// spread) of its ok runs that have an error of `metric` ("final", "l2",
+/// "max"), against `targets` [m], ratios to `baseline` (a label; empty: none).
+EqualAccuracyTable WorkPrecisionOf(const std::vector<const RunRecord*>& runs, const std::vector<double>& targets,
+                                   const std::string& baseline, std::string_view metric);
+
 /// Prints the equal-accuracy table (docs/work-precision.md).
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& table);
 

@@ -430,8 +430,8 @@ TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
     EXPECT_EQ(r.step_control, sundials ? "sundials" : r.label == "sbdf2/error" ? "error" : "fixed");
     EXPECT_EQ(r.step_kind, r.integrator == "xpbd" ? "substepped" : sundials || r.label == "sbdf2/error" ? "adaptive"
                                                                                                          : "fixed_step");
-    if (r.step_kind == "adaptive") EXPECT_TRUE(r.rtol == 1e-3 && r.atol == 1e-3);
-    if (r.step_kind == "substepped") EXPECT_EQ(r.substeps, 2);
+    if (r.step_kind == "adaptive") { EXPECT_TRUE(r.rtol == 1e-3 && r.atol == 1e-3); }
+    if (r.step_kind == "substepped") { EXPECT_EQ(r.substeps, 2); }
   }
 }
 

@@ -213,5 +213,74 @@ TEST_F(InspectTest, ExportWritesTheStoredFrame) {
   }
 }
 
+// The end state and counts of one stored run: positions and velocities at
+// t_end (every frame or only the ends, whichever the file kept).
+struct EndState {
+  MatrixN3 x, v;
+  long steps, updates, cg_iterations;
+};
+
+EndState ReadEndState(const std::string& file, const std::string& id) {
+  const ResultReader f(file);
+  const std::string g = "/runs/" + id;
+  const auto last = [&](const std::string& name) {
+    const std::string d = f.Exists(g + "/" + name) ? g + "/" + name : g + "/" + name + "_ends";
+    return f.Frame(d, f.Shape(d)[0] - 1);
+  };
+  const RunRecord r = ReadRunRecord(f, g, id);
+  return {last("positions"), last("velocities"), r.steps, r.updates, r.cg_iterations};
+}
+
+// `clothbench_inspect FILE command RUN` prints a script that recomputes the
+// run from the file alone. Runs are deterministic on one build and thread
+// count, so the recomputed end state must equal the stored one bit for bit
+// (no tolerance). The scene makes Newton its default nonlinear solver, so
+// the fixed-point row must name its solver; --t-end shortens the scene's
+// run, so the script must pass it; the mesh obstacle is named relative to the
+// scene file, so the script must link it next to the scene file it writes.
+TEST(InspectCommand, RecomputesARunBitForBit) {
+  const fs::path dir = TempDir() / "command";
+  fs::create_directories(dir / "meshes");
+  fs::copy_file(fs::path(CLOTHBENCH_DATA_DIR) / "meshes" / "cube.off", dir / "meshes" / "cube.off",
+                fs::copy_options::overwrite_existing);
+  std::string scene = testing::kTinyScene;
+  scene += "nonlinear_solver = \"newton\"\n\n[[obstacle]]\ntype = \"mesh\"\npath = \"meshes/cube.off\"\n"
+           "scale = 0.05\ntranslate = [0.15, 0.1, -0.5]\n";
+  std::ofstream(dir / "scene.toml") << scene;
+  const std::string file = (dir / "original.h5").string();
+  const Outcome o = RunCommand(CLOTHBENCH_BENCH_BINARY,
+                               "--scene " + (dir / "scene.toml").string() +
+                                   " --integrators sbdf2,sbdf2/error,cvode,xpbd,bdf2/fixed_point,baraff_witkin "
+                                   "--h 0.005 --rtols 1e-4 --substeps 4 --t-end 0.03 --frames ends --reference none "
+                                   "--quiet --out " + file);
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  for (const char* id : {"sbdf2_h0.005", "sbdf2_error_rtol0.0001", "cvode_rtol0.0001", "xpbd_h0.005_n4",
+                         "bdf2_h0.005", "baraff_witkin_h0.005"}) {
+    const fs::path rerun = dir / (std::string("rerun_") + id);
+    fs::remove_all(rerun);
+    const Outcome c = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + " command " + id + " --dir " + rerun.string());
+    ASSERT_EQ(c.exit_code, 0) << c.err;
+    const fs::path script = dir / (std::string(id) + ".sh");
+    std::ofstream(script) << c.out;
+    const Outcome s = RunCommand("sh", script.string());
+    ASSERT_EQ(s.exit_code, 0) << id << ": " << s.err << "\n" << c.out;
+    const RunTable t = ReadRunTable(ResultReader((rerun / "run.h5").string()));
+    ASSERT_EQ(t.runs.size(), 1u) << id;
+    EXPECT_EQ(t.runs[0].id, id);
+    const EndState a = ReadEndState(file, id), b = ReadEndState((rerun / "run.h5").string(), id);
+    EXPECT_EQ(a.steps, b.steps) << id;
+    EXPECT_EQ(a.updates, b.updates) << id;
+    EXPECT_EQ(a.cg_iterations, b.cg_iterations) << id;
+    EXPECT_TRUE(a.x == b.x) << id << ": positions at t_end differ by " << (a.x - b.x).cwiseAbs().maxCoeff() << " m";
+    EXPECT_TRUE(a.v == b.v) << id << ": velocities at t_end differ by " << (a.v - b.v).cwiseAbs().maxCoeff();
+  }
+  // The reference and an unknown run: one line, exit 2.
+  for (const char* bad : {" command reference", " command rk4_h0.01"}) {
+    const Outcome b = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + bad);
+    EXPECT_EQ(b.exit_code, 2) << bad;
+    EXPECT_EQ(std::count(b.err.begin(), b.err.end(), '\n'), 1) << b.err;
+  }
+}
+
 }  // namespace
 }  // namespace clothbench
