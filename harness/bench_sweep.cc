@@ -22,6 +22,29 @@
 
 namespace clothbench {
 
+void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function<MethodRun()>& run_again) {
+  std::vector<double> times = {r->solver_time_s};
+  const int k = repeat > 0 ? repeat : (r->solver_time_s < 2.0 ? 3 : 1);
+  while (r->ok() && static_cast<int>(times.size()) < k && (repeat > 0 || *budget >= r->wall_time_s)) {
+    const auto start = std::chrono::steady_clock::now();
+    const MethodRun again = run_again();
+    *budget -= std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!again.ok() || again.steps != r->steps || again.traj.positions.size() != r->traj.positions.size() ||
+        again.traj.positions.back() != r->traj.positions.back() ||
+        again.traj.velocities.back() != r->traj.velocities.back())
+      throw std::runtime_error(fmt::format("{}: timing {} of {} did not reproduce the first run's end state bit for "
+                                           "bit (steps {} vs {}, status {})",
+                                           r->id, times.size() + 1, k, again.steps, r->steps, again.status));
+    times.push_back(again.solver_time_s);
+  }
+  std::sort(times.begin(), times.end());
+  r->repeats = static_cast<long>(times.size());
+  r->solver_time_s = times.front();
+  r->solver_time_s_median =
+      times.size() % 2 ? times[times.size() / 2] : 0.5 * (times[times.size() / 2 - 1] + times[times.size() / 2]);
+  r->solver_time_s_max = times.back();
+}
+
 int RunBench(const BenchRun& b, SweepComm& comm) {
   using Row = MethodRun;
   // The sweep: the reference (task 0, if any) and every row in table
@@ -60,32 +83,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
                comm.size(), comm.size() > 1 ? "s" : "");
 
   TerminalProgress progress(!b.quiet && comm.root());
-  // Repetitions (--repeat, --time-budget): later timings of a run reproduce
-  // its end state bit for bit (an error naming the row otherwise); the row
-  // keeps the least solver time, the median, the largest and the count.
   double budget = b.time_budget;
-  const auto Repeat = [&](Row& r, const auto& run_again) {
-    std::vector<double> times = {r.solver_time_s};
-    const int k = b.repeat > 0 ? b.repeat : (r.solver_time_s < 2.0 ? 3 : 1);
-    while (r.ok() && static_cast<int>(times.size()) < k && (b.repeat > 0 || budget >= r.wall_time_s)) {
-      const auto start = std::chrono::steady_clock::now();
-      const Row again = run_again();
-      budget -= std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (!again.ok() || again.steps != r.steps || again.traj.positions.size() != r.traj.positions.size() ||
-          again.traj.positions.back() != r.traj.positions.back() ||
-          again.traj.velocities.back() != r.traj.velocities.back())
-        throw std::runtime_error(fmt::format("{}: timing {} of {} did not reproduce the first run's end state bit for "
-                                             "bit (steps {} vs {}, status {})",
-                                             r.id, times.size() + 1, k, again.steps, r.steps, again.status));
-      times.push_back(again.solver_time_s);
-    }
-    std::sort(times.begin(), times.end());
-    r.repeats = static_cast<long>(times.size());
-    r.solver_time_s = times.front();
-    r.solver_time_s_median = times.size() % 2 ? times[times.size() / 2]
-                                              : 0.5 * (times[times.size() / 2 - 1] + times[times.size() / 2]);
-    r.solver_time_s_max = times.back();
-  };
   RunLimits limits;
   limits.time_limit_s = b.time_limit;
   ReferenceOptions ref_opts{b.ref_rtol, -1.0, 5, b.scene.t_end, b.scene.frame_dt, limits};
@@ -166,7 +164,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
             [](const auto& a, const auto& c) { return a.second.wall_time_s < c.second.wall_time_s; });
   for (auto& [k, r] : computed) {
     const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
-    Repeat(r, [&] { return b.methods[t.mk].Run(sys, b.scene, task_spec(t), t.param, ctx, t.substeps); });
+    RepeatTimings(&r, b.repeat, &budget, [&] { return b.methods[t.mk].Run(sys, b.scene, task_spec(t), t.param, ctx, t.substeps); });
     if (r.repeats > 1) journal_store(k, EncodeRun(r));
     if (comm.root()) own_rows.emplace(k, std::move(r));
     else outgoing.emplace_back(k, EncodeRun(r));

@@ -4,6 +4,7 @@
 #ifndef CLOTHBENCH_HARNESS_BENCH_SWEEP_H_
 #define CLOTHBENCH_HARNESS_BENCH_SWEEP_H_
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,15 @@ struct BenchRun {
   std::string arkode_table;
   CvodeSettings cvode;
 };
+
+/// Times run `r` again with `run_again` until it has `repeat` timings (0:
+/// DiffEqDevTools' rule, 3 if its first solver time is under 2 s, else 1,
+/// each started only while its first run's wall time fits `*budget` [s],
+/// which the repetitions use up). Keeps the least solver time in
+/// solver_time_s, the median and largest, and the count in repeats.
+/// @throws std::runtime_error naming the run if a repetition does not
+///   reproduce the first run's end state bit for bit
+void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function<MethodRun()>& run_again);
 
 /// Runs the sweep on this rank's share of the tasks; rank 0 assembles,
 /// prints the tables and writes `b.out` (and its XDMF, the series and the

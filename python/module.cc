@@ -17,6 +17,7 @@
 
 #include <toml++/toml.h>
 
+#include "harness/bench_sweep.h"
 #include "harness/cli_args.h"
 #include "harness/methods.h"
 #include "harness/result_writer.h"
@@ -148,15 +149,20 @@ py::dict RecordDict(const RunRecord& r) {
                       {"nonlinear_solver", &r.nonlinear_solver}, {"preconditioner", &r.preconditioner},
                       {"tangent_terms", &r.tangent_terms}, {"sundials_settings", &r.sundials_settings},
                       {"constraints", &r.constraints}, {"explicit_terms", &r.explicit_terms},
-                      {"status", &r.status}, {"message", &r.message}})
+                      {"step_control", &r.step_control}, {"predictor", &r.predictor},
+                      {"cg_reference", &r.cg_reference}, {"newton_jacobian", &r.newton_jacobian},
+                      {"arkode_table", &r.arkode_table}, {"status", &r.status}, {"message", &r.message}})
     d[k] = *v;
   for (auto [k, v] : {std::pair<const char*, double>{"h", r.h}, {"rtol", r.rtol}, {"cg_tolerance", r.cg_tolerance},
-                      {"solver_time_s", r.solver_time_s}, {"wall_time_s", r.wall_time_s},
+                      {"atol", r.atol}, {"solver_time_s", r.solver_time_s},
+                      {"solver_time_s_median", r.solver_time_s_median}, {"solver_time_s_max", r.solver_time_s_max},
+                      {"wall_time_s", r.wall_time_s},
                       {"setup_time_s", r.setup_time_s}, {"numerical_stiffness", r.numerical_stiffness}})
     d[k] = v;
   for (auto [k, v] : {std::pair<const char*, long>{"substeps", r.substeps}, {"steps", r.steps},
                       {"updates", r.updates}, {"cg_iterations", r.cg_iterations}, {"rejected", r.rejected},
-                      {"error_test_failures", r.error_test_failures}, {"cg_unconverged", r.cg_unconverged}})
+                      {"error_test_failures", r.error_test_failures}, {"cg_unconverged", r.cg_unconverged},
+                      {"repeats", r.repeats}, {"threads", r.threads}})
     d[k] = v;
   for (auto [k, v] : {std::pair<const char*, const std::optional<double>*>{"error_final_m", &r.error_final_m},
                       {"error_l2_m", &r.error_l2_m}, {"error_max_m", &r.error_max_m}, {"error_mean_m", &r.error_mean_m},
@@ -174,7 +180,7 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
              std::optional<double> rtol, int substeps, std::optional<double> cg_tolerance,
              std::optional<std::string> preconditioner, std::optional<std::string> tangent_terms,
              std::optional<double> t_end, const py::dict& overrides, const py::object& progress,
-             const py::object& reference) {
+             const py::object& reference, std::optional<int> repeat, double time_budget) {
   Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
                                                    : scene_arg.cast<Scene>();
   if (t_end) scene.t_end = *t_end;
@@ -185,6 +191,8 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   if (adaptive && !rtol) throw py::value_error(method + " is adaptive: give rtol");
   if (!adaptive && !h) throw py::value_error(method + " steps with h: give h [s]");
   if (substeps < 1) throw py::value_error("substeps must be at least 1");
+  if (repeat && (*repeat < 1 || *repeat > 1000)) throw py::value_error("repeat must be from 1 to 1000");
+  if (!(time_budget >= 0.0 && time_budget <= 1e6)) throw py::value_error("time_budget must be in [0, 1e6] s");
   SolverSpec spec = scene.solver;
   if (cg_tolerance) spec.cg_tolerance = *cg_tolerance;
   RunContext ctx;
@@ -215,6 +223,10 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
     try {
       py::gil_scoped_release release;
       r = m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps);
+      // Repetitions as bench_integrators' (--repeat, --time-budget); the
+      // progress callback follows each timing.
+      double budget = time_budget;
+      RepeatTimings(&r, repeat.value_or(0), &budget, [&] { return m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps); });
     } catch (const PythonProgress::Stopped&) {
       sink->RethrowCallbackError();
       throw;
@@ -422,11 +434,15 @@ PYBIND11_MODULE(clothbench, m) {
   m.def("run", &Run, py::arg("scene"), py::arg("method"), py::arg("h") = py::none(), py::arg("rtol") = py::none(),
         py::arg("substeps") = 1, py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
         py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
-        py::arg("progress") = py::none(), py::arg("reference") = py::none(),
+        py::arg("progress") = py::none(), py::arg("reference") = py::none(), py::arg("repeat") = py::none(),
+        py::arg("time_budget") = 30.0,
         "Runs one row as bench_integrators does (the GIL released). Returns a dict: times [F], positions and "
         "velocities [F, N, 3], step_stats (structured array), counts, times, status, energies, and with "
         "reference= (a dict from reference()) error_final_m, error_l2_m, error_max_m (and _mps for the velocities). progress(t, t_end) is "
-        "called at most every 0.2 s; an exception it raises stops the run and is raised again.");
+        "called at most every 0.2 s; an exception it raises stops the run and is raised again. The run is timed "
+        "`repeat` times (None: 3 if the first takes under 2 s, else 1, within time_budget seconds), each later "
+        "timing reproducing the end state bit for bit: solver_time_s is the least, with solver_time_s_median, "
+        "solver_time_s_max and repeats."),
   m.def("write_results", &WriteResultFile, py::arg("path"), py::arg("scene"), py::arg("runs"),
         py::arg("reference") = py::none(), py::arg("frames") = std::string("default"),
         py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
