@@ -3,10 +3,9 @@
 // updates, CG iterations, solver time, e_rms at t_end, observed order) and
 // stores everything in HDF5 (docs/model.md §9).
 //
-//   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST]
-//                     [--t-end T] [--reference cvode|ida|none] [--out FILE.h5]
-//                     [--reference-rtol R] [--rtols LIST] [--substeps LIST]
-//                     [--cg-tolerance ETA] [--cg-tolerances LIST] [--work-precision]
+//   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST] [--t-end T]
+//                     [--reference cvode|ida|none] [--out FILE.h5] [--rtols LIST] [--substeps LIST]
+//                     [--cg-tolerance ETA] [--work-precision] ... (--help lists every option)
 
 #include <cmath>
 #include <cstdio>
@@ -225,6 +224,7 @@ int Main(int argc, char** argv) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
+    AdoptSceneStepControl(scene.solver, &methods);  // "sbdf2" under a scene's error control is sbdf2/error
     for (std::size_t a = 0; a < methods.size(); ++a)
       for (std::size_t b = 0; b < a; ++b)
         if (methods[a].label() == methods[b].label())

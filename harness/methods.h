@@ -465,6 +465,17 @@ inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenO
   return "";
 }
 
+/// Under a scene whose [solver] step_control is "error", the rows of the
+/// methods that run under error control (sbdf2, bdf2) are their "/error"
+/// rows: adaptive, labelled so, at --rtols or by default at the scene's
+/// rtol (PlanRows). Without this a "sbdf2" row would step under error
+/// control yet be listed, labelled and parameterised by h.
+inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows) {
+  if (spec.step_control != StepControl::kError) return;
+  for (RowMethod& m : *rows)
+    if (m.entry->error_control) m.error_control = true;
+}
+
 /// A row's default parameters when the command line gives none: step sizes
 /// as multiples of the scene's h (fixed-step rows; frame steps of
 /// substepped rows) and tolerances rtol (adaptive rows). Chosen on the

@@ -52,7 +52,10 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
     } else if (m.kind() == StepKind::kFixedStep) {
       for (double h : mh) ps.emplace_back(h, 1);
     } else {
-      for (double r : rtols.empty() ? d.rtols : rtols) ps.emplace_back(r, 1);
+      // A scene under error control sets its own rtol as the default.
+      const bool scene_rtol = m.error_control && scene.solver.step_control == StepControl::kError;
+      for (double r : !rtols.empty() ? rtols : scene_rtol ? std::vector<double>{scene.solver.rtol} : d.rtols)
+        ps.emplace_back(r, 1);
     }
     plan.n_params.push_back(ps.size());
     // The longest fixed-step or substepped run must stay within the step limit.

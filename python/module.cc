@@ -184,10 +184,12 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
                                                    : scene_arg.cast<Scene>();
   if (t_end) scene.t_end = *t_end;
-  const std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
+  std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
   if (rows.size() != 1) throw py::value_error("method \"" + method + "\" names " + std::to_string(rows.size()) + " rows");
+  AdoptSceneStepControl(scene.solver, &rows);  // as bench_integrators: "sbdf2" on an error-controlled scene is sbdf2/error
   const RowMethod& m = rows.front();
   const bool adaptive = m.kind() == StepKind::kAdaptive;
+  if (adaptive && !rtol && m.error_control && scene.solver.step_control == StepControl::kError) rtol = scene.solver.rtol;
   if (adaptive && !rtol) throw py::value_error(method + " is adaptive: give rtol");
   if (!adaptive && !h) throw py::value_error(method + " steps with h: give h [s]");
   if (substeps < 1) throw py::value_error("substeps must be at least 1");

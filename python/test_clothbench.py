@@ -166,3 +166,13 @@ def test_run_repeats_its_timing():
     assert clothbench.run("swinging_sheet", "sbdf2", h=0.01, t_end=0.1, time_budget=0.0)["repeats"] == 1
     with pytest.raises(ValueError):
         clothbench.run("swinging_sheet", "sbdf2", h=0.01, repeat=0)
+
+
+def test_scene_error_control_makes_an_error_row():
+    # On a scene under error control, "sbdf2" is sbdf2/error at the scene's
+    # rtol, as on the command line.
+    scene = clothbench.load_scene("swinging_sheet", {"solver.step_control": "error", "solver.rtol": 1e-3,
+                                                     "t_end": 0.1})
+    r = clothbench.run(scene, "sbdf2", repeat=1)
+    assert r["label"] == "sbdf2/error" and r["step_kind"] == "adaptive" and r["rtol"] == 1e-3
+    assert r["step_control"] == "error"

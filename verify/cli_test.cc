@@ -456,5 +456,34 @@ TEST(BenchCli, RepeatTimesEveryRun) {
                      "--repeat");
 }
 
+// A scene under error control ([solver] step_control = "error") makes its
+// sbdf2 and bdf2 rows the error-controlled rows they step as: labelled
+// sbdf2/error, adaptive, at --rtols or else at the scene's rtol, and stored
+// so. (They were listed by h, ignoring --rtols.)
+TEST(BenchCli, SceneErrorControlMakesErrorRows) {
+  const std::string scene =
+      WriteScene("error_control.toml", std::string(kTiny) + "step_control = \"error\"\nrtol = 1e-3\n");
+  const fs::path out = TempDir() / "error_control.h5";
+  Outcome o = RunBench("--scene " + scene + " --integrators sbdf2 --rtols 1e-3,1e-5 --reference none --frames none "
+                       "--repeat 1 --quiet --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  RunTable t = ReadRunTable(ResultReader(out.string()));
+  ASSERT_EQ(t.runs.size(), 2u);
+  for (const RunRecord& r : t.runs) {
+    EXPECT_EQ(r.label, "sbdf2/error") << r.id;
+    EXPECT_EQ(r.step_kind, "adaptive") << r.id;
+    EXPECT_EQ(r.step_control, "error") << r.id;
+  }
+  EXPECT_EQ(t.runs[0].rtol, 1e-3);
+  EXPECT_EQ(t.runs[1].rtol, 1e-5);
+  EXPECT_LT(t.runs[0].steps, t.runs[1].steps);  // a tighter rtol takes more steps
+  o = RunBench("--scene " + scene + " --integrators sbdf2 --reference none --frames none --repeat 1 --quiet --out " +
+               out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  t = ReadRunTable(ResultReader(out.string()));
+  ASSERT_EQ(t.runs.size(), 1u);
+  EXPECT_EQ(t.runs[0].id, "sbdf2_error_rtol0.001");
+}
+
 }  // namespace
 }  // namespace clothbench
