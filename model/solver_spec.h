@@ -62,6 +62,9 @@ struct SolverSpec {
   /// The CHOLMOD factor: fastest on the thesis scenes and at scale (docs/performance.md); the thesis scenes name "ic0" explicitly.
   PreconditionerType preconditioner = PreconditionerType::kCholesky;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
+  /// "cholesky" only: precondition each column with a factor that also
+  /// decouples the contacts along that axis (Preconditioner, solver/pcg.h).
+  bool contact_factors = true;
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
   /// Iteration controller band (docs/model.md §6; thesis §3.4.3): h grows by step_factor when
   /// a step needed fewer than [0] updates and shrinks when it needed more than [1].

@@ -44,7 +44,8 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   const auto start = std::chrono::steady_clock::now();
   const int n = system.num_particles();
   if (opts_.preconditioner == PreconditionerType::kCholesky || opts_.preconditioner == PreconditionerType::kAmg)
-    laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering);
+    laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering,
+                                                opts_.contact_factors);
   precond_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
   work_.Resize(n);
   filter_.Reserve(n);
@@ -87,7 +88,7 @@ StepStats BaraffWitkin::Step(double h) {
   {
     const auto t0 = std::chrono::steady_clock::now();
     tangent_.Update(t_, x0_, v0_, h);
-    bool ok = !laplacian_ || laplacian_->Update(h);
+    bool ok = !laplacian_ || (laplacian_->Update(h) && laplacian_->AdaptTo(filter_));
     ok = ok && precond_.Factorize(tangent_.matrix());
     ++rebuilds_;
     setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -20,6 +20,10 @@ struct CholeskyFactor::Impl {
   cholmod_factor* factor = nullptr;  // supernodal where CHOLMOD chooses it: fast (BLAS-3) factorisation
   cholmod_factor* solver = nullptr;  // simplicial LLᵀ copy for the solves (see Factorize)
   std::vector<int> source;           // position in A's values of each entry of `upper`
+  std::vector<int> iperm;            // pivot position of each particle (inverse of the factor's Perm)
+  std::vector<char> fixed;           // the decoupled fixed particles of A_F
+  cholmod_sparse* row = nullptr;     // one column of the matrix (row add, and the pattern for row delete)
+  cholmod_sparse* reach = nullptr;   // the pattern of a row of L (row delete)
   // Solve workspaces, reused (cholmod_solve2 allocates them once): lane 0
   // solves columns 0 and 1 (or all three), lane 1 column 2, each with its
   // own Common, on two OpenMP threads.
@@ -52,6 +56,8 @@ struct CholeskyFactor::Impl {
     cholmod_free_factor(&solver, &common);
     cholmod_free_factor(&factor, &common);
     cholmod_free_sparse(&upper, &common);
+    cholmod_free_sparse(&row, &common);
+    cholmod_free_sparse(&reach, &common);
     cholmod_finish(&common);
   }
 };
@@ -85,16 +91,118 @@ bool CholeskyFactor::Analyze(const SparseMatrix& a, const std::vector<int>& fixe
   m.common.postorder = 1;
   m.common.supernodal = CHOLMOD_AUTO;
   m.factor = cholmod_analyze(m.upper, &m.common);
-  return m.factor != nullptr && m.common.status == CHOLMOD_OK;
+  if (!m.factor || m.common.status != CHOLMOD_OK) return false;
+  const int* perm = static_cast<const int*>(m.factor->Perm);
+  m.iperm.assign(static_cast<std::size_t>(n), 0);
+  for (int k = 0; k < n; ++k) m.iperm[static_cast<std::size_t>(perm[k])] = k;
+  m.fixed.assign(static_cast<std::size_t>(n), 0);
+  for (int p : fixed) m.fixed[static_cast<std::size_t>(p)] = 1;
+  return true;
 }
 
-bool CholeskyFactor::Factorize(const SparseMatrix& a) {
+bool CholeskyFactor::DecoupleRow(int p, const SparseMatrix& a) {
+  Impl& m = *impl_;
+  cholmod_factor* l = m.solver ? m.solver : m.factor;
+  if (!m.factorized || !l || !PrepareRow(a.cols(), a.outerIndexPtr()[p + 1] - a.outerIndexPtr()[p])) return false;
+  const auto n = static_cast<size_t>(a.rows());
+  const int k = m.iperm[static_cast<std::size_t>(p)];
+  // The pattern of row k of L, which the row delete would otherwise search
+  // for in columns 0 … k−1 of L (O(nnz(L)) per delete): the reach of
+  // A(0:k−1, k) in L's elimination tree (a superset is allowed), cut at k.
+  int* rows = static_cast<int*>(m.row->i);
+  int nz = 0;
+  for (int pos = a.outerIndexPtr()[p]; pos < a.outerIndexPtr()[p + 1]; ++pos) {
+    const int i = m.iperm[static_cast<std::size_t>(a.innerIndexPtr()[pos])];
+    if (i < k) rows[nz++] = i;
+  }
+  static_cast<int*>(m.row->p)[0] = 0;
+  static_cast<int*>(m.row->p)[1] = nz;
+  m.row->nrow = n;
+  if (!m.reach) {
+    m.reach = cholmod_allocate_sparse(n, 1, n, /*sorted=*/0, /*packed=*/1, /*stype=*/0, CHOLMOD_PATTERN, &m.common);
+    if (!m.reach) return false;
+  }
+  if (nz > 0 && !cholmod_lsolve_pattern(m.row, l, m.reach, &m.common)) return false;
+  int* reach = static_cast<int*>(m.reach->i);
+  int* reach_p = static_cast<int*>(m.reach->p);
+  int kept = 0;
+  if (nz > 0)
+    for (int q = 0; q < reach_p[1]; ++q)
+      if (reach[q] < k) reach[kept++] = reach[q];
+  reach_p[0] = 0;
+  reach_p[1] = kept;
+  return cholmod_rowdel(static_cast<size_t>(k), m.reach, l, &m.common) != 0 && m.common.status == CHOLMOD_OK;
+}
+
+bool CholeskyFactor::PrepareRow(long n, long nnz) {
+  Impl& m = *impl_;
+  if (m.row && m.row->nzmax >= static_cast<size_t>(nnz)) return true;
+  cholmod_free_sparse(&m.row, &m.common);
+  m.row = cholmod_allocate_sparse(static_cast<size_t>(n), 1, static_cast<size_t>(std::max(nnz, 32L)), /*sorted=*/0,
+                                  /*packed=*/1, /*stype=*/0, CHOLMOD_REAL, &m.common);
+  return m.row != nullptr;
+}
+
+bool CholeskyFactor::CoupleRow(int p, const SparseMatrix& a, const std::vector<char>& decoupled) {
+  Impl& m = *impl_;
+  cholmod_factor* l = m.solver ? m.solver : m.factor;
+  if (!m.factorized || !l) return false;
+  const int begin = a.outerIndexPtr()[p], end = a.outerIndexPtr()[p + 1];
+  if (!PrepareRow(a.cols(), end - begin)) return false;
+  // Column p of A_F with the decoupled particles' entries left out, in the
+  // factor's (permuted) numbering.
+  int* rows = static_cast<int*>(m.row->i);
+  double* vals = static_cast<double*>(m.row->x);
+  int nz = 0;
+  for (int pos = begin; pos < end; ++pos) {
+    const int q = a.innerIndexPtr()[pos];
+    const auto uq = static_cast<std::size_t>(q);
+    if (q != p && (decoupled[uq] || m.fixed[uq])) continue;
+    rows[nz] = m.iperm[uq];
+    vals[nz++] = a.valuePtr()[pos];
+  }
+  static_cast<int*>(m.row->p)[0] = 0;
+  static_cast<int*>(m.row->p)[1] = nz;
+  return cholmod_rowadd(static_cast<size_t>(m.iperm[static_cast<std::size_t>(p)]), m.row, l, &m.common) != 0 &&
+         m.common.status == CHOLMOD_OK;
+}
+
+bool CholeskyFactor::Factorize(const SparseMatrix& a) { return Factorize(a, nullptr); }
+
+std::unique_ptr<CholeskyFactor> CholeskyFactor::CloneAnalysis() const {
+  const Impl& m = *impl_;
+  if (!m.factor || !m.upper) return nullptr;
+  auto out = std::make_unique<CholeskyFactor>();
+  Impl& c = *out->impl_;
+  c.upper = cholmod_copy_sparse(m.upper, &c.common);
+  c.factor = cholmod_copy_factor(m.factor, &c.common);
+  c.source = m.source;
+  c.iperm = m.iperm;
+  c.fixed = m.fixed;
+  if (!c.upper || !c.factor) return nullptr;
+  return out;
+}
+
+bool CholeskyFactor::Factorize(const SparseMatrix& a, const std::vector<char>* decoupled) {
   Impl& m = *impl_;
   m.factorized = false;
   if (!m.factor) return false;
   double* dst = static_cast<double*>(m.upper->x);
   const double* src = a.valuePtr();
   for (std::size_t k = 0; k < m.source.size(); ++k) dst[k] = src[m.source[k]];
+  if (decoupled) {
+    // Zero every off-diagonal entry of the upper triangle that couples a
+    // decoupled particle: the factor is then that of A_F with those rows
+    // and columns decoupled, on the same symbolic pattern.
+    const int* colptr = static_cast<const int*>(m.upper->p);
+    const int* rows = static_cast<const int*>(m.upper->i);
+    const std::vector<char>& d = *decoupled;
+    for (std::size_t j = 0; j < m.upper->ncol; ++j)
+      for (int pos = colptr[j]; pos < colptr[j + 1]; ++pos) {
+        const auto i = static_cast<std::size_t>(rows[pos]);
+        if (i != j && (d[i] || d[j])) dst[pos] = 0.0;
+      }
+  }
   const int ok = cholmod_factorize(m.upper, m.factor, &m.common);
   // CHOLMOD_NOT_POSDEF is a warning (status > 0), not an error: check minor.
   if (!ok || m.common.status != CHOLMOD_OK || m.factor->minor < m.factor->n) return false;
@@ -122,7 +230,7 @@ namespace {
 // (solves run in chunks of up to 4 columns) but leaves it shaped ncol×n,
 // and reallocates a workspace whose shape differs: restoring 4×n (same
 // storage) lets it reuse Y, so a solve allocates nothing after the first.
-bool SolveColumns(cholmod_factor* l, const double* b_data, std::size_t n, std::size_t ncol, cholmod_common* common,
+bool CholmodSolve(cholmod_factor* l, const double* b_data, std::size_t n, std::size_t ncol, cholmod_common* common,
                   cholmod_dense** x, cholmod_dense** y, cholmod_dense** e) {
   cholmod_dense b{};
   b.nrow = n;
@@ -142,6 +250,18 @@ bool SolveColumns(cholmod_factor* l, const double* b_data, std::size_t n, std::s
 
 }  // namespace
 
+bool CholeskyFactor::SolveColumns(const MatrixN3& r, MatrixN3* z, int col0, int ncol, int lane) const {
+  Impl& m = *impl_;
+  const auto n = static_cast<std::size_t>(r.rows());
+  const auto c0 = static_cast<std::size_t>(col0), nc = static_cast<std::size_t>(ncol);
+  Impl::Lane& ln = m.lanes[static_cast<std::size_t>(lane)];
+  const bool ok =
+      m.factorized && CholmodSolve(m.solver ? m.solver : m.factor, r.data() + c0 * n, n, nc, &ln.common, &ln.x, &ln.y, &ln.e);
+  if (ok) std::memcpy(z->data() + c0 * n, ln.x->x, nc * n * sizeof(double));
+  else std::fill_n(z->data() + c0 * n, nc * n, std::numeric_limits<double>::quiet_NaN());
+  return ok;
+}
+
 void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
   Impl& m = *impl_;
   const auto n = static_cast<std::size_t>(r.rows());
@@ -160,7 +280,7 @@ void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
       if (lane == 1 && !split) continue;
       Impl::Lane& ln = m.lanes[static_cast<std::size_t>(lane)];
       const std::size_t col0 = lane == 0 ? 0 : 2, ncol = split ? (lane == 0 ? 2 : 1) : 3;
-      ok[lane] = SolveColumns(l, r.data() + col0 * n, n, ncol, &ln.common, &ln.x, &ln.y, &ln.e);
+      ok[lane] = CholmodSolve(l, r.data() + col0 * n, n, ncol, &ln.common, &ln.x, &ln.y, &ln.e);
       if (ok[lane]) std::memcpy(z->data() + col0 * n, ln.x->x, ncol * n * sizeof(double));
     }
   }

@@ -39,8 +39,33 @@ class CholeskyFactor {
   /// Numeric factorisation of `a` (same pattern as analysed). Returns false
   /// if A_F is not positive definite or CHOLMOD failed.
   bool Factorize(const SparseMatrix& a);
+  /// The same numeric factorisation with, in addition to the fixed
+  /// particles, the rows and columns of every particle p with
+  /// decoupled[p] ≠ 0 decoupled: their off-diagonal values are set to zero in
+  /// the analysed pattern (no new analysis). nullptr: none (as Factorize).
+  bool Factorize(const SparseMatrix& a, const std::vector<char>* decoupled);
+  /// Decouples particle p in the factor the solves use (CHOLMOD's row
+  /// delete, Davis & Hager 2005): it becomes the factor of the matrix whose
+  /// row and column p are those of the identity. Cost: the part of the
+  /// factor below p's path in the elimination tree, not a refactorisation.
+  /// The first modification after a factorisation converts the factor to
+  /// LDLᵀ (allocates). @return false if CHOLMOD failed.
+  bool DecoupleRow(int p, const SparseMatrix& a);
+  /// Couples particle p back (CHOLMOD's row add): row and column p of the
+  /// factorised matrix become A_F's (values of `a`), without the entries of
+  /// the particles q with decoupled[q] ≠ 0. Row p must be decoupled.
+  /// @return false if CHOLMOD failed.
+  bool CoupleRow(int p, const SparseMatrix& a, const std::vector<char>& decoupled);
+  /// A factor with this one's symbolic analysis (ordering, pattern, value
+  /// map), to be factorised with other decoupled particles; nullptr if
+  /// CHOLMOD failed or this factor is not analysed. Allocates.
+  std::unique_ptr<CholeskyFactor> CloneAnalysis() const;
   /// z ← A_F⁻¹ r for the three columns at once. @param r, z N×3.
   void Solve(const MatrixN3& r, MatrixN3* z) const;
+  /// Columns col0 … col0 + ncol − 1 of z ← A_F⁻¹ r, with the workspace of
+  /// `lane` (0 or 1): two lanes may run at once on different columns.
+  /// @return false if CHOLMOD failed (the columns are then NaN).
+  bool SolveColumns(const MatrixN3& r, MatrixN3* z, int col0, int ncol, int lane) const;
 
   /// Nonzeros of the factor L (after Factorize), and whether CHOLMOD chose
   /// a supernodal factor.
@@ -48,6 +73,7 @@ class CholeskyFactor {
   bool supernodal() const;
 
  private:
+  bool PrepareRow(long n, long nnz);  // room for one column of nnz entries
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -64,8 +64,9 @@ std::string_view ToString(StepStatus s) {
 }
 
 // ---------------------------------------------------------------------------
-SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type, CholeskyOrdering ordering)
-    : precond_(type, ordering) {
+SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type, CholeskyOrdering ordering,
+                           bool contact_factors)
+    : precond_(type, ordering, contact_factors) {
   const auto start = std::chrono::steady_clock::now();
   const int n = system.num_particles();
   // Pattern: diagonal plus every spring, so A's pattern never changes.
@@ -107,12 +108,19 @@ bool SystemMatrix::Update(double alpha_h) {
   return ok;
 }
 
+bool SystemMatrix::AdaptTo(const VelocityFilter& filter) {
+  const double before = precond_.contact_stats().seconds;
+  const bool ok = precond_.AdaptTo(a_, filter);
+  setup_seconds_ += precond_.contact_stats().seconds - before;
+  return ok;
+}
+
 // ---------------------------------------------------------------------------
 StepEngine::StepEngine(const ParticleSystem& system, Method method, const SolverSpec& solver)
     : sys_(system),
       method_(method),
       opts_(solver),
-      sysmat_(system, solver.preconditioner, solver.cholesky_ordering),
+      sysmat_(system, solver.preconditioner, solver.cholesky_ordering, solver.contact_factors),
       contacts_(system) {
   const int n = system.num_particles();
   filter_.Reserve(n);
@@ -266,6 +274,10 @@ StepStats StepEngine::StepImpl(double h) {
   if (contacts_.active()) {
     st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
+    if (!sysmat_.AdaptTo(filter_)) {
+      st.status = StepStatus::kPreconditionerFailed;
+      return st;
+    }
   }
 
   // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for

@@ -106,10 +106,14 @@ struct StepStats {
 class SystemMatrix {
  public:
   SystemMatrix(const ParticleSystem& system, PreconditionerType type,
-               CholeskyOrdering ordering = CholeskyOrdering::kMetis);
+               CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
   /// Makes A and P current for the product αh. Returns false if the
   /// preconditioner could not be built.
   bool Update(double alpha_h);
+  /// Makes P's contact factors match the constraints of `filter` (after
+  /// Update; Preconditioner::AdaptTo). Their time counts as setup.
+  /// @return false if a factorisation failed
+  bool AdaptTo(const VelocityFilter& filter);
   const SparseMatrix& matrix() const { return a_; }
   const Preconditioner& preconditioner() const { return precond_; }
   int rebuilds() const { return rebuilds_; }

@@ -1,9 +1,11 @@
 // Filtered PCG and its preconditioners (docs/model.md §5, thesis Alg. 7).
 #include "solver/pcg.h"
 
+#include <chrono>
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <omp.h>
 
 namespace clothbench {
 
@@ -186,7 +188,8 @@ void IncompleteCholesky0::SolveInPlace(double* y) const {
 }
 
 // ---------------------------------------------------------------------------
-Preconditioner::Preconditioner(PreconditionerType type, CholeskyOrdering ordering) : type_(type), ordering_(ordering) {
+Preconditioner::Preconditioner(PreconditionerType type, CholeskyOrdering ordering, bool contact_factors)
+    : type_(type), ordering_(ordering), contact_factors_(contact_factors && type == PreconditionerType::kCholesky) {
   // Started here, not in Analyze: MPI's start-up (≈0.3 s, once per process)
   // is not part of the setup time of A's preconditioner.
   if (type_ == PreconditionerType::kAmg) amg_ = std::make_unique<AmgPreconditioner>();
@@ -202,6 +205,13 @@ bool Preconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixe
     case PreconditionerType::kIc0: ic0_.Analyze(a); return true;
     case PreconditionerType::kCholesky:
       if (!cholesky_) cholesky_ = std::make_unique<CholeskyFactor>();
+      if (contact_factors_)
+        for (int c = 0; c < 3; ++c) {
+          axis_factor_[c].reset();
+          axis_set_[c].assign(static_cast<std::size_t>(a.rows()), 0);
+          axis_want_[c].assign(static_cast<std::size_t>(a.rows()), 0);
+          axis_valid_[c] = axis_used_[c] = false;
+        }
       return cholesky_->Analyze(a, fixed, ordering_);
     case PreconditionerType::kAmg: return amg_->Analyze(a, fixed);  // amg_ made by the constructor
   }
@@ -215,10 +225,87 @@ bool Preconditioner::Factorize(const SparseMatrix& a) {
       for (int k = 0; k < a.rows(); ++k) inv_diag_(k) = 1.0 / a.coeff(k, k);
       return inv_diag_.allFinite();
     case PreconditionerType::kIc0: return ic0_.Factorize(a);
-    case PreconditionerType::kCholesky: return cholesky_ && cholesky_->Factorize(a);
+    case PreconditionerType::kCholesky:
+      axis_valid_ = {false, false, false};  // new values of A: the contact factors are stale
+      axis_used_ = {false, false, false};
+      return cholesky_ && cholesky_->Factorize(a);
     case PreconditionerType::kAmg: return amg_ && amg_->Factorize(a);
   }
   return false;
+}
+
+bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter) {
+  if (!contact_factors_ || !cholesky_) return true;
+  int want[3] = {0, 0, 0};
+  for (auto& w : axis_want_) std::fill(w.begin(), w.end(), 0);
+  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+    if (count >= 3) return;  // fixed: decoupled in A_F already
+    for (int k = 0; k < count; ++k) {
+      int c = 0;
+      if (dirs.col(k).cwiseAbs().maxCoeff(&c) < kContactAxisCosine) continue;
+      char& w = axis_want_[static_cast<std::size_t>(c)][static_cast<std::size_t>(p)];
+      if (!w) ++want[c];
+      w = 1;
+    }
+  });
+  using Clock = std::chrono::steady_clock;
+  const auto seconds_since = [](Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); };
+  const double n = static_cast<double>(a.rows());
+  contact_stats_.mismatched = 0;
+  for (std::size_t c = 0; c < 3; ++c) {
+    contact_stats_.decoupled[c] = want[c];
+    // An axis with few contacts keeps A_F's factor: a factor of its own
+    // would cost a factorisation for little gain.
+    if (want[c] < kContactAxisShare * n) {
+      axis_used_[c] = false;
+      continue;
+    }
+    int mismatched = 0;
+    if (axis_valid_[c])
+      for (std::size_t p = 0; p < axis_set_[c].size(); ++p) mismatched += axis_set_[c][p] != axis_want_[c][p];
+    // Changes are applied as row deletes and adds while that is cheaper than
+    // a refactorisation, by the last measured cost of each (until a
+    // modification has been timed, up to 5 % of the contacts are modified).
+    const bool modify = axis_valid_[c] && mismatched > 0 &&
+                        (modify_seconds_ > 0.0 ? mismatched * modify_seconds_ < refactor_seconds_
+                                               : mismatched <= 0.05 * want[c]);
+    if (modify) {
+      const auto t0 = Clock::now();
+      std::vector<char>& set = axis_set_[c];
+      const std::vector<char>& w = axis_want_[c];
+      bool ok = true;
+      // New contacts first, so that released ones are added back against
+      // the final set.
+      for (std::size_t p = 0; p < set.size() && ok; ++p)
+        if (w[p] && !set[p]) {
+          ok = axis_factor_[c]->DecoupleRow(static_cast<int>(p), a);
+          set[p] = 1;
+        }
+      for (std::size_t p = 0; p < set.size() && ok; ++p)
+        if (!w[p] && set[p]) {
+          set[p] = 0;
+          ok = axis_factor_[c]->CoupleRow(static_cast<int>(p), a, set);
+        }
+      const double dt = seconds_since(t0);
+      modify_seconds_ = dt / mismatched;
+      contact_stats_.modifications += mismatched;
+      contact_stats_.seconds += dt;
+      if (!ok) axis_valid_[c] = false;  // refactorised below
+      mismatched = 0;
+    }
+    if (!axis_valid_[c] || mismatched > 0) {
+      const auto t0 = Clock::now();
+      if (!axis_factor_[c]) axis_factor_[c] = cholesky_->CloneAnalysis();
+      axis_set_[c].swap(axis_want_[c]);
+      axis_valid_[c] = axis_factor_[c] && axis_factor_[c]->Factorize(a, &axis_set_[c]);
+      refactor_seconds_ = seconds_since(t0);
+      contact_stats_.seconds += refactor_seconds_;
+      ++contact_stats_.refactorizations;
+      if (!axis_valid_[c]) return false;
+    }
+    axis_used_[c] = true;
+  }
+  return true;
 }
 
 void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
@@ -226,7 +313,31 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
     case PreconditionerType::kNone: *z = r; break;
     case PreconditionerType::kJacobi: z->noalias() = inv_diag_.asDiagonal() * r; break;
     case PreconditionerType::kIc0: ic0_.Solve(r, z); break;
-    case PreconditionerType::kCholesky: cholesky_->Solve(r, z); break;
+    case PreconditionerType::kCholesky: {
+      if (!axis_used_[0] && !axis_used_[1] && !axis_used_[2]) {
+        cholesky_->Solve(r, z);
+        break;
+      }
+      // Each column with its own factor; lane 0 solves columns 0 and 1,
+      // lane 1 column 2, on two threads at scale (as CholeskyFactor::Solve).
+      const CholeskyFactor* f[3];
+      for (std::size_t c = 0; c < 3; ++c) f[c] = axis_used_[c] ? axis_factor_[c].get() : cholesky_.get();
+      const bool split = r.rows() >= 4096 && omp_get_max_threads() >= 2;
+#pragma omp parallel for num_threads(2) schedule(static, 1) if (split)
+      for (int lane = 0; lane < 2; ++lane) {
+        if (lane == 0) {
+          if (f[0] == f[1]) {
+            f[0]->SolveColumns(r, z, 0, 2, 0);
+          } else {
+            f[0]->SolveColumns(r, z, 0, 1, 0);
+            f[1]->SolveColumns(r, z, 1, 1, 0);
+          }
+        } else {
+          f[2]->SolveColumns(r, z, 2, 1, 1);
+        }
+      }
+      break;
+    }
     case PreconditionerType::kAmg: amg_->Solve(r, z); break;
   }
 }

@@ -12,6 +12,7 @@
 #define CLOTHBENCH_SOLVER_PCG_H_
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string_view>
@@ -48,6 +49,12 @@ class VelocityFilter {
     slot_.assign(static_cast<std::size_t>(n), -1);
   }
   bool empty() const { return entries_.empty(); }
+  /// Calls f(particle, count, dirs) for every constrained particle: `count`
+  /// constrained directions (3: fixed), orthonormal in dirs' first columns.
+  template <class F>
+  void ForEachConstraint(F&& f) const {
+    for (const Entry& e : entries_) f(e.particle, e.count, e.dirs);
+  }
   int size() const { return static_cast<int>(entries_.size()); }
   /// v ← S v. @tparam M MatrixN3 or MatrixN3R.
   template <class M>
@@ -95,14 +102,44 @@ class IncompleteCholesky0 {
   double shift_ = 0.0;
 };
 
+/// What the contact factors of "cholesky" did (Preconditioner::AdaptTo).
+struct ContactFactorStats {
+  long refactorizations = 0;  ///< numeric factorisations of an axis factor
+  long modifications = 0;     ///< row deletes and adds on the axis factors
+  double seconds = 0.0;       ///< their wall time [s]
+  int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo)
+  int mismatched = 0;         ///< contacts on which the factors and the filter differ (last AdaptTo)
+};
+
 /// Preconditioner for the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃,
 /// the block-diagonal 3×3 of A ⊗ I₃), IC(0) of A, a CHOLMOD factor of A_F or
 /// one BoomerAMG V-cycle on A_F (A_F: A with the fixed particles' rows and
 /// columns decoupled, see CholeskyFactor). Movable, not copyable.
+///
+/// Contact factors ("cholesky" with contact_factors): a contact constrains
+/// one direction n of a particle. Where n is (nearly) a coordinate axis c,
+/// the filtered system S A S + (I − S) is, in column c, A with that
+/// particle decoupled, as a fixed particle is in every column. So column c
+/// is preconditioned with a factor of A_F that also decouples the contacts
+/// along axis c (the same symbolic analysis, refactorised), and the other
+/// columns with A_F's: for axis-aligned contacts the preconditioner is the
+/// exact inverse and the PCG converges in one iteration, as without
+/// contacts. Contacts whose normal is farther than acos(kContactAxisCosine)
+/// from every axis stay coupled (the factor then preconditions them), as do
+/// those of an axis with fewer than kContactAxisShare·N contacts. The
+/// factors follow the contacts step by step: by row deletes and adds
+/// (CHOLMOD's Modify module) while their measured cost is below a
+/// refactorisation's, else by a refactorisation.
 class Preconditioner {
  public:
+  /// |n_c| at and above which a contact normal n counts as axis c's.
+  static constexpr double kContactAxisCosine = 0.9;
+  /// An axis gets a factor of its own once at least this share of the
+  /// particles are in contact along it (docs/performance.md).
+  static constexpr double kContactAxisShare = 0.02;
+
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
-                          CholeskyOrdering ordering = CholeskyOrdering::kMetis);
+                          CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
   ~Preconditioner();
   Preconditioner(Preconditioner&&) noexcept;
   Preconditioner& operator=(Preconditioner&&) noexcept;
@@ -113,6 +150,12 @@ class Preconditioner {
   bool Analyze(const SparseMatrix& a, const std::vector<int>& fixed = {});
   /// Numeric phase for the values of `a`; false if it failed (not SPD).
   bool Factorize(const SparseMatrix& a);
+  /// Makes the contact factors match the constraints of `filter` (after
+  /// Factorize with the same `a`); nothing for other types or without
+  /// contact_factors. Allocates when a contact axis is first seen and when a
+  /// factor is refactorised. @return false if a factorisation failed.
+  bool AdaptTo(const SparseMatrix& a, const VelocityFilter& filter);
+  const ContactFactorStats& contact_stats() const { return contact_stats_; }
   /// z ← P⁻¹ r. @param r, z N×3. No allocation (after the first call).
   void Apply(const MatrixN3& r, MatrixN3* z) const;
   /// Nonzeros of the Cholesky factor (0 for other types).
@@ -127,6 +170,15 @@ class Preconditioner {
   IncompleteCholesky0 ic0_;
   std::unique_ptr<CholeskyFactor> cholesky_;
   std::unique_ptr<AmgPreconditioner> amg_;
+  // Contact factors: per column c, a factor with the contacts along axis c
+  // decoupled (their set as factorised), the current contacts (scratch),
+  // whether it is factorised for A's current values and used by Apply.
+  bool contact_factors_ = false;
+  std::array<std::unique_ptr<CholeskyFactor>, 3> axis_factor_;
+  std::array<std::vector<char>, 3> axis_set_, axis_want_;
+  std::array<bool, 3> axis_valid_{}, axis_used_{};
+  double modify_seconds_ = 0.0, refactor_seconds_ = 0.0;  // measured: one row change, one refactorisation
+  ContactFactorStats contact_stats_;
 };
 
 /// y ← A x for a symmetric N×N A applied to the three columns of x in one

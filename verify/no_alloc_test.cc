@@ -13,6 +13,7 @@
 #include "peers/baraff_witkin.h"
 #include "peers/xpbd.h"
 #include "solver/integrator.h"
+#include "solver/pcg.h"
 #include "solver/run.h"
 #include "solver/tangent.h"
 
@@ -177,6 +178,36 @@ TEST(StepLoop, DoesNotAllocateWithFactorAmgAndThreads) {
     EXPECT_TRUE(ok) << ToString(type);
     EXPECT_EQ(g_allocations.load(), 0) << ToString(type);
   }
+}
+
+// The contact factors at a constant contact set (Preconditioner::AdaptTo
+// finds nothing to change) and their solves allocate nothing.
+TEST(StepLoop, ContactFactorsDoNotAllocateAtAConstantContactSet) {
+  const Scene s = DefaultScene();
+  const ParticleSystem sys(s);
+  const int n = sys.num_particles();
+  SystemMatrix sm(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+  ASSERT_TRUE(sm.Update(0.01));
+  VelocityFilter f;
+  f.Reserve(n);
+  for (int p : sys.fixed()) f.Fix(p);
+  for (int p = 0; p < n / 2; ++p) f.Constrain(p, Vector3(0, 0, 1), 0.0);
+  ASSERT_TRUE(sm.AdaptTo(f));
+  const MatrixN3 b = MatrixN3::Random(n, 3);
+  MatrixN3 v = MatrixN3::Zero(n, 3);
+  PcgWorkspace work(n);
+  FilteredPcg(sm.matrix(), b, f, sm.preconditioner(), {1e-10, 1000}, &v, &work);  // first solve: CHOLMOD workspaces
+  g_allocations = 0;
+  g_counting = true;
+  bool ok = true;
+  for (int k = 0; k < 3; ++k) {
+    ok &= sm.AdaptTo(f);
+    v.setZero();
+    ok &= FilteredPcg(sm.matrix(), b, f, sm.preconditioner(), {1e-10, 1000}, &v, &work).status == PcgStatus::kConverged;
+  }
+  g_counting = false;
+  EXPECT_TRUE(ok);
+  EXPECT_EQ(g_allocations.load(), 0);
 }
 
 }  // namespace
