@@ -17,6 +17,8 @@
 //   build/bench/bench_scaling [--benchmark_filter=REGEX]
 //                             [--benchmark_out=out/scaling.json --benchmark_out_format=json]
 // SbdfStep/cholesky_amd: the factor with AMD ordering instead of METIS.
+// SbdfStep/cholesky_plain: the factor without contact factors (the factor
+// of A_F alone; solver key contact_factors = false).
 // StepPart/*: one Cholesky solve, one A·x and one evaluation of the explicit
 // forces at 10⁵ and 10⁶ particles (the parts of a step).
 // By default the preconditioners whose step at 10⁶ takes minutes (ic0,
@@ -63,6 +65,7 @@ void BM_SbdfStep(benchmark::State& state) {
   const double contact = static_cast<double>(state.range(2)) / 100.0;
   Scene scene = ScalingScene(side, contact, type);
   if (state.range(3) == 1) scene.solver.cholesky_ordering = CholeskyOrdering::kAmd;
+  if (state.range(3) == 2) scene.solver.contact_factors = false;  // the factor of A_F alone
   const ParticleSystem sys(scene);
   StepEngine engine(sys, Method::kSbdf2, scene.solver);
   engine.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
@@ -159,6 +162,15 @@ int main(int argc, char** argv) {
   amd->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
   for (int side : sides) amd->Args({side, static_cast<long>(PreconditionerType::kCholesky), 0, 1});
   amd->Complexity(benchmark::oN);
+  // The Cholesky factor without contact factors (the factor of A_F alone),
+  // with contacts: what the contact factors gain.
+  for (const int contact : {10, 30}) {
+    auto* plain = benchmark::RegisterBenchmark(("SbdfStep/cholesky_plain/contact" + std::to_string(contact)).c_str(),
+                                               BM_SbdfStep);
+    plain->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
+    for (int side : sides) plain->Args({side, static_cast<long>(PreconditionerType::kCholesky), contact, 2});
+    plain->Complexity(benchmark::oN);
+  }
   // Parts of a step: 0 = Cholesky solve, 1 = A·x, 2 = explicit forces.
   for (const char* part : {"CholeskySolve", "Product", "ExplicitForces"}) {
     auto* b = benchmark::RegisterBenchmark((std::string("StepPart/") + part).c_str(), BM_StepParts);

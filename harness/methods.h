@@ -413,7 +413,8 @@ struct RowMethod {
     row.sundials_settings = r.settings;
     for (const StepStats& st : r.step_stats) {
       row.steps_table.push_back(
-          {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time});
+          {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time,
+           st.setup_time});
       if (r.sundials) row.bdf_order.push_back(st.error_order);
     }
     return row;

@@ -205,7 +205,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
     std::vector<StepRecord> st;
     for (const StepStats& s : ref->step_stats)
-      st.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time});
+      st.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time,
+                    s.setup_time});
     f.WriteStepStats("/reference/step_stats", st);
   }
   f.CreateGroup("/runs");

@@ -55,7 +55,8 @@ def test_adaptive_row_and_step_stats():
     r = clothbench.run("swinging_sheet", "cvode", rtol=1e-3, t_end=0.2)
     assert r["status"] == "ok"
     s = r["step_stats"]
-    assert s.dtype.names == ("t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s")
+    assert s.dtype.names == ("t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s",
+                             "setup_time_s")
     assert len(s) == r["steps"] + np.count_nonzero(s["status"] != 0)
     assert np.all(np.diff(s["t"][s["status"] == 0]) > 0)
 

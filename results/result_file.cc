@@ -222,8 +222,8 @@ void ResultFile::WriteFrameViews(const std::string& frames_path, const std::stri
 
 void ResultFile::WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows) {
   for (std::size_t k = 0; k < rows.size(); ++k) {
-    const double v[3] = {rows[k].t, rows[k].h, rows[k].solve_time_s};
-    RequireFinite(v, 3, fmt::format("{}[{}]", path, k), path_);
+    const double v[4] = {rows[k].t, rows[k].h, rows[k].solve_time_s, rows[k].setup_time_s};
+    RequireFinite(v, 4, fmt::format("{}[{}]", path, k), path_);
   }
   Handle mem{internal::StepRecordType(), H5Tclose};
   const hsize_t dims[1] = {rows.size()};

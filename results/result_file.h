@@ -31,6 +31,10 @@ struct StepRecord {
   int32_t status;      ///< 0 = accepted; else the StepStatus code of a rejected attempt
   int32_t colliding;   ///< particles constrained by obstacles (−1 for SUNDIALS rows)
   double solve_time_s; ///< wall time of the attempt in the step engine (SUNDIALS: of the one-step call) [s]
+  /// The part of solve_time_s spent building A_α, J_α and their
+  /// preconditioners (factorisations, AMG setup, contact factors) [s]; 0
+  /// for SUNDIALS rows and in files written before it was stored.
+  double setup_time_s;
 };
 
 class ResultFile {
@@ -65,7 +69,7 @@ class ResultFile {
   void WriteTable(const std::string& path, int rows, int cols, const std::vector<int32_t>& values);
   /// [F, 3] float64 from F 3-vectors.
   void WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units);
-  /// Compound table (t, h, updates, cg_iterations, status, colliding, solve_time_s) [S].
+  /// Compound table (t, h, updates, cg_iterations, status, colliding, solve_time_s, setup_time_s) [S].
   void WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows);
   /// Closes the file and renames it to its final path. @throws ResultError.
   void Commit();

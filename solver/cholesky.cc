@@ -131,7 +131,18 @@ bool CholeskyFactor::DecoupleRow(int p, const SparseMatrix& a) {
       if (reach[q] < k) reach[kept++] = reach[q];
   reach_p[0] = 0;
   reach_p[1] = kept;
-  return cholmod_rowdel(static_cast<size_t>(k), m.reach, l, &m.common) != 0 && m.common.status == CHOLMOD_OK;
+  if (!cholmod_rowdel(static_cast<size_t>(k), m.reach, l, &m.common) || m.common.status != CHOLMOD_OK) return false;
+  // Row and column k of L are now those of the identity, and D(k, k) = 1.
+  // Setting D(k, k) = a_pp (the diagonal comes first in a simplicial
+  // column) makes the factor that of A_F with p decoupled and its diagonal
+  // kept, as a refactorisation with p decoupled gives: a particle that
+  // leaves contact but stays decoupled is then preconditioned by 1/a_pp.
+  const int* lp = static_cast<const int*>(l->p);
+  double diagonal = 0.0;
+  for (int pos = a.outerIndexPtr()[p]; pos < a.outerIndexPtr()[p + 1]; ++pos)
+    if (a.innerIndexPtr()[pos] == p) diagonal = a.valuePtr()[pos];
+  static_cast<double*>(l->x)[lp[k]] = diagonal;
+  return true;
 }
 
 bool CholeskyFactor::PrepareRow(long n, long nnz) {

@@ -251,7 +251,6 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
   using Clock = std::chrono::steady_clock;
   const auto seconds_since = [](Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); };
   const double n = static_cast<double>(a.rows());
-  contact_stats_.mismatched = 0;
   for (std::size_t c = 0; c < 3; ++c) {
     contact_stats_.decoupled[c] = want[c];
     // An axis with few contacts keeps A_F's factor: a factor of its own
@@ -260,15 +259,22 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
       axis_used_[c] = false;
       continue;
     }
-    int mismatched = 0;
+    int added = 0, released = 0;
     if (axis_valid_[c])
-      for (std::size_t p = 0; p < axis_set_[c].size(); ++p) mismatched += axis_set_[c][p] != axis_want_[c][p];
+      for (std::size_t p = 0; p < axis_set_[c].size(); ++p) {
+        added += axis_want_[c][p] && !axis_set_[c][p];
+        released += axis_set_[c][p] && !axis_want_[c][p];
+      }
+    // Released contacts are coupled back at once: left decoupled (their
+    // diagonal as the preconditioner there) they cost more CG iterations
+    // than their row adds (docs/performance.md, "Contact factors").
+    const int changes = added + released;
     // Changes are applied as row deletes and adds while that is cheaper than
     // a refactorisation, by the last measured cost of each (until a
     // modification has been timed, up to 5 % of the contacts are modified).
-    const bool modify = axis_valid_[c] && mismatched > 0 &&
-                        (modify_seconds_ > 0.0 ? mismatched * modify_seconds_ < refactor_seconds_
-                                               : mismatched <= 0.05 * want[c]);
+    const bool modify = axis_valid_[c] && changes > 0 &&
+                        (modify_seconds_ > 0.0 ? changes * modify_seconds_ < refactor_seconds_
+                                               : changes <= 0.05 * want[c]);
     if (modify) {
       const auto t0 = Clock::now();
       std::vector<char>& set = axis_set_[c];
@@ -287,13 +293,12 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
           ok = axis_factor_[c]->CoupleRow(static_cast<int>(p), a, set);
         }
       const double dt = seconds_since(t0);
-      modify_seconds_ = dt / mismatched;
-      contact_stats_.modifications += mismatched;
+      modify_seconds_ = dt / changes;
+      contact_stats_.modifications += changes;
       contact_stats_.seconds += dt;
       if (!ok) axis_valid_[c] = false;  // refactorised below
-      mismatched = 0;
     }
-    if (!axis_valid_[c] || mismatched > 0) {
+    if (!axis_valid_[c] || (changes > 0 && !modify)) {
       const auto t0 = Clock::now();
       if (!axis_factor_[c]) axis_factor_[c] = cholesky_->CloneAnalysis();
       axis_set_[c].swap(axis_want_[c]);

@@ -108,7 +108,6 @@ struct ContactFactorStats {
   long modifications = 0;     ///< row deletes and adds on the axis factors
   double seconds = 0.0;       ///< their wall time [s]
   int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo)
-  int mismatched = 0;         ///< contacts on which the factors and the filter differ (last AdaptTo)
 };
 
 /// Preconditioner for the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃,
