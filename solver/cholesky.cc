@@ -117,7 +117,6 @@ bool CholeskyFactor::DecoupleRow(int p, const SparseMatrix& a) {
   }
   static_cast<int*>(m.row->p)[0] = 0;
   static_cast<int*>(m.row->p)[1] = nz;
-  m.row->nrow = n;
   if (!m.reach) {
     m.reach = cholmod_allocate_sparse(n, 1, n, /*sorted=*/0, /*packed=*/1, /*stype=*/0, CHOLMOD_PATTERN, &m.common);
     if (!m.reach) return false;
@@ -135,8 +134,7 @@ bool CholeskyFactor::DecoupleRow(int p, const SparseMatrix& a) {
   // Row and column k of L are now those of the identity, and D(k, k) = 1.
   // Setting D(k, k) = a_pp (the diagonal comes first in a simplicial
   // column) makes the factor that of A_F with p decoupled and its diagonal
-  // kept, as a refactorisation with p decoupled gives: a particle that
-  // leaves contact but stays decoupled is then preconditioned by 1/a_pp.
+  // kept, the factor a refactorisation with p decoupled gives.
   const int* lp = static_cast<const int*>(l->p);
   double diagonal = 0.0;
   for (int pos = a.outerIndexPtr()[p]; pos < a.outerIndexPtr()[p + 1]; ++pos)
