@@ -34,6 +34,11 @@ void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
   f.WriteVector(g + "/energy/bending", e.bending, "J");
   f.WriteVector(g + "/energy/gravity", e.gravity, "J");
   f.WriteVector(g + "/energy/external_work", e.external_work, "J");
+  if (!e.contact_work_holding.empty()) {
+    f.WriteVector(g + "/energy/contact_work_holding", e.contact_work_holding, "J");
+    f.WriteVector(g + "/energy/contact_work_pulling", e.contact_work_pulling, "J");
+    f.WriteVector(g + "/energy/contact_work_friction", e.contact_work_friction, "J");
+  }
   f.WriteVector(g + "/energy/total", e.total, "J");
   f.WriteVectors3(g + "/momentum", e.momentum, "kg m/s");
 }
@@ -72,6 +77,7 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
     if (r.ok()) {
       r.energy = ComputeEnergies(sys, r.traj);
       if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
+      if (std::isfinite(r.energy.ContactPower())) r.contact_power_W = r.energy.ContactPower();
     }
     if (ref && r.ok()) r.err = CompareTrajectories(r.traj, ref->trajectory);
     if (r.err) {  // only where they exist: no NaN is ever written
@@ -144,6 +150,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
     rr.numerical_stiffness = scene.NumericalStiffness(self_convergence ? ref->h : scene.h);
     const EnergySeries e = ComputeEnergies(sys, ref->trajectory);
     if (e.t.size() >= 2 && std::isfinite(e.Rate())) rr.energy_rate_W = e.Rate();
+    if (std::isfinite(e.ContactPower())) rr.contact_power_W = e.ContactPower();
     t.reference = rr;
   }
   t.runs.assign(rows.begin(), rows.end());  // the records (CompareToReference filled errors and energies)

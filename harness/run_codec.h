@@ -110,6 +110,9 @@ inline void PutTrajectory(ByteWriter& w, const Trajectory& t) {
   w.Frames(t.positions);
   w.Frames(t.velocities);
   w.Vec(t.external_work);
+  w.Vec(t.contact_work_holding);
+  w.Vec(t.contact_work_pulling);
+  w.Vec(t.contact_work_friction);
 }
 inline Trajectory GetTrajectory(ByteReader& r) {
   Trajectory t;
@@ -117,6 +120,9 @@ inline Trajectory GetTrajectory(ByteReader& r) {
   t.positions = r.Frames();
   t.velocities = r.Frames();
   t.external_work = r.Vec<double>();
+  t.contact_work_holding = r.Vec<double>();
+  t.contact_work_pulling = r.Vec<double>();
+  t.contact_work_friction = r.Vec<double>();
   return t;
 }
 inline void PutSundials(ByteWriter& w, const std::optional<SundialsStats>& s) {

@@ -143,7 +143,7 @@ StepStats BaraffWitkin::Step(double h) {
         for (SparseMatrix::InnerIterator it(j, 3 * p + c); it; ++it) r(c) += it.value() * vr_.data()[it.row()];
       return r;
     };
-    contacts_.ReadImpulses(residual_row, v1_, v0_, opts_.cg_tolerance * free_norm);
+    contacts_.ReadImpulses(residual_row, v0_, v1_, v0_, opts_.cg_tolerance * free_norm);
   }
   xm1_.swap(x0_);
   x0_.swap(x1_);

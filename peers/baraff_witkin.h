@@ -81,6 +81,9 @@ class BaraffWitkin : public Stepper {
   bool single_update() const override { return true; }
   int matrix_rebuilds() const override { return rebuilds_; }
   double setup_seconds() const override;
+  const ContactResponse::Work* contact_work() const override {
+    return contacts_.active() ? &contacts_.work() : nullptr;
+  }
 
  private:
   const ParticleSystem& sys_;

@@ -170,7 +170,8 @@ py::dict RecordDict(const RunRecord& r) {
                       {"error_l2_m", &r.error_l2_m}, {"error_max_m", &r.error_max_m}, {"error_mean_m", &r.error_mean_m},
                       {"error_final_mps", &r.error_final_mps}, {"error_l2_mps", &r.error_l2_mps},
                       {"error_max_mps", &r.error_max_mps},
-                      {"observed_order", &r.observed_order}, {"energy_rate_W", &r.energy_rate_W}})
+                      {"observed_order", &r.observed_order}, {"energy_rate_W", &r.energy_rate_W},
+                      {"contact_power_W", &r.contact_power_W}})
     d[k] = *v ? py::cast(**v) : py::none();
   return d;
 }
@@ -252,6 +253,11 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   energy["kinetic"] = r.energy.kinetic;
   energy["total"] = r.energy.total;
   energy["external_work"] = r.energy.external_work;
+  if (!r.energy.contact_work_holding.empty()) {
+    energy["contact_work_holding"] = r.energy.contact_work_holding;
+    energy["contact_work_pulling"] = r.energy.contact_work_pulling;
+    energy["contact_work_friction"] = r.energy.contact_work_friction;
+  }
   out["energy"] = energy;
   out["record"] = record;  // for write_results
   return out;

@@ -1,6 +1,7 @@
 #include "results/metrics.h"
 
 #include <cmath>
+#include <limits>
 
 namespace clothbench {
 
@@ -79,7 +80,12 @@ double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>
 
 double EnergySeries::Rate() const {
   if (t.size() < 2) return 0.0;
-  return (total.back() - total.front() - external_work.back()) / (t.back() - t.front());
+  return (total.back() - total.front() - external_work.back() - ContactWork(t.size() - 1)) / (t.back() - t.front());
+}
+
+double EnergySeries::ContactPower() const {
+  if (t.size() < 2 || contact_work_holding.size() != t.size()) return std::numeric_limits<double>::quiet_NaN();
+  return ContactWork(t.size() - 1) / (t.back() - t.front());
 }
 
 EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& traj) {
@@ -107,6 +113,13 @@ EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& tra
       power_prev = power;
     }
     s.external_work.push_back(work);
+  }
+  if (f > 0 && traj.contact_work_holding.size() >= f && traj.contact_work_pulling.size() >= f &&
+      traj.contact_work_friction.size() >= f) {
+    const auto first = [f](const std::vector<double>& v) { return std::vector<double>(v.begin(), v.begin() + static_cast<long>(f)); };
+    s.contact_work_holding = first(traj.contact_work_holding);
+    s.contact_work_pulling = first(traj.contact_work_pulling);
+    s.contact_work_friction = first(traj.contact_work_friction);
   }
   return s;
 }

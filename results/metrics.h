@@ -56,11 +56,25 @@ double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>
 /// Energies [J] and momentum [kg m/s] per frame.
 struct EnergySeries {
   std::vector<double> t, kinetic, tension, shear, bending, gravity, external_work, total;
+  /// Work of the contact response since t = 0 [J] (Trajectory): of the
+  /// holding and pulling constraint impulses and of friction; empty when the
+  /// method has none.
+  std::vector<double> contact_work_holding, contact_work_pulling, contact_work_friction;
+  /// W_contact at frame k [J] (0 when not tracked).
+  double ContactWork(std::size_t k) const {
+    return k < contact_work_holding.size()
+               ? contact_work_holding[k] + contact_work_pulling[k] + contact_work_friction[k]
+               : 0.0;
+  }
   std::vector<Vector3> momentum;
-  /// (E(t_end) − E(0) − W_ext(t_end)) / t_end [W]: the rate at which the run
-  /// gains (> 0) or dissipates (< 0) energy beyond the work of external
-  /// forces. Physical damping contributes; the reference run shows how much.
+  /// (E(t_end) − E(0) − W_ext(t_end) − W_contact(t_end)) / t_end [W]: the
+  /// rate at which the run gains (> 0) or dissipates (< 0) energy beyond the
+  /// work of external forces and of the contact response (docs/model.md §7):
+  /// the integrator's own drift. Physical damping contributes; the
+  /// reference run shows how much.
   double Rate() const;
+  /// W_contact(t_end)/t_end [W], NaN when the contact work is not tracked.
+  double ContactPower() const;
 };
 
 /// Evaluates ParticleSystem::Energies at every frame. External work comes

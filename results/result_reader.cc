@@ -286,6 +286,7 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
   r.error_mean_m = f.Double(g, "error_mean_m");
   r.observed_order = f.Double(g, "observed_order");
   r.energy_rate_W = f.Double(g, "energy_rate_W");
+  r.contact_power_W = f.Double(g, "contact_power_W");
   return r;
 }
 
@@ -410,6 +411,7 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
   if (r.error_mean_m) f.SetAttribute(g, "error_mean_m", *r.error_mean_m);
   if (r.observed_order) f.SetAttribute(g, "observed_order", *r.observed_order);
   if (r.energy_rate_W) f.SetAttribute(g, "energy_rate_W", *r.energy_rate_W);
+  if (r.contact_power_W) f.SetAttribute(g, "contact_power_W", *r.contact_power_W);
 }
 
 void WriteSceneRecord(ResultFile& f, const RunTable& t) {

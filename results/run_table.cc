@@ -90,9 +90,12 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
                ref->energy_rate_W ? fmt::format("{:.3e} W", *ref->energy_rate_W) : "-");
   else
     fmt::print(out, "reference: none (error columns empty)\n");
-  fmt::print(out, "\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>9} {:>8} {:>11} {:>7} {:>11}  {}\n", "integrator",
+  // The contact power column only where a run has one (scenes with obstacles).
+  bool contact = false;
+  for (const RunRecord& r : t.runs) contact = contact || r.contact_power_W.has_value();
+  fmt::print(out, "\n{:<24} {:>10} {:>7} {:>8} {:>9} {:>10} {:>9} {:>8} {:>11} {:>7} {:>11}{}  {}\n", "integrator",
              "h|rtol", "steps", "updates", "cg_iters", "solver_s", "spread", "setup_s", ErrorColumn(t.error_metric),
-             "order", "dE/dt_W", "status");
+             "order", "dE/dt_W", contact ? fmt::format(" {:>11}", "P_contact_W") : "", "status");
   std::string last;
   for (const RunRecord& r : t.runs) {
     if (!last.empty() && last != r.label) fmt::print(out, "\n");
@@ -100,12 +103,14 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     const std::string hcol = r.step_kind == "adaptive"     ? fmt::format("{:g}", r.rtol)
                              : r.step_kind == "substepped" ? fmt::format("{:g}/{}", r.h, r.substeps)
                                                            : fmt::format("{:g}", r.h);
-    fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>9} {:>8} {:>11} {:>7} {:>11}  {}\n", r.label, hcol,
+    const std::string contact_col =
+        !contact ? "" : fmt::format(" {:>11}", r.ok() && r.contact_power_W ? Sci(*r.contact_power_W) : "");
+    fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>9} {:>8} {:>11} {:>7} {:>11}{}  {}\n", r.label, hcol,
                r.steps, r.updates, r.cg_iterations, r.solver_time_s,
                r.repeats > 1 ? fmt::format("{:.0f}%/{}", 100.0 * r.TimeSpread(), r.repeats) : "",
                r.setup_time_s >= 0 ? fmt::format("{:.3f}", r.setup_time_s) : "",
                r.Error(t.error_metric) ? Sci(*r.Error(t.error_metric)) : "", r.observed_order ? fmt::format("{:.2f}", *r.observed_order) : "",
-               r.ok() && r.energy_rate_W ? Sci(*r.energy_rate_W) : "", r.status);
+               r.ok() && r.energy_rate_W ? Sci(*r.energy_rate_W) : "", contact_col, r.status);
     if (r.ok() && r.rejected > 0)
       fmt::print(out, "{:<24} ({} rejected attempts retried with smaller h{})\n", "", r.rejected,
                  r.error_test_failures > 0 ? fmt::format(", {} by the error test", r.error_test_failures) : "");
@@ -136,8 +141,12 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
              "setup_s: assembly of A_alpha, symbolic analysis and every factorisation / AMG setup of the "
              "preconditioner.\n");
   fmt::print(out,
-             "dE/dt_W: (E(t_end) - E(0) - W_ext)/t_end, energy gained (> 0) or dissipated (< 0) beyond external "
-             "work.\n");
+             "dE/dt_W: (E(t_end) - E(0) - W_ext - W_contact)/t_end, energy gained (> 0) or dissipated (< 0) beyond "
+             "external work and the contact response's work.\n");
+  if (contact)
+    fmt::print(out,
+               "P_contact_W: W_contact/t_end, the work of the contact response (constraint impulses and friction; "
+               "empty: the method has no contact response of ours).\n");
   fmt::print(out, "machine: {}, {} hardware threads, {}, {} build, commit {}\n", t.host, t.hardware_threads,
              t.compiler, t.build_type, t.git_commit);
 }

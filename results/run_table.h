@@ -75,7 +75,8 @@ struct RunRecord {
     return metric == "l2" ? error_l2_m : metric == "max" ? error_max_m : error_final_m;
   }
   std::optional<double> observed_order;  ///< against the previous row of the label
-  std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext)/t_end [W]
+  std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
+  std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
 
   bool ok() const { return status == "ok"; }
 };

@@ -19,6 +19,7 @@ void ContactResponse::Reset() {
   for (Contact& c : contacts_) c = Contact{};
   std::fill(last_distance_.begin(), last_distance_.end(), 1e300);
   release_tolerance_ = 0.0;
+  work_ = Work{};
 }
 
 // Collision response (docs/model.md §7; thesis (4.3), (4.4), §5.1). A particle is
@@ -52,6 +53,7 @@ void ContactResponse::Reset() {
 int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                            VelocityFilter* filter) {
   const bool have_history = xm1 != nullptr;
+  h_ = h;
   filter->Clear();
   for (int p : sys_.fixed()) filter->Fix(p);
   friction_.setZero();

@@ -48,17 +48,45 @@ class ContactResponse {
   /// @param v1, vhat N×3 [m/s]
   /// @param release_tolerance a contact is released when J_hold is below
   ///        −release_tolerance [kg m/s] (the PCG's own residual, η‖S_F b‖)
+  ///
+  /// Also adds the step's work of the contact response to work(): the
+  /// impulse I of a force on particle p over the step, times its mean
+  /// velocity, ⟨I, (v₀ + v₁)/2⟩ (the trapezoidal rule for ∫ f·v dt). The
+  /// constraint impulse is ⟨r_p, D⟩ D: holding (> 0, the obstacle pushes:
+  /// negative work where it stops an impact, contact being inelastic,
+  /// positive where the (4.4) position correction pushes a particle out) or
+  /// pulling (< 0: the constraint drags a particle toward the obstacle in
+  /// the step before its release). The friction impulse is h f_friction.
+  /// @param v0 N×3 velocities at the start of the step [m/s]
   template <class RowResidual>
-  void ReadImpulses(RowResidual&& residual_row, const MatrixN3& v1, const MatrixN3& vhat, double release_tolerance) {
+  void ReadImpulses(RowResidual&& residual_row, const MatrixN3& v0, const MatrixN3& v1, const MatrixN3& vhat,
+                    double release_tolerance) {
     const Eigen::VectorXd& mass = sys_.masses();
+    double holding = 0.0, pulling = 0.0, friction = 0.0;
     for (int p = 0; p < sys_.num_particles(); ++p) {
       Contact& c = contacts_[static_cast<std::size_t>(p)];
       if (c.obstacle < 0) continue;
       const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
-      c.impulse = (residual_row(p) - inertia).dot(c.direction);
+      const double full = residual_row(p).dot(c.direction);
+      c.impulse = full - inertia.dot(c.direction);
+      const Vector3 mean = 0.5 * (v0.row(p) + v1.row(p)).transpose();
+      (full >= 0.0 ? holding : pulling) += full * c.direction.dot(mean);
+      friction += h_ * friction_.row(p).dot(mean.transpose());
     }
+    work_.holding += holding;
+    work_.pulling += pulling;
+    work_.friction += friction;
     release_tolerance_ = release_tolerance;
   }
+
+  /// Work of the contact response since the last Reset [J] (ReadImpulses).
+  struct Work {
+    double holding = 0.0;   ///< of the constraint impulses that push (stopping impacts, position correction)
+    double pulling = 0.0;   ///< of those that pull (constraints held in the step before their release)
+    double friction = 0.0;  ///< of the Coulomb friction impulses
+    double total() const { return holding + pulling + friction; }
+  };
+  const Work& work() const { return work_; }
 
  private:
   struct Contact {
@@ -69,6 +97,8 @@ class ContactResponse {
   const ParticleSystem& sys_;
   std::vector<Contact> contacts_;
   double release_tolerance_ = 0.0;         // of the last solve [kg m/s]
+  double h_ = 0.0;                         // step of the last SetUp [s]
+  Work work_;                              // since Reset
   std::vector<ObstaclePose> poses_;        // of each obstacle at t₀ (per step)
   std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now)
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit

@@ -375,7 +375,7 @@ StepStats StepEngine::StepImpl(double h) {
       for (SparseMatrix::InnerIterator it(a, p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
       return Vector3(av - b_.row(p).transpose());
     };
-    contacts_.ReadImpulses(residual_row, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
+    contacts_.ReadImpulses(residual_row, v0_, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
   }
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;

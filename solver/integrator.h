@@ -166,6 +166,9 @@ class Stepper {
   /// rejects a step whose estimate fails the test: the run driver then
   /// controls h by the error (SolverSpec::step_control = "error").
   virtual bool estimates_error() const { return false; }
+  /// Work of the contact response since Reset [J] (ContactResponse::work),
+  /// or nullptr if the stepper has no contact response of ours.
+  virtual const ContactResponse::Work* contact_work() const { return nullptr; }
 };
 
 /// Advances the state of a particle system step by step with one method.
@@ -194,6 +197,9 @@ class StepEngine : public Stepper {
   /// SBDF(2) and BDF(2) with step_control = "error".
   bool estimates_error() const override { return error_control_; }
   int matrix_rebuilds() const override { return sysmat_.rebuilds(); }
+  const ContactResponse::Work* contact_work() const override {
+    return contacts_.active() ? &contacts_.work() : nullptr;
+  }
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   Method method() const { return method_; }
   const SystemMatrix& system_matrix() const { return sysmat_; }

@@ -145,6 +145,13 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.trajectory.velocities.assign(frames.size(), MatrixN3(system.num_particles(), 3));
   const bool track_work = system.has_external_work();
   if (track_work) sum.trajectory.external_work.assign(frames.size(), 0.0);
+  const bool track_contact = engine.contact_work() != nullptr;
+  if (track_contact) {
+    sum.trajectory.contact_work_holding.assign(frames.size(), 0.0);
+    sum.trajectory.contact_work_pulling.assign(frames.size(), 0.0);
+    sum.trajectory.contact_work_friction.assign(frames.size(), 0.0);
+  }
+  ContactResponse::Work contact0, contact1;  // at the start and end of the step
   MatrixN3 f_ext(system.num_particles(), 3);
   double work = 0.0, power = track_work ? ExternalPower(system, 0.0, engine.x(), engine.v(), &f_ext) : 0.0;
   sum.step_stats.reserve(static_cast<std::size_t>(
@@ -195,6 +202,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
 
     x_prev = engine.x();
     v_prev = engine.v();
+    if (track_contact) contact0 = *engine.contact_work();
     const auto t0 = Clock::now();
     StepStats st = engine.Step(step);
     solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
@@ -276,7 +284,15 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
         sum.ok = false;
         break;
       }
-      if (track_work) sum.trajectory.external_work[next_frame] = work0 + std::min(s, 1.0) * (work - work0);
+      const double sc = std::min(s, 1.0);
+      if (track_work) sum.trajectory.external_work[next_frame] = work0 + sc * (work - work0);
+      if (track_contact) {
+        contact1 = *engine.contact_work();
+        sum.trajectory.contact_work_holding[next_frame] = contact0.holding + sc * (contact1.holding - contact0.holding);
+        sum.trajectory.contact_work_pulling[next_frame] = contact0.pulling + sc * (contact1.pulling - contact0.pulling);
+        sum.trajectory.contact_work_friction[next_frame] =
+            contact0.friction + sc * (contact1.friction - contact0.friction);
+      }
       sum.trajectory.times.push_back(frames[next_frame]);
       ++next_frame;
     }
@@ -314,6 +330,11 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.trajectory.positions.resize(next_frame);  // a failed run keeps the frames it reached
   sum.trajectory.velocities.resize(next_frame);
   if (track_work) sum.trajectory.external_work.resize(next_frame);
+  if (track_contact) {
+    sum.trajectory.contact_work_holding.resize(next_frame);
+    sum.trajectory.contact_work_pulling.resize(next_frame);
+    sum.trajectory.contact_work_friction.resize(next_frame);
+  }
   sum.matrix_rebuilds = engine.matrix_rebuilds();
   sum.solver_time_in_seconds = solver_seconds;
   sum.setup_time_in_seconds = engine.setup_seconds();
