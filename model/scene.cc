@@ -421,14 +421,14 @@ Scene ParseScene(std::string_view text, const std::string& source) {
           if (spec.radius > 1e6 || spec.height > 1e6) o.Fail(spec.radius > 1e6 ? "radius" : "height", "must be at most 1e6 m");
           break;
         case ObstacleType::kMesh: {
-          // Relative paths are relative to the scene file (or, for a
-          // built-in scene, to the source tree).
+          // Relative paths are relative to the scene file (for a built-in
+          // scene, the file it was embedded from: the source tree's scenes/).
           const std::string rel = o.String("path", "");
           if (rel.empty()) o.Fail("path", "must name a mesh file (OFF, OBJ or PLY)");
           std::filesystem::path p(rel);
           if (p.is_relative()) {
             const bool embedded = source.rfind("<embedded", 0) == 0;
-            p = (embedded ? std::filesystem::path(CLOTHBENCH_SOURCE_DIR)
+            p = (embedded ? std::filesystem::path(CLOTHBENCH_SOURCE_DIR) / "scenes"
                           : std::filesystem::path(source).parent_path()) / p;
           }
           if (!std::filesystem::is_regular_file(p))
