@@ -21,6 +21,7 @@
 #include "harness/cli_args.h"
 #include "harness/memory_check.h"
 #include "harness/methods.h"
+#include "harness/output_lock.h"
 #include "harness/plan.h"
 #include "harness/plot.h"
 #include "harness/sweep.h"
@@ -30,23 +31,6 @@
 
 namespace clothbench {
 namespace {
-
-// The journal's key: the scene's text and the command's arguments, except
-// those that change no result (--max-runs, --plot, --quiet), so that a rerun
-// of the same command, sliced or not, finds its journal.
-std::string JournalKey(int argc, char** argv, const Scene& scene) {
-  std::string key = fmt::format("bench_integrators journal 3 scene={} args=", Fnv1a64(scene.toml));
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--max-runs" || a == "--plot") {
-      ++i;
-      continue;
-    }
-    if (a.rfind("--max-runs=", 0) == 0 || a.rfind("--plot=", 0) == 0 || a == "--quiet") continue;
-    key += EscapeControl(a) + " ";
-  }
-  return key;
-}
 
 int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
@@ -154,6 +138,7 @@ int Main(int argc, char** argv) {
     return 2;
   };
 
+  std::optional<OutputLock> lock;  // on <out>.lock, from before the first computation to the exit
   try {
     std::vector<NonlinearSolver> solvers;
     try {
@@ -265,7 +250,7 @@ int Main(int argc, char** argv) {
       }
     }
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
-    CheckOutputFolder(out);
+    lock.emplace(out, comm);
 
     BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_entry, ref_rtol, out, plot_dir, series,
                  frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
@@ -279,15 +264,18 @@ int Main(int argc, char** argv) {
   } catch (const SweepJournal::Mismatch& e) {
     return refuse(e.what());
   } catch (const Interrupted& e) {
+    if (lock) lock->Release();
     if (comm.root())
       fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written, finished runs kept in {}.journal\n",
                  SignalName(e.signal), out);
     comm.Abort(128 + e.signal);
   } catch (const std::bad_alloc&) {
+    if (lock) lock->Release();
     fmt::print(stderr, "bench_integrators: out of memory although the run fitted the memory estimate; no result file "
                        "written (use --frames ends|none or fewer rows)\n");
     comm.Abort(1);
   } catch (const std::exception& e) {
+    if (lock) lock->Release();
     fmt::print(stderr, "bench_integrators: {}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
                EscapeControl(e.what()));
     comm.Abort(1);

@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -35,6 +36,7 @@
 
 #include "harness/cli_args.h"
 #include "harness/methods.h"
+#include "harness/output_lock.h"
 #include "harness/plot.h"
 #include "bench/signals.h"
 #include "harness/sweep.h"
@@ -91,6 +93,7 @@ int Main(int argc, char** argv) {
     if (comm.root()) fmt::print(stderr, "stress_stability: {}\n", EscapeControl(what));
     return 2;
   };
+  std::optional<OutputLock> lock;
   try {
     std::vector<std::string> names;
     if (integrators_arg.empty()) {
@@ -116,7 +119,7 @@ int Main(int argc, char** argv) {
           throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", scenes.back().name));
     }
     if (!plot_dir.empty()) CheckPlotDir(plot_dir);
-    CheckOutputFolder(out);
+    lock.emplace(out, comm);  // <out>.lock, held to the exit
 
     std::vector<CellSpec> cells;
     for (std::size_t sc = 0; sc < scenes.size(); ++sc)
@@ -257,11 +260,13 @@ int Main(int argc, char** argv) {
   } catch (const SweepJournal::Mismatch& e) {
     return refuse(e.what());
   } catch (const Interrupted& e) {
+    if (lock) lock->Release();
     if (comm.root())
       fmt::print(stderr, "stress_stability: interrupted by {}; no result file written, finished cells kept in {}.journal\n",
                  SignalName(e.signal), out);
     comm.Abort(128 + e.signal);
   } catch (const std::exception& e) {
+    if (lock) lock->Release();
     fmt::print(stderr, "stress_stability: {}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
                EscapeControl(e.what()));
     comm.Abort(1);

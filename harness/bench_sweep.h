@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "harness/methods.h"
 #include "harness/plan.h"
 #include "harness/sweep.h"
@@ -57,6 +59,23 @@ void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function
 /// --max-runs. @throws Interrupted on SIGINT/SIGTERM, std::runtime_error on
 /// an unreadable journal record or an unwritable file.
 int RunBench(const BenchRun& b, SweepComm& comm);
+
+/// bench_integrators' journal key: the scene's text and the command's arguments, except
+/// those that change no result (--max-runs, --plot, --quiet), so that a rerun
+/// of the same command, sliced or not, finds its journal.
+inline std::string JournalKey(int argc, char** argv, const Scene& scene) {
+  std::string key = fmt::format("bench_integrators journal 3 scene={} args=", Fnv1a64(scene.toml));
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--max-runs" || a == "--plot") {
+      ++i;
+      continue;
+    }
+    if (a.rfind("--max-runs=", 0) == 0 || a.rfind("--plot=", 0) == 0 || a == "--quiet") continue;
+    key += EscapeControl(a) + " ";
+  }
+  return key;
+}
 
 }  // namespace clothbench
 

@@ -267,10 +267,46 @@ TEST(Sweep, SigintKeepsTheJournalAndLeavesNoFile) {
   EXPECT_NE(text.find("interrupted by SIGINT"), std::string::npos) << text;
   EXPECT_FALSE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  EXPECT_FALSE(fs::exists(out.string() + ".lock"));
   EXPECT_TRUE(fs::exists(journal));
   const long cells = JournalCells(journal);
   EXPECT_GE(cells, 1);
   EXPECT_LT(cells, 288);  // interrupted: not all 2 scenes × 6 methods × 24 cells
+}
+
+// One writer per output (harness/output_lock.h): while a sweep writes
+// <out>, a second stress_stability and a bench_integrators given the same
+// --out exit 2 at once with one line naming the first one's pid, and leave
+// its journal alone; the first, interrupted, removes its lock file.
+TEST(Sweep, ASecondWriterOfTheSameOutputIsRefused) {
+  const fs::path out = Dir() / "locked.h5";
+  const fs::path journal = out.string() + ".journal", lock = out.string() + ".lock";
+  const fs::path err2 = Dir() / "locked_err2.txt", err3 = Dir() / "locked_err3.txt", rc = Dir() / "locked_rc.txt",
+                 pidfile = Dir() / "locked_pid.txt";
+  fs::remove_all(journal);
+  fs::remove(lock);
+  const std::string script =
+      std::string(CLOTHBENCH_STRESS_BINARY) + " --steps 600 --out " + out.string() + " > /dev/null 2>&1 & pid=$!; echo $pid > " +
+      pidfile.string() + "; i=0; until grep -q ^cell " + journal.string() +
+      " 2> /dev/null || [ $i -ge 600 ]; do sleep 0.05; i=$((i+1)); done; " + CLOTHBENCH_STRESS_BINARY + " --out " +
+      out.string() + " > /dev/null 2> " + err2.string() + "; r2=$?; " + CLOTHBENCH_BENCH_BINARY + " --out " +
+      out.string() + " > /dev/null 2> " + err3.string() + "; r3=$?; kill -INT $pid; wait $pid; echo $r2 $r3 > " +
+      rc.string();
+  ASSERT_EQ(std::system(("sh -c '" + script + "'").c_str()), 0);
+  std::istringstream codes(testing::Slurp(rc));
+  int r2 = 0, r3 = 0;
+  codes >> r2 >> r3;
+  EXPECT_EQ(r2, 2);
+  EXPECT_EQ(r3, 2);
+  std::string pid = testing::Slurp(pidfile);
+  pid.erase(pid.find_last_not_of(" \n") + 1);
+  for (const fs::path& e : {err2, err3}) {
+    const std::string text = testing::Slurp(e);
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+    EXPECT_NE(text.find("is being written by process " + pid), std::string::npos) << text;
+  }
+  EXPECT_FALSE(fs::exists(lock));
+  EXPECT_GE(JournalCells(journal), 1);  // the first one's cells, untouched
 }
 
 }  // namespace

@@ -1,0 +1,102 @@
+// One writer per output: the executables that write a result file hold an
+// exclusive lock on <out>.lock from before their first computation until
+// they exit, so that two processes given the same --out cannot interleave
+// their journals or replace each other's file.
+#ifndef CLOTHBENCH_HARNESS_OUTPUT_LOCK_H_
+#define CLOTHBENCH_HARNESS_OUTPUT_LOCK_H_
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "harness/cli_args.h"
+#include "harness/sweep.h"
+
+namespace clothbench {
+
+/// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (after
+/// CheckOutputFolder) and held until destruction; the kernel also releases
+/// it when the process ends in any other way. The file holds the holder's
+/// pid, which a refused process names; it is removed on release (a process
+/// that opened it just before checks, after locking, that the path still
+/// names the file it locked, and starts over if not).
+class OutputLock {
+ public:
+  /// @throws UsageError (exit 2) on every rank if another process holds the
+  /// lock or the lock file cannot be created, naming --out and the pid.
+  OutputLock(const std::string& out, const SweepComm& comm) : path_(out + ".lock") {
+    CheckOutputFolder(out);
+    std::string why;
+    if (comm.root()) why = Acquire(out);
+    std::vector<long> failed{why.empty() ? 0L : 1L};
+    comm.Broadcast(&failed);
+    if (failed[0] != 0)
+      throw UsageError(comm.root() ? why : fmt::format("--out: \"{}\" is locked by another process", out));
+  }
+  ~OutputLock() { Release(); }
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+
+  /// Removes the lock file and releases the lock (idempotent): for the exit
+  /// paths that leave by std::exit, before it.
+  void Release() {
+    if (fd_ < 0) return;
+    ::unlink(path_.c_str());
+    ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  // "" on success, else the refusal.
+  std::string Acquire(const std::string& out) {
+    for (int attempt = 0; attempt < 8; ++attempt) {
+      const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+      if (fd < 0)
+        return fmt::format("--out: cannot create the lock file \"{}\": {}", path_, std::strerror(errno));
+      struct stat st {};
+      if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(fd);
+        return fmt::format("--out: the lock file \"{}\" is not a regular file", path_);
+      }
+      if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        char buf[32] = {};
+        const ssize_t n = ::pread(fd, buf, sizeof(buf) - 1, 0);
+        ::close(fd);
+        const std::string pid = n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string("unknown");
+        return fmt::format("--out: \"{}\" is being written by process {} (it holds \"{}\"); wait for it to end or "
+                           "choose another --out",
+                           out, EscapeControl(pid), path_);
+      }
+      // Still the file at the path (not one a releasing holder has just
+      // removed)?
+      struct stat now {};
+      if (::stat(path_.c_str(), &now) != 0 || now.st_ino != st.st_ino || now.st_dev != st.st_dev) {
+        ::close(fd);
+        continue;
+      }
+      const std::string pid = std::to_string(::getpid());
+      if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+        ::close(fd);
+        return fmt::format("--out: cannot write the lock file \"{}\": {}", path_, std::strerror(errno));
+      }
+      fd_ = fd;
+      return "";
+    }
+    return fmt::format("--out: the lock file \"{}\" kept being replaced by other processes", path_);
+  }
+
+  std::string path_;
+  int fd_ = -1;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_HARNESS_OUTPUT_LOCK_H_
