@@ -206,10 +206,11 @@ int Main(int argc, char** argv) {
     std::vector<RowMethod> methods;
     try {
       methods = ExpandMethods(names, solvers, "--integrators");
+      // "sbdf2" under a scene's error control is sbdf2/error; named rows without error control are refused.
+      AdoptSceneStepControl(scene.solver, &methods, !integrators_arg.empty());
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
-    AdoptSceneStepControl(scene.solver, &methods);  // "sbdf2" under a scene's error control is sbdf2/error
     for (std::size_t a = 0; a < methods.size(); ++a)
       for (std::size_t b = 0; b < a; ++b)
         if (methods[a].label() == methods[b].label())

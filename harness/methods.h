@@ -470,11 +470,33 @@ inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenO
 /// methods that run under error control (sbdf2, bdf2) are their "/error"
 /// rows: adaptive, labelled so, at --rtols or by default at the scene's
 /// rtol (PlanRows). Without this a "sbdf2" row would step under error
-/// control yet be listed, labelled and parameterised by h.
-inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows) {
+/// control yet be listed, labelled and parameterised by h. The SUNDIALS
+/// rows keep their own error control. A fixed-step or substepped row
+/// without error control cannot run such a scene: named on the command line
+/// (`named`) it is refused before anything is computed; among the default
+/// rows it is left out (and a default row that becomes one already listed).
+/// @throws std::invalid_argument naming the row and the scene key
+inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows, bool named,
+                                  std::string_view option = "--integrators") {
   if (spec.step_control != StepControl::kError) return;
-  for (RowMethod& m : *rows)
+  std::vector<RowMethod> kept;
+  for (RowMethod& m : *rows) {
     if (m.entry->error_control) m.error_control = true;
+    if (m.kind() == StepKind::kAdaptive) {
+      // Default rows: "sbdf2" and "sbdf2/error" are one row here.
+      const bool listed = std::any_of(kept.begin(), kept.end(), [&](const RowMethod& k) { return k.label() == m.label(); });
+      if (named || !listed) kept.push_back(m);
+    } else if (named) {
+      std::string with;
+      for (const MethodEntry& e : Registry())
+        if (e.error_control) with += (with.empty() ? "" : ", ") + std::string(e.name);
+      throw std::invalid_argument(fmt::format(
+          "{}: {} cannot step under the scene's [solver] step_control = \"error\" (it has no error estimate; rows "
+          "that have one: {}, and the adaptive cvode, ida, arkode)",
+          option, m.label(), with));
+    }
+  }
+  *rows = std::move(kept);
 }
 
 /// A row's default parameters when the command line gives none: step sizes

@@ -189,7 +189,11 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
   if (t_end) scene.t_end = *t_end;
   std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
   if (rows.size() != 1) throw py::value_error("method \"" + method + "\" names " + std::to_string(rows.size()) + " rows");
-  AdoptSceneStepControl(scene.solver, &rows);  // as bench_integrators: "sbdf2" on an error-controlled scene is sbdf2/error
+  try {  // as bench_integrators: "sbdf2" on an error-controlled scene is sbdf2/error
+    AdoptSceneStepControl(scene.solver, &rows, /*named=*/true, "method");
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(e.what());
+  }
   const RowMethod& m = rows.front();
   const bool adaptive = m.kind() == StepKind::kAdaptive;
   if (adaptive && !rtol && m.error_control && scene.solver.step_control == StepControl::kError) rtol = scene.solver.rtol;

@@ -483,6 +483,21 @@ TEST(BenchCli, SceneErrorControlMakesErrorRows) {
   t = ReadRunTable(ResultReader(out.string()));
   ASSERT_EQ(t.runs.size(), 1u);
   EXPECT_EQ(t.runs[0].id, "sbdf2_error_rtol0.001");
+  // A named row that cannot control its step by the error is refused before
+  // anything is computed: exit 2, one line naming the row and the scene key,
+  // no file; the default rows leave such methods out.
+  fs::remove(out);
+  o = RunBench("--scene " + scene + " --integrators sbdf2,imex_euler --reference none --frames none --repeat 1 "
+               "--quiet --out " + out.string());
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find("--integrators: imex_euler cannot step under the scene's [solver] step_control = \"error\""),
+            std::string::npos)
+      << o.err;
+  EXPECT_FALSE(fs::exists(out));
+  o = RunBench("--scene " + scene + " --reference none --frames none --repeat 1 --quiet --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  for (const RunRecord& r : ReadRunTable(ResultReader(out.string())).runs) EXPECT_EQ(r.status, "ok") << r.id;
 }
 
 }  // namespace
