@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -143,7 +144,7 @@ int Main(int argc, char** argv) {
     std::vector<NonlinearSolver> solvers;
     try {
       if (app.count("--nonlinear-solver"))
-        for (const std::string& n : SplitList(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+        for (const std::string& n : SplitList(nonlinear_arg, "--nonlinear-solver")) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
@@ -153,11 +154,21 @@ int Main(int argc, char** argv) {
       for (double e : etas)
         if (!(e < 1.0)) throw UsageError(fmt::format("--cg-tolerances: {:g} must be in (0, 1)", e));
     }
-    if (!table.empty())
+    if (!table.empty()) {
+      // --table runs the thesis' own rows: options that choose rows or runs would be ignored.
+      std::string ignored;
+      for (const CLI::Option* o : app.get_options())
+        if (o->count() > 0 && !std::set<std::string>{"--table", "--out", "--preconditioner", "--nonlinear-solver",
+                                                     "--cg-tolerances", "--quiet"}.count(o->get_name()))
+          ignored += (ignored.empty() ? "" : ", ") + o->get_name();
+      if (!ignored.empty()) throw UsageError(fmt::format("--table: cannot be combined with {}", ignored));
+      if (out.empty()) out = fmt::format("out/table_{}.h5", table == "3.1" ? "3_1" : "3_2");
+      if (table == "3.1" || table == "3.2") lock.emplace(out, comm);
       return RunThesisTable(table, out,
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner, "--preconditioner"))
                                                           : std::nullopt,
                             solvers, etas, comm);
+    }
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
     if (app.count("--t-end")) {
@@ -193,7 +204,7 @@ int Main(int argc, char** argv) {
     if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
     CvodeSettings cvode_settings;
     if (app.count("--cvode-setting"))
-      for (const std::string& kv : SplitList(cvode_setting_arg)) {
+      for (const std::string& kv : SplitList(cvode_setting_arg, "--cvode-setting")) {
         const std::size_t eq = kv.find('=');
         std::string why;
         if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
@@ -201,7 +212,7 @@ int Main(int argc, char** argv) {
       }
     const std::vector<std::string> names =
         integrators_arg.empty() ? DefaultRowNames(scene.solver.nonlinear_solver, app.count("--nonlinear-solver") > 0)
-                                : SplitList(integrators_arg);
+                                : SplitList(integrators_arg, "--integrators");
     if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
     std::vector<RowMethod> methods;
     try {

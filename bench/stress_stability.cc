@@ -101,10 +101,10 @@ int Main(int argc, char** argv) {
       names.emplace_back(ToString(Method::kSbdf3));
       names.emplace_back(ToString(Method::kSymplecticEuler));
     } else {
-      names = SplitList(integrators_arg);
+      names = SplitList(integrators_arg, "--integrators");
     }
     std::vector<NonlinearSolver> solvers;
-    for (const std::string& n : SplitList(nonlinear_arg)) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+    for (const std::string& n : SplitList(nonlinear_arg, "--nonlinear-solver")) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
     const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
     for (std::size_t a = 0; a < methods.size(); ++a)
       for (std::size_t b = 0; b < a; ++b)
@@ -112,7 +112,7 @@ int Main(int argc, char** argv) {
           throw std::invalid_argument(fmt::format("--integrators: {} is listed twice", methods[a].label()));
     const std::vector<double> stiff = ParsePositiveList(stiffness_arg, "--stiffness"), hs = ParsePositiveList(h_arg, "--h");
     std::vector<Scene> scenes;
-    for (const std::string& name : SplitList(scenes_arg)) {
+    for (const std::string& name : SplitList(scenes_arg, "--scenes")) {
       scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
       for (std::size_t b = 0; b + 1 < scenes.size(); ++b)
         if (scenes[b].name == scenes.back().name)

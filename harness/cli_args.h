@@ -36,18 +36,23 @@ inline PreconditionerType ParsePreconditioner(const std::string& name, const std
   throw UsageError(fmt::format("{}: \"{}\" must be ic0, cholesky, amg, jacobi or none", option, name));
 }
 
-/// The items of a comma-separated list, trimmed. @throws UsageError for an
-/// empty list or item.
-inline std::vector<std::string> SplitList(const std::string& s) {
+/// The items of a comma-separated list, trimmed. @throws UsageError naming
+/// `option` for an empty list or an empty item (leading, inner or trailing).
+inline std::vector<std::string> SplitList(const std::string& s, const std::string& option) {
   std::vector<std::string> out;
   std::stringstream ss(s);
   std::string item;
+  const auto empty_item = [&] {
+    return UsageError(fmt::format("{}: empty item in the list \"{}\"", option, EscapeControl(s)));
+  };
   while (std::getline(ss, item, ',')) {
     const auto b = item.find_first_not_of(" \t"), e = item.find_last_not_of(" \t");
-    if (b == std::string::npos) throw UsageError(fmt::format("empty item in list \"{}\"", s));
+    if (b == std::string::npos) throw empty_item();
     out.push_back(item.substr(b, e - b + 1));
   }
-  if (out.empty()) throw UsageError(fmt::format("empty list \"{}\"", s));
+  if (out.empty()) throw UsageError(fmt::format("{}: empty list \"{}\"", option, EscapeControl(s)));
+  const auto last = s.find_last_not_of(" \t");
+  if (last != std::string::npos && s[last] == ',') throw empty_item();  // a trailing comma
   return out;
 }
 
@@ -55,7 +60,7 @@ inline std::vector<std::string> SplitList(const std::string& s) {
 /// give two rows or cells with one name). @throws UsageError naming `option`.
 inline std::vector<double> ParsePositiveList(const std::string& s, const std::string& option) {
   std::vector<double> out;
-  for (const std::string& item : SplitList(s)) {
+  for (const std::string& item : SplitList(s, option)) {
     std::size_t pos = 0;
     double v = 0.0;
     try {

@@ -54,6 +54,7 @@ void ExpectRefused(const std::string& args, const std::string& needle) {
   EXPECT_FALSE(fs::exists(out)) << args;
   EXPECT_FALSE(fs::exists(out.string() + ".tmp")) << args;
   EXPECT_FALSE(fs::exists(out.string() + ".journal")) << args;  // a refused run leaves no journal either
+  EXPECT_FALSE(fs::exists(out.string() + ".lock")) << args;      // nor its lock file
 }
 
 std::string Scene(const std::string& name, const std::string& text) { return "--scene " + WriteScene(name, text); }
@@ -108,6 +109,13 @@ TEST(BadInput, OutOfRangeOptionsAreRefusedBeforeComputing) {
                 "--h/--substeps: xpbd at h = 0.01 s with 1000000 substeps");
   ExpectRefused(tiny + " --time-limit 0", "--time-limit");
   ExpectRefused(tiny + " --time-limit -5", "--time-limit");
+  // Empty list items, leading, inner or trailing, name their option.
+  ExpectRefused(tiny + " --h 0.01,", "--h: empty item in the list \"0.01,\"");
+  ExpectRefused(tiny + " --h ,0.01", "--h: empty item in the list \",0.01\"");
+  ExpectRefused(tiny + " --integrators sbdf2,,bdf2", "--integrators: empty item in the list");
+  ExpectRefused(tiny + " --integrators sbdf2,", "--integrators: empty item in the list");
+  // --table runs the thesis' rows: options it would ignore are refused.
+  ExpectRefused(" --table 3.1 --h 0.01 --repeat 2", "--table: cannot be combined with --h, --repeat");
 }
 
 TEST(BadInput, ControlCharactersAreEscapedIntoOneLine) {
