@@ -6,7 +6,9 @@
 #ifndef CLOTHBENCH_MODEL_INTERRUPT_H_
 #define CLOTHBENCH_MODEL_INTERRUPT_H_
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <stdexcept>
 #include <string>
 
@@ -28,6 +30,43 @@ inline void RequestInterrupt(int sig) { internal::g_interrupt_signal.store(sig, 
 /// @throws Interrupted if a signal was recorded.
 inline void ThrowIfInterrupted() {
   if (const int sig = internal::g_interrupt_signal.load(std::memory_order_relaxed)) throw Interrupted(sig);
+}
+
+// The wall-clock deadline of the run on this thread (--time-limit): the run
+// drivers check it after each step, the loops inside a step (the PCG's
+// iterations, XPBD's substeps) before each pass, so that a run stops within
+// one iteration of its limit, not one step.
+namespace internal {
+inline thread_local std::chrono::steady_clock::time_point g_deadline = std::chrono::steady_clock::time_point::max();
+}  // namespace internal
+
+/// Sets this thread's deadline to `deadline` (or keeps an earlier one) for
+/// the object's lifetime.
+class ScopedDeadline {
+ public:
+  explicit ScopedDeadline(std::chrono::steady_clock::time_point deadline) : saved_(internal::g_deadline) {
+    internal::g_deadline = std::min(deadline, saved_);
+  }
+  ~ScopedDeadline() { internal::g_deadline = saved_; }
+  ScopedDeadline(const ScopedDeadline&) = delete;
+  ScopedDeadline& operator=(const ScopedDeadline&) = delete;
+
+ private:
+  std::chrono::steady_clock::time_point saved_;
+};
+
+/// The deadline `limit_s` seconds [s] after `start`; none (max) for a limit
+/// ≤ 0, and at most 10⁸ s ahead (the clock's range is ~3·10¹¹ s).
+inline std::chrono::steady_clock::time_point RunDeadline(std::chrono::steady_clock::time_point start, double limit_s) {
+  if (!(limit_s > 0.0)) return std::chrono::steady_clock::time_point::max();
+  return start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                     std::chrono::duration<double>(std::min(limit_s, 1e8)));
+}
+
+/// True once this thread's deadline has passed (false without one).
+inline bool DeadlinePassed() {
+  return internal::g_deadline != std::chrono::steady_clock::time_point::max() &&
+         std::chrono::steady_clock::now() >= internal::g_deadline;
 }
 
 }  // namespace clothbench

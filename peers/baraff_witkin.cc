@@ -124,7 +124,9 @@ StepStats BaraffWitkin::Step(double h) {
   // (SIM_mass_spring_solve_velocities); a non-finite solve is still a failure.
   const bool kept = blender_ && pcg.status == PcgStatus::kMaxIterations;
   if (pcg.status != PcgStatus::kConverged && !kept) {
-    st.status = pcg.status == PcgStatus::kNonFinite ? StepStatus::kNonFinite : StepStatus::kCgFailed;
+    st.status = pcg.status == PcgStatus::kNonFinite   ? StepStatus::kNonFinite
+                : pcg.status == PcgStatus::kTimeLimit ? StepStatus::kTimeLimit
+                                                      : StepStatus::kCgFailed;
     return finish();
   }
   v1_ = vr_;

@@ -1,5 +1,6 @@
 // XPBD with substeps (Macklin, Müller, Chentanez 2016; Macklin et al. 2019,
 // Algorithm 1; docs/model.md §10).
+#include "model/interrupt.h"
 #include "peers/xpbd.h"
 
 #include <chrono>
@@ -169,6 +170,11 @@ StepStats Xpbd::Step(double h) {
   x_ = x0_;
   v_ = v0_;
   for (int k = 0; k < substeps_; ++k) {
+    if (DeadlinePassed()) {  // the run's --time-limit (model/interrupt.h); the state stays x₀, v₀
+      st.status = StepStatus::kTimeLimit;
+      st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      return st;
+    }
     const double t = t_ + k * dt;
     // 1. v ← v + Δt M⁻¹ f_ext(x, v); 2. p ← x + Δt v (Algorithm 1).
     PredictionForces(t, x_, v_, &f_);

@@ -59,6 +59,7 @@ std::string_view ToString(StepStatus s) {
     case StepStatus::kNoNewtonConvergence: return "no_newton_convergence";
     case StepStatus::kNewtonDiverged: return "newton_diverged";
     case StepStatus::kErrorTestFailed: return "error_test_failed";
+    case StepStatus::kTimeLimit: return "time_limit";
   }
   return "?";
 }
@@ -332,7 +333,9 @@ StepStats StepEngine::StepImpl(double h) {
     st.cg_iterations += last_pcg_.iterations;
     if (last_pcg_.status != PcgStatus::kConverged) {
       st.pcg_status = last_pcg_.status;
-      if (last_pcg_.status != PcgStatus::kNonFinite)
+      if (last_pcg_.status == PcgStatus::kTimeLimit)
+        st.status = StepStatus::kTimeLimit;
+      else if (last_pcg_.status != PcgStatus::kNonFinite)
         st.status = StepStatus::kCgFailed;
       else
         st.status = (!imex && u > 0) ? StepStatus::kFixedPointDiverged : StepStatus::kNonFinite;
@@ -536,7 +539,9 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
     st->cg_iterations += last_pcg_.iterations;
     if (last_pcg_.status != PcgStatus::kConverged) {
       st->pcg_status = last_pcg_.status;
-      if (last_pcg_.status != PcgStatus::kNonFinite)
+      if (last_pcg_.status == PcgStatus::kTimeLimit)
+        st->status = StepStatus::kTimeLimit;
+      else if (last_pcg_.status != PcgStatus::kNonFinite)
         st->status = StepStatus::kCgFailed;
       else
         st->status = u > 0 ? StepStatus::kNewtonDiverged : StepStatus::kNonFinite;

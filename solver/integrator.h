@@ -75,7 +75,8 @@ enum class StepStatus {
   kFixedPointDiverged,
   kNoNewtonConvergence,
   kNewtonDiverged,
-  kErrorTestFailed
+  kErrorTestFailed,
+  kTimeLimit  ///< the run's wall-clock deadline passed inside the step (model/interrupt.h)
 };
 std::string_view ToString(StepStatus s);
 

@@ -1,6 +1,8 @@
 // Filtered PCG and its preconditioners (docs/model.md §5, thesis Alg. 7).
 #include "solver/pcg.h"
 
+#include "model/interrupt.h"
+
 #include <chrono>
 #include <cmath>
 
@@ -15,6 +17,7 @@ std::string_view ToString(PcgStatus s) {
     case PcgStatus::kMaxIterations: return "cg_max_iterations";
     case PcgStatus::kBreakdown: return "cg_breakdown";
     case PcgStatus::kNonFinite: return "cg_non_finite";
+    case PcgStatus::kTimeLimit: return "time_limit";
   }
   return "?";
 }
@@ -556,6 +559,10 @@ PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& fil
     }
     if (rnorm <= threshold) {
       s.status = PcgStatus::kConverged;
+      return s;
+    }
+    if (DeadlinePassed()) {  // the run's --time-limit (model/interrupt.h)
+      s.status = PcgStatus::kTimeLimit;
       return s;
     }
     precond.Apply(r, &z);

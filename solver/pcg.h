@@ -202,7 +202,7 @@ double FreeRowsNorm(const M& b, const std::vector<int>& fixed) {
 /// SymmetricProduct. @param x, y N×3 row-major (y must not alias x).
 void TangentProduct(const SparseMatrix& j, const MatrixN3R& x, MatrixN3R* y);
 
-enum class PcgStatus { kConverged, kMaxIterations, kBreakdown, kNonFinite };
+enum class PcgStatus { kConverged, kMaxIterations, kBreakdown, kNonFinite, kTimeLimit };
 std::string_view ToString(PcgStatus s);
 
 struct PcgOptions {

@@ -1,4 +1,5 @@
 // Run driver (docs/model.md §6).
+#include "model/interrupt.h"
 #include "solver/run.h"
 
 #include <algorithm>
@@ -118,6 +119,9 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
+  // Checked inside the steps too (PCG iterations, substeps): a long step
+  // stops at the limit, not after it.
+  const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));
   const SolverSpec& spec = options.solver ? *options.solver : system.scene().solver;
   RunSummary sum;
   std::string why;
@@ -215,8 +219,9 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       sum.status = std::string(status);
       sum.message = std::move(message);
     };
-    if (options.limits.time_limit_s > 0.0 &&
-        std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s) {
+    if (st.status == StepStatus::kTimeLimit ||
+        (options.limits.time_limit_s > 0.0 &&
+         std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
       fail("time_limit", fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
                                      options.limits.time_limit_s, engine.t(), attempts));
       break;

@@ -1,3 +1,4 @@
+#include "model/interrupt.h"
 #include "sundials/sundials_common.h"
 
 #include <algorithm>
@@ -65,6 +66,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   bool ok = true;
   BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0]);
   const auto wall_start = Clock::now();
+  const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
   long steps = 0;
   while (ok && next < frames.size()) {
     const auto t0 = Clock::now();
@@ -72,14 +74,15 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     solver_seconds += seconds;
     ++steps;
-    if (flag < 0) {
+    if (flag < 0 && !DeadlinePassed()) {
       res->status = d.flag_name(flag);
       res->message = error.empty() ? "step failed with " + res->status : error;
       ok = false;
       break;
     }
-    if (options.limits.time_limit_s > 0.0 &&
-        std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s) {
+    if (flag < 0 || DeadlinePassed() ||  // a failed step past the deadline: our PCG stopped it
+        (options.limits.time_limit_s > 0.0 &&
+         std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
       res->status = "time_limit";
       res->message = fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
                                  options.limits.time_limit_s, t, steps);

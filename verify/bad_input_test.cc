@@ -189,5 +189,26 @@ TEST(BadInput, TimeLimitEndsARunAndTheOthersComplete) {
   EXPECT_TRUE(testing::ScanForNonFinite(out.string()).offenders.empty());
 }
 
+// The limit holds inside a step too (model/interrupt.h): one XPBD step of
+// 10⁶ substeps on 300×300 particles (hours) and one SBDF(2) step whose
+// unpreconditioned PCG needs tens of thousands of iterations on the very
+// stiff sheet (k = 1e9 N/m, η = 1e-12) both end as time_limit, each run's wall time within a tenth of the 1 s
+// limit (plus the 0.5 s allowed for its setup: assembly and a factor-free
+// start take milliseconds here).
+TEST(BadInput, TimeLimitHoldsInsideSubstepsAndPcgIterations) {
+  std::string big = Replace(Replace(kTiny, "nu = 4", "nu = 300"), "nv = 3", "nv = 300");
+  big = Replace(Replace(big, "[100.0, 100.0]", "[1e9, 1e9]"), "cg_tolerance = 1e-10", "cg_tolerance = 1e-12\ncg_max_iterations = 1000000");
+  const fs::path out = Dir() / "limit_inside.h5";
+  const Outcome o = RunBench(Scene("limit_inside.toml", big) +
+                             " --integrators xpbd,sbdf2 --h 0.04 --substeps 1000000 --preconditioner none --reference "
+                             "none --frames none --repeat 1 --time-limit 1 --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const ResultReader r(out.string());
+  for (const char* run : {"/runs/xpbd_h0.04_n1000000", "/runs/sbdf2_h0.04"}) {
+    EXPECT_EQ(r.String(run, "status").value_or(""), "time_limit") << run;
+    EXPECT_LT(r.Double(run, "wall_time_s").value_or(1e9), 1.1 + 0.5) << run;
+  }
+}
+
 }  // namespace
 }  // namespace clothbench
