@@ -136,6 +136,9 @@ int Main(int argc, char** argv) {
     key += " scenes=";
     for (const Scene& sc : scenes) key += fmt::format("{}:{},", sc.name, Fnv1a64(sc.toml));
     SweepJournal journal(out + ".journal", key, cells.size(), comm);
+    if (comm.root() && journal.rejected() > 0)
+      fmt::print(stderr, "stress_stability: {}: {} cell line{} failed the check (checksum or range); computing {} again\n",
+                 journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "", journal.rejected() > 1 ? "them" : "it");
 
     const std::size_t n = cells.size();
     std::vector<int32_t> outcome(n, 0), done(n, 0);

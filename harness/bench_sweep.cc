@@ -71,6 +71,10 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   std::size_t stored = 0;
   if (comm.root()) {
     const std::vector<long> have = journal.Stored();
+    if (journal.rejected() > 0)
+      fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short or "
+                         "not of this command's key); computing {} again\n",
+                 journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "", journal.rejected() > 1 ? "them" : "it");
     for (long k = 0; k < n_tasks; ++k)
       if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
     stored = static_cast<std::size_t>(n_tasks) - missing.size();

@@ -19,7 +19,9 @@
 #define OMPI_SKIP_MPICXX 1
 #define MPICH_SKIP_MPICXX 1
 #include <mpi.h>
+#include <sys/stat.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -36,6 +38,8 @@
 #include <vector>
 
 #include <fmt/format.h>
+
+#include "model/scene.h"
 
 namespace clothbench {
 
@@ -165,6 +169,49 @@ class SweepComm {
 
 /// One finished cell as the journal stores it: the integers and the three
 /// doubles bit for bit (hexadecimal floating point, %a).
+/// CRC-32 (zlib's) of `key`, a newline and `content`: the journals' check
+/// that an entry is whole and belongs to this command.
+inline uint32_t JournalChecksum(const std::string& key, std::string_view content) {
+  uLong crc = ::crc32(0L, Z_NULL, 0);
+  crc = ::crc32(crc, reinterpret_cast<const Bytef*>(key.data()), static_cast<uInt>(key.size()));
+  crc = ::crc32(crc, reinterpret_cast<const Bytef*>("\n"), 1);
+  for (std::size_t at = 0; at < content.size(); at += 1u << 30) {
+    const std::size_t n = std::min<std::size_t>(content.size() - at, 1u << 30);
+    crc = ::crc32(crc, reinterpret_cast<const Bytef*>(content.data() + at), static_cast<uInt>(n));
+  }
+  return static_cast<uint32_t>(crc);
+}
+
+/// Reads a journal file that must be a regular file: opened with
+/// O_NOFOLLOW and O_NONBLOCK (a symlink, FIFO or device is refused and
+/// nothing blocks), checked by fstat. @return false with `why` set if not.
+inline bool ReadRegularFile(const std::string& path, std::string* text, std::string* why) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    *why = errno == ELOOP ? "is a symbolic link" : std::string("cannot be opened: ") + std::strerror(errno);
+    return false;
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    *why = "is not a regular file";
+    return false;
+  }
+  text->resize(static_cast<std::size_t>(st.st_size));
+  std::size_t got = 0;
+  while (got < text->size()) {
+    const ssize_t n = ::read(fd, text->data() + got, text->size() - got);
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  if (got != text->size()) {
+    *why = "cannot be read";
+    return false;
+  }
+  return true;
+}
+
 struct JournalCell {
   int32_t outcome = 0, steps = 0;
   double updates = 0.0, cg = 0.0, excess = 0.0;
@@ -193,7 +240,7 @@ class SweepJournal {
   /// its header if it does not exist; every rank then reads it after
   /// `comm.Barrier()`. @throws Mismatch if the header is not this key.
   SweepJournal(std::string path, std::string key, std::size_t cells, const SweepComm& comm)
-      : path_(std::move(path)), header_(fmt::format("clothbench sweep journal 1 cells={} {}", cells, key)) {
+      : path_(std::move(path)), header_(fmt::format("clothbench sweep journal 2 cells={} {}", cells, key)) {
     bool created = true;
     if (comm.root() && !std::filesystem::exists(path_)) {
       std::ofstream out(path_);
@@ -202,29 +249,41 @@ class SweepJournal {
     }
     comm.Barrier();  // every rank reaches it, so that none waits for a rank that failed
     if (!created) throw Mismatch(fmt::format("{}: cannot be written", path_));
-    std::ifstream in(path_);
-    std::string line;
-    if (!std::getline(in, line)) throw Mismatch(fmt::format("{}: cannot be read", path_));
+    std::string all, why;
+    if (!ReadRegularFile(path_, &all, &why)) throw Mismatch(fmt::format("{}: {}", path_, why));
+    const std::size_t first = all.find('\n');
+    const std::string line = all.substr(0, first);
     if (line != header_)
       throw Mismatch(fmt::format("{}: was written by a sweep with other arguments (\"{}\", not \"{}\"); rerun that "
                                  "command, or delete the journal to start afresh",
-                                 path_, line.substr(0, 200), header_.substr(0, 200)));
-    // Complete lines only: a line cut by a crash has no newline and is
-    // computed again.
-    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::size_t start = 0;
-    for (std::size_t nl; (nl = text.find('\n', start)) != std::string::npos; start = nl + 1) {
+                                 path_, EscapeControl(line.substr(0, 200)), header_.substr(0, 200)));
+    // Complete lines only, each with its checksum (of the header and the
+    // line) and values in range: a line cut by a crash or altered is
+    // computed again, never decoded.
+    std::size_t start = first == std::string::npos ? all.size() : first + 1;
+    for (std::size_t nl; (nl = all.find('\n', start)) != std::string::npos; start = nl + 1) {
+      const std::string_view entry(all.data() + start, nl - start);
+      const std::size_t at = entry.rfind(" crc=");
       long index = -1;
       JournalCell c;
       char upd[64], cg[64], ex[64];
-      if (std::sscanf(text.c_str() + start, "cell %ld %d %d %63s %63s %63s", &index, &c.outcome, &c.steps, upd, cg,
+      unsigned crc = 0;
+      const bool ok =
+          at != std::string_view::npos && std::sscanf(all.c_str() + start + at, " crc=%8x", &crc) == 1 &&
+          crc == JournalChecksum(header_, entry.substr(0, at)) &&
+          std::sscanf(all.c_str() + start, "cell %ld %d %d %63s %63s %63s", &index, &c.outcome, &c.steps, upd, cg,
                       ex) == 6 &&
-          index >= 0 && static_cast<std::size_t>(index) < cells) {
+          index >= 0 && static_cast<std::size_t>(index) < cells && c.outcome >= 0 && c.outcome <= 8 && c.steps >= 0;
+      if (ok) {
         c.updates = std::strtod(upd, nullptr);
         c.cg = std::strtod(cg, nullptr);
         c.excess = std::strtod(ex, nullptr);
-        done_[index] = c;
       }
+      if (!ok || !std::isfinite(c.updates) || !std::isfinite(c.cg) || !std::isfinite(c.excess)) {
+        ++rejected_;
+        continue;
+      }
+      done_[index] = c;
     }
     fd_ = ::open(path_.c_str(), O_WRONLY | O_APPEND);
     if (fd_ < 0) throw Mismatch(fmt::format("{}: cannot be opened for appending", path_));
@@ -238,13 +297,15 @@ class SweepJournal {
   const std::string& path() const { return path_; }
   /// Cells finished by earlier runs, by index.
   const std::map<long, JournalCell>& done() const { return done_; }
+  /// Complete lines that failed their checksum or range check (computed again).
+  long rejected() const { return rejected_; }
 
   /// Appends cell `index` with one write(2) on an O_APPEND descriptor, so
   /// that lines of several ranks never interleave on a local or cluster
   /// file system with atomic appends (not NFS).
   void Append(long index, const JournalCell& c) {
-    const std::string line =
-        fmt::format("cell {} {} {} {:a} {:a} {:a}\n", index, c.outcome, c.steps, c.updates, c.cg, c.excess);
+    std::string line = fmt::format("cell {} {} {} {:a} {:a} {:a}", index, c.outcome, c.steps, c.updates, c.cg, c.excess);
+    line += fmt::format(" crc={:08x}\n", JournalChecksum(header_, line));
     if (::write(fd_, line.data(), line.size()) != static_cast<ssize_t>(line.size()))
       throw std::runtime_error(fmt::format("{}: cannot append a cell", path_));
   }
@@ -258,6 +319,7 @@ class SweepJournal {
  private:
   std::string path_, header_;
   std::map<long, JournalCell> done_;
+  long rejected_ = 0;
   int fd_ = -1;
 };
 
@@ -270,55 +332,89 @@ class SweepJournal {
 class RecordJournal {
  public:
   /// @throws SweepJournal::Mismatch if the folder holds another key.
-  RecordJournal(std::string path, const std::string& key, const SweepComm& comm) : path_(std::move(path)) {
+  RecordJournal(std::string path, const std::string& key, const SweepComm& comm) : path_(std::move(path)), key_(key) {
     namespace fs = std::filesystem;
-    bool ok = true;
-    std::string found;
+    std::string problem;
     if (comm.root()) {
       std::error_code ec;
-      fs::create_directories(path_, ec);
       const fs::path k = fs::path(path_) / "key";
-      if (!fs::exists(k)) {
-        std::ofstream(k) << key;
+      const bool existed = fs::exists(fs::symlink_status(path_, ec));
+      if (existed && !fs::is_directory(fs::symlink_status(path_, ec))) {
+        problem = "is not a folder";
+      } else {
+        fs::create_directories(path_, ec);
+        if (ec) problem = "cannot be created: " + ec.message();
+        // A new (or empty) folder gets the key; an existing one with
+        // entries but no key is not a journal of this command.
+        if (problem.empty() && !fs::exists(fs::symlink_status(k, ec))) {
+          if (existed && !fs::is_empty(path_, ec))
+            problem = "has no key file (a damaged journal or another program's folder); delete it to start afresh";
+          else if (!(std::ofstream(k) << key))
+            problem = "cannot be written";
+        }
+        std::string found, why;
+        if (problem.empty() && !ReadRegularFile(k.string(), &found, &why)) problem = "key file " + why;
+        if (problem.empty() && found != key)
+          problem = fmt::format("was written by a run with other arguments (\"{}\", not \"{}\"); rerun that command, "
+                                "or delete the folder to start afresh",
+                                EscapeControl(found.substr(0, 200)), key.substr(0, 200));
       }
-      std::ifstream in(k);
-      found.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-      ok = !ec && static_cast<bool>(in);
     }
-    comm.Barrier();
-    if (!comm.root()) return;
-    if (!ok) throw SweepJournal::Mismatch(fmt::format("{}: cannot be created or read", path_));
-    if (found != key)
-      throw SweepJournal::Mismatch(fmt::format("{}: was written by a run with other arguments (\"{}\", not \"{}\"); rerun "
-                                               "that command, or delete the folder to start afresh",
-                                               path_, found.substr(0, 200), key.substr(0, 200)));
+    std::vector<long> failed{problem.empty() ? 0L : 1L};
+    comm.Broadcast(&failed);
+    if (failed[0] != 0)
+      throw SweepJournal::Mismatch(comm.root() ? fmt::format("{}: {}", path_, problem)
+                                               : fmt::format("{}: refused by rank 0", path_));
   }
 
   const std::string& path() const { return path_; }
 
-  /// Rank 0: the indices of the stored cells.
-  std::vector<long> Stored() const {
+  /// Rank 0: the indices of the stored cells whose entries are regular
+  /// files, whole and of this key (checksum); the others are removed and
+  /// counted in rejected(), so that they are computed again.
+  std::vector<long> Stored() {
     std::vector<long> out;
     for (const auto& e : std::filesystem::directory_iterator(path_)) {
       const std::string name = e.path().filename().string();
       if (e.path().extension() != ".run") continue;
       char* end = nullptr;
       const long k = std::strtol(name.c_str(), &end, 10);
-      if (end && std::string(end) == ".run" && k >= 0) out.push_back(k);
+      if (!end || std::string(end) != ".run" || k < 0) continue;
+      std::string bytes, why;
+      if (Read(k, &bytes, &why)) {
+        out.push_back(k);
+      } else {
+        ++rejected_;
+        std::error_code ec;
+        std::filesystem::remove(e.path(), ec);  // a FIFO or symlink entry goes too (not what it points to)
+      }
     }
     std::sort(out.begin(), out.end());
     return out;
   }
+  long rejected() const { return rejected_; }
+  /// The content of entry `index`. @throws std::runtime_error if it is not
+  /// a regular file or fails its checksum.
   std::string Load(long index) const {
-    std::ifstream in(Entry(index), std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    std::string bytes, why;
+    if (!Read(index, &bytes, &why)) throw std::runtime_error(fmt::format("{}: {}", Entry(index), why));
+    return bytes;
   }
+  /// Stores entry `index`: a header with its checksum (of the key and the
+  /// content) and length, then the content, written to a temporary name and
+  /// renamed.
   void Store(long index, const std::string& bytes) const {
     const std::string tmp = Entry(index) + ".part";
     {
       std::ofstream out(tmp, std::ios::binary);
+      out << fmt::format("clothbench run crc={:08x} bytes={}\n", JournalChecksum(key_, bytes), bytes.size());
       out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-      if (!out) throw std::runtime_error(fmt::format("{}: cannot store run {}", path_, index));
+      if (!out) {
+        out.close();
+        std::error_code ec;
+        std::filesystem::remove(tmp, ec);
+        throw std::runtime_error(fmt::format("{}: cannot store run {}", path_, index));
+      }
     }
     std::filesystem::rename(tmp, Entry(index));
   }
@@ -326,7 +422,26 @@ class RecordJournal {
 
  private:
   std::string Entry(long index) const { return fmt::format("{}/{}.run", path_, index); }
-  std::string path_;
+  bool Read(long index, std::string* bytes, std::string* why) const {
+    std::string text;
+    if (!ReadRegularFile(Entry(index), &text, why)) return false;
+    const std::size_t nl = text.find('\n');
+    unsigned crc = 0;
+    unsigned long long size = 0;
+    if (nl == std::string::npos || std::sscanf(text.c_str(), "clothbench run crc=%8x bytes=%llu", &crc, &size) != 2 ||
+        size != text.size() - nl - 1) {
+      *why = "is not a whole journal entry (header or length)";
+      return false;
+    }
+    *bytes = text.substr(nl + 1);
+    if (crc != JournalChecksum(key_, *bytes)) {
+      *why = "fails its checksum";
+      return false;
+    }
+    return true;
+  }
+  std::string path_, key_;
+  long rejected_ = 0;
 };
 
 }  // namespace clothbench

@@ -14,6 +14,11 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
+
+#include <fmt/format.h>
+
+#include "harness/sweep.h"
 #include "results/result_reader.h"
 #include "verify/cli_helpers.h"
 #include "verify/hdf5_scan.h"
@@ -179,6 +184,46 @@ TEST(Sweep, BenchIntegratorsRefusesAJournalOfOtherArguments) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// Journals that cannot lie (harness/sweep.h): every stored run carries a
+// checksum of its content and of the command's key. An entry altered by one
+// byte, a symbolic link and a FIFO in its place are all rejected with one
+// line (nothing blocks on the FIFO) and computed again, and the file equals
+// the uninterrupted run's. A folder with entries but no key is refused.
+TEST(Sweep, DamagedJournalEntriesAreComputedAgain) {
+  const fs::path whole = Dir() / "rows_whole2.h5", damaged = Dir() / "rows_damaged.h5";
+  const fs::path journal = damaged.string() + ".journal";
+  fs::remove_all(journal);
+  ASSERT_EQ(Bench(kRows + " --out " + whole.string()).exit_code, 0);
+  ASSERT_EQ(Bench(kRows + " --max-runs 4 --out " + damaged.string()).exit_code, 75);
+  ASSERT_EQ(RunFiles(journal), 4u);
+  {  // one byte of run 1's content flipped (past its header line)
+    std::fstream f(journal / "1.run", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(-10, std::ios::end);
+    const char c = static_cast<char>(f.get());
+    f.seekp(-10, std::ios::end);
+    f.put(static_cast<char>(c ^ 0x5a));
+  }
+  fs::remove(journal / "2.run");
+  fs::create_symlink(journal / "0.run", journal / "2.run");
+  fs::remove(journal / "3.run");
+  ASSERT_EQ(::mkfifo((journal / "3.run").c_str(), 0644), 0);
+  const Outcome o = Bench(kRows + " --out " + damaged.string() + " --quiet");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find(journal.string() + ": 3 stored runs failed the check"), std::string::npos) << o.err;
+  EXPECT_NE(o.out.find("1 of 13 runs from " + journal.string()), std::string::npos) << o.out;
+  ExpectSameRuns(whole, damaged);
+  // Entries without a key: refused, the folder left alone.
+  fs::remove(damaged);
+  fs::create_directories(journal);
+  std::ofstream(journal / "0.run") << "clothbench run crc=00000000 bytes=0\n";
+  const Outcome keyless = Bench(kRows + " --out " + damaged.string());
+  EXPECT_EQ(keyless.exit_code, 2) << keyless.err;
+  EXPECT_NE(keyless.err.find(journal.string() + ": has no key file"), std::string::npos) << keyless.err;
+  EXPECT_TRUE(fs::exists(journal / "0.run"));
+  EXPECT_FALSE(fs::exists(damaged));
+}
+
 // Table 3.1 (4 self-convergence references, 4 BDF(2) rows; ~14 s serial
 // here): on 2 ranks the same counts, e_rms and attributes, timings aside.
 TEST(Sweep, ThesisTableOnTwoRanksWritesTheSerialFile) {
@@ -233,6 +278,42 @@ TEST(Sweep, AStoppedSweepResumesWithOnlyTheMissingCells) {
       << last.out;
   EXPECT_FALSE(fs::exists(journal));
   ExpectSameMaps(whole, sliced);
+}
+
+// The stress sweep's journal lines carry a checksum too: a line with one
+// digit changed, one with an outcome out of range (checksum made to fit)
+// and a garbage line are rejected with one line and computed again; the
+// maps equal the uninterrupted sweep's.
+TEST(Sweep, AlteredStressJournalLinesAreComputedAgain) {
+  const fs::path whole = Dir() / "whole3.h5", altered = Dir() / "altered.h5";
+  const fs::path journal = altered.string() + ".journal";
+  fs::remove(journal);
+  ASSERT_EQ(Sweep(kSweep + " --out " + whole.string()).exit_code, 0);
+  ASSERT_EQ(Sweep(kSweep + " --max-cells 10 --out " + altered.string()).exit_code, 75);
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(journal);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+  }
+  ASSERT_EQ(lines.size(), 11u);  // the header and 10 cells
+  lines[1][lines[1].find(' ', 5) + 1] ^= 1;  // the outcome digit of the first cell: its checksum no longer fits
+  {  // an outcome of 99 with a checksum computed for it
+    std::string body = lines[2].substr(0, lines[2].rfind(" crc="));
+    const std::size_t a = body.find(' ', 5) + 1, b = body.find(' ', a);
+    body = body.substr(0, a) + "99" + body.substr(b);
+    lines[2] = body + fmt::format(" crc={:08x}", JournalChecksum(lines[0], body));
+  }
+  lines.push_back("cell \x01\x7f garbage");
+  {
+    std::ofstream out(journal);
+    for (const std::string& l : lines) out << l << "\n";
+  }
+  const Outcome o = Sweep(kSweep + " --out " + altered.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find(journal.string() + ": 3 cell lines failed the check"), std::string::npos) << o.err;
+  EXPECT_NE(o.out.find("8 of 96 cells from " + journal.string()), std::string::npos) << o.out;
+  ExpectSameMaps(whole, altered);
 }
 
 TEST(Sweep, AJournalOfOtherArgumentsIsRefused) {
