@@ -254,13 +254,9 @@ int Main(int argc, char** argv) {
     }
     const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
     CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records);
-    if (!plot_dir.empty()) {
-      try {
-        CheckPlotDir(plot_dir);
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(e.what());
-      }
-    }
+    if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
+      throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
+    if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     lock.emplace(out, comm);
 

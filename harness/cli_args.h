@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -96,6 +97,23 @@ inline void CheckOutputFolder(const std::string& out) {
   if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
     throw UsageError(fmt::format("--out: folder \"{}\" {}", folder.string(),
                                  ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
+}
+
+/// Probes an output file before anything is computed: its folder is
+/// created, the file opened for appending (nothing it holds is changed) and
+/// removed again if it did not exist. @throws UsageError naming `option`.
+inline void CheckWritableFile(const std::string& path, const std::string& option) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw UsageError(fmt::format("{}: \"{}\" is a folder", option, EscapeControl(path)));
+  const fs::path folder = fs::path(path).parent_path();
+  if (!folder.empty()) fs::create_directories(folder, ec);
+  const bool existed = fs::exists(fs::symlink_status(path, ec));
+  if (existed && !fs::is_regular_file(path, ec))
+    throw UsageError(fmt::format("{}: \"{}\" is not a regular file", option, EscapeControl(path)));
+  const bool ok = static_cast<bool>(std::ofstream(path, std::ios::app));
+  if (!existed) fs::remove(path, ec);
+  if (!ok) throw UsageError(fmt::format("{}: cannot write \"{}\"", option, EscapeControl(path)));
 }
 
 }  // namespace clothbench

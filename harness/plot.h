@@ -13,15 +13,20 @@
 
 #include <fmt/format.h>
 
+#include "model/scene.h"
+
 namespace clothbench {
 
 /// Refuses, before any computing, a --plot folder that cannot be created or
 /// written. @throws std::invalid_argument naming the option and the folder.
-inline void CheckPlotDir(const std::string& dir) {
+inline bool PlotDirWritable(const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (ec || !std::filesystem::is_directory(dir) || ::access(dir.c_str(), W_OK) != 0)
-    throw std::invalid_argument(fmt::format("--plot: \"{}\" is not a writable folder", dir));
+  return !ec && std::filesystem::is_directory(dir) && ::access(dir.c_str(), W_OK) == 0;
+}
+inline void CheckPlotDir(const std::string& dir) {
+  if (!PlotDirWritable(dir))
+    throw std::invalid_argument(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(dir)));
 }
 
 /// Runs scripts/plot on `file` into `dir` and prints where the plots are.

@@ -114,6 +114,9 @@ TEST(BadInput, OutOfRangeOptionsAreRefusedBeforeComputing) {
   ExpectRefused(tiny + " --h ,0.01", "--h: empty item in the list \",0.01\"");
   ExpectRefused(tiny + " --integrators sbdf2,,bdf2", "--integrators: empty item in the list");
   ExpectRefused(tiny + " --integrators sbdf2,", "--integrators: empty item in the list");
+  // Every output path is probed before computing (exit 2, no journal).
+  ExpectRefused(tiny + " --series /proc/clothbench/s.csv", "--series: cannot write \"/proc/clothbench/s.csv\"");
+  ExpectRefused(tiny + " --series " + Dir().string(), "--series: \"" + Dir().string() + "\" is a folder");
   // --table runs the thesis' rows: options it would ignore are refused.
   ExpectRefused(" --table 3.1 --h 0.01 --repeat 2", "--table: cannot be combined with --h, --repeat");
 }
