@@ -201,7 +201,7 @@ int Main(int argc, char** argv) {
     const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
     if (reference != "none" && (!reference_entry || !reference_entry->reference))
       throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
-    if (!(ref_rtol > 0.0) || !std::isfinite(ref_rtol)) throw UsageError("--reference-rtol: must be a positive number");
+    CheckTolerance(ref_rtol, "--reference-rtol");
     CvodeSettings cvode_settings;
     if (app.count("--cvode-setting"))
       for (const std::string& kv : SplitList(cvode_setting_arg, "--cvode-setting")) {
@@ -245,7 +245,7 @@ int Main(int argc, char** argv) {
     for (double h : hs)
       if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
     const std::vector<double> rtols =
-        app.count("--rtols") ? ParsePositiveList(rtols_arg, "--rtols") : std::vector<double>{};
+        app.count("--rtols") ? ParseTolerances(rtols_arg, "--rtols") : std::vector<double>{};
     std::vector<int> substeps;
     for (double n : ParsePositiveList(substeps_arg, "--substeps")) {
       if (n != std::floor(n) || n > 1e6)

@@ -99,6 +99,28 @@ inline void CheckOutputFolder(const std::string& out) {
                                  ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
 }
 
+/// The smallest relative tolerance a run in double precision can meet: a
+/// hundred units of round-off (ε ≈ 2.2e-16). Below it CVODE, IDA, ARKODE
+/// and the error-controlled rows cut the step until the step limit.
+inline constexpr double kMinRelativeTolerance = 1e-14;
+
+/// A relative tolerance in [kMinRelativeTolerance, 1). @throws UsageError
+/// naming `option` and the rule.
+inline void CheckTolerance(double rtol, const std::string& option) {
+  if (!std::isfinite(rtol) || !(rtol > 0.0) || rtol >= 1.0)
+    throw UsageError(fmt::format("{}: {:g} must be a positive number below 1", option, rtol));
+  if (rtol < kMinRelativeTolerance)
+    throw UsageError(fmt::format("{}: {:g} is below {:g}, which double precision cannot meet (100 units of round-off)",
+                                 option, rtol, kMinRelativeTolerance));
+}
+
+/// A list of relative tolerances, each checked by CheckTolerance.
+inline std::vector<double> ParseTolerances(const std::string& s, const std::string& option) {
+  std::vector<double> out = ParsePositiveList(s, option);
+  for (double r : out) CheckTolerance(r, option);
+  return out;
+}
+
 /// Probes an output file before anything is computed: its folder is
 /// created, the file opened for appending (nothing it holds is changed) and
 /// removed again if it did not exist. @throws UsageError naming `option`.

@@ -114,6 +114,9 @@ TEST(BadInput, OutOfRangeOptionsAreRefusedBeforeComputing) {
   ExpectRefused(tiny + " --h ,0.01", "--h: empty item in the list \",0.01\"");
   ExpectRefused(tiny + " --integrators sbdf2,,bdf2", "--integrators: empty item in the list");
   ExpectRefused(tiny + " --integrators sbdf2,", "--integrators: empty item in the list");
+  // Tolerances double precision cannot meet.
+  ExpectRefused(tiny + " --reference cvode --reference-rtol 1e-16", "--reference-rtol: 1e-16 is below 1e-14");
+  ExpectRefused(tiny + " --integrators cvode --rtols 1e-3,1e-15", "--rtols: 1e-15 is below 1e-14");
   // Every output path is probed before computing (exit 2, no journal).
   ExpectRefused(tiny + " --series /proc/clothbench/s.csv", "--series: cannot write \"/proc/clothbench/s.csv\"");
   ExpectRefused(tiny + " --series " + Dir().string(), "--series: \"" + Dir().string() + "\" is a folder");
