@@ -329,6 +329,9 @@ Scene ParseScene(std::string_view text, const std::string& source) {
           fixed.insert(p);
       }
       s.fixed.assign(fixed.begin(), fixed.end());
+      // A sheet with every particle fixed has no unknowns: nothing to integrate.
+      if (static_cast<long>(s.fixed.size()) >= static_cast<long>(s.grid.nu) * s.grid.nv)
+        c.Fail("fixed", fmt::format("fixes all {} particles; at least one must be free", s.fixed.size()));
     }
     c.RejectUnknown();
   }
