@@ -1,6 +1,9 @@
 // The memory estimate a run is checked against before any computing.
 #include "harness/memory_check.h"
 
+#include <sys/statvfs.h>
+
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -33,8 +36,16 @@ double AvailableBytes() {
 // taken as 4 kB per particle (an upper estimate, not a measurement).
 // Every attempted step keeps a StepStats in the run and a StepRecord in its
 // row until the file is written (`step_records` of all rows, ~100 bytes each).
+double FreeDiskBytes(const std::string& path) {
+  std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  if (folder.empty()) folder = ".";
+  struct statvfs st {};
+  if (::statvfs(folder.c_str(), &st) != 0) return 0.0;
+  return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
+}
+
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
-                 std::size_t n_eta, const std::string& reference, double step_records) {
+                 std::size_t n_eta, const std::string& reference, double step_records, const std::string& out) {
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
@@ -67,6 +78,16 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
         "runs kept, {:.3g} step records), more than 80 % of the {:.1f} GB available; use --frames ends|none, fewer --h/--integrators, "
         "--reference none, or smaller nu/nv",
         scene.source, scene.grid.nu, scene.grid.nv, n, bytes / 1e9, frames, rows, step_records, available / 1e9));
+  if (out.empty()) return;
+  // On disk: every run's frames (positions and velocities, 8 bytes each)
+  // and step records twice, in the journal and in the result file.
+  const double disk = 2.0 * (rows * frames * 2.0 * 24.0 * n + step_records * 64.0) + 1e5;  // + HDF5 metadata
+  const double free = FreeDiskBytes(out);
+  if (free > 0.0 && disk > free)
+    throw UsageError(fmt::format("--out: \"{}\": the journal and the result file need about {:.3g} MB ({:.0f} frames × "
+                                 "{:.0f} runs of {:.0f} particles), more than the {:.3g} MB free there; use --frames "
+                                 "ends|none or another --out",
+                                 EscapeControl(out), disk / 1e6, frames, rows, n, free / 1e6));
 }
 
 

@@ -14,12 +14,18 @@ namespace clothbench {
 /// /proc/meminfo; 0 if unknown).
 double AvailableBytes();
 
+/// Bytes free to this process on the file system holding `path` (statvfs;
+/// 0 if unknown).
+double FreeDiskBytes(const std::string& path);
+
 /// @throws UsageError naming the scene and the estimate if the run's frames
 /// and solver state (methods × parameter counts × CG tolerances, the
 /// reference, `step_records` step records) would take more than 80 % of
-/// the available memory.
+/// the available memory, or, with `out` given, if its journal and result
+/// file (each about the frames and step records) would not fit on the
+/// disk holding `out`.
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
-                 std::size_t n_eta, const std::string& reference, double step_records);
+                 std::size_t n_eta, const std::string& reference, double step_records, const std::string& out = "");
 
 }  // namespace clothbench
 

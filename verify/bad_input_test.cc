@@ -235,6 +235,32 @@ TEST(BadInput, DegenerateScenesRunWithEveryMethod) {
   ExpectRefused(Scene("all_fixed.toml", all_fixed), "constraints.fixed: fixes all 4 particles; at least one must be free");
 }
 
+// Free disk space is checked before computing: on a 1 MB tmpfs the
+// swinging sheet's 101 frames (journal and file: about 4.9 MB) are refused
+// with exit 2 naming --out and leave nothing; its two end frames fit and
+// run. Mounting needs root (CI runs as root); elsewhere the test is skipped.
+TEST(BadInput, OutputsThatCannotFitOnTheDiskAreRefused) {
+  const fs::path small = Dir() / "small_fs";
+  fs::create_directories(small);
+  if (std::system(("mount -t tmpfs -o size=1m tmpfs " + small.string() + " 2> /dev/null").c_str()) != 0)
+    GTEST_SKIP() << "cannot mount a tmpfs here (not root)";
+  struct Unmount {  // also when an assertion returns early
+    fs::path dir;
+    ~Unmount() { std::system(("umount " + dir.string() + " 2> /dev/null").c_str()); }
+  } unmount{small};
+  const std::string args = " --scene swinging_sheet --integrators sbdf2 --h 0.01 --reference none --repeat 1 --quiet";
+  const Outcome big = RunBench(args + " --out " + (small / "all.h5").string());
+  EXPECT_EQ(big.exit_code, 2) << big.err;
+  EXPECT_EQ(std::count(big.err.begin(), big.err.end(), '\n'), 1) << big.err;
+  EXPECT_NE(big.err.find("--out: \"" + (small / "all.h5").string() + "\": the journal and the result file need about"),
+            std::string::npos)
+      << big.err;
+  EXPECT_TRUE(fs::is_empty(small));
+  const Outcome ends = RunBench(args + " --frames ends --out " + (small / "ends.h5").string());
+  EXPECT_EQ(ends.exit_code, 0) << ends.err;
+  EXPECT_TRUE(fs::exists(small / "ends.h5"));
+}
+
 // The limit holds inside a step too (model/interrupt.h): one XPBD step of
 // 10⁶ substeps on 300×300 particles (hours) and one SBDF(2) step whose
 // unpreconditioned PCG needs tens of thousands of iterations on the very
