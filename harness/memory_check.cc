@@ -26,6 +26,14 @@ double AvailableBytes() {
   return 0.0;
 }
 
+double FreeDiskBytes(const std::string& path) {
+  std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  if (folder.empty()) folder = ".";
+  struct statvfs st {};
+  if (::statvfs(folder.c_str(), &st) != 0) return 0.0;
+  return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
+}
+
 // Refuses, before any computing, a run whose frames and solver state would
 // not fit in memory. Estimate per particle [bytes]: 24 per N×3 matrix, of
 // which the step engine holds ~25 and every kept frame 2 (positions and
@@ -36,14 +44,6 @@ double AvailableBytes() {
 // taken as 4 kB per particle (an upper estimate, not a measurement).
 // Every attempted step keeps a StepStats in the run and a StepRecord in its
 // row until the file is written (`step_records` of all rows, ~100 bytes each).
-double FreeDiskBytes(const std::string& path) {
-  std::filesystem::path folder = std::filesystem::path(path).parent_path();
-  if (folder.empty()) folder = ".";
-  struct statvfs st {};
-  if (::statvfs(folder.c_str(), &st) != 0) return 0.0;
-  return static_cast<double>(st.f_bavail) * static_cast<double>(st.f_frsize);
-}
-
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
                  std::size_t n_eta, const std::string& reference, double step_records, const std::string& out) {
   const double n = scene.num_particles();

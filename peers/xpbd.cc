@@ -1,6 +1,5 @@
 // XPBD with substeps (Macklin, Müller, Chentanez 2016; Macklin et al. 2019,
 // Algorithm 1; docs/model.md §10).
-#include "model/interrupt.h"
 #include "peers/xpbd.h"
 
 #include <chrono>
@@ -8,6 +7,8 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
+
+#include "model/interrupt.h"
 
 namespace clothbench {
 

@@ -274,7 +274,6 @@ bool CholeskyFactor::SolveColumns(const MatrixN3& r, MatrixN3* z, int col0, int 
 void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
   Impl& m = *impl_;
   const auto n = static_cast<std::size_t>(r.rows());
-  cholmod_factor* l = m.solver ? m.solver : m.factor;
   // The columns are independent solves with the same L. CHOLMOD's
   // simplicial solve is one thread and latency-bound (scalar loop with
   // indirect addressing), so two threads, one on columns 0–1 and one on
@@ -287,10 +286,7 @@ void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
 #pragma omp parallel for num_threads(2) schedule(static, 1) if (split)
     for (int lane = 0; lane < 2; ++lane) {
       if (lane == 1 && !split) continue;
-      Impl::Lane& ln = m.lanes[static_cast<std::size_t>(lane)];
-      const std::size_t col0 = lane == 0 ? 0 : 2, ncol = split ? (lane == 0 ? 2 : 1) : 3;
-      ok[lane] = CholmodSolve(l, r.data() + col0 * n, n, ncol, &ln.common, &ln.x, &ln.y, &ln.e);
-      if (ok[lane]) std::memcpy(z->data() + col0 * n, ln.x->x, ncol * n * sizeof(double));
+      ok[lane] = SolveColumns(r, z, lane == 0 ? 0 : 2, split ? (lane == 0 ? 2 : 1) : 3, lane);
     }
   }
   if (!ok[0] || !ok[1]) z->setConstant(std::numeric_limits<double>::quiet_NaN());  // the PCG reports cg_non_finite

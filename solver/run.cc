@@ -1,5 +1,4 @@
 // Run driver (docs/model.md §6).
-#include "model/interrupt.h"
 #include "solver/run.h"
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include "model/interrupt.h"
 #include "solver/progress.h"
 
 namespace clothbench {
@@ -155,7 +155,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     sum.trajectory.contact_work_pulling.assign(frames.size(), 0.0);
     sum.trajectory.contact_work_friction.assign(frames.size(), 0.0);
   }
-  ContactResponse::Work contact0, contact1;  // at the start and end of the step
+  ContactResponse::Work contact0;  // at the start of the step
   MatrixN3 f_ext(system.num_particles(), 3);
   double work = 0.0, power = track_work ? ExternalPower(system, 0.0, engine.x(), engine.v(), &f_ext) : 0.0;
   sum.step_stats.reserve(static_cast<std::size_t>(
@@ -292,7 +292,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       const double sc = std::min(s, 1.0);
       if (track_work) sum.trajectory.external_work[next_frame] = work0 + sc * (work - work0);
       if (track_contact) {
-        contact1 = *engine.contact_work();
+        const ContactResponse::Work& contact1 = *engine.contact_work();  // at its end
         sum.trajectory.contact_work_holding[next_frame] = contact0.holding + sc * (contact1.holding - contact0.holding);
         sum.trajectory.contact_work_pulling[next_frame] = contact0.pulling + sc * (contact1.pulling - contact0.pulling);
         sum.trajectory.contact_work_friction[next_frame] =
