@@ -24,6 +24,7 @@
 #include <fmt/format.h>
 
 #include "harness/reproduce.h"
+#include "model/scene.h"
 #include "results/result_reader.h"
 #include "results/run_table.h"
 
@@ -189,6 +190,7 @@ void Export(const ResultReader& f, const std::string& run, long frame, const std
     throw UsageError(fmt::format("export: run \"{}\" in {} has no stored frames (written with --frames none)", run,
                                  f.path()));
   const std::size_t frames = f.Shape(dataset)[0];
+  if (frames == 0) throw UsageError(fmt::format("export: {} in {} holds no frames", dataset, f.path()));
   if (frame < 0 || static_cast<std::size_t>(frame) >= frames)
     throw UsageError(fmt::format("--frame: {} is not a stored frame of {} ({} frames, 0 … {}{})", frame, dataset, frames,
                                  frames - 1, dataset.ends_with("_ends") ? ": t = 0 and t_end" : ""));
@@ -278,6 +280,7 @@ int Main(int argc, char** argv) {
     if (!(rtol >= 0.0) || !(time_tolerance >= 0.0))
       throw UsageError("diff: --rtol and --time-tolerance must be non-negative numbers");
     const ResultReader f(file);
+    ValidateResultFile(f);
     const RunTable t = ReadRunTable(f);
     if (app.got_subcommand("summary")) {
       PrintSummary(f, t);
@@ -291,6 +294,7 @@ int Main(int argc, char** argv) {
       PrintRuns(f, t, json);
     } else if (diff->parsed()) {
       const ResultReader g(other);
+      ValidateResultFile(g);
       return Diff(t, ReadRunTable(g), other, rtol, time_tolerance);
     } else if (exp->parsed()) {
       Export(f, run, frame, obj, ply);
@@ -319,13 +323,16 @@ int Main(int argc, char** argv) {
     }
     return 0;
   } catch (const UsageError& e) {
-    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
     return 2;
   } catch (const ResultError& e) {
-    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
     return 2;
+  } catch (const std::bad_alloc&) {
+    fmt::print(stderr, "clothbench_inspect: {}: out of memory while reading it\n", EscapeControl(file));
+    return 1;
   } catch (const std::exception& e) {
-    fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
+    fmt::print(stderr, "clothbench_inspect: {}: {}\n", EscapeControl(file), EscapeControl(e.what()));
     return 1;
   }
 }

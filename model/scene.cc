@@ -40,12 +40,20 @@ double Scene::NumericalStiffness(double step) const {
 std::string EscapeControl(std::string_view text) {
   std::string out;
   out.reserve(text.size());
-  for (char c : text) {
+  for (std::size_t k = 0; k < text.size(); ++k) {
+    const char c = text[k];
     const auto u = static_cast<unsigned char>(c);
+    const auto next = [&](std::size_t j) { return k + j < text.size() ? static_cast<unsigned char>(text[k + j]) : 0; };
     if (c == '\n') out += "\\n";
     else if (c == '\t') out += "\\t";
     else if (c == '\r') out += "\\r";
     else if (u < 0x20 || u == 0x7f) out += fmt::format("\\x{:02x}", u);
+    // UTF-8 C1 controls U+0080…U+009F (NEL U+0085 among them) and the line
+    // and paragraph separators U+2028, U+2029: terminals and log readers
+    // break lines at them.
+    else if (u == 0xc2 && next(1) >= 0x80 && next(1) <= 0x9f) out += fmt::format("\\u{:04x}", next(1)), ++k;
+    else if (u == 0xe2 && next(1) == 0x80 && (next(2) == 0xa8 || next(2) == 0xa9))
+      out += fmt::format("\\u{:04x}", 0x2000 + next(2) - 0x80), k += 2;
     else out += c;
   }
   return out;
@@ -244,6 +252,9 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   TableReader top(&root, "", source);
   s.name = top.String("name", s.name);
   if (s.name.empty()) top.Fail("name", "must not be empty");
+  if (s.name.size() > kMaxSceneNameBytes)
+    top.Fail("name", fmt::format("{} bytes, above the limit of {} (it names the result file's scene and its runs)",
+                                 s.name.size(), kMaxSceneNameBytes));
   s.t_end = top.Positive("t_end", s.t_end);
   if (s.t_end > 1e6) top.Fail("t_end", fmt::format("must be <= 1e6 s (got {:g})", s.t_end));
   s.frame_dt = top.Positive("frame_dt", s.frame_dt);

@@ -36,9 +36,14 @@ inline constexpr double kMaxParticles = 1e7;
 /// The largest magnitude any scene number may have (a stated limit far
 /// beyond every physical value, so that products of two never overflow).
 inline constexpr double kMaxMagnitude = 1e12;
+/// The longest scene `name` [bytes]: it is stored as an HDF5 attribute
+/// (compact attributes hold at most 64 KiB together) and names output files.
+inline constexpr std::size_t kMaxSceneNameBytes = 1024;
 
 /// `text` for a one-line message: control characters (and DEL) become
-/// escapes (\n, \t, \r, \xNN); printable text and UTF-8 are kept.
+/// escapes (\n, \t, \r, \xNN), the UTF-8 C1 controls and the line and
+/// paragraph separators U+2028 and U+2029 become \uNNNN; printable text and
+/// other UTF-8 are kept.
 std::string EscapeControl(std::string_view text);
 
 /// Checks t_end, frame_dt and h of `scene` against kMaxFramesPerRun and

@@ -3,8 +3,12 @@
 
 #include <unistd.h>
 
+#include <zlib.h>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <thread>
@@ -48,7 +52,9 @@ ResultFile::ResultFile(const std::string& path) : path_(path), tmp_path_(path + 
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   std::error_code ec;
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
-  file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "cannot create file", tmp_path_);
+  Handle fcpl{H5Pcreate(H5P_FILE_CREATE), H5Pclose};
+  H5Pset_userblock(fcpl.id, kSignatureBytes);  // the integrity block, written by Commit
+  file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_TRUNC, fcpl.id, H5P_DEFAULT), "cannot create file", tmp_path_);
 }
 
 ResultFile::~ResultFile() {
@@ -240,10 +246,79 @@ void ResultFile::Commit() {
     file_ = -1;
     if (err < 0) throw ResultError(fmt::format("{}: HDF5 error: cannot close file", tmp_path_));
   }
+  SignResultFile(tmp_path_);
   std::error_code ec;
   std::filesystem::rename(tmp_path_, path_, ec);
   if (ec) throw ResultError(fmt::format("{}: cannot rename from {}: {}", path_, tmp_path_, ec.message()));
   committed_ = true;
+}
+
+namespace {
+
+constexpr const char* kSignatureFormat = "clothbench result crc32 {:08x} bytes {}\n";
+
+}  // namespace
+
+void SignResultFile(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "r+b");
+  if (!f) throw ResultError(fmt::format("{}: cannot open to write its integrity block", path));
+  std::vector<unsigned char> buf(std::size_t{1} << 20);
+  uLong crc = crc32_z(0L, Z_NULL, 0);
+  std::size_t size = 0, got = 0;
+  bool ok = std::fseek(f, static_cast<long>(kSignatureBytes), SEEK_SET) == 0;
+  while (ok && (got = std::fread(buf.data(), 1, buf.size(), f)) > 0) {
+    crc = crc32_z(crc, buf.data(), got);
+    size += got;
+  }
+  ok = ok && !std::ferror(f);
+  std::string block = fmt::format(kSignatureFormat, crc, size + kSignatureBytes);
+  block.resize(kSignatureBytes, '\0');
+  ok = ok && std::fseek(f, 0, SEEK_SET) == 0 && std::fwrite(block.data(), 1, block.size(), f) == block.size();
+  ok = (std::fflush(f) == 0) && ok;
+  ok = (std::fclose(f) == 0) && ok;
+  if (!ok) throw ResultError(fmt::format("{}: cannot write its integrity block: {}", path, std::strerror(errno)));
+}
+
+void CheckResultSignature(const std::string& name, const unsigned char* data, std::size_t size) {
+  if (size < kSignatureBytes)
+    throw ResultError(fmt::format("{}: {} bytes, shorter than a result file's integrity block (truncated, or not a "
+                                  "clothbench result file)", name, size));
+  std::FILE* rest = fmemopen(const_cast<unsigned char*>(data), size, "rb");
+  if (!rest) throw ResultError(fmt::format("{}: cannot read the image", name));
+  try {
+    CheckResultSignature(name, rest);
+  } catch (...) {
+    std::fclose(rest);
+    throw;
+  }
+  std::fclose(rest);
+}
+
+void CheckResultSignature(const std::string& name, std::FILE* f) {
+  char head[kSignatureBytes + 1] = {0};
+  const std::size_t got_head = std::fread(head, 1, kSignatureBytes, f);
+  if (got_head < kSignatureBytes)
+    throw ResultError(fmt::format("{}: {} bytes, shorter than a result file's integrity block (truncated, or not a "
+                                  "clothbench result file)", name, got_head));
+  unsigned long long want_size = 0;
+  unsigned want_crc = 0;
+  if (std::sscanf(head, "clothbench result crc32 %8x bytes %llu", &want_crc, &want_size) != 2)
+    throw ResultError(fmt::format("{}: no integrity block (not a clothbench result file, or written before result "
+                                  "files carried one: rerun the command that wrote it)", name));
+  std::vector<unsigned char> buf(std::size_t{1} << 20);
+  uLong crc = crc32_z(0L, Z_NULL, 0);
+  std::size_t size = kSignatureBytes, got = 0;
+  while ((got = std::fread(buf.data(), 1, buf.size(), f)) > 0) {
+    crc = crc32_z(crc, buf.data(), got);
+    size += got;
+  }
+  if (std::ferror(f)) throw ResultError(fmt::format("{}: read error: {}", name, std::strerror(errno)));
+  if (want_size != size)
+    throw ResultError(fmt::format("{}: {} bytes, its integrity block says {} (truncated or appended to)", name, size,
+                                  want_size));
+  if (crc != want_crc)
+    throw ResultError(fmt::format("{}: CRC-32 {:08x} of its content, its integrity block says {:08x} (damaged, or "
+                                  "changed after it was written)", name, crc, want_crc));
 }
 
 void WriteProvenance(ResultFile& f) {

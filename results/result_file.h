@@ -8,6 +8,7 @@
 #define CLOTHBENCH_RESULTS_RESULT_FILE_H_
 
 #include <cstdint>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -71,7 +72,8 @@ class ResultFile {
   void WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units);
   /// Compound table (t, h, updates, cg_iterations, status, colliding, solve_time_s, setup_time_s) [S].
   void WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows);
-  /// Closes the file and renames it to its final path. @throws ResultError.
+  /// Closes the file, writes its integrity block (SignResultFile) and renames
+/// it to its final path. @throws ResultError.
   void Commit();
 
   const std::string& path() const { return path_; }
@@ -81,6 +83,25 @@ class ResultFile {
   int64_t file_ = -1;  // hid_t
   bool committed_ = false;
 };
+
+/// The file's integrity block: every result file starts with an HDF5 user
+/// block of kSignatureBytes holding one text line
+/// "clothbench result crc32 XXXXXXXX bytes N", the zlib CRC-32 of bytes
+/// [kSignatureBytes, N) and the file size N. ResultReader checks it before
+/// HDF5 parses a byte, so a damaged, truncated or later-modified file is
+/// refused with one line (HDF5 1.10 itself can crash on damaged metadata:
+/// docs/results-schema.md, "Integrity").
+inline constexpr std::size_t kSignatureBytes = 512;
+
+/// Writes the integrity block of the HDF5 file at `path` (created with a
+/// kSignatureBytes user block, as ResultFile does). @throws ResultError.
+void SignResultFile(const std::string& path);
+
+/// Checks the integrity block of a result file read from `file` (at its
+/// start) or given as `size` bytes at `data`; `name` names it in messages.
+/// @throws ResultError "<name>: <what is wrong>" (one line).
+void CheckResultSignature(const std::string& name, std::FILE* file);
+void CheckResultSignature(const std::string& name, const unsigned char* data, std::size_t size);
 
 /// Writes the root attributes schema, created, git_commit, host, compiler,
 /// build_type and hardware_threads.

@@ -2,7 +2,14 @@
 // writer.
 #include "results/result_reader.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <cmath>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -31,6 +38,9 @@ std::optional<AttributeValue> ReadAttribute(hid_t attr) {
         H5free_memory(s);
         return out;
       }
+      // An attribute is stored whole in its object header or dense storage:
+      // a declared size beyond the stored one is a damaged file.
+      if (H5Tget_size(type.id) > H5Aget_storage_size(attr) + 64) return std::nullopt;
       std::string buf(H5Tget_size(type.id), '\0');
       if (H5Aread(attr, type.id, buf.data()) < 0) return std::nullopt;
       buf.resize(std::min(buf.size(), buf.find('\0')));
@@ -68,16 +78,61 @@ herr_t CollectAttribute(hid_t loc, const char* name, const H5A_info_t*, void* da
 
 ResultReader::ResultReader(const std::string& path) : path_(path) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  // The integrity block first: HDF5 parses no byte that was not written by
+  // a ResultFile. Non-blocking, so that a FIFO or device is refused, not
+  // waited on.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw ResultError(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    throw ResultError(fmt::format("{}: not a regular file", path));
+  }
+  std::FILE* in = ::fdopen(fd, "rb");
+  if (!in) {
+    ::close(fd);
+    throw ResultError(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
+  }
+  try {
+    CheckResultSignature(path, in);
+  } catch (...) {
+    std::fclose(in);
+    throw;
+  }
+  std::fclose(in);
   if (H5Fis_hdf5(path.c_str()) <= 0)
     throw ResultError(fmt::format("{}: cannot open: not an HDF5 file or not readable", path));
   file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file_ < 0) throw ResultError(fmt::format("{}: cannot open the HDF5 file", path));
+  CheckSchema();
+}
+
+ResultReader::ResultReader(const std::string& name, const void* image, std::size_t size) : path_(name) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  CheckResultSignature(name, static_cast<const unsigned char*>(image), size);
+  Handle fapl{H5Pcreate(H5P_FILE_ACCESS), H5Pclose};
+  // The core (in-memory) driver on a copy of the image; nothing is written back.
+  if (size == 0 || H5Pset_fapl_core(fapl.id, 1 << 16, 0) < 0 || H5Pset_file_image(fapl.id, const_cast<void*>(image), size) < 0)
+    throw ResultError(fmt::format("{}: cannot open: not an HDF5 file image", name));
+  file_ = H5Fopen(name.c_str(), H5F_ACC_RDONLY, fapl.id);
+  if (file_ < 0) throw ResultError(fmt::format("{}: cannot open the HDF5 file image", name));
+  CheckSchema();
+}
+
+void ResultReader::CheckSchema() {
   const std::optional<std::string> schema = String("/", "schema");
-  if (!schema) throw ResultError(fmt::format("{}: not a clothbench result file (no root attribute \"schema\")", path));
-  if (*schema != kResultSchema)
+  if (!schema) {
+    H5Fclose(file_);
+    file_ = -1;
+    throw ResultError(fmt::format("{}: not a clothbench result file (no root attribute \"schema\")", path_));
+  }
+  if (*schema != kResultSchema) {
+    H5Fclose(file_);
+    file_ = -1;
     throw ResultError(fmt::format("{}: schema {} is not {}, the schema this build reads; rerun the command that "
                                   "wrote it (root attribute \"created\" and \"git_commit\" name when and how)",
-                                  path, *schema, kResultSchema));
+                                  path_, *schema, kResultSchema));
+  }
 }
 
 ResultReader::~ResultReader() {
@@ -173,13 +228,34 @@ std::vector<std::size_t> ResultReader::Shape(const std::string& dataset) const {
 
 namespace {
 
+// The number of values of `shape`, refused (ResultError naming the dataset)
+// if it overflows or exceeds what the dataset stores: deflate expands at most
+// ~1032× (zlib's limit), so a dataset declaring more than 1100× its stored
+// bytes (plus 1 MiB for small or fill-valued ones) is damaged, and reading it
+// would only allocate memory the file cannot fill.
+std::size_t CheckedCount(hid_t ds, const std::string& path, const std::string& dataset,
+                         const std::vector<std::size_t>& shape, std::size_t value_size) {
+  constexpr std::size_t kMaxBytes = std::size_t{1} << 40;
+  std::size_t n = 1;
+  for (std::size_t d : shape) {
+    if (d != 0 && n > kMaxBytes / value_size / d)
+      throw ResultError(fmt::format("{}: {}: extent beyond {} bytes (damaged file)", path, dataset, kMaxBytes));
+    n *= d;
+  }
+  const hsize_t stored = H5Dget_storage_size(ds);
+  if (n > 0 && n * value_size > 1100 * static_cast<std::size_t>(stored) + (std::size_t{1} << 20))
+    throw ResultError(fmt::format("{}: {}: declares {} values but stores {} bytes (damaged file)", path, dataset, n,
+                                  stored));
+  return n;
+}
+
 template <typename T>
 std::vector<T> ReadAll(hid_t file, const std::string& path, const std::string& dataset, hid_t mem_type,
                        const std::vector<std::size_t>& shape) {
-  std::size_t n = 1;
-  for (std::size_t d : shape) n *= d;
-  std::vector<T> out(n);
   Handle ds{H5Dopen2(file, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  if (ds.id < 0) throw ResultError(fmt::format("{}: {} is not a dataset", path, dataset));
+  std::vector<T> out(CheckedCount(ds.id, path, dataset, shape, sizeof(T)));
+  const std::size_t n = out.size();
   if (n > 0 && H5Dread(ds.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
     throw ResultError(fmt::format("{}: cannot read {}", path, dataset));
   return out;
@@ -203,7 +279,11 @@ std::string ResultReader::Text(const std::string& dataset) const {
   if (ds.id < 0 || H5Tget_class(type.id) != H5T_STRING || H5Tis_variable_str(type.id) > 0 ||
       H5Sget_simple_extent_type(space.id) != H5S_SCALAR)
     throw ResultError(fmt::format("{}: {} is not a fixed-length string", path_, dataset));
-  std::string text(H5Tget_size(type.id), '\0');
+  const std::size_t size = H5Tget_size(type.id);
+  if (size > 1100 * static_cast<std::size_t>(H5Dget_storage_size(ds.id)) + (std::size_t{1} << 20))
+    throw ResultError(fmt::format("{}: {}: a {}-byte string in {} stored bytes (damaged file)", path_, dataset, size,
+                                  H5Dget_storage_size(ds.id)));
+  std::string text(size, '\0');
   if (H5Dread(ds.id, type.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, text.data()) < 0)
     throw ResultError(fmt::format("{}: cannot read {}", path_, dataset));
   text.erase(std::find_if(text.rbegin(), text.rend(), [](char c) { return c != '\0'; }).base(), text.end());
@@ -217,6 +297,7 @@ MatrixN3 ResultReader::Frame(const std::string& dataset, std::size_t k) const {
     throw ResultError(fmt::format("{}: {} has {} frames (0 … {}); no frame {}", path_, dataset, shape[0],
                                   shape[0] - 1, k));
   Handle ds{H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  CheckedCount(ds.id, path_, dataset, shape, sizeof(double));
   Handle space{H5Dget_space(ds.id), H5Sclose};
   const hsize_t start[3] = {k, 0, 0}, count[3] = {1, shape[1], 3};
   H5Sselect_hyperslab(space.id, H5S_SELECT_SET, start, nullptr, count, nullptr);
@@ -226,7 +307,13 @@ MatrixN3 ResultReader::Frame(const std::string& dataset, std::size_t k) const {
     throw ResultError(fmt::format("{}: cannot read frame {} of {}", path_, k, dataset));
   MatrixN3 x(static_cast<Eigen::Index>(shape[1]), 3);
   for (std::size_t p = 0; p < shape[1]; ++p)
-    for (std::size_t c = 0; c < 3; ++c) x(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c)) = buf[p * 3 + c];
+    for (std::size_t c = 0; c < 3; ++c) {
+      const double v = buf[p * 3 + c];
+      if (!std::isfinite(v))
+        throw ResultError(fmt::format("{}: {}: frame {} holds a non-finite value at [{}, {}] (damaged file)", path_,
+                                      dataset, k, p, c));
+      x(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(c)) = v;
+    }
   return x;
 }
 

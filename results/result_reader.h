@@ -26,6 +26,10 @@ class ResultReader {
   /// opened, is not a clothbench result file, or has a schema other than
   /// kResultSchema (the message names both versions).
   explicit ResultReader(const std::string& path);
+  /// Opens an in-memory file image of `size` bytes (copied; HDF5's core
+  /// driver), named `name` in messages: the fuzz target's entry.
+  /// @throws ResultError as above.
+  ResultReader(const std::string& name, const void* image, std::size_t size);
   ~ResultReader();
   ResultReader(const ResultReader&) = delete;
   ResultReader& operator=(const ResultReader&) = delete;
@@ -50,15 +54,26 @@ class ResultReader {
   /// trailing NUL padding removed. @throws ResultError if missing or not a
   /// string.
   std::string Text(const std::string& dataset) const;
-  /// Frame k of an [F, N, 3] dataset as N×3. @throws ResultError if k ≥ F.
+  /// Frame k of an [F, N, 3] dataset as N×3. @throws ResultError if k ≥ F or a value is not finite.
   MatrixN3 Frame(const std::string& dataset, std::size_t k) const;
   /// A step_stats table. @throws ResultError if missing.
   std::vector<StepRecord> StepStats(const std::string& dataset) const;
 
  private:
+  void CheckSchema();  // closes the file and throws ResultError unless schema == kResultSchema
+
   std::string path_;
   int64_t file_ = -1;  // hid_t
 };
+
+/// Checks what readers rely on before they read (docs/results-schema.md):
+/// ranks and extents against each other (per-frame datasets against
+/// times and /scene@n_particles, face indices against n_particles, triangle
+/// indices against the vertex count, /stress maps against their axes),
+/// finite values of the small datasets and attributes, non-decreasing times
+/// and attribute sizes. Frame values are checked when read (Frame).
+/// @throws ResultError "<file>: <dataset or object@attribute>: <rule>".
+void ValidateResultFile(const ResultReader& file);
 
 /// The table of a bench_integrators result file (see RunTable). A file
 /// without /runs (stress_stability, --table files) gives an empty run list.

@@ -1,17 +1,21 @@
 // clothbench_inspect and the results/ reader against files bench_integrators
 // writes: the table is reprinted from the file alone, diff flags a changed
-// e_rms, older schemas give one line naming the version, export writes the
+// e_rms, older schemas give one line naming the version, damaged and
+// inconsistent files give one line naming the dataset, export writes the
 // stored frame, and ResultReader reads back what the writer stored.
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -141,6 +145,10 @@ void CopyWithAttribute(const std::string& from, const std::string& to, const std
     H5Sclose(space);
   }
   H5Fclose(f);
+  // Signed again, as the writer of such a file would have: the edit stands
+  // for a file of another build, not for damage (that is refused:
+  // EditedOrDamagedFilesAreRefusedBeforeHdf5ReadsThem).
+  SignResultFile(to);
 }
 
 TEST_F(InspectTest, DiffFlagsAChangedErms) {
@@ -238,6 +246,89 @@ EndState ReadEndState(const std::string& file, const std::string& id) {
 // the fixed-point row must name its solver; --t-end shortens the scene's
 // run, so the script must pass it; the mesh obstacle is named relative to the
 // scene file, so the script must link it next to the scene file it writes.
+// Copies `from` to `to`, lets `edit` change it through the HDF5 API and
+// signs it again: a file that is a sound HDF5 file with a valid integrity
+// block, but breaks a rule of the schema.
+void CopyAndEdit(const std::string& from, const std::string& to, const std::function<void(hid_t)>& edit) {
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+  const hid_t f = H5Fopen(to.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  edit(f);
+  H5Fclose(f);
+  SignResultFile(to);
+}
+
+// Replaces dataset `path` by a float64 dataset of shape `dims` filled with `value`.
+void ReplaceDataset(hid_t f, const std::string& path, std::vector<hsize_t> dims, double value) {
+  ASSERT_GE(H5Ldelete(f, path.c_str(), H5P_DEFAULT), 0) << path;
+  const hid_t space = H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr);
+  const hid_t ds = H5Dcreate2(f, path.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(ds, 0) << path;
+  std::size_t n = 1;
+  for (hsize_t d : dims) n *= d;
+  const std::vector<double> values(n, value);
+  if (n > 0) {
+    EXPECT_GE(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  }
+  H5Dclose(ds);
+  H5Sclose(space);
+}
+
+// Every subcommand that reads a file refuses a damaged or inconsistent one
+// before reading it: exit 2, one line naming the file and the dataset or
+// attribute, nothing on stdout. Before the integrity block and
+// ValidateResultFile, the empty-times file crashed `export` (SIGSEGV) and a
+// few flipped bits crashed HDF5 itself.
+TEST_F(InspectTest, BrokenFilesGiveExit2NamingTheDataset) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  const auto refused = [&](const std::string& file, const std::string& args, const std::string& named) {
+    const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + " " + args);
+    EXPECT_EQ(o.exit_code, 2) << args << ": " << o.err;
+    EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+    EXPECT_NE(o.err.find(named), std::string::npos) << "expected \"" << named << "\" in: " << o.err;
+    EXPECT_TRUE(o.out.empty()) << o.out;
+  };
+  const std::string bytes = Slurp(file_);
+  // One flipped bit anywhere past the integrity block, and a truncation.
+  const std::string flipped = (TempDir() / "flipped.h5").string(), cut = (TempDir() / "cut.h5").string();
+  for (std::size_t at : {std::size_t{600}, bytes.size() / 2, bytes.size() - 1}) {
+    std::string b = bytes;
+    b[at] = static_cast<char>(b[at] ^ 0x04);
+    std::ofstream(flipped, std::ios::binary) << b;
+    refused(flipped, "summary", "CRC-32");
+  }
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() - 100);
+  refused(cut, "table", "truncated");
+  // A FIFO is refused, not waited on (RunCommand would hang).
+  const std::string fifo = (TempDir() / "fifo.h5").string();
+  fs::remove(fifo);
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  refused(fifo, "summary", "not a regular file");
+  // Sound HDF5, signed, but inconsistent with the schema.
+  const std::string bad = (TempDir() / "bad.h5").string();
+  CopyAndEdit(file_, bad, [](hid_t f) { ReplaceDataset(f, "/runs/sbdf2_h0.005/times", {0}, 0.0); });
+  for (const char* args : {"summary", "export sbdf2_h0.005 --obj x.obj", "table"})
+    refused(bad, args, "/runs/sbdf2_h0.005/");
+  CopyAndEdit(file_, bad, [](hid_t f) { ReplaceDataset(f, "/runs/sbdf2_h0.01/times", {5}, 1e300 * 1e10); });
+  refused(bad, "runs", "/runs/sbdf2_h0.01/times: [0] = inf is not finite");
+  CopyAndEdit(file_, bad, [](hid_t f) {
+    ASSERT_GE(H5Ldelete(f, "/scene/faces", H5P_DEFAULT), 0);
+    const hsize_t dims[2] = {1, 4};
+    const int32_t q[4] = {0, 1, 12, 2};  // 12: one past the last of the 12 particles
+    const hid_t space = H5Screate_simple(2, dims, nullptr);
+    const hid_t ds = H5Dcreate2(f, "/scene/faces", H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    EXPECT_GE(H5Dwrite(ds, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, q), 0);
+    H5Dclose(ds);
+    H5Sclose(space);
+  });
+  refused(bad, "export sbdf2_h0.01 --frame 1 --ply x.ply", "/scene/faces: [0, 2] = 12 is not a particle index");
+  CopyAndEdit(file_, bad, [](hid_t f) { ReplaceDataset(f, "/runs/cvode_rtol0.0001/positions", {5, 11, 3}, 0.5); });
+  refused(bad, "summary", "/runs/cvode_rtol0.0001/positions: shape [5, 11, 3], [5, 12, 3] expected");
+  const std::string nan_attr = (TempDir() / "nan_attr.h5").string();
+  CopyWithAttribute(file_, nan_attr, "/runs/sbdf2_h0.01", "solver_time_s", std::nan(""));
+  refused(nan_attr, "runs --json", "/runs/sbdf2_h0.01@solver_time_s: nan is not finite");
+}
+
 TEST(InspectCommand, RecomputesARunBitForBit) {
   const fs::path dir = TempDir() / "command";
   fs::create_directories(dir / "meshes");
