@@ -5,7 +5,11 @@
 #ifndef CLOTHBENCH_HARNESS_CLI_ARGS_H_
 #define CLOTHBENCH_HARNESS_CLI_ARGS_H_
 
+#include <fcntl.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <algorithm>
 #include <cmath>
@@ -57,8 +61,10 @@ inline std::vector<std::string> SplitList(const std::string& s, const std::strin
   return out;
 }
 
-/// A list of finite positive numbers, each once (two equal entries would
-/// give two rows or cells with one name). @throws UsageError naming `option`.
+/// A list of finite positive numbers, each once to 6 significant digits
+/// (two entries printing alike would give two rows or cells with one name,
+/// e.g. sbdf2_h0.01 for 0.01 and 0.0100000000001). @throws UsageError
+/// naming `option`.
 inline std::vector<double> ParsePositiveList(const std::string& s, const std::string& option) {
   std::vector<double> out;
   for (const std::string& item : SplitList(s, option)) {
@@ -71,8 +77,13 @@ inline std::vector<double> ParsePositiveList(const std::string& s, const std::st
     }
     if (pos != item.size() || !std::isfinite(v) || !(v > 0.0))
       throw UsageError(fmt::format("{}: \"{}\" is not a positive number", option, item));
-    if (std::find(out.begin(), out.end(), v) != out.end())
-      throw UsageError(fmt::format("{}: {:g} is listed twice", option, v));
+    // Rows and cells are named with 6 significant digits ({:g}).
+    for (double w : out)
+      if (fmt::format("{:g}", w) == fmt::format("{:g}", v))
+        throw UsageError(w == v ? fmt::format("{}: {:g} is listed twice", option, v)
+                                : fmt::format("{}: {} and {} are the same to 6 significant digits, which name the "
+                                              "rows and cells; list values that differ there",
+                                              option, EscapeControl(item), fmt::format("{:.17g}", w)));
     out.push_back(v);
   }
   return out;
@@ -86,17 +97,44 @@ inline void CheckArkodeTable(const std::string& name) {
   throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", name, known));
 }
 
-/// Refuses, before any computing, an --out that is a directory or whose
-/// folder cannot be created or written (the folder is created).
+/// Refuses, before any computing, an --out that cannot be written, with one
+/// line naming --out and the path: a folder (created if missing) that cannot
+/// be created or written; and any of the run's own files that stands as
+/// something else, or whose name the file system refuses (too long, a
+/// symlink loop): <out>, <out>.tmp, <out>.lock, the XDMF file <stem>.xdmf
+/// and its .tmp must be regular files or absent, <out>.journal a folder or
+/// absent. Absent ones are created and removed again (a probe).
 inline void CheckOutputFolder(const std::string& out) {
-  if (std::filesystem::is_directory(out)) throw UsageError(fmt::format("--out: \"{}\" is a directory", out));
-  std::filesystem::path folder = std::filesystem::path(out).parent_path();
-  if (folder.empty()) folder = ".";
+  namespace fs = std::filesystem;
+  const auto refuse = [&](const std::string& path, const std::string& why) {
+    return UsageError(fmt::format("--out: \"{}\" {}", EscapeControl(path), why));
+  };
   std::error_code ec;
-  std::filesystem::create_directories(folder, ec);
-  if (ec || !std::filesystem::is_directory(folder) || ::access(folder.c_str(), W_OK) != 0)
-    throw UsageError(fmt::format("--out: folder \"{}\" {}", folder.string(),
+  fs::path folder = fs::path(out).parent_path();
+  if (folder.empty()) folder = ".";
+  fs::create_directories(folder, ec);
+  if (ec || !fs::is_directory(folder, ec) || ::access(folder.c_str(), W_OK) != 0)
+    throw UsageError(fmt::format("--out: folder \"{}\" {}", EscapeControl(folder.string()),
                                  ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
+  fs::path xdmf = out;
+  xdmf.replace_extension(".xdmf");
+  for (const std::string& path : {out, out + ".tmp", out + ".lock", xdmf.string(), xdmf.string() + ".tmp",
+                                  out + ".journal"}) {
+    const bool journal = path.ends_with(".journal");
+    const fs::file_status st = fs::symlink_status(path, ec);
+    if (ec && ec != std::errc::no_such_file_or_directory) throw refuse(path, "cannot be used: " + ec.message());
+    if (fs::exists(st)) {
+      const fs::file_status target = fs::status(path, ec);
+      if (ec) throw refuse(path, "cannot be used: " + ec.message());
+      if (journal ? !fs::is_directory(target) : !fs::is_regular_file(target))
+        throw refuse(path, journal ? "is not a folder (a journal of this output is one)" : "is not a regular file");
+      continue;
+    }
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0) throw refuse(path, fmt::format("cannot be created: {}", std::strerror(errno)));
+    ::close(fd);
+    ::unlink(path.c_str());
+  }
 }
 
 /// The smallest relative tolerance a run in double precision can meet: a

@@ -22,8 +22,8 @@
 
 namespace clothbench {
 
-/// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (after
-/// CheckOutputFolder) and held until destruction; the kernel also releases
+/// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (after its
+/// CheckOutputFolder probe of the output's paths) and held until destruction; the kernel also releases
 /// it when the process ends in any other way. The file holds the holder's
 /// pid, which a refused process names; it is removed on release (a process
 /// that opened it just before checks, after locking, that the path still
@@ -31,15 +31,22 @@ namespace clothbench {
 class OutputLock {
  public:
   /// @throws UsageError (exit 2) on every rank if another process holds the
-  /// lock or the lock file cannot be created, naming --out and the pid.
+  /// lock (naming --out and the pid), the lock file cannot be created, or
+  /// CheckOutputFolder refuses a path (its message on rank 0).
   OutputLock(const std::string& out, const SweepComm& comm) : path_(out + ".lock") {
-    CheckOutputFolder(out);
     std::string why;
-    if (comm.root()) why = Acquire(out);
+    if (comm.root()) {  // one rank probes the paths (probes of several would collide) and locks
+      try {
+        CheckOutputFolder(out);
+        why = Acquire(out);
+      } catch (const UsageError& e) {
+        why = e.what();
+      }
+    }
     std::vector<long> failed{why.empty() ? 0L : 1L};
     comm.Broadcast(&failed);
     if (failed[0] != 0)
-      throw UsageError(comm.root() ? why : fmt::format("--out: \"{}\" is locked by another process", out));
+      throw UsageError(comm.root() ? why : fmt::format("--out: \"{}\" refused on rank 0", out));
   }
   ~OutputLock() { Release(); }
   OutputLock(const OutputLock&) = delete;

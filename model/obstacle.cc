@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <Eigen/Geometry>
 
 namespace clothbench {
@@ -85,7 +86,22 @@ ObstaclePose Obstacle::PoseAt(double t) const {
   return pose;
 }
 
+namespace {
+
+// A point that no query may see: not finite, or beyond kMaxQueryMagnitude.
+bool OutOfRange(const Vector3& p) { return !(p.cwiseAbs().maxCoeff() <= kMaxQueryMagnitude); }
+
+}  // namespace
+
 double Obstacle::SignedDistance(const ObstaclePose& pose, const Vector3& p, Vector3* dir) const {
+  // A blown-up state never reaches CGAL (its exact fallback raises SIGFPE
+  // on non-finite input) or the analytic formulas: it is far from every
+  // obstacle, and the step that produced it ends as non_finite or
+  // energy_growth (solver/run.h).
+  if (OutOfRange(p)) {
+    *dir = Vector3::UnitZ();
+    return std::numeric_limits<double>::infinity();
+  }
   if (pose.identity) return PlacedSignedDistance(p, dir);
   Vector3 d_placed;
   const double d = PlacedSignedDistance(pose.ToPlaced(p), &d_placed);
@@ -95,6 +111,7 @@ double Obstacle::SignedDistance(const ObstaclePose& pose, const Vector3& p, Vect
 
 std::optional<SegmentHit> Obstacle::FirstHit(const ObstaclePose& pose, const Vector3& a_world,
                                              const Vector3& b_world) const {
+  if (OutOfRange(a_world) || OutOfRange(b_world)) return std::nullopt;  // as in SignedDistance
   const Vector3 a = pose.ToPlaced(a_world), b = pose.ToPlaced(b_world);
   std::optional<SegmentHit> hit;
   if (spec_.type == ObstacleType::kMesh) {

@@ -93,6 +93,10 @@ struct ObstacleSpec {
 
 std::string_view ToString(ObstacleType t);
 
+/// Positions beyond this [m] are a blown-up state (scenes place everything
+/// within 1e6 m, docs/scenes.md "Limits"): obstacle queries skip them.
+inline constexpr double kMaxQueryMagnitude = 1e9;
+
 class Obstacle {
  public:
   /// Loads the mesh of a mesh obstacle. @throws std::runtime_error for an
@@ -100,7 +104,9 @@ class Obstacle {
   explicit Obstacle(const ObstacleSpec& spec);
   /// Signed distance [m] of the world point p to the surface at `pose`
   /// (negative inside a solid; unsigned for an open mesh) and the unit
-  /// outward direction D [world] at the closest surface point.
+  /// outward direction D [world] at the closest surface point. A point that
+  /// is not finite or beyond kMaxQueryMagnitude is not queried: +∞ (and
+  /// FirstHit: no hit).
   double SignedDistance(const ObstaclePose& pose, const Vector3& p, Vector3* direction) const;
   /// The same at time t [s] (PoseAt(t)).
   double SignedDistance(double t, const Vector3& p, Vector3* direction) const {

@@ -13,6 +13,7 @@
 #include <toml++/toml.h>
 
 #include "model/default_scene.h"
+#include "model/triangle_mesh.h"
 
 namespace clothbench {
 
@@ -445,9 +446,17 @@ Scene ParseScene(std::string_view text, const std::string& source) {
             p = (embedded ? std::filesystem::path(CLOTHBENCH_SOURCE_DIR) / "scenes"
                           : std::filesystem::path(source).parent_path()) / p;
           }
-          if (!std::filesystem::is_regular_file(p))
+          std::error_code ec;
+          const auto status = std::filesystem::status(p, ec);
+          if (ec && ec != std::errc::no_such_file_or_directory)
+            o.Fail("path", fmt::format("mesh file \"{}\" cannot be used: {}", p.string(), ec.message()));
+          if (!std::filesystem::exists(status))
             o.Fail("path", fmt::format("mesh file \"{}\" not found (scripts/setup extracts CGAL's data into data/)",
                                        p.string()));
+          if (!std::filesystem::is_regular_file(status))
+            o.Fail("path", fmt::format("mesh file \"{}\" is not a regular file", p.string()));
+          if (const std::string why = CheckMeshHeader(p.string()); !why.empty())
+            o.Fail("path", fmt::format("mesh file \"{}\": {}", p.string(), why));
           spec.path = p.string();
           spec.scale = o.Range("scale", 1.0, 1e-6, 1e6, "");
           spec.rotate = o.Vec3("rotate", spec.rotate);
@@ -498,6 +507,8 @@ Scene LoadScene(const std::string& path) {
   // would block, /dev/null would read as an empty all-defaults scene).
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    throw SceneError(fmt::format("{}: cannot be used as a scene file: {}", path, ec.message()));
   if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))
     throw SceneError(fmt::format("{}: not a regular file (a scene is a TOML file)", path));
   std::ifstream in(path, std::ios::binary);

@@ -3,7 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
+#include <string>
 
 #include <CGAL/AABB_face_graph_triangle_primitive.h>
 #include <CGAL/AABB_traits.h>
@@ -33,6 +36,52 @@ struct TriangleMesh::Impl {
   std::unique_ptr<Inside> inside;
   bool closed = false;
 };
+
+std::string CheckMeshHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "cannot be opened";
+  in.seekg(0, std::ios::end);
+  const double bytes = static_cast<double>(in.tellg());
+  in.seekg(0);
+  double vertices = -1.0, faces = -1.0;
+  std::string line;
+  std::getline(in, line);
+  const auto trimmed = [](std::string s) {
+    while (!s.empty() && (s.back() == '\r' || s.back() == ' ')) s.pop_back();
+    return s;
+  };
+  if (trimmed(line).rfind("OFF", 0) == 0 || trimmed(line).rfind("COFF", 0) == 0 || trimmed(line).rfind("NOFF", 0) == 0) {
+    // The counts are on the header line after "OFF" or on the first line
+    // that is neither empty nor a comment.
+    std::istringstream head(trimmed(line).substr(trimmed(line).find("OFF") + 3));
+    if (!(head >> vertices >> faces)) {
+      while (std::getline(in, line))
+        if (const auto b = line.find_first_not_of(" \t\r"); b != std::string::npos && line[b] != '#') break;
+      std::istringstream counts(line);
+      if (!(counts >> vertices >> faces)) return "an OFF file without vertex and face counts";
+    }
+  } else if (trimmed(line) == "ply") {
+    for (int k = 0; k < 1000 && std::getline(in, line) && trimmed(line) != "end_header"; ++k) {
+      std::istringstream words(line);
+      std::string element, name;
+      double count = 0.0;
+      if (words >> element >> name >> count && element == "element") {
+        if (name == "vertex") vertices = count;
+        if (name == "face") faces = count;
+      }
+    }
+    if (vertices < 0.0 || faces < 0.0) return "a PLY file without vertex and face elements";
+  } else {
+    return "";  // OBJ and the rest: no counts to check; the reader grows as it reads
+  }
+  if (!(vertices >= 0.0) || !(faces >= 0.0) || vertices + faces > kMaxMeshElements)
+    return fmt::format("announces {:g} vertices and {:g} faces (at most {:g} in all)", vertices, faces,
+                       kMaxMeshElements);
+  if (6.0 * vertices + 8.0 * faces > bytes)
+    return fmt::format("announces {:g} vertices and {:g} faces, more than its {:g} bytes can hold (truncated or a "
+                       "damaged header)", vertices, faces, bytes);
+  return "";
+}
 
 TriangleMesh::TriangleMesh(const std::string& path, double scale, const Vector3& rotate_deg, const Vector3& translate)
     : impl_(std::make_unique<Impl>()) {

@@ -17,6 +17,18 @@
 
 namespace clothbench {
 
+/// The largest mesh obstacle [vertices + faces]: far above any garment or
+/// avatar mesh, far below what would exhaust the memory of the distance tree.
+inline constexpr double kMaxMeshElements = 1e8;
+
+/// Checks the header of a mesh file before it is read: for OFF and PLY the
+/// announced vertex and face counts must be at most kMaxMeshElements and
+/// fit the file (at least 6 bytes per vertex and 8 per face, the shortest
+/// ASCII lines), so a damaged header cannot make the reader allocate for
+/// 2·10⁹ vertices. @return empty if the header is plausible, else the rule
+/// it breaks (for the caller's message naming the scene key).
+std::string CheckMeshHeader(const std::string& path);
+
 class TriangleMesh {
  public:
   /// Loads `path` and places it: x ↦ R (scale · x) + translate, with R from

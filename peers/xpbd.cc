@@ -202,12 +202,15 @@ StepStats Xpbd::Step(double h) {
       p_.row(c.b) = pb.transpose();
     }
     if (!shear_.empty()) ProjectShear(dt);
+    // A non-finite prediction ends the step here, before the obstacle
+    // queries (CGAL) see it; the state stays x₀, v₀.
+    if (!p_.allFinite()) break;
     if (!sys_.obstacles().empty()) st.colliding = ProjectObstacles(t + dt, dt);
     // 5. v ← (p − x)/Δt, x ← p.
     v_ = (p_ - x_) / dt;
     x_.swap(p_);
   }
-  if (!x_.allFinite() || !v_.allFinite()) {
+  if (!p_.allFinite() || !x_.allFinite() || !v_.allFinite()) {
     st.status = StepStatus::kNonFinite;
   } else {
     x0_.swap(x_);

@@ -5,6 +5,8 @@
 //  - accepted but numerically hopeless: the run ends with a failure status
 //    (non_finite, energy_growth, time_limit), the other rows complete, and
 //    the file stores no non-finite number anywhere.
+#include <sys/stat.h>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -95,7 +97,7 @@ TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {
   std::ofstream(Dir() / "empty.off").close();
   ExpectRefused(Scene("empty.toml", kTiny + mesh + (Dir() / "empty.off").string() + "\"\n"),
                 "obstacle[0].path: cannot read a polygon mesh");
-  std::ofstream(Dir() / "garbage.off") << "OFF\n3 1 0\n0 0 0\n1 0\n";
+  std::ofstream(Dir() / "garbage.off") << "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1\n3 0 1 2\n";  // a coordinate short
   ExpectRefused(Scene("garbage.toml", kTiny + mesh + (Dir() / "garbage.off").string() + "\"\n"),
                 "obstacle[0].path: cannot read a polygon mesh");
   ExpectRefused(Scene("nomesh.toml", kTiny + mesh + "/nonexistent.off\"\n"), "obstacle[0].path: mesh file");
@@ -239,6 +241,60 @@ TEST(BadInput, DegenerateScenesRunWithEveryMethod) {
 // swinging sheet's 101 frames (journal and file: about 4.9 MB) are refused
 // with exit 2 naming --out and leave nothing; its two end frames fit and
 // run. Mounting needs root (CI runs as root); elsewhere the test is skipped.
+// What failed at write time before (exit 1 after computing, journal left) or
+// exited with a library's words is refused before computing: run ids that
+// print alike, output paths that stand as something else or that the file
+// system refuses, and mesh files that are folders, FIFOs, symlink loops or
+// announce more than they hold. Each: exit 2, one line naming the option or
+// key and the path, and nothing left behind.
+TEST(BadInput, OutputPathsRunIdsAndMeshPathsAreCheckedBeforeComputing) {
+  const std::string tiny = "--scene " + WriteScene("tiny.toml", kTiny) + " --integrators sbdf2 --reference none";
+  ExpectRefused(tiny + " --h 0.01,0.0100000000001", "--h: 0.0100000000001 and 0.01 are the same to 6 significant");
+  ExpectRefused(tiny + " --h 0.01 --cg-tolerances 1e-6,1.0000001e-6", "--cg-tolerances: 1.0000001e-6 and");
+  const fs::path d = Dir() / "outs";
+  const auto refused_out = [&](const fs::path& out, const std::string& needle) {
+    const Outcome o = RunBench(tiny + " --h 0.01 --out " + out.string());
+    EXPECT_EQ(o.exit_code, 2) << out << "\n" << o.err;
+    EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+    EXPECT_NE(o.err.find("--out: \"" + d.string()), std::string::npos) << o.err;
+    EXPECT_NE(o.err.find(needle), std::string::npos) << o.err;
+    std::error_code ec;
+    EXPECT_FALSE(fs::exists(out.string() + ".lock", ec)) << out;
+    EXPECT_FALSE(fs::is_directory(out.string() + ".journal", ec)) << out;
+  };
+  fs::remove_all(d);
+  fs::create_directories(d / "a.h5.tmp");
+  refused_out(d / "a.h5", "a.h5.tmp\" is not a regular file");
+  fs::create_directories(d / "b.xdmf");
+  refused_out(d / "b.h5", "b.xdmf\" is not a regular file");
+  ASSERT_EQ(mkfifo((d / "c.h5").c_str(), 0600), 0);
+  refused_out(d / "c.h5", "c.h5\" is not a regular file");
+  std::ofstream(d / "e.h5.journal") << "not a folder";
+  refused_out(d / "e.h5", "e.h5.journal\" is not a folder");
+  refused_out(d / (std::string(250, 'x') + ".h5"), "File name too long");
+  fs::create_symlink(d / "loop1", d / "loop2");
+  fs::create_symlink(d / "loop2", d / "loop1");
+  refused_out(d / "loop1", "Too many levels of symbolic links");
+  // Mesh paths: a folder, a FIFO, a symlink loop, a header announcing 2·10⁹
+  // vertices (before: "out of memory although the run fitted the memory
+  // estimate", exit 1).
+  const std::string mesh = "[[obstacle]]\ntype = \"mesh\"\ncollision_distance = 0.01\npath = \"";
+  ASSERT_EQ(mkfifo((d / "fifo.off").c_str(), 0600), 0);
+  std::ofstream(d / "huge.off") << "OFF\n2000000000 1 0\n0 0 0\n";
+  std::ofstream(d / "huge.ply") << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                   "property float z\nelement face 90000\nproperty list uchar int vertex_indices\n"
+                                   "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  ExpectRefused(Scene("m1.toml", kTiny + mesh + d.string() + "\"\n"), "\" is not a regular file");
+  ExpectRefused(Scene("m2.toml", kTiny + mesh + (d / "fifo.off").string() + "\"\n"), "\" is not a regular file");
+  ExpectRefused(Scene("m3.toml", kTiny + mesh + (d / "loop1").string() + "\"\n"), "Too many levels of symbolic links");
+  ExpectRefused(Scene("m4.toml", kTiny + mesh + (d / "huge.off").string() + "\"\n"),
+                "obstacle[0].path: mesh file \"" + (d / "huge.off").string() + "\": announces 2e+09 vertices");
+  ExpectRefused(Scene("m5.toml", kTiny + mesh + (d / "huge.ply").string() + "\"\n"),
+                "more than its 184 bytes can hold");
+  ExpectRefused("--scene " + (d / "loop1").string(), "cannot be used as a scene file: Too many levels");
+  fs::remove_all(d);
+}
+
 TEST(BadInput, OutputsThatCannotFitOnTheDiskAreRefused) {
   const fs::path small = Dir() / "small_fs";
   fs::create_directories(small);

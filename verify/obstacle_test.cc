@@ -20,15 +20,20 @@
 //    last step (the sheet jumped into its path) is sent back to the side it
 //    came from; a rising keyframed plane lifts a resting cloth at its own
 //    speed with no particle deeper than δ/2.
+// 5. Guards: a non-finite or blown-up point is never queried (CGAL's exact
+//    fallback raises SIGFPE on non-finite input), and XPBD ends a step whose
+//    substep turned non-finite before its obstacle queries.
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include <unistd.h>
 
 #include <gtest/gtest.h>
 
 #include "model/obstacle.h"
+#include "peers/xpbd.h"
 #include "results/metrics.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -272,6 +277,38 @@ TEST(ObstacleMotion, RisingPlaneLiftsTheCloth) {
     EXPECT_LT(depth, 0.5 * plane.collision_distance) << ToString(m);
     EXPECT_LT(z_err, 1e-3) << ToString(m);
     EXPECT_EQ(r.step_stats.back().colliding, sys.num_particles()) << ToString(m);
+  }
+}
+
+// A non-finite state inside a substep ends the step as non_finite before an
+// obstacle query sees it; a mesh obstacle's queries (CGAL) with non-finite
+// or blown-up points return "far, no hit" without computing. Before these
+// guards, such a point went into CGAL's exact fallback, where GMP raises
+// SIGFPE on non-finite input.
+TEST(ObstacleGuard, NonFiniteStateNeverReachesTheMeshObstacle) {
+  Scene s = BuiltinScene("swinging_sheet");
+  ObstacleSpec o;
+  o.type = ObstacleType::kMesh;
+  o.path = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
+  o.collision_distance = 0.01;
+  s.obstacles.push_back(o);
+  const ParticleSystem sys(s);
+  const Obstacle& cube = sys.obstacles()[0];
+  const double nan = std::nan(""), inf = std::numeric_limits<double>::infinity();
+  for (const Vector3& p : {Vector3(nan, 0.5, 0.5), Vector3(0.5, inf, 0.5), Vector3(0.5, 0.5, -1e300),
+                           Vector3(2e9, 0.0, 0.0)}) {
+    Vector3 dir;
+    EXPECT_EQ(cube.SignedDistance(0.0, p, &dir), inf) << p.transpose();
+    EXPECT_FALSE(cube.FirstHit(cube.PoseAt(0.0), Vector3(0.5, 0.5, 2.0), p)) << p.transpose();
+  }
+  for (int n : {1, 8}) {
+    Xpbd xpbd(sys, n);
+    MatrixN3 v = MatrixN3::Zero(sys.num_particles(), 3);
+    v(5, 2) = nan;  // a blown-up velocity of one free particle
+    xpbd.Reset(0.0, sys.rest_positions(), v);
+    const StepStats st = xpbd.Step(s.h);
+    EXPECT_EQ(st.status, StepStatus::kNonFinite) << n << " substeps";
+    EXPECT_EQ(xpbd.t(), 0.0);  // the step was not taken
   }
 }
 
