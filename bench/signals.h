@@ -24,6 +24,10 @@ inline void InstallInterruptHandlers() {
   sa.sa_flags = 0;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  // A file-size limit (ulimit -f, RLIMIT_FSIZE) makes a write fail with
+  // EFBIG, reported with the file's name, instead of killing the process
+  // with SIGXFSZ and leaving its temporary files.
+  signal(SIGXFSZ, SIG_IGN);
 }
 
 inline const char* SignalName(int sig) { return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal"; }

@@ -211,8 +211,24 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
                                          b.error_metric);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);
   if (ref) PrintWorkPrecision(stdout, wp);
-  if (!b.series.empty()) WriteSeries(b.series, rows);
-  WriteResults(b.out, b.scene, sys, ref, ref_opts, rows, run_table, comm.size());
+  try {
+    if (!b.series.empty()) WriteSeries(b.series, rows);
+    WriteResults(b.out, b.scene, sys, ref, ref_opts, rows, run_table, comm.size());
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    // A full disk or a file-size limit at write time: the .tmp is gone
+    // (ResultFile unwinds), a .part never outlives its Store; the finished
+    // runs' entries are whole and checksummed, so a rerun writes the file
+    // without computing them again.
+    const std::size_t kept = journal.Stored().size();
+    if (kept == 0) journal.Remove();
+    throw std::runtime_error(
+        kept ? fmt::format("{}; no result file written; the {} finished runs stay in {}: free space and rerun the same "
+                           "command to write it without computing them again",
+                           e.what(), kept, journal.path())
+             : fmt::format("{}; no result file written", e.what()));
+  }
   journal.Remove();
   const std::string xdmf = WriteXdmf(b.out);
   fmt::print("results: {}\n", b.out);

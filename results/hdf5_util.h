@@ -8,6 +8,19 @@
 
 namespace clothbench::internal {
 
+// Called before the first HDF5 call of a ResultFile or ResultReader: HDF5
+// registers no atexit handler. Its H5_term_library crashes (SIGSEGV in
+// H5F__close_cb, HDF5 1.10.8) on a file whose H5Fclose failed, e.g. on a
+// full disk; every file is closed explicitly, so there is nothing for it to
+// flush. Returns immediately after the first call.
+inline void NoAtExit() {
+  static const bool done = [] {
+    H5dont_atexit();  // fails harmlessly if the library is already initialised (h5py in the same process)
+    return true;
+  }();
+  (void)done;
+}
+
 // Closes an HDF5 handle when it goes out of scope.
 struct Handle {
   hid_t id;

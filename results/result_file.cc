@@ -30,8 +30,17 @@ using internal::Handle;
 // per cent of level 9 at a fraction of its time.
 constexpr unsigned kDeflateLevel = 4;
 
+// The system's reason where a write failed for lack of room or rights
+// (HDF5's error stack says only "write failed").
+std::string SystemReason() {
+  const int e = errno;
+  return e == ENOSPC || e == EFBIG || e == EDQUOT || e == EIO || e == EACCES || e == EROFS
+             ? fmt::format(": {}", std::strerror(e))
+             : "";
+}
+
 hid_t Check(hid_t id, const std::string& what, const std::string& file) {
-  if (id < 0) throw ResultError(fmt::format("{}: HDF5 error: {}", file, what));
+  if (id < 0) throw ResultError(fmt::format("{}: HDF5 error: {}{}", file, what, SystemReason()));
   return id;
 }
 
@@ -48,6 +57,8 @@ void RequireFinite(const double* values, std::size_t n, const std::string& datas
 }  // namespace
 
 ResultFile::ResultFile(const std::string& path) : path_(path), tmp_path_(path + ".tmp") {
+  internal::NoAtExit();
+  errno = 0;
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become ResultError, not stderr dumps
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();
   std::error_code ec;
@@ -244,7 +255,7 @@ void ResultFile::Commit() {
   if (file_ >= 0) {
     const herr_t err = H5Fclose(file_);
     file_ = -1;
-    if (err < 0) throw ResultError(fmt::format("{}: HDF5 error: cannot close file", tmp_path_));
+    if (err < 0) throw ResultError(fmt::format("{}: HDF5 error: cannot close file{}", tmp_path_, SystemReason()));
   }
   SignResultFile(tmp_path_);
   std::error_code ec;

@@ -77,6 +77,7 @@ herr_t CollectAttribute(hid_t loc, const char* name, const H5A_info_t*, void* da
 }  // namespace
 
 ResultReader::ResultReader(const std::string& path) : path_(path) {
+  internal::NoAtExit();
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   // The integrity block first: HDF5 parses no byte that was not written by
   // a ResultFile. Non-blocking, so that a FIFO or device is refused, not
@@ -108,6 +109,7 @@ ResultReader::ResultReader(const std::string& path) : path_(path) {
 }
 
 ResultReader::ResultReader(const std::string& name, const void* image, std::size_t size) : path_(name) {
+  internal::NoAtExit();
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   CheckResultSignature(name, static_cast<const unsigned char*>(image), size);
   Handle fapl{H5Pcreate(H5P_FILE_ACCESS), H5Pclose};

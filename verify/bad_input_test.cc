@@ -295,6 +295,44 @@ TEST(BadInput, OutputPathsRunIdsAndMeshPathsAreCheckedBeforeComputing) {
   fs::remove_all(d);
 }
 
+// A write that fails after computing (here a file-size limit, RLIMIT_FSIZE,
+// below the result file but above every journal entry: a disk that fills
+// while the file is written) exits 1 with one line naming the file, the
+// system's reason and the journal; it leaves no .tmp, no .part and no lock,
+// and keeps the finished runs, from which the same command then writes the
+// file without computing them again. Before, HDF5's exit handler crashed
+// (SIGSEGV) on the file whose close had failed, and SIGXFSZ killed a run
+// under `ulimit -f`.
+TEST(BadInput, AFullDiskAtWriteTimeKeepsOnlyTheFinishedRuns) {
+  const fs::path d = Dir() / "full";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  const fs::path out = d / "r.h5";
+  const std::string args = "--scene " + WriteScene("full.toml", kTiny) +
+                           " --integrators sbdf2,bdf2 --h 0.01,0.005 --frames all --quiet --out " + out.string();
+  // 40 blocks: 20 KiB under dash (/bin/sh, 512-byte blocks), 40 KiB under
+  // bash; journal entries of this scene are below 10 KiB, the file above 60 KiB.
+  const Outcome full = testing::RunCommand("ulimit -f 40 && " + std::string(CLOTHBENCH_BENCH_BINARY), args, Dir());
+  EXPECT_EQ(full.exit_code, 1) << full.err;
+  EXPECT_EQ(std::count(full.err.begin(), full.err.end(), '\n'), 1) << full.err;
+  EXPECT_NE(full.err.find(out.string() + ".tmp: HDF5 error:"), std::string::npos) << full.err;
+  EXPECT_NE(full.err.find("File too large; no result file written; the 5 finished runs stay in"), std::string::npos)
+      << full.err;
+  std::vector<std::string> left;
+  for (const auto& e : fs::recursive_directory_iterator(d)) left.push_back(fs::relative(e.path(), d).string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"r.h5.journal", "r.h5.journal/0.run", "r.h5.journal/1.run",
+                                            "r.h5.journal/2.run", "r.h5.journal/3.run", "r.h5.journal/4.run",
+                                            "r.h5.journal/key"}));
+  const Outcome again = RunBench(args);
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.out.find("5 of 5 runs from " + out.string() + ".journal; computing 0"), std::string::npos)
+      << again.out;
+  EXPECT_TRUE(fs::is_regular_file(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".journal"));
+  fs::remove_all(d);
+}
+
 TEST(BadInput, OutputsThatCannotFitOnTheDiskAreRefused) {
   const fs::path small = Dir() / "small_fs";
   fs::create_directories(small);
