@@ -119,7 +119,7 @@ int Main(int argc, char** argv) {
           throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", scenes.back().name));
     }
     if (!plot_dir.empty()) CheckPlotDir(plot_dir);
-    lock.emplace(out, comm);  // <out>.lock, held to the exit
+    lock.emplace(out, comm, false);  // <out>.lock, held to the exit; the journal is a file
 
     std::vector<CellSpec> cells;
     for (std::size_t sc = 0; sc < scenes.size(); ++sc)

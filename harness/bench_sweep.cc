@@ -70,11 +70,17 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   std::vector<long> missing;
   std::size_t stored = 0;
   if (comm.root()) {
-    const std::vector<long> have = journal.Stored();
+    // Every entry is decoded and range-checked before it is trusted.
+    const long n = sys.num_particles();
+    const std::vector<long> have = journal.Stored([&](long k, const std::string& bytes) {
+      if (k == 0 && n_ref) DecodeSummary(bytes, n);
+      else DecodeRun(bytes, n);
+    });
     if (journal.rejected() > 0)
-      fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short or "
-                         "not of this command's key); computing {} again\n",
-                 journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "", journal.rejected() > 1 ? "them" : "it");
+      fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short, "
+                         "not of this command's key or values out of range; first: {}); computing {} again\n",
+                 journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "",
+                 EscapeControl(journal.first_rejection()), journal.rejected() > 1 ? "them" : "it");
     for (long k = 0; k < n_tasks; ++k)
       if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
     stored = static_cast<std::size_t>(n_tasks) - missing.size();
@@ -190,7 +196,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   std::optional<RunSummary> ref;
   if (n_ref) {
     try {
-      ref = own_ref.count(0) ? std::move(own_ref.at(0)) : DecodeSummary(bytes(0));
+      ref = own_ref.count(0) ? std::move(own_ref.at(0)) : DecodeSummary(bytes(0), sys.num_particles());
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: run 0: {}; delete the folder and rerun", journal.path(), e.what()));
     }
@@ -200,7 +206,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   for (std::size_t i = 0; i < row_tasks.size(); ++i) {
     const long k = n_ref + static_cast<long>(i);
     try {
-      rows.push_back(own_rows.count(k) ? std::move(own_rows.at(k)) : DecodeRun(bytes(k)));
+      rows.push_back(own_rows.count(k) ? std::move(own_rows.at(k)) : DecodeRun(bytes(k), sys.num_particles()));
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
     }

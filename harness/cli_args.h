@@ -102,9 +102,11 @@ inline void CheckArkodeTable(const std::string& name) {
 /// be created or written; and any of the run's own files that stands as
 /// something else, or whose name the file system refuses (too long, a
 /// symlink loop): <out>, <out>.tmp, <out>.lock, the XDMF file <stem>.xdmf
-/// and its .tmp must be regular files or absent, <out>.journal a folder or
-/// absent. Absent ones are created and removed again (a probe).
-inline void CheckOutputFolder(const std::string& out) {
+/// and its .tmp must be regular files or absent, <out>.journal a folder
+/// (bench_integrators) or a regular file (`journal_folder` false:
+/// stress_stability) or absent. Absent ones are created and removed again
+/// (a probe).
+inline void CheckOutputFolder(const std::string& out, bool journal_folder = true) {
   namespace fs = std::filesystem;
   const auto refuse = [&](const std::string& path, const std::string& why) {
     return UsageError(fmt::format("--out: \"{}\" {}", EscapeControl(path), why));
@@ -126,8 +128,9 @@ inline void CheckOutputFolder(const std::string& out) {
     if (fs::exists(st)) {
       const fs::file_status target = fs::status(path, ec);
       if (ec) throw refuse(path, "cannot be used: " + ec.message());
-      if (journal ? !fs::is_directory(target) : !fs::is_regular_file(target))
-        throw refuse(path, journal ? "is not a folder (a journal of this output is one)" : "is not a regular file");
+      if (journal && journal_folder ? !fs::is_directory(target) : !fs::is_regular_file(target))
+        throw refuse(path, journal && journal_folder ? "is not a folder (a journal of this output is one)"
+                                                     : "is not a regular file");
       continue;
     }
     const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);

@@ -33,13 +33,24 @@ class OutputLock {
   /// @throws UsageError (exit 2) on every rank if another process holds the
   /// lock (naming --out and the pid), the lock file cannot be created, or
   /// CheckOutputFolder refuses a path (its message on rank 0).
-  OutputLock(const std::string& out, const SweepComm& comm) : path_(out + ".lock") {
+  /// @param journal_folder whether the command's journal <out>.journal is a
+  /// folder (bench_integrators) or a file (stress_stability)
+  OutputLock(const std::string& out, const SweepComm& comm, bool journal_folder = true) : path_(out + ".lock") {
     std::string why;
     if (comm.root()) {  // one rank probes the paths (probes of several would collide) and locks
+      // The lock first (its folder created), so that a second writer is
+      // named as such, whatever the first one's files look like meanwhile.
+      std::error_code ec;
+      if (const auto folder = std::filesystem::path(out).parent_path(); !folder.empty())
+        std::filesystem::create_directories(folder, ec);
       try {
-        CheckOutputFolder(out);
         why = Acquire(out);
+        // Unless another writer holds the lock, the path checks name the
+        // reason more precisely (a folder that cannot be created, a name
+        // too long) than the failed lock file does.
+        if (why.empty() || !held_by_other_) CheckOutputFolder(out, journal_folder);
       } catch (const UsageError& e) {
+        Release();
         why = e.what();
       }
     }
@@ -78,6 +89,7 @@ class OutputLock {
         const ssize_t n = ::pread(fd, buf, sizeof(buf) - 1, 0);
         ::close(fd);
         const std::string pid = n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string("unknown");
+        held_by_other_ = true;
         return fmt::format("--out: \"{}\" is being written by process {} (it holds \"{}\"); wait for it to end or "
                            "choose another --out",
                            out, EscapeControl(pid), path_);
@@ -102,6 +114,7 @@ class OutputLock {
 
   std::string path_;
   int fd_ = -1;
+  bool held_by_other_ = false;  // Acquire failed because another process holds the lock
 };
 
 }  // namespace clothbench

@@ -5,6 +5,7 @@
 #ifndef CLOTHBENCH_HARNESS_RUN_CODEC_H_
 #define CLOTHBENCH_HARNESS_RUN_CODEC_H_
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <optional>
@@ -13,6 +14,8 @@
 #include <string_view>
 #include <type_traits>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "harness/methods.h"
 
@@ -134,6 +137,38 @@ inline std::optional<SundialsStats> GetSundials(ByteReader& r) {
   return r.Pod<SundialsStats>();
 }
 
+// Range checks of a decoded record (a journal entry passed its checksum, a
+// message came from another rank): counts non-negative, numbers finite,
+// status codes known, every frame N×3 and each per-frame series as long as
+// the frame times. @throws std::runtime_error naming the field.
+[[noreturn]] inline void OutOfRange(const std::string& what) {
+  throw std::runtime_error("decoded value out of range: " + what);
+}
+inline void CheckFinite(double v, const char* what) {
+  if (!std::isfinite(v)) OutOfRange(fmt::format("{} = {}", what, v));
+}
+inline void CheckCount(long v, long min, const char* what) {
+  if (v < min) OutOfRange(fmt::format("{} = {} (at least {})", what, v, min));
+}
+inline void CheckTrajectory(const Trajectory& t, long n_particles) {
+  for (std::size_t k = 0; k < t.times.size(); ++k) {
+    CheckFinite(t.times[k], "frame time");
+    if (k > 0 && t.times[k] < t.times[k - 1]) OutOfRange("frame times decrease");
+  }
+  for (const auto* frames : {&t.positions, &t.velocities}) {
+    if (frames->size() > t.times.size()) OutOfRange("more frames than frame times");
+    for (const MatrixN3& f : *frames)
+      if (f.rows() != n_particles || !f.allFinite()) OutOfRange("a frame that is not a finite N×3 matrix");
+  }
+  for (const auto* w : {&t.external_work, &t.contact_work_holding, &t.contact_work_pulling, &t.contact_work_friction}) {
+    if (!w->empty() && w->size() != t.times.size()) OutOfRange("a work series not as long as the frame times");
+    for (double v : *w) CheckFinite(v, "work");
+  }
+}
+inline void CheckStepStatus(int status) {
+  if (status < 0 || status > static_cast<int>(StepStatus::kTimeLimit)) OutOfRange(fmt::format("step status {}", status));
+}
+
 }  // namespace internal
 
 /// One row's run as MethodRun::Run returned it: its RunRecord (errors,
@@ -156,7 +191,10 @@ inline std::string EncodeRun(const MethodRun& m) {
   return w.Take();
 }
 
-inline MethodRun DecodeRun(std::string_view bytes) {
+/// @param n_particles the scene's N (every frame is N×3)
+/// @throws std::runtime_error on a truncated or malformed record, or a
+/// value out of range (internal::CheckTrajectory and the counts).
+inline MethodRun DecodeRun(std::string_view bytes, long n_particles) {
   ByteReader r(bytes);
   MethodRun m;
   for (std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
@@ -175,6 +213,25 @@ inline MethodRun DecodeRun(std::string_view bytes) {
   m.bdf_order = r.Vec<double>();
   m.sundials = internal::GetSundials(r);
   if (!r.done()) throw std::runtime_error("malformed run record");
+  using namespace internal;
+  for (double v : {m.h, m.rtol, m.cg_tolerance, m.atol, m.solver_time_s, m.solver_time_s_median, m.solver_time_s_max,
+                   m.wall_time_s, m.setup_time_s, m.numerical_stiffness})
+    CheckFinite(v, "a parameter or time");
+  if (m.h < 0.0 || m.rtol < 0.0 || m.solver_time_s < 0.0) OutOfRange("a negative step, tolerance or time");
+  CheckCount(m.repeats, 1, "repeats");
+  for (long v : {m.threads, m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.cg_unconverged})
+    CheckCount(v, 0, "a count");
+  CheckCount(m.error_test_failures, -1, "error_test_failures");
+  CheckTrajectory(m.traj, n_particles);
+  for (const StepRecord& st : m.steps_table) {
+    CheckFinite(st.t, "step t");
+    CheckFinite(st.h, "step h");
+    CheckFinite(st.solve_time_s, "step solve time");
+    CheckFinite(st.setup_time_s, "step setup time");
+    if (st.h < 0.0 || st.updates < -1 || st.cg_iterations < -1 || st.colliding < -1) OutOfRange("a step record");
+    CheckStepStatus(st.status);
+  }
+  for (double v : m.bdf_order) CheckFinite(v, "method order");
   return m;
 }
 
@@ -196,7 +253,8 @@ inline std::string EncodeSummary(const RunSummary& s) {
   return w.Take();
 }
 
-inline RunSummary DecodeSummary(std::string_view bytes) {
+/// The reference run: as DecodeRun.
+inline RunSummary DecodeSummary(std::string_view bytes, long n_particles) {
   ByteReader r(bytes);
   RunSummary s;
   s.integrator = r.Str();
@@ -213,6 +271,22 @@ inline RunSummary DecodeSummary(std::string_view bytes) {
   s.trajectory = internal::GetTrajectory(r);
   s.sundials = internal::GetSundials(r);
   if (!r.done()) throw std::runtime_error("malformed run record");
+  using namespace internal;
+  for (double v : {s.h, s.solver_time_in_seconds, s.setup_time_in_seconds, s.wall_time_in_seconds})
+    CheckFinite(v, "a step or time");
+  // −1: not set (RunSummary's defaults; SUNDIALS references report none of ours)
+  for (long v : {long{s.steps}, long{s.rejected_steps}, long{s.cg_unconverged_steps}, long{s.matrix_rebuilds}, s.fixed_point_updates,
+                 s.cg_iterations})
+    CheckCount(v, -1, "a count");
+  CheckCount(s.error_test_failures, -1, "error_test_failures");
+  CheckTrajectory(s.trajectory, n_particles);
+  for (const StepStats& st : s.step_stats) {
+    CheckFinite(st.t, "step t");
+    CheckFinite(st.h, "step h");
+    CheckStepStatus(static_cast<int>(st.status));
+    if (static_cast<int>(st.pcg_status) < 0 || static_cast<int>(st.pcg_status) > static_cast<int>(PcgStatus::kTimeLimit))
+      OutOfRange("a PCG status");
+  }
   return s;
 }
 

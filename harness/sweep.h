@@ -28,6 +28,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -370,9 +371,11 @@ class RecordJournal {
   const std::string& path() const { return path_; }
 
   /// Rank 0: the indices of the stored cells whose entries are regular
-  /// files, whole and of this key (checksum); the others are removed and
-  /// counted in rejected(), so that they are computed again.
-  std::vector<long> Stored() {
+  /// files, whole and of this key (checksum) and, if `check` is given, whose
+  /// content it accepts (it throws std::exception otherwise: values out of
+  /// range); the others are removed and counted in rejected(), so that they
+  /// are computed again.
+  std::vector<long> Stored(const std::function<void(long, const std::string&)>& check = {}) {
     std::vector<long> out;
     for (const auto& e : std::filesystem::directory_iterator(path_)) {
       const std::string name = e.path().filename().string();
@@ -381,7 +384,17 @@ class RecordJournal {
       const long k = std::strtol(name.c_str(), &end, 10);
       if (!end || std::string(end) != ".run" || k < 0) continue;
       std::string bytes, why;
-      if (Read(k, &bytes, &why)) {
+      bool ok = Read(k, &bytes, &why);
+      if (ok && check) {
+        try {
+          check(k, bytes);
+        } catch (const std::exception& x) {
+          ok = false;
+          why = x.what();
+        }
+      }
+      if (!ok && first_rejection_.empty()) first_rejection_ = fmt::format("{}: {}", name, why);
+      if (ok) {
         out.push_back(k);
       } else {
         ++rejected_;
@@ -393,6 +406,8 @@ class RecordJournal {
     return out;
   }
   long rejected() const { return rejected_; }
+  /// The first rejected entry and why ("3.run: fails its checksum").
+  const std::string& first_rejection() const { return first_rejection_; }
   /// The content of entry `index`. @throws std::runtime_error if it is not
   /// a regular file or fails its checksum.
   std::string Load(long index) const {
@@ -440,7 +455,7 @@ class RecordJournal {
     }
     return true;
   }
-  std::string path_, key_;
+  std::string path_, key_, first_rejection_;
   long rejected_ = 0;
 };
 

@@ -204,7 +204,8 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   std::vector<std::pair<RunSummary, double>> row_results(tasks.size());
   for (const auto& [k, bytes] : results) {
     ByteReader r(bytes);
-    row_results[static_cast<std::size_t>(k)] = {DecodeSummary(r.Str()), r.Pod<double>()};
+    // Frames are not sent (trajectory cleared above): N does not matter.
+    row_results[static_cast<std::size_t>(k)] = {DecodeSummary(r.Str(), 0), r.Pod<double>()};
   }
 
   fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, "

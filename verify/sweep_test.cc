@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -18,6 +19,7 @@
 
 #include <fmt/format.h>
 
+#include "harness/run_codec.h"
 #include "harness/sweep.h"
 #include "results/result_reader.h"
 #include "verify/cli_helpers.h"
@@ -194,8 +196,17 @@ TEST(Sweep, DamagedJournalEntriesAreComputedAgain) {
   const fs::path journal = damaged.string() + ".journal";
   fs::remove_all(journal);
   ASSERT_EQ(Bench(kRows + " --out " + whole.string()).exit_code, 0);
-  ASSERT_EQ(Bench(kRows + " --max-runs 4 --out " + damaged.string()).exit_code, 75);
-  ASSERT_EQ(RunFiles(journal), 4u);
+  ASSERT_EQ(Bench(kRows + " --max-runs 5 --out " + damaged.string()).exit_code, 75);
+  ASSERT_EQ(RunFiles(journal), 5u);
+  {  // run 4 with a NaN in a stored frame, under a checksum that fits: caught by the range check
+    const std::string key = testing::Slurp(journal / "key"), entry = testing::Slurp(journal / "4.run");
+    MethodRun m = DecodeRun(entry.substr(entry.find('\n') + 1), 12);  // the tiny scene: 4 × 3
+    ASSERT_FALSE(m.traj.positions.empty());
+    m.traj.positions.back()(7, 2) = std::nan("");
+    const std::string bytes = EncodeRun(m);
+    std::ofstream(journal / "4.run", std::ios::binary)
+        << fmt::format("clothbench run crc={:08x} bytes={}\n", JournalChecksum(key, bytes), bytes.size()) << bytes;
+  }
   {  // one byte of run 1's content flipped (past its header line)
     std::fstream f(journal / "1.run", std::ios::in | std::ios::out | std::ios::binary);
     f.seekg(-10, std::ios::end);
@@ -210,7 +221,7 @@ TEST(Sweep, DamagedJournalEntriesAreComputedAgain) {
   const Outcome o = Bench(kRows + " --out " + damaged.string() + " --quiet");
   ASSERT_EQ(o.exit_code, 0) << o.err;
   EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
-  EXPECT_NE(o.err.find(journal.string() + ": 3 stored runs failed the check"), std::string::npos) << o.err;
+  EXPECT_NE(o.err.find(journal.string() + ": 4 stored runs failed the check"), std::string::npos) << o.err;
   EXPECT_NE(o.out.find("1 of 13 runs from " + journal.string()), std::string::npos) << o.out;
   ExpectSameRuns(whole, damaged);
   // Entries without a key: refused, the folder left alone.
