@@ -8,6 +8,7 @@
 //                     [--cg-tolerance ETA] [--work-precision] ... (--help lists every option)
 
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <optional>
 #include <set>
@@ -272,10 +273,11 @@ int Main(int argc, char** argv) {
   } catch (const SweepJournal::Mismatch& e) {
     return refuse(e.what());
   } catch (const Interrupted& e) {
+    std::error_code ec;
     if (lock) lock->Release();
     if (comm.root())
-      fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written, finished runs kept in {}.journal\n",
-                 SignalName(e.signal), out);
+      fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written{}\n", SignalName(e.signal),
+                 std::filesystem::is_directory(out + ".journal", ec) ? ", finished runs kept in " + out + ".journal" : "");
     comm.Abort(128 + e.signal);
   } catch (const std::bad_alloc&) {
     if (lock) lock->Release();
