@@ -8,8 +8,8 @@
 //                     [--cg-tolerance ETA] [--work-precision] ... (--help lists every option)
 
 #include <cmath>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <optional>
 #include <set>
 #include <string>

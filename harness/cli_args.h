@@ -106,7 +106,7 @@ inline void CheckArkodeTable(const std::string& name) {
 /// (bench_integrators) or a regular file (`journal_folder` false:
 /// stress_stability) or absent. Absent ones are created and removed again
 /// (a probe).
-inline void CheckOutputFolder(const std::string& out, bool journal_folder = true) {
+inline void CheckOutputPaths(const std::string& out, bool journal_folder = true) {
   namespace fs = std::filesystem;
   const auto refuse = [&](const std::string& path, const std::string& why) {
     return UsageError(fmt::format("--out: \"{}\" {}", EscapeControl(path), why));

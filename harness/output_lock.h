@@ -22,9 +22,9 @@
 
 namespace clothbench {
 
-/// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (after its
-/// CheckOutputFolder probe of the output's paths) and held until destruction; the kernel also releases
-/// it when the process ends in any other way. The file holds the holder's
+/// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (which then
+/// probes the output's paths, CheckOutputPaths) and held until destruction;
+/// the kernel also releases it when the process ends in any other way. The file holds the holder's
 /// pid, which a refused process names; it is removed on release (a process
 /// that opened it just before checks, after locking, that the path still
 /// names the file it locked, and starts over if not).
@@ -32,7 +32,7 @@ class OutputLock {
  public:
   /// @throws UsageError (exit 2) on every rank if another process holds the
   /// lock (naming --out and the pid), the lock file cannot be created, or
-  /// CheckOutputFolder refuses a path (its message on rank 0).
+  /// CheckOutputPaths refuses a path (its message on rank 0).
   /// @param journal_folder whether the command's journal <out>.journal is a
   /// folder (bench_integrators) or a file (stress_stability)
   OutputLock(const std::string& out, const SweepComm& comm, bool journal_folder = true) : path_(out + ".lock") {
@@ -48,7 +48,7 @@ class OutputLock {
         // Unless another writer holds the lock, the path checks name the
         // reason more precisely (a folder that cannot be created, a name
         // too long) than the failed lock file does.
-        if (why.empty() || !held_by_other_) CheckOutputFolder(out, journal_folder);
+        if (why.empty() || !held_by_other_) CheckOutputPaths(out, journal_folder);
       } catch (const UsageError& e) {
         Release();
         why = e.what();

@@ -91,7 +91,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   if (preconditioner) base.solver.preconditioner = *preconditioner;
   if (etas.empty()) etas = {base.solver.cg_tolerance};
   if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
-  CheckOutputFolder(out);
+  CheckOutputPaths(out);
   // One block of rows on `s` (k and d taken from each row), one table per η.
   struct Block {
     std::string scene_name;

@@ -44,23 +44,24 @@ std::string CheckMeshHeader(const std::string& path) {
   const double bytes = static_cast<double>(in.tellg());
   in.seekg(0);
   double vertices = -1.0, faces = -1.0;
-  std::string line;
-  std::getline(in, line);
   const auto trimmed = [](std::string s) {
     while (!s.empty() && (s.back() == '\r' || s.back() == ' ')) s.pop_back();
     return s;
   };
-  if (trimmed(line).rfind("OFF", 0) == 0 || trimmed(line).rfind("COFF", 0) == 0 || trimmed(line).rfind("NOFF", 0) == 0) {
+  std::string line;
+  std::getline(in, line);
+  const std::string first = trimmed(line);
+  if (first.rfind("OFF", 0) == 0 || first.rfind("COFF", 0) == 0 || first.rfind("NOFF", 0) == 0) {
     // The counts are on the header line after "OFF" or on the first line
     // that is neither empty nor a comment.
-    std::istringstream head(trimmed(line).substr(trimmed(line).find("OFF") + 3));
+    std::istringstream head(first.substr(first.find("OFF") + 3));
     if (!(head >> vertices >> faces)) {
       while (std::getline(in, line))
         if (const auto b = line.find_first_not_of(" \t\r"); b != std::string::npos && line[b] != '#') break;
       std::istringstream counts(line);
       if (!(counts >> vertices >> faces)) return "an OFF file without vertex and face counts";
     }
-  } else if (trimmed(line) == "ply") {
+  } else if (first == "ply") {
     for (int k = 0; k < 1000 && std::getline(in, line) && trimmed(line) != "end_header"; ++k) {
       std::istringstream words(line);
       std::string element, name;

@@ -170,6 +170,7 @@ StepStats Xpbd::Step(double h) {
   const double dt = h / substeps_;
   x_ = x0_;
   v_ = v0_;
+  bool blown_up = false;
   for (int k = 0; k < substeps_; ++k) {
     if (DeadlinePassed()) {  // the run's --time-limit (model/interrupt.h); the state stays x₀, v₀
       st.status = StepStatus::kTimeLimit;
@@ -202,15 +203,20 @@ StepStats Xpbd::Step(double h) {
       p_.row(c.b) = pb.transpose();
     }
     if (!shear_.empty()) ProjectShear(dt);
-    // A non-finite prediction ends the step here, before the obstacle
-    // queries (CGAL) see it; the state stays x₀, v₀.
-    if (!p_.allFinite()) break;
-    if (!sys_.obstacles().empty()) st.colliding = ProjectObstacles(t + dt, dt);
+    if (!sys_.obstacles().empty()) {
+      // A non-finite prediction ends the step here, before the obstacle
+      // queries (CGAL) see it; the state stays x₀, v₀.
+      if (!p_.allFinite()) {
+        blown_up = true;
+        break;
+      }
+      st.colliding = ProjectObstacles(t + dt, dt);
+    }
     // 5. v ← (p − x)/Δt, x ← p.
     v_ = (p_ - x_) / dt;
     x_.swap(p_);
   }
-  if (!p_.allFinite() || !x_.allFinite() || !v_.allFinite()) {
+  if (blown_up || !x_.allFinite() || !v_.allFinite()) {
     st.status = StepStatus::kNonFinite;
   } else {
     x0_.swap(x_);

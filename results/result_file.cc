@@ -11,6 +11,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <memory>
 #include <thread>
 
 #include <fmt/format.h>
@@ -268,21 +269,30 @@ namespace {
 
 constexpr const char* kSignatureFormat = "clothbench result crc32 {:08x} bytes {}\n";
 
+// The CRC-32 of what is left to read in `f` from its position, and how many
+// bytes that was (added to *size).
+uLong CrcOfRest(std::FILE* f, std::size_t* size) {
+  std::vector<unsigned char> buf(std::size_t{1} << 20);
+  uLong crc = crc32_z(0L, Z_NULL, 0);
+  for (std::size_t got; (got = std::fread(buf.data(), 1, buf.size(), f)) > 0;) {
+    crc = crc32_z(crc, buf.data(), got);
+    *size += got;
+  }
+  return crc;
+}
+
+using File = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;
+
 }  // namespace
 
 void SignResultFile(const std::string& path) {
   std::FILE* f = std::fopen(path.c_str(), "r+b");
   if (!f) throw ResultError(fmt::format("{}: cannot open to write its integrity block", path));
-  std::vector<unsigned char> buf(std::size_t{1} << 20);
-  uLong crc = crc32_z(0L, Z_NULL, 0);
-  std::size_t size = 0, got = 0;
+  std::size_t size = kSignatureBytes;
   bool ok = std::fseek(f, static_cast<long>(kSignatureBytes), SEEK_SET) == 0;
-  while (ok && (got = std::fread(buf.data(), 1, buf.size(), f)) > 0) {
-    crc = crc32_z(crc, buf.data(), got);
-    size += got;
-  }
+  const uLong crc = ok ? CrcOfRest(f, &size) : 0;
   ok = ok && !std::ferror(f);
-  std::string block = fmt::format(kSignatureFormat, crc, size + kSignatureBytes);
+  std::string block = fmt::format(kSignatureFormat, crc, size);
   block.resize(kSignatureBytes, '\0');
   ok = ok && std::fseek(f, 0, SEEK_SET) == 0 && std::fwrite(block.data(), 1, block.size(), f) == block.size();
   ok = (std::fflush(f) == 0) && ok;
@@ -294,15 +304,9 @@ void CheckResultSignature(const std::string& name, const unsigned char* data, st
   if (size < kSignatureBytes)
     throw ResultError(fmt::format("{}: {} bytes, shorter than a result file's integrity block (truncated, or not a "
                                   "clothbench result file)", name, size));
-  std::FILE* rest = fmemopen(const_cast<unsigned char*>(data), size, "rb");
-  if (!rest) throw ResultError(fmt::format("{}: cannot read the image", name));
-  try {
-    CheckResultSignature(name, rest);
-  } catch (...) {
-    std::fclose(rest);
-    throw;
-  }
-  std::fclose(rest);
+  const File image(fmemopen(const_cast<unsigned char*>(data), size, "rb"), std::fclose);
+  if (!image) throw ResultError(fmt::format("{}: cannot read the image", name));
+  CheckResultSignature(name, image.get());
 }
 
 void CheckResultSignature(const std::string& name, std::FILE* f) {
@@ -316,13 +320,8 @@ void CheckResultSignature(const std::string& name, std::FILE* f) {
   if (std::sscanf(head, "clothbench result crc32 %8x bytes %llu", &want_crc, &want_size) != 2)
     throw ResultError(fmt::format("{}: no integrity block (not a clothbench result file, or written before result "
                                   "files carried one: rerun the command that wrote it)", name));
-  std::vector<unsigned char> buf(std::size_t{1} << 20);
-  uLong crc = crc32_z(0L, Z_NULL, 0);
-  std::size_t size = kSignatureBytes, got = 0;
-  while ((got = std::fread(buf.data(), 1, buf.size(), f)) > 0) {
-    crc = crc32_z(crc, buf.data(), got);
-    size += got;
-  }
+  std::size_t size = kSignatureBytes;
+  const uLong crc = CrcOfRest(f, &size);
   if (std::ferror(f)) throw ResultError(fmt::format("{}: read error: {}", name, std::strerror(errno)));
   if (want_size != size)
     throw ResultError(fmt::format("{}: {} bytes, its integrity block says {} (truncated or appended to)", name, size,

@@ -8,8 +8,9 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstring>
 #include <cmath>
+#include <cstring>
+#include <memory>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -89,18 +90,12 @@ ResultReader::ResultReader(const std::string& path) : path_(path) {
     ::close(fd);
     throw ResultError(fmt::format("{}: not a regular file", path));
   }
-  std::FILE* in = ::fdopen(fd, "rb");
+  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> in(::fdopen(fd, "rb"), std::fclose);
   if (!in) {
     ::close(fd);
     throw ResultError(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
   }
-  try {
-    CheckResultSignature(path, in);
-  } catch (...) {
-    std::fclose(in);
-    throw;
-  }
-  std::fclose(in);
+  CheckResultSignature(path, in.get());
   if (H5Fis_hdf5(path.c_str()) <= 0)
     throw ResultError(fmt::format("{}: cannot open: not an HDF5 file or not readable", path));
   file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -281,11 +276,7 @@ std::string ResultReader::Text(const std::string& dataset) const {
   if (ds.id < 0 || H5Tget_class(type.id) != H5T_STRING || H5Tis_variable_str(type.id) > 0 ||
       H5Sget_simple_extent_type(space.id) != H5S_SCALAR)
     throw ResultError(fmt::format("{}: {} is not a fixed-length string", path_, dataset));
-  const std::size_t size = H5Tget_size(type.id);
-  if (size > 1100 * static_cast<std::size_t>(H5Dget_storage_size(ds.id)) + (std::size_t{1} << 20))
-    throw ResultError(fmt::format("{}: {}: a {}-byte string in {} stored bytes (damaged file)", path_, dataset, size,
-                                  H5Dget_storage_size(ds.id)));
-  std::string text(size, '\0');
+  std::string text(CheckedCount(ds.id, path_, dataset, {H5Tget_size(type.id)}, 1), '\0');
   if (H5Dread(ds.id, type.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, text.data()) < 0)
     throw ResultError(fmt::format("{}: cannot read {}", path_, dataset));
   text.erase(std::find_if(text.rbegin(), text.rend(), [](char c) { return c != '\0'; }).base(), text.end());
