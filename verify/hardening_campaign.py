@@ -34,6 +34,8 @@ import subprocess
 import sys
 import time
 
+# The 4×3 sheet of verify/cli_helpers.h (kTinyScene) without its [solver]
+# table, so that cases can append their own.
 TINY = """name = "tiny"
 t_end = 0.04
 frame_dt = 0.01
