@@ -17,8 +17,9 @@
 //   build/bench/bench_scaling [--benchmark_filter=REGEX]
 //                             [--benchmark_out=out/scaling.json --benchmark_out_format=json]
 // SbdfStep/cholesky_amd: the factor with AMD ordering instead of METIS.
-// SbdfStep/cholesky_plain: the factor without contact factors (the factor
-// of A_F alone; solver key contact_factors = false).
+// SbdfStep/cholesky_plain, amg_plain: the factor without contact factors
+// and the hierarchy without prefiltering (both of A_F alone; solver key
+// contact_factors = false).
 // StepPart/*: one Cholesky solve, one A·x and one evaluation of the explicit
 // forces at 10⁵ and 10⁶ particles (the parts of a step).
 // By default the preconditioners whose step at 10⁶ takes minutes (ic0,
@@ -162,15 +163,17 @@ int main(int argc, char** argv) {
   amd->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
   for (int side : sides) amd->Args({side, static_cast<long>(PreconditionerType::kCholesky), 0, 1});
   amd->Complexity(benchmark::oN);
-  // The Cholesky factor without contact factors (the factor of A_F alone),
-  // with contacts: what the contact factors gain.
-  for (const int contact : {10, 30}) {
-    auto* plain = benchmark::RegisterBenchmark(("SbdfStep/cholesky_plain/contact" + std::to_string(contact)).c_str(),
-                                               BM_SbdfStep);
-    plain->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
-    for (int side : sides) plain->Args({side, static_cast<long>(PreconditionerType::kCholesky), contact, 2});
-    plain->Complexity(benchmark::oN);
-  }
+  // The Cholesky factor and the AMG hierarchy of A_F alone (without contact
+  // factors, without prefiltering), with contacts: what the contact-aware
+  // versions gain.
+  for (PreconditionerType type : {PreconditionerType::kCholesky, PreconditionerType::kAmg})
+    for (const int contact : {10, 30}) {
+      const std::string name = "SbdfStep/" + std::string(ToString(type)) + "_plain/contact" + std::to_string(contact);
+      auto* plain = benchmark::RegisterBenchmark(name.c_str(), BM_SbdfStep);
+      plain->ArgNames({"side", "", "", ""})->Iterations(4)->UseManualTime()->Unit(benchmark::kMillisecond);
+      for (int side : sides) plain->Args({side, static_cast<long>(type), contact, 2});
+      plain->Complexity(benchmark::oN);
+    }
   // Parts of a step: 0 = Cholesky solve, 1 = A·x, 2 = explicit forces.
   for (const char* part : {"CholeskySolve", "Product", "ExplicitForces"}) {
     auto* b = benchmark::RegisterBenchmark((std::string("StepPart/") + part).c_str(), BM_StepParts);

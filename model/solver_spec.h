@@ -62,8 +62,10 @@ struct SolverSpec {
   /// The CHOLMOD factor: fastest on the thesis scenes and at scale (docs/performance.md); the thesis scenes name "ic0" explicitly.
   PreconditionerType preconditioner = PreconditionerType::kCholesky;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
-  /// "cholesky" only: precondition each column with a factor that also
-  /// decouples the contacts along that axis (Preconditioner, solver/pcg.h).
+  /// Contact-aware preconditioners (Preconditioner, solver/pcg.h): "cholesky"
+  /// preconditions each column with a factor that also decouples the
+  /// contacts along that axis; "amg" builds its hierarchy on the filtered
+  /// 3N×3N matrix in contact frames (prefiltered AMG). Others: unused.
   bool contact_factors = true;
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
   /// Iteration controller band (docs/model.md §6; thesis §3.4.3): h grows by step_factor when

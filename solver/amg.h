@@ -36,6 +36,22 @@ class AmgPreconditioner {
   /// Number of levels of the last setup.
   int levels() const;
 
+  /// The prefiltered hierarchy (Tamstorf, Jones & McCormick 2015, §4): the
+  /// same settings in systems mode, three functions per node with nodal
+  /// coarsening (the Frobenius norm of each 3×3 block), for the 3N×3N
+  /// matrix K = S A S + (I − S) of the filtered system (4.3), given as CSR
+  /// rows with the interleaved index 3p + c. Allocates.
+  /// @param row_start 3N + 1 offsets, @param cols, values the entries of
+  ///        each row (K symmetric, both triangles)
+  /// @return false if hypre failed or the V-cycle is not finite.
+  bool FactorizeSystem(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
+                       const std::vector<double>& values);
+  /// z ← K⁻¹ r approximately: one V-cycle on the interleaved 3N vector.
+  /// @param r, z N×3. NaN if no system hierarchy is set up.
+  void SolveSystem(const MatrixN3& r, MatrixN3* z) const;
+  /// Levels of the last system setup.
+  int system_levels() const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <omp.h>
 
 namespace clothbench {
@@ -192,7 +193,7 @@ void IncompleteCholesky0::SolveInPlace(double* y) const {
 
 // ---------------------------------------------------------------------------
 Preconditioner::Preconditioner(PreconditionerType type, CholeskyOrdering ordering, bool contact_factors)
-    : type_(type), ordering_(ordering), contact_factors_(contact_factors && type == PreconditionerType::kCholesky) {
+    : type_(type), ordering_(ordering), contact_factors_(contact_factors && (type == PreconditionerType::kCholesky || type == PreconditionerType::kAmg)) {
   // Started here, not in Analyze: MPI's start-up (≈0.3 s, once per process)
   // is not part of the setup time of A's preconditioner.
   if (type_ == PreconditionerType::kAmg) amg_ = std::make_unique<AmgPreconditioner>();
@@ -232,12 +233,139 @@ bool Preconditioner::Factorize(const SparseMatrix& a) {
       axis_valid_ = {false, false, false};  // new values of A: the contact factors are stale
       axis_used_ = {false, false, false};
       return cholesky_ && cholesky_->Factorize(a);
-    case PreconditionerType::kAmg: return amg_ && amg_->Factorize(a);
+    case PreconditionerType::kAmg:
+      system_valid_ = system_used_ = false;  // new values of A: the system hierarchy is stale
+      return amg_ && amg_->Factorize(a);
   }
   return false;
 }
 
+namespace {
+
+// The contact frame of a normal n (prefiltered AMG): the smallest rotation R
+// that takes the axis c nearest to n to ±n (Rodrigues' formula), so that in
+// K̂ = Rᵀ K R the constrained direction is unknown 3p + c alone, decoupled
+// like a fixed particle's, and the tangent directions stay the unknowns of
+// the other two axes (near-axis normals barely rotate them).
+Eigen::Matrix3d ContactFrame(const Vector3& n) {
+  int c = 0;
+  n.cwiseAbs().maxCoeff(&c);
+  const Vector3 u = n(c) < 0.0 ? Vector3(-n) : n;
+  const Vector3 e = Vector3::Unit(c);
+  const Vector3 v = e.cross(u);
+  const double s2 = v.squaredNorm();
+  if (s2 == 0.0) return Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d vx;
+  vx << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return Eigen::Matrix3d::Identity() + vx + vx * vx * ((1.0 - e.dot(u)) / s2);
+}
+
+}  // namespace
+
+bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter) {
+  const int n = static_cast<int>(a.rows());
+  if (static_cast<int>(s_now_.size()) != n) {
+    s_now_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+    system_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+    system_valid_ = false;
+  }
+  for (auto& s : s_now_) s.setIdentity();
+  int contacts = 0;
+  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+    Eigen::Matrix3d& s = s_now_[static_cast<std::size_t>(p)];
+    for (int k = 0; k < count; ++k) s -= dirs.col(k) * dirs.col(k).transpose();
+    contacts += count < 3;
+  });
+  if (contacts == 0) {  // only the fixed particles: A_F's hierarchy is exact
+    system_used_ = false;
+    return true;
+  }
+  int changed = 0;
+  for (std::size_t p = 0; p < s_now_.size(); ++p)
+    changed += (s_now_[p] - system_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
+  // Rebuild or keep: a kept hierarchy is that of a slightly different K and
+  // costs CG iterations. Those beyond the first solve after the last setup
+  // are summed (Apply counts and times its V-cycles), and the hierarchy is
+  // rebuilt once they, plus what the next kept step is expected to cost,
+  // reach the cost of the last setup (the rule of the contact factors:
+  // whichever measured cost is lower). A hierarchy is never kept over more
+  // than kSystemKeepShare of the contacts changed.
+  if (system_valid_) {
+    const long applications = system_applications_ - applications_at_adapt_;
+    if (solves_since_setup_ == 1) baseline_applications_ = applications;
+    if (solves_since_setup_ >= 1 && system_applications_ > 0)
+      stale_seconds_ += static_cast<double>(std::max(0L, applications - baseline_applications_)) *
+                        (system_apply_seconds_ / static_cast<double>(system_applications_));
+  }
+  applications_at_adapt_ = system_applications_;
+  if (system_valid_ &&
+      (changed == 0 || (changed <= kSystemKeepShare * contacts && stale_seconds_ + stale_rate_ < setup_seconds_))) {
+    ++solves_since_setup_;
+    system_used_ = true;
+    return true;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  system_s_.swap(s_now_);
+  frames_.resize(static_cast<std::size_t>(n));
+  for (auto& f : frames_) f.setIdentity();
+  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+    if (count == 1) frames_[static_cast<std::size_t>(p)] = ContactFrame(dirs.col(0));
+  });
+  // K̂ = Rᵀ (S A S + (I − S)) R: block (p, q) is a_pq R_pᵀ S_p S_q R_q, block
+  // (p, p) is R_pᵀ (a_pp S_p + I − S_p) R_p, and between two free particles
+  // a_pq I. Round-off of the rotations (below 1e-13 of a block) is dropped.
+  k_start_.assign(static_cast<std::size_t>(3 * n) + 1, 0);
+  k_cols_.clear();
+  k_values_.clear();
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  const double* val = a.valuePtr();
+  for (int p = 0; p < n; ++p) {
+    const Eigen::Matrix3d& sp = system_s_[static_cast<std::size_t>(p)];
+    const bool free_p = sp.isIdentity(0.0);
+    for (int r = 0; r < 3; ++r) {
+      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
+        const int q = inner[pos];
+        const Eigen::Matrix3d& sq = system_s_[static_cast<std::size_t>(q)];
+        if (free_p && sq.isIdentity(0.0)) {
+          k_cols_.push_back(3 * q + r);
+          k_values_.push_back(val[pos]);
+          continue;
+        }
+        Eigen::Matrix3d block = val[pos] * sp * sq;
+        if (q == p) block += Eigen::Matrix3d::Identity() - sp;
+        block = frames_[static_cast<std::size_t>(p)].transpose() * block * frames_[static_cast<std::size_t>(q)];
+        const double tiny = 1e-13 * block.cwiseAbs().maxCoeff();
+        block = block.unaryExpr([tiny](double x) { return std::abs(x) <= tiny ? 0.0 : x; });
+        for (int c = 0; c < 3; ++c)
+          if (block(r, c) != 0.0 || (q == p && c == r)) {
+            k_cols_.push_back(3 * q + c);
+            k_values_.push_back(block(r, c));
+          }
+      }
+      k_start_[static_cast<std::size_t>(3 * p + r) + 1] = static_cast<int>(k_cols_.size());
+    }
+  }
+  // If the setup fails, A_F's hierarchy (which preconditions every filter)
+  // serves until the next setup.
+  system_valid_ = amg_->FactorizeSystem(n, k_start_, k_cols_, k_values_);
+  if (!system_valid_) ++contact_stats_.fallbacks;
+  const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  setup_seconds_ = dt;
+  // The expected cost of a kept step: the mean over those since the last
+  // setup, or, if none was kept, 0.9 of the last estimate (so that keeping
+  // is tried again once the contacts settle).
+  stale_rate_ = solves_since_setup_ > 1 ? stale_seconds_ / (solves_since_setup_ - 1) : 0.9 * stale_rate_;
+  stale_seconds_ = 0.0;
+  solves_since_setup_ = 1;
+  contact_stats_.seconds += dt;
+  ++contact_stats_.refactorizations;
+  system_used_ = system_valid_;
+  return true;
+}
+
 bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter) {
+  if (contact_factors_ && type_ == PreconditionerType::kAmg) return AdaptAmgTo(a, filter);
   if (!contact_factors_ || !cholesky_) return true;
   int want[3] = {0, 0, 0};
   for (auto& w : axis_want_) std::fill(w.begin(), w.end(), 0);
@@ -346,7 +474,21 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       }
       break;
     }
-    case PreconditionerType::kAmg: amg_->Solve(r, z); break;
+    case PreconditionerType::kAmg:
+      if (system_used_) {
+        const auto t0 = std::chrono::steady_clock::now();
+        rotated_r_.resize(r.rows(), 3);
+        rotated_z_.resize(r.rows(), 3);
+        for (Eigen::Index p = 0; p < r.rows(); ++p)
+          rotated_r_.row(p) = r.row(p) * frames_[static_cast<std::size_t>(p)];
+        amg_->SolveSystem(rotated_r_, &rotated_z_);
+        for (Eigen::Index p = 0; p < r.rows(); ++p)
+          z->row(p) = rotated_z_.row(p) * frames_[static_cast<std::size_t>(p)].transpose();
+        system_apply_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        ++system_applications_;
+      } else
+        amg_->Solve(r, z);
+      break;
   }
 }
 

@@ -102,12 +102,14 @@ class IncompleteCholesky0 {
   double shift_ = 0.0;
 };
 
-/// What the contact factors of "cholesky" did (Preconditioner::AdaptTo).
+/// What the contact factors of "cholesky" and the prefiltered hierarchy of
+/// "amg" did (Preconditioner::AdaptTo).
 struct ContactFactorStats {
-  long refactorizations = 0;  ///< numeric factorisations of an axis factor
+  long refactorizations = 0;  ///< numeric factorisations of an axis factor; setups of the prefiltered hierarchy
   long modifications = 0;     ///< row deletes and adds on the axis factors
+  long fallbacks = 0;         ///< failed setups of the prefiltered hierarchy (A_F's served instead)
   double seconds = 0.0;       ///< their wall time [s]
-  int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo)
+  int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo; "cholesky")
 };
 
 /// Preconditioner for the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃,
@@ -129,6 +131,16 @@ struct ContactFactorStats {
 /// factors follow the contacts step by step: by row deletes and adds
 /// (CHOLMOD's Modify module) while their measured cost is below a
 /// refactorisation's, else by a refactorisation.
+///
+/// Prefiltered AMG ("amg" with contact_factors; Tamstorf, Jones & McCormick
+/// 2015): with contacts, one V-cycle of BoomerAMG in systems mode on the
+/// 3N×3N filtered matrix K = S A S + (I − S) itself, in per-particle contact
+/// frames (a contact's normal is one unknown, decoupled), instead of A_F's
+/// hierarchy on each column. Every constraint, tilted or not, is built in;
+/// the V-cycle is an approximate inverse, as A_F's is without contacts. The
+/// hierarchy is kept while the contacts do not change, and while the
+/// measured cost of the extra CG iterations of a kept hierarchy stays below
+/// that of a setup.
 class Preconditioner {
  public:
   /// |n_c| at and above which a contact normal n counts as axis c's.
@@ -136,6 +148,14 @@ class Preconditioner {
   /// An axis gets a factor of its own once at least this share of the
   /// particles are in contact along it (docs/performance.md).
   static constexpr double kContactAxisShare = 0.02;
+  /// Prefiltered AMG: a particle's constraint has changed when its S_p
+  /// changed by more than this (max-norm; a direction turned by ≈ this [rad]).
+  static constexpr double kSystemTurn = 1e-3;
+  /// Prefiltered AMG: the hierarchy is rebuilt whenever more than this share
+  /// of the contacts changed (kept for the half of the contacts it was
+  /// built for, it cost 80 CG iterations instead of 10: test
+  /// PrefilteredHierarchySeesTiltedContacts).
+  static constexpr double kSystemKeepShare = 0.05;
 
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
                           CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
@@ -178,6 +198,26 @@ class Preconditioner {
   std::array<bool, 3> axis_valid_{}, axis_used_{};
   double modify_seconds_ = 0.0, refactor_seconds_ = 0.0;  // measured: one row change, one refactorisation
   ContactFactorStats contact_stats_;
+  // Prefiltered AMG ("amg" with contact_factors): S_p of each particle as
+  // the system hierarchy was built (identity: free) and now (scratch), the
+  // CSR rows of K = S A S + (I − S), whether the hierarchy is current for A's
+  // values and used by Apply.
+  bool AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter);
+  std::vector<Eigen::Matrix3d> system_s_, s_now_;
+  std::vector<int> k_start_, k_cols_;
+  std::vector<double> k_values_;
+  std::vector<Eigen::Matrix3d> frames_;  // R_p of the hierarchy's contact frames
+  mutable MatrixN3 rotated_r_, rotated_z_;
+  bool system_valid_ = false, system_used_ = false;
+  // The rebuild rule (AdaptAmgTo): V-cycles applied and their time, the
+  // count at the last AdaptTo, solves since the last setup, the V-cycles of
+  // the first of them, the cost of the V-cycles beyond that count since the
+  // setup and the setup's cost [s].
+  mutable long system_applications_ = 0;
+  mutable double system_apply_seconds_ = 0.0;
+  long applications_at_adapt_ = 0, baseline_applications_ = 0;
+  int solves_since_setup_ = 0;
+  double stale_seconds_ = 0.0, setup_seconds_ = 0.0, stale_rate_ = 0.0;
 };
 
 /// y ← A x for a symmetric N×N A applied to the three columns of x in one

@@ -210,5 +210,29 @@ TEST(StepLoop, ContactFactorsDoNotAllocateAtAConstantContactSet) {
   EXPECT_EQ(g_allocations.load(), 0);
 }
 
+// The prefiltered AMG at a constant contact set: AdaptTo compares the
+// filter with the hierarchy's and keeps it, allocating nothing (its V-cycles
+// allocate inside hypre, see DoesNotAllocateWithFactorAmgAndThreads).
+TEST(StepLoop, PrefilteredAmgKeepsItsHierarchyWithoutAllocating) {
+  const Scene s = DefaultScene();
+  const ParticleSystem sys(s);
+  const int n = sys.num_particles();
+  SystemMatrix sm(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+  ASSERT_TRUE(sm.Update(0.01));
+  VelocityFilter f;
+  f.Reserve(n);
+  for (int p : sys.fixed()) f.Fix(p);
+  for (int p = 0; p < n / 2; ++p) f.Constrain(p, Vector3(1, 0, 1).normalized(), 0.0);
+  ASSERT_TRUE(sm.AdaptTo(f));
+  g_allocations = 0;
+  g_counting = true;
+  bool ok = true;
+  for (int k = 0; k < 3; ++k) ok &= sm.AdaptTo(f);
+  g_counting = false;
+  EXPECT_TRUE(ok);
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(sm.preconditioner().contact_stats().refactorizations, 1);
+}
+
 }  // namespace
 }  // namespace clothbench
