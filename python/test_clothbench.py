@@ -177,3 +177,31 @@ def test_scene_error_control_makes_an_error_row():
     r = clothbench.run(scene, "sbdf2", repeat=1)
     assert r["label"] == "sbdf2/error" and r["step_kind"] == "adaptive" and r["rtol"] == 1e-3
     assert r["step_control"] == "error"
+
+
+def test_contact_phases_summarises_step_stats(tmp_path):
+    # scripts/contact_phases, which prints docs/performance.md's contact
+    # tables, on the 400-particle round table: its rows must be the file's
+    # step_stats, split into the phases its docstring names.
+    out = tmp_path / "rt.h5"
+    subprocess.run([os.environ["CLOTHBENCH_BENCH_INTEGRATORS"], "--scene", "round_table", "--integrators", "sbdf2",
+                    "--h", "0.01", "--t-end", "0.6", "--reference", "none", "--frames", "ends", "--repeat", "1",
+                    "--preconditioner", "amg", "--out", str(out), "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    script = os.path.join(os.path.dirname(__file__), "..", "scripts", "contact_phases")
+    p = subprocess.run(["/usr/bin/python3", script, str(out)], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    rows = {cells[3]: cells for cells in (line.split("|") for line in p.stdout.splitlines()[2:])}
+    with h5py.File(out, "r") as f:
+        steps = f["runs/sbdf2_h0.01/step_stats"][()]
+        n = f["runs/sbdf2_h0.01/positions"].shape[1]
+    steps = steps[steps["status"] == 0]
+    first = int(np.nonzero(steps["colliding"] >= 0.02 * n)[0][0])
+    impact = steps[first:first + 20]
+    resting = steps[steps["t"] > steps["t"][-1] - 0.3 + 1e-9]
+    assert set(rows) == {" free ", " impact ", " resting "}
+    assert int(rows[" free "][4]) == min(first, 12) - 2
+    assert int(rows[" impact "][4]) == len(impact) and int(rows[" resting "][4]) == len(resting)
+    assert float(rows[" impact "][7]) == pytest.approx(np.mean(impact["cg_iterations"]), abs=0.05)
+    assert float(rows[" resting "][7]) == pytest.approx(np.mean(resting["cg_iterations"]), abs=0.05)
+    p = subprocess.run(["/usr/bin/python3", script, "--resting", "0", str(out)], capture_output=True, text=True)
+    assert p.returncode != 0 and "--resting" in p.stderr
