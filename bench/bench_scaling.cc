@@ -12,7 +12,7 @@
 // the setup_s counter instead. Counters: cg_per_step, setup_s (assembly,
 // analysis, both factorisations) split into analysis_s and factorization_s
 // (one factorisation), colliding (particles in contact),
-// factor_nnz (Cholesky) or amg_levels.
+// factor_nnz (Cholesky) or amg_levels and amg_fallbacks.
 //
 //   build/bench/bench_scaling [--benchmark_filter=REGEX]
 //                             [--benchmark_out=out/scaling.json --benchmark_out_format=json]
@@ -105,7 +105,11 @@ void BM_SbdfStep(benchmark::State& state) {
   state.counters["N"] = sys.num_particles();
   if (type == PreconditionerType::kCholesky)
     state.counters["factor_nnz"] = static_cast<double>(engine.system_matrix().preconditioner().factor_nonzeros());
-  if (type == PreconditionerType::kAmg) state.counters["amg_levels"] = engine.system_matrix().preconditioner().amg_levels();
+  if (type == PreconditionerType::kAmg) {
+    state.counters["amg_levels"] = engine.system_matrix().preconditioner().amg_levels();
+    // Setups of the prefiltered hierarchy whose V-cycle was not finite (A_F's served instead).
+    state.counters["amg_fallbacks"] = static_cast<double>(engine.system_matrix().preconditioner().contact_stats().fallbacks);
+  }
   state.SetComplexityN(sys.num_particles());
 }
 

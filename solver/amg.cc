@@ -250,6 +250,4 @@ void AmgPreconditioner::SolveSystem(const MatrixN3& r, MatrixN3* z) const {
     for (int c = 0; c < 3; ++c) (*z)(p, c) = x[3 * p + c];
 }
 
-int AmgPreconditioner::system_levels() const { return impl_->system.levels; }
-
 }  // namespace clothbench

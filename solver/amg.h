@@ -49,8 +49,6 @@ class AmgPreconditioner {
   /// z ← K⁻¹ r approximately: one V-cycle on the interleaved 3N vector.
   /// @param r, z N×3. NaN if no system hierarchy is set up.
   void SolveSystem(const MatrixN3& r, MatrixN3* z) const;
-  /// Levels of the last system setup.
-  int system_levels() const;
 
  private:
   struct Impl;

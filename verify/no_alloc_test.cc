@@ -180,6 +180,17 @@ TEST(StepLoop, DoesNotAllocateWithFactorAmgAndThreads) {
   }
 }
 
+// The fixed particles, and particles 0 … N/2 − 1 in contact along `normal`
+// (a filter sized for the system: Reserve(N)).
+VelocityFilter HalfInContact(const ParticleSystem& sys, const Vector3& normal) {
+  const int n = sys.num_particles();
+  VelocityFilter f;
+  f.Reserve(n);
+  for (int p : sys.fixed()) f.Fix(p);
+  for (int p = 0; p < n / 2; ++p) f.Constrain(p, normal, 0.0);
+  return f;
+}
+
 // The contact factors at a constant contact set (Preconditioner::AdaptTo
 // finds nothing to change) and their solves allocate nothing.
 TEST(StepLoop, ContactFactorsDoNotAllocateAtAConstantContactSet) {
@@ -188,10 +199,7 @@ TEST(StepLoop, ContactFactorsDoNotAllocateAtAConstantContactSet) {
   const int n = sys.num_particles();
   SystemMatrix sm(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
   ASSERT_TRUE(sm.Update(0.01));
-  VelocityFilter f;
-  f.Reserve(n);
-  for (int p : sys.fixed()) f.Fix(p);
-  for (int p = 0; p < n / 2; ++p) f.Constrain(p, Vector3(0, 0, 1), 0.0);
+  const VelocityFilter f = HalfInContact(sys, Vector3(0, 0, 1));
   ASSERT_TRUE(sm.AdaptTo(f));
   const MatrixN3 b = MatrixN3::Random(n, 3);
   MatrixN3 v = MatrixN3::Zero(n, 3);
@@ -216,13 +224,9 @@ TEST(StepLoop, ContactFactorsDoNotAllocateAtAConstantContactSet) {
 TEST(StepLoop, PrefilteredAmgKeepsItsHierarchyWithoutAllocating) {
   const Scene s = DefaultScene();
   const ParticleSystem sys(s);
-  const int n = sys.num_particles();
   SystemMatrix sm(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
   ASSERT_TRUE(sm.Update(0.01));
-  VelocityFilter f;
-  f.Reserve(n);
-  for (int p : sys.fixed()) f.Fix(p);
-  for (int p = 0; p < n / 2; ++p) f.Constrain(p, Vector3(1, 0, 1).normalized(), 0.0);
+  const VelocityFilter f = HalfInContact(sys, Vector3(1, 0, 1).normalized());
   ASSERT_TRUE(sm.AdaptTo(f));
   g_allocations = 0;
   g_counting = true;
