@@ -255,10 +255,12 @@ int Main(int argc, char** argv) {
     }
     const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
-    CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records, out);
-    if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
-      throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
-    if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
+    ProbeOnRoot(comm, [&] {
+      CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records, out);
+      if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
+        throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
+      if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
+    });
     lock.emplace(out, comm);
 
     BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_entry, ref_rtol, out, plot_dir, series,

@@ -22,6 +22,27 @@
 
 namespace clothbench {
 
+/// Runs `probe` (a check that touches the file system or reads the
+/// machine's state: a probe file created and removed, a folder, the free
+/// memory) on rank 0 alone and throws its UsageError on every rank. Probes
+/// of several ranks would collide (one rank's O_EXCL probe finds the
+/// other's file) or disagree, and a rank that refused alone would return
+/// while the others wait for its results in the sweep's gathers.
+template <class Probe>
+void ProbeOnRoot(const SweepComm& comm, Probe&& probe) {
+  std::string why;
+  if (comm.root()) {
+    try {
+      probe();
+    } catch (const UsageError& e) {
+      why = e.what();
+    }
+  }
+  std::vector<long> failed{why.empty() ? 0L : 1L};
+  comm.Broadcast(&failed);
+  if (failed[0] != 0) throw UsageError(comm.root() ? why : std::string("refused on rank 0"));
+}
+
 /// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (which then
 /// probes the output's paths, CheckOutputPaths) and held until destruction;
 /// the kernel also releases it when the process ends in any other way. The file holds the holder's

@@ -15,6 +15,7 @@
 
 #include "harness/cli_args.h"
 #include "harness/methods.h"
+#include "harness/output_lock.h"
 #include "harness/run_codec.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
@@ -91,7 +92,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   if (preconditioner) base.solver.preconditioner = *preconditioner;
   if (etas.empty()) etas = {base.solver.cg_tolerance};
   if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
-  CheckOutputPaths(out);
+  ProbeOnRoot(comm, [&out] { CheckOutputPaths(out); });
   // One block of rows on `s` (k and d taken from each row), one table per η.
   struct Block {
     std::string scene_name;

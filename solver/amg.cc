@@ -22,7 +22,10 @@ namespace clothbench {
 namespace {
 
 // MPI and hypre are started once per process, on first use, and stopped at
-// exit. A run never needs mpirun: Open MPI starts as a singleton.
+// exit. A run never needs mpirun: Open MPI starts as a singleton. Every
+// hypre object lives on MPI_COMM_SELF: each process (each rank of a sweep,
+// harness/sweep.h) solves its own systems whole, and hypre's messages must
+// never meet the sweep's on MPI_COMM_WORLD.
 bool StartHypre() {
   static const bool started = [] {
     int initialized = 0;
@@ -61,7 +64,7 @@ HYPRE_Solver CreateAmg() {
 // a ParCSR matrix in *ij (*par its object). @return false if hypre failed.
 bool Assemble(int n, HYPRE_Int* ncols, const HYPRE_Int* rows, const HYPRE_Int* cols, const double* values,
               HYPRE_IJMatrix* ij, HYPRE_ParCSRMatrix* par) {
-  HYPRE_IJMatrixCreate(MPI_COMM_WORLD, 0, n - 1, 0, n - 1, ij);
+  HYPRE_IJMatrixCreate(MPI_COMM_SELF, 0, n - 1, 0, n - 1, ij);
   HYPRE_IJMatrixSetObjectType(*ij, HYPRE_PARCSR);
   HYPRE_IJMatrixSetRowSizes(*ij, ncols);
   HYPRE_IJMatrixInitialize(*ij);
@@ -118,7 +121,7 @@ struct Hierarchy {
     if (size == n && ij_b) return;
     for (HYPRE_IJVector* v : {&ij_b, &ij_x}) {
       if (*v) HYPRE_IJVectorDestroy(*v);
-      HYPRE_IJVectorCreate(MPI_COMM_WORLD, 0, size - 1, v);
+      HYPRE_IJVectorCreate(MPI_COMM_SELF, 0, size - 1, v);
       HYPRE_IJVectorSetObjectType(*v, HYPRE_PARCSR);
       HYPRE_IJVectorInitialize(*v);
       HYPRE_IJVectorAssemble(*v);

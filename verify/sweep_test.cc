@@ -150,6 +150,22 @@ TEST(Sweep, BenchIntegratorsOnTwoRanksWritesTheSerialFile) {
   EXPECT_FALSE(fs::exists(serial.string() + ".journal"));
 }
 
+// BoomerAMG inside a sweep: each rank sets up its own hierarchies (a
+// different number per rank, as the runs are dealt), so hypre's objects
+// must live on MPI_COMM_SELF; with them on MPI_COMM_WORLD the ranks'
+// setups meet in hypre's collectives and this job hangs (the ctest TIMEOUT
+// then fails it).
+TEST(Sweep, AmgRunsOnTwoRanksWriteTheSerialFile) {
+  const std::string rows = " --integrators sbdf2,bdf2/newton --h 0.01,0.005 --preconditioner amg";
+  const fs::path serial = Dir() / "amg_serial.h5", mpi = Dir() / "amg_mpi.h5";
+  const Outcome a = Bench(rows + " --out " + serial.string());
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const Outcome b = Bench(rows + " --out " + mpi.string(), MpiRun(2));
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  ExpectSameRuns(serial, mpi, 100);
+  EXPECT_EQ(ResultReader(mpi.string()).Long("/", "mpi_ranks").value_or(0), 2);
+}
+
 TEST(Sweep, BenchIntegratorsResumesWithOnlyTheMissingRuns) {
   const fs::path whole = Dir() / "rows_whole.h5", sliced = Dir() / "rows_sliced.h5";
   const fs::path journal = sliced.string() + ".journal";
