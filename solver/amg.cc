@@ -94,6 +94,10 @@ struct Hierarchy {
   HYPRE_IJMatrix ij_a = nullptr;
   HYPRE_IJVector ij_b = nullptr, ij_x = nullptr;
   HYPRE_ParCSRMatrix par_a = nullptr;
+  // The finest level's matrix when it differs from the one set up (kept
+  // hierarchy, changed contacts); null: par_a.
+  HYPRE_IJMatrix ij_fine = nullptr;
+  HYPRE_ParCSRMatrix par_fine = nullptr;
   HYPRE_ParVector par_b = nullptr, par_x = nullptr;
   HYPRE_Solver amg = nullptr;
   bool ready = false;
@@ -111,11 +115,18 @@ struct Hierarchy {
   void Free() {
     if (amg) HYPRE_BoomerAMGDestroy(amg);
     if (ij_a) HYPRE_IJMatrixDestroy(ij_a);
+    FreeFine();
     amg = nullptr;
     ij_a = nullptr;
     par_a = nullptr;
     ready = false;
   }
+  void FreeFine() {
+    if (ij_fine) HYPRE_IJMatrixDestroy(ij_fine);
+    ij_fine = nullptr;
+    par_fine = nullptr;
+  }
+  HYPRE_ParCSRMatrix fine() const { return par_fine ? par_fine : par_a; }
   // Vectors of `size` unknowns (kept while the size is).
   void Resize(int size) {
     if (size == n && ij_b) return;
@@ -236,6 +247,23 @@ bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row
   return true;
 }
 
+bool AmgPreconditioner::UpdateSystemFineLevel(int n_nodes, const std::vector<int>& row_start,
+                                              const std::vector<int>& cols, const std::vector<double>& values) {
+  Impl& m = *impl_;
+  Hierarchy& h = m.system;
+  const int n = 3 * n_nodes;
+  if (!h.ready || h.n != n) return false;
+  h.FreeFine();
+  for (int i = 0; i < n; ++i)
+    m.sys_ncols[static_cast<std::size_t>(i)] = row_start[static_cast<std::size_t>(i) + 1] - row_start[static_cast<std::size_t>(i)];
+  m.sys_cols.assign(cols.begin(), cols.end());
+  if (!Assemble(n, m.sys_ncols.data(), m.sys_rows.data(), m.sys_cols.data(), values.data(), &h.ij_fine, &h.par_fine)) {
+    h.FreeFine();
+    return false;
+  }
+  return true;
+}
+
 void AmgPreconditioner::SolveSystem(const MatrixN3& r, MatrixN3* z) const {
   const Hierarchy& h = impl_->system;
   if (!h.ready || 3 * r.rows() != h.n) {
@@ -248,7 +276,7 @@ void AmgPreconditioner::SolveSystem(const MatrixN3& r, MatrixN3* z) const {
   for (Eigen::Index p = 0; p < n; ++p)
     for (int c = 0; c < 3; ++c) b[3 * p + c] = r(p, c);
   std::memset(x, 0, static_cast<std::size_t>(h.n) * sizeof(double));
-  HYPRE_BoomerAMGSolve(h.amg, h.par_a, h.par_b, h.par_x);
+  HYPRE_BoomerAMGSolve(h.amg, h.fine(), h.par_b, h.par_x);
   for (Eigen::Index p = 0; p < n; ++p)
     for (int c = 0; c < 3; ++c) (*z)(p, c) = x[3 * p + c];
 }

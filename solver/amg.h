@@ -46,6 +46,16 @@ class AmgPreconditioner {
   /// @return false if hypre failed or the V-cycle is not finite.
   bool FactorizeSystem(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
                        const std::vector<double>& values);
+  /// Replaces the finest level's matrix of the prefiltered hierarchy by
+  /// `values` (a K of the same size whose contacts changed since
+  /// FactorizeSystem), keeping the coarse levels and the interpolation:
+  /// BoomerAMG smooths and forms residuals with the matrix a V-cycle is
+  /// given (hypre's BoomerAMGSolve sets its finest level to it), so the
+  /// smoother sees the current constraints while the coarse correction is
+  /// that of the hierarchy's. Allocates (a new hypre matrix).
+  /// @return false if hypre failed or no system hierarchy is set up.
+  bool UpdateSystemFineLevel(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
+                             const std::vector<double>& values);
   /// z ← K⁻¹ r approximately: one V-cycle on the interleaved 3N vector.
   /// @param r, z N×3. NaN if no system hierarchy is set up.
   void SolveSystem(const MatrixN3& r, MatrixN3* z) const;

@@ -267,6 +267,7 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   if (static_cast<int>(s_now_.size()) != n) {
     s_now_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
     system_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+    fine_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
     system_valid_ = false;
   }
   for (auto& s : s_now_) s.setIdentity();
@@ -298,54 +299,36 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
                         (system_apply_seconds_ / static_cast<double>(system_applications_));
   }
   applications_at_adapt_ = system_applications_;
-  if (system_valid_ &&
-      (changed == 0 || (changed <= kSystemKeepShare * contacts && stale_seconds_ + stale_rate_ < setup_seconds_))) {
+  // The contacts of the finest level (the hierarchy's, or those of its
+  // last update) are the current ones: nothing to do.
+  bool moved = !system_valid_;
+  for (std::size_t p = 0; p < s_now_.size() && !moved; ++p)
+    moved = (s_now_[p] - fine_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
+  if (!moved) {
+    ++solves_since_setup_;
+    system_used_ = true;
+    return true;
+  }
+  if (system_valid_ && changed <= kSystemKeepShare * contacts && stale_seconds_ + stale_rate_ < setup_seconds_) {
+    // Kept with changed contacts: the finest level gets the current K (in
+    // the current contact frames); the coarse levels and the interpolation
+    // stay the hierarchy's (AmgPreconditioner::UpdateSystemFineLevel).
+    const auto t0 = std::chrono::steady_clock::now();
+    fine_s_ = s_now_;
+    SetFrames(filter);
+    AssembleSystem(a, fine_s_);
+    if (!amg_->UpdateSystemFineLevel(n, k_start_, k_cols_, k_values_)) return false;
+    contact_stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++contact_stats_.modifications;
     ++solves_since_setup_;
     system_used_ = true;
     return true;
   }
   const auto t0 = std::chrono::steady_clock::now();
   system_s_.swap(s_now_);
-  frames_.resize(static_cast<std::size_t>(n));
-  for (auto& f : frames_) f.setIdentity();
-  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
-    if (count == 1) frames_[static_cast<std::size_t>(p)] = ContactFrame(dirs.col(0));
-  });
-  // K̂ = Rᵀ (S A S + (I − S)) R: block (p, q) is a_pq R_pᵀ S_p S_q R_q, block
-  // (p, p) is R_pᵀ (a_pp S_p + I − S_p) R_p, and between two free particles
-  // a_pq I. Round-off of the rotations (below 1e-13 of a block) is dropped.
-  k_start_.assign(static_cast<std::size_t>(3 * n) + 1, 0);
-  k_cols_.clear();
-  k_values_.clear();
-  const int* outer = a.outerIndexPtr();
-  const int* inner = a.innerIndexPtr();
-  const double* val = a.valuePtr();
-  for (int p = 0; p < n; ++p) {
-    const Eigen::Matrix3d& sp = system_s_[static_cast<std::size_t>(p)];
-    const bool free_p = sp.isIdentity(0.0);
-    for (int r = 0; r < 3; ++r) {
-      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
-        const int q = inner[pos];
-        const Eigen::Matrix3d& sq = system_s_[static_cast<std::size_t>(q)];
-        if (free_p && sq.isIdentity(0.0)) {
-          k_cols_.push_back(3 * q + r);
-          k_values_.push_back(val[pos]);
-          continue;
-        }
-        Eigen::Matrix3d block = val[pos] * sp * sq;
-        if (q == p) block += Eigen::Matrix3d::Identity() - sp;
-        block = frames_[static_cast<std::size_t>(p)].transpose() * block * frames_[static_cast<std::size_t>(q)];
-        const double tiny = 1e-13 * block.cwiseAbs().maxCoeff();
-        block = block.unaryExpr([tiny](double x) { return std::abs(x) <= tiny ? 0.0 : x; });
-        for (int c = 0; c < 3; ++c)
-          if (block(r, c) != 0.0 || (q == p && c == r)) {
-            k_cols_.push_back(3 * q + c);
-            k_values_.push_back(block(r, c));
-          }
-      }
-      k_start_[static_cast<std::size_t>(3 * p + r) + 1] = static_cast<int>(k_cols_.size());
-    }
-  }
+  fine_s_ = system_s_;
+  SetFrames(filter);
+  AssembleSystem(a, system_s_);
   // If the setup fails, A_F's hierarchy (which preconditions every filter)
   // serves until the next setup.
   system_valid_ = amg_->FactorizeSystem(n, k_start_, k_cols_, k_values_);
@@ -362,6 +345,67 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   ++contact_stats_.refactorizations;
   system_used_ = system_valid_;
   return true;
+}
+
+void Preconditioner::SetFrames(const VelocityFilter& filter) {
+  frames_.resize(system_s_.size());
+  for (auto& f : frames_) f.setIdentity();
+  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+    if (count == 1) frames_[static_cast<std::size_t>(p)] = ContactFrame(dirs.col(0));
+  });
+}
+
+void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s) {
+  const int n = static_cast<int>(a.rows());
+  // K̂ = Rᵀ (S A S + (I − S)) R: block (p, q) is a_pq R_pᵀ S_p S_q R_q, block
+  // (p, p) is R_pᵀ (a_pp S_p + I − S_p) R_p, and between two free particles
+  // a_pq I. Round-off of the rotations (below 1e-13 of a block) is dropped.
+  k_start_.assign(static_cast<std::size_t>(3 * n) + 1, 0);
+  k_cols_.clear();
+  k_values_.clear();
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  const double* val = a.valuePtr();
+  for (int p = 0; p < n; ++p) {
+    const Eigen::Matrix3d& sp = s[static_cast<std::size_t>(p)];
+    const bool free_p = sp.isIdentity(0.0);
+    // The blocks of row p, each computed once for its three rows (empty
+    // while p and all its neighbours are free).
+    blocks_.clear();
+    bool all_free = free_p;
+    for (int pos = outer[p]; pos < outer[p + 1] && all_free; ++pos)
+      all_free = s[static_cast<std::size_t>(inner[pos])].isIdentity(0.0);
+    if (!all_free)
+      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
+        const int q = inner[pos];
+        const Eigen::Matrix3d& sq = s[static_cast<std::size_t>(q)];
+        Eigen::Matrix3d block = val[pos] * sp * sq;
+        if (q == p) block += Eigen::Matrix3d::Identity() - sp;
+        if (!(free_p && sq.isIdentity(0.0))) {
+          block = frames_[static_cast<std::size_t>(p)].transpose() * block * frames_[static_cast<std::size_t>(q)];
+          const double tiny = 1e-13 * block.cwiseAbs().maxCoeff();
+          block = block.unaryExpr([tiny](double x) { return std::abs(x) <= tiny ? 0.0 : x; });
+        }
+        blocks_.push_back(block);
+      }
+    for (int r = 0; r < 3; ++r) {
+      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
+        const int q = inner[pos];
+        if (all_free || (free_p && s[static_cast<std::size_t>(q)].isIdentity(0.0))) {
+          k_cols_.push_back(3 * q + r);
+          k_values_.push_back(val[pos]);
+          continue;
+        }
+        const Eigen::Matrix3d& block = blocks_[static_cast<std::size_t>(pos - outer[p])];
+        for (int c = 0; c < 3; ++c)
+          if (block(r, c) != 0.0 || (q == p && c == r)) {
+            k_cols_.push_back(3 * q + c);
+            k_values_.push_back(block(r, c));
+          }
+      }
+      k_start_[static_cast<std::size_t>(3 * p + r) + 1] = static_cast<int>(k_cols_.size());
+    }
+  }
 }
 
 bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter) {

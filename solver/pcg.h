@@ -106,7 +106,7 @@ class IncompleteCholesky0 {
 /// "amg" did (Preconditioner::AdaptTo).
 struct ContactFactorStats {
   long refactorizations = 0;  ///< numeric factorisations of an axis factor; setups of the prefiltered hierarchy
-  long modifications = 0;     ///< row deletes and adds on the axis factors
+  long modifications = 0;     ///< row deletes and adds on the axis factors; finest-level updates of a kept prefiltered hierarchy
   long fallbacks = 0;         ///< failed setups of the prefiltered hierarchy (A_F's served instead)
   double seconds = 0.0;       ///< their wall time [s]
   int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo; "cholesky")
@@ -140,7 +140,9 @@ struct ContactFactorStats {
 /// the V-cycle is an approximate inverse, as A_F's is without contacts. The
 /// hierarchy is kept while the contacts do not change, and while the
 /// measured cost of the extra CG iterations of a kept hierarchy stays below
-/// that of a setup.
+/// that of a setup; a kept hierarchy's finest level is given the current K
+/// (its smoother sees the current constraints, its coarse levels are the
+/// setup's).
 class Preconditioner {
  public:
   /// |n_c| at and above which a contact normal n counts as axis c's.
@@ -203,8 +205,15 @@ class Preconditioner {
   // CSR rows of K = S A S + (I − S), whether the hierarchy is current for A's
   // values and used by Apply.
   bool AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter);
-  std::vector<Eigen::Matrix3d> system_s_, s_now_;
+  // frames_ for the constraints of `filter`; the CSR rows of K for the S_p
+  // of `s` in those frames.
+  void SetFrames(const VelocityFilter& filter);
+  void AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s);
+  // S_p as the hierarchy was built, now (scratch), and as its finest level
+  // was last given (a kept hierarchy's updated finest level).
+  std::vector<Eigen::Matrix3d> system_s_, s_now_, fine_s_;
   std::vector<int> k_start_, k_cols_;
+  std::vector<Eigen::Matrix3d> blocks_;  // AssembleSystem's scratch: the blocks of one row
   std::vector<double> k_values_;
   std::vector<Eigen::Matrix3d> frames_;  // R_p of the hierarchy's contact frames
   mutable MatrixN3 rotated_r_, rotated_z_;
