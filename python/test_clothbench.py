@@ -198,10 +198,15 @@ def test_contact_phases_summarises_step_stats(tmp_path):
     first = int(np.nonzero(steps["colliding"] >= 0.02 * n)[0][0])
     impact = steps[first:first + 20]
     resting = steps[steps["t"] > steps["t"][-1] - 0.3 + 1e-9]
-    assert set(rows) == {" free ", " impact ", " resting "}
+    full = steps[first + 20:][steps["colliding"][first + 20:] >= 0.3 * n]
+    assert set(rows) == {" free ", " impact ", " resting "} | ({" full "} if len(full) else set())
+    if len(full):
+        assert int(rows[" full "][4]) == len(full)
     assert int(rows[" free "][4]) == min(first, 12) - 2
     assert int(rows[" impact "][4]) == len(impact) and int(rows[" resting "][4]) == len(resting)
     assert float(rows[" impact "][7]) == pytest.approx(np.mean(impact["cg_iterations"]), abs=0.05)
     assert float(rows[" resting "][7]) == pytest.approx(np.mean(resting["cg_iterations"]), abs=0.05)
     p = subprocess.run(["/usr/bin/python3", script, "--resting", "0", str(out)], capture_output=True, text=True)
     assert p.returncode != 0 and "--resting" in p.stderr
+    p = subprocess.run(["/usr/bin/python3", script, "--full", "0", str(out)], capture_output=True, text=True)
+    assert p.returncode != 0 and "--full" in p.stderr
