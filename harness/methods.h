@@ -85,8 +85,8 @@ struct MethodEntry {
   std::vector<std::string_view> variants = {};
   /// The preconditioner that measures best for this method's fixed-step,
   /// substepped and SUNDIALS rows, used instead of the scene's unless
-  /// --preconditioner names one (the measurement is in kBestPreconditioner's
-  /// comment); nullopt: the scene's.
+  /// --preconditioner names one or the scene names "amg" (the measurement
+  /// is in kBestPreconditioner's comment); nullopt: the scene's.
   std::optional<PreconditionerType> best_preconditioner = std::nullopt;
   /// The same for its error-controlled rows ("/error"), whose step changes
   /// and refactorises the preconditioner nearly every step.
@@ -362,7 +362,10 @@ struct RowMethod {
     SolverSpec row_spec = spec;
     const std::optional<PreconditionerType>& best =
         error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
-    if (best && !ctx.preconditioner_from_cli) row_spec.preconditioner = *best;
+    // A scene that names the prefiltered AMG (the contact-scale scenes,
+    // docs/performance.md "Prefiltered AMG") keeps it.
+    if (best && !ctx.preconditioner_from_cli && spec.preconditioner != PreconditionerType::kAmg)
+      row_spec.preconditioner = *best;
     if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
     if (uses_pcg()) row.cg_tolerance = row_spec.cg_tolerance;
     if (entry->best_tangent_explicit_terms && !ctx.tangent_terms_from_cli)

@@ -312,17 +312,20 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   if (system_valid_ && changed <= kSystemKeepShare * contacts && stale_seconds_ + stale_rate_ < setup_seconds_) {
     // Kept with changed contacts: the finest level gets the current K (in
     // the current contact frames); the coarse levels and the interpolation
-    // stay the hierarchy's (AmgPreconditioner::UpdateSystemFineLevel).
+    // stay the hierarchy's (AmgPreconditioner::UpdateSystemFineLevel). If
+    // hypre fails, a setup follows.
     const auto t0 = std::chrono::steady_clock::now();
-    fine_s_ = s_now_;
     SetFrames(filter);
-    AssembleSystem(a, fine_s_);
-    if (!amg_->UpdateSystemFineLevel(n, k_start_, k_cols_, k_values_)) return false;
+    AssembleSystem(a, s_now_);
+    const bool updated = amg_->UpdateSystemFineLevel(n, k_start_, k_cols_, k_values_);
     contact_stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    ++contact_stats_.modifications;
-    ++solves_since_setup_;
-    system_used_ = true;
-    return true;
+    if (updated) {
+      fine_s_ = s_now_;
+      ++contact_stats_.modifications;
+      ++solves_since_setup_;
+      system_used_ = true;
+      return true;
+    }
   }
   const auto t0 = std::chrono::steady_clock::now();
   system_s_.swap(s_now_);
