@@ -200,17 +200,16 @@ class Preconditioner {
   std::array<bool, 3> axis_valid_{}, axis_used_{};
   double modify_seconds_ = 0.0, refactor_seconds_ = 0.0;  // measured: one row change, one refactorisation
   ContactFactorStats contact_stats_;
-  // Prefiltered AMG ("amg" with contact_factors): S_p of each particle as
-  // the system hierarchy was built (identity: free) and now (scratch), the
-  // CSR rows of K = S A S + (I − S), whether the hierarchy is current for A's
-  // values and used by Apply.
+  // Prefiltered AMG ("amg" with contact_factors): the CSR rows of
+  // K = S A S + (I − S), whether the hierarchy is current for A's values
+  // and used by Apply.
   bool AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter);
   // frames_ for the constraints of `filter`; the CSR rows of K for the S_p
   // of `s` in those frames.
   void SetFrames(const VelocityFilter& filter);
   void AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s);
-  // S_p as the hierarchy was built, now (scratch), and as its finest level
-  // was last given (a kept hierarchy's updated finest level).
+  // S_p of each particle (identity: free) as the hierarchy was built, now
+  // (scratch), and as its finest level was last given.
   std::vector<Eigen::Matrix3d> system_s_, s_now_, fine_s_;
   std::vector<int> k_start_, k_cols_;
   std::vector<Eigen::Matrix3d> blocks_;  // AssembleSystem's scratch: the blocks of one row
