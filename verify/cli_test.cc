@@ -401,6 +401,24 @@ TEST(BenchCli, ProgressOnlyOnATerminal) {
   EXPECT_TRUE(o.err.empty()) << o.err;
 }
 
+// Without --preconditioner each PCG method gets its measured best
+// (cholesky) in place of the scene's ic0, but a scene that names the
+// prefiltered AMG (the contact-scale scenes) keeps it.
+TEST(BenchCli, SceneNamingAmgKeepsItsPreconditioner) {
+  for (const char* named : {"ic0", "amg"}) {
+    SCOPED_TRACE(named);
+    const fs::path out = TempDir() / (std::string("named_") + named + ".h5");
+    const std::string scene = WriteScene(std::string("named_") + named + ".toml",
+                                         std::string(kTiny) + "preconditioner = \"" + named + "\"\n");
+    const Outcome o = RunBench("--scene " + scene + " --integrators sbdf2,bdf2/newton --h 0.01 --reference none " +
+                               "--frames none --quiet --out " + out.string());
+    ASSERT_EQ(o.exit_code, 0) << o.err;
+    const RunTable t = ReadRunTable(ResultReader(out.string()));
+    ASSERT_EQ(t.runs.size(), 2u);
+    for (const RunRecord& r : t.runs) EXPECT_EQ(r.preconditioner, std::string(named) == "amg" ? "amg" : "cholesky") << r.id;
+  }
+}
+
 // Every run stores the settings it actually ran with, whatever the scene
 // says: an option × row-kind walk (fixed-step, error-controlled, Newton,
 // SUNDIALS, ARKODE, substepped, Baraff–Witkin) read back from the file.
