@@ -165,10 +165,10 @@ int Main(int argc, char** argv) {
       if (!ignored.empty()) throw UsageError(fmt::format("--table: cannot be combined with {}", ignored));
       if (out.empty()) out = fmt::format("out/table_{}.h5", table == "3.1" ? "3_1" : "3_2");
       if (table == "3.1" || table == "3.2") lock.emplace(out, comm);
-      return RunThesisTable(table, out,
+      return comm.RootStatus(RunThesisTable(table, out,
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner, "--preconditioner"))
                                                           : std::nullopt,
-                            solvers, etas, comm);
+                            solvers, etas, comm));
     }
     // Validate everything before computing anything.
     Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
@@ -267,7 +267,7 @@ int Main(int argc, char** argv) {
                  frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
                  app.count("--preconditioner") > 0, app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0,
                  app.count("--tangent-terms") > 0, time_limit, max_runs, arkode_table, cvode_settings};
-    return RunBench(run, comm);
+    return comm.RootStatus(RunBench(run, comm));
   } catch (const UsageError& e) {
     return refuse(e.what());
   } catch (const SceneError& e) {

@@ -191,11 +191,11 @@ int Main(int argc, char** argv) {
     comm.SumToRoot(&upd);
     comm.SumToRoot(&cgs);
     comm.SumToRoot(&excess);
-    if (!comm.root()) return 0;
+    if (!comm.root()) return comm.RootStatus(0);
     if (to_compute < missing.size()) {
       fmt::print("stopped after {} cells (--max-cells): {} of {} done; rerun the same command to continue ({})\n",
                  to_compute, n - missing.size() + to_compute, n, journal.path());
-      return kExitPartial;
+      return comm.RootStatus(kExitPartial);
     }
 
     ResultFile f(out);
@@ -255,7 +255,7 @@ int Main(int argc, char** argv) {
                std::thread::hardware_concurrency(), comm.size(), comm.size() > 1 ? "s" : "", CompilerId(), GitCommit(),
                out);
     if (!plot_dir.empty()) Plot("stress_stability", out, plot_dir);
-    return 0;
+    return comm.RootStatus(0);
   } catch (const SceneError& e) {
     return refuse(e.what());
   } catch (const std::invalid_argument& e) {

@@ -152,6 +152,17 @@ class SweepComm {
     }
     return mine;
   }
+  /// Rank 0's exit status `status`, on every rank: each rank returns it
+  /// from main, so the launcher sees one status from the whole job. (A rank
+  /// that exits 0 beside one that exits 75 or 1 leaves the job's status to
+  /// the order in which the launcher notices them.) Every rank calls it
+  /// once, after its last other message; a rank that throws instead calls
+  /// Abort, which ends the ranks waiting here.
+  int RootStatus(int status) const {
+    if (!mpi_ || size_ == 1) return status;
+    MPI_Bcast(&status, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    return status;
+  }
   /// Ends every rank of the job with `code` (a rank that stops alone would
   /// leave the others waiting in SumToRoot).
   [[noreturn]] void Abort(int code) {
