@@ -60,18 +60,46 @@ HYPRE_Solver CreateAmg() {
   return amg;
 }
 
-// Assembles the n×n matrix of the CSR rows (row i has ncols[i] entries) as
-// a ParCSR matrix in *ij (*par its object). @return false if hypre failed.
-bool Assemble(int n, HYPRE_Int* ncols, const HYPRE_Int* rows, const HYPRE_Int* cols, const double* values,
-              HYPRE_IJMatrix* ij, HYPRE_ParCSRMatrix* par) {
-  HYPRE_IJMatrixCreate(MPI_COMM_SELF, 0, n - 1, 0, n - 1, ij);
-  HYPRE_IJMatrixSetObjectType(*ij, HYPRE_PARCSR);
-  HYPRE_IJMatrixSetRowSizes(*ij, ncols);
-  HYPRE_IJMatrixInitialize(*ij);
-  HYPRE_IJMatrixSetValues(*ij, n, ncols, rows, cols, values);
-  if (HYPRE_IJMatrixAssemble(*ij) != 0) return false;
-  HYPRE_IJMatrixGetObject(*ij, reinterpret_cast<void**>(par));
-  return true;
+// The n×n matrix of the CSR rows (row i: entries start[i] to start[i + 1]
+// of cols and values) as a hypre ParCSR matrix, built in place: one process
+// owns every row, so the matrix is its diag block with no off-process
+// columns. Each row's diagonal entry goes first (hypre's smoothers read it
+// there), the others keep their order. hypre's IJ interface, which this
+// replaces, sorted and hashed every entry: 0.03 s of a 0.2 s setup at 10⁵
+// particles. @return null if a row has no diagonal entry.
+HYPRE_ParCSRMatrix MakeMatrix(int n, const int* start, const int* cols, const double* values) {
+  HYPRE_BigInt starts[2] = {0, n};
+  const int nnz = start[n];
+  hypre_ParCSRMatrix* a = hypre_ParCSRMatrixCreate(MPI_COMM_SELF, n, n, starts, starts, 0, nnz, 0);
+  hypre_ParCSRMatrixInitialize(a);
+  hypre_CSRMatrix* diag = hypre_ParCSRMatrixDiag(a);
+  HYPRE_Int* row = hypre_CSRMatrixI(diag);
+  HYPRE_Int* col = hypre_CSRMatrixJ(diag);
+  double* val = hypre_CSRMatrixData(diag);
+  for (int i = 0; i < n; ++i) {
+    row[i] = start[i];
+    int at = start[i] + 1;
+    bool has_diagonal = false;
+    for (int k = start[i]; k < start[i + 1]; ++k) {
+      if (cols[k] == i && !has_diagonal) {
+        col[start[i]] = i;
+        val[start[i]] = values[k];
+        has_diagonal = true;
+        continue;
+      }
+      if (at == start[i + 1]) break;  // no diagonal among the row's entries
+      col[at] = cols[k];
+      val[at++] = values[k];
+    }
+    if (!has_diagonal) {
+      hypre_ParCSRMatrixDestroy(a);
+      return nullptr;
+    }
+  }
+  row[n] = nnz;
+  hypre_ParCSRMatrixSetNumNonzeros(a);
+  hypre_MatvecCommPkgCreate(a);
+  return reinterpret_cast<HYPRE_ParCSRMatrix>(a);
 }
 
 // BoomerAMG's setup of `amg` for `a`; *levels gets the hierarchy's depth.
@@ -95,12 +123,10 @@ constexpr int kAggressiveCoarseningNodes = 20000;
 // One hierarchy: its matrix, vectors and BoomerAMG object.
 struct Hierarchy {
   int n = 0;  // unknowns
-  HYPRE_IJMatrix ij_a = nullptr;
   HYPRE_IJVector ij_b = nullptr, ij_x = nullptr;
   HYPRE_ParCSRMatrix par_a = nullptr;
   // The finest level's matrix when it differs from the one set up (kept
   // hierarchy, changed contacts); null: par_a.
-  HYPRE_IJMatrix ij_fine = nullptr;
   HYPRE_ParCSRMatrix par_fine = nullptr;
   HYPRE_ParVector par_b = nullptr, par_x = nullptr;
   HYPRE_Solver amg = nullptr;
@@ -118,16 +144,14 @@ struct Hierarchy {
   // Frees the matrix and the setup (the vectors stay).
   void Free() {
     if (amg) HYPRE_BoomerAMGDestroy(amg);
-    if (ij_a) HYPRE_IJMatrixDestroy(ij_a);
+    if (par_a) HYPRE_ParCSRMatrixDestroy(par_a);
     FreeFine();
     amg = nullptr;
-    ij_a = nullptr;
     par_a = nullptr;
     ready = false;
   }
   void FreeFine() {
-    if (ij_fine) HYPRE_IJMatrixDestroy(ij_fine);
-    ij_fine = nullptr;
+    if (par_fine) HYPRE_ParCSRMatrixDestroy(par_fine);
     par_fine = nullptr;
   }
   HYPRE_ParCSRMatrix fine() const { return par_fine ? par_fine : par_a; }
@@ -153,11 +177,10 @@ struct AmgPreconditioner::Impl {
   // A_F's hierarchy, applied to each column.
   Hierarchy scalar;
   std::vector<int> source;      // per entry of the CSR rows: position in A's values
-  std::vector<HYPRE_Int> ncols, rows, cols;
+  std::vector<int> start, cols;  // the CSR rows of A_F
   std::vector<double> values;
   // The prefiltered 3N×3N system (FactorizeSystem).
   Hierarchy system;
-  std::vector<HYPRE_Int> sys_rows, sys_ncols, sys_cols;
 };
 
 AmgPreconditioner::AmgPreconditioner() : impl_(std::make_unique<Impl>()) { StartHypre(); }
@@ -171,13 +194,8 @@ bool AmgPreconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& f
   // A_F is symmetric: column j of its CSC storage is row j of hypre's CSR rows.
   internal::DecoupledPattern pattern = internal::DecoupleFixed(a, fixed, /*upper_only=*/false);
   m.source = std::move(pattern.source);
-  m.cols.assign(pattern.inner.begin(), pattern.inner.end());
-  m.ncols.resize(static_cast<std::size_t>(n));
-  m.rows.resize(static_cast<std::size_t>(n));
-  for (int j = 0; j < n; ++j) {
-    m.rows[static_cast<std::size_t>(j)] = j;
-    m.ncols[static_cast<std::size_t>(j)] = pattern.outer[static_cast<std::size_t>(j) + 1] - pattern.outer[static_cast<std::size_t>(j)];
-  }
+  m.cols = std::move(pattern.inner);
+  m.start = std::move(pattern.outer);
   m.values.assign(m.cols.size(), 0.0);
   m.scalar.Resize(n);
   return true;
@@ -189,7 +207,8 @@ bool AmgPreconditioner::Factorize(const SparseMatrix& a) {
   h.Free();
   if (h.n == 0) return false;
   for (std::size_t k = 0; k < m.source.size(); ++k) m.values[k] = a.valuePtr()[m.source[k]];
-  if (!Assemble(h.n, m.ncols.data(), m.rows.data(), m.cols.data(), m.values.data(), &h.ij_a, &h.par_a)) return false;
+  h.par_a = MakeMatrix(h.n, m.start.data(), m.cols.data(), m.values.data());
+  if (!h.par_a) return false;
   h.amg = CreateAmg();
   h.ready = SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels);
   return h.ready;
@@ -222,15 +241,8 @@ bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row
   h.Free();
   const int n = 3 * n_nodes;
   h.Resize(n);
-  m.sys_rows.resize(static_cast<std::size_t>(n));
-  m.sys_ncols.resize(static_cast<std::size_t>(n));
-  for (int i = 0; i < n; ++i) {
-    m.sys_rows[static_cast<std::size_t>(i)] = i;
-    m.sys_ncols[static_cast<std::size_t>(i)] = row_start[static_cast<std::size_t>(i) + 1] - row_start[static_cast<std::size_t>(i)];
-  }
-  m.sys_cols.assign(cols.begin(), cols.end());
-  if (!Assemble(n, m.sys_ncols.data(), m.sys_rows.data(), m.sys_cols.data(), values.data(), &h.ij_a, &h.par_a))
-    return false;
+  h.par_a = MakeMatrix(n, row_start.data(), cols.data(), values.data());
+  if (!h.par_a) return false;
   h.amg = CreateAmg();
   HYPRE_BoomerAMGSetNumFunctions(h.amg, 3);  // interleaved: function of unknown i is i mod 3
   HYPRE_BoomerAMGSetNodal(h.amg, 1);         // nodal coarsening on the Frobenius norm of each block
@@ -267,14 +279,8 @@ bool AmgPreconditioner::UpdateSystemFineLevel(int n_nodes, const std::vector<int
   const int n = 3 * n_nodes;
   if (!h.ready || h.n != n) return false;
   h.FreeFine();
-  for (int i = 0; i < n; ++i)
-    m.sys_ncols[static_cast<std::size_t>(i)] = row_start[static_cast<std::size_t>(i) + 1] - row_start[static_cast<std::size_t>(i)];
-  m.sys_cols.assign(cols.begin(), cols.end());
-  if (!Assemble(n, m.sys_ncols.data(), m.sys_rows.data(), m.sys_cols.data(), values.data(), &h.ij_fine, &h.par_fine)) {
-    h.FreeFine();
-    return false;
-  }
-  return true;
+  h.par_fine = MakeMatrix(n, row_start.data(), cols.data(), values.data());
+  return h.par_fine != nullptr;
 }
 
 void AmgPreconditioner::SolveSystem(const MatrixN3& r, MatrixN3* z) const {
