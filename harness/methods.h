@@ -84,9 +84,10 @@ struct MethodEntry {
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
   /// The preconditioner that measures best for this method's fixed-step,
-  /// substepped and SUNDIALS rows, used instead of the scene's unless
-  /// --preconditioner names one or the scene names "amg" (the measurement
-  /// is in kBestPreconditioner's comment); nullopt: the scene's.
+  /// substepped and SUNDIALS rows, used instead of a scene's IC(0) (the
+  /// thesis' setting) unless --preconditioner names one; a scene that names
+  /// any other preconditioner keeps it (the measurement is in
+  /// kBestPreconditioner's comment); nullopt: the scene's.
   std::optional<PreconditionerType> best_preconditioner = std::nullopt;
   /// The same for its error-controlled rows ("/error"), whose step changes
   /// and refactorises the preconditioner nearly every step.
@@ -362,9 +363,12 @@ struct RowMethod {
     SolverSpec row_spec = spec;
     const std::optional<PreconditionerType>& best =
         error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
-    // A scene that names the prefiltered AMG (the contact-scale scenes,
-    // docs/performance.md "Prefiltered AMG") keeps it.
-    if (best && !ctx.preconditioner_from_cli && spec.preconditioner != PreconditionerType::kAmg)
+    // A scene's IC(0) is the thesis' setting, kept for --table and the
+    // stability maps, and kBestPreconditioner was measured against it. A
+    // scene that names another preconditioner chose it for itself (the
+    // contact-scale scenes' prefiltered AMG, docs/performance.md
+    // "Prefiltered AMG") and keeps it.
+    if (best && !ctx.preconditioner_from_cli && spec.preconditioner == PreconditionerType::kIc0)
       row_spec.preconditioner = *best;
     if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
     if (uses_pcg()) row.cg_tolerance = row_spec.cg_tolerance;
