@@ -13,6 +13,7 @@
 #include <_hypre_parcsr_ls.h>
 #include <_hypre_parcsr_mv.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -77,23 +78,19 @@ HYPRE_ParCSRMatrix MakeMatrix(int n, const int* start, const int* cols, const do
   HYPRE_Int* col = hypre_CSRMatrixJ(diag);
   double* val = hypre_CSRMatrixData(diag);
   for (int i = 0; i < n; ++i) {
-    row[i] = start[i];
-    int at = start[i] + 1;
-    bool has_diagonal = false;
-    for (int k = start[i]; k < start[i + 1]; ++k) {
-      if (cols[k] == i && !has_diagonal) {
-        col[start[i]] = i;
-        val[start[i]] = values[k];
-        has_diagonal = true;
-        continue;
-      }
-      if (at == start[i + 1]) break;  // no diagonal among the row's entries
-      col[at] = cols[k];
-      val[at++] = values[k];
-    }
-    if (!has_diagonal) {
+    const int diagonal = static_cast<int>(std::find(cols + start[i], cols + start[i + 1], i) - cols);
+    if (diagonal == start[i + 1]) {
       hypre_ParCSRMatrixDestroy(a);
       return nullptr;
+    }
+    row[i] = start[i];
+    col[start[i]] = i;
+    val[start[i]] = values[diagonal];
+    int at = start[i] + 1;
+    for (int k = start[i]; k < start[i + 1]; ++k) {
+      if (k == diagonal) continue;
+      col[at] = cols[k];
+      val[at++] = values[k];
     }
   }
   row[n] = nnz;

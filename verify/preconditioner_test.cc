@@ -155,11 +155,12 @@ TEST(ContactPreconditioners, GiveTheIc0TrajectoryAt10k) {
 }
 
 struct TiltedCounts {
-  int without_contacts, filtered_all, filtered_half, plain_half, setups;
+  int without_contacts, filtered_all, filtered_half, plain_half;
+  long setups;
 };
 
-// PCG iterations of the tilted-contact systems of the tests below on the default sheet
-// at side × side particles (0: its own size).
+// PCG iterations of the tilted-contact systems of the tests below, on the
+// default sheet at side × side particles (0: its own size).
 TiltedCounts TiltedContactIterations(int side) {
   Scene scene = DefaultScene();
   if (side > 0) scene.grid.nu = scene.grid.nv = side;
