@@ -242,9 +242,16 @@ bool Preconditioner::Factorize(const SparseMatrix& a) {
 
 namespace {
 
-// The smallest rotation taking the unit vector e to the unit vector u
-// (Rodrigues' formula; u = −e is not taken).
-Eigen::Matrix3d SmallestRotation(const Vector3& e, const Vector3& u) {
+// The contact frame of a normal n (prefiltered AMG): the smallest rotation R
+// that takes the axis c nearest to n to ±n (Rodrigues' formula), so that in
+// K̂ = Rᵀ K R the constrained direction is unknown 3p + c alone, decoupled
+// like a fixed particle's, and the tangent directions stay the unknowns of
+// the other two axes (near-axis normals barely rotate them).
+Eigen::Matrix3d ContactFrame(const Vector3& n) {
+  int c = 0;
+  n.cwiseAbs().maxCoeff(&c);
+  const Vector3 u = n(c) < 0.0 ? Vector3(-n) : n;
+  const Vector3 e = Vector3::Unit(c);
   const Vector3 v = e.cross(u);
   const double s2 = v.squaredNorm();
   if (s2 == 0.0) return Eigen::Matrix3d::Identity();
@@ -308,7 +315,7 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     // stay the hierarchy's (AmgPreconditioner::UpdateSystemFineLevel). If
     // hypre fails, a setup follows.
     const auto t0 = std::chrono::steady_clock::now();
-    SetFrames(a, filter, /*smooth=*/false);
+    SetFrames(filter);
     AssembleSystem(a, s_now_);
     const bool updated = amg_->UpdateSystemFineLevel(n, k_start_, k_cols_, k_values_);
     contact_stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -323,7 +330,7 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   const auto t0 = std::chrono::steady_clock::now();
   system_s_.swap(s_now_);
   fine_s_ = system_s_;
-  SetFrames(a, filter, /*smooth=*/true);
+  SetFrames(filter);
   AssembleSystem(a, system_s_);
   // If the setup fails, A_F's hierarchy (which preconditions every filter)
   // serves until the next setup.
@@ -343,54 +350,15 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   return true;
 }
 
-void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filter, bool smooth) {
-  const std::size_t n = system_s_.size();
-  if (field_.size() != n) {
-    field_.assign(n, Vector3::UnitZ());
-    held_.assign(n, 0);
-    frames_.assign(n, Eigen::Matrix3d::Identity());
-  }
-  std::fill(held_.begin(), held_.end(), 0);
-  // A contact's direction is its normal, turned into the upper half-space
-  // where it points mostly down (S_p depends on n nᵀ alone).
-  const auto direction = [](const Eigen::Matrix3d& dirs) {
-    return dirs(2, 0) < -0.5 ? Vector3(-dirs.col(0)) : Vector3(dirs.col(0));
-  };
-  if (!smooth) {
-    // A finest-level update: the coarse levels keep the setup's frames, so
-    // only the contacts' frames move, each turned by the smallest rotation
-    // that takes its constrained unknown (R_p e_z) to its current normal.
-    filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
-      const auto i = static_cast<std::size_t>(p);
-      held_[i] = 1;
-      if (count != 1) return;
-      field_[i] = direction(dirs);
-      frames_[i] = SmallestRotation(frames_[i].col(2), field_[i]) * frames_[i];
-    });
-    return;
-  }
-  std::fill(field_.begin(), field_.end(), Vector3::UnitZ());
+void Preconditioner::SetFrames(const VelocityFilter& filter) {
+  frames_.resize(system_s_.size());
+  for (auto& f : frames_) f.setIdentity();
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
-    held_[static_cast<std::size_t>(p)] = 1;
-    if (count == 1) field_[static_cast<std::size_t>(p)] = direction(dirs);
+    if (count == 1) frames_[static_cast<std::size_t>(p)] = ContactFrame(dirs.col(0));
   });
-  const int* outer = a.outerIndexPtr();
-  const int* inner = a.innerIndexPtr();
-  for (int sweep = 0; sweep < kFrameSweeps; ++sweep) {
-    next_field_ = field_;
-    for (std::size_t p = 0; p < n; ++p) {
-      if (held_[p]) continue;
-      Vector3 sum = Vector3::Zero();
-      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) sum += field_[static_cast<std::size_t>(inner[pos])];
-      const double length = sum.norm();
-      if (length > 0.0) next_field_[p] = sum / length;
-    }
-    field_.swap(next_field_);
-  }
-  for (std::size_t p = 0; p < n; ++p)
-    frames_[p] = !held_[p] && field_[p].z() > kFrameSnap ? Eigen::Matrix3d::Identity()
-                                                         : SmallestRotation(Vector3::UnitZ(), field_[p]);
-}void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s) {
+}
+
+void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s) {
   const int n = static_cast<int>(a.rows());
   // K̂ = Rᵀ (S A S + (I − S)) R: block (p, q) is a_pq R_pᵀ S_p S_q R_q, block
   // (p, p) is R_pᵀ (a_pp S_p + I − S_p) R_p, and between two free particles
@@ -401,25 +369,22 @@ void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filt
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
   const double* val = a.valuePtr();
-  plain_.resize(static_cast<std::size_t>(n));
-  for (int p = 0; p < n; ++p)
-    plain_[static_cast<std::size_t>(p)] = s[static_cast<std::size_t>(p)].isIdentity(0.0) && frames_[static_cast<std::size_t>(p)].isIdentity(0.0);
   for (int p = 0; p < n; ++p) {
     const Eigen::Matrix3d& sp = s[static_cast<std::size_t>(p)];
-    const bool free_p = plain_[static_cast<std::size_t>(p)];
+    const bool free_p = sp.isIdentity(0.0);
     // The blocks of row p, each computed once for its three rows (empty
     // while p and all its neighbours are free).
     blocks_.clear();
     bool all_free = free_p;
     for (int pos = outer[p]; pos < outer[p + 1] && all_free; ++pos)
-      all_free = plain_[static_cast<std::size_t>(inner[pos])];
+      all_free = s[static_cast<std::size_t>(inner[pos])].isIdentity(0.0);
     if (!all_free)
       for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
         const int q = inner[pos];
         const Eigen::Matrix3d& sq = s[static_cast<std::size_t>(q)];
         Eigen::Matrix3d block = val[pos] * sp * sq;
         if (q == p) block += Eigen::Matrix3d::Identity() - sp;
-        if (!(free_p && plain_[static_cast<std::size_t>(q)])) {
+        if (!(free_p && sq.isIdentity(0.0))) {
           block = frames_[static_cast<std::size_t>(p)].transpose() * block * frames_[static_cast<std::size_t>(q)];
           const double tiny = 1e-13 * block.cwiseAbs().maxCoeff();
           block = block.unaryExpr([tiny](double x) { return std::abs(x) <= tiny ? 0.0 : x; });
@@ -429,7 +394,7 @@ void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filt
     for (int r = 0; r < 3; ++r) {
       for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
         const int q = inner[pos];
-        if (all_free || (free_p && plain_[static_cast<std::size_t>(q)])) {
+        if (all_free || (free_p && s[static_cast<std::size_t>(q)].isIdentity(0.0))) {
           k_cols_.push_back(3 * q + r);
           k_values_.push_back(val[pos]);
           continue;

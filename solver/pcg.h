@@ -158,17 +158,6 @@ class Preconditioner {
   /// built for, it cost 80 CG iterations instead of 10: test
   /// PrefilteredHierarchySeesTiltedContacts).
   static constexpr double kSystemKeepShare = 0.05;
-  /// Prefiltered AMG: Jacobi sweeps that spread the contacts' directions
-  /// over the free particles' frames at a setup. hypre interpolates each
-  /// unknown from the same unknown of its neighbours, and a jump between
-  /// neighbouring frames breaks that: a free particle beside a contact keeps
-  /// the world frame with kFrameSweeps = 0. Measured on the drape of
-  /// round_table_100k over the impact: 25.4 CG per step with 0 sweeps, 16.0
-  /// with 20, 14.9 with 50 (docs/performance.md, "Prefiltered AMG").
-  static constexpr int kFrameSweeps = 20;
-  /// A free particle whose direction is within this cosine of e_z keeps the
-  /// world frame (its blocks stay a_pq I, not full 3×3 ones).
-  static constexpr double kFrameSnap = 0.999;
 
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
                           CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
@@ -215,11 +204,9 @@ class Preconditioner {
   // K = S A S + (I − S), whether the hierarchy is current for A's values
   // and used by Apply.
   bool AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter);
-  // frames_ for the constraints of `filter` (with `smooth`, the free
-  // particles' directions smoothed again first: at a setup, not at a
-  // finest-level update); the CSR rows of K for the S_p of `s` in those
-  // frames.
-  void SetFrames(const SparseMatrix& a, const VelocityFilter& filter, bool smooth);
+  // frames_ for the constraints of `filter`; the CSR rows of K for the S_p
+  // of `s` in those frames.
+  void SetFrames(const VelocityFilter& filter);
   void AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s);
   // S_p of each particle (identity: free) as the hierarchy was built, now
   // (scratch), and as its finest level was last given.
@@ -227,14 +214,7 @@ class Preconditioner {
   std::vector<int> k_start_, k_cols_;
   std::vector<Eigen::Matrix3d> blocks_;  // AssembleSystem's scratch: the blocks of one row
   std::vector<double> k_values_;
-  // The frames: a direction per particle (a contact's normal; for a free
-  // particle the mean of its neighbours' over kFrameSweeps Jacobi sweeps
-  // from e_z), whether the filter holds the particle, and R_p taking e_z to
-  // the direction (identity for a free particle within kFrameSnap of e_z).
-  // plain_: S_p = R_p = I (AssembleSystem).
-  std::vector<Vector3> field_, next_field_;
-  std::vector<char> held_, plain_;
-  std::vector<Eigen::Matrix3d> frames_;
+  std::vector<Eigen::Matrix3d> frames_;  // R_p of the hierarchy's contact frames
   mutable MatrixN3 rotated_r_, rotated_z_;
   bool system_valid_ = false, system_used_ = false;
   // The rebuild rule (AdaptAmgTo): V-cycles applied and their time, the
