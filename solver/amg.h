@@ -53,7 +53,8 @@ class AmgPreconditioner {
   /// given (hypre's BoomerAMGSolve sets its finest level to it), so the
   /// smoother sees the current constraints while the coarse correction is
   /// that of the hierarchy's. Allocates (a new hypre matrix).
-  /// @return false if hypre failed or no system hierarchy is set up.
+  /// @return false if a row of K has no diagonal entry or no system
+  /// hierarchy is set up.
   bool UpdateSystemFineLevel(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
                              const std::vector<double>& values);
   /// z ← K⁻¹ r approximately: one V-cycle on the interleaved 3N vector.

@@ -281,9 +281,6 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     system_used_ = false;
     return true;
   }
-  int changed = 0;
-  for (std::size_t p = 0; p < s_now_.size(); ++p)
-    changed += (s_now_[p] - system_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
   // Rebuild or keep: a kept hierarchy is that of a slightly different K and
   // costs CG iterations. Those beyond the first solve after the last setup
   // are summed (Apply counts and times its V-cycles), and the hierarchy is
@@ -309,6 +306,12 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     system_used_ = true;
     return true;
   }
+  // Contacts changed since the setup (counted only once the finest level's
+  // have moved: a resting step with a constant contact set skips the scan).
+  int changed = 0;
+  if (system_valid_)
+    for (std::size_t p = 0; p < s_now_.size(); ++p)
+      changed += (s_now_[p] - system_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
   if (system_valid_ && changed <= kSystemKeepShare * contacts && stale_seconds_ + stale_rate_ < setup_seconds_) {
     // Kept with changed contacts: the finest level gets the current K (in
     // the current contact frames); the coarse levels and the interpolation
