@@ -123,6 +123,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
   t.cg_reference = ToString(scene.solver.cg_reference);
   t.preconditioner = ToString(scene.solver.preconditioner);
   t.predictor = ToString(scene.solver.predictor);
+  t.amg_frames = ToString(scene.solver.amg_frames);
   t.max_updates = scene.solver.max_updates;
   if (ref) {
     // The reference as a run record: CVODE/IDA adaptive at ref_opts.rtol, or

@@ -377,6 +377,8 @@ Scene ParseScene(std::string_view text, const std::string& source) {
         v.Choice("tangent_projection", so.tangent_projection, {TangentProjection::kClamp, TangentProjection::kNone});
     so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
     so.contact_factors = v.Bool("contact_factors", so.contact_factors);
+    so.amg_frames =
+        v.Choice("amg_frames", so.amg_frames, {AmgFrames::kAdaptive, AmgFrames::kNearestAxis, AmgFrames::kSpread});
     so.predictor = v.Choice("predictor", so.predictor, {Predictor::kConstantVelocity, Predictor::kExtrapolate});
     so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations, StepControl::kError});
     so.rtol = v.Positive("rtol", so.rtol);

@@ -16,6 +16,9 @@ std::string_view ToString(PreconditionerType p) {
   return "?";
 }
 std::string_view ToString(CholeskyOrdering o) { return o == CholeskyOrdering::kMetis ? "metis" : "amd"; }
+std::string_view ToString(AmgFrames f) {
+  return f == AmgFrames::kAdaptive ? "adaptive" : f == AmgFrames::kNearestAxis ? "nearest_axis" : "spread";
+}
 std::string_view ToString(Predictor p) {
   return p == Predictor::kConstantVelocity ? "constant" : "extrapolate";
 }

@@ -19,6 +19,10 @@ namespace clothbench {
 enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg };
 /// Fill-reducing ordering of the CHOLMOD factor (solver key cholesky_ordering).
 enum class CholeskyOrdering { kMetis, kAmd };
+/// Frames of the prefiltered AMG's hierarchy (solver key amg_frames;
+/// Preconditioner::FrameMode in solver/pcg.h): each setup in the frame mode
+/// with the fewer V-cycles per solve ("adaptive"), or always in one.
+enum class AmgFrames { kAdaptive, kNearestAxis, kSpread };
 enum class Predictor { kConstantVelocity, kExtrapolate };
 enum class StepControl { kFixed, kIterations, kError };
 /// What the PCG tolerance is relative to (docs/model.md §5 and its deviation below).
@@ -47,6 +51,7 @@ enum class TangentProjection { kClamp, kNone };
 
 std::string_view ToString(PreconditionerType p);
 std::string_view ToString(CholeskyOrdering o);
+std::string_view ToString(AmgFrames f);
 std::string_view ToString(Predictor p);
 std::string_view ToString(StepControl s);
 std::string_view ToString(CgReference r);
@@ -67,6 +72,7 @@ struct SolverSpec {
   /// contacts along that axis; "amg" builds its hierarchy on the filtered
   /// 3N×3N matrix in contact frames (prefiltered AMG). Others: unused.
   bool contact_factors = true;
+  AmgFrames amg_frames = AmgFrames::kAdaptive;  ///< "amg" with contact_factors only
   int max_updates = 20;              ///< fixed-point updates per step at most (Alg. 6); more: step rejected
   /// Iteration controller band (docs/model.md §6; thesis §3.4.3): h grows by step_factor when
   /// a step needed fewer than [0] updates and shrinks when it needed more than [1].

@@ -46,6 +46,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   if (opts_.preconditioner == PreconditionerType::kCholesky || opts_.preconditioner == PreconditionerType::kAmg)
     laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering,
                                                 opts_.contact_factors);
+  if (laplacian_) laplacian_->set_amg_frames(opts_.amg_frames);
   precond_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
   work_.Resize(n);
   filter_.Reserve(n);

@@ -395,6 +395,7 @@ RunTable ReadRunTable(const ResultReader& f) {
   t.cg_reference = str("/scene", "solver_cg_reference");
   t.preconditioner = str("/scene", "solver_preconditioner");
   t.predictor = str("/scene", "solver_predictor");
+  t.amg_frames = str("/scene", "solver_amg_frames");
   t.max_updates = f.Long("/scene", "solver_max_updates").value_or(0);
   if (f.Exists("/reference")) t.reference = ReadRunRecord(f, "/reference", "reference");
   for (const std::string& id : f.Children("/runs")) t.runs.push_back(ReadRunRecord(f, "/runs/" + id, id));
@@ -509,6 +510,7 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
   f.SetAttribute("/scene", "solver_cg_reference", t.cg_reference);
   f.SetAttribute("/scene", "solver_preconditioner", t.preconditioner);
   f.SetAttribute("/scene", "solver_predictor", t.predictor);
+  if (!t.amg_frames.empty()) f.SetAttribute("/scene", "solver_amg_frames", t.amg_frames);
   f.SetAttribute("/scene", "solver_max_updates", t.max_updates);
 }
 

@@ -102,6 +102,7 @@ struct RunTable {
   // The scene's solver settings (/scene attributes solver_*).
   double cg_tolerance = 0.0;
   std::string cg_reference, preconditioner, predictor;
+  std::string amg_frames;  ///< the prefiltered AMG's frames (SolverSpec::amg_frames); empty in older files
   long max_updates = 0;
 
   /// The reference the e_rms column is measured against (/reference): the

@@ -117,6 +117,8 @@ class SystemMatrix {
   bool AdaptTo(const VelocityFilter& filter);
   const SparseMatrix& matrix() const { return a_; }
   const Preconditioner& preconditioner() const { return precond_; }
+  /// The prefiltered AMG's frame rule (Preconditioner::set_amg_frames).
+  void set_amg_frames(AmgFrames frames) { precond_.set_amg_frames(frames); }
   int rebuilds() const { return rebuilds_; }
   /// Wall time [s] of the matrix assembly and the preconditioner's setup:
   /// pattern and symbolic analysis, plus every numeric factorisation (or

@@ -242,22 +242,25 @@ bool Preconditioner::Factorize(const SparseMatrix& a) {
 
 namespace {
 
-// The contact frame of a normal n (prefiltered AMG): the smallest rotation R
-// that takes the axis c nearest to n to ±n (Rodrigues' formula), so that in
-// K̂ = Rᵀ K R the constrained direction is unknown 3p + c alone, decoupled
-// like a fixed particle's, and the tangent directions stay the unknowns of
-// the other two axes (near-axis normals barely rotate them).
-Eigen::Matrix3d ContactFrame(const Vector3& n) {
-  int c = 0;
-  n.cwiseAbs().maxCoeff(&c);
-  const Vector3 u = n(c) < 0.0 ? Vector3(-n) : n;
-  const Vector3 e = Vector3::Unit(c);
+// The smallest rotation taking the unit vector e to the unit vector u
+// (Rodrigues' formula; u = −e is not taken).
+Eigen::Matrix3d SmallestRotation(const Vector3& e, const Vector3& u) {
   const Vector3 v = e.cross(u);
   const double s2 = v.squaredNorm();
   if (s2 == 0.0) return Eigen::Matrix3d::Identity();
   Eigen::Matrix3d vx;
   vx << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
   return Eigen::Matrix3d::Identity() + vx + vx * vx * ((1.0 - e.dot(u)) / s2);
+}
+
+// The nearest-axis contact frame of a normal n: the smallest rotation R
+// that takes the axis c nearest to n to ±n, so that in K̂ = Rᵀ K R the
+// constrained direction is unknown 3p + c alone, and the tangent
+// directions stay the unknowns of the other two axes.
+Eigen::Matrix3d ContactFrame(const Vector3& n) {
+  int c = 0;
+  n.cwiseAbs().maxCoeff(&c);
+  return SmallestRotation(Vector3::Unit(c), n(c) < 0.0 ? Vector3(-n) : n);
 }
 
 }  // namespace
@@ -296,9 +299,17 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
                         (system_apply_seconds_ / static_cast<double>(system_applications_));
   }
   applications_at_adapt_ = system_applications_;
+  // A hierarchy that needs more V-cycles per solve than the other frame
+  // mode's last one did is rebuilt at once (and so in the other mode):
+  // trying a mode again costs one solve.
+  const auto mode = static_cast<std::size_t>(frame_mode_);
+  const bool losing = amg_frames_ == AmgFrames::kAdaptive && system_valid_ && solves_since_setup_ >= 1 &&
+                      mode_measured_[1 - mode] > 0.0 &&
+                      static_cast<double>(system_applications_ - applications_at_setup_) / solves_since_setup_ >
+                          mode_measured_[1 - mode];
   // The contacts of the finest level (the hierarchy's, or those of its
   // last update) are the current ones: nothing to do.
-  bool moved = !system_valid_;
+  bool moved = !system_valid_ || losing;
   for (std::size_t p = 0; p < s_now_.size() && !moved; ++p)
     moved = (s_now_[p] - fine_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
   if (!moved) {
@@ -312,13 +323,14 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   if (system_valid_)
     for (std::size_t p = 0; p < s_now_.size(); ++p)
       changed += (s_now_[p] - system_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
-  if (system_valid_ && changed <= kSystemKeepShare * contacts && stale_seconds_ + stale_rate_ < setup_seconds_) {
+  if (system_valid_ && !losing && changed <= kSystemKeepShare * contacts &&
+      stale_seconds_ + stale_rate_ < setup_seconds_) {
     // Kept with changed contacts: the finest level gets the current K (in
     // the current contact frames); the coarse levels and the interpolation
     // stay the hierarchy's (AmgPreconditioner::UpdateSystemFineLevel). If
     // hypre fails, a setup follows.
     const auto t0 = std::chrono::steady_clock::now();
-    SetFrames(filter);
+    SetFrames(a, filter, /*smooth=*/false);
     AssembleSystem(a, s_now_);
     const bool updated = amg_->UpdateSystemFineLevel(n, k_start_, k_cols_, k_values_);
     contact_stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -331,9 +343,21 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     }
   }
   const auto t0 = std::chrono::steady_clock::now();
+  // The frames of this setup: the mode with the fewer V-cycles per solve
+  // over the last hierarchy built with it. The other mode's record decays
+  // by kFrameModeDecay at each setup, so that it is tried again once the
+  // contacts have moved on (an untried mode is tried first).
+  if (system_valid_ && solves_since_setup_ > 0) {
+    mode_measured_[mode] = mode_rate_[mode] =
+        static_cast<double>(system_applications_ - applications_at_setup_) / solves_since_setup_;
+    mode_rate_[1 - mode] *= kFrameModeDecay;
+    if (amg_frames_ == AmgFrames::kAdaptive && mode_rate_[1 - mode] < mode_rate_[mode]) frame_mode_ = mode == 0 ? FrameMode::kSpread : FrameMode::kNearestAxis;
+  }
+  applications_at_setup_ = system_applications_;
+  ++contact_stats_.frame_setups[static_cast<std::size_t>(frame_mode_)];
   system_s_.swap(s_now_);
   fine_s_ = system_s_;
-  SetFrames(filter);
+  SetFrames(a, filter, /*smooth=*/true);
   AssembleSystem(a, system_s_);
   // If the setup fails, A_F's hierarchy (which preconditions every filter)
   // serves until the next setup.
@@ -353,12 +377,83 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   return true;
 }
 
-void Preconditioner::SetFrames(const VelocityFilter& filter) {
-  frames_.resize(system_s_.size());
-  for (auto& f : frames_) f.setIdentity();
+void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filter, bool smooth) {
+  const std::size_t n = system_s_.size();
+  if (field_.size() != n) {
+    field_.assign(n, Vector3::UnitZ());
+    held_.assign(n, 0);
+    frames_.assign(n, Eigen::Matrix3d::Identity());
+  }
+  std::fill(held_.begin(), held_.end(), 0);
+  // A contact's direction is its normal, turned into the upper half-space
+  // where it points mostly down (S_p depends on n nᵀ alone).
+  const auto direction = [](const Eigen::Matrix3d& dirs) {
+    return dirs(2, 0) < -0.5 ? Vector3(-dirs.col(0)) : Vector3(dirs.col(0));
+  };
+  if (frame_mode_ == FrameMode::kNearestAxis) {
+    // Contact frames only (ContactFrame), at a setup and at an update; free
+    // particles in the world frame.
+    for (auto& f : frames_) f.setIdentity();
+    filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+      if (count == 1) frames_[static_cast<std::size_t>(p)] = ContactFrame(dirs.col(0));
+    });
+    return;
+  }
+  if (!smooth) {
+    // A finest-level update: the coarse levels keep the setup's frames, so
+    // only the contacts' frames move, each turned by the smallest rotation
+    // that takes its constrained unknown (R_p e_z) to its current normal.
+    filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+      const auto i = static_cast<std::size_t>(p);
+      held_[i] = 1;
+      if (count != 1) return;
+      field_[i] = direction(dirs);
+      frames_[i] = SmallestRotation(frames_[i].col(2), field_[i]) * frames_[i];
+    });
+    return;
+  }
+  // A setup: every free particle first takes the direction of its nearest
+  // contact (a breadth-first search from all contacts over A's graph), so
+  // that a hanging part keeps the frame of the contacts it hangs from
+  // instead of returning to the world frame; kFrameSweeps Jacobi sweeps
+  // then turn the seams between regions of different contacts gradually.
+  // A free particle no contact reaches keeps e_z.
+  std::fill(field_.begin(), field_.end(), Vector3::UnitZ());
+  reached_.assign(n, 0);
+  queue_.clear();
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
-    if (count == 1) frames_[static_cast<std::size_t>(p)] = ContactFrame(dirs.col(0));
+    const auto i = static_cast<std::size_t>(p);
+    held_[i] = reached_[i] = 1;
+    if (count != 1) return;  // fixed: keeps e_z and is no source
+    field_[i] = direction(dirs);
+    queue_.push_back(p);
   });
+  const int* outer = a.outerIndexPtr();
+  const int* inner = a.innerIndexPtr();
+  for (std::size_t head = 0; head < queue_.size(); ++head) {
+    const int p = queue_[head];
+    for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
+      const auto q = static_cast<std::size_t>(inner[pos]);
+      if (reached_[q]) continue;
+      reached_[q] = 1;
+      field_[q] = field_[static_cast<std::size_t>(p)];
+      queue_.push_back(inner[pos]);
+    }
+  }
+  for (int sweep = 0; sweep < kFrameSweeps; ++sweep) {
+    next_field_ = field_;
+    for (std::size_t p = 0; p < n; ++p) {
+      if (held_[p]) continue;
+      Vector3 sum = Vector3::Zero();
+      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) sum += field_[static_cast<std::size_t>(inner[pos])];
+      const double length = sum.norm();
+      if (length > 0.0) next_field_[p] = sum / length;
+    }
+    field_.swap(next_field_);
+  }
+  for (std::size_t p = 0; p < n; ++p)
+    frames_[p] = !held_[p] && field_[p].z() > kFrameSnap ? Eigen::Matrix3d::Identity()
+                                                         : SmallestRotation(Vector3::UnitZ(), field_[p]);
 }
 
 void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s) {
@@ -372,22 +467,25 @@ void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eig
   const int* outer = a.outerIndexPtr();
   const int* inner = a.innerIndexPtr();
   const double* val = a.valuePtr();
+  plain_.resize(static_cast<std::size_t>(n));
+  for (int p = 0; p < n; ++p)
+    plain_[static_cast<std::size_t>(p)] = s[static_cast<std::size_t>(p)].isIdentity(0.0) && frames_[static_cast<std::size_t>(p)].isIdentity(0.0);
   for (int p = 0; p < n; ++p) {
     const Eigen::Matrix3d& sp = s[static_cast<std::size_t>(p)];
-    const bool free_p = sp.isIdentity(0.0);
+    const bool free_p = plain_[static_cast<std::size_t>(p)];
     // The blocks of row p, each computed once for its three rows (empty
     // while p and all its neighbours are free).
     blocks_.clear();
     bool all_free = free_p;
     for (int pos = outer[p]; pos < outer[p + 1] && all_free; ++pos)
-      all_free = s[static_cast<std::size_t>(inner[pos])].isIdentity(0.0);
+      all_free = plain_[static_cast<std::size_t>(inner[pos])];
     if (!all_free)
       for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
         const int q = inner[pos];
         const Eigen::Matrix3d& sq = s[static_cast<std::size_t>(q)];
         Eigen::Matrix3d block = val[pos] * sp * sq;
         if (q == p) block += Eigen::Matrix3d::Identity() - sp;
-        if (!(free_p && sq.isIdentity(0.0))) {
+        if (!(free_p && plain_[static_cast<std::size_t>(q)])) {
           block = frames_[static_cast<std::size_t>(p)].transpose() * block * frames_[static_cast<std::size_t>(q)];
           const double tiny = 1e-13 * block.cwiseAbs().maxCoeff();
           block = block.unaryExpr([tiny](double x) { return std::abs(x) <= tiny ? 0.0 : x; });
@@ -397,7 +495,7 @@ void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eig
     for (int r = 0; r < 3; ++r) {
       for (int pos = outer[p]; pos < outer[p + 1]; ++pos) {
         const int q = inner[pos];
-        if (all_free || (free_p && s[static_cast<std::size_t>(q)].isIdentity(0.0))) {
+        if (all_free || (free_p && plain_[static_cast<std::size_t>(q)])) {
           k_cols_.push_back(3 * q + r);
           k_values_.push_back(val[pos]);
           continue;

@@ -110,6 +110,9 @@ struct ContactFactorStats {
   long fallbacks = 0;         ///< failed setups of the prefiltered hierarchy (A_F's served instead)
   double seconds = 0.0;       ///< their wall time [s]
   int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo; "cholesky")
+  /// Setups of the prefiltered hierarchy in nearest-axis and in spread frames
+  /// (Preconditioner::FrameMode).
+  long frame_setups[2] = {0, 0};
 };
 
 /// Preconditioner for the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃,
@@ -134,8 +137,8 @@ struct ContactFactorStats {
 ///
 /// Prefiltered AMG ("amg" with contact_factors; Tamstorf, Jones & McCormick
 /// 2015): with contacts, one V-cycle of BoomerAMG in systems mode on the
-/// 3N×3N filtered matrix K = S A S + (I − S) itself, in per-particle contact
-/// frames (a contact's normal is one unknown, decoupled), instead of A_F's
+/// 3N×3N filtered matrix K = S A S + (I − S) itself, in per-particle frames
+/// (a contact's normal is one unknown, decoupled; FrameMode), instead of A_F's
 /// hierarchy on each column. Every constraint, tilted or not, is built in;
 /// the V-cycle is an approximate inverse, as A_F's is without contacts. The
 /// hierarchy is kept while the contacts do not change, and while the
@@ -158,6 +161,42 @@ class Preconditioner {
   /// built for, it cost 80 CG iterations instead of 10: test
   /// PrefilteredHierarchySeesTiltedContacts).
   static constexpr double kSystemKeepShare = 0.05;
+  /// Prefiltered AMG: the frames of free particles. hypre interpolates each
+  /// unknown from the same unknown of its neighbours, and a jump between
+  /// neighbouring frames breaks that: with free particles in the world frame
+  /// beside tilted contacts the iterations grow with N (tilted half of a
+  /// sheet: 13 / 17 / 25 / 30 CG at 50² / 100² / 200² / 300² particles,
+  /// against 7 / 7 / 13 / 13 for axis-aligned contacts). At a setup each free
+  /// particle takes the direction of its nearest contact, and this many
+  /// Jacobi sweeps turn the seams between regions of different contacts
+  /// gradually (round_table_100k over the impact: 25.4 CG per step in world
+  /// frames, 16.8 with nearest directions alone, 11.6 with 20 sweeps;
+  /// docs/performance.md, "Prefiltered AMG").
+  static constexpr int kFrameSweeps = 20;
+  /// Prefiltered AMG: the frames of a setup.
+  /// - kNearestAxis: a contact's frame takes the axis nearest to its normal
+  ///   to the normal; free particles stay in the world frame.
+  /// - kSpread: a contact's frame takes e_z to its normal, and the free
+  ///   particles' frames are spread from the contacts' (kFrameSweeps).
+  /// Spread frames win while the contacts change (round_table_1m's impact:
+  /// 13.6 CG per step against 73.0), nearest-axis ones at rest (16.1
+  /// against 50.4): each setup takes the mode with the fewer V-cycles per
+  /// solve over the last hierarchy built with it, and a hierarchy that
+  /// needs more than the other mode's last is rebuilt at once
+  /// (docs/performance.md, "Prefiltered AMG").
+  enum class FrameMode { kNearestAxis = 0, kSpread = 1 };
+  /// Prefiltered AMG: the frame rule (SolverSpec::amg_frames). Before the
+  /// first AdaptTo.
+  void set_amg_frames(AmgFrames frames) {
+    amg_frames_ = frames;
+    frame_mode_ = frames == AmgFrames::kNearestAxis ? FrameMode::kNearestAxis : FrameMode::kSpread;
+  }
+  /// The other mode's record of V-cycles per solve is multiplied by this at
+  /// each setup, so that it is tried again.
+  static constexpr double kFrameModeDecay = 0.9;
+  /// A free particle whose direction is within this cosine of e_z keeps the
+  /// world frame (its blocks stay a_pq I, not full 3×3 ones).
+  static constexpr double kFrameSnap = 0.999;
 
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
                           CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
@@ -204,9 +243,11 @@ class Preconditioner {
   // K = S A S + (I − S), whether the hierarchy is current for A's values
   // and used by Apply.
   bool AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter);
-  // frames_ for the constraints of `filter`; the CSR rows of K for the S_p
-  // of `s` in those frames.
-  void SetFrames(const VelocityFilter& filter);
+  // frames_ for the constraints of `filter` (with `smooth`, at a setup, the
+  // free particles' directions spread again from the contacts first; at a
+  // finest-level update only the contacts' frames turn); the CSR rows of K
+  // for the S_p of `s` in those frames.
+  void SetFrames(const SparseMatrix& a, const VelocityFilter& filter, bool smooth);
   void AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s);
   // S_p of each particle (identity: free) as the hierarchy was built, now
   // (scratch), and as its finest level was last given.
@@ -214,7 +255,16 @@ class Preconditioner {
   std::vector<int> k_start_, k_cols_;
   std::vector<Eigen::Matrix3d> blocks_;  // AssembleSystem's scratch: the blocks of one row
   std::vector<double> k_values_;
-  std::vector<Eigen::Matrix3d> frames_;  // R_p of the hierarchy's contact frames
+  // The frames: a direction per particle (a contact's normal; for a free
+  // particle its nearest contact's, then kFrameSweeps Jacobi sweeps of its
+  // neighbours' mean), whether the filter holds the particle, and R_p taking
+  // e_z to the direction (identity for a free particle within kFrameSnap of
+  // e_z). reached_, queue_: the breadth-first search of SetFrames.
+  // plain_: S_p = R_p = I (AssembleSystem).
+  std::vector<Vector3> field_, next_field_;
+  std::vector<char> held_, plain_, reached_;
+  std::vector<int> queue_;
+  std::vector<Eigen::Matrix3d> frames_;
   mutable MatrixN3 rotated_r_, rotated_z_;
   bool system_valid_ = false, system_used_ = false;
   // The rebuild rule (AdaptAmgTo): V-cycles applied and their time, the
@@ -226,6 +276,13 @@ class Preconditioner {
   long applications_at_adapt_ = 0, baseline_applications_ = 0;
   int solves_since_setup_ = 0;
   double stale_seconds_ = 0.0, setup_seconds_ = 0.0, stale_rate_ = 0.0;
+  // The frame rule: the current mode, each mode's V-cycles per solve over
+  // its last hierarchy (0: untried) as measured and as decayed since, and
+  // the V-cycle count at the setup.
+  AmgFrames amg_frames_ = AmgFrames::kAdaptive;
+  FrameMode frame_mode_ = FrameMode::kSpread;
+  double mode_measured_[2] = {0.0, 0.0}, mode_rate_[2] = {0.0, 0.0};
+  long applications_at_setup_ = 0;
 };
 
 /// y ← A x for a symmetric N×N A applied to the three columns of x in one

@@ -220,22 +220,26 @@ TEST(StepLoop, ContactFactorsDoNotAllocateAtAConstantContactSet) {
 
 // The prefiltered AMG at a constant contact set: AdaptTo compares the
 // filter with the hierarchy's and keeps it, allocating nothing (its V-cycles
-// allocate inside hypre, see DoesNotAllocateWithFactorAmgAndThreads).
+// allocate inside hypre, see DoesNotAllocateWithFactorAmgAndThreads), in
+// each frame mode.
 TEST(StepLoop, PrefilteredAmgKeepsItsHierarchyWithoutAllocating) {
   const Scene s = DefaultScene();
   const ParticleSystem sys(s);
-  SystemMatrix sm(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
-  ASSERT_TRUE(sm.Update(0.01));
-  const VelocityFilter f = HalfInContact(sys, Vector3(1, 0, 1).normalized());
-  ASSERT_TRUE(sm.AdaptTo(f));
-  g_allocations = 0;
-  g_counting = true;
-  bool ok = true;
-  for (int k = 0; k < 3; ++k) ok &= sm.AdaptTo(f);
-  g_counting = false;
-  EXPECT_TRUE(ok);
-  EXPECT_EQ(g_allocations.load(), 0);
-  EXPECT_EQ(sm.preconditioner().contact_stats().refactorizations, 1);
+  for (AmgFrames frames : {AmgFrames::kAdaptive, AmgFrames::kNearestAxis, AmgFrames::kSpread}) {
+    SystemMatrix sm(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+    sm.set_amg_frames(frames);
+    ASSERT_TRUE(sm.Update(0.01));
+    const VelocityFilter f = HalfInContact(sys, Vector3(1, 0, 1).normalized());
+    ASSERT_TRUE(sm.AdaptTo(f));
+    g_allocations = 0;
+    g_counting = true;
+    bool ok = true;
+    for (int k = 0; k < 3; ++k) ok &= sm.AdaptTo(f);
+    g_counting = false;
+    EXPECT_TRUE(ok) << ToString(frames);
+    EXPECT_EQ(g_allocations.load(), 0) << ToString(frames);
+    EXPECT_EQ(sm.preconditioner().contact_stats().refactorizations, 1) << ToString(frames);
+  }
 }
 
 }  // namespace
