@@ -351,7 +351,8 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     mode_measured_[mode] = mode_rate_[mode] =
         static_cast<double>(system_applications_ - applications_at_setup_) / solves_since_setup_;
     mode_rate_[1 - mode] *= kFrameModeDecay;
-    if (amg_frames_ == AmgFrames::kAdaptive && mode_rate_[1 - mode] < mode_rate_[mode]) frame_mode_ = mode == 0 ? FrameMode::kSpread : FrameMode::kNearestAxis;
+    if (amg_frames_ == AmgFrames::kAdaptive && mode_rate_[1 - mode] < mode_rate_[mode])
+      frame_mode_ = mode == 0 ? FrameMode::kSpread : FrameMode::kNearestAxis;
   }
   applications_at_setup_ = system_applications_;
   ++contact_stats_.frame_setups[static_cast<std::size_t>(frame_mode_)];
@@ -468,8 +469,7 @@ void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eig
   const int* inner = a.innerIndexPtr();
   const double* val = a.valuePtr();
   plain_.resize(static_cast<std::size_t>(n));
-  for (int p = 0; p < n; ++p)
-    plain_[static_cast<std::size_t>(p)] = s[static_cast<std::size_t>(p)].isIdentity(0.0) && frames_[static_cast<std::size_t>(p)].isIdentity(0.0);
+  for (std::size_t p = 0; p < plain_.size(); ++p) plain_[p] = s[p].isIdentity(0.0) && frames_[p].isIdentity(0.0);
   for (int p = 0; p < n; ++p) {
     const Eigen::Matrix3d& sp = s[static_cast<std::size_t>(p)];
     const bool free_p = plain_[static_cast<std::size_t>(p)];
