@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "results/result_file.h"
@@ -517,6 +518,61 @@ TEST(BenchCli, SceneErrorControlMakesErrorRows) {
   o = RunBench("--scene " + scene + " --reference none --frames none --repeat 1 --quiet --out " + out.string());
   ASSERT_EQ(o.exit_code, 0) << o.err;
   for (const RunRecord& r : ReadRunTable(ResultReader(out.string())).runs) EXPECT_EQ(r.status, "ok") << r.id;
+}
+
+
+// contact_replay: a state saved in contact replays from there (the sheet on
+// the round table stays constrained), two replays of one state take the
+// same steps (CG iterations and constrained particles per step, to the
+// digit), and a damaged or foreign state file is refused with one line.
+TEST(ContactReplay, SavedStateReplaysReproduciblyAndBadStatesAreRefused) {
+  const fs::path dir = TempDir();
+  const std::string prefix = (dir / "rt").string();
+  const auto run = [&](const std::string& args) { return testing::RunCommand(CLOTHBENCH_REPLAY_BINARY, args, dir); };
+  const Outcome saved = run("save --scene round_table --at 0.3,0.6 --out " + prefix);
+  ASSERT_EQ(saved.exit_code, 0) << saved.err;
+  ASSERT_TRUE(fs::exists(prefix + "_0.state") && fs::exists(prefix + "_1.state"));
+  EXPECT_FALSE(fs::exists(prefix + "_1.state.tmp"));
+  // Columns 2 and 3 (CG iterations, constrained particles) of the step lines.
+  const auto counts = [](const std::string& out) {
+    std::istringstream in(out);
+    std::vector<std::pair<int, int>> rows;
+    for (std::string line; std::getline(in, line);) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream fields(line);
+      double t = 0.0;
+      int cg = 0, constrained = 0;
+      fields >> t >> cg >> constrained;
+      rows.emplace_back(cg, constrained);
+    }
+    return rows;
+  };
+  const std::string replay = "replay --scene round_table --steps 3 --state " + prefix + "_1.state";
+  const Outcome first = run(replay);
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  const auto rows = counts(first.out);
+  ASSERT_EQ(rows.size(), 3u) << first.out;
+  for (const auto& [cg, constrained] : rows) {
+    EXPECT_GT(cg, 0);
+    EXPECT_GT(constrained, 40);  // of 400: the sheet rests on the table top at t = 0.6 s
+  }
+  EXPECT_NE(first.out.find("  0.6100 "), std::string::npos) << first.out;
+  const Outcome second = run(replay);
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  EXPECT_EQ(counts(second.out), rows);
+
+  // Refused: a truncated file, another scene's state, bad options.
+  const fs::path cut = dir / "cut.state";
+  {
+    const std::string bytes = testing::Slurp(prefix + "_1.state");
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  ExpectOneLineError(run("replay --scene round_table --steps 1 --state " + cut.string()), "truncated");
+  ExpectOneLineError(run("replay --scene " + WriteScene("tiny.toml", kTiny) + " --steps 1 --state " + prefix +
+                         "_1.state"),
+                     "holds 400 particles, the scene has 12");
+  ExpectOneLineError(run(replay + " --integrator leapfrog"), "--integrator leapfrog");
+  ExpectOneLineError(run("save --scene round_table --at 0.5,0.2 --out " + prefix), "times must increase");
 }
 
 }  // namespace
