@@ -301,12 +301,17 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   applications_at_adapt_ = system_applications_;
   // A hierarchy that needs more V-cycles per solve than the other frame
   // mode's last one did is rebuilt at once (and so in the other mode):
-  // trying a mode again costs one solve.
+  // trying a mode again costs one solve. So is the first hierarchy that has
+  // been applied while the other mode is untried: a run that starts in
+  // contact tries both modes in its first two solves (a replay of
+  // round_table_1m at rest otherwise stayed in spread frames, 47–55 CG per
+  // step, until the contacts changed; nearest-axis frames need 11–20).
   const auto mode = static_cast<std::size_t>(frame_mode_);
+  const long applied = system_applications_ - applications_at_setup_;
   const bool losing = amg_frames_ == AmgFrames::kAdaptive && system_valid_ && solves_since_setup_ >= 1 &&
-                      mode_measured_[1 - mode] > 0.0 &&
-                      static_cast<double>(system_applications_ - applications_at_setup_) / solves_since_setup_ >
-                          mode_measured_[1 - mode];
+                      applied > 0 &&
+                      (mode_measured_[1 - mode] == 0.0 ||
+                       static_cast<double>(applied) / solves_since_setup_ > mode_measured_[1 - mode]);
   // The contacts of the finest level (the hierarchy's, or those of its
   // last update) are the current ones: nothing to do.
   bool moved = !system_valid_ || losing;

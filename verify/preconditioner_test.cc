@@ -297,6 +297,43 @@ TEST(AmgPreconditioner, AHierarchyThatLosesToTheOtherFrameModeIsRebuilt) {
   EXPECT_EQ(stats.refactorizations, 3);
 }
 
+// A run that starts in contact tries both frame modes: once the first
+// hierarchy (spread frames) has been applied, the next AdaptTo builds one
+// in nearest-axis frames while that mode is untried, even with the contacts
+// unchanged; without a V-cycle applied, or with a fixed frame mode, the
+// hierarchy is kept.
+TEST(AmgPreconditioner, AnUntriedFrameModeIsTriedAfterTheFirstSolve) {
+  const ParticleSystem sys(DefaultScene());
+  const int n = sys.num_particles();
+  VelocityFilter filter;
+  filter.Reserve(n);
+  for (int p : sys.fixed()) filter.Fix(p);
+  for (int p = 0; p < n / 2; ++p)
+    if (!sys.is_fixed(p)) filter.Constrain(p, Vector3(1, 1, 1).normalized(), 0.0);
+  MatrixN3 b(n, 3);
+  for (int p = 0; p < n; ++p)
+    for (int c = 0; c < 3; ++c) b(p, c) = std::sin(0.7 * p + 1.3 * c) + 0.1 * std::cos(0.05 * p);
+  for (AmgFrames frames : {AmgFrames::kAdaptive, AmgFrames::kSpread}) {
+    SystemMatrix sm(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+    sm.set_amg_frames(frames);
+    ASSERT_TRUE(sm.Update(0.01));
+    const ContactFactorStats& stats = sm.preconditioner().contact_stats();
+    ASSERT_TRUE(sm.AdaptTo(filter));
+    ASSERT_TRUE(sm.AdaptTo(filter));  // nothing applied yet: kept
+    EXPECT_EQ(stats.refactorizations, 1) << ToString(frames);
+    PcgIterations(sm, b, filter);
+    ASSERT_TRUE(sm.AdaptTo(filter));
+    if (frames == AmgFrames::kAdaptive) {
+      EXPECT_EQ(stats.refactorizations, 2);
+      EXPECT_EQ(stats.frame_setups[1], 1);
+      EXPECT_EQ(stats.frame_setups[0], 1);
+    } else {
+      EXPECT_EQ(stats.refactorizations, 1);
+      EXPECT_EQ(stats.frame_setups[0], 0);
+    }
+  }
+}
+
 // A kept prefiltered hierarchy takes changed contacts on its finest level
 // (AmgPreconditioner::UpdateSystemFineLevel): tilted contacts on half the
 // default sheet, then 8 more particles (4 % of the contacts, below
@@ -336,6 +373,10 @@ TEST(AmgPreconditioner, KeptHierarchyTakesChangedContactsOnItsFinestLevel) {
   SystemMatrix kept(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
   SystemMatrix fresh(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
   SystemMatrix plain(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/false);
+  // Spread frames for both: in the adaptive rule the kept hierarchy's
+  // first solve would make the untried nearest-axis mode's setup next.
+  kept.set_amg_frames(AmgFrames::kSpread);
+  fresh.set_amg_frames(AmgFrames::kSpread);
   ASSERT_TRUE(kept.Update(0.01) && fresh.Update(0.01) && plain.Update(0.01));
   ASSERT_TRUE(kept.AdaptTo(before));
   PcgIterations(kept, b, before);
