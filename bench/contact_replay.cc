@@ -36,6 +36,7 @@
 #include <string>
 #include <vector>
 
+#include "harness/cli_args.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "solver/integrator.h"
@@ -177,21 +178,11 @@ int main(int argc, char** argv) {
   Scene scene;
   try {
     scene = LoadSceneOrBuiltin(scene_arg);
-    // The overrides go through the scene parser, so their values are checked
-    // as a scene file's are.
-    if (!preconditioner.empty() || !frames.empty()) {
-      std::string toml = scene.toml + "\n";
-      std::string solver_keys;
-      if (!preconditioner.empty()) solver_keys += fmt::format("preconditioner = \"{}\"\n", preconditioner);
-      if (!frames.empty()) solver_keys += fmt::format("amg_frames = \"{}\"\n", frames);
-      const auto pos = toml.find("\n[solver]\n");
-      if (pos == std::string::npos)
-        toml += "[solver]\n" + solver_keys;
-      else
-        toml.insert(pos + 10, solver_keys);
-      scene = ParseScene(toml, scene.source + " with the command line's overrides");
-    }
+    if (!preconditioner.empty()) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
+    if (!frames.empty()) scene.solver.amg_frames = ParseAmgFrames(frames, "--amg-frames");
   } catch (const SceneError& e) {
+    return Fail(e.what());
+  } catch (const UsageError& e) {
     return Fail(e.what());
   }
   const std::optional<Method> parsed = MethodFromString(integrator);
@@ -220,14 +211,13 @@ int main(int argc, char** argv) {
 
   StepEngine engine(system, *parsed, scene.solver);
   PrintHeader();
-  int failed = 0;
+  // One step to t_next, printed; false (after one line on stderr) if it failed.
   const auto step = [&](double t_next) {
     const ContactFactorStats before = engine.system_matrix().preconditioner().contact_stats();
     const StepStats st = engine.Step(h);
     if (st.status != StepStatus::kOk) {
       std::fprintf(stderr, "contact_replay: the step to t = %.4f s failed (%s)\n", t_next,
                    std::string(ToString(st.status)).c_str());
-      failed = 1;
       return false;
     }
     engine.SetTime(t_next);
@@ -237,14 +227,14 @@ int main(int argc, char** argv) {
   if (start) {
     engine.Reset(start->t, start->x, start->v);
     for (int k = 1; k <= steps; ++k)
-      if (!step(start->t + k * h)) return failed;
+      if (!step(start->t + k * h)) return 1;
     return 0;
   }
   engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
   std::size_t next = 0;
   for (long k = 1; next < at.size(); ++k) {
     const double t_next = static_cast<double>(k) * h;
-    if (!step(t_next)) return failed;
+    if (!step(t_next)) return 1;
     if (t_next >= at[next] - 1e-9 * h) {
       if (!WriteState(outputs[next], State{engine.t(), engine.x(), engine.v()})) {
         std::fprintf(stderr, "contact_replay: %s could not be written\n", outputs[next].string().c_str());

@@ -41,6 +41,14 @@ inline PreconditionerType ParsePreconditioner(const std::string& name, const std
   throw UsageError(fmt::format("{}: \"{}\" must be ic0, cholesky, amg, jacobi or none", option, name));
 }
 
+/// "adaptive" | "nearest_axis" | "spread" (SolverSpec::amg_frames).
+/// @throws UsageError naming `option` for any other name
+inline AmgFrames ParseAmgFrames(const std::string& name, const std::string& option) {
+  for (AmgFrames f : {AmgFrames::kAdaptive, AmgFrames::kNearestAxis, AmgFrames::kSpread})
+    if (name == ToString(f)) return f;
+  throw UsageError(fmt::format("{}: \"{}\" must be adaptive, nearest_axis or spread", option, name));
+}
+
 /// The items of a comma-separated list, trimmed. @throws UsageError naming
 /// `option` for an empty list or an empty item (leading, inner or trailing).
 inline std::vector<std::string> SplitList(const std::string& s, const std::string& option) {

@@ -305,7 +305,7 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   // been applied while the other mode is untried: a run that starts in
   // contact tries both modes in its first two solves (a replay of
   // round_table_1m at rest otherwise stayed in spread frames, 47–55 CG per
-  // step, until the contacts changed; nearest-axis frames need 11–20).
+  // step, until the contacts changed; nearest-axis frames need 10–21).
   const auto mode = static_cast<std::size_t>(frame_mode_);
   const long applied = system_applications_ - applications_at_setup_;
   const bool losing = amg_frames_ == AmgFrames::kAdaptive && system_valid_ && solves_since_setup_ >= 1 &&

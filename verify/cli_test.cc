@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -520,7 +521,6 @@ TEST(BenchCli, SceneErrorControlMakesErrorRows) {
   for (const RunRecord& r : ReadRunTable(ResultReader(out.string())).runs) EXPECT_EQ(r.status, "ok") << r.id;
 }
 
-
 // contact_replay: a state saved in contact replays from there (the sheet on
 // the round table stays constrained), two replays of one state take the
 // same steps (CG iterations and constrained particles per step, to the
@@ -533,28 +533,29 @@ TEST(ContactReplay, SavedStateReplaysReproduciblyAndBadStatesAreRefused) {
   ASSERT_EQ(saved.exit_code, 0) << saved.err;
   ASSERT_TRUE(fs::exists(prefix + "_0.state") && fs::exists(prefix + "_1.state"));
   EXPECT_FALSE(fs::exists(prefix + "_1.state.tmp"));
-  // Columns 2 and 3 (CG iterations, constrained particles) of the step lines.
-  const auto counts = [](const std::string& out) {
+  // Column `c` (0-based) of every step line: 1 CG iterations, 2 constrained
+  // particles, 7 and 8 setups in nearest-axis and in spread frames.
+  const auto column = [](const std::string& out, int c) {
     std::istringstream in(out);
-    std::vector<std::pair<int, int>> rows;
+    std::vector<double> values;
     for (std::string line; std::getline(in, line);) {
       if (line.empty() || line[0] == '#') continue;
       std::istringstream fields(line);
-      double t = 0.0;
-      int cg = 0, constrained = 0;
-      fields >> t >> cg >> constrained;
-      rows.emplace_back(cg, constrained);
+      double v = 0.0;
+      for (int k = 0; k <= c; ++k) fields >> v;
+      values.push_back(v);
     }
-    return rows;
+    return values;
   };
+  const auto counts = [&](const std::string& out) { return std::pair(column(out, 1), column(out, 2)); };
   const std::string replay = "replay --scene round_table --steps 3 --state " + prefix + "_1.state";
   const Outcome first = run(replay);
   ASSERT_EQ(first.exit_code, 0) << first.err;
   const auto rows = counts(first.out);
-  ASSERT_EQ(rows.size(), 3u) << first.out;
-  for (const auto& [cg, constrained] : rows) {
-    EXPECT_GT(cg, 0);
-    EXPECT_GT(constrained, 40);  // of 400: the sheet rests on the table top at t = 0.6 s
+  ASSERT_EQ(rows.first.size(), 3u) << first.out;
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_GT(rows.first[k], 0);
+    EXPECT_GT(rows.second[k], 40);  // of 400: the sheet rests on the table top at t = 0.6 s
   }
   EXPECT_NE(first.out.find("  0.6100 "), std::string::npos) << first.out;
   const Outcome second = run(replay);
@@ -572,6 +573,13 @@ TEST(ContactReplay, SavedStateReplaysReproduciblyAndBadStatesAreRefused) {
                          "_1.state"),
                      "holds 400 particles, the scene has 12");
   ExpectOneLineError(run(replay + " --integrator leapfrog"), "--integrator leapfrog");
+  ExpectOneLineError(run(replay + " --amg-frames wobbly"), "--amg-frames: \"wobbly\" must be");
+  // The overrides replace keys the scene names (round_table names ic0).
+  const Outcome overridden = run(replay + " --preconditioner amg --amg-frames nearest_axis");
+  ASSERT_EQ(overridden.exit_code, 0) << overridden.err;
+  const std::vector<double> nearest = column(overridden.out, 7), spread = column(overridden.out, 8);
+  EXPECT_GT(std::accumulate(nearest.begin(), nearest.end(), 0.0), 0.0) << overridden.out;
+  EXPECT_EQ(std::accumulate(spread.begin(), spread.end(), 0.0), 0.0) << overridden.out;
   ExpectOneLineError(run("save --scene round_table --at 0.5,0.2 --out " + prefix), "times must increase");
 }
 
