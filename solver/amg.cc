@@ -171,29 +171,74 @@ struct Hierarchy {
 };
 
 struct AmgPreconditioner::Impl {
-  // A_F ⊗ I₃'s hierarchy: one V-cycle preconditions all three columns.
+  // A_F's hierarchy, applied to each column.
   Hierarchy scalar;
-  std::vector<int> source;       // per entry of the interleaved CSR rows: position in A's values
-  std::vector<int> start, cols;  // the interleaved CSR rows of A_F ⊗ I₃
+  std::vector<int> source;      // per entry of the CSR rows: position in A's values
+  std::vector<int> start, cols;  // the CSR rows of A_F
   std::vector<double> values;
   // The prefiltered 3N×3N system (FactorizeSystem).
   Hierarchy system;
 };
 
-namespace {
+AmgPreconditioner::AmgPreconditioner() : impl_(std::make_unique<Impl>()) { StartHypre(); }
+AmgPreconditioner::~AmgPreconditioner() = default;
 
-// Sets up `h` for the 3N×3N matrix of the interleaved CSR rows in systems
-// mode (three functions per node, nodal coarsening on the Frobenius norm of
-// each 3×3 block), aggressively coarsened on its first level from
-// kAggressiveCoarseningNodes particles on, and checks that one V-cycle on
-// a vector of ones is finite. A setup can succeed and still give a V-cycle
-// that is not finite (a singular coarse level; seen at 10⁶ particles with
-// the prefiltered hierarchy built in world frames). Allocates.
-bool SetUpSystem(Hierarchy& h, int n_nodes, const int* start, const int* cols, const double* values) {
+bool AmgPreconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixed) {
+  if (!StartHypre()) return false;
+  Impl& m = *impl_;
+  m.scalar.Free();
+  const int n = static_cast<int>(a.rows());
+  // A_F is symmetric: column j of its CSC storage is row j of hypre's CSR rows.
+  internal::DecoupledPattern pattern = internal::DecoupleFixed(a, fixed, /*upper_only=*/false);
+  m.source = std::move(pattern.source);
+  m.cols = std::move(pattern.inner);
+  m.start = std::move(pattern.outer);
+  m.values.assign(m.cols.size(), 0.0);
+  m.scalar.Resize(n);
+  return true;
+}
+
+bool AmgPreconditioner::Factorize(const SparseMatrix& a) {
+  Impl& m = *impl_;
+  Hierarchy& h = m.scalar;
+  h.Free();
+  if (h.n == 0) return false;
+  for (std::size_t k = 0; k < m.source.size(); ++k) m.values[k] = a.valuePtr()[m.source[k]];
+  h.par_a = MakeMatrix(h.n, m.start.data(), m.cols.data(), m.values.data());
+  if (!h.par_a) return false;
+  h.amg = CreateAmg();
+  h.ready = SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels);
+  return h.ready;
+}
+
+void AmgPreconditioner::Solve(const MatrixN3& r, MatrixN3* z) const {
+  const Hierarchy& h = impl_->scalar;
+  if (!h.ready) {
+    z->setConstant(std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
+  double* b = h.b();
+  double* x = h.x();
+  const auto bytes = static_cast<std::size_t>(h.n) * sizeof(double);
+  for (int c = 0; c < 3; ++c) {
+    std::memcpy(b, r.col(c).data(), bytes);
+    std::memset(x, 0, bytes);  // a preconditioner application starts from zero
+    HYPRE_BoomerAMGSolve(h.amg, h.par_a, h.par_b, h.par_x);
+    std::memcpy(z->col(c).data(), x, bytes);
+  }
+}
+
+int AmgPreconditioner::levels() const { return impl_->scalar.levels; }
+
+bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
+                                        const std::vector<double>& values) {
+  if (!StartHypre()) return false;
+  Impl& m = *impl_;
+  Hierarchy& h = m.system;
   h.Free();
   const int n = 3 * n_nodes;
   h.Resize(n);
-  h.par_a = MakeMatrix(n, start, cols, values);
+  h.par_a = MakeMatrix(n, row_start.data(), cols.data(), values.data());
   if (!h.par_a) return false;
   h.amg = CreateAmg();
   HYPRE_BoomerAMGSetNumFunctions(h.amg, 3);  // interleaved: function of unknown i is i mod 3
@@ -208,6 +253,9 @@ bool SetUpSystem(Hierarchy& h, int n_nodes, const int* start, const int* cols, c
   // aggressively coarsened (docs/performance.md, "Prefiltered AMG").
   if (n_nodes >= kAggressiveCoarseningNodes) HYPRE_BoomerAMGSetAggNumLevels(h.amg, 1);
   if (!SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels)) return false;
+  // A setup can succeed and still give a V-cycle that is not finite (a
+  // singular coarse level; seen at 10⁶ particles with the hierarchy built in
+  // world frames): one V-cycle on a vector of ones checks it.
   HYPRE_ParVectorSetConstantValues(h.par_b, 1.0);
   HYPRE_ParVectorSetConstantValues(h.par_x, 0.0);
   HYPRE_BoomerAMGSolve(h.amg, h.par_a, h.par_b, h.par_x);
@@ -219,77 +267,6 @@ bool SetUpSystem(Hierarchy& h, int n_nodes, const int* start, const int* cols, c
     }
   h.ready = true;
   return true;
-}
-
-// z ← one V-cycle of `h` (on `matrix`, its finest level) applied to r,
-// through the interleaved vector: unknown 3p + c is r(p, c).
-void VCycle(const Hierarchy& h, HYPRE_ParCSRMatrix matrix, const MatrixN3& r, MatrixN3* z) {
-  double* b = h.b();
-  double* x = h.x();
-  const Eigen::Index n = r.rows();
-  for (Eigen::Index p = 0; p < n; ++p)
-    for (int c = 0; c < 3; ++c) b[3 * p + c] = r(p, c);
-  std::memset(x, 0, static_cast<std::size_t>(h.n) * sizeof(double));  // from a zero guess
-  HYPRE_BoomerAMGSolve(h.amg, matrix, h.par_b, h.par_x);
-  for (Eigen::Index p = 0; p < n; ++p)
-    for (int c = 0; c < 3; ++c) (*z)(p, c) = x[3 * p + c];
-}
-
-}  // namespace
-
-AmgPreconditioner::AmgPreconditioner() : impl_(std::make_unique<Impl>()) { StartHypre(); }
-AmgPreconditioner::~AmgPreconditioner() = default;
-
-bool AmgPreconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixed) {
-  if (!StartHypre()) return false;
-  Impl& m = *impl_;
-  m.scalar.Free();
-  const int n = static_cast<int>(a.rows());
-  // A_F is symmetric: column j of its CSC storage is row j of its CSR rows.
-  // Row 3p + c of A_F ⊗ I₃ holds the entries 3q + c of row p of A_F.
-  const internal::DecoupledPattern pattern = internal::DecoupleFixed(a, fixed, /*upper_only=*/false);
-  const std::size_t nnz = pattern.inner.size();
-  m.start.assign(static_cast<std::size_t>(3 * n) + 1, 0);
-  m.cols.resize(3 * nnz);
-  m.source.resize(3 * nnz);
-  std::size_t at = 0;
-  for (int p = 0; p < n; ++p)
-    for (int c = 0; c < 3; ++c) {
-      for (int k = pattern.outer[static_cast<std::size_t>(p)]; k < pattern.outer[static_cast<std::size_t>(p) + 1]; ++k) {
-        m.cols[at] = 3 * pattern.inner[static_cast<std::size_t>(k)] + c;
-        m.source[at++] = pattern.source[static_cast<std::size_t>(k)];
-      }
-      m.start[static_cast<std::size_t>(3 * p + c) + 1] = static_cast<int>(at);
-    }
-  m.values.assign(m.cols.size(), 0.0);
-  m.scalar.Resize(3 * n);
-  return true;
-}
-
-bool AmgPreconditioner::Factorize(const SparseMatrix& a) {
-  Impl& m = *impl_;
-  Hierarchy& h = m.scalar;
-  h.Free();
-  if (h.n == 0) return false;
-  for (std::size_t k = 0; k < m.source.size(); ++k) m.values[k] = a.valuePtr()[m.source[k]];
-  return SetUpSystem(h, h.n / 3, m.start.data(), m.cols.data(), m.values.data());
-}
-
-void AmgPreconditioner::Solve(const MatrixN3& r, MatrixN3* z) const {
-  const Hierarchy& h = impl_->scalar;
-  if (!h.ready || 3 * r.rows() != h.n) {
-    z->setConstant(std::numeric_limits<double>::quiet_NaN());
-    return;
-  }
-  VCycle(h, h.par_a, r, z);
-}
-
-int AmgPreconditioner::levels() const { return impl_->scalar.levels; }
-
-bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
-                                        const std::vector<double>& values) {
-  if (!StartHypre()) return false;
-  return SetUpSystem(impl_->system, n_nodes, row_start.data(), cols.data(), values.data());
 }
 
 bool AmgPreconditioner::UpdateSystemFineLevel(int n_nodes, const std::vector<int>& row_start,
@@ -309,7 +286,15 @@ void AmgPreconditioner::SolveSystem(const MatrixN3& r, MatrixN3* z) const {
     z->setConstant(std::numeric_limits<double>::quiet_NaN());
     return;
   }
-  VCycle(h, h.fine(), r, z);
+  double* b = h.b();
+  double* x = h.x();
+  const Eigen::Index n = r.rows();
+  for (Eigen::Index p = 0; p < n; ++p)
+    for (int c = 0; c < 3; ++c) b[3 * p + c] = r(p, c);
+  std::memset(x, 0, static_cast<std::size_t>(h.n) * sizeof(double));
+  HYPRE_BoomerAMGSolve(h.amg, h.fine(), h.par_b, h.par_x);
+  for (Eigen::Index p = 0; p < n; ++p)
+    for (int c = 0; c < 3; ++c) (*z)(p, c) = x[3 * p + c];
 }
 
 }  // namespace clothbench

@@ -1,9 +1,8 @@
 // Algebraic multigrid preconditioner of the filtered PCG (docs/model.md §5): one
-// V-cycle of hypre's BoomerAMG on A_F ⊗ I₃ (A_F: A_α with the fixed
-// particles decoupled, as for the Cholesky factor), the three coordinate
-// columns interleaved into one 3N vector. hypre links MPI; clothbench runs
-// it as a single process (MPI is initialised on first use, no mpirun
-// needed).
+// V-cycle of hypre's BoomerAMG on the N×N matrix A_F (A_α with the fixed
+// particles decoupled, as for the Cholesky factor), applied to each of the
+// three coordinate columns. hypre links MPI; clothbench runs it as a single
+// process (MPI is initialised on first use, no mpirun needed).
 #ifndef CLOTHBENCH_SOLVER_AMG_H_
 #define CLOTHBENCH_SOLVER_AMG_H_
 
@@ -17,14 +16,7 @@ namespace clothbench {
 /// BoomerAMG with settings for a 2-D graph Laplacian plus mass: HMIS
 /// coarsening, extended+i interpolation (at most 4 entries per row),
 /// one hybrid symmetric Gauss–Seidel sweep down and up (a symmetric
-/// preconditioner, as CG requires), strength threshold 0.25; in systems
-/// mode (three functions per node, nodal coarsening), the first level
-/// coarsened aggressively from 2·10⁴ particles on. A_F ⊗ I₃ gets the
-/// coarse levels of A_F three times over, and one V-cycle on the
-/// interleaved vector costs less than three on A_F's columns: a
-/// contact-free step of the round table scenes costs 20–30 % less at 10⁴,
-/// 10⁵ and 10⁶ particles, with more CG iterations where the coarsening is
-/// aggressive (docs/performance.md, "One V-cycle for three columns").
+/// preconditioner, as CG requires), strength threshold 0.25.
 /// Not copyable (owns hypre objects).
 class AmgPreconditioner {
  public:
@@ -36,12 +28,10 @@ class AmgPreconditioner {
   /// Records the pattern of `a` (N×N, both triangles) and the particles
   /// to decouple. Allocates. @return false if MPI or hypre failed to start.
   bool Analyze(const SparseMatrix& a, const std::vector<int>& fixed);
-  /// AMG setup (coarsening, interpolation, Galerkin products) of A_F ⊗ I₃
-  /// for the values of `a`. Allocates inside hypre; called only when αh
-  /// changes. @return false if hypre failed or the V-cycle is not finite.
+  /// AMG setup (coarsening, interpolation, Galerkin products) for the values
+  /// of `a`. Allocates inside hypre; called only when αh changes.
   bool Factorize(const SparseMatrix& a);
-  /// z ← M⁻¹ r: one V-cycle of A_F ⊗ I₃ from a zero guess on the
-  /// interleaved columns. @param r, z N×3; z NaN if no setup succeeded.
+  /// z ← M⁻¹ r: one V-cycle from a zero guess, per column. @param r, z N×3.
   void Solve(const MatrixN3& r, MatrixN3* z) const;
   /// Number of levels of the last setup.
   int levels() const;
