@@ -243,15 +243,27 @@ bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row
   h.amg = CreateAmg();
   HYPRE_BoomerAMGSetNumFunctions(h.amg, 3);  // interleaved: function of unknown i is i mod 3
   HYPRE_BoomerAMGSetNodal(h.amg, 1);         // nodal coarsening on the Frobenius norm of each block
-  // Aggressive coarsening on the first level (hypre's multipass
-  // interpolation there) from kAggressiveCoarseningNodes particles on: a
-  // setup runs every step of an impact, and at 10⁵ particles it costs
-  // 0.16 s instead of 0.22 s for about 15 % more CG iterations; the 1 s
+  // Aggressive coarsening on the first level from
+  // kAggressiveCoarseningNodes particles on: a setup runs every step of an
+  // impact, and at 10⁵ particles it cost 0.16 s instead of 0.22 s for about
+  // 15 % more CG iterations (with multipass interpolation); the 1 s
   // drape of round_table_100k takes 26 s instead of 30–32 s. Below, setups
   // are cheap and the iterations count: at 10⁴ the drape takes the same
   // time either way, with twice the CG iterations of a resting step
   // aggressively coarsened (docs/performance.md, "Prefiltered AMG").
-  if (n_nodes >= kAggressiveCoarseningNodes) HYPRE_BoomerAMGSetAggNumLevels(h.amg, 1);
+  //
+  // Its interpolation is hypre's 2-stage extended+i in matrix-matrix form
+  // (AggInterpType 6; the other levels' interpolation, extended+i, applied
+  // across the two stages) instead of the default multipass: on
+  // round_table_100k the 1 s drape then needs 664 CG iterations instead of
+  // 842 (9.4 instead of 13.2 per impact step, 5.5 instead of 7.3 at rest)
+  // for a setup as costly within the machine's spread, and a replay of
+  // round_table_1m's impact 8 per step instead of 12 (docs/performance.md,
+  // "Prefiltered AMG").
+  if (n_nodes >= kAggressiveCoarseningNodes) {
+    HYPRE_BoomerAMGSetAggNumLevels(h.amg, 1);
+    HYPRE_BoomerAMGSetAggInterpType(h.amg, 6);
+  }
   if (!SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels)) return false;
   // A setup can succeed and still give a V-cycle that is not finite (a
   // singular coarse level; seen at 10⁶ particles with the hierarchy built in
