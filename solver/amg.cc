@@ -115,6 +115,22 @@ bool SetUp(HYPRE_Solver amg, HYPRE_ParCSRMatrix a, HYPRE_ParVector b, HYPRE_ParV
 // first level from this many particles on (FactorizeSystem).
 constexpr int kAggressiveCoarseningNodes = 20000;
 
+// Aggressive coarsening on the first level, interpolated there with hypre's
+// 2-stage extended+i interpolation in matrix-matrix form (AggInterpType 6:
+// extended+i, the other levels' interpolation, applied across the two
+// stages) instead of the default multipass. For the prefiltered hierarchy,
+// on round_table_100k's 1 s drape: 664 CG iterations instead of 842 (9.4
+// instead of 13.2 per impact step, 5.5 instead of 7.3 at rest) for setups
+// as costly within the machine's spread, and in a replay of
+// round_table_1m's impact 8 per step instead of 12. For A_F's hierarchy on
+// bench_scaling's contact-free sheet: 6.75 CG per step instead of 5.25 at
+// 10⁵ and 10⁶, but a step 13–19 % and a setup 30 % cheaper
+// (docs/performance.md, "2-stage interpolation on the aggressive level").
+void CoarsenAggressively(HYPRE_Solver amg) {
+  HYPRE_BoomerAMGSetAggNumLevels(amg, 1);
+  HYPRE_BoomerAMGSetAggInterpType(amg, 6);
+}
+
 }  // namespace
 
 // One hierarchy: its matrix, vectors and BoomerAMG object.
@@ -207,6 +223,7 @@ bool AmgPreconditioner::Factorize(const SparseMatrix& a) {
   h.par_a = MakeMatrix(h.n, m.start.data(), m.cols.data(), m.values.data());
   if (!h.par_a) return false;
   h.amg = CreateAmg();
+  if (h.n >= kAggressiveCoarseningNodes) CoarsenAggressively(h.amg);
   h.ready = SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels);
   return h.ready;
 }
@@ -243,27 +260,15 @@ bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row
   h.amg = CreateAmg();
   HYPRE_BoomerAMGSetNumFunctions(h.amg, 3);  // interleaved: function of unknown i is i mod 3
   HYPRE_BoomerAMGSetNodal(h.amg, 1);         // nodal coarsening on the Frobenius norm of each block
-  // Aggressive coarsening on the first level from
+  // Aggressive coarsening (CoarsenAggressively) from
   // kAggressiveCoarseningNodes particles on: a setup runs every step of an
   // impact, and at 10⁵ particles it cost 0.16 s instead of 0.22 s for about
-  // 15 % more CG iterations (with multipass interpolation); the 1 s
-  // drape of round_table_100k takes 26 s instead of 30–32 s. Below, setups
-  // are cheap and the iterations count: at 10⁴ the drape takes the same
-  // time either way, with twice the CG iterations of a resting step
+  // 15 % more CG iterations (with multipass interpolation); the 1 s drape
+  // of round_table_100k took 26 s instead of 30–32 s. Below, setups are
+  // cheap and the iterations count: at 10⁴ the drape takes the same time
+  // either way, with twice the CG iterations of a resting step
   // aggressively coarsened (docs/performance.md, "Prefiltered AMG").
-  //
-  // Its interpolation is hypre's 2-stage extended+i in matrix-matrix form
-  // (AggInterpType 6; the other levels' interpolation, extended+i, applied
-  // across the two stages) instead of the default multipass: on
-  // round_table_100k the 1 s drape then needs 664 CG iterations instead of
-  // 842 (9.4 instead of 13.2 per impact step, 5.5 instead of 7.3 at rest)
-  // for a setup as costly within the machine's spread, and a replay of
-  // round_table_1m's impact 8 per step instead of 12 (docs/performance.md,
-  // "Prefiltered AMG").
-  if (n_nodes >= kAggressiveCoarseningNodes) {
-    HYPRE_BoomerAMGSetAggNumLevels(h.amg, 1);
-    HYPRE_BoomerAMGSetAggInterpType(h.amg, 6);
-  }
+  if (n_nodes >= kAggressiveCoarseningNodes) CoarsenAggressively(h.amg);
   if (!SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels)) return false;
   // A setup can succeed and still give a V-cycle that is not finite (a
   // singular coarse level; seen at 10⁶ particles with the hierarchy built in

@@ -16,7 +16,9 @@ namespace clothbench {
 /// BoomerAMG with settings for a 2-D graph Laplacian plus mass: HMIS
 /// coarsening, extended+i interpolation (at most 4 entries per row),
 /// one hybrid symmetric Gauss–Seidel sweep down and up (a symmetric
-/// preconditioner, as CG requires), strength threshold 0.25.
+/// preconditioner, as CG requires), strength threshold 0.25; from 2·10⁴
+/// particles on the first level is coarsened aggressively, with 2-stage
+/// extended+i interpolation there (solver/amg.cc, CoarsenAggressively).
 /// Not copyable (owns hypre objects).
 class AmgPreconditioner {
  public:
