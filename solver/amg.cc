@@ -111,8 +111,9 @@ bool SetUp(HYPRE_Solver amg, HYPRE_ParCSRMatrix a, HYPRE_ParVector b, HYPRE_ParV
   return true;
 }
 
-// The prefiltered system's hierarchy is coarsened aggressively on its
-// first level from this many particles on (FactorizeSystem).
+// Both hierarchies (A_F's and the prefiltered system's) are coarsened
+// aggressively on their first level from this many particles on
+// (CoarsenAggressively).
 constexpr int kAggressiveCoarseningNodes = 20000;
 
 // Aggressive coarsening on the first level, interpolated there with hypre's
@@ -122,10 +123,12 @@ constexpr int kAggressiveCoarseningNodes = 20000;
 // on round_table_100k's 1 s drape: 664 CG iterations instead of 842 (9.4
 // instead of 13.2 per impact step, 5.5 instead of 7.3 at rest) for setups
 // as costly within the machine's spread, and in a replay of
-// round_table_1m's impact 8 per step instead of 12. For A_F's hierarchy on
-// bench_scaling's contact-free sheet: 6.75 CG per step instead of 5.25 at
-// 10⁵ and 10⁶, but a step 13–19 % and a setup 30 % cheaper
-// (docs/performance.md, "2-stage interpolation on the aggressive level").
+// round_table_1m's impact 8 per step instead of 12. For A_F's hierarchy:
+// more CG iterations per step (6.75 instead of 5.25 on bench_scaling's
+// contact-free sheet at 10⁵ and 10⁶), but cheaper V-cycles and setups; the
+// contact-free step of round_table_1m in bench_integrators took 1.72 s
+// against 2.15–2.17 s (docs/performance.md, "2-stage interpolation on the
+// aggressive level").
 void CoarsenAggressively(HYPRE_Solver amg) {
   HYPRE_BoomerAMGSetAggNumLevels(amg, 1);
   HYPRE_BoomerAMGSetAggInterpType(amg, 6);

@@ -237,15 +237,16 @@ TEST(AmgPreconditioner, PrefilteredHierarchySeesTiltedContacts) {
 // The same at 150 × 150 particles, where the prefiltered hierarchy is
 // coarsened aggressively on its first level (solver/amg.cc,
 // kAggressiveCoarseningNodes = 20000, with 2-stage extended+i
-// interpolation there). Aggressive coarsening costs iterations (the whole
+// interpolation there; A_F's hierarchy too). Aggressive coarsening costs iterations (the whole
 // sheet: 9 against 7 with standard coarsening; 13 with multipass
 // interpolation), and the frame jumps of nearest-axis frames cost more
 // than on the small sheet, growing with N: on the tilted half 13 / 17 /
 // 25 / 30 iterations at 50² / 100² / 200² / 300² in nearest-axis frames,
 // 7 / 7 / 13 / 13 in spread frames, as many as on the whole sheet (with
-// multipass interpolation). (Measured here: 6 contact-free, 9 on the
-// tilted sheet, 9 and 23 on the half in spread and nearest-axis frames, 26
-// on A_F.) The
+// multipass interpolation). (Measured here: 9 contact-free, 9 on the
+// tilted sheet, 9 and 23 on the half in spread and nearest-axis frames, 29
+// on A_F; with A_F's hierarchy in standard coarsening 6 contact-free and
+// 26 on A_F.) The
 // bounds: at most twice the contact-free count plus 2 on the tilted
 // sheet, the spread half at most one more than the whole sheet, and the
 // nearest-axis half still fewer than A_F's hierarchy.
