@@ -7,6 +7,8 @@
 //   contact_replay save   --scene S --at T[,T...] --out PREFIX
 //   contact_replay replay --scene S --state FILE --steps K
 //   common options: --integrator sbdf2 --preconditioner amg --amg-frames adaptive
+//                   --cycle-factor --axis-normals (diagnostics of the prefiltered AMG,
+//                   Preconditioner::AmgDiagnostics)
 //
 // `save` runs the scene from rest with fixed steps of its h and writes
 // PREFIX_<k>.state after the step that reaches the k-th time (k from 0).
@@ -127,16 +129,19 @@ std::optional<State> ReadState(const std::string& path, Eigen::Index n, std::str
 // One line per step: what the step and the preconditioner did.
 void PrintStep(const StepEngine& engine, const StepStats& st, const ContactFactorStats& before) {
   const ContactFactorStats& now = engine.system_matrix().preconditioner().contact_stats();
-  fmt::print("{:8.4f} {:8d} {:8d} {:9.4f} {:9.4f} {:7d} {:7d} {:7d} {:7d}\n", st.t, st.cg_iterations, st.colliding,
-             st.solve_time, st.setup_time, now.refactorizations - before.refactorizations,
-             now.modifications - before.modifications, now.frame_setups[0] - before.frame_setups[0],
-             now.frame_setups[1] - before.frame_setups[1]);
+  const long setups = now.refactorizations - before.refactorizations;
+  fmt::print("{:8.4f} {:8d} {:8d} {:9.4f} {:9.4f} {:7d} {:7d} {:7d} {:7d} {:8d} {:>8}\n", st.t, st.cg_iterations,
+             st.colliding, st.solve_time, st.setup_time, setups, now.modifications - before.modifications,
+             now.frame_setups[0] - before.frame_setups[0], now.frame_setups[1] - before.frame_setups[1],
+             now.off_axis, setups > 0 && std::isfinite(now.cycle_factor) ? fmt::format("{:.4f}", now.cycle_factor) : "-");
   std::fflush(stdout);
 }
 
 void PrintHeader() {
   fmt::print("# t [s], CG iterations, constrained particles, step [s], setup [s], and the preconditioner's\n"
-             "# setups, finest-level updates, setups in nearest-axis and in spread frames during the step\n");
+             "# setups, finest-level updates, setups in nearest-axis and in spread frames during the step,\n"
+             "# contacts off every axis (by more than acos(kFrameSnap)), the V-cycle factor of the step's last\n"
+             "# setup (--cycle-factor; -: not measured)\n");
 }
 
 int Fail(const std::string& line) {
@@ -154,12 +159,18 @@ int main(int argc, char** argv) {
   std::string scene_arg, integrator = "sbdf2", preconditioner, frames, prefix, state_path;
   std::vector<double> at;
   int steps = 0;
+  Preconditioner::AmgDiagnostics diagnostics;
   for (CLI::App* sub : {app.add_subcommand("save", "run the scene from rest and save its state at --at times"),
                         app.add_subcommand("replay", "take --steps steps from a saved state")}) {
     sub->add_option("--scene", scene_arg, "scene file or built-in scene name")->required();
     sub->add_option("--integrator", integrator, "a thesis integrator (default sbdf2)");
     sub->add_option("--preconditioner", preconditioner, "override the scene's preconditioner");
     sub->add_option("--amg-frames", frames, "override the scene's amg_frames (adaptive, nearest_axis, spread)");
+    sub->add_flag("--cycle-factor", diagnostics.cycle_factor,
+                  "measure each prefiltered AMG setup's V-cycle factor (40 cycles on K e = 0)");
+    sub->add_flag("--axis-normals", diagnostics.axis_normals,
+                  "diagnostic: build the prefiltered hierarchy for the contact normals rounded to their nearest "
+                  "axis (not the system the PCG solves)");
   }
   CLI::App* save = app.get_subcommand("save");
   CLI::App* replay = app.get_subcommand("replay");
@@ -210,6 +221,7 @@ int main(int argc, char** argv) {
   }
 
   StepEngine engine(system, *parsed, scene.solver);
+  engine.set_amg_diagnostics(diagnostics);
   PrintHeader();
   // One step to t_next, printed; false (after one line on stderr) if it failed.
   const auto step = [&](double t_next) {

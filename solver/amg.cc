@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -298,6 +299,31 @@ bool AmgPreconditioner::UpdateSystemFineLevel(int n_nodes, const std::vector<int
   h.FreeFine();
   h.par_fine = MakeMatrix(n, row_start.data(), cols.data(), values.data());
   return h.par_fine != nullptr;
+}
+
+double AmgPreconditioner::SystemCycleFactor(int cycles) const {
+  const Hierarchy& h = impl_->system;
+  if (!h.ready) return std::numeric_limits<double>::quiet_NaN();
+  double* x = h.x();
+  std::uint32_t state = 12345u;  // a linear congruential sequence: the same start every call
+  for (int i = 0; i < h.n; ++i) {
+    state = state * 1664525u + 1013904223u;
+    x[i] = static_cast<double>(state >> 8) / static_cast<double>(1u << 24) - 0.5;
+  }
+  HYPRE_ParVectorSetConstantValues(h.par_b, 0.0);
+  const auto norm = [&] {
+    double sum = 0.0;
+    for (int i = 0; i < h.n; ++i) sum += x[i] * x[i];
+    return std::sqrt(sum);
+  };
+  double before = norm(), factor = 0.0;
+  for (int k = 0; k < cycles && before > 0.0; ++k) {
+    for (int i = 0; i < h.n; ++i) x[i] /= before;  // unit norm: no underflow over many cycles
+    HYPRE_BoomerAMGSolve(h.amg, h.fine(), h.par_b, h.par_x);
+    factor = norm();
+    before = factor;
+  }
+  return factor;
 }
 
 void AmgPreconditioner::SolveSystem(const MatrixN3& r, MatrixN3* z) const {

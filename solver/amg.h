@@ -59,6 +59,14 @@ class AmgPreconditioner {
   /// hierarchy is set up.
   bool UpdateSystemFineLevel(int n_nodes, const std::vector<int>& row_start, const std::vector<int>& cols,
                              const std::vector<double>& values);
+  /// The prefiltered hierarchy's asymptotic convergence factor as a
+  /// stationary iteration: `cycles` V-cycles on K e = 0 from a fixed
+  /// pseudo-random start, returning ‖e_k‖ / ‖e_{k−1}‖ (2-norm) of the last
+  /// cycle, which tends to the spectral radius of I − M⁻¹K (the slowest
+  /// error a V-cycle leaves). A diagnostic (contact_replay --cycle-factor);
+  /// allocates nothing, overwrites the hierarchy's vectors.
+  /// @return NaN if no system hierarchy is set up.
+  double SystemCycleFactor(int cycles) const;
   /// z ← K⁻¹ r approximately: one V-cycle on the interleaved 3N vector.
   /// @param r, z N×3. NaN if no system hierarchy is set up.
   void SolveSystem(const MatrixN3& r, MatrixN3* z) const;

@@ -119,6 +119,8 @@ class SystemMatrix {
   const Preconditioner& preconditioner() const { return precond_; }
   /// The prefiltered AMG's frame rule (Preconditioner::set_amg_frames).
   void set_amg_frames(AmgFrames frames) { precond_.set_amg_frames(frames); }
+  /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
+  void set_amg_diagnostics(Preconditioner::AmgDiagnostics d) { precond_.set_amg_diagnostics(d); }
   int rebuilds() const { return rebuilds_; }
   /// Wall time [s] of the matrix assembly and the preconditioner's setup:
   /// pattern and symbolic analysis, plus every numeric factorisation (or
@@ -206,6 +208,8 @@ class StepEngine : public Stepper {
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   Method method() const { return method_; }
   const SystemMatrix& system_matrix() const { return sysmat_; }
+  /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
+  void set_amg_diagnostics(Preconditioner::AmgDiagnostics d) { sysmat_.set_amg_diagnostics(d); }
   /// Residual of the last PCG solve, ‖S(b − A v)‖₂.
   double last_residual() const { return last_pcg_.residual_norm; }
   /// Whether the fully implicit method iterates with Newton (J_α).

@@ -274,12 +274,22 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     system_valid_ = false;
   }
   for (auto& s : s_now_) s.setIdentity();
-  int contacts = 0;
+  int contacts = 0, off_axis = 0;
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
     Eigen::Matrix3d& s = s_now_[static_cast<std::size_t>(p)];
+    if (count == 1) {
+      int c = 0;
+      off_axis += dirs.col(0).cwiseAbs().maxCoeff(&c) < kFrameSnap;
+      if (amg_diagnostics_.axis_normals) {
+        s(c, c) = 0.0;
+        ++contacts;
+        return;
+      }
+    }
     for (int k = 0; k < count; ++k) s -= dirs.col(k) * dirs.col(k).transpose();
     contacts += count < 3;
   });
+  contact_stats_.off_axis = off_axis;
   if (contacts == 0) {  // only the fixed particles: A_F's hierarchy is exact
     system_used_ = false;
     return true;
@@ -371,6 +381,8 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   if (!system_valid_) ++contact_stats_.fallbacks;
   const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   setup_seconds_ = dt;
+  if (amg_diagnostics_.cycle_factor && system_valid_)
+    contact_stats_.cycle_factor = amg_->SystemCycleFactor(kDiagnosticCycles);
   // The expected cost of a kept step: the mean over those since the last
   // setup, or, if none was kept, 0.9 of the last estimate (so that keeping
   // is tried again once the contacts settle).
@@ -389,6 +401,10 @@ void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filt
     field_.assign(n, Vector3::UnitZ());
     held_.assign(n, 0);
     frames_.assign(n, Eigen::Matrix3d::Identity());
+  }
+  if (amg_diagnostics_.axis_normals) {  // the normals are axes: world frames
+    for (auto& f : frames_) f.setIdentity();
+    return;
   }
   std::fill(held_.begin(), held_.end(), 0);
   // A contact's direction is its normal, turned into the upper half-space

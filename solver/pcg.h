@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <string_view>
 #include <vector>
@@ -113,6 +114,12 @@ struct ContactFactorStats {
   /// Setups of the prefiltered hierarchy in nearest-axis and in spread frames
   /// (Preconditioner::FrameMode).
   long frame_setups[2] = {0, 0};
+  /// Contacts whose normal is farther than acos(Preconditioner::kFrameSnap)
+  /// from every coordinate axis (last AdaptTo; prefiltered AMG).
+  int off_axis = 0;
+  /// The V-cycle factor of the last setup (AmgPreconditioner::SystemCycleFactor);
+  /// NaN unless measured (Preconditioner::AmgDiagnostics).
+  double cycle_factor = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Preconditioner for the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃,
@@ -194,6 +201,20 @@ class Preconditioner {
   /// The other mode's record of V-cycles per solve is multiplied by this at
   /// each setup, so that it is tried again.
   static constexpr double kFrameModeDecay = 0.9;
+  /// Prefiltered AMG diagnostics (contact_replay; off in every run):
+  /// - cycle_factor: each setup measures its hierarchy's V-cycle factor,
+  ///   40 cycles (ContactFactorStats::cycle_factor; the setup time excludes it).
+  /// - axis_normals: the hierarchy is built, in world frames, for every
+  ///   contact's normal replaced by its nearest coordinate axis: on purpose
+  ///   not the filtered system the PCG solves, to measure the V-cycle of the
+  ///   same contact set without tilted constraints.
+  struct AmgDiagnostics {
+    bool cycle_factor = false;
+    bool axis_normals = false;
+  };
+  void set_amg_diagnostics(AmgDiagnostics d) { amg_diagnostics_ = d; }
+  /// V-cycles of AmgDiagnostics::cycle_factor.
+  static constexpr int kDiagnosticCycles = 40;
   /// A free particle whose direction is within this cosine of e_z keeps the
   /// world frame (its blocks stay a_pq I, not full 3×3 ones).
   static constexpr double kFrameSnap = 0.999;
@@ -280,6 +301,7 @@ class Preconditioner {
   // its last hierarchy (0: untried) as measured and as decayed since, and
   // the V-cycle count at the setup.
   AmgFrames amg_frames_ = AmgFrames::kAdaptive;
+  AmgDiagnostics amg_diagnostics_;
   FrameMode frame_mode_ = FrameMode::kSpread;
   double mode_measured_[2] = {0.0, 0.0}, mode_rate_[2] = {0.0, 0.0};
   long applications_at_setup_ = 0;

@@ -259,6 +259,56 @@ TEST(AmgPreconditioner, AggressivelyCoarsenedHierarchySeesTiltedContacts) {
   EXPECT_EQ(c.setups, 2);
 }
 
+// The prefiltered AMG's diagnostics (Preconditioner::AmgDiagnostics), on
+// half the default sheet constrained along e_x, then along (1, 1, 1)/√3, in
+// nearest-axis frames:
+// - off_axis counts the tilted contacts only;
+// - the V-cycle factor is a contraction, smaller for the axis-aligned
+//   contacts than for the tilted ones (their nearest-axis frames jump
+//   against the free half's world frames; measured 0.080 and 0.52);
+// - with axis_normals the tilted normals are rounded to e_x (the first of
+//   three equal components), so the hierarchy is that of the e_x contacts
+//   and its factor equal to theirs to rounding.
+TEST(AmgPreconditioner, DiagnosticsMeasureTheVCycleOfTiltedContacts) {
+  const ParticleSystem sys(DefaultScene());
+  const int n = sys.num_particles();
+  const auto factor = [&](const Vector3& normal, Preconditioner::AmgDiagnostics d, int* off_axis) {
+    VelocityFilter filter;
+    filter.Reserve(n);
+    for (int p : sys.fixed()) filter.Fix(p);
+    int contacts = 0;
+    for (int p = 0; p < n / 2; ++p)
+      if (!sys.is_fixed(p)) {
+        filter.Constrain(p, normal, 0.0);
+        ++contacts;
+      }
+    SystemMatrix sm(sys, PreconditionerType::kAmg, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+    sm.set_amg_frames(AmgFrames::kNearestAxis);
+    sm.set_amg_diagnostics(d);
+    EXPECT_TRUE(sm.Update(0.01));
+    EXPECT_TRUE(sm.AdaptTo(filter));
+    const ContactFactorStats& stats = sm.preconditioner().contact_stats();
+    EXPECT_EQ(stats.refactorizations, 1);
+    *off_axis = stats.off_axis - (normal.cwiseAbs().maxCoeff() < Preconditioner::kFrameSnap ? contacts : 0);
+    return stats.cycle_factor;
+  };
+  int axis_rest = -1, tilted_rest = -1, rounded_rest = -1;
+  const Vector3 tilted = Vector3(1, 1, 1).normalized();
+  const double axis = factor(Vector3::UnitX(), {true, false}, &axis_rest);
+  const double skew = factor(tilted, {true, false}, &tilted_rest);
+  const double rounded = factor(tilted, {true, true}, &rounded_rest);
+  EXPECT_EQ(axis_rest, 0);
+  EXPECT_EQ(tilted_rest, 0);
+  EXPECT_EQ(rounded_rest, 0);
+  EXPECT_GT(axis, 0.0);
+  EXPECT_LT(axis, skew);
+  EXPECT_LT(skew, 1.0);
+  EXPECT_NEAR(rounded, axis, 1e-9);
+  Preconditioner::AmgDiagnostics off;
+  int unused = 0;
+  EXPECT_TRUE(std::isnan(factor(tilted, off, &unused)));  // not measured
+}
+
 // The frame rule of the prefiltered AMG (Preconditioner::FrameMode): a
 // first setup in spread frames, for tilted contacts on half the default
 // sheet; the contacts turn to another tilted normal, and the second setup
