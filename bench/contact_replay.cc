@@ -140,8 +140,8 @@ void PrintStep(const StepEngine& engine, const StepStats& st, const ContactFacto
 void PrintHeader() {
   fmt::print("# t [s], CG iterations, constrained particles, step [s], setup [s], and the preconditioner's\n"
              "# setups, finest-level updates, setups in nearest-axis and in spread frames during the step,\n"
-             "# contacts off every axis (by more than acos(kFrameSnap)), the V-cycle factor of the step's last\n"
-             "# setup (--cycle-factor; -: not measured)\n");
+             "# and, for the prefiltered AMG, the contacts off every axis (by more than acos(kFrameSnap)) and\n"
+             "# the V-cycle factor of the step's last setup (--cycle-factor; -: not measured)\n");
 }
 
 int Fail(const std::string& line) {

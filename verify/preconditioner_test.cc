@@ -272,7 +272,11 @@ TEST(AmgPreconditioner, AggressivelyCoarsenedHierarchySeesTiltedContacts) {
 TEST(AmgPreconditioner, DiagnosticsMeasureTheVCycleOfTiltedContacts) {
   const ParticleSystem sys(DefaultScene());
   const int n = sys.num_particles();
-  const auto factor = [&](const Vector3& normal, Preconditioner::AmgDiagnostics d, int* off_axis) {
+  struct Measured {
+    double factor;
+    int off_axis, contacts;
+  };
+  const auto measure = [&](const Vector3& normal, Preconditioner::AmgDiagnostics d) {
     VelocityFilter filter;
     filter.Reserve(n);
     for (int p : sys.fixed()) filter.Fix(p);
@@ -289,24 +293,20 @@ TEST(AmgPreconditioner, DiagnosticsMeasureTheVCycleOfTiltedContacts) {
     EXPECT_TRUE(sm.AdaptTo(filter));
     const ContactFactorStats& stats = sm.preconditioner().contact_stats();
     EXPECT_EQ(stats.refactorizations, 1);
-    *off_axis = stats.off_axis - (normal.cwiseAbs().maxCoeff() < Preconditioner::kFrameSnap ? contacts : 0);
-    return stats.cycle_factor;
+    return Measured{stats.cycle_factor, stats.off_axis, contacts};
   };
-  int axis_rest = -1, tilted_rest = -1, rounded_rest = -1;
   const Vector3 tilted = Vector3(1, 1, 1).normalized();
-  const double axis = factor(Vector3::UnitX(), {true, false}, &axis_rest);
-  const double skew = factor(tilted, {true, false}, &tilted_rest);
-  const double rounded = factor(tilted, {true, true}, &rounded_rest);
-  EXPECT_EQ(axis_rest, 0);
-  EXPECT_EQ(tilted_rest, 0);
-  EXPECT_EQ(rounded_rest, 0);
-  EXPECT_GT(axis, 0.0);
-  EXPECT_LT(axis, skew);
-  EXPECT_LT(skew, 1.0);
-  EXPECT_NEAR(rounded, axis, 1e-9);
-  Preconditioner::AmgDiagnostics off;
-  int unused = 0;
-  EXPECT_TRUE(std::isnan(factor(tilted, off, &unused)));  // not measured
+  const Measured axis = measure(Vector3::UnitX(), {true, false});
+  const Measured skew = measure(tilted, {true, false});
+  const Measured rounded = measure(tilted, {true, true});
+  EXPECT_EQ(axis.off_axis, 0);
+  EXPECT_EQ(skew.off_axis, skew.contacts);
+  EXPECT_EQ(rounded.off_axis, rounded.contacts);
+  EXPECT_GT(axis.factor, 0.0);
+  EXPECT_LT(axis.factor, skew.factor);
+  EXPECT_LT(skew.factor, 1.0);
+  EXPECT_NEAR(rounded.factor, axis.factor, 1e-9);
+  EXPECT_TRUE(std::isnan(measure(tilted, {}).factor));  // not measured
 }
 
 // The frame rule of the prefiltered AMG (Preconditioner::FrameMode): a
