@@ -87,9 +87,11 @@ StepStats BaraffWitkin::Step(double h) {
 
   // J = M − h ∂f/∂v − h² ∂f/∂x at (t₀, x₀, v₀) and its preconditioner.
   {
+    // A_α's update and contact adaptation count in laplacian_->setup_seconds();
+    // setup_seconds_ holds J's assembly and its preconditioner's own work.
+    bool ok = !laplacian_ || (laplacian_->Update(h) && laplacian_->AdaptTo(filter_));
     const auto t0 = std::chrono::steady_clock::now();
     tangent_.Update(t_, x0_, v0_, h);
-    bool ok = !laplacian_ || (laplacian_->Update(h) && laplacian_->AdaptTo(filter_));
     ok = ok && precond_.Factorize(tangent_.matrix());
     ++rebuilds_;
     setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
