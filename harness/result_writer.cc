@@ -125,6 +125,18 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
   t.predictor = ToString(scene.solver.predictor);
   t.amg_frames = ToString(scene.solver.amg_frames);
   t.max_updates = scene.solver.max_updates;
+  const SolverSpec& sv = scene.solver;
+  t.cholesky_ordering = ToString(sv.cholesky_ordering);
+  t.contact_factors = sv.contact_factors ? "true" : "false";
+  t.tangent_projection = ToString(sv.tangent_projection);
+  t.newton_jacobian = ToString(sv.newton_jacobian);
+  t.controller_updates = std::to_string(sv.controller_updates[0]) + "," + std::to_string(sv.controller_updates[1]);
+  t.cg_max_iterations = sv.cg_max_iterations;
+  t.max_rejections = sv.max_rejections;
+  t.fixed_point_tolerance = sv.fixed_point_tolerance;
+  t.step_factor = sv.step_factor;
+  t.h_min = sv.h_min;
+  t.h_max = sv.h_max;
   if (ref) {
     // The reference as a run record: CVODE/IDA adaptive at ref_opts.rtol, or
     // the fixed-step self-convergence run (RunSummary::h > 0).

@@ -397,6 +397,17 @@ RunTable ReadRunTable(const ResultReader& f) {
   t.predictor = str("/scene", "solver_predictor");
   t.amg_frames = str("/scene", "solver_amg_frames");
   t.max_updates = f.Long("/scene", "solver_max_updates").value_or(0);
+  t.cholesky_ordering = str("/scene", "solver_cholesky_ordering");
+  t.contact_factors = str("/scene", "solver_contact_factors");
+  t.tangent_projection = str("/scene", "solver_tangent_projection");
+  t.newton_jacobian = str("/scene", "solver_newton_jacobian");
+  t.controller_updates = str("/scene", "solver_controller_updates");
+  t.cg_max_iterations = f.Long("/scene", "solver_cg_max_iterations").value_or(0);
+  t.max_rejections = f.Long("/scene", "solver_max_rejections").value_or(0);
+  t.fixed_point_tolerance = f.Double("/scene", "solver_fixed_point_tolerance").value_or(0.0);
+  t.step_factor = f.Double("/scene", "solver_step_factor").value_or(0.0);
+  t.h_min = f.Double("/scene", "solver_h_min").value_or(0.0);
+  t.h_max = f.Double("/scene", "solver_h_max").value_or(0.0);
   if (f.Exists("/reference")) t.reference = ReadRunRecord(f, "/reference", "reference");
   for (const std::string& id : f.Children("/runs")) t.runs.push_back(ReadRunRecord(f, "/runs/" + id, id));
   if (f.Exists("/work_precision/targets")) {
@@ -512,6 +523,19 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
   f.SetAttribute("/scene", "solver_predictor", t.predictor);
   if (!t.amg_frames.empty()) f.SetAttribute("/scene", "solver_amg_frames", t.amg_frames);
   f.SetAttribute("/scene", "solver_max_updates", t.max_updates);
+  if (!t.cholesky_ordering.empty()) {
+    f.SetAttribute("/scene", "solver_cholesky_ordering", t.cholesky_ordering);
+    f.SetAttribute("/scene", "solver_contact_factors", t.contact_factors);
+    f.SetAttribute("/scene", "solver_tangent_projection", t.tangent_projection);
+    f.SetAttribute("/scene", "solver_newton_jacobian", t.newton_jacobian);
+    f.SetAttribute("/scene", "solver_controller_updates", t.controller_updates);
+    f.SetAttribute("/scene", "solver_cg_max_iterations", t.cg_max_iterations);
+    f.SetAttribute("/scene", "solver_max_rejections", t.max_rejections);
+    f.SetAttribute("/scene", "solver_fixed_point_tolerance", t.fixed_point_tolerance);
+    f.SetAttribute("/scene", "solver_step_factor", t.step_factor);
+    f.SetAttribute("/scene", "solver_h_min", t.h_min);
+    f.SetAttribute("/scene", "solver_h_max", t.h_max);
+  }
 }
 
 void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {

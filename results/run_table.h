@@ -104,6 +104,14 @@ struct RunTable {
   std::string cg_reference, preconditioner, predictor;
   std::string amg_frames;  ///< the prefiltered AMG's frames (SolverSpec::amg_frames); empty in older files
   long max_updates = 0;
+  // The scene's other solver settings (model/solver_spec.h), stored so that
+  // a file names every setting its runs used; cholesky_ordering is empty in
+  // files written before they were stored (then none of them is written).
+  std::string cholesky_ordering, contact_factors;  ///< contact_factors: "true" | "false"
+  std::string tangent_projection, newton_jacobian;
+  std::string controller_updates;  ///< "low,high" fixed-point updates of the iteration controller
+  long cg_max_iterations = 0, max_rejections = 0;
+  double fixed_point_tolerance = 0.0, step_factor = 0.0, h_min = 0.0, h_max = 0.0;
 
   /// The reference the e_rms column is measured against (/reference): the
   /// same record as a row's, its errors and order empty.

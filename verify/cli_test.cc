@@ -422,6 +422,34 @@ TEST(BenchCli, OnlyASceneIc0GivesWayToTheMethodsBest) {
   }
 }
 
+// The scene's solver settings that no run attribute carries are stored in
+// /scene and read back as written, so that a file names every setting.
+TEST(BenchCli, TheSceneStoresEverySolverSetting) {
+  const fs::path out = TempDir() / "solver_settings.h5";
+  const std::string scene = WriteScene("solver_settings.toml",
+                                       std::string(kTiny) +
+                                           "contact_factors = false\ncholesky_ordering = \"amd\"\n"
+                                           "cg_max_iterations = 77\ntangent_projection = \"none\"\n"
+                                           "newton_jacobian = \"frozen\"\ncontroller_updates = [2, 5]\n"
+                                           "fixed_point_tolerance = 1e-7\nstep_factor = 1.5\nh_min = 1e-5\n"
+                                           "h_max = 0.02\nmax_rejections = 7\n");
+  const Outcome o = RunBench("--scene " + scene + " --integrators sbdf2 --h 0.01 --reference none --frames none " +
+                             "--quiet --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const RunTable t = ReadRunTable(ResultReader(out.string()));
+  EXPECT_EQ(t.contact_factors, "false");
+  EXPECT_EQ(t.cholesky_ordering, "amd");
+  EXPECT_EQ(t.cg_max_iterations, 77);
+  EXPECT_EQ(t.tangent_projection, "none");
+  EXPECT_EQ(t.newton_jacobian, "frozen");
+  EXPECT_EQ(t.controller_updates, "2,5");
+  EXPECT_EQ(t.fixed_point_tolerance, 1e-7);
+  EXPECT_EQ(t.step_factor, 1.5);
+  EXPECT_EQ(t.h_min, 1e-5);
+  EXPECT_EQ(t.h_max, 0.02);
+  EXPECT_EQ(t.max_rejections, 7);
+}
+
 // Every run stores the settings it actually ran with, whatever the scene
 // says: an option × row-kind walk (fixed-step, error-controlled, Newton,
 // SUNDIALS, ARKODE, substepped, Baraff–Witkin) read back from the file.
