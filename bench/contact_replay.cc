@@ -7,7 +7,7 @@
 //   contact_replay save   --scene S --at T[,T...] --out PREFIX
 //   contact_replay replay --scene S --state FILE --steps K
 //   common options: --integrator sbdf2 --preconditioner amg --amg-frames adaptive
-//                   --cycle-factor --axis-normals (diagnostics of the prefiltered AMG,
+//                   --cycle-factor --axis-normals --frames-only (diagnostics of the prefiltered AMG,
 //                   Preconditioner::AmgDiagnostics)
 //
 // `save` runs the scene from rest with fixed steps of its h and writes
@@ -171,6 +171,9 @@ int main(int argc, char** argv) {
     sub->add_flag("--axis-normals", diagnostics.axis_normals,
                   "diagnostic: build the prefiltered hierarchy for the contact normals rounded to their nearest "
                   "axis (not the system the PCG solves)");
+    sub->add_flag("--frames-only", diagnostics.frames_only,
+                  "diagnostic: build the prefiltered hierarchy for A_alpha without constraints in the contact frames "
+                  "(not the system the PCG solves)");
   }
   CLI::App* save = app.get_subcommand("save");
   CLI::App* replay = app.get_subcommand("replay");

@@ -277,9 +277,13 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   int contacts = 0, off_axis = 0;
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
     Eigen::Matrix3d& s = s_now_[static_cast<std::size_t>(p)];
+    int c = 0;
+    if (count == 1) off_axis += dirs.col(0).cwiseAbs().maxCoeff(&c) < kFrameSnap;
+    if (amg_diagnostics_.frames_only) {  // S = I: the contacts set only the frames
+      contacts += count < 3;
+      return;
+    }
     if (count == 1) {
-      int c = 0;
-      off_axis += dirs.col(0).cwiseAbs().maxCoeff(&c) < kFrameSnap;
       if (amg_diagnostics_.axis_normals) {
         s(c, c) = 0.0;
         ++contacts;

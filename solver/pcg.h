@@ -208,9 +208,14 @@ class Preconditioner {
   ///   contact's normal replaced by its nearest coordinate axis: on purpose
   ///   not the filtered system the PCG solves, to measure the V-cycle of the
   ///   same contact set without tilted constraints.
+  /// - frames_only: the hierarchy is built for A_α alone (no constraint,
+  ///   S = I) in the contact frames the frame rule gives: Rᵀ A R, on purpose
+  ///   not the filtered system, to measure what the frames' rotations alone
+  ///   cost the V-cycle (in world frames, with axis_normals, it is A_α's).
   struct AmgDiagnostics {
     bool cycle_factor = false;
     bool axis_normals = false;
+    bool frames_only = false;
   };
   void set_amg_diagnostics(AmgDiagnostics d) { amg_diagnostics_ = d; }
   /// V-cycles of AmgDiagnostics::cycle_factor.

@@ -268,7 +268,13 @@ TEST(AmgPreconditioner, AggressivelyCoarsenedHierarchySeesTiltedContacts) {
 //   against the free half's world frames; measured 0.080 and 0.52);
 // - with axis_normals the tilted normals are rounded to e_x (the first of
 //   three equal components), so the hierarchy is that of the e_x contacts
-//   and its factor equal to theirs to rounding.
+//   and its factor equal to theirs to rounding;
+// - with frames_only the hierarchy is A_α's in the contacts' frames: in
+//   world frames (axis_normals, or e_x contacts, whose nearest-axis frame
+//   is the identity) both are A_α's, equal to rounding, and the tilted
+//   contacts' rotated frames alone make the V-cycle slower (hypre
+//   interpolates each unknown from the same unknown; a rotated frame mixes
+//   x, y and z).
 TEST(AmgPreconditioner, DiagnosticsMeasureTheVCycleOfTiltedContacts) {
   const ParticleSystem sys(DefaultScene());
   const int n = sys.num_particles();
@@ -307,6 +313,17 @@ TEST(AmgPreconditioner, DiagnosticsMeasureTheVCycleOfTiltedContacts) {
   EXPECT_LT(skew.factor, 1.0);
   EXPECT_NEAR(rounded.factor, axis.factor, 1e-9);
   EXPECT_TRUE(std::isnan(measure(tilted, {}).factor));  // not measured
+
+  const Measured world = measure(tilted, {true, true, true});
+  const Measured axis_frames = measure(Vector3::UnitX(), {true, false, true});
+  const Measured turned = measure(tilted, {true, false, true});
+  std::printf("[ diagnostics ] V-cycle factor: e_x %.3f, tilted %.3f, rounded %.3f; A_alpha alone: world %.3f, "
+              "e_x frames %.3f, tilted frames %.3f\n",
+              axis.factor, skew.factor, rounded.factor, world.factor, axis_frames.factor, turned.factor);
+  EXPECT_EQ(turned.off_axis, turned.contacts);  // counted whatever the diagnostic
+  EXPECT_NEAR(axis_frames.factor, world.factor, 1e-9);
+  EXPECT_GT(world.factor, 0.0);
+  EXPECT_LT(world.factor, turned.factor);
 }
 
 // The frame rule of the prefiltered AMG (Preconditioner::FrameMode): a
