@@ -283,12 +283,10 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
       contacts += count < 3;
       return;
     }
-    if (count == 1) {
-      if (amg_diagnostics_.axis_normals) {
-        s(c, c) = 0.0;
-        ++contacts;
-        return;
-      }
+    if (count == 1 && amg_diagnostics_.axis_normals) {  // the normal rounded to its nearest axis c
+      s(c, c) = 0.0;
+      ++contacts;
+      return;
     }
     for (int k = 0; k < count; ++k) s -= dirs.col(k) * dirs.col(k).transpose();
     contacts += count < 3;

@@ -274,7 +274,7 @@ TEST(AmgPreconditioner, AggressivelyCoarsenedHierarchySeesTiltedContacts) {
 //   is the identity) both are A_α's, equal to rounding, and the tilted
 //   contacts' rotated frames alone make the V-cycle slower (hypre
 //   interpolates each unknown from the same unknown; a rotated frame mixes
-//   x, y and z).
+//   x, y and z; measured 0.080 in world frames, 0.61 in the tilted ones).
 TEST(AmgPreconditioner, DiagnosticsMeasureTheVCycleOfTiltedContacts) {
   const ParticleSystem sys(DefaultScene());
   const int n = sys.num_particles();
