@@ -308,6 +308,14 @@ struct RowMethod {
       if (c == '/') c = '_';
     return s;
   }
+  /// The id of this row's run at `param` (h [s] or rtol) and `substeps`:
+  /// "bdf2_newton_h0.01", "xpbd_h0.01_n4", "cvode_rtol0.0001" (a sweep
+  /// over CG tolerances appends "_eta<η>").
+  std::string RunId(double param, int substeps) const {
+    return kind() == StepKind::kFixedStep    ? fmt::format("{}_h{:g}", id(), param)
+           : kind() == StepKind::kSubstepped ? fmt::format("{}_h{:g}_n{}", id(), param, substeps)
+                                             : fmt::format("{}_rtol{:g}", id(), param);
+  }
   bool fully_implicit() const { return entry->nonlinear_solver; }
   /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
   bool uses_pcg() const { return entry->pcg && variant != "klu"; }
@@ -346,18 +354,16 @@ struct RowMethod {
     row.layer = std::string(entry->layer);
     row.step_kind = std::string(ToString(kind()));
     if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
+    row.id = RunId(param, substeps);
     if (kind() == StepKind::kFixedStep) {
       row.h = param;
-      row.id = fmt::format("{}_h{:g}", id(), param);
       row.numerical_stiffness = scene.NumericalStiffness(param);
     } else if (kind() == StepKind::kSubstepped) {
       row.h = param;
       row.substeps = substeps;
-      row.id = fmt::format("{}_h{:g}_n{}", id(), param, substeps);
       row.numerical_stiffness = scene.NumericalStiffness(param / substeps);
     } else {
       row.rtol = param;
-      row.id = fmt::format("{}_rtol{:g}", id(), param);
       row.numerical_stiffness = scene.NumericalStiffness(scene.h);
     }
     SolverSpec row_spec = spec;

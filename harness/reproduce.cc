@@ -2,13 +2,14 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <sstream>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "harness/cli_args.h"
 #include "harness/methods.h"
 
 namespace clothbench {
@@ -16,27 +17,23 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A word for the POSIX shell: single-quoted, ' as '\''.
-std::string Quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-// The row's --integrators item: its label with the nonlinear solver always
-// named, so that a scene whose solver.nonlinear_solver is newton does not
-// turn a fixed-point row into a Newton one.
+// The row's method name: its label (without the " eta=…" a sweep over CG
+// tolerances appends) with the nonlinear solver always named, so that a
+// scene whose solver.nonlinear_solver is newton does not turn a
+// fixed-point row into a Newton one.
 std::string RowName(const RunRecord& r) {
-  if (r.nonlinear_solver != "fixed_point") return r.label;
-  const std::size_t slash = r.label.find('/');
-  return slash == std::string::npos ? r.label + "/fixed_point"
-                                    : r.label.substr(0, slash) + "/fixed_point" + r.label.substr(slash);
+  const std::string label = r.label.substr(0, r.label.find(' '));
+  if (r.nonlinear_solver != "fixed_point") return label;
+  const std::size_t slash = label.find('/');
+  return slash == std::string::npos ? label + "/fixed_point"
+                                    : label.substr(0, slash) + "/fixed_point" + label.substr(slash);
 }
 
 // The scene's mesh obstacles named by a relative path (resolved against the
 // scene file's folder when the scene is read), each with the file the run
 // read: the stored /scene/obstacles/<k> path that ends with it.
-std::vector<std::pair<std::string, std::string>> RelativeMeshes(const ResultReader& file, const std::string& toml) {
+std::vector<std::pair<std::string, std::string>> RelativeMeshes(const ResultReader& file, const std::string& toml,
+                                                                const std::string& where) {
   std::vector<std::string> stored;
   if (file.Exists("/scene/obstacles"))
     for (const std::string& k : file.Children("/scene/obstacles"))
@@ -45,8 +42,7 @@ std::vector<std::pair<std::string, std::string>> RelativeMeshes(const ResultRead
   try {
     scene = toml::parse(toml);
   } catch (const toml::parse_error& e) {
-    throw std::invalid_argument(fmt::format("command: {}: /scene/toml does not parse: {}", file.path(),
-                                            std::string(e.description())));
+    throw UsageError(fmt::format("{}: /scene/toml does not parse: {}", where, std::string(e.description())));
   }
   std::vector<std::pair<std::string, std::string>> out;
   const toml::array* obstacles = scene["obstacle"].as_array();
@@ -60,36 +56,121 @@ std::vector<std::pair<std::string, std::string>> RelativeMeshes(const ResultRead
       return p.size() >= rel.size() && p.compare(p.size() - rel.size(), rel.size(), rel) == 0;
     });
     if (it == stored.end())
-      throw std::invalid_argument(fmt::format("command: {}: mesh \"{}\" of the scene is not among the stored "
-                                              "obstacles (/scene/obstacles)",
-                                              file.path(), rel));
-    out.emplace_back(rel, fs::absolute(*it).lexically_normal().string());
+      throw UsageError(fmt::format("{}: mesh \"{}\" of the scene is not among the stored obstacles (/scene/obstacles)",
+                                   where, rel));
+    out.emplace_back(rel, *it);
   }
   return out;
 }
 
-}  // namespace
-
-std::string ReproduceScript(const ResultReader& file, const RunTable& table, const std::string& run_id,
-                            const ReproduceOptions& options) {
+const RunRecord& FindRun(const ResultReader& file, const RunTable& table, const std::string& run_id) {
   if (run_id == "reference")
-    throw std::invalid_argument("command: the reference is not a row; every bench_integrators command with the "
-                                "file's --reference and --reference-rtol recomputes it");
+    throw UsageError("the reference is not a row; every bench_integrators command with the file's --reference and "
+                     "--reference-rtol recomputes it");
   const auto run = std::find_if(table.runs.begin(), table.runs.end(), [&](const RunRecord& r) { return r.id == run_id; });
   if (run == table.runs.end()) {
     std::string ids;
     for (const RunRecord& r : table.runs) ids += (ids.empty() ? "" : ", ") + r.id;
-    throw std::invalid_argument(fmt::format("command: no run \"{}\" in {} (runs: {})", run_id, file.path(), ids));
+    throw UsageError(fmt::format("no run \"{}\" in {} (runs: {})", run_id, file.path(), ids));
   }
-  if (!file.Exists("/scene/toml"))
-    throw std::invalid_argument(fmt::format("command: {} has no /scene/toml (not a bench_integrators file)", file.path()));
-  const RunRecord& r = *run;
-  const std::vector<RowMethod> rows = ExpandMethods({RowName(r)}, {NonlinearSolver::kFixedPoint}, "command");
-  const RowMethod& m = rows.front();
+  return *run;
+}
 
+// The folder the scene file sat in when the run read its relative meshes:
+// each stored mesh path is that folder joined with the relative one.
+std::string SceneSource(const std::vector<std::pair<std::string, std::string>>& meshes, const RunTable& table,
+                        const std::string& where) {
+  if (meshes.empty()) return table.scene_source.empty() ? std::string("<stored>") : table.scene_source;
+  std::string folder;
+  for (const auto& [rel, stored] : meshes) {
+    const std::string f = stored.substr(0, stored.size() - rel.size());
+    if (!folder.empty() && f != folder)
+      throw UsageError(fmt::format("{}: the stored mesh paths (/scene/obstacles) name two scene folders, \"{}\" and "
+                                   "\"{}\"",
+                                   where, folder, f));
+    folder = f;
+  }
+  return folder + "scene.toml";
+}
+
+}  // namespace
+
+std::string ShellQuote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, const std::string& run_id) {
+  const RunRecord& r = FindRun(file, table, run_id);
+  const std::string where = fmt::format("{}: run {}", file.path(), run_id);
+  if (!file.Exists("/scene/toml"))
+    throw UsageError(fmt::format("{} has no /scene/toml (not a bench_integrators file)", file.path()));
   std::string toml = file.Text("/scene/toml");
+  const auto meshes = RelativeMeshes(file, toml, where);
+  RunRequest q;
+  try {
+    q.scene = ParseScene(toml, SceneSource(meshes, table, where));
+  } catch (const SceneError& e) {
+    throw UsageError(fmt::format("{}: /scene/toml: {}", where, e.what()));
+  }
+  if (q.scene.num_particles() != table.n_particles)
+    throw UsageError(fmt::format("{}: /scene/toml has {} particles, /scene@n_particles {}", where,
+                                 q.scene.num_particles(), table.n_particles));
+  q.method = RowName(r);
+  // Which fields the row reads follows from its label; an unknown label is refused by Resolve.
+  std::vector<RowMethod> rows;
+  try {
+    rows = ExpandMethods({q.method}, {NonlinearSolver::kFixedPoint}, "label");
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("{}: {}", where, e.what()));
+  }
+  RowMethod m = rows.front();
+  if (q.scene.solver.step_control == StepControl::kError && m.entry->error_control) m.error_control = true;
+  switch (m.kind()) {
+    case StepKind::kFixedStep: q.h = r.h; break;
+    case StepKind::kSubstepped: q.h = r.h, q.substeps = r.substeps; break;
+    case StepKind::kAdaptive: q.rtol = r.rtol; break;
+  }
+  if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
+  if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
+  if (m.name() == kArkodeName && m.variant.empty() && !r.arkode_table.empty()) q.arkode_table = r.arkode_table;
+  if (m.name() == "cvode" && !r.sundials_settings.empty()) q.cvode_setting = r.sundials_settings;
+  q.t_end = table.t_end;
+  // The file's frame spacing, so that the frame-based errors (l2, max) are
+  // taken at the same instants; none becomes ends, which has the same
+  // spacing and keeps the end state to compare.
+  q.frames = table.frames == "none" ? "ends" : table.frames.empty() ? "default" : table.frames;
+  q.threads = r.threads;
+  ResolvedRun run;
+  try {
+    run = q.Resolve();
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("{}: {}", where, e.what()));
+  }
+  // The stored label, integrator, kind and parameters must name this run:
+  // an edited label would otherwise recompute another method under the id.
+  const std::size_t eta = r.label.find(" eta=");
+  const std::string id = run.row.RunId(run.param, run.substeps) +
+                         (eta == std::string::npos ? "" : fmt::format("_eta{:g}", run.spec.cg_tolerance));
+  const std::string label = run.row.label() + (eta == std::string::npos ? "" : r.label.substr(eta));
+  if (id != run_id || label != r.label || r.integrator != run.row.name() || r.step_kind != ToString(run.row.kind()))
+    throw UsageError(fmt::format("{}: the stored label \"{}\", integrator \"{}\", step_kind \"{}\" and parameters "
+                                 "name run \"{}\" ({}, {}), not this one",
+                                 where, r.label, r.integrator, r.step_kind, id, label, ToString(run.row.kind())));
+  return q;
+}
+
+}  // namespace clothbench
+
+namespace clothbench {
+
+std::string ReproduceScript(const ResultReader& file, const RunTable& table, const std::string& run_id,
+                            const ReproduceOptions& options) {
+  const RunRequest q = StoredRunRequest(file, table, run_id);
+  std::string toml = q.scene.toml;
   if (!toml.empty() && toml.back() != '\n') toml += '\n';
-  const auto meshes = RelativeMeshes(file, toml);
+  const auto meshes = RelativeMeshes(file, toml, file.path());
   // A mesh path that climbs out of the scene's folder ("../data/x.off")
   // stays inside `dir` if the scene file sits that many folders deeper.
   std::size_t climb = 0;
@@ -104,49 +185,43 @@ std::string ReproduceScript(const ResultReader& file, const RunTable& table, con
   const std::string scene_file = (scene_dir / "scene.toml").string();
   const std::string out = (fs::path(options.dir) / "run.h5").string();
 
+  // The scene text goes through a quoted here-document (no expansion), ended
+  // by a delimiter line that the text does not contain.
   std::string delimiter = "CLOTHBENCH_SCENE";
   while (("\n" + toml).find("\n" + delimiter + "\n") != std::string::npos) delimiter += "_";
+  // Comment words: quoted, and control characters escaped so that no stored
+  // newline ends the comment.
+  const auto word = [](const std::string& s) { return ShellQuote(EscapeControl(s)); };
+  const auto number = [](double v) { return ShellQuote(fmt::format("{}", v)); };
 
   std::string s = "#!/bin/sh\n";
-  s += fmt::format("# Recomputes run {} of {} (written {} by commit {}, {} build, on {}).\n", r.id, file.path(),
-                   table.created, table.git_commit, table.build_type, table.host);
+  s += fmt::format("# Recomputes run {} of {} (written {} by commit {}, {} build, on {}).\n", word(run_id),
+                   word(file.path()), word(table.created), word(table.git_commit), word(table.build_type),
+                   word(table.host));
   s += "# The same build and thread count give the same end state bit for bit; the result is the only run of\n";
-  s += fmt::format("# {} (clothbench_inspect {} runs).\n", out, Quote(out));
+  s += fmt::format("# {} (clothbench_inspect {} runs).\n", word(out), word(out));
   s += "set -e\n";
-  s += fmt::format("mkdir -p {}\n", Quote(scene_dir.string()));
-  s += fmt::format("cat > {} <<'{}'\n{}{}\n", Quote(scene_file), delimiter, toml, delimiter);
+  s += fmt::format("mkdir -p -- {}\n", ShellQuote(scene_dir.string()));
+  s += fmt::format("cat > {} <<'{}'\n{}{}\n", ShellQuote(scene_file), delimiter, toml, delimiter);
   for (const auto& [rel, abs] : meshes) {
     const fs::path link = scene_dir / rel;
-    s += fmt::format("mkdir -p {} && ln -sfn {} {}\n", Quote(link.parent_path().string()), Quote(abs),
-                     Quote(link.string()));
+    s += fmt::format("mkdir -p -- {} && ln -sfn -- {} {}\n", ShellQuote(link.parent_path().string()),
+                     ShellQuote(fs::absolute(abs).lexically_normal().string()), ShellQuote(link.string()));
   }
   std::string cmd;
-  if (r.threads > 0) cmd += fmt::format("OMP_NUM_THREADS={} ", r.threads);
-  cmd += fmt::format("{} --scene {} --integrators {}", Quote(options.bench), Quote(scene_file), Quote(RowName(r)));
-  switch (m.kind()) {
-    case StepKind::kFixedStep:
-      cmd += fmt::format(" --h {}", r.h);
-      break;
-    case StepKind::kSubstepped:
-      cmd += fmt::format(" --h {} --substeps {}", r.h, r.substeps);
-      break;
-    case StepKind::kAdaptive:
-      cmd += fmt::format(" --rtols {}", r.rtol);
-      break;
-  }
-  if (m.uses_pcg() && !r.preconditioner.empty())
-    cmd += fmt::format(" --preconditioner {} --cg-tolerance {}", r.preconditioner, r.cg_tolerance);
-  if (m.builds_tangent() && !r.tangent_terms.empty()) cmd += fmt::format(" --tangent-terms {}", r.tangent_terms);
-  if (m.name() == kArkodeName && m.variant.empty() && !r.arkode_table.empty())
-    cmd += fmt::format(" --arkode-table {}", r.arkode_table);
-  if (m.name() == "cvode" && !r.sundials_settings.empty())
-    cmd += fmt::format(" --cvode-setting {}", Quote(r.sundials_settings));
-  // The file's frame spacing, so that the frame-based errors (l2, max) are
-  // taken at the same instants; none becomes ends, which has the same
-  // spacing and keeps the end state to compare.
-  const std::string frames = table.frames == "none" ? "ends" : table.frames.empty() ? "default" : table.frames;
-  cmd += fmt::format(" --t-end {} --frames {} --reference none --repeat 1 --quiet --out {}", table.t_end, frames,
-                     Quote(out));
+  if (q.threads > 0) cmd += fmt::format("OMP_NUM_THREADS={} ", ShellQuote(std::to_string(q.threads)));
+  cmd += fmt::format("{} --scene {} --integrators {}", ShellQuote(options.bench), ShellQuote(scene_file),
+                     ShellQuote(q.method));
+  if (q.h) cmd += fmt::format(" --h {}", number(*q.h));
+  if (q.substeps) cmd += fmt::format(" --substeps {}", ShellQuote(std::to_string(*q.substeps)));
+  if (q.rtol) cmd += fmt::format(" --rtols {}", number(*q.rtol));
+  if (q.preconditioner) cmd += fmt::format(" --preconditioner {}", ShellQuote(*q.preconditioner));
+  if (q.cg_tolerance) cmd += fmt::format(" --cg-tolerance {}", number(*q.cg_tolerance));
+  if (q.tangent_terms) cmd += fmt::format(" --tangent-terms {}", ShellQuote(*q.tangent_terms));
+  if (q.arkode_table) cmd += fmt::format(" --arkode-table {}", ShellQuote(*q.arkode_table));
+  if (q.cvode_setting) cmd += fmt::format(" --cvode-setting {}", ShellQuote(*q.cvode_setting));
+  cmd += fmt::format(" --t-end {} --frames {} --reference none --repeat 1 --quiet --out {}", number(*q.t_end),
+                     ShellQuote(q.frames), ShellQuote(out));
   return s + cmd + "\n";
 }
 

@@ -375,3 +375,124 @@ TEST(InspectCommand, RecomputesARunBitForBit) {
 
 }  // namespace
 }  // namespace clothbench
+
+namespace clothbench {
+namespace {
+
+// Copies `from` to `to` with the string attribute `name` of `object` set to
+// `text` (deleted and created again at the text's size), signed again.
+void CopyWithString(const std::string& from, const std::string& to, const std::string& object,
+                    const std::string& name, const std::string& text) {
+  CopyAndEdit(from, to, [&](hid_t f) {
+    ASSERT_GE(H5Adelete_by_name(f, object.c_str(), name.c_str(), H5P_DEFAULT), 0) << object << "@" << name;
+    const hid_t type = H5Tcopy(H5T_C_S1);
+    H5Tset_size(type, text.empty() ? 1 : text.size());
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t a =
+        H5Acreate_by_name(f, object.c_str(), name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(a, 0);
+    std::string buf = text.empty() ? std::string(1, '\0') : text;
+    EXPECT_GE(H5Awrite(a, type, buf.data()), 0);
+    H5Aclose(a);
+    H5Sclose(space);
+    H5Tclose(type);
+  });
+}
+
+// A result file is data from anyone: edited and signed again, its stored
+// strings must never run as shell code through `command … | sh`. Values the
+// request validates (preconditioner, J_α terms, ARKODE table, frames, label,
+// threads, h) are refused with exit 2 and one line naming the attribute's
+// field; provenance strings that only appear in the script's comment
+// (host, created, git_commit, build_type) are printed quoted with their
+// newlines escaped, and the script, run by sh in a scratch folder, creates
+// no marker file.
+TEST(InspectCommand, StoredStringsNeverRunAsShellCode) {
+  const fs::path dir = TempDir() / "shell";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "scene.toml") << testing::kTinyScene;
+  const std::string file = (dir / "original.h5").string();
+  const Outcome o = RunCommand(CLOTHBENCH_BENCH_BINARY,
+                               "--scene " + (dir / "scene.toml").string() +
+                                   " --integrators sbdf2,bdf2/newton,arkode --h 0.01 --rtols 1e-4 --t-end 0.02 "
+                                   "--reference none --quiet --out " + file);
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const fs::path marker = dir / "MARKER";
+  const std::string m = marker.string();
+  const std::vector<std::string> payloads = {"x; touch " + m, "$(touch " + m + ")", "`touch " + m + "`",
+                                             "x'\ntouch " + m + "\n'", "x\ntouch " + m + "\n#",
+                                             "' ; touch " + m + " ; '"};
+  const struct {
+    const char *object, *name, *run, *field;
+  } refused[] = {
+      {"/runs/sbdf2_h0.01", "preconditioner", "sbdf2_h0.01", "preconditioner"},
+      {"/runs/bdf2_newton_h0.01", "tangent_terms", "bdf2_newton_h0.01", "tangent_terms"},
+      {"/runs/arkode_rtol0.0001", "arkode_table", "arkode_rtol0.0001", "arkode_table"},
+      {"/scene", "frames", "sbdf2_h0.01", "frames"},
+      {"/runs/sbdf2_h0.01", "label", "sbdf2_h0.01", "label"},
+  };
+  const std::string edited = (dir / "edited.h5").string();
+  for (const auto& r : refused)
+    for (const std::string& p : payloads) {
+      CopyWithString(file, edited, r.object, r.name, p);
+      const Outcome c = RunCommand(CLOTHBENCH_INSPECT_BINARY, edited + " command " + r.run + " --dir " +
+                                                                  (dir / "rerun").string());
+      EXPECT_EQ(c.exit_code, 2) << r.name << " = " << p << "\n" << c.out;
+      EXPECT_EQ(std::count(c.err.begin(), c.err.end(), '\n'), 1) << c.err;
+      EXPECT_NE(c.err.find(r.field), std::string::npos) << c.err;
+      EXPECT_TRUE(c.out.empty()) << c.out;
+    }
+  // Numbers the request validates: a thread count of 2^31, a negative h.
+  const std::string bad = (dir / "bad.h5").string();
+  CopyAndEdit(file, bad, [](hid_t f) {
+    const long threads = 1L << 31;
+    ASSERT_GE(H5Adelete_by_name(f, "/runs/sbdf2_h0.01", "threads", H5P_DEFAULT), 0);
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t a = H5Acreate_by_name(f, "/runs/sbdf2_h0.01", "threads", H5T_STD_I64LE, space, H5P_DEFAULT,
+                                      H5P_DEFAULT, H5P_DEFAULT);
+    EXPECT_GE(H5Awrite(a, H5T_NATIVE_LONG, &threads), 0);
+    H5Aclose(a);
+    H5Sclose(space);
+  });
+  Outcome c = RunCommand(CLOTHBENCH_INSPECT_BINARY, bad + " command sbdf2_h0.01");
+  EXPECT_EQ(c.exit_code, 2) << c.out;
+  EXPECT_NE(c.err.find("threads"), std::string::npos) << c.err;
+  CopyWithAttribute(file, bad, "/runs/sbdf2_h0.01", "h", -0.01);
+  c = RunCommand(CLOTHBENCH_INSPECT_BINARY, bad + " command sbdf2_h0.01");
+  EXPECT_EQ(c.exit_code, 2) << c.out;
+  EXPECT_NE(c.err.find("h: "), std::string::npos) << c.err;
+  // A scene text whose particle count disagrees with /scene@n_particles.
+  CopyAndEdit(file, bad, [](hid_t f) {
+    const long n = 13;
+    EXPECT_GE(H5Adelete_by_name(f, "/scene", "n_particles", H5P_DEFAULT), 0);
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t a =
+        H5Acreate_by_name(f, "/scene", "n_particles", H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    EXPECT_GE(H5Awrite(a, H5T_NATIVE_LONG, &n), 0);
+    H5Aclose(a);
+    H5Sclose(space);
+  });
+  c = RunCommand(CLOTHBENCH_INSPECT_BINARY, bad + " command sbdf2_h0.01");
+  EXPECT_EQ(c.exit_code, 2) << c.out;
+  EXPECT_NE(c.err.find("particles"), std::string::npos) << c.err;
+
+  // Provenance strings are comment words only: the script runs, no marker.
+  for (const char* name : {"host", "created", "git_commit", "build_type"})
+    for (const std::string& p : payloads) {
+      CopyWithString(file, edited, "/", name, p);
+      const fs::path rerun = dir / "rerun";
+      fs::remove_all(rerun);
+      const Outcome s = RunCommand(CLOTHBENCH_INSPECT_BINARY, edited + " command sbdf2_h0.01 --dir " + rerun.string());
+      ASSERT_EQ(s.exit_code, 0) << name << ": " << s.err;
+      const fs::path script = dir / "script.sh";
+      std::ofstream(script) << s.out;
+      const Outcome run = RunCommand("sh", script.string());
+      EXPECT_EQ(run.exit_code, 0) << run.err << "\n" << s.out;
+      EXPECT_FALSE(fs::exists(marker)) << name << " = " << p << " ran as code:\n" << s.out;
+      fs::remove(marker);
+    }
+}
+
+}  // namespace
+}  // namespace clothbench

@@ -1,0 +1,90 @@
+// One run of one row, as every entry point asks for it: the scene, the row
+// by its registry name, h or rtol, substeps, the solver options a user may
+// override, the frames kept, the limits and the reference it is compared
+// with. The Python module's run(), the rerun of a stored run
+// (clothbench_inspect … rerun / command) and contact_replay build one and
+// call Validate() before anything is computed, so that they refuse the same
+// input with the same line; bench_integrators validates each planned row
+// through it too. The rules (docs/scenes.md "Limits"):
+//  - method: a registry row ("bdf2/newton", "arkode/ark4"), runnable on the
+//    scene's step control;
+//  - h [s]: fixed-step and substepped rows only, finite, > 0, ≤ t_end, and
+//    t_end/h ≤ kMaxStepsPerRun; rtol: adaptive rows only, in
+//    [kMinRelativeTolerance, 1); substeps: substepped rows only, 1 … 10⁶;
+//  - cg_tolerance in (0, 1) and preconditioner: rows that solve with the
+//    PCG; tangent_terms "all" | "tension": rows that build J_α;
+//    arkode_table: arkode rows without /ark4 or /ark5; cvode_setting: cvode
+//    rows (an option no row reads is refused, not ignored);
+//  - t_end in (0, 1e6] s with t_end/frame_dt ≤ kMaxFramesPerRun; frames
+//    default | all | positions | ends | none;
+//  - threads 0 (as the process has them) or 1 … kMaxThreads; time_limit in
+//    (0, 1e7] s; repeat 1 … 1000; time_budget in [0, 1e6] s;
+//  - reference_scene: if set, the SceneHash of the scene the reference was
+//    computed on, which must be this request's.
+// Each refusal is one line "<field>: <value> <rule>", the field named as
+// the entry point names it (Python keywords or command-line options).
+#ifndef CLOTHBENCH_HARNESS_RUN_REQUEST_H_
+#define CLOTHBENCH_HARNESS_RUN_REQUEST_H_
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "harness/methods.h"
+#include "model/scene.h"
+
+namespace clothbench {
+
+/// The most OpenMP threads a request may ask for.
+inline constexpr long kMaxThreads = 1024;
+
+/// How refusals name a request's fields: Python keywords ("t_end") or
+/// bench_integrators options ("--t-end").
+enum class FieldNames { kKeyword, kOption };
+
+/// A stable hash (FNV-1a 64, hex) of what a reference depends on: the scene
+/// text, t_end and frame_dt. A reference computed on one scene is refused
+/// for another (RunRequest::reference_scene).
+std::string SceneHash(const Scene& scene);
+
+/// The run a validated RunRequest resolves to: the scene with t_end and
+/// frames applied, the row, its solver settings and context, and h or rtol.
+struct ResolvedRun {
+  Scene scene;
+  RowMethod row;
+  SolverSpec spec;   ///< the scene's solver settings with the request's overrides
+  RunContext ctx;
+  double param = 0.0;  ///< h [s] (fixed-step, substepped) or rtol (adaptive)
+  int substeps = 1;
+};
+
+struct RunRequest {
+  Scene scene;         ///< as loaded, before t_end and frames are applied
+  std::string method;  ///< registry row label
+  std::optional<double> h, rtol;
+  std::optional<long> substeps;
+  std::optional<double> cg_tolerance;
+  std::optional<std::string> preconditioner, tangent_terms, arkode_table, cvode_setting;
+  std::optional<double> t_end;  ///< overrides the scene's t_end [s]
+  std::string frames = "default";
+  long threads = 0;
+  double time_limit = RunLimits().time_limit_s;  ///< wall-time budget of the run [s]
+  std::optional<long> repeat;
+  double time_budget = 30.0;
+  std::optional<std::string> reference_scene;  ///< SceneHash of the reference's scene
+  FieldNames names = FieldNames::kKeyword;
+
+  /// @throws UsageError (a std::invalid_argument), one line naming the
+  ///   field, its value and the rule, for the first field that breaks one
+  void Validate() const;
+  /// false with `error` set as Validate() would throw it.
+  bool IsValid(std::string* error) const;
+  /// The run this request asks for. @throws UsageError as Validate()
+  ResolvedRun Resolve() const;
+  /// The name of `field` (a keyword) as this request's entry point spells it.
+  std::string Field(std::string_view field) const;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_HARNESS_RUN_REQUEST_H_
