@@ -7,9 +7,11 @@
 //   clothbench_inspect FILE.h5 work-precision [--error-metric final|l2|max]
 //   clothbench_inspect A.h5 diff B.h5 [--rtol R] [--time-tolerance T]
 //   clothbench_inspect FILE.h5 export RUN --frame K (--obj OUT | --ply OUT)
+//   clothbench_inspect FILE.h5 rerun RUN [--out F]     recompute RUN in-process, compare bit for bit
 //   clothbench_inspect FILE.h5 command RUN [--dir D] [--bench PATH]   shell script recomputing RUN
 //
-// Exit codes: 0; 1 for `diff` when a change is flagged; 2 for bad input (an
+// Exit codes: 0; 1 for `diff` when a change is flagged and for `rerun` when
+// the recomputed end state differs from the stored one; 2 for bad input (an
 // unreadable file, another schema, an unknown run or frame), one line.
 #include <cmath>
 #include <cstdio>
@@ -23,6 +25,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/signals.h"
 #include "harness/reproduce.h"
 #include "model/scene.h"
 #include "results/result_reader.h"
@@ -228,6 +231,32 @@ void Export(const ResultReader& f, const std::string& run, long frame, const std
              faces.size() / 4);
 }
 
+// `rerun`: recomputes a stored run in-process and says whether its end state
+// equals the stored one bit for bit. @return 0 if it does (or the file
+// keeps no end state and the counts agree), 1 otherwise
+int Rerun(const ResultReader& f, const RunTable& t, const std::string& id, const std::string& out) {
+  InstallInterruptHandlers();
+  const RerunOutcome o = RerunStored(f, t, id, out);
+  const RunRecord& r = o.run;
+  fmt::print("rerun {}: status {}, {} steps, {} updates, {} CG iterations, solver time {:.3f} s{}\n", EscapeControl(id),
+             r.status, r.steps, r.updates, r.cg_iterations, r.solver_time_s,
+             o.counts_equal ? " (counts as stored)" : " (stored counts differ)");
+  if (!out.empty()) fmt::print("written: {}\n", EscapeControl(out));
+  if (!o.end_state_kept) {
+    fmt::print("the file keeps no end state of the run (--frames none): counts {}\n",
+               o.counts_equal ? "equal" : "differ");
+    return o.counts_equal ? 0 : 1;
+  }
+  if (o.bit_for_bit && o.counts_equal) {
+    fmt::print("end state at t_end equals the stored one bit for bit\n");
+    return 0;
+  }
+  fmt::print("end state differs from the stored one: positions by up to {:.3e} m, velocities by up to {:.3e} m/s "
+             "(the same build and thread count reproduce a run bit for bit)\n",
+             o.max_dx, o.max_dv);
+  return 1;
+}
+
 int Main(int argc, char** argv) {
   CLI::App app{"clothbench_inspect: print, compare and export bench_integrators result files (HDF5)"};
   app.require_subcommand(1);
@@ -267,6 +296,12 @@ int Main(int argc, char** argv) {
   command->add_option("--dir", reproduce.dir, "folder for the scene file and the result (default rerun-RUN)");
   command->add_option("--bench", reproduce.bench,
                       "bench_integrators to call (default: the one next to this executable)");
+  std::string rerun_id, rerun_out;
+  CLI::App* rerun_app = app.add_subcommand(
+      "rerun", "recompute RUN in-process from the file's scene text and stored settings (validated as a run request), "
+               "with its thread count, and compare its end state with the stored one bit for bit; exit 1 if it differs");
+  rerun_app->add_option("run", rerun_id, "run id (clothbench_inspect FILE runs)")->required();
+  rerun_app->add_option("--out", rerun_out, "also write the recomputed run as the only run of this result file");
   try {
     app.parse(argc, argv);
     if (exp->parsed() && obj.empty() && ply.empty()) throw CLI::ValidationError("export: one of --obj or --ply is required");
@@ -308,6 +343,8 @@ int Main(int argc, char** argv) {
       for (const RunRecord& r : t.runs) records.push_back(&r);
       fmt::print("# {}: written {} by commit {}; errors: {}\n", file, t.created, t.git_commit, metric);
       PrintWorkPrecision(stdout, WorkPrecisionOf(records, t.work_precision->targets, t.work_precision->reference, metric));
+    } else if (rerun_app->parsed()) {
+      return Rerun(f, t, rerun_id, rerun_out);
     } else if (command->parsed()) {
       if (reproduce.dir.empty()) reproduce.dir = "rerun-" + rerun;
       if (command->count("--bench") == 0) {
@@ -325,6 +362,12 @@ int Main(int argc, char** argv) {
   } catch (const UsageError& e) {
     fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
     return 2;
+  } catch (const std::invalid_argument& e) {  // a refused request (harness/run_request.h)
+    fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
+    return 2;
+  } catch (const Interrupted& e) {
+    fmt::print(stderr, "clothbench_inspect: interrupted by {}; nothing written\n", SignalName(e.signal));
+    return 128 + e.signal;
   } catch (const ResultError& e) {
     fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
     return 2;

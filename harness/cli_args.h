@@ -114,17 +114,20 @@ inline void CheckArkodeTable(const std::string& name) {
 /// (bench_integrators) or a regular file (`journal_folder` false:
 /// stress_stability) or absent. Absent ones are created and removed again
 /// (a probe).
-inline void CheckOutputPaths(const std::string& out, bool journal_folder = true) {
+/// @param option how the caller names the path in messages ("--out";
+///   the Python module's "path")
+inline void CheckOutputPaths(const std::string& out, bool journal_folder = true,
+                             const std::string& option = "--out") {
   namespace fs = std::filesystem;
   const auto refuse = [&](const std::string& path, const std::string& why) {
-    return UsageError(fmt::format("--out: \"{}\" {}", EscapeControl(path), why));
+    return UsageError(fmt::format("{}: \"{}\" {}", option, EscapeControl(path), why));
   };
   std::error_code ec;
   fs::path folder = fs::path(out).parent_path();
   if (folder.empty()) folder = ".";
   fs::create_directories(folder, ec);
   if (ec || !fs::is_directory(folder, ec) || ::access(folder.c_str(), W_OK) != 0)
-    throw UsageError(fmt::format("--out: folder \"{}\" {}", EscapeControl(folder.string()),
+    throw UsageError(fmt::format("{}: folder \"{}\" {}", option, EscapeControl(folder.string()),
                                  ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
   fs::path xdmf = out;
   xdmf.replace_extension(".xdmf");

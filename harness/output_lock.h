@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -57,28 +58,20 @@ class OutputLock {
   /// @param journal_folder whether the command's journal <out>.journal is a
   /// folder (bench_integrators) or a file (stress_stability)
   OutputLock(const std::string& out, const SweepComm& comm, bool journal_folder = true) : path_(out + ".lock") {
-    std::string why;
-    if (comm.root()) {  // one rank probes the paths (probes of several would collide) and locks
-      // The lock first (its folder created), so that a second writer is
-      // named as such, whatever the first one's files look like meanwhile.
-      std::error_code ec;
-      if (const auto folder = std::filesystem::path(out).parent_path(); !folder.empty())
-        std::filesystem::create_directories(folder, ec);
-      try {
-        why = Acquire(out);
-        // Unless another writer holds the lock, the path checks name the
-        // reason more precisely (a folder that cannot be created, a name
-        // too long) than the failed lock file does.
-        if (why.empty() || !held_by_other_) CheckOutputPaths(out, journal_folder);
-      } catch (const UsageError& e) {
-        Release();
-        why = e.what();
-      }
-    }
+    // One rank probes the paths (probes of several would collide) and locks.
+    const std::string why = comm.root() ? Take(out, journal_folder) : std::string();
     std::vector<long> failed{why.empty() ? 0L : 1L};
     comm.Broadcast(&failed);
     if (failed[0] != 0)
       throw UsageError(comm.root() ? why : fmt::format("--out: \"{}\" refused on rank 0", out));
+  }
+  /// The same in a process without ranks (clothbench_inspect rerun, the
+  /// Python module's write_results), the path named `option` in messages.
+  /// @throws UsageError as above
+  OutputLock(const std::string& out, bool journal_folder, std::string option)
+      : path_(out + ".lock"), option_(std::move(option)) {
+    const std::string why = Take(out, journal_folder);
+    if (!why.empty()) throw UsageError(why);
   }
   ~OutputLock() { Release(); }
   OutputLock(const OutputLock&) = delete;
@@ -94,16 +87,36 @@ class OutputLock {
   }
 
  private:
+  // Locks and probes the paths: "" on success, else the refusal.
+  std::string Take(const std::string& out, bool journal_folder) {
+    // The lock first (its folder created), so that a second writer is
+    // named as such, whatever the first one's files look like meanwhile.
+    std::error_code ec;
+    if (const auto folder = std::filesystem::path(out).parent_path(); !folder.empty())
+      std::filesystem::create_directories(folder, ec);
+    try {
+      std::string why = Acquire(out);
+      // Unless another writer holds the lock, the path checks name the
+      // reason more precisely (a folder that cannot be created, a name
+      // too long) than the failed lock file does.
+      if (why.empty() || !held_by_other_) CheckOutputPaths(out, journal_folder, option_);
+      return why;
+    } catch (const UsageError& e) {
+      Release();
+      return e.what();
+    }
+  }
+
   // "" on success, else the refusal.
   std::string Acquire(const std::string& out) {
     for (int attempt = 0; attempt < 8; ++attempt) {
       const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
       if (fd < 0)
-        return fmt::format("--out: cannot create the lock file \"{}\": {}", path_, std::strerror(errno));
+        return fmt::format("{}: cannot create the lock file \"{}\": {}", option_, path_, std::strerror(errno));
       struct stat st {};
       if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
         ::close(fd);
-        return fmt::format("--out: the lock file \"{}\" is not a regular file", path_);
+        return fmt::format("{}: the lock file \"{}\" is not a regular file", option_, path_);
       }
       if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
         char buf[32] = {};
@@ -111,9 +124,9 @@ class OutputLock {
         ::close(fd);
         const std::string pid = n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string("unknown");
         held_by_other_ = true;
-        return fmt::format("--out: \"{}\" is being written by process {} (it holds \"{}\"); wait for it to end or "
-                           "choose another --out",
-                           out, EscapeControl(pid), path_);
+        return fmt::format("{0}: \"{1}\" is being written by process {2} (it holds \"{3}\"); wait for it to end or "
+                           "choose another {0}",
+                           option_, out, EscapeControl(pid), path_);
       }
       // Still the file at the path (not one a releasing holder has just
       // removed)?
@@ -125,15 +138,16 @@ class OutputLock {
       const std::string pid = std::to_string(::getpid());
       if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
         ::close(fd);
-        return fmt::format("--out: cannot write the lock file \"{}\": {}", path_, std::strerror(errno));
+        return fmt::format("{}: cannot write the lock file \"{}\": {}", option_, path_, std::strerror(errno));
       }
       fd_ = fd;
       return "";
     }
-    return fmt::format("--out: the lock file \"{}\" kept being replaced by other processes", path_);
+    return fmt::format("{}: the lock file \"{}\" kept being replaced by other processes", option_, path_);
   }
 
   std::string path_;
+  std::string option_ = "--out";
   int fd_ = -1;
   bool held_by_other_ = false;  // Acquire failed because another process holds the lock
 };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -11,6 +12,8 @@
 
 #include "harness/cli_args.h"
 #include "harness/methods.h"
+#include "harness/output_lock.h"
+#include "harness/result_writer.h"
 
 namespace clothbench {
 namespace {
@@ -223,6 +226,49 @@ std::string ReproduceScript(const ResultReader& file, const RunTable& table, con
   cmd += fmt::format(" --t-end {} --frames {} --reference none --repeat 1 --quiet --out {}", number(*q.t_end),
                      ShellQuote(q.frames), ShellQuote(out));
   return s + cmd + "\n";
+}
+
+}  // namespace clothbench
+
+namespace clothbench {
+
+RerunOutcome RerunStored(const ResultReader& file, const RunTable& table, const std::string& run_id,
+                         const std::string& out) {
+  const RunRequest q = StoredRunRequest(file, table, run_id);
+  const ResolvedRun run = q.Resolve();
+  const RunRecord& stored = FindRun(file, table, run_id);
+  std::optional<OutputLock> lock;  // on <out>.lock, from before the computation to the file's rename
+  if (!out.empty()) lock.emplace(out, /*journal_folder=*/true, "--out");
+  if (q.threads > 0) SetKernelThreads(static_cast<int>(q.threads));
+  const ParticleSystem sys(run.scene);
+  RerunOutcome o;
+  o.run = run.row.Run(sys, run.scene, run.spec, run.param, run.ctx, run.substeps);
+  o.run.id = stored.id;  // a sweep over CG tolerances named it with its η
+  o.run.label = stored.label;
+  const std::string g = "/runs/" + run_id;
+  const std::string xs = file.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
+  const std::string vs = file.Exists(g + "/velocities") ? g + "/velocities" : g + "/velocities_ends";
+  o.end_state_kept = file.Exists(xs) && file.Exists(vs) && !o.run.traj.positions.empty();
+  if (o.end_state_kept) {
+    const MatrixN3 x = file.Frame(xs, file.Shape(xs)[0] - 1), v = file.Frame(vs, file.Shape(vs)[0] - 1);
+    const MatrixN3 &y = o.run.traj.positions.back(), &w = o.run.traj.velocities.back();
+    if (x.rows() == y.rows() && v.rows() == w.rows()) {
+      o.bit_for_bit = x == y && v == w;
+      o.max_dx = (x - y).cwiseAbs().maxCoeff();
+      o.max_dv = (v - w).cwiseAbs().maxCoeff();
+    }
+  }
+  o.counts_equal = o.run.steps == stored.steps && o.run.updates == stored.updates &&
+                   o.run.cg_iterations == stored.cg_iterations && o.run.status == stored.status;
+  if (!out.empty()) {
+    std::vector<MethodRun> rows;
+    rows.push_back(o.run);
+    CompareToReference(sys, nullptr, run.scene.t_end, ErrorMetric::kFinal, &rows);
+    const RunTable t = MakeRunTable(run.scene, sys, std::nullopt, ReferenceOptions{}, rows, q.frames, nullptr,
+                                    ErrorMetric::kFinal);
+    WriteResults(out, run.scene, sys, std::nullopt, ReferenceOptions{}, rows, t, 1);
+  }
+  return o;
 }
 
 }  // namespace clothbench

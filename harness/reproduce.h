@@ -13,6 +13,7 @@
 
 #include <string>
 
+#include "harness/methods.h"
 #include "harness/run_request.h"
 #include "results/result_reader.h"
 #include "results/run_table.h"
@@ -53,6 +54,25 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
 /// @throws UsageError as StoredRunRequest
 std::string ReproduceScript(const ResultReader& file, const RunTable& table, const std::string& run_id,
                             const ReproduceOptions& options);
+
+/// What a rerun of a stored run found.
+struct RerunOutcome {
+  MethodRun run;              ///< the recomputed run (its id and label the stored ones)
+  bool end_state_kept = false;  ///< the file keeps the run's end state (not --frames none)
+  bool bit_for_bit = false;   ///< positions and velocities at t_end equal the stored ones exactly
+  double max_dx = 0.0, max_dv = 0.0;  ///< largest difference of a coordinate [m], [m/s]
+  bool counts_equal = false;  ///< steps, updates, CG iterations and status equal the stored ones
+};
+
+/// Recomputes run `run_id` of `file` in-process from StoredRunRequest (no
+/// shell): sets the stored OpenMP thread count, runs the row and compares
+/// its end state and counts with the stored ones. If `out` is not empty,
+/// writes the run as the only run of the result file `out` (reference
+/// none), as the script of ReproduceScript would.
+/// @throws UsageError as StoredRunRequest, and for an `out` that cannot be
+///   written (checked before computing)
+RerunOutcome RerunStored(const ResultReader& file, const RunTable& table, const std::string& run_id,
+                         const std::string& out);
 
 }  // namespace clothbench
 

@@ -349,4 +349,6 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
 
 int KernelThreads() { return omp_get_max_threads(); }
 
+void SetKernelThreads(int threads) { omp_set_num_threads(threads); }
+
 }  // namespace clothbench

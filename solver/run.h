@@ -142,6 +142,10 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& stepper, const RunO
 /// The OpenMP threads the kernels may use (omp_get_max_threads: OMP_NUM_THREADS
 /// or the hardware threads), stored with every run.
 int KernelThreads();
+/// Sets the OpenMP threads of the kernels (omp_set_num_threads), as
+/// OMP_NUM_THREADS would: a rerun of a stored run uses the run's count.
+/// @param threads ≥ 1
+void SetKernelThreads(int threads);
 
 }  // namespace clothbench
 

@@ -364,9 +364,40 @@ TEST(InspectCommand, RecomputesARunBitForBit) {
     EXPECT_EQ(a.cg_iterations, b.cg_iterations) << id;
     EXPECT_TRUE(a.x == b.x) << id << ": positions at t_end differ by " << (a.x - b.x).cwiseAbs().maxCoeff() << " m";
     EXPECT_TRUE(a.v == b.v) << id << ": velocities at t_end differ by " << (a.v - b.v).cwiseAbs().maxCoeff();
+    // `rerun` computes the same run in-process, without a shell, and says
+    // whether the end state equals the stored one bit for bit.
+    const std::string in_process = (dir / (std::string("inproc_") + id + ".h5")).string();
+    fs::remove(in_process);
+    const Outcome p = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + " rerun " + id + " --out " + in_process);
+    EXPECT_EQ(p.exit_code, 0) << id << ": " << p.err << p.out;
+    EXPECT_NE(p.out.find("equals the stored one bit for bit"), std::string::npos) << p.out;
+    const EndState e = ReadEndState(in_process, id);
+    EXPECT_TRUE(a.x == e.x && a.v == e.v) << id;
+    EXPECT_EQ(a.cg_iterations, e.cg_iterations) << id;
   }
+  // A rerun whose end state differs says so with exit 1: the stored
+  // positions moved by 1e-9 m (far above round-off's 0, the same build
+  // reproduces a run exactly).
+  const std::string moved = (dir / "moved.h5").string();
+  CopyAndEdit(file, moved, [&](hid_t f) {
+    const std::string d = H5Lexists(f, "/runs/sbdf2_h0.005/positions", H5P_DEFAULT) > 0
+                              ? "/runs/sbdf2_h0.005/positions"
+                              : "/runs/sbdf2_h0.005/positions_ends";
+    const hid_t ds = H5Dopen2(f, d.c_str(), H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    const hid_t space = H5Dget_space(ds);
+    std::vector<double> x(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+    H5Sclose(space);
+    ASSERT_GE(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x.data()), 0);
+    x.back() += 1e-9;
+    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x.data()), 0);
+    H5Dclose(ds);
+  });
+  const Outcome differs = RunCommand(CLOTHBENCH_INSPECT_BINARY, moved + " rerun sbdf2_h0.005");
+  EXPECT_EQ(differs.exit_code, 1) << differs.out << differs.err;
+  EXPECT_NE(differs.out.find("differs"), std::string::npos) << differs.out;
   // The reference and an unknown run: one line, exit 2.
-  for (const char* bad : {" command reference", " command rk4_h0.01"}) {
+  for (const char* bad : {" command reference", " command rk4_h0.01", " rerun reference", " rerun rk4_h0.01"}) {
     const Outcome b = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + bad);
     EXPECT_EQ(b.exit_code, 2) << bad;
     EXPECT_EQ(std::count(b.err.begin(), b.err.end(), '\n'), 1) << b.err;
