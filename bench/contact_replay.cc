@@ -18,11 +18,16 @@
 // contact memory (which particles were in contact, their last impulse), so
 // the first steps after the restart differ from the saved run's.
 //
-// A state file is "CBSTATE1", N (int64), t [s] (double), x and v (N×3
-// doubles each, column-major) and the CRC-32 of everything before it; it is
-// written to a temporary file and renamed. Bad input (a scene, option or
-// state file that breaks a rule) is refused before any computing with exit 2
-// and one line naming it; a failed step exits 1.
+// A state file is "CBSTATE2", the FNV-1a 64 hash of the scene's text
+// (uint64), N (int64), t [s] (double), x and v (N×3 doubles each,
+// column-major) and the CRC-32 of everything before it; it is written by
+// the one writer (harness/output_lock.h: <out>.lock held from before the
+// run, a temporary renamed). A state is read only from a regular file of
+// exactly the size the scene's N gives, and only for the scene it was saved
+// from. Bad input (a scene, option, time or state file that breaks a rule,
+// validated as a RunRequest where it is one) is refused before any
+// computing with exit 2 and one line naming it; a failed step or write
+// exits 1 naming its cause.
 #include <zlib.h>
 
 #include <CLI/CLI.hpp>
@@ -34,11 +39,15 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "harness/cli_args.h"
+#include "harness/output_lock.h"
+#include "harness/run_request.h"
+#include "harness/sweep.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "solver/integrator.h"
@@ -46,63 +55,70 @@
 namespace clothbench {
 namespace {
 
-constexpr char kMagic[8] = {'C', 'B', 'S', 'T', 'A', 'T', 'E', '1'};
+constexpr char kMagic[8] = {'C', 'B', 'S', 'T', 'A', 'T', 'E', '2'};
 
 struct State {
   double t = 0.0;
   MatrixN3 x, v;
 };
 
-// Writes `s` to path via path.tmp and a rename. @return false on an I/O error.
-bool WriteState(const std::filesystem::path& path, const State& s) {
-  const auto n = static_cast<std::int64_t>(s.x.rows());
-  std::vector<char> bytes(sizeof kMagic + sizeof n + sizeof s.t);
-  std::memcpy(bytes.data(), kMagic, sizeof kMagic);
-  std::memcpy(bytes.data() + sizeof kMagic, &n, sizeof n);
-  std::memcpy(bytes.data() + sizeof kMagic + sizeof n, &s.t, sizeof s.t);
-  const auto block = static_cast<std::size_t>(3 * n) * sizeof(double);
-  for (const MatrixN3* m : {&s.x, &s.v}) {
-    const char* p = reinterpret_cast<const char*>(m->data());
-    bytes.insert(bytes.end(), p, p + block);
-  }
-  const auto crc = static_cast<std::uint32_t>(
-      crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
-  const std::filesystem::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.write(reinterpret_cast<const char*>(&crc), sizeof crc);
-    if (!out) return false;
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  return !ec;
+// The scene's hash as stored in a state file.
+std::uint64_t SceneKey(const Scene& scene) { return std::stoull(Fnv1a64(scene.toml), nullptr, 16); }
+
+constexpr std::size_t kHead = sizeof kMagic + sizeof(std::uint64_t) + sizeof(std::int64_t) + sizeof(double);
+
+std::size_t StateBytes(Eigen::Index n) {
+  return kHead + 2 * static_cast<std::size_t>(3 * n) * sizeof(double) + sizeof(std::uint32_t);
 }
 
-// Reads a state file for a scene of n particles. @return the state, or
-// nullopt with *why naming the broken rule.
-std::optional<State> ReadState(const std::string& path, Eigen::Index n, std::string* why) {
+// The bytes of a state file of `s` on `scene`.
+std::string EncodeState(const Scene& scene, const State& s) {
+  const auto n = static_cast<std::int64_t>(s.x.rows());
+  const std::uint64_t key = SceneKey(scene);
+  std::string bytes(kMagic, sizeof kMagic);
+  bytes.append(reinterpret_cast<const char*>(&key), sizeof key);
+  bytes.append(reinterpret_cast<const char*>(&n), sizeof n);
+  bytes.append(reinterpret_cast<const char*>(&s.t), sizeof s.t);
+  const auto block = static_cast<std::size_t>(3 * n) * sizeof(double);
+  for (const MatrixN3* m : {&s.x, &s.v}) bytes.append(reinterpret_cast<const char*>(m->data()), block);
+  const auto crc = static_cast<std::uint32_t>(
+      crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
+  bytes.append(reinterpret_cast<const char*>(&crc), sizeof crc);
+  return bytes;
+}
+
+// Reads a state file saved from `scene` (n particles). Only a regular file
+// of exactly StateBytes(n) bytes is opened and read (a FIFO, a folder or a
+// device is refused before it is opened). @return the state, or nullopt
+// with *why naming the broken rule.
+std::optional<State> ReadState(const std::string& path, const Scene& scene, Eigen::Index n, std::string* why) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec) {
+    *why = "cannot be used: " + ec.message();
+    return std::nullopt;
+  }
+  if (!std::filesystem::is_regular_file(status)) {
+    *why = "is not a regular file";
+    return std::nullopt;
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  const std::size_t expected = StateBytes(n);
+  if (ec || size != expected) {
+    *why = ec ? "cannot be used: " + ec.message()
+              : fmt::format("has {} bytes, a state of this scene's {} particles has {} (another scene, truncated or "
+                            "damaged)",
+                            size, n, expected);
+    return std::nullopt;
+  }
   std::ifstream in(path, std::ios::binary);
-  if (!in) {
+  std::string bytes(expected, '\0');
+  if (!in || !in.read(bytes.data(), static_cast<std::streamsize>(expected))) {
     *why = "cannot be read";
     return std::nullopt;
   }
-  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::size_t head = sizeof kMagic + sizeof(std::int64_t) + sizeof(double);
-  if (bytes.size() < head + sizeof(std::uint32_t) || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) {
-    *why = "is not a contact_replay state file (no CBSTATE1 header)";
-    return std::nullopt;
-  }
-  std::int64_t count = 0;
-  std::memcpy(&count, bytes.data() + sizeof kMagic, sizeof count);
-  const std::size_t block = static_cast<std::size_t>(3 * n) * sizeof(double);
-  if (count != n) {
-    *why = fmt::format("holds {} particles, the scene has {}", count, n);
-    return std::nullopt;
-  }
-  if (bytes.size() != head + 2 * block + sizeof(std::uint32_t)) {
-    *why = fmt::format("has {} bytes, {} particles need {} (truncated or damaged)", bytes.size(), n,
-                       head + 2 * block + sizeof(std::uint32_t));
+  if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0) {
+    *why = "is not a contact_replay state file of this version (no CBSTATE2 header; save it again)";
     return std::nullopt;
   }
   std::uint32_t stored = 0;
@@ -113,14 +129,31 @@ std::optional<State> ReadState(const std::string& path, Eigen::Index n, std::str
     *why = "fails its CRC-32 check (damaged or truncated)";
     return std::nullopt;
   }
+  std::uint64_t key = 0;
+  std::int64_t count = 0;
+  std::memcpy(&key, bytes.data() + sizeof kMagic, sizeof key);
+  std::memcpy(&count, bytes.data() + sizeof kMagic + sizeof key, sizeof count);
+  if (count != n) {
+    *why = fmt::format("holds {} particles, the scene has {}", count, n);
+    return std::nullopt;
+  }
+  if (key != SceneKey(scene)) {
+    *why = fmt::format("was saved from another scene (scene hash {:016x}, --scene's {:016x})", key, SceneKey(scene));
+    return std::nullopt;
+  }
   State s;
-  std::memcpy(&s.t, bytes.data() + sizeof kMagic + sizeof count, sizeof s.t);
+  std::memcpy(&s.t, bytes.data() + kHead - sizeof s.t, sizeof s.t);
   s.x.resize(n, 3);
   s.v.resize(n, 3);
-  std::memcpy(s.x.data(), bytes.data() + head, block);
-  std::memcpy(s.v.data(), bytes.data() + head + block, block);
+  const std::size_t block = static_cast<std::size_t>(3 * n) * sizeof(double);
+  std::memcpy(s.x.data(), bytes.data() + kHead, block);
+  std::memcpy(s.v.data(), bytes.data() + kHead + block, block);
   if (!std::isfinite(s.t) || !s.x.allFinite() || !s.v.allFinite()) {
     *why = "holds a value that is not finite";
+    return std::nullopt;
+  }
+  if (!(s.t >= 0.0 && s.t <= scene.t_end)) {
+    *why = fmt::format("is at t = {} s, outside the scene's [0, t_end = {}] s", s.t, scene.t_end);
     return std::nullopt;
   }
   return s;
@@ -190,40 +223,58 @@ int main(int argc, char** argv) {
   }
 
   Scene scene;
+  ResolvedRun run;
   try {
     scene = LoadSceneOrBuiltin(scene_arg);
-    if (!preconditioner.empty()) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
     if (!frames.empty()) scene.solver.amg_frames = ParseAmgFrames(frames, "--amg-frames");
+    // The step, row and preconditioner as every entry point validates them.
+    RunRequest q;
+    q.scene = scene;
+    q.method = integrator;
+    q.h = scene.h;
+    if (!preconditioner.empty()) q.preconditioner = preconditioner;
+    q.names = FieldNames::kOption;
+    q.renamed = {{"method", "--integrator"}, {"h", "--scene's h"}};
+    run = q.Resolve();
   } catch (const SceneError& e) {
     return Fail(e.what());
-  } catch (const UsageError& e) {
+  } catch (const std::invalid_argument& e) {  // UsageError
     return Fail(e.what());
   }
-  const std::optional<Method> parsed = MethodFromString(integrator);
-  if (!parsed || *parsed == Method::kSymplecticEuler)
+  const RowMethod& row = run.row;
+  const std::optional<Method> parsed = MethodFromString(row.name());
+  if (row.entry->layer != "solver" || !parsed || *parsed == Method::kSymplecticEuler)
     return Fail(fmt::format("--integrator {}: not one of imex_euler, implicit_euler, sbdf2, bdf2, "
-                            "implicit_midpoint, sbdf3", integrator));
+                            "implicit_midpoint, sbdf3 (with /newton or /fixed_point where they take one)",
+                            EscapeControl(integrator)));
+  scene = run.scene;
   const ParticleSystem system(scene);
   const double h = scene.h;
 
-  std::vector<std::filesystem::path> outputs;
+  std::vector<std::string> outputs;
+  std::vector<std::unique_ptr<OutputLock>> locks;  // held from before the run to the exit
   std::optional<State> start;
-  if (save->parsed()) {
-    for (std::size_t k = 0; k < at.size(); ++k) {
-      if (!(at[k] > 0.0 && at[k] <= scene.t_end) || (k > 0 && at[k] <= at[k - 1]))
-        return Fail(fmt::format("--at {}: times must increase within (0, t_end = {}]", at[k], scene.t_end));
-      outputs.emplace_back(fmt::format("{}_{}.state", prefix, k));
+  try {
+    if (save->parsed()) {
+      for (std::size_t k = 0; k < at.size(); ++k) {
+        if (!(at[k] > 0.0 && at[k] <= scene.t_end) || (k > 0 && at[k] <= at[k - 1]))
+          return Fail(fmt::format("--at {}: times must increase within (0, t_end = {}]", at[k], scene.t_end));
+        outputs.push_back(fmt::format("{}_{}.state", prefix, k));
+        locks.push_back(std::make_unique<OutputLock>(outputs.back(), /*journal_folder=*/false, "--out"));
+      }
+    } else {
+      std::string why;
+      start = ReadState(state_path, scene, system.num_particles(), &why);
+      if (!start) return Fail(fmt::format("--state {}: {}", EscapeControl(state_path), why));
+      if (start->t + steps * h > scene.t_end * (1.0 + 1e-12))
+        return Fail(fmt::format("--steps {}: from t = {} s with h = {} s they end past t_end = {} s", steps, start->t,
+                                h, scene.t_end));
     }
-    const auto folder = std::filesystem::absolute(outputs.front()).parent_path();
-    if (!std::filesystem::is_directory(folder))
-      return Fail(fmt::format("--out {}: folder {} does not exist", prefix, folder.string()));
-  } else {
-    std::string why;
-    start = ReadState(state_path, system.num_particles(), &why);
-    if (!start) return Fail(fmt::format("--state {}: {}", state_path, why));
+  } catch (const UsageError& e) {
+    return Fail(e.what());
   }
 
-  StepEngine engine(system, *parsed, scene.solver);
+  StepEngine engine(system, *parsed, row.Settings(run.spec));
   engine.set_amg_diagnostics(diagnostics);
   PrintHeader();
   // One step to t_next, printed; false (after one line on stderr) if it failed.
@@ -251,11 +302,13 @@ int main(int argc, char** argv) {
     const double t_next = static_cast<double>(k) * h;
     if (!step(t_next)) return 1;
     if (t_next >= at[next] - 1e-9 * h) {
-      if (!WriteState(outputs[next], State{engine.t(), engine.x(), engine.v()})) {
-        std::fprintf(stderr, "contact_replay: %s could not be written\n", outputs[next].string().c_str());
+      try {
+        WriteFileAtomically(outputs[next], EncodeState(scene, State{engine.t(), engine.x(), engine.v()}), "--out");
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "contact_replay: %s\n", EscapeControl(e.what()).c_str());
         return 1;
       }
-      fmt::print("# saved t = {:.4f} s to {}\n", engine.t(), outputs[next].string());
+      fmt::print("# saved t = {:.4f} s to {}\n", engine.t(), outputs[next]);
       ++next;
     }
   }

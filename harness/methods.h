@@ -617,8 +617,13 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
         r.solver = ParseNonlinearSolver(parts[k], option);
         solver_named = true;
       } else {
-        throw std::invalid_argument(fmt::format(
-            "{}: \"{}\": only implicit_euler, bdf2 and implicit_midpoint take a nonlinear solver", option, full));
+        std::string takes;
+        for (std::string_view v : r.entry->variants) takes += (takes.empty() ? "" : ", ") + std::string(v);
+        if (r.entry->error_control) takes += std::string(takes.empty() ? "" : ", ") + "error";
+        throw std::invalid_argument(
+            takes.empty() ? fmt::format("{}: \"{}\": {} takes no modifier after '/'", option, full, r.entry->name)
+                          : fmt::format("{}: \"{}\": \"{}\" is not a modifier of {} (it takes {})", option, full,
+                                        parts[k], r.entry->name, takes));
       }
     }
     if (!kinds.empty() && std::find(kinds.begin(), kinds.end(), r.kind()) == kinds.end())

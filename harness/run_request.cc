@@ -17,6 +17,8 @@ std::string SceneHash(const Scene& scene) {
 }
 
 std::string RunRequest::Field(std::string_view field) const {
+  for (const auto& [k, name] : renamed)
+    if (k == field) return name;
   if (names == FieldNames::kKeyword) return std::string(field);
   static const std::pair<std::string_view, std::string_view> kOptions[] = {
       {"method", "--integrators"},       {"h", "--h"},

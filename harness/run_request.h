@@ -29,6 +29,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "harness/methods.h"
 #include "model/scene.h"
@@ -73,6 +75,9 @@ struct RunRequest {
   double time_budget = 30.0;
   std::optional<std::string> reference_scene;  ///< SceneHash of the reference's scene
   FieldNames names = FieldNames::kKeyword;
+  /// Fields an entry point names otherwise than `names` says
+  /// (contact_replay: {"method", "--integrator"}).
+  std::vector<std::pair<std::string, std::string>> renamed;
 
   /// @throws UsageError (a std::invalid_argument), one line naming the
   ///   field, its value and the rule, for the first field that breaks one

@@ -10,17 +10,22 @@
 #include <chrono>
 #include <cstring>
 #include <memory>
+#include <mutex>
+#include <type_traits>
 #include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <toml++/toml.h>
 
 #include "harness/bench_sweep.h"
 #include "harness/cli_args.h"
 #include "harness/methods.h"
+#include "harness/output_lock.h"
 #include "harness/result_writer.h"
+#include "harness/run_request.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "results/metrics.h"
@@ -103,23 +108,28 @@ py::array StepStatsArray(const std::vector<StepRecord>& steps) {
   return a;
 }
 
-// Calls a Python `progress(t, t_end)` from the step loop, at most every
-// 0.2 s of wall time and at t_end (the GIL is taken only then). An exception
-// the callback raises stops the run after the current step and is raised
-// again by run().
+// Installed for every run: between steps, at most every 50 ms of wall time
+// (and at t_end), takes the GIL, lets Python run its signal handlers
+// (PyErr_CheckSignals: Ctrl-C raises KeyboardInterrupt) and calls a Python
+// `progress(t, t_end)` if one was given, at most every 0.2 s. An exception
+// either raises stops the run after the current step and is raised again
+// by run().
 class PythonProgress : public ProgressSink {
  public:
-  PythonProgress(py::function callback, double t_end) : callback_(std::move(callback)), t_end_(t_end) {
-    SetProgressSink(this);
-  }
-  ~PythonProgress() override { SetProgressSink(nullptr); }
+  PythonProgress(py::object callback, double t_end) : callback_(std::move(callback)), t_end_(t_end) {}
   PythonProgress(const PythonProgress&) = delete;
   PythonProgress& operator=(const PythonProgress&) = delete;
   void Update(double t) override {
     const auto now = std::chrono::steady_clock::now();
-    if (t < t_end_ && now - last_ < std::chrono::milliseconds(200)) return;
-    last_ = now;
+    if (t < t_end_ && now - last_check_ < std::chrono::milliseconds(50)) return;
+    last_check_ = now;
     py::gil_scoped_acquire gil;
+    if (PyErr_CheckSignals() != 0) {
+      error_ = std::make_unique<py::error_already_set>();
+      throw Stopped();
+    }
+    if (callback_.is_none() || (t < t_end_ && now - last_call_ < std::chrono::milliseconds(200))) return;
+    last_call_ = now;
     try {
       callback_(t, t_end_);
     } catch (py::error_already_set& e) {
@@ -128,19 +138,86 @@ class PythonProgress : public ProgressSink {
     }
   }
   struct Stopped : std::runtime_error {
-    Stopped() : std::runtime_error("the progress callback raised") {}
+    Stopped() : std::runtime_error("the run was stopped from Python") {}
   };
-  // Re-raises the callback's exception, if it raised one.
-  void RethrowCallbackError() {
+  // The process' sink while it lives (taken under g_run_mutex).
+  struct Installed {
+    explicit Installed(PythonProgress* sink) { SetProgressSink(sink); }
+    ~Installed() { SetProgressSink(nullptr); }
+    Installed(const Installed&) = delete;
+    Installed& operator=(const Installed&) = delete;
+  };
+  // Re-raises the exception that stopped the run (KeyboardInterrupt or the callback's).
+  void RethrowError() {
     if (error_) throw std::move(*error_);
   }
 
  private:
-  py::function callback_;
+  py::object callback_;
   double t_end_;
-  std::chrono::steady_clock::time_point last_{};
+  std::chrono::steady_clock::time_point last_check_{}, last_call_{};
   std::unique_ptr<py::error_already_set> error_;
 };
+
+// run() and reference() compute one at a time: the progress sink and the
+// OpenMP thread count are the process'. A second thread's call waits here
+// with the GIL released.
+std::mutex g_run_mutex;
+
+// The Python value of keyword `name` as T, or nullopt for None.
+// @throws py::type_error naming the keyword and the type expected
+template <class T>
+std::optional<T> Arg(const py::object& value, const char* name) {
+  if (value.is_none()) return std::nullopt;
+  const auto refuse = [&](const char* what) {
+    return py::type_error(fmt::format("{}: {} expected, got {}", name, what,
+                                      py::str(py::type::of(value).attr("__name__")).cast<std::string>()));
+  };
+  if constexpr (std::is_same_v<T, std::string>) {
+    if (!py::isinstance<py::str>(value)) throw refuse("a str");
+    return value.cast<std::string>();
+  } else if constexpr (std::is_same_v<T, long>) {
+    if (py::isinstance<py::bool_>(value) || !py::isinstance<py::int_>(value)) throw refuse("an int");
+    try {
+      return value.cast<long>();
+    } catch (const py::cast_error&) {
+      throw py::value_error(fmt::format("{}: {} is out of range", name, py::str(value).cast<std::string>()));
+    }
+  } else {
+    if (py::isinstance<py::bool_>(value) || !(py::isinstance<py::float_>(value) || py::isinstance<py::int_>(value)))
+      throw refuse("a number");
+    return value.cast<double>();
+  }
+}
+
+// A scene argument: a name, a path or TOML text (str) with overrides, or a
+// Scene from load_scene(). @throws py::type_error naming `name`
+Scene SceneArg(const py::object& scene, const py::object& overrides, const char* name = "scene") {
+  if (!overrides.is_none() && !py::isinstance<py::dict>(overrides))
+    throw py::type_error("overrides: a dict of dotted keys expected");
+  const py::dict o = overrides.is_none() ? py::dict() : overrides.cast<py::dict>();
+  if (py::isinstance<py::str>(scene)) return MakeScene(scene.cast<std::string>(), o);
+  if (py::isinstance<Scene>(scene)) {
+    if (!o.empty()) throw py::value_error("overrides: give them to load_scene() for a Scene object");
+    return scene.cast<Scene>();
+  }
+  throw py::type_error(fmt::format("{}: a scene name, path, TOML text or Scene expected", name));
+}
+
+// The record behind a dict from run() or reference(). @throws ValueError naming `name`
+template <class Record>
+std::shared_ptr<Record> RecordOf(const py::object& d, const char* name, const char* from) {
+  if (!py::isinstance<py::dict>(d))
+    throw py::type_error(fmt::format("{}: a dict returned by clothbench.{}() expected", name, from));
+  if (!d.cast<py::dict>().contains("record"))
+    throw py::value_error(fmt::format("{}: a dict returned by clothbench.{}() expected (this one has no record)", name,
+                                      from));
+  try {
+    return d.cast<py::dict>()["record"].cast<std::shared_ptr<Record>>();
+  } catch (const py::cast_error&) {
+    throw py::type_error(fmt::format("{}: a dict returned by clothbench.{}() expected", name, from));
+  }
+}
 
 // A RunRecord (a row of a result file, or its reference) as a dict of its
 // attributes; optional values are None.
@@ -179,71 +256,64 @@ py::dict RecordDict(const RunRecord& r) {
 // Runs one row. `method` is a command-line row name ("sbdf2",
 // "bdf2/newton", "sbdf2/error", "arkode/ark4", "cvode/klu", "xpbd");
 // `h` [s] for fixed-step and substepped rows, `rtol` for adaptive ones.
-py::dict Run(const py::object& scene_arg, const std::string& method, std::optional<double> h,
-             std::optional<double> rtol, int substeps, std::optional<double> cg_tolerance,
-             std::optional<std::string> preconditioner, std::optional<std::string> tangent_terms,
-             std::optional<double> t_end, const py::dict& overrides, const py::object& progress,
-             const py::object& reference, std::optional<int> repeat, double time_budget) {
-  Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
-                                                   : scene_arg.cast<Scene>();
-  if (t_end) scene.t_end = *t_end;
-  std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
-  if (rows.size() != 1) throw py::value_error("method \"" + method + "\" names " + std::to_string(rows.size()) + " rows");
-  try {  // as bench_integrators: "sbdf2" on an error-controlled scene is sbdf2/error
-    AdoptSceneStepControl(scene.solver, &rows, /*named=*/true, "method");
-  } catch (const std::invalid_argument& e) {
-    throw py::value_error(e.what());
-  }
-  const RowMethod& m = rows.front();
-  const bool adaptive = m.kind() == StepKind::kAdaptive;
-  if (adaptive && !rtol && m.error_control && scene.solver.step_control == StepControl::kError) rtol = scene.solver.rtol;
-  if (adaptive && !rtol) throw py::value_error(method + " is adaptive: give rtol");
-  if (!adaptive && !h) throw py::value_error(method + " steps with h: give h [s]");
-  if (substeps < 1) throw py::value_error("substeps must be at least 1");
-  if (repeat && (*repeat < 1 || *repeat > 1000)) throw py::value_error("repeat must be from 1 to 1000");
-  if (!(time_budget >= 0.0 && time_budget <= 1e6)) throw py::value_error("time_budget must be in [0, 1e6] s");
-  SolverSpec spec = scene.solver;
-  if (cg_tolerance) spec.cg_tolerance = *cg_tolerance;
-  RunContext ctx;
-  ctx.cg_tolerance_from_cli = cg_tolerance.has_value();
-  if (tangent_terms) {
-    if (*tangent_terms != "all" && *tangent_terms != "tension")
-      throw py::value_error("tangent_terms: \"" + *tangent_terms + "\" must be all or tension");
-    spec.tangent_explicit_terms = *tangent_terms == "all";
-    ctx.tangent_terms_from_cli = true;
-  }
-  if (preconditioner) {
-    // UsageError is a std::invalid_argument: Python sees a ValueError.
-    spec.preconditioner = scene.solver.preconditioner = ParsePreconditioner(*preconditioner, "preconditioner");
-    ctx.preconditioner_from_cli = true;
-  }
+// Every argument is validated as a RunRequest (harness/run_request.h), the
+// same rules and text as the command line's, before anything is computed.
+py::dict Run(const py::object& scene_arg, const py::object& method, const py::object& h, const py::object& rtol,
+             const py::object& substeps, const py::object& cg_tolerance, const py::object& preconditioner,
+             const py::object& tangent_terms, const py::object& t_end, const py::object& overrides,
+             const py::object& progress, const py::object& reference, const py::object& repeat,
+             const py::object& time_budget, const py::object& time_limit, const py::object& arkode_table,
+             const py::object& cvode_setting) {
+  RunRequest q;
+  q.scene = SceneArg(scene_arg, overrides);
+  const std::optional<std::string> name = Arg<std::string>(method, "method");
+  if (!name) throw py::type_error("method: a str expected, got NoneType");
+  q.method = *name;
+  q.h = Arg<double>(h, "h");
+  q.rtol = Arg<double>(rtol, "rtol");
+  q.substeps = Arg<long>(substeps, "substeps");
+  q.cg_tolerance = Arg<double>(cg_tolerance, "cg_tolerance");
+  q.preconditioner = Arg<std::string>(preconditioner, "preconditioner");
+  q.tangent_terms = Arg<std::string>(tangent_terms, "tangent_terms");
+  q.arkode_table = Arg<std::string>(arkode_table, "arkode_table");
+  q.cvode_setting = Arg<std::string>(cvode_setting, "cvode_setting");
+  q.t_end = Arg<double>(t_end, "t_end");
+  q.repeat = Arg<long>(repeat, "repeat");
+  q.time_budget = Arg<double>(time_budget, "time_budget").value_or(30.0);
+  q.time_limit = Arg<double>(time_limit, "time_limit").value_or(RunLimits().time_limit_s);
+  if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+    throw py::type_error("progress: a callable progress(t, t_end) expected");
   std::shared_ptr<RunSummary> ref;
   if (!reference.is_none()) {
+    ref = RecordOf<RunSummary>(reference, "reference", "reference");
     const py::dict d = reference.cast<py::dict>();
-    if (!d.contains("record")) throw py::value_error("reference: a dict returned by clothbench.reference() is expected");
-    ref = d["record"].cast<std::shared_ptr<RunSummary>>();
+    if (!d.contains("scene_hash")) throw py::type_error("reference: a dict returned by clothbench.reference() expected");
+    q.reference_scene = d["scene_hash"].cast<std::string>();
   }
-  const ParticleSystem sys(scene);
+  const ResolvedRun run = q.Resolve();  // UsageError: ValueError naming the keyword
+  const ParticleSystem sys(run.scene);
   auto record = std::make_shared<MethodRun>();
   MethodRun& r = *record;
   {
-    std::optional<PythonProgress> sink;
-    if (!progress.is_none()) sink.emplace(progress.cast<py::function>(), scene.t_end);
+    PythonProgress sink(progress, run.scene.t_end);
     try {
       py::gil_scoped_release release;
-      r = m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps);
+      const std::lock_guard<std::mutex> one_at_a_time(g_run_mutex);
+      const PythonProgress::Installed installed(&sink);
+      const auto once = [&] { return run.row.Run(sys, run.scene, run.spec, run.param, run.ctx, run.substeps); };
+      r = once();
       // Repetitions as bench_integrators' (--repeat, --time-budget); the
       // progress callback follows each timing.
-      double budget = time_budget;
-      RepeatTimings(&r, repeat.value_or(0), &budget, [&] { return m.Run(sys, scene, spec, adaptive ? *rtol : *h, ctx, substeps); });
+      double budget = q.time_budget;
+      RepeatTimings(&r, static_cast<int>(q.repeat.value_or(0)), &budget, once);
     } catch (const PythonProgress::Stopped&) {
-      sink->RethrowCallbackError();
+      sink.RethrowError();
       throw;
     }
   }
   std::vector<MethodRun> one;  // errors and energies as the result file has them
   one.push_back(std::move(r));
-  CompareToReference(sys, ref.get(), scene.t_end, ErrorMetric::kFinal, &one);
+  CompareToReference(sys, ref.get(), run.scene.t_end, ErrorMetric::kFinal, &one);
   r = std::move(one.front());
   if (ref && r.ok() && !r.err)
     throw py::value_error("reference: its frames do not match the run's (the same scene and t_end?)");
@@ -263,6 +333,7 @@ py::dict Run(const py::object& scene_arg, const std::string& method, std::option
     energy["contact_work_friction"] = r.energy.contact_work_friction;
   }
   out["energy"] = energy;
+  out["scene_hash"] = SceneHash(run.scene);
   out["record"] = record;  // for write_results
   return out;
 }
@@ -279,29 +350,43 @@ MatrixN3 ToMatrix(const py::array_t<double, py::array::c_style | py::array::forc
 }
 
 // The reference run of `method` (a registry entry with a reference role)
-// at `rtol` [-], as --reference does.
-py::dict Reference(const py::object& scene_arg, const std::string& method, double rtol, std::optional<double> t_end,
-                   const py::dict& overrides) {
-  Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), overrides)
-                                                   : scene_arg.cast<Scene>();
-  if (t_end) scene.t_end = *t_end;
-  const MethodEntry* e = FindMethod(method);
-  if (!e || !e->reference) throw py::value_error("reference \"" + method + "\" must be " + ReferenceNames());
-  if (!(rtol > 0.0)) throw py::value_error("rtol must be positive");
-  const ParticleSystem sys(scene);
+// at `rtol` [-], as --reference does: validated as the request of the
+// method's KLU row at that rtol, t_end and scene.
+py::dict Reference(const py::object& scene_arg, const py::object& method, const py::object& rtol,
+                   const py::object& t_end, const py::object& overrides) {
+  RunRequest q;
+  q.scene = SceneArg(scene_arg, overrides);
+  const std::string name = Arg<std::string>(method, "method").value_or(std::string(kDefaultReference));
+  const MethodEntry* e = FindMethod(name);
+  if (!e || !e->reference)
+    throw py::value_error(fmt::format("method: \"{}\" must be {}", EscapeControl(name), ReferenceNames()));
+  q.method = name + "/klu";
+  q.rtol = Arg<double>(rtol, "rtol").value_or(1e-10);
+  q.t_end = Arg<double>(t_end, "t_end");
+  const ResolvedRun run = q.Resolve();
+  const ParticleSystem sys(run.scene);
   ReferenceOptions o;
-  o.rtol = rtol;
-  o.t_end = scene.t_end;
-  o.frame_dt = scene.frame_dt;
+  o.rtol = run.param;
+  o.t_end = run.scene.t_end;
+  o.frame_dt = run.scene.frame_dt;
   auto record = std::make_shared<RunSummary>();
   RunSummary& r = *record;
   {
-    py::gil_scoped_release release;
-    r = e->reference(sys, o);
+    PythonProgress sink(py::none(), run.scene.t_end);
+    try {
+      py::gil_scoped_release release;
+      const std::lock_guard<std::mutex> one_at_a_time(g_run_mutex);
+      const PythonProgress::Installed installed(&sink);
+      r = e->reference(sys, o);
+    } catch (const PythonProgress::Stopped&) {
+      sink.RethrowError();
+      throw;
+    }
   }
   py::dict out;
-  out["method"] = method;
-  out["rtol"] = rtol;
+  out["method"] = name;
+  out["rtol"] = run.param;
+  out["scene_hash"] = SceneHash(run.scene);
   out["record"] = record;  // for run(reference=...) and write_results
   out["status"] = r.ok ? std::string("ok") : r.status;
   out["steps"] = r.steps;
@@ -315,42 +400,68 @@ py::dict Reference(const py::object& scene_arg, const std::string& method, doubl
 // from run(), in table order, all on `scene`) and `reference` (a dict from
 // reference(), or None), as bench_integrators writes it: errors, observed
 // orders and the equal-accuracy table at `targets` [m] against the
-// reference.
-void WriteResultFile(const std::string& path, const py::object& scene_arg, const py::list& runs,
-                     const py::object& reference, const std::string& frames, const std::vector<double>& targets,
-                     const std::string& baseline, const std::string& error_metric) {
+// reference. Under `<path>.lock`, through a temporary renamed at the end;
+// a path that exists as anything but a regular file is refused.
+void WriteResultFile(const py::object& path_arg, const py::object& scene_arg, const py::object& runs_arg,
+                     const py::object& reference, const py::object& frames_arg, const py::object& targets_arg,
+                     const py::object& baseline_arg, const py::object& error_metric_arg) {
+  const std::optional<std::string> path = Arg<std::string>(path_arg, "path");
+  if (!path || path->empty()) throw py::type_error("path: a non-empty str expected");
+  const std::string error_metric = Arg<std::string>(error_metric_arg, "error_metric").value_or("final");
   const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
-  if (!metric) throw py::value_error("error_metric: \"" + error_metric + "\" must be final, l2 or max");
-  const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict())
-                                                         : scene_arg.cast<Scene>();
+  if (!metric)
+    throw py::value_error(fmt::format("error_metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));
+  const Scene scene = SceneArg(scene_arg, py::none());
+  const std::string frames = Arg<std::string>(frames_arg, "frames").value_or("default");
   if (frames != "default" && frames != "positions" && frames != "all" && frames != "ends" && frames != "none")
-    throw py::value_error("frames: \"" + frames + "\" must be default, all, positions, ends or none");
-  const ParticleSystem sys(scene);
+    throw py::value_error(fmt::format("frames: \"{}\" must be default, all, positions, ends or none",
+                                      EscapeControl(frames)));
+  const std::string baseline = Arg<std::string>(baseline_arg, "baseline").value_or(std::string(kWorkPrecisionBaseline));
+  std::vector<double> targets = {1e-2, 1e-3, 1e-4};
+  if (!targets_arg.is_none()) {
+    if (!py::isinstance<py::sequence>(targets_arg) || py::isinstance<py::str>(targets_arg))
+      throw py::type_error("targets: a list of numbers expected");
+    targets.clear();
+    for (const py::handle& t : targets_arg.cast<py::sequence>()) {
+      const double v = *Arg<double>(py::reinterpret_borrow<py::object>(t), "targets");
+      if (!std::isfinite(v) || !(v > 0.0)) throw py::value_error(fmt::format("targets: {:g} m is not positive", v));
+      targets.push_back(v);
+    }
+  }
+  if (!py::isinstance<py::list>(runs_arg) && !py::isinstance<py::tuple>(runs_arg))
+    throw py::type_error("runs: a list of dicts returned by clothbench.run() expected");
+  const std::string hash = SceneHash(scene);
   std::vector<MethodRun> rows;
-  for (const py::handle& d : runs) {
-    const py::dict run = d.cast<py::dict>();
-    if (!run.contains("record")) throw py::value_error("runs: dicts returned by clothbench.run() are expected");
-    rows.push_back(*run["record"].cast<std::shared_ptr<MethodRun>>());
+  for (const py::handle& d : runs_arg.cast<py::sequence>()) {
+    const py::object run = py::reinterpret_borrow<py::object>(d);
+    rows.push_back(*RecordOf<MethodRun>(run, "runs", "run"));
     const MethodRun& q = rows.back();
-    if (!q.traj.positions.empty() && q.traj.positions.front().rows() != sys.num_particles())
-      throw py::value_error("runs: " + q.id + " has " + std::to_string(q.traj.positions.front().rows()) +
-                            " particles, the scene " + std::to_string(sys.num_particles()));
+    const py::dict dict = run.cast<py::dict>();
+    if (!q.traj.positions.empty() && q.traj.positions.front().rows() != scene.num_particles())
+      throw py::value_error(fmt::format("runs: {} has {} particles, the scene {}", q.id,
+                                        q.traj.positions.front().rows(), scene.num_particles()));
+    if (!dict.contains("scene_hash") || dict["scene_hash"].cast<std::string>() != hash)
+      throw py::value_error(fmt::format("runs: {} was computed on another scene, t_end or frame spacing than `scene`",
+                                        q.id));
   }
   std::optional<RunSummary> ref;
   ReferenceOptions ref_opts;
   ref_opts.t_end = scene.t_end;
   ref_opts.frame_dt = scene.frame_dt;
   if (!reference.is_none()) {
+    ref = *RecordOf<RunSummary>(reference, "reference", "reference");
     const py::dict d = reference.cast<py::dict>();
-    if (!d.contains("record")) throw py::value_error("reference: a dict returned by clothbench.reference() is expected");
-    ref = *d["record"].cast<std::shared_ptr<RunSummary>>();
+    if (!d.contains("scene_hash") || d["scene_hash"].cast<std::string>() != hash)
+      throw py::value_error("reference: was computed on another scene, t_end or frame spacing than `scene`");
     ref_opts.rtol = d["rtol"].cast<double>();
   }
+  const ParticleSystem sys(scene);
+  OutputLock lock(*path, /*journal_folder=*/true, "path");  // UsageError: ValueError naming path
   py::gil_scoped_release release;
   CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, *metric, &rows);
   const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric);
   const RunTable table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames, ref ? &wp : nullptr, *metric);
-  WriteResults(path, scene, sys, ref, ref_opts, rows, table, 1);
+  WriteResults(*path, scene, sys, ref, ref_opts, rows, table, 1);
 }
 
 // An equal-accuracy table as a dict: targets, labels, cost, ratio,
@@ -446,30 +557,38 @@ PYBIND11_MODULE(clothbench, m) {
     return names;
   });
   m.def("run", &Run, py::arg("scene"), py::arg("method"), py::arg("h") = py::none(), py::arg("rtol") = py::none(),
-        py::arg("substeps") = 1, py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
-        py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
+        py::arg("substeps") = py::none(), py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
+        py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         py::arg("progress") = py::none(), py::arg("reference") = py::none(), py::arg("repeat") = py::none(),
-        py::arg("time_budget") = 30.0,
-        "Runs one row as bench_integrators does (the GIL released). Returns a dict: times [F], positions and "
-        "velocities [F, N, 3], step_stats (structured array), counts, times, status, energies, and with "
-        "reference= (a dict from reference()) error_final_m, error_l2_m, error_max_m (and _mps for the velocities). progress(t, t_end) is "
-        "called at most every 0.2 s; an exception it raises stops the run and is raised again. The run is timed "
-        "`repeat` times (None: 3 if the first takes under 2 s, else 1, within time_budget seconds), each later "
-        "timing reproducing the end state bit for bit: solver_time_s is the least, with solver_time_s_median, "
-        "solver_time_s_max and repeats."),
+        py::arg("time_budget") = py::none(), py::arg("time_limit") = py::none(), py::arg("arkode_table") = py::none(),
+        py::arg("cvode_setting") = py::none(),
+        "Runs one row as bench_integrators does (the GIL released). Every argument is checked first, by the rules "
+        "of the command line (harness/run_request.h): ValueError or TypeError naming the keyword. An option the row "
+        "does not read (rtol of a fixed-step row, substeps of any row but xpbd, ...) is refused. Returns a dict: "
+        "times [F], positions and velocities [F, N, 3], step_stats (structured array), counts, times, status, "
+        "energies, and with reference= (a dict from reference() on the same scene and t_end) error_final_m, "
+        "error_l2_m, error_max_m (and _mps for the velocities). progress(t, t_end) is called at most every 0.2 s; "
+        "an exception it raises, or Ctrl-C (checked every 50 ms between steps), stops the run and is raised "
+        "again. The run is timed `repeat` times (None: 3 if the first takes under 2 s, else 1, within "
+        "time_budget seconds, default 30), each later timing reproducing the end state bit for bit: solver_time_s "
+        "is the least, with solver_time_s_median, solver_time_s_max and repeats. time_limit [s] (default 3600) "
+        "ends a run with status time_limit. run() and reference() may be called from several threads; they "
+        "compute one at a time (a process-wide lock, waited on with the GIL released)."),
   m.def("write_results", &WriteResultFile, py::arg("path"), py::arg("scene"), py::arg("runs"),
-        py::arg("reference") = py::none(), py::arg("frames") = std::string("default"),
-        py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
-        py::arg("baseline") = std::string(kWorkPrecisionBaseline), py::arg("error_metric") = std::string("final"),
+        py::arg("reference") = py::none(), py::arg("frames") = py::none(), py::arg("targets") = py::none(),
+        py::arg("baseline") = py::none(), py::arg("error_metric") = py::none(),
         "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
-        "as the HDF5 result file bench_integrators writes (docs/results-schema.md). Raises RuntimeError if the "
-        "file cannot be written.");
+        "as the HDF5 result file bench_integrators writes (docs/results-schema.md), under <path>.lock and "
+        "through a temporary file renamed at the end. ValueError for a path that is not a regular file or is "
+        "being written by another process, and for runs or a reference of another scene; RuntimeError if the "
+        "file cannot be written."),
   m.def("read_results", &ReadResultFile, py::arg("path"),
         "A result file's records: schema, scene, reference and runs (dicts of their attributes) and the "
         "equal-accuracy table (work_precision). Arrays: read the file with h5py.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
-        py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::dict(),
-        "The reference run (CVODE or IDA with KLU, as --reference): times, positions, velocities.");
+        py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
+        "The reference run (CVODE or IDA with KLU, as --reference): times, positions, velocities, and the "
+        "scene_hash that run() and write_results() compare with their scene's.");
   m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
         "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");
   m.def("error_rms", [](const py::array_t<double>& x, const py::array_t<double>& ref) {

@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "model/scene.h"
 #include "results/result_file.h"
 #include "results/result_reader.h"
 #include "results/run_table.h"
@@ -599,8 +600,33 @@ TEST(ContactReplay, SavedStateReplaysReproduciblyAndBadStatesAreRefused) {
   ExpectOneLineError(run("replay --scene round_table --steps 1 --state " + cut.string()), "truncated");
   ExpectOneLineError(run("replay --scene " + WriteScene("tiny.toml", kTiny) + " --steps 1 --state " + prefix +
                          "_1.state"),
-                     "holds 400 particles, the scene has 12");
-  ExpectOneLineError(run(replay + " --integrator leapfrog"), "--integrator leapfrog");
+                     "a state of this scene's 12 particles has");
+  // Another scene with the same 400 particles (a lighter sheet on the same table).
+  {
+    std::string other = LoadSceneOrBuiltin("round_table").toml;
+    other += "\n# the same particles, another scene text\n";
+    ExpectOneLineError(run("replay --scene " + WriteScene("other_table.toml", other) + " --steps 1 --state " +
+                           prefix + "_1.state"),
+                       "was saved from another scene");
+  }
+  // Special files are refused before they are opened or read: a FIFO (it
+  // would block), a folder, /dev/zero (endless).
+  const fs::path fifo = dir / "state.fifo";
+  fs::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& special : {fifo.string(), dir.string(), std::string("/dev/zero")})
+    ExpectOneLineError(run("replay --scene round_table --steps 1 --state " + special), "is not a regular file");
+  // Steps past t_end (round_table: t_end = 1 s, h = 0.01 s; the state is at 0.6 s).
+  ExpectOneLineError(run("replay --scene round_table --steps 41 --state " + prefix + "_1.state"), "past t_end");
+  ExpectOneLineError(run(replay + " --integrator leapfrog"), "--integrator: unknown integrator \"leapfrog\"");
+  ExpectOneLineError(run(replay + " --integrator xpbd"), "--integrator xpbd: not one of");
+  ExpectOneLineError(run(replay + " --preconditioner lu"), "--preconditioner: \"lu\" must be");
+  // save: an output that exists as something else than a regular file, or
+  // whose lock another process holds, is refused before computing.
+  const std::string taken = (dir / "taken").string();
+  fs::create_directories(taken + "_0.state");
+  ExpectOneLineError(run("save --scene round_table --at 0.02 --out " + taken), "is not a regular file");
+  fs::remove_all(taken + "_0.state");
   ExpectOneLineError(run(replay + " --amg-frames wobbly"), "--amg-frames: \"wobbly\" must be");
   // The overrides replace keys the scene names (round_table names ic0).
   const Outcome overridden = run(replay + " --preconditioner amg --amg-frames nearest_axis");
@@ -609,6 +635,48 @@ TEST(ContactReplay, SavedStateReplaysReproduciblyAndBadStatesAreRefused) {
   EXPECT_GT(std::accumulate(nearest.begin(), nearest.end(), 0.0), 0.0) << overridden.out;
   EXPECT_EQ(std::accumulate(spread.begin(), spread.end(), 0.0), 0.0) << overridden.out;
   ExpectOneLineError(run("save --scene round_table --at 0.5,0.2 --out " + prefix), "times must increase");
+}
+
+}  // namespace
+}  // namespace clothbench
+
+namespace clothbench {
+namespace {
+
+// A small tmpfs mounted at `dir` (root only), unmounted by the destructor;
+// mounted() is false where the machine does not allow it.
+class SmallTmpfs {
+ public:
+  SmallTmpfs(const fs::path& dir, const std::string& size) : dir_(dir) {
+    fs::create_directories(dir_);
+    mounted_ = ::geteuid() == 0 &&
+               std::system(("mount -t tmpfs -o size=" + size + " tmpfs " + dir_.string() + " 2>/dev/null").c_str()) == 0;
+  }
+  ~SmallTmpfs() {
+    if (mounted_) (void)std::system(("umount " + dir_.string()).c_str());
+  }
+  SmallTmpfs(const SmallTmpfs&) = delete;
+  SmallTmpfs& operator=(const SmallTmpfs&) = delete;
+  bool mounted() const { return mounted_; }
+
+ private:
+  fs::path dir_;
+  bool mounted_ = false;
+};
+
+// On a full disk `contact_replay save` fails naming the cause and leaves
+// neither the state nor its temporary (a 400-particle state is 19 kB; the
+// tmpfs holds 8 kB).
+TEST(ContactReplay, FullDiskNamesTheCauseAndLeavesNoTemporary) {
+  const fs::path dir = TempDir() / "full";
+  SmallTmpfs disk(dir, "8k");
+  if (!disk.mounted()) GTEST_SKIP() << "mounting a tmpfs needs root; not checked on this machine";
+  const Outcome o = testing::RunCommand(CLOTHBENCH_REPLAY_BINARY,
+                                        "save --scene round_table --at 0.02 --out " + (dir / "s").string(), TempDir());
+  ExpectOneLineError(o, "No space left on device", 1);
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  EXPECT_TRUE(left.empty()) << left.front();
 }
 
 }  // namespace
