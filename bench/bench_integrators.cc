@@ -26,6 +26,7 @@
 #include "harness/output_lock.h"
 #include "harness/plan.h"
 #include "harness/plot.h"
+#include "harness/run_request.h"
 #include "harness/sweep.h"
 #include "harness/thesis_tables.h"
 #include "model/particle_system.h"
@@ -180,8 +181,11 @@ int Main(int argc, char** argv) {
       scene.h = std::min(scene.h, t_end);
       CheckRunLength(scene, fmt::format("--t-end {:g} on {}", t_end, scene.source));
     }
-    if (!std::isfinite(time_limit) || !(time_limit > 0.0))
-      throw UsageError(fmt::format("--time-limit: {} is not a positive number of seconds", time_limit));
+    if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
+      throw UsageError(fmt::format("--time-limit: {:g} s must be a number in (0, 1e7]", time_limit));
+    if (!std::isfinite(time_budget)) throw UsageError(fmt::format("--time-budget: {:g} s must be a number in [0, 1e6]", time_budget));
+    if (app.count("--integrators") && integrators_arg.empty())
+      throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
     if (app.count("--cg-tolerance")) {
       if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
         throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
@@ -254,6 +258,23 @@ int Main(int argc, char** argv) {
       substeps.push_back(static_cast<int>(n));
     }
     const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
+    // Every planned run as a request, by the rules every entry point shares
+    // (harness/run_request.h); the options only some rows read were checked
+    // by UnusedOption above.
+    for (std::size_t k = 0; k < methods.size(); ++k)
+      for (const auto& [param, n] : plan.params[k]) {
+        RunRequest q;
+        q.scene = scene;
+        q.method = methods[k].label();
+        q.names = FieldNames::kOption;
+        if (methods[k].kind() == StepKind::kAdaptive) q.rtol = param;
+        else q.h = param;
+        if (methods[k].kind() == StepKind::kSubstepped) q.substeps = n;
+        q.time_limit = time_limit;
+        if (repeat > 0) q.repeat = repeat;
+        q.time_budget = time_budget;
+        q.Validate();
+      }
     if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
     ProbeOnRoot(comm, [&] {
       CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records, out);

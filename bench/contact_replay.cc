@@ -226,13 +226,27 @@ int main(int argc, char** argv) {
   ResolvedRun run;
   try {
     scene = LoadSceneOrBuiltin(scene_arg);
-    if (!frames.empty()) scene.solver.amg_frames = ParseAmgFrames(frames, "--amg-frames");
+    CLI::App* sub = save->parsed() ? save : replay;
+    if (sub->count("--amg-frames")) scene.solver.amg_frames = ParseAmgFrames(frames, "--amg-frames");
+    // A row this command steps: a thesis integrator's (StepEngine).
+    std::vector<RowMethod> rows;
+    try {
+      rows = ExpandMethods({integrator}, {scene.solver.nonlinear_solver}, "--integrator");
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    const std::optional<Method> engine_method = MethodFromString(rows.front().name());
+    if (rows.size() != 1 || rows.front().entry->layer != "solver" || rows.front().kind() != StepKind::kFixedStep ||
+        !engine_method || *engine_method == Method::kSymplecticEuler)
+      throw UsageError(fmt::format("--integrator {}: not one of imex_euler, implicit_euler, sbdf2, bdf2, "
+                                   "implicit_midpoint, sbdf3 (with /newton or /fixed_point where they take one)",
+                                   EscapeControl(integrator)));
     // The step, row and preconditioner as every entry point validates them.
     RunRequest q;
     q.scene = scene;
     q.method = integrator;
     q.h = scene.h;
-    if (!preconditioner.empty()) q.preconditioner = preconditioner;
+    if (sub->count("--preconditioner")) q.preconditioner = preconditioner;
     q.names = FieldNames::kOption;
     q.renamed = {{"method", "--integrator"}, {"h", "--scene's h"}};
     run = q.Resolve();
@@ -243,10 +257,6 @@ int main(int argc, char** argv) {
   }
   const RowMethod& row = run.row;
   const std::optional<Method> parsed = MethodFromString(row.name());
-  if (row.entry->layer != "solver" || !parsed || *parsed == Method::kSymplecticEuler)
-    return Fail(fmt::format("--integrator {}: not one of imex_euler, implicit_euler, sbdf2, bdf2, "
-                            "implicit_midpoint, sbdf3 (with /newton or /fixed_point where they take one)",
-                            EscapeControl(integrator)));
   scene = run.scene;
   const ParticleSystem system(scene);
   const double h = scene.h;

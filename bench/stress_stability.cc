@@ -38,6 +38,7 @@
 #include "harness/methods.h"
 #include "harness/output_lock.h"
 #include "harness/plot.h"
+#include "harness/run_request.h"
 #include "bench/signals.h"
 #include "harness/sweep.h"
 #include "model/particle_system.h"
@@ -96,6 +97,8 @@ int Main(int argc, char** argv) {
   std::optional<OutputLock> lock;
   try {
     std::vector<std::string> names;
+    if (app.count("--integrators") && integrators_arg.empty())
+      throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
     if (integrators_arg.empty()) {
       for (Method m : AllMethods()) names.emplace_back(ToString(m));
       names.emplace_back(ToString(Method::kSbdf3));
@@ -118,6 +121,20 @@ int Main(int argc, char** argv) {
         if (scenes[b].name == scenes.back().name)
           throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", scenes.back().name));
     }
+    // Each (scene, row, h) as a run of `steps` steps, by the rules every
+    // entry point shares (harness/run_request.h).
+    for (const Scene& sc : scenes)
+      for (const RowMethod& m : methods)
+        for (double h : hs) {
+          RunRequest q;
+          q.scene = sc;
+          q.method = m.label();
+          q.h = h;
+          q.t_end = steps * h;
+          q.names = FieldNames::kOption;
+          q.renamed = {{"t_end", "--steps x --h"}};
+          q.Validate();
+        }
     if (!plot_dir.empty()) CheckPlotDir(plot_dir);
     lock.emplace(out, comm, false);  // <out>.lock, held to the exit; the journal is a file
 

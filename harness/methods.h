@@ -609,11 +609,15 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
                                    r.entry->variants.end()) {
         r.variant = parts[k];
       } else if (parts[k] == "error") {
+        if (r.error_control)
+          throw std::invalid_argument(fmt::format("{}: \"{}\" names /error twice", option, full));
         if (!r.entry->error_control)
           throw std::invalid_argument(
               fmt::format("{}: \"{}\": only sbdf2 and bdf2 run under error control (/error)", option, full));
         r.error_control = true;
       } else if (r.entry->nonlinear_solver) {
+        if (solver_named)
+          throw std::invalid_argument(fmt::format("{}: \"{}\" names a nonlinear solver twice", option, full));
         r.solver = ParseNonlinearSolver(parts[k], option);
         solver_named = true;
       } else {

@@ -157,10 +157,21 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   const std::string id = run.row.RunId(run.param, run.substeps) +
                          (eta == std::string::npos ? "" : fmt::format("_eta{:g}", run.spec.cg_tolerance));
   const std::string label = run.row.label() + (eta == std::string::npos ? "" : r.label.substr(eta));
-  if (id != run_id || label != r.label || r.integrator != run.row.name() || r.step_kind != ToString(run.row.kind()))
-    throw UsageError(fmt::format("{}: the stored label \"{}\", integrator \"{}\", step_kind \"{}\" and parameters "
-                                 "name run \"{}\" ({}, {}), not this one",
-                                 where, r.label, r.integrator, r.step_kind, id, label, ToString(run.row.kind())));
+  if (label != r.label || r.integrator != run.row.name() || r.step_kind != ToString(run.row.kind()))
+    throw UsageError(fmt::format("{}: label: the stored label \"{}\", integrator \"{}\" and step_kind \"{}\" do not "
+                                 "agree (the label names {}, {})",
+                                 where, r.label, r.integrator, r.step_kind, run.row.name(), ToString(run.row.kind())));
+  if (id != run_id) {
+    const char* field = run.row.kind() == StepKind::kAdaptive ? "rtol"
+                        : run.row.kind() == StepKind::kSubstepped && fmt::format("{:g}", run.param) ==
+                                                                         fmt::format("{:g}", r.h)
+                            ? "substeps"
+                            : eta != std::string::npos && run_id.find("_eta") != std::string::npos &&
+                                      id.substr(0, id.find("_eta")) == run_id.substr(0, run_id.find("_eta"))
+                                  ? "cg_tolerance"
+                                  : "h";
+    throw UsageError(fmt::format("{}: {}: the stored parameters name run \"{}\", not this one", where, field, id));
+  }
   return q;
 }
 
