@@ -27,6 +27,7 @@
 
 #include "bench/signals.h"
 #include "harness/reproduce.h"
+#include "results/contained_read.h"
 #include "model/scene.h"
 #include "results/result_reader.h"
 #include "results/run_table.h"
@@ -314,6 +315,10 @@ int Main(int argc, char** argv) {
   try {
     if (!(rtol >= 0.0) || !(time_tolerance >= 0.0))
       throw UsageError("diff: --rtol and --time-tolerance must be non-negative numbers");
+    // Read whole once in a child process: a damaged file that crashes the
+    // HDF5 library is refused (exit 2) instead of taking this process down.
+    CheckReadableInChild(file);
+    if (diff->parsed()) CheckReadableInChild(other);
     const ResultReader f(file);
     ValidateResultFile(f);
     const RunTable t = ReadRunTable(f);

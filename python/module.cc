@@ -28,6 +28,7 @@
 #include "harness/run_request.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
+#include "results/contained_read.h"
 #include "results/metrics.h"
 #include "results/result_reader.h"
 #include "results/work_precision.h"
@@ -486,7 +487,10 @@ py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
 // A result file's records (ReadRunTable): provenance, scene, the reference
 // and every run as dicts of their attributes, and the equal-accuracy table.
 py::dict ReadResultFile(const std::string& path) {
-  const RunTable t = ReadRunTable(ResultReader(path));
+  CheckReadableInChild(path);  // a file that crashes the HDF5 library: ValueError, not a dead interpreter
+  const ResultReader reader(path);
+  ValidateResultFile(reader);
+  const RunTable t = ReadRunTable(reader);
   py::dict out;
   out["schema"] = t.schema;
   out["git_commit"] = t.git_commit;
@@ -600,4 +604,5 @@ PYBIND11_MODULE(clothbench, m) {
         "of decreasing h or rtol): cost and ratio per label and target (None where the runs do not bracket it), "
         "and the fastest label per target.");
   py::register_exception<SceneError>(m, "SceneError", PyExc_ValueError);
+  py::register_exception<ResultError>(m, "ResultError", PyExc_ValueError);
 }

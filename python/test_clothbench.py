@@ -305,3 +305,14 @@ def test_write_results_respects_the_lock_and_special_files(tmp_path):
         assert device.is_char_device()
     clothbench.write_results(str(out), scene, [run])
     assert out.is_file() and not (tmp_path / "r.h5.tmp").exists() and not (tmp_path / "r.h5.lock").exists()
+
+
+def test_read_results_refuses_a_file_that_crashes_hdf5():
+    # verify/fuzz/result_regressions/hdf5_crash_signed.bin: its integrity
+    # block matches, yet HDF5 1.10 crashes (SIGSEGV) reading its damaged
+    # attribute headers. read_results reads it in a child process first:
+    # ValueError naming the file, and this interpreter lives on.
+    path = os.path.join(os.path.dirname(__file__), "..", "verify", "fuzz", "result_regressions",
+                        "hdf5_crash_signed.bin")
+    with pytest.raises(ValueError, match="crashed the HDF5 library"):
+        clothbench.read_results(path)

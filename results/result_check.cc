@@ -153,6 +153,10 @@ void ValidateResultFile(const ResultReader& f) {
     for (const char* d : {"targets", "solver_time", "ratio", "min_error"})
       if (f.Exists(std::string("/work_precision/") + d)) FiniteDoubles(f, std::string("/work_precision/") + d);
   }
+  // The run table as every reader reads it: its datasets present and
+  // consistent (the equal-accuracy table's cells, labels and indices).
+  (void)ReadRunTable(f);
+  if (f.Exists("/scene/toml")) (void)f.Text("/scene/toml");
   if (f.Exists("/stress")) {
     CheckAttributes(f, "/stress");
     const std::size_t stiff = ShapeOf(f, "/stress/stiffness", 1)[0], hs = ShapeOf(f, "/stress/h", 1)[0];

@@ -441,7 +441,15 @@ RunTable ReadRunTable(const ResultReader& f) {
       }
       w.min_error.push_back(!min_error.empty() && min_error[m] > 0.0 ? std::optional(min_error[m]) : std::nullopt);
     }
-    for (int32_t k : f.Ints("/work_precision/fastest")) w.fastest.push_back(k);
+    for (int32_t k : f.Ints("/work_precision/fastest")) {
+      if (k < -1 || k >= static_cast<int32_t>(w.labels.size()))
+        throw ResultError(fmt::format("{}: /work_precision/fastest: {} is not a label index (-1 … {})", f.path(), k,
+                                      static_cast<long>(w.labels.size()) - 1));
+      w.fastest.push_back(k);
+    }
+    if (w.fastest.size() != cols)
+      throw ResultError(fmt::format("{}: /work_precision/fastest: {} entries, {} targets", f.path(), w.fastest.size(),
+                                    cols));
     if (f.Exists("/work_precision/tied")) {
       const std::vector<int32_t> tied = f.Ints("/work_precision/tied");
       if (tied.size() != cost.size())
