@@ -13,14 +13,17 @@
 #include <string>
 #include <vector>
 
+#include "model/scene.h"
 #include "model/types.h"
 
 namespace clothbench {
 
 /// Thrown when HDF5 fails; the message names the file and the object.
+/// A refused or unwritable result file: one line (control characters of
+/// the file's own strings, quoted in the message, are escaped).
 class ResultError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit ResultError(const std::string& what) : std::runtime_error(EscapeControl(what)) {}
 };
 
 /// One row of a step_stats table.
