@@ -287,8 +287,16 @@ int Main(int argc, char** argv) {
     comm.Abort(128 + e.signal);
   } catch (const std::exception& e) {
     if (lock) lock->Release();
-    fmt::print(stderr, "stress_stability: {}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
-               EscapeControl(e.what()));
+    // The result file's temporary is gone (ResultFile); the journal keeps
+    // the finished cells, so that the same command, once the cause is
+    // removed (a full disk), writes the file without computing them again.
+    std::error_code ec;
+    const bool journal = std::filesystem::exists(out + ".journal", ec);
+    fmt::print(stderr, "stress_stability: {}{}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
+               EscapeControl(e.what()),
+               journal ? fmt::format("; finished cells kept in {}.journal for a rerun of the same command",
+                                     EscapeControl(out))
+                       : "");
     comm.Abort(1);
   }
 }

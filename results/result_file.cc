@@ -66,7 +66,14 @@ ResultFile::ResultFile(const std::string& path) : path_(path), tmp_path_(path + 
   if (!parent.empty()) std::filesystem::create_directories(parent, ec);
   Handle fcpl{H5Pcreate(H5P_FILE_CREATE), H5Pclose};
   H5Pset_userblock(fcpl.id, kSignatureBytes);  // the integrity block, written by Commit
-  file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_TRUNC, fcpl.id, H5P_DEFAULT), "cannot create file", tmp_path_);
+  try {
+    file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_TRUNC, fcpl.id, H5P_DEFAULT), "cannot create file", tmp_path_);
+  } catch (...) {
+    // No destructor runs for a constructor that throws: the temporary HDF5
+    // may have created (empty, on a full disk) is removed here.
+    std::remove(tmp_path_.c_str());
+    throw;
+  }
 }
 
 ResultFile::~ResultFile() {
