@@ -20,6 +20,10 @@ namespace clothbench {
 /// the faces, step tables, times and the scene text.
 /// @throws ResultError naming the dataset or attribute that breaks a rule
 void ReadWholeFile(const ResultReader& file);
+/// ReadWholeFile after the caller's own ValidateResultFile on the same
+/// open file. (HDF5 reads a damaged file's headers differently a second
+/// time: validate once per open file.)
+void ReadValidatedFile(const ResultReader& file);
 
 /// Opens `path` and runs ReadWholeFile on it in a child process (fork),
 /// killed after `timeout_s` seconds. Returns if the child read it whole.

@@ -55,12 +55,12 @@ int g_report_fd = 2;  // the child's stderr is /dev/null (HDF5 crashes' ASan rep
   std::abort();
 }
 
-// Everything a reader reads (results/contained_read.h: ReadWholeFile),
-// then the invariants: faces inside the particle range, every frame N×3
+// Everything a reader reads after ValidateResultFile accepted the file
+// (results/contained_read.h: ReadValidatedFile), then the invariants: faces inside the particle range, every frame N×3
 // and finite, every time finite.
 void ReadEverything(const clothbench::ResultReader& f) {
   using namespace clothbench;
-  ReadWholeFile(f);
+  ReadValidatedFile(f);
   const long n = f.Long("/scene", "n_particles").value_or(0);
   if (f.Exists("/scene/faces"))
     for (int32_t q : f.Ints("/scene/faces"))
