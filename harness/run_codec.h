@@ -13,6 +13,7 @@
 #include <string>
 #include <string_view>
 #include <type_traits>
+#include <variant>
 #include <vector>
 
 #include <fmt/format.h>
@@ -171,19 +172,22 @@ inline void CheckStepStatus(int status) {
 
 }  // namespace internal
 
-/// One row's run as MethodRun::Run returned it: its RunRecord (errors,
-/// order and energy excluded: rank 0 derives them) and its trajectory.
+/// One row's run as MethodRun::Run returned it: its id and the fields of
+/// RunRecordFields() that a rank computes (errors, order and energies
+/// excluded: rank 0 derives them), and its trajectory.
 inline std::string EncodeRun(const MethodRun& m) {
   ByteWriter w;
-  for (const std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
-                               &m.explicit_terms, &m.constraints, &m.status, &m.message, &m.preconditioner,
-                               &m.sundials_settings, &m.tangent_terms, &m.step_control, &m.predictor,
-                               &m.cg_reference, &m.newton_jacobian, &m.arkode_table})
-    w.Str(*s);
-  for (double v : {m.h, m.rtol, m.cg_tolerance, m.atol, m.solver_time_s_median, m.solver_time_s_max}) w.Pod(v);
-  for (long v : {m.repeats, m.threads, m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.error_test_failures, m.cg_unconverged})
-    w.Pod(v);
-  for (double v : {m.solver_time_s, m.wall_time_s, m.setup_time_s, m.numerical_stiffness}) w.Pod(v);
+  w.Str(m.id);
+  for (const RecordField& field : RunRecordFields())
+    if (!field.derived)
+      std::visit(
+          [&](auto member) {
+            const auto& v = m.*member;
+            using T = std::remove_cvref_t<decltype(v)>;
+            if constexpr (std::is_same_v<T, std::string>) w.Str(v);
+            else if constexpr (!std::is_same_v<T, std::optional<double>>) w.Pod(v);
+          },
+          field.member);
   internal::PutTrajectory(w, m.traj);
   w.Vec(m.steps_table);
   w.Vec(m.bdf_order);
@@ -197,17 +201,17 @@ inline std::string EncodeRun(const MethodRun& m) {
 inline MethodRun DecodeRun(std::string_view bytes, long n_particles) {
   ByteReader r(bytes);
   MethodRun m;
-  for (std::string* s : {&m.id, &m.label, &m.integrator, &m.layer, &m.step_kind, &m.nonlinear_solver,
-                         &m.explicit_terms, &m.constraints, &m.status, &m.message, &m.preconditioner,
-                         &m.sundials_settings, &m.tangent_terms, &m.step_control, &m.predictor, &m.cg_reference,
-                         &m.newton_jacobian, &m.arkode_table})
-    *s = r.Str();
-  for (double* v : {&m.h, &m.rtol, &m.cg_tolerance, &m.atol, &m.solver_time_s_median, &m.solver_time_s_max})
-    *v = r.Pod<double>();
-  for (long* v : {&m.repeats, &m.threads, &m.substeps, &m.steps, &m.updates, &m.cg_iterations, &m.rejected, &m.error_test_failures,
-                  &m.cg_unconverged})
-    *v = r.Pod<long>();
-  for (double* v : {&m.solver_time_s, &m.wall_time_s, &m.setup_time_s, &m.numerical_stiffness}) *v = r.Pod<double>();
+  m.id = r.Str();
+  for (const RecordField& field : RunRecordFields())
+    if (!field.derived)
+      std::visit(
+          [&](auto member) {
+            auto& v = m.*member;
+            using T = std::remove_cvref_t<decltype(v)>;
+            if constexpr (std::is_same_v<T, std::string>) v = r.Str();
+            else if constexpr (!std::is_same_v<T, std::optional<double>>) v = r.Pod<T>();
+          },
+          field.member);
   m.traj = internal::GetTrajectory(r);
   m.steps_table = r.Vec<StepRecord>();
   m.bdf_order = r.Vec<double>();

@@ -72,7 +72,6 @@ class ChunkColouring {
     for (std::size_t k = 0; k < chunks; ++k) order_[fill[static_cast<std::size_t>(colour[k])]++] = k;
     return true;
   }
-  int num_colours() const { return starts_.empty() ? 0 : static_cast<int>(starts_.size()) - 1; }
 
   /// Calls f(chunk) for every chunk, colour by colour; the chunks of a
   /// colour on the OpenMP threads if `parallel`.
@@ -112,12 +111,6 @@ EIGEN_ALWAYS_INLINE void AddBlock(const Matrix3& b, const int* pos, double* vals
   }
 }
 
-/// The skew matrix [a]× with [a]× w = a × w.
-inline Matrix3 Skew(const Vector3& a) {
-  Matrix3 s;
-  s << 0.0, -a.z(), a.y(), a.z(), 0.0, -a.x(), -a.y(), a.x(), 0.0;
-  return s;
-}
 
 }  // namespace clothbench
 

@@ -520,15 +520,7 @@ Scene LoadScene(const std::string& path) {
   return ParseScene(ss.str(), path);
 }
 
-std::string_view DefaultSceneToml() { return kBuiltinScenes[0].second; }
-
 Scene DefaultScene() { return BuiltinScene("swinging_sheet"); }
-
-std::vector<std::string> BuiltinSceneNames() {
-  std::vector<std::string> names;
-  for (const auto& [name, text] : kBuiltinScenes) names.emplace_back(name);
-  return names;
-}
 
 Scene BuiltinScene(std::string_view name) {
   for (const auto& [n, text] : kBuiltinScenes)

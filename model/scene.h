@@ -136,14 +136,10 @@ Scene LoadScene(const std::string& path);
 
 /// The embedded default scene (scenes/swinging_sheet.toml, compiled in).
 Scene DefaultScene();
-/// Names of the compiled-in thesis scenes (scenes/*.toml at build time).
-std::vector<std::string> BuiltinSceneNames();
 /// A compiled-in scene by name. @throws SceneError for an unknown name.
 Scene BuiltinScene(std::string_view name);
 /// A built-in scene if `arg` names one, else the scene file at path `arg`.
 Scene LoadSceneOrBuiltin(const std::string& arg);
-/// TOML text of the embedded default scene.
-std::string_view DefaultSceneToml();
 
 /// Resolves a constraint spec ("edge:u0", "corner:u1v0", "particle:I,J") to
 /// flat indices. @throws SceneError naming `what` on a malformed spec.

@@ -154,7 +154,6 @@ std::optional<SegmentHit> TriangleMesh::FirstHit(const Vector3& a, const Vector3
 }
 
 int TriangleMesh::num_vertices() const { return static_cast<int>(impl_->mesh.number_of_vertices()); }
-int TriangleMesh::num_faces() const { return static_cast<int>(impl_->mesh.number_of_faces()); }
 bool TriangleMesh::closed() const { return impl_->closed; }
 
 void TriangleMesh::Export(std::vector<double>* vertices, std::vector<int32_t>* triangles) const {

@@ -48,7 +48,6 @@ class TriangleMesh {
   /// normal is the hit face's, turned toward a.
   std::optional<SegmentHit> FirstHit(const Vector3& a, const Vector3& b) const;
   int num_vertices() const;
-  int num_faces() const;
   /// The placed mesh: vertices [V, 3] row-major [m] and triangles [T, 3]
   /// row-major 0-based vertex indices, e.g. for /scene/obstacles/<k> in
   /// result files.

@@ -220,37 +220,22 @@ std::shared_ptr<Record> RecordOf(const py::object& d, const char* name, const ch
   }
 }
 
-// A RunRecord (a row of a result file, or its reference) as a dict of its
-// attributes; optional values are None.
+// A RunRecord (a row of a result file, or its reference) as a dict: its
+// id and every field of RunRecordFields() under its attribute name;
+// optional values are None.
 py::dict RecordDict(const RunRecord& r) {
   py::dict d;
-  for (auto [k, v] : {std::pair<const char*, const std::string*>{"id", &r.id}, {"label", &r.label},
-                      {"integrator", &r.integrator}, {"layer", &r.layer}, {"step_kind", &r.step_kind},
-                      {"nonlinear_solver", &r.nonlinear_solver}, {"preconditioner", &r.preconditioner},
-                      {"tangent_terms", &r.tangent_terms}, {"sundials_settings", &r.sundials_settings},
-                      {"constraints", &r.constraints}, {"explicit_terms", &r.explicit_terms},
-                      {"step_control", &r.step_control}, {"predictor", &r.predictor},
-                      {"cg_reference", &r.cg_reference}, {"newton_jacobian", &r.newton_jacobian},
-                      {"arkode_table", &r.arkode_table}, {"status", &r.status}, {"message", &r.message}})
-    d[k] = *v;
-  for (auto [k, v] : {std::pair<const char*, double>{"h", r.h}, {"rtol", r.rtol}, {"cg_tolerance", r.cg_tolerance},
-                      {"atol", r.atol}, {"solver_time_s", r.solver_time_s},
-                      {"solver_time_s_median", r.solver_time_s_median}, {"solver_time_s_max", r.solver_time_s_max},
-                      {"wall_time_s", r.wall_time_s},
-                      {"setup_time_s", r.setup_time_s}, {"numerical_stiffness", r.numerical_stiffness}})
-    d[k] = v;
-  for (auto [k, v] : {std::pair<const char*, long>{"substeps", r.substeps}, {"steps", r.steps},
-                      {"updates", r.updates}, {"cg_iterations", r.cg_iterations}, {"rejected", r.rejected},
-                      {"error_test_failures", r.error_test_failures}, {"cg_unconverged", r.cg_unconverged},
-                      {"repeats", r.repeats}, {"threads", r.threads}})
-    d[k] = v;
-  for (auto [k, v] : {std::pair<const char*, const std::optional<double>*>{"error_final_m", &r.error_final_m},
-                      {"error_l2_m", &r.error_l2_m}, {"error_max_m", &r.error_max_m}, {"error_mean_m", &r.error_mean_m},
-                      {"error_final_mps", &r.error_final_mps}, {"error_l2_mps", &r.error_l2_mps},
-                      {"error_max_mps", &r.error_max_mps},
-                      {"observed_order", &r.observed_order}, {"energy_rate_W", &r.energy_rate_W},
-                      {"contact_power_W", &r.contact_power_W}})
-    d[k] = *v ? py::cast(**v) : py::none();
+  d["id"] = r.id;
+  for (const RecordField& field : RunRecordFields())
+    std::visit(
+        [&](auto member) {
+          const auto& v = r.*member;
+          if constexpr (std::is_same_v<std::remove_cvref_t<decltype(v)>, std::optional<double>>)
+            d[field.name] = v ? py::cast(*v) : py::none();
+          else
+            d[field.name] = v;
+        },
+        field.member);
   return d;
 }
 

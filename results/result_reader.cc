@@ -13,6 +13,9 @@
 #include <memory>
 #include <sstream>
 
+#include <type_traits>
+#include <variant>
+
 #include <fmt/format.h>
 #include <hdf5.h>
 
@@ -317,56 +320,29 @@ std::vector<StepRecord> ResultReader::StepStats(const std::string& dataset) cons
 }
 
 RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::string& id) {
-  const auto str = [&](const std::string& n) { return f.String(g, n).value_or(""); };
   RunRecord r;
   r.id = id;
-  r.label = str("label");
-  r.integrator = str("integrator");
-  r.layer = str("layer");
-  r.step_kind = str("step_kind");
-  r.nonlinear_solver = str("nonlinear_solver");
-  r.preconditioner = str("preconditioner");
-  r.tangent_terms = str("tangent_terms");
-  r.sundials_settings = str("sundials_settings");
-  r.step_control = str("step_control");
-  r.predictor = str("predictor");
-  r.cg_reference = str("cg_reference");
-  r.newton_jacobian = str("newton_jacobian");
-  r.arkode_table = str("arkode_table");
-  r.atol = f.Double(g, "atol").value_or(0.0);
-  r.threads = f.Long(g, "threads").value_or(0);
-  r.h = f.Double(g, "h").value_or(0.0);
-  r.rtol = f.Double(g, "rtol").value_or(0.0);
-  r.substeps = f.Long(g, "substeps").value_or(0);
-  r.cg_tolerance = f.Double(g, "cg_tolerance").value_or(0.0);
-  r.constraints = str("constraints");
-  r.explicit_terms = str("explicit_terms");
-  r.status = str("status");
-  r.message = str("message");
-  r.steps = f.Long(g, "steps").value_or(0);
-  r.updates = f.Long(g, "fixed_point_updates").value_or(0);
-  r.cg_iterations = f.Long(g, "cg_iterations").value_or(0);
-  r.rejected = f.Long(g, "rejected_steps").value_or(0);
-  r.cg_unconverged = f.Long(g, "cg_unconverged_steps").value_or(0);
-  r.error_test_failures = f.Long(g, "error_test_failures").value_or(-1);
-  r.solver_time_s = f.Double(g, "solver_time_s").value_or(0.0);
-  r.repeats = f.Long(g, "repeats").value_or(1);
-  r.solver_time_s_median = f.Double(g, "solver_time_s_median").value_or(r.solver_time_s);
-  r.solver_time_s_max = f.Double(g, "solver_time_s_max").value_or(r.solver_time_s);
-  r.wall_time_s = f.Double(g, "wall_time_s").value_or(0.0);
-  r.setup_time_s = f.Double(g, "setup_time_s").value_or(-1.0);
-  r.numerical_stiffness = f.Double(g, "numerical_stiffness").value_or(0.0);
-  r.error_final_m = f.Double(g, "error_final_m");
+  for (const RecordField& field : RunRecordFields()) {
+    const std::string name = field.name;
+    std::visit(
+        [&](auto member) {
+          using T = std::remove_reference_t<decltype(r.*member)>;
+          if constexpr (std::is_same_v<T, std::string>) {
+            if (auto v = f.String(g, name)) r.*member = *v;
+          } else if constexpr (std::is_same_v<T, long>) {
+            if (auto v = f.Long(g, name)) r.*member = *v;
+          } else if constexpr (std::is_same_v<T, double>) {
+            if (auto v = f.Double(g, name)) r.*member = *v;
+          } else {
+            r.*member = f.Double(g, name);
+          }
+        },
+        field.member);
+  }
+  // One timing stores no spread (files before solver_time_s_median: the same).
+  if (!f.Double(g, "solver_time_s_median")) r.solver_time_s_median = r.solver_time_s;
+  if (!f.Double(g, "solver_time_s_max")) r.solver_time_s_max = r.solver_time_s;
   if (!r.error_final_m) r.error_final_m = f.Double(g, "error_rms_m");  // files before error_final_m
-  r.error_l2_m = f.Double(g, "error_l2_m");
-  r.error_max_m = f.Double(g, "error_max_m");
-  r.error_final_mps = f.Double(g, "error_final_mps");
-  r.error_l2_mps = f.Double(g, "error_l2_mps");
-  r.error_max_mps = f.Double(g, "error_max_mps");
-  r.error_mean_m = f.Double(g, "error_mean_m");
-  r.observed_order = f.Double(g, "observed_order");
-  r.energy_rate_W = f.Double(g, "energy_rate_W");
-  r.contact_power_W = f.Double(g, "contact_power_W");
   return r;
 }
 
@@ -465,53 +441,31 @@ RunTable ReadRunTable(const ResultReader& f) {
   return t;
 }
 
-void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& r) {
-  f.SetAttribute(g, "integrator", r.integrator);
-  f.SetAttribute(g, "label", r.label);
-  f.SetAttribute(g, "layer", r.layer);
-  f.SetAttribute(g, "step_kind", r.step_kind);
-  if (!r.nonlinear_solver.empty()) f.SetAttribute(g, "nonlinear_solver", r.nonlinear_solver);
-  if (r.step_kind == "adaptive") f.SetAttribute(g, "rtol", r.rtol);
-  else f.SetAttribute(g, "h", r.h);
-  if (r.step_kind == "substepped") f.SetAttribute(g, "substeps", r.substeps);
-  if (!r.constraints.empty()) f.SetAttribute(g, "constraints", r.constraints);
-  if (!r.explicit_terms.empty()) f.SetAttribute(g, "explicit_terms", r.explicit_terms);
-  if (!r.tangent_terms.empty()) f.SetAttribute(g, "tangent_terms", r.tangent_terms);
-  if (!r.preconditioner.empty()) f.SetAttribute(g, "preconditioner", r.preconditioner);
-  if (!r.sundials_settings.empty()) f.SetAttribute(g, "sundials_settings", r.sundials_settings);
-  for (auto [name, v] : {std::pair<const char*, const std::string*>{"step_control", &r.step_control},
-                         {"predictor", &r.predictor}, {"cg_reference", &r.cg_reference},
-                         {"newton_jacobian", &r.newton_jacobian}, {"arkode_table", &r.arkode_table}})
-    if (!v->empty()) f.SetAttribute(g, name, *v);
-  if (r.atol > 0.0) f.SetAttribute(g, "atol", r.atol);
-  if (r.threads > 0) f.SetAttribute(g, "threads", r.threads);
-  if (r.error_test_failures >= 0) f.SetAttribute(g, "error_test_failures", r.error_test_failures);
-  f.SetAttribute(g, "status", r.status);
-  if (!r.message.empty()) f.SetAttribute(g, "message", r.message);
-  f.SetAttribute(g, "steps", r.steps);
-  f.SetAttribute(g, "fixed_point_updates", r.updates);
-  f.SetAttribute(g, "cg_iterations", r.cg_iterations);
-  f.SetAttribute(g, "rejected_steps", r.rejected);
-  if (r.cg_unconverged > 0) f.SetAttribute(g, "cg_unconverged_steps", r.cg_unconverged);
-  f.SetAttribute(g, "solver_time_s", r.solver_time_s);
-  f.SetAttribute(g, "repeats", r.repeats);
-  f.SetAttribute(g, "solver_time_s_median", r.repeats > 1 ? r.solver_time_s_median : r.solver_time_s);
-  f.SetAttribute(g, "solver_time_s_max", r.repeats > 1 ? r.solver_time_s_max : r.solver_time_s);
-  if (r.setup_time_s >= 0.0) f.SetAttribute(g, "setup_time_s", r.setup_time_s);
-  f.SetAttribute(g, "wall_time_s", r.wall_time_s);
-  f.SetAttribute(g, "numerical_stiffness", r.numerical_stiffness);
-  if (r.cg_tolerance > 0.0) f.SetAttribute(g, "cg_tolerance", r.cg_tolerance);
-  // Errors only where they exist: no NaN is ever written.
-  if (r.error_final_m) f.SetAttribute(g, "error_final_m", *r.error_final_m);
-  if (r.error_l2_m) f.SetAttribute(g, "error_l2_m", *r.error_l2_m);
-  if (r.error_max_m) f.SetAttribute(g, "error_max_m", *r.error_max_m);
-  if (r.error_final_mps) f.SetAttribute(g, "error_final_mps", *r.error_final_mps);
-  if (r.error_l2_mps) f.SetAttribute(g, "error_l2_mps", *r.error_l2_mps);
-  if (r.error_max_mps) f.SetAttribute(g, "error_max_mps", *r.error_max_mps);
-  if (r.error_mean_m) f.SetAttribute(g, "error_mean_m", *r.error_mean_m);
-  if (r.observed_order) f.SetAttribute(g, "observed_order", *r.observed_order);
-  if (r.energy_rate_W) f.SetAttribute(g, "energy_rate_W", *r.energy_rate_W);
-  if (r.contact_power_W) f.SetAttribute(g, "contact_power_W", *r.contact_power_W);
+void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record) {
+  RunRecord r = record;
+  if (r.repeats <= 1) r.solver_time_s_median = r.solver_time_s_max = r.solver_time_s;
+  for (const RecordField& field : RunRecordFields()) {
+    std::visit(
+        [&](auto member) {
+          const auto& v = r.*member;
+          using T = std::remove_cvref_t<decltype(v)>;
+          bool store = true;
+          switch (field.stored) {
+            case Stored::kAlways: break;
+            case Stored::kAdaptive: store = r.step_kind == "adaptive"; break;
+            case Stored::kStepped: store = r.step_kind != "adaptive"; break;
+            case Stored::kSubstepped: store = r.step_kind == "substepped"; break;
+            default:
+              if constexpr (std::is_same_v<T, std::string>) store = !v.empty();
+              else if constexpr (std::is_same_v<T, std::optional<double>>) store = v.has_value();
+              else store = field.stored == Stored::kPositive ? v > 0 : v >= 0;
+          }
+          if (!store) return;
+          if constexpr (std::is_same_v<T, std::optional<double>>) f.SetAttribute(g, field.name, *v);
+          else f.SetAttribute(g, field.name, v);
+        },
+        field.member);
+  }
 }
 
 void WriteSceneRecord(ResultFile& f, const RunTable& t) {

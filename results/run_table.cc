@@ -10,6 +10,60 @@
 #include <fmt/ranges.h>
 
 namespace clothbench {
+
+const std::vector<RecordField>& RunRecordFields() {
+  using R = RunRecord;
+  using S = Stored;
+  static const std::vector<RecordField> fields = {
+      {"integrator", &R::integrator},
+      {"label", &R::label},
+      {"layer", &R::layer},
+      {"step_kind", &R::step_kind},
+      {"nonlinear_solver", &R::nonlinear_solver, S::kNonEmpty},
+      {"rtol", &R::rtol, S::kAdaptive},
+      {"h", &R::h, S::kStepped},
+      {"substeps", &R::substeps, S::kSubstepped},
+      {"constraints", &R::constraints, S::kNonEmpty},
+      {"explicit_terms", &R::explicit_terms, S::kNonEmpty},
+      {"tangent_terms", &R::tangent_terms, S::kNonEmpty},
+      {"preconditioner", &R::preconditioner, S::kNonEmpty},
+      {"sundials_settings", &R::sundials_settings, S::kNonEmpty},
+      {"step_control", &R::step_control, S::kNonEmpty},
+      {"predictor", &R::predictor, S::kNonEmpty},
+      {"cg_reference", &R::cg_reference, S::kNonEmpty},
+      {"newton_jacobian", &R::newton_jacobian, S::kNonEmpty},
+      {"arkode_table", &R::arkode_table, S::kNonEmpty},
+      {"atol", &R::atol, S::kPositive},
+      {"threads", &R::threads, S::kPositive},
+      {"error_test_failures", &R::error_test_failures, S::kNonNegative},
+      {"status", &R::status},
+      {"message", &R::message, S::kNonEmpty},
+      {"steps", &R::steps},
+      {"fixed_point_updates", &R::updates},
+      {"cg_iterations", &R::cg_iterations},
+      {"rejected_steps", &R::rejected},
+      {"cg_unconverged_steps", &R::cg_unconverged, S::kPositive},
+      {"solver_time_s", &R::solver_time_s},
+      {"repeats", &R::repeats},
+      {"solver_time_s_median", &R::solver_time_s_median},
+      {"solver_time_s_max", &R::solver_time_s_max},
+      {"setup_time_s", &R::setup_time_s, S::kNonNegative},
+      {"wall_time_s", &R::wall_time_s},
+      {"numerical_stiffness", &R::numerical_stiffness},
+      {"cg_tolerance", &R::cg_tolerance, S::kPositive},
+      {"error_final_m", &R::error_final_m, S::kSet, true},
+      {"error_l2_m", &R::error_l2_m, S::kSet, true},
+      {"error_max_m", &R::error_max_m, S::kSet, true},
+      {"error_final_mps", &R::error_final_mps, S::kSet, true},
+      {"error_l2_mps", &R::error_l2_mps, S::kSet, true},
+      {"error_max_mps", &R::error_max_mps, S::kSet, true},
+      {"error_mean_m", &R::error_mean_m, S::kSet, true},
+      {"observed_order", &R::observed_order, S::kSet, true},
+      {"energy_rate_W", &R::energy_rate_W, S::kSet, true},
+      {"contact_power_W", &R::contact_power_W, S::kSet, true},
+  };
+  return fields;
+}
 namespace {
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }

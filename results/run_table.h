@@ -12,6 +12,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include "results/work_precision.h"
@@ -80,6 +81,37 @@ struct RunRecord {
 
   bool ok() const { return status == "ok"; }
 };
+
+/// When a writer stores a RunRecord field (absent ones read back as the
+/// field's default in RunRecord{}).
+enum class Stored {
+  kAlways,
+  kNonEmpty,     ///< strings: when not empty
+  kPositive,     ///< numbers: when > 0
+  kNonNegative,  ///< numbers: when ≥ 0 (−1 means "not applicable")
+  kAdaptive,     ///< only for adaptive rows (rtol)
+  kStepped,      ///< only for fixed-step and substepped rows (h)
+  kSubstepped,   ///< only for substepped rows (substeps)
+  kSet,          ///< optionals: when they hold a value (no NaN is ever written)
+};
+
+/// One field of a RunRecord: its name (the /runs/<id> attribute, the key
+/// of the Python module's dicts), the member and when it is stored.
+struct RecordField {
+  const char* name;
+  std::variant<std::string RunRecord::*, double RunRecord::*, long RunRecord::*,
+               std::optional<double> RunRecord::*>
+      member;
+  Stored stored = Stored::kAlways;
+  /// Derived against a reference on rank 0 (errors, order, energies): not
+  /// part of what a rank sends or the journal keeps.
+  bool derived = false;
+};
+
+/// Every field of a RunRecord except its id (the group's name), in the
+/// order files list them: the one list the writer, the reader, the journal
+/// codec and the Python module iterate (docs/results-schema.md).
+const std::vector<RecordField>& RunRecordFields();
 
 /// True if `reference` (RunTable::reference) is a fixed-step
 /// self-convergence run (obstacle scenes: BDF(2) at h_min/16) rather than

@@ -41,7 +41,6 @@ bool IsFullyImplicit(Method m) {
   return m == Method::kImplicitEuler || m == Method::kBdf2 || m == Method::kImplicitMidpoint;
 }
 
-bool IsExplicit(Method m) { return m == Method::kSymplecticEuler; }
 
 int MethodOrder(Method m) {
   if (m == Method::kSbdf3) return 3;

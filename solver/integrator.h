@@ -44,8 +44,6 @@ bool IsImex(Method m);
 /// Fully implicit methods (implicit Euler, BDF(2), implicit midpoint) iterate
 /// with a nonlinear solver (fixed point or Newton).
 bool IsFullyImplicit(Method m);
-/// Explicit methods solve no linear system (symplectic Euler).
-bool IsExplicit(Method m);
 /// Classical order of convergence (1, 2 or 3).
 int MethodOrder(Method m);
 

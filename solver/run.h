@@ -119,7 +119,6 @@ class BlowUpGuard {
   /// frame is sound, else false with `status` ("non_finite" |
   /// "energy_growth") and a one-line `message` naming t and the values.
   bool Check(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message);
-  double energy_reference() const { return e_ref_; }
 
  private:
   const ParticleSystem& sys_;
