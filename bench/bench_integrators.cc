@@ -48,18 +48,18 @@ int Main(int argc, char** argv) {
   long max_runs = 0;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
+  std::string default_rows;
+  for (const DefaultRow& d : DefaultRows()) default_rows += (default_rows.empty() ? "" : ", ") + std::string(d.label);
   app.add_option("--integrators", integrators_arg,
-                 "comma-separated: imex_euler,implicit_euler,sbdf2,bdf2,implicit_midpoint,sbdf3,symplectic_euler,"
-                 "baraff_witkin,blender,xpbd,arkode,cvode,ida; a fully implicit method may name its nonlinear solver "
-                 "(bdf2/newton), sbdf2 and bdf2 may run under error control (sbdf2/error, bdf2/newton/error), "
-                 "arkode may name a higher-order IMEX pair (arkode/ark4: ARK436L2SA, arkode/ark5: ARK548L2SA), "
-                 "cvode solves its Newton systems reduced to the velocities with the PCG (cvode/klu: KLU on the "
-                 "first-order system) (default: the five methods, the Newton variants of implicit_euler, bdf2 and "
-                 "implicit_midpoint, sbdf3, baraff_witkin, blender, xpbd, sbdf2/error, bdf2/newton/error, arkode, arkode/ark4, "
-                 "arkode/ark5, cvode and cvode/klu)");
+                 fmt::format("comma-separated rows of the methods {}; a fully implicit method may name its nonlinear "
+                             "solver (/newton, /fixed_point), a method under error control /error, a variant its name "
+                             "(/ark4, /ark5: ARKODE's IMEX pairs of order 4 and 5; /klu: KLU on the first-order system "
+                             "instead of the reduced PCG solve) (default: {}; the Newton rows only beside the scene's "
+                             "fixed-point solver)",
+                             KnownMethodNames(), default_rows));
   app.add_option("--nonlinear-solver", nonlinear_arg,
-                 "comma-separated fixed_point,newton: one row per solver for implicit_euler, bdf2 and "
-                 "implicit_midpoint (default: the scene's solver.nonlinear_solver); also for --table");
+                 "comma-separated fixed_point,newton: one row per solver for the fully implicit methods (default: "
+                 "the scene's solver.nonlinear_solver); also for --table");
   app.add_option("--h", h_arg,
                  "comma-separated step sizes [s] of every fixed-step row and frame steps of the substepped rows "
                  "(default: per method, multiples of the scene's h chosen so that the default scene's runs bracket "

@@ -189,7 +189,7 @@ int main(int argc, char** argv) {
   using namespace clothbench;
   CLI::App app{"contact_replay: save a scene's state at given times, take steps from a saved state"};
   app.require_subcommand(1);
-  std::string scene_arg, integrator = "sbdf2", preconditioner, frames, prefix, state_path;
+  std::string scene_arg, integrator = std::string(ToString(Method::kSbdf2)), preconditioner, frames, prefix, state_path;
   std::vector<double> at;
   int steps = 0;
   Preconditioner::AmgDiagnostics diagnostics;

@@ -83,6 +83,14 @@ struct MethodEntry {
   RunSummary (*reference)(const ParticleSystem& sys, const ReferenceOptions& o) = nullptr;
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
+  /// Rows without a variant read an ARKODE IMEX table (--arkode-table).
+  bool arkode_table = false;
+  /// Rows read CVODE's setup knobs (--cvode-setting).
+  bool cvode_settings = false;
+  /// Fills what a row's record says about the stepper beyond the registry
+  /// (xpbd: the terms it solves as constraints and those it applies
+  /// explicitly); nullptr: nothing.
+  void (*describe)(const Stepper& stepper, const ParticleSystem& sys, RunRecord* record) = nullptr;
   /// The preconditioner that measures best for this method's fixed-step,
   /// substepped and SUNDIALS rows, used instead of a scene's IC(0) (the
   /// thesis' setting) unless --preconditioner names one; a scene that names
@@ -194,11 +202,17 @@ inline const std::vector<MethodEntry>& Registry() {
       {.name = kXpbdName, .kind = kSubstepped, .layer = "peers", .collisions = true,
        .make = [](const ParticleSystem& sys, const SolverSpec&, int substeps) -> std::unique_ptr<Stepper> {
          return std::make_unique<Xpbd>(sys, substeps);
+       },
+       .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
+         const auto& x = static_cast<const Xpbd&>(stepper);  // this entry's make builds an Xpbd
+         for (const std::string& t : x.explicit_terms()) row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
+         row->constraints = std::string("tension") + (x.shear_constraint() ? ",shear" : "") +
+                            (sys.obstacles().empty() ? "" : ",obstacles");
        }},
       {.name = kArkodeName, .kind = kAdaptive, .layer = "peers", .pcg = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                        const RunContext& ctx) { return RunArkode(sys, o, ctx.arkode_table, &spec); },
-       .variants = {"ark4", "ark5"}, .best_preconditioner = kBest},
+       .variants = {"ark4", "ark5"}, .arkode_table = true, .best_preconditioner = kBest},
       // cvode: the reduced velocity solve with the PCG; cvode/klu:
       // KLU on the 6N×6N first-order Jacobian (the reference's solver).
       {.name = "cvode", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true,
@@ -207,7 +221,7 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
-       .reference = RunCvode, .variants = {"klu"}, .best_preconditioner = kBest},
+       .reference = RunCvode, .variants = {"klu"}, .cvode_settings = true, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
       {.name = "ida", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
@@ -317,6 +331,8 @@ struct RowMethod {
                                              : fmt::format("{}_rtol{:g}", id(), param);
   }
   bool fully_implicit() const { return entry->nonlinear_solver; }
+  /// Whether the row reads an ARKODE IMEX table (arkode rows without /ark4 or /ark5).
+  bool reads_arkode_table() const { return entry->arkode_table && variant.empty(); }
   /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
   bool uses_pcg() const { return entry->pcg && variant != "klu"; }
   /// Whether the row builds the 3N×3N tangent system J_α.
@@ -397,16 +413,12 @@ struct RowMethod {
       const SolverSpec s = Settings(row_spec, param);
       row.step_control = std::string(ToString(s.step_control));
       const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
-      if (const auto* x = dynamic_cast<const Xpbd*>(stepper.get())) {
-        for (const std::string& t : x->explicit_terms()) row.explicit_terms += (row.explicit_terms.empty() ? "" : ",") + t;
-        row.constraints = std::string("tension") + (x->shear_constraint() ? ",shear" : "") +
-                          (sys.obstacles().empty() ? "" : ",obstacles");
-      }
+      if (entry->describe) entry->describe(*stepper, sys, &row);
       // Error-controlled rows start at the scene's h; the controller takes over.
       r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
     } else {
       row.step_control = "sundials";
-      if (name() == kArkodeName) row.arkode_table = row_ctx.arkode_table;
+      if (entry->arkode_table) row.arkode_table = row_ctx.arkode_table;
       r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec,
                            row_ctx);
     }
@@ -461,9 +473,9 @@ inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenO
        "rows that solve with the PCG"},
       {given.nonlinear_solver, any([](const RowMethod& m) { return m.fully_implicit(); }), "--nonlinear-solver",
        "implicit_euler, bdf2, implicit_midpoint"},
-      {given.arkode_table, any([](const RowMethod& m) { return m.name() == kArkodeName && m.variant.empty(); }),
+      {given.arkode_table, any([](const RowMethod& m) { return m.reads_arkode_table(); }),
        "--arkode-table", "arkode rows without /ark4 or /ark5"},
-      {given.cvode_setting, any([](const RowMethod& m) { return m.name() == "cvode"; }), "--cvode-setting",
+      {given.cvode_setting, any([](const RowMethod& m) { return m.entry->cvode_settings; }), "--cvode-setting",
        "cvode rows"},
       {given.tangent_terms, any([](const RowMethod& m) { return m.builds_tangent(); }), "--tangent-terms",
        "rows that build J_alpha: Newton rows, baraff_witkin, blender, cvode, ida"},
@@ -555,22 +567,51 @@ struct DefaultParams {
   std::vector<double> h_factors;  ///< fixed-step and substepped rows: h = factor × scene h
   std::vector<double> rtols;      ///< adaptive rows
 };
+
+/// One row of the default run, in table order, with its parameters.
+struct DefaultRow {
+  std::string_view label;
+  DefaultParams params;
+  /// The Newton row of a fully implicit method, listed beside its
+  /// fixed-point row unless the command line names the nonlinear solver or
+  /// the scene already uses Newton (then the row above it is the Newton row).
+  bool newton_variant = false;
+};
+
+/// The default run's rows (plan.h: DefaultRowNames) and their parameters
+/// (the measurements above).
+inline const std::vector<DefaultRow>& DefaultRows() {
+  static const std::vector<double> kRtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
+  static const std::vector<double> kArkodeRtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6};
+  static const std::vector<DefaultRow> rows = {
+      {"imex_euler", {{1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}, {}}},
+      {"implicit_euler", {{1.0 / 8, 1.0 / 16, 1.0 / 32}, {}}},
+      {"implicit_euler/newton", {{1.0, 1.0 / 2, 1.0 / 4}, {}}, true},
+      {"sbdf2", {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}, {}}},
+      {"bdf2", {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, kRtols}},
+      {"bdf2/newton", {{4.0, 2.0, 1.0}, {}}, true},
+      {"implicit_midpoint", {{1.0, 1.0 / 2, 1.0 / 4}, {}}},
+      {"implicit_midpoint/newton", {{4.0, 2.0, 1.0}, {}}, true},
+      {"sbdf3", {{1.0 / 4, 1.0 / 8, 1.0 / 16}, {}}},
+      {"baraff_witkin", {{1.0 / 8, 1.0 / 32}, {}}},
+      {"blender", {{1.0 / 8, 1.0 / 32}, {}}},
+      {"xpbd", {{1.0, 1.0 / 16}, {}}},
+      {"sbdf2/error", {{}, kRtols}},
+      {"bdf2/newton/error", {{}, kRtols}},
+      {"arkode", {{}, kArkodeRtols}},
+      {"arkode/ark4", {{}, kArkodeRtols}},
+      {"arkode/ark5", {{}, {1e-3, 1e-4, 1e-5, 1e-6}}},
+      {"cvode", {{}, kRtols}},
+      {"cvode/klu", {{}, kRtols}},
+  };
+  return rows;
+}
+
 inline DefaultParams DefaultRowParams(const RowMethod& m) {
   const std::string label = m.label();
-  const std::vector<double> rtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
-  if (label == "imex_euler") return {{1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}, {}};
-  if (label == "implicit_euler") return {{1.0 / 8, 1.0 / 16, 1.0 / 32}, {}};
-  if (label == "implicit_euler/newton") return {{1.0, 1.0 / 2, 1.0 / 4}, {}};
-  if (label == "sbdf2") return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}, {}};
-  if (label == "bdf2/newton" || label == "implicit_midpoint/newton") return {{4.0, 2.0, 1.0}, {}};
-  if (label == "implicit_midpoint") return {{1.0, 1.0 / 2, 1.0 / 4}, {}};
-  if (label == "baraff_witkin" || label == "blender") return {{1.0 / 8, 1.0 / 32}, {}};
-  if (label == "xpbd") return {{1.0, 1.0 / 16}, {}};
-  if (label == "sbdf3") return {{1.0 / 4, 1.0 / 8, 1.0 / 16}, {}};
-  if (label == "arkode") return {{}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}};
-  if (label == "arkode/ark4") return {{}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6}};
-  if (label == "arkode/ark5") return {{}, {1e-3, 1e-4, 1e-5, 1e-6}};
-  return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, rtols};
+  for (const DefaultRow& d : DefaultRows())
+    if (d.label == label) return d.params;
+  return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7}};
 }
 
 /// Parses "fixed_point" | "newton". @throws std::invalid_argument naming `option`.

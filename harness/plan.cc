@@ -13,20 +13,9 @@ namespace clothbench {
 
 std::vector<std::string> DefaultRowNames(NonlinearSolver scene_solver, bool solver_from_cli) {
   std::vector<std::string> names;
-  for (Method m : AllMethods()) {
-    names.emplace_back(ToString(m));
-    if (IsFullyImplicit(m) && !solver_from_cli && scene_solver != NonlinearSolver::kNewton)
-      names.push_back(std::string(ToString(m)) + "/newton");
-  }
-  for (std::string_view n : {std::string_view(ToString(Method::kSbdf3)), kBaraffWitkinName, kBlenderName, kXpbdName})
-    names.emplace_back(n);
-  names.emplace_back(std::string(ToString(Method::kSbdf2)) + "/error");
-  names.emplace_back(std::string(ToString(Method::kBdf2)) + "/newton/error");
-  names.emplace_back(kArkodeName);
-  names.emplace_back(std::string(kArkodeName) + "/ark4");
-  names.emplace_back(std::string(kArkodeName) + "/ark5");
-  names.emplace_back(kWorkPrecisionBaseline);
-  names.emplace_back(std::string(kWorkPrecisionBaseline) + "/klu");
+  for (const DefaultRow& d : DefaultRows())
+    if (!d.newton_variant || (!solver_from_cli && scene_solver != NonlinearSolver::kNewton))
+      names.emplace_back(d.label);
   return names;
 }
 

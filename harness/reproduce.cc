@@ -137,8 +137,8 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   }
   if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
   if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
-  if (m.name() == kArkodeName && m.variant.empty() && !r.arkode_table.empty()) q.arkode_table = r.arkode_table;
-  if (m.name() == "cvode" && !r.sundials_settings.empty()) q.cvode_setting = r.sundials_settings;
+  if (m.reads_arkode_table() && !r.arkode_table.empty()) q.arkode_table = r.arkode_table;
+  if (m.entry->cvode_settings && !r.sundials_settings.empty()) q.cvode_setting = r.sundials_settings;
   q.t_end = table.t_end;
   // The file's frame spacing, so that the frame-based errors (l2, max) are
   // taken at the same instants; none becomes ends, which has the same

@@ -11,6 +11,24 @@
 #include "harness/sweep.h"
 
 namespace clothbench {
+namespace {
+
+// The registry's methods with `flag` set, for messages ("cvode, ida").
+std::string RowsThat(bool MethodEntry::*flag) {
+  std::string out;
+  for (const MethodEntry& e : Registry())
+    if (e.*flag) out += (out.empty() ? "" : ", ") + std::string(e.name);
+  return out;
+}
+
+std::string RowsOfKind(StepKind kind) {
+  std::string out;
+  for (const MethodEntry& e : Registry())
+    if (e.kind == kind) out += (out.empty() ? "" : ", ") + std::string(e.name);
+  return out;
+}
+
+}  // namespace
 
 std::string SceneHash(const Scene& scene) {
   return Fnv1a64(fmt::format("{}\nt_end={:.17g} frame_dt={:.17g}", scene.toml, scene.t_end, scene.frame_dt));
@@ -90,7 +108,7 @@ ResolvedRun RunRequest::Resolve() const {
   }
   if (substeps) {
     if (m.kind() != StepKind::kSubstepped)
-      throw fail("substeps", fmt::format("{} is not substepped: only xpbd reads substeps", label));
+      throw fail("substeps", fmt::format("{} is not substepped (substepped rows: {})", label, RowsOfKind(StepKind::kSubstepped)));
     if (*substeps < 1 || *substeps > 1000000)
       throw fail("substeps", fmt::format("{} must be a whole number from 1 to 1e6", *substeps));
     out.substeps = static_cast<int>(*substeps);
@@ -114,17 +132,16 @@ ResolvedRun RunRequest::Resolve() const {
   }
   if (tangent_terms) {
     if (!m.builds_tangent())
-      throw fail("tangent_terms", fmt::format("{} does not build J_alpha (rows that do: Newton rows, baraff_witkin, "
-                                              "blender, cvode, ida)",
-                                              label));
+      throw fail("tangent_terms", fmt::format("{} does not build J_alpha (rows that do: Newton rows, {})", label,
+                                              RowsThat(&MethodEntry::tangent)));
     if (*tangent_terms != "all" && *tangent_terms != "tension")
       throw fail("tangent_terms", fmt::format("\"{}\" must be all or tension", EscapeControl(*tangent_terms)));
     s.solver.tangent_explicit_terms = *tangent_terms == "all";
     out.ctx.tangent_terms_from_cli = true;
   }
   if (arkode_table) {
-    if (m.name() != kArkodeName || !m.variant.empty())
-      throw fail("arkode_table", fmt::format("{} does not read it (arkode rows without /ark4 or /ark5 do)", label));
+    if (!m.reads_arkode_table())
+      throw fail("arkode_table", fmt::format("{} does not read it (arkode rows without a variant do)", label));
     const auto& tables = ArkodeTableNames();
     if (std::find(tables.begin(), tables.end(), *arkode_table) == tables.end()) {
       std::string known;
@@ -134,7 +151,8 @@ ResolvedRun RunRequest::Resolve() const {
     out.ctx.arkode_table = *arkode_table;
   }
   if (cvode_setting) {
-    if (m.name() != "cvode") throw fail("cvode_setting", fmt::format("{} does not read it (cvode rows do)", label));
+    if (!m.entry->cvode_settings)
+      throw fail("cvode_setting", fmt::format("{} does not read it ({} rows do)", label, RowsThat(&MethodEntry::cvode_settings)));
     if (!cvode_setting->empty())
       for (const std::string& kv : SplitList(*cvode_setting, Field("cvode_setting"))) {
         const std::size_t eq = kv.find('=');

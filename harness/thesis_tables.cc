@@ -53,7 +53,7 @@ namespace {
 // h/64 on the tablecloth, h/16 on the avatar, tight tolerances), and
 // written to HDF5.
 struct ThesisRow {
-  std::string method;
+  Method method;
   double k, d;
   long updates, cg;
   double time_s;  // < 0: not given
@@ -78,12 +78,12 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                    std::vector<NonlinearSolver> solvers, std::vector<double> etas, SweepComm& comm) {
   std::vector<ThesisRow> rows;
   if (which == "3.1") {
-    rows = {{"bdf2", 1e4, 160, 803, 1160, -1}, {"bdf2", 1e4, 1600, 198, 538, -1}, {"bdf2", 1e5, 1600, 377, 566, -1},
-            {"bdf2", 1e3, 1600, 52, 52, -1}};
+    rows = {{Method::kBdf2, 1e4, 160, 803, 1160, -1}, {Method::kBdf2, 1e4, 1600, 198, 538, -1}, {Method::kBdf2, 1e5, 1600, 377, 566, -1},
+            {Method::kBdf2, 1e3, 1600, 52, 52, -1}};
   } else if (which == "3.2") {
-    rows = {{"imex_euler", 9000, 50, 100, 745, 1.69},    {"implicit_euler", 9000, 50, 206, 1038, 3.06},
-            {"sbdf2", 9000, 50, 100, 304, 1.57},         {"bdf2", 9000, 50, 122, 857, 2.57},
-            {"implicit_midpoint", 9000, 50, 494, 813, 4.39}};
+    rows = {{Method::kImexEuler, 9000, 50, 100, 745, 1.69},    {Method::kImplicitEuler, 9000, 50, 206, 1038, 3.06},
+            {Method::kSbdf2, 9000, 50, 100, 304, 1.57},         {Method::kBdf2, 9000, 50, 122, 857, 2.57},
+            {Method::kImplicitMidpoint, 9000, 50, 494, 813, 4.39}};
   } else {
     throw UsageError(fmt::format("--table: \"{}\" must be 3.1 or 3.2", which));
   }
@@ -107,11 +107,11 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     if (preconditioner) av.solver.preconditioner = *preconditioner;
     const double kd = av.material.tension[0], dd = av.material.tension_damping;
     blocks.push_back({"avatar_drape", av,
-                      {{"imex_euler", kd, dd, 500, 17198, 152.7},
-                       {"implicit_euler", kd, dd, 1654, 21424, 204.9},
-                       {"sbdf2", kd, dd, 500, 15360, 169.5},
-                       {"bdf2", kd, dd, 1431, 19307, 194.4},
-                       {"implicit_midpoint", kd, dd, 2078, 15877, 211.3}},
+                      {{Method::kImexEuler, kd, dd, 500, 17198, 152.7},
+                       {Method::kImplicitEuler, kd, dd, 1654, 21424, 204.9},
+                       {Method::kSbdf2, kd, dd, 500, 15360, 169.5},
+                       {Method::kBdf2, kd, dd, 1431, 19307, 194.4},
+                       {Method::kImplicitMidpoint, kd, dd, 2078, 15877, 211.3}},
                       av.h / 16.0});
   }
   const auto scene_of = [&](std::size_t b, const ThesisRow& tr) {
@@ -175,7 +175,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   for (std::size_t e = 0; e < etas.size(); ++e)
     for (std::size_t b = 0; b < blocks.size(); ++b)
       for (std::size_t i = 0; i < blocks[b].rows.size(); ++i)
-        for (const RowMethod& m : ExpandMethods({blocks[b].rows[i].method}, solvers, "--table"))
+        for (const RowMethod& m : ExpandMethods({std::string(ToString(blocks[b].rows[i].method))}, solvers, "--table"))
           tasks.push_back({e, b, i, m});
   mine.clear();
   for (std::size_t k = 0; k < tasks.size(); ++k) {
@@ -235,7 +235,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     const std::string g = fmt::format("/table/row{}", index++);
     f.CreateGroup(g);
     f.SetAttribute(g, "scene", scene_name);
-    f.SetAttribute(g, "integrator", tr.method);
+    f.SetAttribute(g, "integrator", std::string(ToString(tr.method)));
     f.SetAttribute(g, "label", m.label());
     if (m.fully_implicit()) f.SetAttribute(g, "nonlinear_solver", std::string(ToString(m.solver)));
     f.SetAttribute(g, "k", tr.k);
