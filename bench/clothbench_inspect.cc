@@ -30,6 +30,7 @@
 #include "results/contained_read.h"
 #include "model/scene.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "results/run_table.h"
 
 namespace clothbench {

@@ -293,6 +293,25 @@ inline std::string ArkodeRowTable(std::string_view modifier) {
   return "";
 }
 
+/// The counts, times and status of the step loop's summary `r` in a run's
+/// record: the one mapping from RunSummary's names to the record's
+/// (fixed_point_updates → updates, rejected_steps → rejected).
+/// @param error_control whether the run stepped under our error control
+///   (its error-test failures count; SUNDIALS runs always report theirs)
+inline void RecordSummary(const RunSummary& r, bool error_control, RunRecord* row) {
+  row->status = r.ok ? "ok" : r.status;
+  row->message = r.message;
+  row->steps = r.steps;
+  row->updates = r.fixed_point_updates;
+  row->cg_iterations = r.cg_iterations;
+  row->rejected = r.rejected_steps;
+  row->cg_unconverged = std::max(r.cg_unconverged_steps, 0);
+  row->error_test_failures = error_control || r.sundials ? r.error_test_failures : -1;
+  row->solver_time_s = r.solver_time_in_seconds;
+  row->setup_time_s = r.setup_time_in_seconds;
+  row->wall_time_s = r.wall_time_in_seconds;
+}
+
 /// One row's method: a registry entry with its nonlinear solver and, for
 /// SBDF(2)/BDF(2), error control.
 struct RowMethod {
@@ -422,17 +441,7 @@ struct RowMethod {
       r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec,
                            row_ctx);
     }
-    row.status = r.ok ? "ok" : r.status;
-    row.message = r.message;
-    row.steps = r.steps;
-    row.updates = r.fixed_point_updates;
-    row.cg_iterations = r.cg_iterations;
-    row.rejected = r.rejected_steps;
-    row.cg_unconverged = std::max(r.cg_unconverged_steps, 0);
-    row.error_test_failures = error_control || r.sundials ? r.error_test_failures : -1;
-    row.solver_time_s = r.solver_time_in_seconds;
-    row.setup_time_s = r.setup_time_in_seconds;
-    row.wall_time_s = r.wall_time_in_seconds;
+    RecordSummary(r, error_control, &row);
     row.traj = std::move(r.trajectory);
     row.sundials = r.sundials;
     row.sundials_settings = r.settings;

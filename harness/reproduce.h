@@ -16,6 +16,7 @@
 #include "harness/methods.h"
 #include "harness/run_request.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "results/run_table.h"
 
 namespace clothbench {

@@ -19,6 +19,7 @@
 #include "results/metrics.h"
 #include "results/result_file.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "results/work_precision.h"
 
 namespace clothbench {

@@ -19,6 +19,7 @@
 #include "harness/run_codec.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
+#include "results/run_records.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -230,27 +231,28 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   f.WriteVector("/table/cg_tolerances", etas, "");
   int index = 0;
   // One HDF5 group per row: our counts and error beside the thesis'.
-  auto write_row = [&](const std::string& scene_name, const ThesisRow& tr, const RowMethod& m, double eta,
+  auto write_row = [&](const std::string& scene_name, PreconditionerType scene_preconditioner, const ThesisRow& tr, const RowMethod& m, double eta,
                        const RunSummary& r, std::optional<double> err, double h_ref) {
     const std::string g = fmt::format("/table/row{}", index++);
     f.CreateGroup(g);
+    // The row's record as every result file stores a run's
+    // (RunRecordFields), then what only a thesis row has.
+    RunRecord rec;
+    rec.label = m.label();
+    rec.integrator = m.name();
+    rec.layer = std::string(m.entry->layer);
+    rec.step_kind = std::string(ToString(m.kind()));
+    if (m.fully_implicit()) rec.nonlinear_solver = std::string(ToString(m.solver));
+    rec.h = r.h;
+    rec.cg_tolerance = eta;
+    rec.preconditioner = std::string(ToString(scene_preconditioner));
+    RecordSummary(r, false, &rec);
+    rec.error_final_m = err;
+    WriteRunRecord(f, g, rec);
     f.SetAttribute(g, "scene", scene_name);
-    f.SetAttribute(g, "integrator", std::string(ToString(tr.method)));
-    f.SetAttribute(g, "label", m.label());
-    if (m.fully_implicit()) f.SetAttribute(g, "nonlinear_solver", std::string(ToString(m.solver)));
     f.SetAttribute(g, "k", tr.k);
     f.SetAttribute(g, "d", tr.d);
-    f.SetAttribute(g, "cg_tolerance", eta);
-    f.SetAttribute(g, "status", r.status);
-    f.SetAttribute(g, "steps", static_cast<long>(r.steps));
-    f.SetAttribute(g, "rejected_steps", static_cast<long>(r.rejected_steps));
-    f.SetAttribute(g, "fixed_point_updates", r.fixed_point_updates);
-    f.SetAttribute(g, "cg_iterations", r.cg_iterations);
-    f.SetAttribute(g, "solver_time_s", r.solver_time_in_seconds);
-    if (err) {
-      f.SetAttribute(g, "error_final_m", *err);
-      f.SetAttribute(g, "reference_h", h_ref);
-    }
+    if (err) f.SetAttribute(g, "reference_h", h_ref);
     f.SetAttribute(g, "thesis_updates", tr.updates);
     f.SetAttribute(g, "thesis_cg_iterations", tr.cg);
     if (tr.time_s > 0) f.SetAttribute(g, "thesis_solver_time_s", tr.time_s);
@@ -284,7 +286,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                      m.label(), tr.k, tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "",
                      r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, ratio,
                      err ? Sci(*err) : "", r.rejected_steps, r.status);
-          write_row(blk.scene_name, tr, m, eta, r, err, blk.h_ref);
+          write_row(blk.scene_name, blk.scene.solver.preconditioner, tr, m, eta, r, err, blk.h_ref);
         }
       }
     }

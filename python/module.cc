@@ -31,6 +31,7 @@
 #include "results/contained_read.h"
 #include "results/metrics.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "results/work_precision.h"
 #include "solver/progress.h"
 

@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 
 #include "model/scene.h"
+#include "results/run_records.h"
 #include "results/run_table.h"
 
 namespace clothbench {

@@ -12,6 +12,7 @@
 
 #include "model/scene.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 
 namespace clothbench {
 namespace {

@@ -20,6 +20,7 @@
 #include "model/scene.h"
 #include "results/result_file.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "results/run_table.h"
 #include "verify/cli_helpers.h"
 

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "results/run_table.h"
 #include "verify/cli_helpers.h"
 

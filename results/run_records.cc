@@ -1,0 +1,234 @@
+// The records of a result file in both directions (docs/results-schema.md):
+// a run's attributes (RunRecordFields), the scene's and the equal-accuracy
+// table's, written through ResultFile and read back through ResultReader,
+// so that one file states the schema of each record for the writer and the
+// reader alike.
+#include "results/run_records.h"
+
+#include <sstream>
+#include <type_traits>
+#include <variant>
+
+#include <fmt/format.h>
+
+namespace clothbench {
+
+RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::string& id) {
+  RunRecord r;
+  r.id = id;
+  for (const RecordField& field : RunRecordFields()) {
+    const std::string name = field.name;
+    std::visit(
+        [&](auto member) {
+          using T = std::remove_reference_t<decltype(r.*member)>;
+          if constexpr (std::is_same_v<T, std::string>) {
+            if (auto v = f.String(g, name)) r.*member = *v;
+          } else if constexpr (std::is_same_v<T, long>) {
+            if (auto v = f.Long(g, name)) r.*member = *v;
+          } else if constexpr (std::is_same_v<T, double>) {
+            if (auto v = f.Double(g, name)) r.*member = *v;
+          } else {
+            r.*member = f.Double(g, name);
+          }
+        },
+        field.member);
+  }
+  // One timing stores no spread (files before solver_time_s_median: the same).
+  if (!f.Double(g, "solver_time_s_median")) r.solver_time_s_median = r.solver_time_s;
+  if (!f.Double(g, "solver_time_s_max")) r.solver_time_s_max = r.solver_time_s;
+  if (!r.error_final_m) r.error_final_m = f.Double(g, "error_rms_m");  // files before error_final_m
+  return r;
+}
+
+RunTable ReadRunTable(const ResultReader& f) {
+  RunTable t;
+  const auto str = [&](const std::string& o, const std::string& n) { return f.String(o, n).value_or(""); };
+  t.schema = str("/", "schema");
+  t.created = str("/", "created");
+  t.git_commit = str("/", "git_commit");
+  t.host = str("/", "host");
+  t.compiler = str("/", "compiler");
+  t.build_type = str("/", "build_type");
+  t.hardware_threads = f.Long("/", "hardware_threads").value_or(0);
+  t.error_metric = f.String("/", "error_metric").value_or("final");
+  t.scene_name = str("/scene", "name");
+  t.scene_source = str("/scene", "source");
+  t.explicit_terms = str("/scene", "explicit_terms");
+  t.frames = str("/scene", "frames");
+  t.n_particles = f.Long("/scene", "n_particles").value_or(0);
+  t.n_fixed = f.Long("/scene", "n_fixed").value_or(0);
+  t.t_end = f.Double("/scene", "t_end").value_or(0.0);
+  t.frame_dt = f.Double("/scene", "frame_dt").value_or(0.0);
+  t.h = f.Double("/scene", "h").value_or(0.0);
+  t.numerical_stiffness = f.Double("/scene", "numerical_stiffness").value_or(0.0);
+  t.cg_tolerance = f.Double("/scene", "solver_cg_tolerance").value_or(0.0);
+  t.cg_reference = str("/scene", "solver_cg_reference");
+  t.preconditioner = str("/scene", "solver_preconditioner");
+  t.predictor = str("/scene", "solver_predictor");
+  t.amg_frames = str("/scene", "solver_amg_frames");
+  t.max_updates = f.Long("/scene", "solver_max_updates").value_or(0);
+  t.cholesky_ordering = str("/scene", "solver_cholesky_ordering");
+  t.contact_factors = str("/scene", "solver_contact_factors");
+  t.tangent_projection = str("/scene", "solver_tangent_projection");
+  t.newton_jacobian = str("/scene", "solver_newton_jacobian");
+  t.controller_updates = str("/scene", "solver_controller_updates");
+  t.cg_max_iterations = f.Long("/scene", "solver_cg_max_iterations").value_or(0);
+  t.max_rejections = f.Long("/scene", "solver_max_rejections").value_or(0);
+  t.fixed_point_tolerance = f.Double("/scene", "solver_fixed_point_tolerance").value_or(0.0);
+  t.step_factor = f.Double("/scene", "solver_step_factor").value_or(0.0);
+  t.h_min = f.Double("/scene", "solver_h_min").value_or(0.0);
+  t.h_max = f.Double("/scene", "solver_h_max").value_or(0.0);
+  if (f.Exists("/reference")) t.reference = ReadRunRecord(f, "/reference", "reference");
+  for (const std::string& id : f.Children("/runs")) t.runs.push_back(ReadRunRecord(f, "/runs/" + id, id));
+  if (f.Exists("/work_precision/targets")) {
+    EqualAccuracyTable w;
+    w.targets = f.Doubles("/work_precision/targets");
+    w.reference = f.String("/work_precision", "baseline").value_or(str("/work_precision", "reference_method"));
+    w.metric = f.String("/work_precision", "error_metric").value_or("final");
+    std::stringstream labels(str("/work_precision", "labels"));  // comma-separated
+    for (std::string label; std::getline(labels, label, ',');) w.labels.push_back(label);
+    const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
+    const std::vector<double> ratio =
+        f.Doubles(f.Exists("/work_precision/ratio") ? "/work_precision/ratio" : "/work_precision/ratio_to_cvode");
+    const std::vector<int32_t> bound =
+        f.Exists("/work_precision/upper_bound") ? f.Ints("/work_precision/upper_bound") : std::vector<int32_t>{};
+    const std::vector<double> min_error =
+        f.Exists("/work_precision/min_error") ? f.Doubles("/work_precision/min_error") : std::vector<double>{};
+    const std::size_t cols = w.targets.size();
+    if (cost.size() != w.labels.size() * cols || ratio.size() != cost.size() ||
+        (!bound.empty() && bound.size() != cost.size()) || (!min_error.empty() && min_error.size() != w.labels.size()))
+      throw ResultError(fmt::format("{}: /work_precision: {} labels × {} targets but {} cells", f.path(),
+                                    w.labels.size(), cols, cost.size()));
+    for (std::size_t m = 0; m < w.labels.size(); ++m) {
+      w.cost.emplace_back();
+      w.ratio.emplace_back();
+      w.upper_bound.emplace_back();
+      for (std::size_t j = 0; j < cols; ++j) {
+        const double c = cost[m * cols + j], q = ratio[m * cols + j];
+        w.cost.back().push_back(c >= 0.0 ? std::optional(c) : std::nullopt);
+        w.ratio.back().push_back(q >= 0.0 ? std::optional(q) : std::nullopt);
+        w.upper_bound.back().push_back(!bound.empty() && bound[m * cols + j] != 0);
+      }
+      w.min_error.push_back(!min_error.empty() && min_error[m] > 0.0 ? std::optional(min_error[m]) : std::nullopt);
+    }
+    for (int32_t k : f.Ints("/work_precision/fastest")) {
+      if (k < -1 || k >= static_cast<int32_t>(w.labels.size()))
+        throw ResultError(fmt::format("{}: /work_precision/fastest: {} is not a label index (-1 … {})", f.path(), k,
+                                      static_cast<long>(w.labels.size()) - 1));
+      w.fastest.push_back(k);
+    }
+    if (w.fastest.size() != cols)
+      throw ResultError(fmt::format("{}: /work_precision/fastest: {} entries, {} targets", f.path(), w.fastest.size(),
+                                    cols));
+    if (f.Exists("/work_precision/tied")) {
+      const std::vector<int32_t> tied = f.Ints("/work_precision/tied");
+      if (tied.size() != cost.size())
+        throw ResultError(fmt::format("{}: /work_precision/tied: {} cells, {} expected", f.path(), tied.size(), cost.size()));
+      for (std::size_t j = 0; j < cols; ++j) {
+        w.tied.emplace_back();
+        for (std::size_t m = 0; m < w.labels.size(); ++m)
+          if (tied[j * w.labels.size() + m]) w.tied.back().push_back(static_cast<int>(m));
+      }
+    }
+    t.work_precision = std::move(w);
+  }
+  return t;
+}
+
+void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record) {
+  RunRecord r = record;
+  if (r.repeats <= 1) r.solver_time_s_median = r.solver_time_s_max = r.solver_time_s;
+  for (const RecordField& field : RunRecordFields()) {
+    std::visit(
+        [&](auto member) {
+          const auto& v = r.*member;
+          using T = std::remove_cvref_t<decltype(v)>;
+          bool store = true;
+          switch (field.stored) {
+            case Stored::kAlways: break;
+            case Stored::kAdaptive: store = r.step_kind == "adaptive"; break;
+            case Stored::kStepped: store = r.step_kind != "adaptive"; break;
+            case Stored::kSubstepped: store = r.step_kind == "substepped"; break;
+            default:
+              if constexpr (std::is_same_v<T, std::string>) store = !v.empty();
+              else if constexpr (std::is_same_v<T, std::optional<double>>) store = v.has_value();
+              else store = field.stored == Stored::kPositive ? v > 0 : v >= 0;
+          }
+          if (!store) return;
+          if constexpr (std::is_same_v<T, std::optional<double>>) f.SetAttribute(g, field.name, *v);
+          else f.SetAttribute(g, field.name, v);
+        },
+        field.member);
+  }
+}
+
+void WriteSceneRecord(ResultFile& f, const RunTable& t) {
+  f.SetAttribute("/scene", "name", t.scene_name);
+  f.SetAttribute("/scene", "source", t.scene_source);
+  f.SetAttribute("/scene", "n_particles", t.n_particles);
+  f.SetAttribute("/scene", "n_fixed", t.n_fixed);
+  f.SetAttribute("/scene", "t_end", t.t_end);
+  f.SetAttribute("/scene", "frame_dt", t.frame_dt);
+  f.SetAttribute("/scene", "frames", t.frames);
+  f.SetAttribute("/scene", "explicit_terms", t.explicit_terms);
+  f.SetAttribute("/scene", "h", t.h);
+  f.SetAttribute("/scene", "numerical_stiffness", t.numerical_stiffness);
+  f.SetAttribute("/scene", "solver_cg_tolerance", t.cg_tolerance);
+  f.SetAttribute("/scene", "solver_cg_reference", t.cg_reference);
+  f.SetAttribute("/scene", "solver_preconditioner", t.preconditioner);
+  f.SetAttribute("/scene", "solver_predictor", t.predictor);
+  if (!t.amg_frames.empty()) f.SetAttribute("/scene", "solver_amg_frames", t.amg_frames);
+  f.SetAttribute("/scene", "solver_max_updates", t.max_updates);
+  if (!t.cholesky_ordering.empty()) {
+    f.SetAttribute("/scene", "solver_cholesky_ordering", t.cholesky_ordering);
+    f.SetAttribute("/scene", "solver_contact_factors", t.contact_factors);
+    f.SetAttribute("/scene", "solver_tangent_projection", t.tangent_projection);
+    f.SetAttribute("/scene", "solver_newton_jacobian", t.newton_jacobian);
+    f.SetAttribute("/scene", "solver_controller_updates", t.controller_updates);
+    f.SetAttribute("/scene", "solver_cg_max_iterations", t.cg_max_iterations);
+    f.SetAttribute("/scene", "solver_max_rejections", t.max_rejections);
+    f.SetAttribute("/scene", "solver_fixed_point_tolerance", t.fixed_point_tolerance);
+    f.SetAttribute("/scene", "solver_step_factor", t.step_factor);
+    f.SetAttribute("/scene", "solver_h_min", t.h_min);
+    f.SetAttribute("/scene", "solver_h_max", t.h_max);
+  }
+}
+
+void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
+  f.CreateGroup("/work_precision");
+  f.SetAttribute("/work_precision", "baseline", t.reference);
+  f.SetAttribute("/work_precision", "error_metric", t.metric);
+  f.SetAttribute("/work_precision", "measure",
+                 std::string("solver_time_s at e_rms(t_end) = target on each method's lower envelope of (error, "
+                             "solver_time_s) runs, log-log interpolation between adjacent envelope runs; upper_bound 1: "
+                             "the cheapest run already meets the target (cost <= that run's); -1 where no run reaches "
+                             "the target (min_error: the smallest error reached, -1 if every run failed)"));
+  f.WriteVector("/work_precision/targets", t.targets, "m");
+  std::string labels;
+  for (const std::string& l : t.labels) labels += (labels.empty() ? "" : ",") + l;
+  f.SetAttribute("/work_precision", "labels", labels);
+  const int rows = static_cast<int>(t.labels.size()), cols = static_cast<int>(t.targets.size());
+  std::vector<double> cost, ratio, min_error;
+  std::vector<int32_t> bound;
+  for (std::size_t m = 0; m < static_cast<std::size_t>(rows); ++m) {
+    for (std::size_t j = 0; j < static_cast<std::size_t>(cols); ++j) {
+      cost.push_back(t.cost[m][j].value_or(-1.0));
+      ratio.push_back(t.ratio[m][j].value_or(-1.0));
+      bound.push_back(m < t.upper_bound.size() && t.upper_bound[m][j] ? 1 : 0);
+    }
+    min_error.push_back(m < t.min_error.size() && t.min_error[m] ? *t.min_error[m] : -1.0);
+  }
+  f.WriteTable("/work_precision/solver_time", rows, cols, cost, "s");
+  f.WriteTable("/work_precision/ratio", rows, cols, ratio, "");
+  f.WriteTable("/work_precision/upper_bound", rows, cols, bound);
+  f.WriteVector("/work_precision/min_error", min_error, "m");
+  // tied [T, M]: 1 where the method is tied with the fastest at the target.
+  std::vector<int32_t> tied(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
+  for (std::size_t j = 0; j < t.tied.size(); ++j)
+    for (int m : t.tied[j]) tied[j * static_cast<std::size_t>(rows) + static_cast<std::size_t>(m)] = 1;
+  f.WriteTable("/work_precision/tied", cols, rows, tied);
+  std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
+  f.WriteTable("/work_precision/fastest", 1, cols, fastest);
+}
+
+}  // namespace clothbench
