@@ -259,112 +259,138 @@ int Rerun(const ResultReader& f, const RunTable& t, const std::string& id, const
   return 1;
 }
 
-int Main(int argc, char** argv) {
-  CLI::App app{"clothbench_inspect: print, compare and export bench_integrators result files (HDF5)"};
-  app.require_subcommand(1);
-  std::string file, other, run, obj, ply;
+// The command line: the file, the subcommand chosen and its options.
+struct Args {
+  std::string file, other, run, obj, ply, metric, rerun, rerun_out;
   bool json = false;
   long frame = 0;
   double rtol = 1e-6, time_tolerance = 0.5;
-  app.add_option("file", file, "result file (.h5)")->required();
-  app.add_subcommand("summary", "scene, machine, commit, and each run with status and counts");
-  app.add_subcommand("table", "the table bench_integrators printed, from the file alone");
-  CLI::App* runs = app.add_subcommand("runs", "one line per run");
-  runs->add_flag("--json", json, "every attribute of every run as a JSON array");
-  CLI::App* diff = app.add_subcommand("diff", "per run, the change in e_rms, steps, updates, CG iterations and solver "
-                                              "time against a second file; exit 1 if a change is flagged");
-  diff->add_option("other", other, "the second result file (B)")->required();
-  diff->add_option("--rtol", rtol,
-                   "flag relative e_rms changes above this (default 1e-6: runs are deterministic, so a rebuild of the "
-                   "same code gives the same e_rms to the last bits; changed summation order moves it by ~1e-12)");
-  diff->add_option("--time-tolerance", time_tolerance,
-                   "flag solver-time ratios B/A outside [1/(1+T), 1+T] (default 0.5: repeated runs on a shared "
-                   "2-core VM differ by up to ~30 %)");
-  CLI::App* exp = app.add_subcommand("export", "one stored frame of a run as a mesh (OBJ or PLY, quads)");
-  exp->add_option("run", run, "run id (clothbench_inspect FILE runs) or \"reference\"")->required();
-  exp->add_option("--frame", frame, "index of the stored frame (default 0)");
-  CLI::Option* o_obj = exp->add_option("--obj", obj, "write Wavefront OBJ");
-  CLI::Option* o_ply = exp->add_option("--ply", ply, "write ASCII PLY");
-  o_obj->excludes(o_ply);
-  std::string metric;
-  CLI::App* wp = app.add_subcommand("work-precision", "the equal-accuracy table, from the stored runs under an error "
-                                                      "norm of choice (same targets and baseline)");
-  wp->add_option("--error-metric", metric, "final | l2 | max (default: the file's)");
   ReproduceOptions reproduce;
-  std::string rerun;
-  CLI::App* command = app.add_subcommand("command", "a shell script that writes the file's scene text to a scene file "
-                                                    "and runs bench_integrators with exactly the settings of RUN");
-  command->add_option("run", rerun, "run id (clothbench_inspect FILE runs)")->required();
-  command->add_option("--dir", reproduce.dir, "folder for the scene file and the result (default rerun-RUN)");
-  command->add_option("--bench", reproduce.bench,
-                      "bench_integrators to call (default: the one next to this executable)");
-  std::string rerun_id, rerun_out;
-  CLI::App* rerun_app = app.add_subcommand(
+  CLI::App *summary = nullptr, *table = nullptr, *runs = nullptr, *diff = nullptr, *exp = nullptr, *wp = nullptr,
+           *command = nullptr, *rerun_app = nullptr;
+};
+
+void AddSubcommands(CLI::App& app, Args* a) {
+  app.require_subcommand(1);
+  app.add_option("file", a->file, "result file (.h5)")->required();
+  a->summary = app.add_subcommand("summary", "scene, machine, commit, and each run with status and counts");
+  a->table = app.add_subcommand("table", "the table bench_integrators printed, from the file alone");
+  a->runs = app.add_subcommand("runs", "one line per run");
+  a->runs->add_flag("--json", a->json, "every attribute of every run as a JSON array");
+  a->diff = app.add_subcommand("diff", "per run, the change in e_rms, steps, updates, CG iterations and solver "
+                                       "time against a second file; exit 1 if a change is flagged");
+  a->diff->add_option("other", a->other, "the second result file (B)")->required();
+  a->diff->add_option("--rtol", a->rtol,
+                      "flag relative e_rms changes above this (default 1e-6: runs are deterministic, so a rebuild of "
+                      "the same code gives the same e_rms to the last bits; changed summation order moves it by ~1e-12)");
+  a->diff->add_option("--time-tolerance", a->time_tolerance,
+                      "flag solver-time ratios B/A outside [1/(1+T), 1+T] (default 0.5: repeated runs on a shared "
+                      "2-core VM differ by up to ~30 %)");
+  a->exp = app.add_subcommand("export", "one stored frame of a run as a mesh (OBJ or PLY, quads)");
+  a->exp->add_option("run", a->run, "run id (clothbench_inspect FILE runs) or \"reference\"")->required();
+  a->exp->add_option("--frame", a->frame, "index of the stored frame (default 0)");
+  CLI::Option* o_obj = a->exp->add_option("--obj", a->obj, "write Wavefront OBJ");
+  CLI::Option* o_ply = a->exp->add_option("--ply", a->ply, "write ASCII PLY");
+  o_obj->excludes(o_ply);
+  a->wp = app.add_subcommand("work-precision", "the equal-accuracy table, from the stored runs under an error "
+                                               "norm of choice (same targets and baseline)");
+  a->wp->add_option("--error-metric", a->metric, "final | l2 | max (default: the file's)");
+  a->command = app.add_subcommand("command", "a shell script that writes the file's scene text to a scene file "
+                                             "and runs bench_integrators with exactly the settings of RUN");
+  a->command->add_option("run", a->rerun, "run id (clothbench_inspect FILE runs)")->required();
+  a->command->add_option("--dir", a->reproduce.dir, "folder for the scene file and the result (default rerun-RUN)");
+  a->command->add_option("--bench", a->reproduce.bench,
+                         "bench_integrators to call (default: the one next to this executable)");
+  a->rerun_app = app.add_subcommand(
       "rerun", "recompute RUN in-process from the file's scene text and stored settings (validated as a run request), "
                "with its thread count, and compare its end state with the stored one bit for bit; exit 1 if it differs");
-  rerun_app->add_option("run", rerun_id, "run id (clothbench_inspect FILE runs)")->required();
-  rerun_app->add_option("--out", rerun_out, "also write the recomputed run as the only run of this result file");
+  a->rerun_app->add_option("run", a->rerun, "run id (clothbench_inspect FILE runs)")->required();
+  a->rerun_app->add_option("--out", a->rerun_out, "also write the recomputed run as the only run of this result file");
+}
+
+// `work-precision`: the equal-accuracy table under the chosen error norm.
+void PrintWorkPrecisionAs(const RunTable& t, const std::string& file, std::string metric) {
+  if (!t.work_precision)
+    throw UsageError(fmt::format("work-precision: {} has no /work_precision (written with --reference none)", file));
+  if (metric.empty()) metric = t.error_metric;
+  if (metric != "final" && metric != "l2" && metric != "max")
+    throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", metric));
+  std::vector<const RunRecord*> records;
+  for (const RunRecord& r : t.runs) records.push_back(&r);
+  fmt::print("# {}: written {} by commit {}; errors: {}\n", file, t.created, t.git_commit, metric);
+  PrintWorkPrecision(stdout, WorkPrecisionOf(records, t.work_precision->targets, t.work_precision->reference, metric));
+}
+
+// `command`: the script; bench_integrators next to this executable unless --bench names one.
+void PrintCommand(const ResultReader& f, const RunTable& t, const Args& a) {
+  ReproduceOptions reproduce = a.reproduce;
+  if (reproduce.dir.empty()) reproduce.dir = "rerun-" + a.rerun;
+  if (a.command->count("--bench") == 0) {
+    std::error_code ec;
+    const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) reproduce.bench = (self.parent_path() / "bench_integrators").string();
+  }
+  try {
+    fmt::print("{}", ReproduceScript(f, t, a.rerun, reproduce));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+}
+
+// The chosen subcommand on the file, read whole first in a child process (a
+// damaged file that crashes the HDF5 library is refused, exit 2, instead
+// of taking this process down). @return the exit code
+int RunSubcommand(const Args& a) {
+  if (!(a.rtol >= 0.0) || !(a.time_tolerance >= 0.0))
+    throw UsageError("diff: --rtol and --time-tolerance must be non-negative numbers");
+  CheckReadableInChild(a.file);
+  if (a.diff->parsed()) CheckReadableInChild(a.other);
+  const ResultReader f(a.file);
+  ValidateResultFile(f);
+  const RunTable t = ReadRunTable(f);
+  if (a.summary->parsed()) {
+    PrintSummary(f, t);
+  } else if (a.table->parsed()) {
+    if (t.runs.empty() && !f.Exists("/runs"))
+      throw UsageError(fmt::format("table: {} has no /runs (not a bench_integrators run table)", a.file));
+    fmt::print("# {}: written {} by commit {}\n", a.file, t.created, t.git_commit);
+    PrintRunTable(stdout, t);
+    if (t.work_precision) PrintWorkPrecision(stdout, *t.work_precision);
+  } else if (a.runs->parsed()) {
+    PrintRuns(f, t, a.json);
+  } else if (a.diff->parsed()) {
+    const ResultReader g(a.other);
+    ValidateResultFile(g);
+    return Diff(t, ReadRunTable(g), a.other, a.rtol, a.time_tolerance);
+  } else if (a.exp->parsed()) {
+    Export(f, a.run, a.frame, a.obj, a.ply);
+  } else if (a.wp->parsed()) {
+    PrintWorkPrecisionAs(t, a.file, a.metric);
+  } else if (a.rerun_app->parsed()) {
+    return Rerun(f, t, a.rerun, a.rerun_out);
+  } else if (a.command->parsed()) {
+    PrintCommand(f, t, a);
+  }
+  return 0;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"clothbench_inspect: print, compare and export bench_integrators result files (HDF5)"};
+  Args a;
+  AddSubcommands(app, &a);
   try {
     app.parse(argc, argv);
-    if (exp->parsed() && obj.empty() && ply.empty()) throw CLI::ValidationError("export: one of --obj or --ply is required");
+    if (a.exp->parsed() && a.obj.empty() && a.ply.empty())
+      throw CLI::ValidationError("export: one of --obj or --ply is required");
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     fmt::print(stderr, "clothbench_inspect: {}\n", e.what());
     return 2;
   }
+  const std::string& file = a.file;
   try {
-    if (!(rtol >= 0.0) || !(time_tolerance >= 0.0))
-      throw UsageError("diff: --rtol and --time-tolerance must be non-negative numbers");
-    // Read whole once in a child process: a damaged file that crashes the
-    // HDF5 library is refused (exit 2) instead of taking this process down.
-    CheckReadableInChild(file);
-    if (diff->parsed()) CheckReadableInChild(other);
-    const ResultReader f(file);
-    ValidateResultFile(f);
-    const RunTable t = ReadRunTable(f);
-    if (app.got_subcommand("summary")) {
-      PrintSummary(f, t);
-    } else if (app.got_subcommand("table")) {
-      if (t.runs.empty() && !f.Exists("/runs"))
-        throw UsageError(fmt::format("table: {} has no /runs (not a bench_integrators run table)", file));
-      fmt::print("# {}: written {} by commit {}\n", file, t.created, t.git_commit);
-      PrintRunTable(stdout, t);
-      if (t.work_precision) PrintWorkPrecision(stdout, *t.work_precision);
-    } else if (runs->parsed()) {
-      PrintRuns(f, t, json);
-    } else if (diff->parsed()) {
-      const ResultReader g(other);
-      ValidateResultFile(g);
-      return Diff(t, ReadRunTable(g), other, rtol, time_tolerance);
-    } else if (exp->parsed()) {
-      Export(f, run, frame, obj, ply);
-    } else if (wp->parsed()) {
-      if (!t.work_precision)
-        throw UsageError(fmt::format("work-precision: {} has no /work_precision (written with --reference none)", file));
-      if (metric.empty()) metric = t.error_metric;
-      if (metric != "final" && metric != "l2" && metric != "max")
-        throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", metric));
-      std::vector<const RunRecord*> records;
-      for (const RunRecord& r : t.runs) records.push_back(&r);
-      fmt::print("# {}: written {} by commit {}; errors: {}\n", file, t.created, t.git_commit, metric);
-      PrintWorkPrecision(stdout, WorkPrecisionOf(records, t.work_precision->targets, t.work_precision->reference, metric));
-    } else if (rerun_app->parsed()) {
-      return Rerun(f, t, rerun_id, rerun_out);
-    } else if (command->parsed()) {
-      if (reproduce.dir.empty()) reproduce.dir = "rerun-" + rerun;
-      if (command->count("--bench") == 0) {
-        std::error_code ec;
-        const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
-        if (!ec) reproduce.bench = (self.parent_path() / "bench_integrators").string();
-      }
-      try {
-        fmt::print("{}", ReproduceScript(f, t, rerun, reproduce));
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(e.what());
-      }
-    }
-    return 0;
+    return RunSubcommand(a);
   } catch (const UsageError& e) {
     fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
     return 2;

@@ -52,131 +52,160 @@ std::string RunRequest::Field(std::string_view field) const {
   return std::string(field);
 }
 
-ResolvedRun RunRequest::Resolve() const {
-  const auto fail = [this](std::string_view field, const std::string& rule) {
-    return UsageError(fmt::format("{}: {}", Field(field), rule));
-  };
-  ResolvedRun out;
-  out.scene = scene;
-  Scene& s = out.scene;
-  if (t_end) {
-    if (!std::isfinite(*t_end) || !(*t_end > 0.0) || *t_end > 1e6)
-      throw fail("t_end", fmt::format("{:g} s must be a number in (0, 1e6]", *t_end));
-    s.t_end = *t_end;
-    s.frame_dt = std::min(s.frame_dt, s.t_end);
-    s.h = std::min(s.h, s.t_end);
+namespace {
+
+UsageError Fail(const RunRequest& q, std::string_view field, const std::string& rule) {
+  return UsageError(fmt::format("{}: {}", q.Field(field), rule));
+}
+
+// t_end (and with it frame_dt and h) and the frames mode.
+void ApplyTimes(const RunRequest& q, Scene* s) {
+  if (q.t_end) {
+    if (!std::isfinite(*q.t_end) || !(*q.t_end > 0.0) || *q.t_end > 1e6)
+      throw Fail(q, "t_end", fmt::format("{:g} s must be a number in (0, 1e6]", *q.t_end));
+    s->t_end = *q.t_end;
+    s->frame_dt = std::min(s->frame_dt, s->t_end);
+    s->h = std::min(s->h, s->t_end);
   }
   try {
-    CheckRunLength(s, Field("t_end"));
+    CheckRunLength(*s, q.Field("t_end"));
   } catch (const SceneError& e) {
     throw UsageError(e.what());
   }
   static const char* const kFrames[] = {"default", "all", "positions", "ends", "none"};
-  if (std::find(std::begin(kFrames), std::end(kFrames), frames) == std::end(kFrames))
-    throw fail("frames", fmt::format("\"{}\" must be default, all, positions, ends or none", EscapeControl(frames)));
-  if (frames == "ends" || frames == "none") s.frame_dt = s.t_end;
+  if (std::find(std::begin(kFrames), std::end(kFrames), q.frames) == std::end(kFrames))
+    throw Fail(q, "frames", fmt::format("\"{}\" must be default, all, positions, ends or none", EscapeControl(q.frames)));
+  if (q.frames == "ends" || q.frames == "none") s->frame_dt = s->t_end;
+}
 
+// The one registry row the method names, on the scene's step control.
+RowMethod ResolveRow(const RunRequest& q, const Scene& s) {
   std::vector<RowMethod> rows;
   try {
-    rows = ExpandMethods({method}, {s.solver.nonlinear_solver}, Field("method"));
-    AdoptSceneStepControl(s.solver, &rows, /*named=*/true, Field("method"));
+    rows = ExpandMethods({q.method}, {s.solver.nonlinear_solver}, q.Field("method"));
+    AdoptSceneStepControl(s.solver, &rows, /*named=*/true, q.Field("method"));
   } catch (const std::invalid_argument& e) {
     throw UsageError(EscapeControl(e.what()));
   }
   if (rows.size() != 1)
-    throw fail("method", fmt::format("\"{}\" names {} rows; name one", EscapeControl(method), rows.size()));
-  out.row = rows.front();
-  const RowMethod& m = out.row;
+    throw Fail(q, "method", fmt::format("\"{}\" names {} rows; name one", EscapeControl(q.method), rows.size()));
+  return rows.front();
+}
+
+// h, rtol and substeps, each only where the row reads it.
+void ResolveStep(const RunRequest& q, ResolvedRun* out) {
+  const RowMethod& m = out->row;
+  const Scene& s = out->scene;
   const std::string label = m.label();
-  const bool adaptive = m.kind() == StepKind::kAdaptive;
-
-  // h, rtol, substeps: each only where the row reads it.
-  if (adaptive) {
-    if (h) throw fail("h", fmt::format("{} is adaptive: it reads rtol, not h", label));
+  if (m.kind() == StepKind::kAdaptive) {
+    if (q.h) throw Fail(q, "h", fmt::format("{} is adaptive: it reads rtol, not h", label));
     double r = 0.0;
-    if (rtol) r = *rtol;
+    if (q.rtol) r = *q.rtol;
     else if (m.error_control && s.solver.step_control == StepControl::kError) r = s.solver.rtol;
-    else throw fail("rtol", fmt::format("{} is adaptive: give rtol", label));
-    CheckTolerance(r, Field("rtol"));
-    out.param = r;
+    else throw Fail(q, "rtol", fmt::format("{} is adaptive: give rtol", label));
+    CheckTolerance(r, q.Field("rtol"));
+    out->param = r;
   } else {
-    if (rtol) throw fail("rtol", fmt::format("{} steps with h: it reads h, not rtol", label));
-    if (!h) throw fail("h", fmt::format("{} steps with h: give h [s]", label));
-    if (!std::isfinite(*h) || !(*h > 0.0)) throw fail("h", fmt::format("{:g} s is not a positive number", *h));
-    if (*h > s.t_end) throw fail("h", fmt::format("{:g} s is larger than t_end = {:g} s", *h, s.t_end));
-    out.param = *h;
+    if (q.rtol) throw Fail(q, "rtol", fmt::format("{} steps with h: it reads h, not rtol", label));
+    if (!q.h) throw Fail(q, "h", fmt::format("{} steps with h: give h [s]", label));
+    if (!std::isfinite(*q.h) || !(*q.h > 0.0)) throw Fail(q, "h", fmt::format("{:g} s is not a positive number", *q.h));
+    if (*q.h > s.t_end) throw Fail(q, "h", fmt::format("{:g} s is larger than t_end = {:g} s", *q.h, s.t_end));
+    out->param = *q.h;
   }
-  if (substeps) {
+  if (q.substeps) {
     if (m.kind() != StepKind::kSubstepped)
-      throw fail("substeps", fmt::format("{} is not substepped (substepped rows: {})", label, RowsOfKind(StepKind::kSubstepped)));
-    if (*substeps < 1 || *substeps > 1000000)
-      throw fail("substeps", fmt::format("{} must be a whole number from 1 to 1e6", *substeps));
-    out.substeps = static_cast<int>(*substeps);
+      throw Fail(q, "substeps",
+                 fmt::format("{} is not substepped (substepped rows: {})", label, RowsOfKind(StepKind::kSubstepped)));
+    if (*q.substeps < 1 || *q.substeps > 1000000)
+      throw Fail(q, "substeps", fmt::format("{} must be a whole number from 1 to 1e6", *q.substeps));
+    out->substeps = static_cast<int>(*q.substeps);
   }
-  if (!adaptive && s.t_end / (out.param / out.substeps) > kMaxStepsPerRun)
-    throw fail("h", fmt::format("t_end/h = {:g}/{:g} = {:.3g} steps exceeds the limit of {:g}", s.t_end,
-                                out.param / out.substeps, s.t_end / (out.param / out.substeps), kMaxStepsPerRun));
+  const double step = out->param / out->substeps;
+  if (m.kind() != StepKind::kAdaptive && s.t_end / step > kMaxStepsPerRun)
+    throw Fail(q, "h", fmt::format("t_end/h = {:g}/{:g} = {:.3g} steps exceeds the limit of {:g}", s.t_end, step,
+                                   s.t_end / step, kMaxStepsPerRun));
+}
 
-  // Solver options: each only where the row reads it.
-  if (cg_tolerance) {
-    if (!m.uses_pcg()) throw fail("cg_tolerance", fmt::format("{} does not solve with the PCG", label));
-    if (!(*cg_tolerance > 0.0 && *cg_tolerance < 1.0))
-      throw fail("cg_tolerance", fmt::format("{:g} must be in (0, 1)", *cg_tolerance));
-    s.solver.cg_tolerance = *cg_tolerance;
-    out.ctx.cg_tolerance_from_cli = true;
+// The solver options, each only where the row reads it, into the scene's
+// solver settings and the run's context.
+void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
+  const RowMethod& m = out->row;
+  SolverSpec& solver = out->scene.solver;
+  const std::string label = m.label();
+  if (q.cg_tolerance) {
+    if (!m.uses_pcg()) throw Fail(q, "cg_tolerance", fmt::format("{} does not solve with the PCG", label));
+    if (!(*q.cg_tolerance > 0.0 && *q.cg_tolerance < 1.0))
+      throw Fail(q, "cg_tolerance", fmt::format("{:g} must be in (0, 1)", *q.cg_tolerance));
+    solver.cg_tolerance = *q.cg_tolerance;
+    out->ctx.cg_tolerance_from_cli = true;
   }
-  if (preconditioner) {
-    if (!m.uses_pcg()) throw fail("preconditioner", fmt::format("{} does not solve with the PCG", label));
-    s.solver.preconditioner = ParsePreconditioner(EscapeControl(*preconditioner), Field("preconditioner"));
-    out.ctx.preconditioner_from_cli = true;
+  if (q.preconditioner) {
+    if (!m.uses_pcg()) throw Fail(q, "preconditioner", fmt::format("{} does not solve with the PCG", label));
+    solver.preconditioner = ParsePreconditioner(EscapeControl(*q.preconditioner), q.Field("preconditioner"));
+    out->ctx.preconditioner_from_cli = true;
   }
-  if (tangent_terms) {
+  if (q.tangent_terms) {
     if (!m.builds_tangent())
-      throw fail("tangent_terms", fmt::format("{} does not build J_alpha (rows that do: Newton rows, {})", label,
-                                              RowsThat(&MethodEntry::tangent)));
-    if (*tangent_terms != "all" && *tangent_terms != "tension")
-      throw fail("tangent_terms", fmt::format("\"{}\" must be all or tension", EscapeControl(*tangent_terms)));
-    s.solver.tangent_explicit_terms = *tangent_terms == "all";
-    out.ctx.tangent_terms_from_cli = true;
+      throw Fail(q, "tangent_terms", fmt::format("{} does not build J_alpha (rows that do: Newton rows, {})", label,
+                                                 RowsThat(&MethodEntry::tangent)));
+    if (*q.tangent_terms != "all" && *q.tangent_terms != "tension")
+      throw Fail(q, "tangent_terms", fmt::format("\"{}\" must be all or tension", EscapeControl(*q.tangent_terms)));
+    solver.tangent_explicit_terms = *q.tangent_terms == "all";
+    out->ctx.tangent_terms_from_cli = true;
   }
-  if (arkode_table) {
+  if (q.arkode_table) {
     if (!m.reads_arkode_table())
-      throw fail("arkode_table", fmt::format("{} does not read it (arkode rows without a variant do)", label));
+      throw Fail(q, "arkode_table", fmt::format("{} does not read it (arkode rows without a variant do)", label));
     const auto& tables = ArkodeTableNames();
-    if (std::find(tables.begin(), tables.end(), *arkode_table) == tables.end()) {
+    if (std::find(tables.begin(), tables.end(), *q.arkode_table) == tables.end()) {
       std::string known;
       for (const std::string& t : tables) known += (known.empty() ? "" : ", ") + t;
-      throw fail("arkode_table", fmt::format("\"{}\" must be one of {}", EscapeControl(*arkode_table), known));
+      throw Fail(q, "arkode_table", fmt::format("\"{}\" must be one of {}", EscapeControl(*q.arkode_table), known));
     }
-    out.ctx.arkode_table = *arkode_table;
+    out->ctx.arkode_table = *q.arkode_table;
   }
-  if (cvode_setting) {
+  if (q.cvode_setting) {
     if (!m.entry->cvode_settings)
-      throw fail("cvode_setting", fmt::format("{} does not read it ({} rows do)", label, RowsThat(&MethodEntry::cvode_settings)));
-    if (!cvode_setting->empty())
-      for (const std::string& kv : SplitList(*cvode_setting, Field("cvode_setting"))) {
+      throw Fail(q, "cvode_setting",
+                 fmt::format("{} does not read it ({} rows do)", label, RowsThat(&MethodEntry::cvode_settings)));
+    if (!q.cvode_setting->empty())
+      for (const std::string& kv : SplitList(*q.cvode_setting, q.Field("cvode_setting"))) {
         const std::size_t eq = kv.find('=');
         std::string why;
-        if (eq == std::string::npos || !out.ctx.cvode.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
-          throw fail("cvode_setting",
-                     EscapeControl(why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
+        if (eq == std::string::npos || !out->ctx.cvode.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
+          throw Fail(q, "cvode_setting", EscapeControl(why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
       }
   }
+}
 
-  // Limits.
-  if (threads < 0 || threads > kMaxThreads)
-    throw fail("threads", fmt::format("{} must be 0 (the process' own) or from 1 to {}", threads, kMaxThreads));
-  if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
-    throw fail("time_limit", fmt::format("{:g} s must be a number in (0, 1e7]", time_limit));
-  out.ctx.limits.time_limit_s = time_limit;
-  if (repeat && (*repeat < 1 || *repeat > 1000))
-    throw fail("repeat", fmt::format("{} must be a whole number from 1 to 1000", *repeat));
-  if (!std::isfinite(time_budget) || !(time_budget >= 0.0) || time_budget > 1e6)
-    throw fail("time_budget", fmt::format("{:g} s must be a number in [0, 1e6]", time_budget));
-  if (reference_scene && *reference_scene != SceneHash(s))
-    throw fail("reference", "was computed on another scene, t_end or frame spacing than this run's (scene hash " +
-                                EscapeControl(*reference_scene) + ", this run's " + SceneHash(s) + ")");
-  out.spec = s.solver;
+// Threads, time limit, repetitions and the reference's scene.
+void CheckLimits(const RunRequest& q, ResolvedRun* out) {
+  if (q.threads < 0 || q.threads > kMaxThreads)
+    throw Fail(q, "threads", fmt::format("{} must be 0 (the process' own) or from 1 to {}", q.threads, kMaxThreads));
+  if (!std::isfinite(q.time_limit) || !(q.time_limit > 0.0) || q.time_limit > 1e7)
+    throw Fail(q, "time_limit", fmt::format("{:g} s must be a number in (0, 1e7]", q.time_limit));
+  out->ctx.limits.time_limit_s = q.time_limit;
+  if (q.repeat && (*q.repeat < 1 || *q.repeat > 1000))
+    throw Fail(q, "repeat", fmt::format("{} must be a whole number from 1 to 1000", *q.repeat));
+  if (!std::isfinite(q.time_budget) || !(q.time_budget >= 0.0) || q.time_budget > 1e6)
+    throw Fail(q, "time_budget", fmt::format("{:g} s must be a number in [0, 1e6]", q.time_budget));
+  if (q.reference_scene && *q.reference_scene != SceneHash(out->scene))
+    throw Fail(q, "reference",
+               "was computed on another scene, t_end or frame spacing than this run's (scene hash " +
+                   EscapeControl(*q.reference_scene) + ", this run's " + SceneHash(out->scene) + ")");
+}
+
+}  // namespace
+
+ResolvedRun RunRequest::Resolve() const {
+  ResolvedRun out;
+  out.scene = scene;
+  ApplyTimes(*this, &out.scene);
+  out.row = ResolveRow(*this, out.scene);
+  ResolveStep(*this, &out);
+  ApplyOptions(*this, &out);
+  CheckLimits(*this, &out);
+  out.spec = out.scene.solver;
   return out;
 }
 
