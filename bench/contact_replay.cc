@@ -182,38 +182,154 @@ int Fail(const std::string& line) {
   return 2;
 }
 
+// The command line of both subcommands.
+struct Args {
+  std::string scene, integrator = std::string(ToString(Method::kSbdf2)), preconditioner, frames, prefix, state;
+  std::vector<double> at;
+  int steps = 0;
+  Preconditioner::AmgDiagnostics diagnostics;
+  CLI::App *save = nullptr, *replay = nullptr;
+  CLI::App* chosen() const { return save->parsed() ? save : replay; }
+};
+
+void AddOptions(CLI::App& app, Args* a) {
+  app.require_subcommand(1);
+  a->save = app.add_subcommand("save", "run the scene from rest and save its state at --at times");
+  a->replay = app.add_subcommand("replay", "take --steps steps from a saved state");
+  for (CLI::App* sub : {a->save, a->replay}) {
+    sub->add_option("--scene", a->scene, "scene file or built-in scene name")->required();
+    sub->add_option("--integrator", a->integrator, "a thesis integrator (default sbdf2)");
+    sub->add_option("--preconditioner", a->preconditioner, "override the scene's preconditioner");
+    sub->add_option("--amg-frames", a->frames, "override the scene's amg_frames (adaptive, nearest_axis, spread)");
+    sub->add_flag("--cycle-factor", a->diagnostics.cycle_factor,
+                  "measure each prefiltered AMG setup's V-cycle factor (40 cycles on K e = 0)");
+    sub->add_flag("--axis-normals", a->diagnostics.axis_normals,
+                  "diagnostic: build the prefiltered hierarchy for the contact normals rounded to their nearest "
+                  "axis (not the system the PCG solves)");
+    sub->add_flag("--frames-only", a->diagnostics.frames_only,
+                  "diagnostic: build the prefiltered hierarchy for A_alpha without constraints in the contact frames "
+                  "(not the system the PCG solves)");
+  }
+  a->save->add_option("--at", a->at, "times [s], within (0, t_end]")->required()->delimiter(',');
+  a->save->add_option("--out", a->prefix, "output prefix: PREFIX_<k>.state")->required();
+  a->replay->add_option("--state", a->state, "a state file written by save")->required();
+  a->replay->add_option("--steps", a->steps, "steps to take")->required()->check(CLI::Range(1, 1000000));
+}
+
+// The scene and the row, validated as every entry point validates a run
+// (harness/run_request.h): a thesis integrator's row (StepEngine) at the
+// scene's h. @throws UsageError or SceneError, one line
+ResolvedRun ResolveRun(const Args& a) {
+  Scene scene = LoadSceneOrBuiltin(a.scene);
+  if (a.chosen()->count("--amg-frames")) scene.solver.amg_frames = ParseAmgFrames(a.frames, "--amg-frames");
+  std::vector<RowMethod> rows;
+  try {
+    rows = ExpandMethods({a.integrator}, {scene.solver.nonlinear_solver}, "--integrator");
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  const std::optional<Method> engine_method = MethodFromString(rows.front().name());
+  if (rows.size() != 1 || rows.front().entry->layer != "solver" || rows.front().kind() != StepKind::kFixedStep ||
+      !engine_method || *engine_method == Method::kSymplecticEuler)
+    throw UsageError(fmt::format("--integrator {}: not one of imex_euler, implicit_euler, sbdf2, bdf2, "
+                                 "implicit_midpoint, sbdf3 (with /newton or /fixed_point where they take one)",
+                                 EscapeControl(a.integrator)));
+  RunRequest q;
+  q.scene = scene;
+  q.method = a.integrator;
+  q.h = scene.h;
+  if (a.chosen()->count("--preconditioner")) q.preconditioner = a.preconditioner;
+  q.names = FieldNames::kOption;
+  q.renamed = {{"method", "--integrator"}, {"h", "--scene's h"}};
+  return q.Resolve();
+}
+
+// One step to t_next, printed. @return false (after one line on stderr) if it failed
+bool StepTo(StepEngine& engine, double h, double t_next) {
+  const ContactFactorStats before = engine.system_matrix().preconditioner().contact_stats();
+  const StepStats st = engine.Step(h);
+  if (st.status != StepStatus::kOk) {
+    std::fprintf(stderr, "contact_replay: the step to t = %.4f s failed (%s)\n", t_next,
+                 std::string(ToString(st.status)).c_str());
+    return false;
+  }
+  engine.SetTime(t_next);
+  PrintStep(engine, st, before);
+  return true;
+}
+
+// `save`'s outputs, locked before the run (the locks held to the exit).
+struct SaveOutputs {
+  std::vector<std::string> paths;
+  std::vector<std::unique_ptr<OutputLock>> locks;
+};
+
+// Checks the --at times and locks each output. @throws UsageError
+SaveOutputs PrepareSave(const Args& a, const Scene& scene) {
+  SaveOutputs out;
+  for (std::size_t k = 0; k < a.at.size(); ++k) {
+    if (!(a.at[k] > 0.0 && a.at[k] <= scene.t_end) || (k > 0 && a.at[k] <= a.at[k - 1]))
+      throw UsageError(fmt::format("--at {}: times must increase within (0, t_end = {}]", a.at[k], scene.t_end));
+    out.paths.push_back(fmt::format("{}_{}.state", a.prefix, k));
+    out.locks.push_back(std::make_unique<OutputLock>(out.paths.back(), /*journal_folder=*/false, "--out"));
+  }
+  return out;
+}
+
+// Reads the saved state and checks that --steps end by t_end. @throws UsageError
+State PrepareReplay(const Args& a, const ParticleSystem& system) {
+  const Scene& scene = system.scene();
+  std::string why;
+  const std::optional<State> start = ReadState(a.state, scene, system.num_particles(), &why);
+  if (!start) throw UsageError(fmt::format("--state {}: {}", EscapeControl(a.state), why));
+  if (start->t + a.steps * scene.h > scene.t_end * (1.0 + 1e-12))
+    throw UsageError(fmt::format("--steps {}: from t = {} s with h = {} s they end past t_end = {} s", a.steps,
+                                 start->t, scene.h, scene.t_end));
+  return *start;
+}
+
+// `save`: the run from rest, a state written after the step that reaches
+// each time. @return the exit code
+int Save(const Args& a, const ParticleSystem& system, const SaveOutputs& outputs, StepEngine& engine) {
+  const Scene& scene = system.scene();
+  const double h = scene.h;
+  PrintHeader();
+  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  std::size_t next = 0;
+  for (long k = 1; next < a.at.size(); ++k) {
+    const double t_next = static_cast<double>(k) * h;
+    if (!StepTo(engine, h, t_next)) return 1;
+    if (t_next < a.at[next] - 1e-9 * h) continue;
+    try {
+      WriteFileAtomically(outputs.paths[next], EncodeState(scene, State{engine.t(), engine.x(), engine.v()}), "--out");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "contact_replay: %s\n", EscapeControl(e.what()).c_str());
+      return 1;
+    }
+    fmt::print("# saved t = {:.4f} s to {}\n", engine.t(), outputs.paths[next]);
+    ++next;
+  }
+  return 0;
+}
+
+// `replay`: --steps steps from the saved state. @return the exit code
+int Replay(const Args& a, const ParticleSystem& system, const State& start, StepEngine& engine) {
+  const double h = system.scene().h;
+  PrintHeader();
+  engine.Reset(start.t, start.x, start.v);
+  for (int k = 1; k <= a.steps; ++k)
+    if (!StepTo(engine, h, start.t + k * h)) return 1;
+  return 0;
+}
+
 }  // namespace
 }  // namespace clothbench
 
 int main(int argc, char** argv) {
   using namespace clothbench;
   CLI::App app{"contact_replay: save a scene's state at given times, take steps from a saved state"};
-  app.require_subcommand(1);
-  std::string scene_arg, integrator = std::string(ToString(Method::kSbdf2)), preconditioner, frames, prefix, state_path;
-  std::vector<double> at;
-  int steps = 0;
-  Preconditioner::AmgDiagnostics diagnostics;
-  for (CLI::App* sub : {app.add_subcommand("save", "run the scene from rest and save its state at --at times"),
-                        app.add_subcommand("replay", "take --steps steps from a saved state")}) {
-    sub->add_option("--scene", scene_arg, "scene file or built-in scene name")->required();
-    sub->add_option("--integrator", integrator, "a thesis integrator (default sbdf2)");
-    sub->add_option("--preconditioner", preconditioner, "override the scene's preconditioner");
-    sub->add_option("--amg-frames", frames, "override the scene's amg_frames (adaptive, nearest_axis, spread)");
-    sub->add_flag("--cycle-factor", diagnostics.cycle_factor,
-                  "measure each prefiltered AMG setup's V-cycle factor (40 cycles on K e = 0)");
-    sub->add_flag("--axis-normals", diagnostics.axis_normals,
-                  "diagnostic: build the prefiltered hierarchy for the contact normals rounded to their nearest "
-                  "axis (not the system the PCG solves)");
-    sub->add_flag("--frames-only", diagnostics.frames_only,
-                  "diagnostic: build the prefiltered hierarchy for A_alpha without constraints in the contact frames "
-                  "(not the system the PCG solves)");
-  }
-  CLI::App* save = app.get_subcommand("save");
-  CLI::App* replay = app.get_subcommand("replay");
-  save->add_option("--at", at, "times [s], within (0, t_end]")->required()->delimiter(',');
-  save->add_option("--out", prefix, "output prefix: PREFIX_<k>.state")->required();
-  replay->add_option("--state", state_path, "a state file written by save")->required();
-  replay->add_option("--steps", steps, "steps to take")->required()->check(CLI::Range(1, 1000000));
+  Args a;
+  AddOptions(app, &a);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -221,106 +337,25 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return Fail(e.what());
   }
-
-  Scene scene;
   ResolvedRun run;
   try {
-    scene = LoadSceneOrBuiltin(scene_arg);
-    CLI::App* sub = save->parsed() ? save : replay;
-    if (sub->count("--amg-frames")) scene.solver.amg_frames = ParseAmgFrames(frames, "--amg-frames");
-    // A row this command steps: a thesis integrator's (StepEngine).
-    std::vector<RowMethod> rows;
-    try {
-      rows = ExpandMethods({integrator}, {scene.solver.nonlinear_solver}, "--integrator");
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
-    const std::optional<Method> engine_method = MethodFromString(rows.front().name());
-    if (rows.size() != 1 || rows.front().entry->layer != "solver" || rows.front().kind() != StepKind::kFixedStep ||
-        !engine_method || *engine_method == Method::kSymplecticEuler)
-      throw UsageError(fmt::format("--integrator {}: not one of imex_euler, implicit_euler, sbdf2, bdf2, "
-                                   "implicit_midpoint, sbdf3 (with /newton or /fixed_point where they take one)",
-                                   EscapeControl(integrator)));
-    // The step, row and preconditioner as every entry point validates them.
-    RunRequest q;
-    q.scene = scene;
-    q.method = integrator;
-    q.h = scene.h;
-    if (sub->count("--preconditioner")) q.preconditioner = preconditioner;
-    q.names = FieldNames::kOption;
-    q.renamed = {{"method", "--integrator"}, {"h", "--scene's h"}};
-    run = q.Resolve();
+    run = ResolveRun(a);
   } catch (const SceneError& e) {
     return Fail(e.what());
   } catch (const std::invalid_argument& e) {  // UsageError
     return Fail(e.what());
   }
-  const RowMethod& row = run.row;
-  const std::optional<Method> parsed = MethodFromString(row.name());
-  scene = run.scene;
-  const ParticleSystem system(scene);
-  const double h = scene.h;
-
-  std::vector<std::string> outputs;
-  std::vector<std::unique_ptr<OutputLock>> locks;  // held from before the run to the exit
-  std::optional<State> start;
+  const ParticleSystem system(run.scene);
+  // Everything that can be refused is, before the engine is built.
+  SaveOutputs outputs;
+  State start;
   try {
-    if (save->parsed()) {
-      for (std::size_t k = 0; k < at.size(); ++k) {
-        if (!(at[k] > 0.0 && at[k] <= scene.t_end) || (k > 0 && at[k] <= at[k - 1]))
-          return Fail(fmt::format("--at {}: times must increase within (0, t_end = {}]", at[k], scene.t_end));
-        outputs.push_back(fmt::format("{}_{}.state", prefix, k));
-        locks.push_back(std::make_unique<OutputLock>(outputs.back(), /*journal_folder=*/false, "--out"));
-      }
-    } else {
-      std::string why;
-      start = ReadState(state_path, scene, system.num_particles(), &why);
-      if (!start) return Fail(fmt::format("--state {}: {}", EscapeControl(state_path), why));
-      if (start->t + steps * h > scene.t_end * (1.0 + 1e-12))
-        return Fail(fmt::format("--steps {}: from t = {} s with h = {} s they end past t_end = {} s", steps, start->t,
-                                h, scene.t_end));
-    }
+    if (a.save->parsed()) outputs = PrepareSave(a, system.scene());
+    else start = PrepareReplay(a, system);
   } catch (const UsageError& e) {
     return Fail(e.what());
   }
-
-  StepEngine engine(system, *parsed, row.Settings(run.spec));
-  engine.set_amg_diagnostics(diagnostics);
-  PrintHeader();
-  // One step to t_next, printed; false (after one line on stderr) if it failed.
-  const auto step = [&](double t_next) {
-    const ContactFactorStats before = engine.system_matrix().preconditioner().contact_stats();
-    const StepStats st = engine.Step(h);
-    if (st.status != StepStatus::kOk) {
-      std::fprintf(stderr, "contact_replay: the step to t = %.4f s failed (%s)\n", t_next,
-                   std::string(ToString(st.status)).c_str());
-      return false;
-    }
-    engine.SetTime(t_next);
-    PrintStep(engine, st, before);
-    return true;
-  };
-  if (start) {
-    engine.Reset(start->t, start->x, start->v);
-    for (int k = 1; k <= steps; ++k)
-      if (!step(start->t + k * h)) return 1;
-    return 0;
-  }
-  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
-  std::size_t next = 0;
-  for (long k = 1; next < at.size(); ++k) {
-    const double t_next = static_cast<double>(k) * h;
-    if (!step(t_next)) return 1;
-    if (t_next >= at[next] - 1e-9 * h) {
-      try {
-        WriteFileAtomically(outputs[next], EncodeState(scene, State{engine.t(), engine.x(), engine.v()}), "--out");
-      } catch (const std::exception& e) {
-        std::fprintf(stderr, "contact_replay: %s\n", EscapeControl(e.what()).c_str());
-        return 1;
-      }
-      fmt::print("# saved t = {:.4f} s to {}\n", engine.t(), outputs[next]);
-      ++next;
-    }
-  }
-  return 0;
+  StepEngine engine(system, *MethodFromString(run.row.name()), run.row.Settings(run.spec));
+  engine.set_amg_diagnostics(a.diagnostics);
+  return a.save->parsed() ? Save(a, system, outputs, engine) : Replay(a, system, start, engine);
 }
