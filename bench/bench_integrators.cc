@@ -35,9 +35,8 @@
 namespace clothbench {
 namespace {
 
-int Main(int argc, char** argv) {
-  SweepComm comm(&argc, &argv);
-  CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
+// The command line's values, as given (validated by PlanBench).
+struct Options {
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 30.0;
   int repeat = 0;
@@ -46,6 +45,14 @@ int Main(int argc, char** argv) {
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
+  std::string cvode_setting_arg;
+};
+
+void AddOptions(CLI::App& app, Options& o) {
+  [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
+                          time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
+                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -67,7 +74,6 @@ int Main(int argc, char** argv) {
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference, "cvode | ida | none");
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
-  std::string cvode_setting_arg;
   app.add_option("--cvode-setting", cvode_setting_arg,
                  "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
                  "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05, atol_v_scale=1 (atol of the velocities over that of the positions); "
@@ -126,6 +132,146 @@ int Main(int argc, char** argv) {
   app.add_option("--plot", plot_dir,
                  "after writing the results, draw them into DIR with scripts/plot (work-precision, observed order, "
                  "energy, Fig. 4.3 on obstacle scenes; PNG and SVG)");
+}
+
+// Validates everything before anything is computed, on every rank (rank 0
+// probes the file system and the memory): the scene and its overrides, the
+// rows and each planned run as a RunRequest, the output paths.
+// @param solvers, etas parsed --nonlinear-solver and --cg-tolerances (may be empty)
+// @throws UsageError or SceneError, one line
+BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver> solvers, std::vector<double> etas,
+                   SweepComm& comm, int argc, char** argv) {
+  [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
+                          time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
+                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
+  Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
+  if (app.count("--t-end")) {
+    if (!std::isfinite(t_end) || !(t_end > 0.0) || t_end > 1e6)
+      throw UsageError(fmt::format("--t-end: {} is not a number in (0, 1e6] s", t_end));
+    scene.t_end = t_end;
+    scene.frame_dt = std::min(scene.frame_dt, t_end);
+    scene.h = std::min(scene.h, t_end);
+    CheckRunLength(scene, fmt::format("--t-end {:g} on {}", t_end, scene.source));
+  }
+  if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
+    throw UsageError(fmt::format("--time-limit: {:g} s must be a number in (0, 1e7]", time_limit));
+  if (!std::isfinite(time_budget)) throw UsageError(fmt::format("--time-budget: {:g} s must be a number in [0, 1e6]", time_budget));
+  if (app.count("--integrators") && integrators_arg.empty())
+    throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
+  if (app.count("--cg-tolerance")) {
+    if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
+      throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
+    scene.solver.cg_tolerance = cg_tolerance;
+  }
+  if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
+  if (app.count("--tangent-terms")) {
+    if (tangent_terms != "all" && tangent_terms != "tension")
+      throw UsageError(fmt::format("--tangent-terms: \"{}\" must be all or tension", EscapeControl(tangent_terms)));
+    scene.solver.tangent_explicit_terms = tangent_terms == "all";
+  }
+  if (frames_mode != "default" && frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" &&
+      frames_mode != "none")
+    throw UsageError(fmt::format("--frames: \"{}\" must be default, all, positions, ends or none", frames_mode));
+  // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
+  // leaves the frame datasets out of the file.
+  if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
+  const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
+  if (reference != "none" && (!reference_entry || !reference_entry->reference))
+    throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
+  CheckTolerance(ref_rtol, "--reference-rtol");
+  CvodeSettings cvode_settings;
+  if (app.count("--cvode-setting"))
+    for (const std::string& kv : SplitList(cvode_setting_arg, "--cvode-setting")) {
+      const std::size_t eq = kv.find('=');
+      std::string why;
+      if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
+        throw UsageError(fmt::format("--cvode-setting: {}", why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
+    }
+  const std::vector<std::string> names =
+      integrators_arg.empty() ? DefaultRowNames(scene.solver.nonlinear_solver, app.count("--nonlinear-solver") > 0)
+                              : SplitList(integrators_arg, "--integrators");
+  if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
+  std::vector<RowMethod> methods;
+  try {
+    methods = ExpandMethods(names, solvers, "--integrators");
+    // "sbdf2" under a scene's error control is sbdf2/error; named rows without error control are refused.
+    AdoptSceneStepControl(scene.solver, &methods, !integrators_arg.empty());
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  for (std::size_t a = 0; a < methods.size(); ++a)
+    for (std::size_t b = 0; b < a; ++b)
+      if (methods[a].label() == methods[b].label())
+        throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver, \"bdf2\" also "
+                                     "names bdf2/newton)",
+                                     methods[a].label()));
+  CheckArkodeTable(arkode_table);
+  const std::string unused = UnusedOption(
+      methods, {app.count("--rtols") > 0, app.count("--substeps") > 0,
+                app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--preconditioner") > 0,
+                app.count("--nonlinear-solver") > 0, app.count("--arkode-table") > 0,
+                app.count("--cvode-setting") > 0, app.count("--tangent-terms") > 0,
+                app.count("--baseline") ? EscapeControl(baseline) : ""});
+  if (!unused.empty()) throw UsageError(unused);
+  const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
+  const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
+  if (!metric)
+    throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));
+  if (etas.empty()) etas = {scene.solver.cg_tolerance};
+  std::vector<double> hs = h_arg.empty() ? std::vector<double>{} : ParsePositiveList(h_arg, "--h");
+  for (double h : hs)
+    if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
+  const std::vector<double> rtols =
+      app.count("--rtols") ? ParseTolerances(rtols_arg, "--rtols") : std::vector<double>{};
+  std::vector<int> substeps;
+  for (double n : ParsePositiveList(substeps_arg, "--substeps")) {
+    if (n != std::floor(n) || n > 1e6)
+      throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
+    substeps.push_back(static_cast<int>(n));
+  }
+  const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
+  // Every planned run as a request, by the rules every entry point shares
+  // (harness/run_request.h); the options only some rows read were checked
+  // by UnusedOption above.
+  for (std::size_t k = 0; k < methods.size(); ++k)
+    for (const auto& [param, n] : plan.params[k]) {
+      RunRequest q;
+      q.scene = scene;
+      q.method = methods[k].label();
+      q.names = FieldNames::kOption;
+      if (methods[k].kind() == StepKind::kAdaptive) q.rtol = param;
+      else q.h = param;
+      if (methods[k].kind() == StepKind::kSubstepped) q.substeps = n;
+      q.time_limit = time_limit;
+      if (repeat > 0) q.repeat = repeat;
+      q.time_budget = time_budget;
+      q.Validate();
+    }
+  if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
+  ProbeOnRoot(comm, [&] {
+    CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records, out);
+    if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
+      throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
+    if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
+  });
+
+  return BenchRun{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_entry,
+                  ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
+                  quiet, app.count("--preconditioner") > 0,
+                  app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
+                  time_limit, max_runs, arkode_table, cvode_settings};
+}
+
+int Main(int argc, char** argv) {
+  SweepComm comm(&argc, &argv);
+  CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
+  Options o;
+  AddOptions(app, o);
+  [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
+                          time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
+                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -171,123 +317,8 @@ int Main(int argc, char** argv) {
                                                           : std::nullopt,
                             solvers, etas, comm));
     }
-    // Validate everything before computing anything.
-    Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
-    if (app.count("--t-end")) {
-      if (!std::isfinite(t_end) || !(t_end > 0.0) || t_end > 1e6)
-        throw UsageError(fmt::format("--t-end: {} is not a number in (0, 1e6] s", t_end));
-      scene.t_end = t_end;
-      scene.frame_dt = std::min(scene.frame_dt, t_end);
-      scene.h = std::min(scene.h, t_end);
-      CheckRunLength(scene, fmt::format("--t-end {:g} on {}", t_end, scene.source));
-    }
-    if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
-      throw UsageError(fmt::format("--time-limit: {:g} s must be a number in (0, 1e7]", time_limit));
-    if (!std::isfinite(time_budget)) throw UsageError(fmt::format("--time-budget: {:g} s must be a number in [0, 1e6]", time_budget));
-    if (app.count("--integrators") && integrators_arg.empty())
-      throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
-    if (app.count("--cg-tolerance")) {
-      if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
-        throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
-      scene.solver.cg_tolerance = cg_tolerance;
-    }
-    if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
-    if (app.count("--tangent-terms")) {
-      if (tangent_terms != "all" && tangent_terms != "tension")
-        throw UsageError(fmt::format("--tangent-terms: \"{}\" must be all or tension", EscapeControl(tangent_terms)));
-      scene.solver.tangent_explicit_terms = tangent_terms == "all";
-    }
-    if (frames_mode != "default" && frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" &&
-        frames_mode != "none")
-      throw UsageError(fmt::format("--frames: \"{}\" must be default, all, positions, ends or none", frames_mode));
-    // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
-    // leaves the frame datasets out of the file.
-    if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
-    const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
-    if (reference != "none" && (!reference_entry || !reference_entry->reference))
-      throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
-    CheckTolerance(ref_rtol, "--reference-rtol");
-    CvodeSettings cvode_settings;
-    if (app.count("--cvode-setting"))
-      for (const std::string& kv : SplitList(cvode_setting_arg, "--cvode-setting")) {
-        const std::size_t eq = kv.find('=');
-        std::string why;
-        if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
-          throw UsageError(fmt::format("--cvode-setting: {}", why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
-      }
-    const std::vector<std::string> names =
-        integrators_arg.empty() ? DefaultRowNames(scene.solver.nonlinear_solver, app.count("--nonlinear-solver") > 0)
-                                : SplitList(integrators_arg, "--integrators");
-    if (solvers.empty()) solvers = {scene.solver.nonlinear_solver};
-    std::vector<RowMethod> methods;
-    try {
-      methods = ExpandMethods(names, solvers, "--integrators");
-      // "sbdf2" under a scene's error control is sbdf2/error; named rows without error control are refused.
-      AdoptSceneStepControl(scene.solver, &methods, !integrators_arg.empty());
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
-    for (std::size_t a = 0; a < methods.size(); ++a)
-      for (std::size_t b = 0; b < a; ++b)
-        if (methods[a].label() == methods[b].label())
-          throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver, \"bdf2\" also "
-                                       "names bdf2/newton)",
-                                       methods[a].label()));
-    CheckArkodeTable(arkode_table);
-    const std::string unused = UnusedOption(
-        methods, {app.count("--rtols") > 0, app.count("--substeps") > 0,
-                  app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--preconditioner") > 0,
-                  app.count("--nonlinear-solver") > 0, app.count("--arkode-table") > 0,
-                  app.count("--cvode-setting") > 0, app.count("--tangent-terms") > 0,
-                  app.count("--baseline") ? EscapeControl(baseline) : ""});
-    if (!unused.empty()) throw UsageError(unused);
-    const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
-    const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
-    if (!metric)
-      throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));
-    if (etas.empty()) etas = {scene.solver.cg_tolerance};
-    std::vector<double> hs = h_arg.empty() ? std::vector<double>{} : ParsePositiveList(h_arg, "--h");
-    for (double h : hs)
-      if (h > scene.t_end) throw UsageError(fmt::format("--h: {:g} s is larger than t_end = {:g} s", h, scene.t_end));
-    const std::vector<double> rtols =
-        app.count("--rtols") ? ParseTolerances(rtols_arg, "--rtols") : std::vector<double>{};
-    std::vector<int> substeps;
-    for (double n : ParsePositiveList(substeps_arg, "--substeps")) {
-      if (n != std::floor(n) || n > 1e6)
-        throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
-      substeps.push_back(static_cast<int>(n));
-    }
-    const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
-    // Every planned run as a request, by the rules every entry point shares
-    // (harness/run_request.h); the options only some rows read were checked
-    // by UnusedOption above.
-    for (std::size_t k = 0; k < methods.size(); ++k)
-      for (const auto& [param, n] : plan.params[k]) {
-        RunRequest q;
-        q.scene = scene;
-        q.method = methods[k].label();
-        q.names = FieldNames::kOption;
-        if (methods[k].kind() == StepKind::kAdaptive) q.rtol = param;
-        else q.h = param;
-        if (methods[k].kind() == StepKind::kSubstepped) q.substeps = n;
-        q.time_limit = time_limit;
-        if (repeat > 0) q.repeat = repeat;
-        q.time_budget = time_budget;
-        q.Validate();
-      }
-    if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
-    ProbeOnRoot(comm, [&] {
-      CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records, out);
-      if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
-        throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
-      if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
-    });
-    lock.emplace(out, comm);
-
-    BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_entry, ref_rtol, out, plot_dir, series,
-                 frames_mode, JournalKey(argc, argv, scene), work_precision_only, quiet,
-                 app.count("--preconditioner") > 0, app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0,
-                 app.count("--tangent-terms") > 0, time_limit, max_runs, arkode_table, cvode_settings};
+    const BenchRun run = PlanBench(app, o, solvers, etas, comm, argc, argv);
+    lock.emplace(run.out, comm);
     return comm.RootStatus(RunBench(run, comm));
   } catch (const UsageError& e) {
     return refuse(e.what());
