@@ -201,197 +201,148 @@ int ParseIndex(const std::string& s, int limit, const std::string& what) {
   return v;
 }
 
-}  // namespace
-
-std::vector<int> ResolveFixed(const std::string& spec, int nu, int nv, const std::string& what) {
-  const std::string bad = what + fmt::format("\"{}\" must be \"edge:u0|u1|v0|v1\", \"corner:u0v0|u0v1|u1v0|u1v1\" or \"particle:I,J\"", spec);
-  const auto colon = spec.find(':');
-  if (colon == std::string::npos) throw SceneError(bad);
-  const std::string kind = spec.substr(0, colon), arg = spec.substr(colon + 1);
-  std::vector<int> out;
-  auto idx = [nu](int i, int j) { return i + nu * j; };
-  if (kind == "edge") {
-    if (arg == "u0" || arg == "u1") {
-      const int i = arg == "u0" ? 0 : nu - 1;
-      for (int j = 0; j < nv; ++j) out.push_back(idx(i, j));
-    } else if (arg == "v0" || arg == "v1") {
-      const int j = arg == "v0" ? 0 : nv - 1;
-      for (int i = 0; i < nu; ++i) out.push_back(idx(i, j));
-    } else {
-      throw SceneError(bad);
-    }
-  } else if (kind == "corner") {
-    if (arg.size() != 4 || arg[0] != 'u' || arg[2] != 'v' || (arg[1] != '0' && arg[1] != '1') || (arg[3] != '0' && arg[3] != '1'))
-      throw SceneError(bad);
-    out.push_back(idx(arg[1] == '0' ? 0 : nu - 1, arg[3] == '0' ? 0 : nv - 1));
-  } else if (kind == "particle") {
-    const auto comma = arg.find(',');
-    if (comma == std::string::npos) throw SceneError(bad);
-    const int i = ParseIndex(arg.substr(0, comma), nu, what);
-    const int j = ParseIndex(arg.substr(comma + 1), nv, what);
-    out.push_back(idx(i, j));
-  } else {
-    throw SceneError(bad);
-  }
-  return out;
+// [grid]: the sheet's particles.
+void ParseGrid(TableReader& top, const std::string& source, Scene& s) {
+  TableReader g(top.SubTable("grid"), top.Child("grid"), source);
+  s.grid.nu = g.Integer("nu", s.grid.nu, 2);
+  s.grid.nv = g.Integer("nv", s.grid.nv, 2);
+  if (double(s.grid.nu) * double(s.grid.nv) > kMaxParticles)
+    g.Fail("nv", fmt::format("nu × nv = {} × {} exceeds the limit of {:g} particles", s.grid.nu, s.grid.nv,
+                             kMaxParticles));
+  auto size = g.Numbers<2>("size", s.grid.size, true);
+  if (!(size[0] > 0 && size[1] > 0)) g.Fail("size", "must be 2 positive numbers [m]");
+  if (size[0] > 1e4 || size[1] > 1e4) g.Fail("size", "must be at most 1e4 m per side");
+  if (size[0] / (s.grid.nu - 1) < 1e-6 || size[1] / (s.grid.nv - 1) < 1e-6)
+    g.Fail("size", fmt::format("gives a particle spacing size/(n - 1) below 1e-6 m ({:g} m, {:g} m)",
+                               size[0] / (s.grid.nu - 1), size[1] / (s.grid.nv - 1)));
+  s.grid.size = size;
+  s.grid.origin = g.Vec3("origin", s.grid.origin);
+  if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6) g.Fail("origin", "must have coordinates of magnitude at most 1e6 m");
+  s.grid.u_axis = g.Vec3("u_axis", s.grid.u_axis);
+  s.grid.v_axis = g.Vec3("v_axis", s.grid.v_axis);
+  if (std::abs(s.grid.u_axis.norm() - 1.0) > 1e-9) g.Fail("u_axis", "must be a unit vector");
+  if (std::abs(s.grid.v_axis.norm() - 1.0) > 1e-9) g.Fail("v_axis", "must be a unit vector");
+  if (std::abs(s.grid.u_axis.dot(s.grid.v_axis)) > 1e-9) g.Fail("v_axis", "must be orthogonal to u_axis");
+  g.RejectUnknown();
 }
 
-Scene ParseScene(std::string_view text, const std::string& source) {
-  toml::table root;
-  try {
-    root = toml::parse(text, source);
-  } catch (const toml::parse_error& e) {
-    std::string desc(e.description());
-    std::replace(desc.begin(), desc.end(), '\n', ' ');
-    throw SceneError(fmt::format("{}:{}:{}: TOML syntax error: {}", source, e.source().begin.line,
-                                 e.source().begin.column, desc));
-  }
-  Scene s;
-  s.source = source;
-  s.toml = std::string(text);
+// [material].
+void ParseMaterial(TableReader& top, const std::string& source, Scene& s) {
+  TableReader m(top.SubTable("material"), top.Child("material"), source);
+  MaterialSpec& mat = s.material;
+  // Cloth is 0.05–1 kg/m²: the floor keeps masses normal doubles and
+  // h²k/(ρl²) finite.
+  mat.density = m.Range("density", mat.density, 1e-6, 1e6, " kg/m²");
+  mat.tension = m.Numbers<2>("tension", mat.tension, true);
+  mat.tension_damping = m.NonNegative("tension_damping", mat.tension_damping);
+  mat.tension_model = m.Choice("tension_model", mat.tension_model, {TensionModel::kSplit, TensionModel::kLinear});
+  mat.shear = m.NonNegative("shear", mat.shear);
+  mat.shear_damping = m.NonNegative("shear_damping", mat.shear_damping);
+  mat.bend = m.Numbers<2>("bend", mat.bend, true);
+  mat.bend_damping = m.NonNegative("bend_damping", mat.bend_damping);
+  mat.bend_model = m.Choice("bend_model", mat.bend_model,
+                            {BendModel::kMembrane, BendModel::kThinPlate, BendModel::kNone});
+  mat.transverse = m.Number("transverse", mat.transverse);
+  mat.mass_lumping = m.Choice("mass_lumping", mat.mass_lumping, {MassLumping::kUniform, MassLumping::kArea});
+  m.RejectUnknown();
+}
 
-  TableReader top(&root, "", source);
-  s.name = top.String("name", s.name);
-  if (s.name.empty()) top.Fail("name", "must not be empty");
-  if (s.name.size() > kMaxSceneNameBytes)
-    top.Fail("name", fmt::format("{} bytes, above the limit of {} (it names the result file's scene and its runs)",
-                                 s.name.size(), kMaxSceneNameBytes));
-  s.t_end = top.Positive("t_end", s.t_end);
-  if (s.t_end > 1e6) top.Fail("t_end", fmt::format("must be <= 1e6 s (got {:g})", s.t_end));
-  s.frame_dt = top.Positive("frame_dt", s.frame_dt);
-  s.h = top.Positive("h", s.h);
-  if (s.frame_dt > s.t_end) top.Fail("frame_dt", "must be <= t_end");
+// [forces].
+void ParseForces(TableReader& top, const std::string& source, Scene& s) {
+  TableReader f(top.SubTable("forces"), top.Child("forces"), source);
+  s.forces.gravity = f.Vec3("gravity", s.forces.gravity);
+  if (s.forces.gravity.norm() > 1e4) f.Fail("gravity", "must have a magnitude of at most 1e4 m/s²");
+  if (const toml::table* wt = f.SubTable("wind")) {
+    TableReader w(wt, f.Child("wind"), source);
+    WindSpec wind;
+    wind.direction = w.Vec3("direction", wind.direction);
+    if (wind.direction.norm() > 1e3) w.Fail("direction", "must have a magnitude of at most 1e3");
+    wind.constant = w.Range("constant", wind.constant, -1e3, 1e3, "");
+    wind.angular_frequency = w.Range("angular_frequency", wind.angular_frequency, -1e6, 1e6, " rad/s");
+    wind.drag = w.Range("drag", wind.drag, 0.0, 1e6, "");
+    wind.lift = w.Range("lift", wind.lift, 0.0, 1e6, "");
+    w.RejectUnknown();
+    s.forces.wind = wind;
+  }
+  if (const toml::table* at = f.SubTable("air")) {
+    TableReader a(at, f.Child("air"), source);
+    s.forces.air = a.Range("coefficient", 0.0, 0.0, 1e6, " kg/(m² s)");
+    a.RejectUnknown();
+  }
+  f.RejectUnknown();
+}
 
-  {
-    TableReader g(top.SubTable("grid"), top.Child("grid"), source);
-    s.grid.nu = g.Integer("nu", s.grid.nu, 2);
-    s.grid.nv = g.Integer("nv", s.grid.nv, 2);
-    if (double(s.grid.nu) * double(s.grid.nv) > kMaxParticles)
-      g.Fail("nv", fmt::format("nu × nv = {} × {} exceeds the limit of {:g} particles", s.grid.nu, s.grid.nv,
-                               kMaxParticles));
-    auto size = g.Numbers<2>("size", s.grid.size, true);
-    if (!(size[0] > 0 && size[1] > 0)) g.Fail("size", "must be 2 positive numbers [m]");
-    if (size[0] > 1e4 || size[1] > 1e4) g.Fail("size", "must be at most 1e4 m per side");
-    if (size[0] / (s.grid.nu - 1) < 1e-6 || size[1] / (s.grid.nv - 1) < 1e-6)
-      g.Fail("size", fmt::format("gives a particle spacing size/(n - 1) below 1e-6 m ({:g} m, {:g} m)",
-                                 size[0] / (s.grid.nu - 1), size[1] / (s.grid.nv - 1)));
-    s.grid.size = size;
-    s.grid.origin = g.Vec3("origin", s.grid.origin);
-    if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6) g.Fail("origin", "must have coordinates of magnitude at most 1e6 m");
-    s.grid.u_axis = g.Vec3("u_axis", s.grid.u_axis);
-    s.grid.v_axis = g.Vec3("v_axis", s.grid.v_axis);
-    if (std::abs(s.grid.u_axis.norm() - 1.0) > 1e-9) g.Fail("u_axis", "must be a unit vector");
-    if (std::abs(s.grid.v_axis.norm() - 1.0) > 1e-9) g.Fail("v_axis", "must be a unit vector");
-    if (std::abs(s.grid.u_axis.dot(s.grid.v_axis)) > 1e-9) g.Fail("v_axis", "must be orthogonal to u_axis");
-    g.RejectUnknown();
-  }
-  {
-    TableReader m(top.SubTable("material"), top.Child("material"), source);
-    MaterialSpec& mat = s.material;
-    // Cloth is 0.05–1 kg/m²: the floor keeps masses normal doubles and
-    // h²k/(ρl²) finite.
-    mat.density = m.Range("density", mat.density, 1e-6, 1e6, " kg/m²");
-    mat.tension = m.Numbers<2>("tension", mat.tension, true);
-    mat.tension_damping = m.NonNegative("tension_damping", mat.tension_damping);
-    mat.tension_model = m.Choice("tension_model", mat.tension_model, {TensionModel::kSplit, TensionModel::kLinear});
-    mat.shear = m.NonNegative("shear", mat.shear);
-    mat.shear_damping = m.NonNegative("shear_damping", mat.shear_damping);
-    mat.bend = m.Numbers<2>("bend", mat.bend, true);
-    mat.bend_damping = m.NonNegative("bend_damping", mat.bend_damping);
-    mat.bend_model = m.Choice("bend_model", mat.bend_model,
-                              {BendModel::kMembrane, BendModel::kThinPlate, BendModel::kNone});
-    mat.transverse = m.Number("transverse", mat.transverse);
-    mat.mass_lumping = m.Choice("mass_lumping", mat.mass_lumping, {MassLumping::kUniform, MassLumping::kArea});
-    m.RejectUnknown();
-  }
-  {
-    TableReader f(top.SubTable("forces"), top.Child("forces"), source);
-    s.forces.gravity = f.Vec3("gravity", s.forces.gravity);
-    if (s.forces.gravity.norm() > 1e4) f.Fail("gravity", "must have a magnitude of at most 1e4 m/s²");
-    if (const toml::table* wt = f.SubTable("wind")) {
-      TableReader w(wt, f.Child("wind"), source);
-      WindSpec wind;
-      wind.direction = w.Vec3("direction", wind.direction);
-      if (wind.direction.norm() > 1e3) w.Fail("direction", "must have a magnitude of at most 1e3");
-      wind.constant = w.Range("constant", wind.constant, -1e3, 1e3, "");
-      wind.angular_frequency = w.Range("angular_frequency", wind.angular_frequency, -1e6, 1e6, " rad/s");
-      wind.drag = w.Range("drag", wind.drag, 0.0, 1e6, "");
-      wind.lift = w.Range("lift", wind.lift, 0.0, 1e6, "");
-      w.RejectUnknown();
-      s.forces.wind = wind;
+// [constraints]: fixed particles.
+void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
+  TableReader c(top.SubTable("constraints"), top.Child("constraints"), source);
+  if (const toml::node* n = c.Get("fixed")) {
+    const toml::array* a = n->as_array();
+    if (!a) c.Fail("fixed", "must be an array of strings");
+    std::set<int> fixed;
+    for (std::size_t k = 0; k < a->size(); ++k) {
+      auto str = (*a)[k].value_exact<std::string>();
+      if (!str) c.Fail("fixed", "must be an array of strings");
+      s.fixed_specs.push_back(*str);
+      for (int p : ResolveFixed(*str, s.grid.nu, s.grid.nv, fmt::format("{}: constraints.fixed[{}]: ", source, k)))
+        fixed.insert(p);
     }
-    if (const toml::table* at = f.SubTable("air")) {
-      TableReader a(at, f.Child("air"), source);
-      s.forces.air = a.Range("coefficient", 0.0, 0.0, 1e6, " kg/(m² s)");
-      a.RejectUnknown();
-    }
-    f.RejectUnknown();
+    s.fixed.assign(fixed.begin(), fixed.end());
+    // A sheet with every particle fixed has no unknowns: nothing to integrate.
+    if (static_cast<long>(s.fixed.size()) >= static_cast<long>(s.grid.nu) * s.grid.nv)
+      c.Fail("fixed", fmt::format("fixes all {} particles; at least one must be free", s.fixed.size()));
   }
+  c.RejectUnknown();
+}
+
+// [solver] (model/solver_spec.h).
+void ParseSolver(TableReader& top, const std::string& source, Scene& s) {
+  TableReader v(top.SubTable("solver"), top.Child("solver"), source);
+  SolverSpec& so = s.solver;
+  so.cg_tolerance = v.Positive("cg_tolerance", so.cg_tolerance);
+  if (so.cg_tolerance >= 1.0) v.Fail("cg_tolerance", "must be < 1");
+  so.cg_reference = v.Choice("cg_reference", so.cg_reference, {CgReference::kFixedOnly, CgReference::kFiltered});
+  // Absent: scaled with the grid. IC(0)-PCG iterations on A_α grow like the
+  // grid side (bench_scaling: 42, 132, 420 per SBDF(2) step at N = 10³, 10⁴,
+  // 10⁵), so 4·max(nu, nv) leaves 3× headroom; never below 1000.
+  so.cg_max_iterations = v.Integer("cg_max_iterations", std::max(1000, 4 * std::max(s.grid.nu, s.grid.nv)), 1);
+  so.preconditioner = v.Choice("preconditioner", so.preconditioner,
+                               {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
+                                PreconditionerType::kJacobi, PreconditionerType::kNone});
+  so.cholesky_ordering =
+      v.Choice("cholesky_ordering", so.cholesky_ordering, {CholeskyOrdering::kMetis, CholeskyOrdering::kAmd});
+  so.max_updates = v.Integer("max_updates", so.max_updates, 1);
   {
-    TableReader c(top.SubTable("constraints"), top.Child("constraints"), source);
-    if (const toml::node* n = c.Get("fixed")) {
-      const toml::array* a = n->as_array();
-      if (!a) c.Fail("fixed", "must be an array of strings");
-      std::set<int> fixed;
-      for (std::size_t k = 0; k < a->size(); ++k) {
-        auto str = (*a)[k].value_exact<std::string>();
-        if (!str) c.Fail("fixed", "must be an array of strings");
-        s.fixed_specs.push_back(*str);
-        for (int p : ResolveFixed(*str, s.grid.nu, s.grid.nv, fmt::format("{}: constraints.fixed[{}]: ", source, k)))
-          fixed.insert(p);
-      }
-      s.fixed.assign(fixed.begin(), fixed.end());
-      // A sheet with every particle fixed has no unknowns: nothing to integrate.
-      if (static_cast<long>(s.fixed.size()) >= static_cast<long>(s.grid.nu) * s.grid.nv)
-        c.Fail("fixed", fmt::format("fixes all {} particles; at least one must be free", s.fixed.size()));
-    }
-    c.RejectUnknown();
+    auto band = v.Numbers<2>("controller_updates", {double(so.controller_updates[0]), double(so.controller_updates[1])}, true);
+    if (band[0] != std::floor(band[0]) || band[1] != std::floor(band[1]) || band[0] < 1 || band[0] > band[1])
+      v.Fail("controller_updates", "must be 2 integers [lo, hi] with 1 <= lo <= hi");
+    so.controller_updates = {static_cast<int>(band[0]), static_cast<int>(band[1])};
   }
-  {
-    TableReader v(top.SubTable("solver"), top.Child("solver"), source);
-    SolverSpec& so = s.solver;
-    so.cg_tolerance = v.Positive("cg_tolerance", so.cg_tolerance);
-    if (so.cg_tolerance >= 1.0) v.Fail("cg_tolerance", "must be < 1");
-    so.cg_reference = v.Choice("cg_reference", so.cg_reference, {CgReference::kFixedOnly, CgReference::kFiltered});
-    // Absent: scaled with the grid. IC(0)-PCG iterations on A_α grow like the
-    // grid side (bench_scaling: 42, 132, 420 per SBDF(2) step at N = 10³, 10⁴,
-    // 10⁵), so 4·max(nu, nv) leaves 3× headroom; never below 1000.
-    so.cg_max_iterations = v.Integer("cg_max_iterations", std::max(1000, 4 * std::max(s.grid.nu, s.grid.nv)), 1);
-    so.preconditioner = v.Choice("preconditioner", so.preconditioner,
-                                 {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
-                                  PreconditionerType::kJacobi, PreconditionerType::kNone});
-    so.cholesky_ordering =
-        v.Choice("cholesky_ordering", so.cholesky_ordering, {CholeskyOrdering::kMetis, CholeskyOrdering::kAmd});
-    so.max_updates = v.Integer("max_updates", so.max_updates, 1);
-    {
-      auto band = v.Numbers<2>("controller_updates", {double(so.controller_updates[0]), double(so.controller_updates[1])}, true);
-      if (band[0] != std::floor(band[0]) || band[1] != std::floor(band[1]) || band[0] < 1 || band[0] > band[1])
-        v.Fail("controller_updates", "must be 2 integers [lo, hi] with 1 <= lo <= hi");
-      so.controller_updates = {static_cast<int>(band[0]), static_cast<int>(band[1])};
-    }
-    so.fixed_point_tolerance = v.NonNegative("fixed_point_tolerance", so.fixed_point_tolerance);
-    so.nonlinear_solver =
-        v.Choice("nonlinear_solver", so.nonlinear_solver, {NonlinearSolver::kFixedPoint, NonlinearSolver::kNewton});
-    so.newton_jacobian = v.Choice("newton_jacobian", so.newton_jacobian, {NewtonJacobian::kRefresh, NewtonJacobian::kFrozen});
-    so.tangent_projection =
-        v.Choice("tangent_projection", so.tangent_projection, {TangentProjection::kClamp, TangentProjection::kNone});
-    so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
-    so.contact_factors = v.Bool("contact_factors", so.contact_factors);
-    so.amg_frames =
-        v.Choice("amg_frames", so.amg_frames, {AmgFrames::kAdaptive, AmgFrames::kNearestAxis, AmgFrames::kSpread});
-    so.predictor = v.Choice("predictor", so.predictor, {Predictor::kConstantVelocity, Predictor::kExtrapolate});
-    so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations, StepControl::kError});
-    so.rtol = v.Positive("rtol", so.rtol);
-    if (so.rtol >= 1.0) v.Fail("rtol", "must be < 1");
-    so.atol = v.NonNegative("atol", so.atol);
-    so.step_factor = v.Number("step_factor", so.step_factor);
-    if (!(so.step_factor > 1.0)) v.Fail("step_factor", "must be > 1");
-    so.h_min = v.Positive("h_min", so.h_min);
-    so.h_max = v.NonNegative("h_max", so.h_max);
-    so.max_rejections = v.Integer("max_rejections", so.max_rejections, 0);
-    v.RejectUnknown();
-    if (std::string why; !so.IsValid(&why)) throw SceneError(fmt::format("{}: solver: {}", source, why));
-  }
+  so.fixed_point_tolerance = v.NonNegative("fixed_point_tolerance", so.fixed_point_tolerance);
+  so.nonlinear_solver =
+      v.Choice("nonlinear_solver", so.nonlinear_solver, {NonlinearSolver::kFixedPoint, NonlinearSolver::kNewton});
+  so.newton_jacobian = v.Choice("newton_jacobian", so.newton_jacobian, {NewtonJacobian::kRefresh, NewtonJacobian::kFrozen});
+  so.tangent_projection =
+      v.Choice("tangent_projection", so.tangent_projection, {TangentProjection::kClamp, TangentProjection::kNone});
+  so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
+  so.contact_factors = v.Bool("contact_factors", so.contact_factors);
+  so.amg_frames =
+      v.Choice("amg_frames", so.amg_frames, {AmgFrames::kAdaptive, AmgFrames::kNearestAxis, AmgFrames::kSpread});
+  so.predictor = v.Choice("predictor", so.predictor, {Predictor::kConstantVelocity, Predictor::kExtrapolate});
+  so.step_control = v.Choice("step_control", so.step_control, {StepControl::kFixed, StepControl::kIterations, StepControl::kError});
+  so.rtol = v.Positive("rtol", so.rtol);
+  if (so.rtol >= 1.0) v.Fail("rtol", "must be < 1");
+  so.atol = v.NonNegative("atol", so.atol);
+  so.step_factor = v.Number("step_factor", so.step_factor);
+  if (!(so.step_factor > 1.0)) v.Fail("step_factor", "must be > 1");
+  so.h_min = v.Positive("h_min", so.h_min);
+  so.h_max = v.NonNegative("h_max", so.h_max);
+  so.max_rejections = v.Integer("max_rejections", so.max_rejections, 0);
+  v.RejectUnknown();
+  if (std::string why; !so.IsValid(&why)) throw SceneError(fmt::format("{}: solver: {}", source, why));
+}
+
+// [[obstacle]] tables.
+void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
   if (const toml::node* obs = top.Get("obstacle")) {
     const toml::array* arr = obs->as_array();
     if (!arr) top.Fail("obstacle", "must be an array of tables ([[obstacle]])");
@@ -498,6 +449,75 @@ Scene ParseScene(std::string_view text, const std::string& source) {
       s.obstacles.push_back(spec);
     }
   }
+}
+
+}  // namespace
+
+std::vector<int> ResolveFixed(const std::string& spec, int nu, int nv, const std::string& what) {
+  const std::string bad = what + fmt::format("\"{}\" must be \"edge:u0|u1|v0|v1\", \"corner:u0v0|u0v1|u1v0|u1v1\" or \"particle:I,J\"", spec);
+  const auto colon = spec.find(':');
+  if (colon == std::string::npos) throw SceneError(bad);
+  const std::string kind = spec.substr(0, colon), arg = spec.substr(colon + 1);
+  std::vector<int> out;
+  auto idx = [nu](int i, int j) { return i + nu * j; };
+  if (kind == "edge") {
+    if (arg == "u0" || arg == "u1") {
+      const int i = arg == "u0" ? 0 : nu - 1;
+      for (int j = 0; j < nv; ++j) out.push_back(idx(i, j));
+    } else if (arg == "v0" || arg == "v1") {
+      const int j = arg == "v0" ? 0 : nv - 1;
+      for (int i = 0; i < nu; ++i) out.push_back(idx(i, j));
+    } else {
+      throw SceneError(bad);
+    }
+  } else if (kind == "corner") {
+    if (arg.size() != 4 || arg[0] != 'u' || arg[2] != 'v' || (arg[1] != '0' && arg[1] != '1') || (arg[3] != '0' && arg[3] != '1'))
+      throw SceneError(bad);
+    out.push_back(idx(arg[1] == '0' ? 0 : nu - 1, arg[3] == '0' ? 0 : nv - 1));
+  } else if (kind == "particle") {
+    const auto comma = arg.find(',');
+    if (comma == std::string::npos) throw SceneError(bad);
+    const int i = ParseIndex(arg.substr(0, comma), nu, what);
+    const int j = ParseIndex(arg.substr(comma + 1), nv, what);
+    out.push_back(idx(i, j));
+  } else {
+    throw SceneError(bad);
+  }
+  return out;
+}
+
+Scene ParseScene(std::string_view text, const std::string& source) {
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    std::string desc(e.description());
+    std::replace(desc.begin(), desc.end(), '\n', ' ');
+    throw SceneError(fmt::format("{}:{}:{}: TOML syntax error: {}", source, e.source().begin.line,
+                                 e.source().begin.column, desc));
+  }
+  Scene s;
+  s.source = source;
+  s.toml = std::string(text);
+
+  TableReader top(&root, "", source);
+  s.name = top.String("name", s.name);
+  if (s.name.empty()) top.Fail("name", "must not be empty");
+  if (s.name.size() > kMaxSceneNameBytes)
+    top.Fail("name", fmt::format("{} bytes, above the limit of {} (it names the result file's scene and its runs)",
+                                 s.name.size(), kMaxSceneNameBytes));
+  s.t_end = top.Positive("t_end", s.t_end);
+  if (s.t_end > 1e6) top.Fail("t_end", fmt::format("must be <= 1e6 s (got {:g})", s.t_end));
+  s.frame_dt = top.Positive("frame_dt", s.frame_dt);
+  s.h = top.Positive("h", s.h);
+  if (s.frame_dt > s.t_end) top.Fail("frame_dt", "must be <= t_end");
+
+  ParseGrid(top, source, s);
+  ParseMaterial(top, source, s);
+  ParseForces(top, source, s);
+  ParseConstraints(top, source, s);
+  ParseSolver(top, source, s);
+  ParseObstacles(top, source, s);
   top.RejectUnknown();
   if (s.h > s.t_end) top.Fail("h", "must be <= t_end");
   CheckRunLength(s, source);
