@@ -116,6 +116,160 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   return RunStepper(system, engine, options);
 }
 
+namespace {
+
+// The frames a run keeps and the work series beside them: allocated before
+// the step loop, filled by Hermite interpolation inside each step, trimmed
+// to the frames reached.
+class FrameRecorder {
+ public:
+  FrameRecorder(const ParticleSystem& system, const Stepper& engine, const RunOptions& options, RunSummary* sum)
+      : frames_(FrameTimes(options.t_end, options.frame_dt)),
+        track_work_(system.has_external_work()),
+        track_contact_(engine.contact_work() != nullptr),
+        sum_(sum) {
+    Trajectory& tr = sum->trajectory;
+    tr.times.reserve(frames_.size());
+    tr.positions.assign(frames_.size(), MatrixN3(system.num_particles(), 3));
+    tr.velocities.assign(frames_.size(), MatrixN3(system.num_particles(), 3));
+    if (track_work_) tr.external_work.assign(frames_.size(), 0.0);
+    if (track_contact_)
+      for (auto* w : {&tr.contact_work_holding, &tr.contact_work_pulling, &tr.contact_work_friction})
+        w->assign(frames_.size(), 0.0);
+    tr.times.push_back(0.0);
+    tr.positions[0] = engine.x();
+    tr.velocities[0] = engine.v();
+  }
+  bool track_work() const { return track_work_; }
+  bool track_contact() const { return track_contact_; }
+
+  /// Keeps the frames inside (t_start, t_start + step] of the step from
+  /// (x0, v0) to the engine's state, with the external work (work0 → work1)
+  /// and the contact work (contact0 → the engine's) at their instants.
+  /// @return false (sum's status and message set) if a frame fails `guard`
+  bool Keep(const Stepper& engine, const MatrixN3& x0, const MatrixN3& v0, double t_start, double step, double work0,
+            double work1, const ContactResponse::Work& contact0, BlowUpGuard& guard) {
+    Trajectory& tr = sum_->trajectory;
+    while (next_ < frames_.size() && frames_[next_] <= engine.t() + 1e-9 * step) {
+      // A frame at (or within round-off past) the step's end is its state.
+      const double s = frames_[next_] >= engine.t() ? 1.0 : (frames_[next_] - t_start) / step;
+      Hermite(x0, v0, engine.x(), engine.v(), step, s, &tr.positions[next_], &tr.velocities[next_]);
+      // A frame that fails the guard is not kept (the run keeps the ones before).
+      if (!guard.Check(frames_[next_], tr.positions[next_], tr.velocities[next_], &sum_->status, &sum_->message))
+        return false;
+      const double sc = std::min(s, 1.0);
+      if (track_work_) tr.external_work[next_] = work0 + sc * (work1 - work0);
+      if (track_contact_) {
+        const ContactResponse::Work& contact1 = *engine.contact_work();  // at its end
+        tr.contact_work_holding[next_] = contact0.holding + sc * (contact1.holding - contact0.holding);
+        tr.contact_work_pulling[next_] = contact0.pulling + sc * (contact1.pulling - contact0.pulling);
+        tr.contact_work_friction[next_] = contact0.friction + sc * (contact1.friction - contact0.friction);
+      }
+      tr.times.push_back(frames_[next_]);
+      ++next_;
+    }
+    return true;
+  }
+
+  /// A failed run keeps the frames it reached.
+  void Trim() {
+    Trajectory& tr = sum_->trajectory;
+    tr.positions.resize(next_);
+    tr.velocities.resize(next_);
+    if (track_work_) tr.external_work.resize(next_);
+    if (track_contact_)
+      for (auto* w : {&tr.contact_work_holding, &tr.contact_work_pulling, &tr.contact_work_friction}) w->resize(next_);
+  }
+
+ private:
+  std::vector<double> frames_;
+  bool track_work_, track_contact_;
+  RunSummary* sum_;
+  std::size_t next_ = 1;
+};
+
+// The next step's end and size. Fixed steps (docs/model.md, "Fixed
+// steps"): the step is h itself, the same double every step, and the clock
+// is set to n·h after each step instead of summing h, so αh, and with it
+// A_α and its preconditioner, stays bit-equal from step to step. The last
+// step is a whole h when t_end = n·h to within 1e-9 h, else the remainder
+// t_end − n·h. Off the grid (step control, or after a rejection) the step
+// is h up to t_end.
+void PlanStep(bool on_grid, double t_start, long fixed_step_index, double h_nominal, double h, double t_end,
+              double* target, double* step) {
+  if (on_grid) {
+    *target = static_cast<double>(fixed_step_index + 1) * h_nominal;
+    const bool at_grid_point = t_start == static_cast<double>(fixed_step_index) * h_nominal;
+    *step = at_grid_point ? h_nominal : *target - t_start;
+    if (*target > t_end - 1e-9 * h_nominal) {
+      if (!at_grid_point || std::abs(*target - t_end) > 1e-9 * h_nominal) *step = t_end - t_start;
+      *target = t_end;
+    }
+  } else {
+    *target = t_start + h;
+    if (*target > t_end - 1e-9 * h) *target = t_end;
+    *step = *target - t_start;
+  }
+}
+
+// A failed step: the next h, or false (sum's status and message set) once
+// the retries are used up or h falls below h_min.
+bool Retry(const StepStats& st, double step, double t, const SolverSpec& spec, int consecutive_rejections,
+           double* h, RunSummary* sum) {
+  *h = step / spec.step_factor;
+  if (st.status == StepStatus::kErrorTestFailed) {
+    // Error test failed: h ← h·max(0.2, 0.9 err^(−1/(q+1))) (Hairer, Nørsett
+    // & Wanner, Solving ODEs I, §II.4, (4.13)).
+    ++sum->error_test_failures;
+    *h = step * std::max(0.2, 0.9 * std::pow(st.error_norm, -1.0 / (st.error_order + 1)));
+  }
+  if (consecutive_rejections <= spec.max_rejections && *h >= spec.h_min) return true;
+  sum->ok = false;
+  sum->status = std::string(ToString(st.status));
+  sum->message = fmt::format("step at t = {:.6g} s failed ({}) after {} retries, last h = {:.3g} s", t,
+                             ToString(st.status), consecutive_rejections - 1, step);
+  if (st.pcg_status == PcgStatus::kMaxIterations)
+    sum->message += fmt::format(": the PCG reached solver.cg_max_iterations = {} (raise it or choose another "
+                                "preconditioner)",
+                                spec.cg_max_iterations);
+  return false;
+}
+
+// PI controller (Gustafsson 1991; Hairer, Nørsett & Wanner, Solving ODEs I,
+// §IV.2 (2.43c) and DOPRI5's defaults β = 0.04, safety 0.9):
+// h ← h·0.9·err^(−(1/k − 0.75β))·err_prev^β, k = q + 1, the factor in
+// [0.2, 2]: variable-step BDF(2) is zero-stable only for ω = h_n/h_{n−1}
+// < 1 + √2 (Grigorieff 1983), and no growth right after a rejection.
+double ErrorControlledStep(const StepStats& st, double step, double h_max, bool after_rejection, double* err_prev) {
+  constexpr double kBeta = 0.04;
+  const double err = std::max(st.error_norm, 1e-4);
+  const double k = st.error_order + 1;
+  double fac = 0.9 * std::pow(err, -(1.0 / k - 0.75 * kBeta)) * std::pow(*err_prev, kBeta);
+  fac = std::clamp(fac, 0.2, 2.0);
+  if (after_rejection) fac = std::min(fac, 1.0);
+  *err_prev = err;
+  return std::min(step * fac, h_max);
+}
+
+// The thesis' iteration controller: h shrinks when the fixed point needed
+// more than controller_updates[1] updates, grows below controller_updates[0].
+double IterationControlledStep(const StepStats& st, double step, double h, double h_max, const SolverSpec& spec,
+                               bool single_update) {
+  if (!single_update && st.updates > spec.controller_updates[1]) return step / spec.step_factor;
+  if (!single_update && st.updates < spec.controller_updates[0]) return std::min(step * spec.step_factor, h_max);
+  return std::max(h, step);
+}
+
+// After a rejection, fixed steps return to the grid n·h at the next multiple.
+void ReturnToGrid(double t, double h_nominal, double* h, long* fixed_step_index) {
+  *h = h_nominal;
+  *fixed_step_index = static_cast<long>(std::floor(t / h_nominal + 1e-9));
+  const double next = static_cast<double>(*fixed_step_index + 1) * h_nominal;
+  if (next - t < 1e-9 * h_nominal) ++*fixed_step_index;
+}
+
+}  // namespace
+
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
@@ -139,31 +293,15 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.fixed_point_updates = sum.cg_iterations = 0;
   double solver_seconds = 0.0;
 
-  MatrixN3 v_init = MatrixN3::Zero(system.num_particles(), 3);
-  engine.Reset(0.0, system.rest_positions(), v_init);
-
-  // Frames and step statistics are allocated before the loop.
-  const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
-  sum.trajectory.times.reserve(frames.size());
-  sum.trajectory.positions.assign(frames.size(), MatrixN3(system.num_particles(), 3));
-  sum.trajectory.velocities.assign(frames.size(), MatrixN3(system.num_particles(), 3));
-  const bool track_work = system.has_external_work();
-  if (track_work) sum.trajectory.external_work.assign(frames.size(), 0.0);
-  const bool track_contact = engine.contact_work() != nullptr;
-  if (track_contact) {
-    sum.trajectory.contact_work_holding.assign(frames.size(), 0.0);
-    sum.trajectory.contact_work_pulling.assign(frames.size(), 0.0);
-    sum.trajectory.contact_work_friction.assign(frames.size(), 0.0);
-  }
+  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  // Frames, work series and step statistics are allocated before the loop.
+  FrameRecorder recorder(system, engine, options, &sum);
   ContactResponse::Work contact0;  // at the start of the step
   MatrixN3 f_ext(system.num_particles(), 3);
-  double work = 0.0, power = track_work ? ExternalPower(system, 0.0, engine.x(), engine.v(), &f_ext) : 0.0;
+  double work = 0.0,
+         power = recorder.track_work() ? ExternalPower(system, 0.0, engine.x(), engine.v(), &f_ext) : 0.0;
   sum.step_stats.reserve(static_cast<std::size_t>(
       std::min(std::ceil(options.t_end / options.h), static_cast<double>(options.limits.max_steps))) + 64);
-  sum.trajectory.times.push_back(0.0);
-  sum.trajectory.positions[0] = engine.x();
-  sum.trajectory.velocities[0] = engine.v();
-  std::size_t next_frame = 1;
   BlowUpGuard guard(system, engine.x(), engine.v());
   long attempts = 0;
 
@@ -178,35 +316,23 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   long fixed_step_index = 0;  // fixed steps land on n·h exactly (no drift)
   sum.ok = true;
   sum.status = "ok";
+  const auto fail = [&](std::string_view status, std::string message) {
+    sum.ok = false;
+    sum.status = std::string(status);
+    sum.message = std::move(message);
+  };
 
   while (engine.t() < options.t_end - 1e-12 * options.t_end) {
-    // Fixed steps (docs/model.md, "Fixed steps"): the step is h itself, the
-    // same double every step, and the clock is set to n·h after each step
-    // instead of summing h, so αh, and with it A_α and its preconditioner,
-    // stays bit-equal from step to step. The last step is a whole h when
-    // t_end = n·h to within 1e-9 h, else the remainder t_end − n·h. After a
-    // rejection the driver steps with the reduced h and returns to the grid
-    // at its next point.
+    // After a rejection the driver steps with the reduced h and returns to
+    // the grid at its next point (ReturnToGrid).
     const bool on_grid = !controlled && consecutive_rejections == 0;
     const double t_start = engine.t();
     double target = 0.0, step = 0.0;
-    if (on_grid) {
-      target = static_cast<double>(fixed_step_index + 1) * h_nominal;
-      const bool at_grid_point = t_start == static_cast<double>(fixed_step_index) * h_nominal;
-      step = at_grid_point ? h_nominal : target - t_start;
-      if (target > options.t_end - 1e-9 * h_nominal) {
-        if (!at_grid_point || std::abs(target - options.t_end) > 1e-9 * h_nominal) step = options.t_end - t_start;
-        target = options.t_end;
-      }
-    } else {
-      target = t_start + h;
-      if (target > options.t_end - 1e-9 * h) target = options.t_end;
-      step = target - t_start;
-    }
+    PlanStep(on_grid, t_start, fixed_step_index, h_nominal, h, options.t_end, &target, &step);
 
     x_prev = engine.x();
     v_prev = engine.v();
-    if (track_contact) contact0 = *engine.contact_work();
+    if (recorder.track_contact()) contact0 = *engine.contact_work();
     const auto t0 = Clock::now();
     StepStats st = engine.Step(step);
     solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
@@ -214,11 +340,6 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     sum.cg_iterations += st.cg_iterations;
     sum.step_stats.push_back(st);
     ++attempts;
-    const auto fail = [&](std::string_view status, std::string message) {
-      sum.ok = false;
-      sum.status = std::string(status);
-      sum.message = std::move(message);
-    };
     if (st.status == StepStatus::kTimeLimit ||
         (options.limits.time_limit_s > 0.0 &&
          std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
@@ -231,28 +352,10 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
                                      attempts, engine.t(), options.t_end, options.limits.max_steps));
       break;
     }
-
     if (st.status != StepStatus::kOk) {
       ++sum.rejected_steps;
       ++consecutive_rejections;
-      h = step / spec.step_factor;
-      if (st.status == StepStatus::kErrorTestFailed) {
-        // Error test failed: h ← h·max(0.2, 0.9 err^(−1/(q+1))) (Hairer, Nørsett
-        // & Wanner, Solving ODEs I, §II.4, (4.13)).
-        ++sum.error_test_failures;
-        h = step * std::max(0.2, 0.9 * std::pow(st.error_norm, -1.0 / (st.error_order + 1)));
-      }
-      if (consecutive_rejections > spec.max_rejections || h < spec.h_min) {
-        sum.ok = false;
-        sum.status = std::string(ToString(st.status));
-        sum.message = fmt::format("step at t = {:.6g} s failed ({}) after {} retries, last h = {:.3g} s", engine.t(),
-                                  ToString(st.status), consecutive_rejections - 1, step);
-        if (st.pcg_status == PcgStatus::kMaxIterations)
-          sum.message += fmt::format(": the PCG reached solver.cg_max_iterations = {} (raise it or choose another "
-                                     "preconditioner)",
-                                     spec.cg_max_iterations);
-        break;
-      }
+      if (!Retry(st, step, engine.t(), spec, consecutive_rejections, &h, &sum)) break;
       continue;
     }
     if (!engine.x().allFinite() || !engine.v().allFinite()) {
@@ -271,75 +374,28 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
 
     // External work by the trapezoidal rule on the step (second order).
     const double work0 = work;
-    if (track_work) {
+    if (recorder.track_work()) {
       const double power1 = ExternalPower(system, engine.t(), engine.x(), engine.v(), &f_ext);
       work += 0.5 * step * (power + power1);
       power = power1;
     }
-    // Frames inside (t0, t1].
-    const double t0s = t_start;
-    while (next_frame < frames.size() && frames[next_frame] <= engine.t() + 1e-9 * step) {
-      // A frame at (or within round-off past) the step's end is its state.
-      const double s = frames[next_frame] >= engine.t() ? 1.0 : (frames[next_frame] - t0s) / step;
-      Hermite(x_prev, v_prev, engine.x(), engine.v(), step, s, &sum.trajectory.positions[next_frame],
-              &sum.trajectory.velocities[next_frame]);
-      // A frame that fails the guard is not kept (the run keeps the ones before).
-      if (!guard.Check(frames[next_frame], sum.trajectory.positions[next_frame],
-                       sum.trajectory.velocities[next_frame], &sum.status, &sum.message)) {
-        sum.ok = false;
-        break;
-      }
-      const double sc = std::min(s, 1.0);
-      if (track_work) sum.trajectory.external_work[next_frame] = work0 + sc * (work - work0);
-      if (track_contact) {
-        const ContactResponse::Work& contact1 = *engine.contact_work();  // at its end
-        sum.trajectory.contact_work_holding[next_frame] = contact0.holding + sc * (contact1.holding - contact0.holding);
-        sum.trajectory.contact_work_pulling[next_frame] = contact0.pulling + sc * (contact1.pulling - contact0.pulling);
-        sum.trajectory.contact_work_friction[next_frame] =
-            contact0.friction + sc * (contact1.friction - contact0.friction);
-      }
-      sum.trajectory.times.push_back(frames[next_frame]);
-      ++next_frame;
+    if (!recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, contact0, guard)) {
+      sum.ok = false;
+      break;
     }
-    if (!sum.ok) break;
 
-    // Step-size selection.
+    // Step-size selection, one rule per step control.
     if (error_control) {
-      // PI controller (Gustafsson 1991; Hairer, Nørsett & Wanner, Solving
-      // ODEs I, §IV.2 (2.43c) and DOPRI5's defaults β = 0.04, safety 0.9):
-      // h ← h·0.9·err^(−(1/k − 0.75β))·err_prev^β, k = q + 1, the factor in
-      // [0.2, 2]: variable-step BDF(2) is zero-stable only for
-      // ω = h_n/h_{n−1} < 1 + √2 (Grigorieff 1983), and no growth right
-      // after a rejection.
-      constexpr double kBeta = 0.04;
-      const double err = std::max(st.error_norm, 1e-4);
-      const double k = st.error_order + 1;
-      double fac = 0.9 * std::pow(err, -(1.0 / k - 0.75 * kBeta)) * std::pow(err_prev, kBeta);
-      fac = std::clamp(fac, 0.2, 2.0);
-      if (sum.step_stats.size() >= 2 && sum.step_stats[sum.step_stats.size() - 2].status != StepStatus::kOk)
-        fac = std::min(fac, 1.0);
-      err_prev = err;
-      h = std::min(step * fac, h_max);
+      const bool after_rejection =
+          sum.step_stats.size() >= 2 && sum.step_stats[sum.step_stats.size() - 2].status != StepStatus::kOk;
+      h = ErrorControlledStep(st, step, h_max, after_rejection, &err_prev);
     } else if (controlled) {
-      if (!engine.single_update() && st.updates > spec.controller_updates[1]) h = step / spec.step_factor;
-      else if (!engine.single_update() && st.updates < spec.controller_updates[0]) h = std::min(step * spec.step_factor, h_max);
-      else h = std::max(h, step);
+      h = IterationControlledStep(st, step, h, h_max, spec, engine.single_update());
     } else if (h < h_nominal) {
-      // After a rejection, return to the fixed grid n·h at the next multiple.
-      h = h_nominal;
-      fixed_step_index = static_cast<long>(std::floor(engine.t() / h_nominal + 1e-9));
-      const double next = static_cast<double>(fixed_step_index + 1) * h_nominal;
-      if (next - engine.t() < 1e-9 * h_nominal) ++fixed_step_index;
+      ReturnToGrid(engine.t(), h_nominal, &h, &fixed_step_index);
     }
   }
-  sum.trajectory.positions.resize(next_frame);  // a failed run keeps the frames it reached
-  sum.trajectory.velocities.resize(next_frame);
-  if (track_work) sum.trajectory.external_work.resize(next_frame);
-  if (track_contact) {
-    sum.trajectory.contact_work_holding.resize(next_frame);
-    sum.trajectory.contact_work_pulling.resize(next_frame);
-    sum.trajectory.contact_work_friction.resize(next_frame);
-  }
+  recorder.Trim();
   sum.matrix_rebuilds = engine.matrix_rebuilds();
   sum.solver_time_in_seconds = solver_seconds;
   sum.setup_time_in_seconds = engine.setup_seconds();
