@@ -54,6 +54,212 @@ struct CellSpec {
   double h, stiffness;
 };
 
+// What the sweep maps: scenes × rows × h × stiffness, and the cell settings.
+struct SweepPlan {
+  std::vector<Scene> scenes;
+  std::vector<RowMethod> methods;
+  std::vector<double> stiff, hs;
+  int steps = 200, side = 10;
+  std::vector<CellSpec> cells;  ///< in the order of the printed maps
+  std::string key;              ///< the journal's key: every argument that changes a cell's result
+};
+
+// Every cell's result (summed onto rank 0).
+struct CellResults {
+  explicit CellResults(std::size_t n) : outcome(n, 0), done(n, 0), upd(n, 0.0), cgs(n, 0.0), excess(n, 0.0) {}
+  std::vector<int32_t> outcome, done;
+  std::vector<double> upd, cgs, excess;
+};
+
+// Validates the arguments (every rank the same) and lays out the cells.
+// @throws UsageError, SceneError or std::invalid_argument, one line
+SweepPlan PlanSweep(const CLI::App& app, const std::string& scenes_arg, const std::string& integrators_arg,
+                    const std::string& nonlinear_arg, const std::string& stiffness_arg, const std::string& h_arg,
+                    int steps, int side) {
+  SweepPlan p;
+  p.steps = steps;
+  p.side = side;
+  std::vector<std::string> names;
+  if (app.count("--integrators") && integrators_arg.empty())
+    throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
+  if (integrators_arg.empty()) {
+    for (Method m : AllMethods()) names.emplace_back(ToString(m));
+    names.emplace_back(ToString(Method::kSbdf3));
+    names.emplace_back(ToString(Method::kSymplecticEuler));
+  } else {
+    names = SplitList(integrators_arg, "--integrators");
+  }
+  std::vector<NonlinearSolver> solvers;
+  for (const std::string& n : SplitList(nonlinear_arg, "--nonlinear-solver"))
+    solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
+  p.methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
+  for (std::size_t a = 0; a < p.methods.size(); ++a)
+    for (std::size_t b = 0; b < a; ++b)
+      if (p.methods[a].label() == p.methods[b].label())
+        throw std::invalid_argument(fmt::format("--integrators: {} is listed twice", p.methods[a].label()));
+  p.stiff = ParsePositiveList(stiffness_arg, "--stiffness");
+  p.hs = ParsePositiveList(h_arg, "--h");
+  for (const std::string& name : SplitList(scenes_arg, "--scenes")) {
+    p.scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
+    for (std::size_t b = 0; b + 1 < p.scenes.size(); ++b)
+      if (p.scenes[b].name == p.scenes.back().name)
+        throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", p.scenes.back().name));
+  }
+  // Each (scene, row, h) as a run of `steps` steps, by the rules every
+  // entry point shares (harness/run_request.h).
+  for (const Scene& sc : p.scenes)
+    for (const RowMethod& m : p.methods)
+      for (double h : p.hs) {
+        RunRequest q;
+        q.scene = sc;
+        q.method = m.label();
+        q.h = h;
+        q.t_end = steps * h;
+        q.names = FieldNames::kOption;
+        q.renamed = {{"t_end", "--steps x --h"}};
+        q.Validate();
+      }
+  for (std::size_t sc = 0; sc < p.scenes.size(); ++sc)
+    for (std::size_t m = 0; m < p.methods.size(); ++m)
+      for (double h : p.hs)
+        for (double st : p.stiff) p.cells.push_back({sc, m, h, st});
+  p.key = fmt::format("steps={} side={} stiffness=", steps, side);
+  for (double st : p.stiff) p.key += fmt::format("{:a},", st);
+  p.key += " h=";
+  for (double h : p.hs) p.key += fmt::format("{:a},", h);
+  p.key += " integrators=";
+  for (const RowMethod& m : p.methods) p.key += m.label() + ",";
+  p.key += " scenes=";
+  for (const Scene& sc : p.scenes) p.key += fmt::format("{}:{},", sc.name, Fnv1a64(sc.toml));
+  return p;
+}
+
+// The cells not yet in the journal (at most `max_cells`, 0: all), dealt
+// round-robin over the ranks, each appended to the journal when done; the
+// journalled ones taken from it on rank 0; everything summed onto rank 0.
+// @return the results, and in *partial whether --max-cells left cells out
+CellResults ComputeCells(const SweepPlan& p, SweepJournal& journal, long max_cells, SweepComm& comm, bool* partial) {
+  const std::size_t n = p.cells.size();
+  CellResults r(n);
+  std::vector<std::size_t> missing;
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto it = journal.done().find(static_cast<long>(k));
+    if (it == journal.done().end()) {
+      missing.push_back(k);
+    } else if (comm.root()) {  // summed onto rank 0: only rank 0 contributes journalled cells
+      r.outcome[k] = it->second.outcome;
+      r.done[k] = it->second.steps;
+      r.upd[k] = it->second.updates;
+      r.cgs[k] = it->second.cg;
+      r.excess[k] = it->second.excess;
+    }
+  }
+  // Rank 0's list for every rank: the ranks read the journal after one
+  // barrier, and rank 0 may append its first cells before another rank
+  // has read it; a rank with a shorter list would deal the cells
+  // differently (cells computed twice, others never).
+  {
+    std::vector<long> list(missing.begin(), missing.end());
+    comm.Broadcast(&list);
+    missing.assign(list.begin(), list.end());
+  }
+  const std::size_t to_compute =
+      max_cells > 0 ? std::min(missing.size(), static_cast<std::size_t>(max_cells)) : missing.size();
+  if (comm.root() && (missing.size() < n || comm.size() > 1 || to_compute < missing.size()))
+    fmt::print("{} of {} cells from {}; computing {} on {} rank{}\n", n - missing.size(), n, journal.path(),
+               to_compute, comm.size(), comm.size() > 1 ? "s" : "");
+  for (std::size_t j = 0; j < to_compute; ++j) {
+    if (!comm.Owns(j)) continue;
+    ThrowIfInterrupted();  // between cells; the journal keeps the finished ones
+    const std::size_t k = missing[j];
+    const CellSpec& cs = p.cells[k];
+    const RowMethod& m = p.methods[cs.method];
+    const StabilityCell c = RunStabilityCell(
+        p.scenes[cs.scene], [&m](const ParticleSystem& sys, const SolverSpec& spec) { return m.Make(sys, spec); },
+        cs.h, cs.stiffness, p.steps);
+    r.outcome[k] = c.outcome;
+    r.done[k] = c.steps;
+    r.upd[k] = c.updates_per_step;
+    r.cgs[k] = c.cg_per_step;
+    r.excess[k] = c.energy_excess;
+    journal.Append(static_cast<long>(k), {c.outcome, c.steps, c.updates_per_step, c.cg_per_step, c.energy_excess});
+  }
+  comm.SumToRoot(&r.outcome);
+  comm.SumToRoot(&r.done);
+  comm.SumToRoot(&r.upd);
+  comm.SumToRoot(&r.cgs);
+  comm.SumToRoot(&r.excess);
+  if (comm.root() && to_compute < missing.size())
+    fmt::print("stopped after {} cells (--max-cells): {} of {} done; rerun the same command to continue ({})\n",
+               to_compute, n - missing.size() + to_compute, n, journal.path());
+  *partial = to_compute < missing.size();
+  return r;
+}
+
+// Prints the maps and writes the result file `out` (rank 0).
+void WriteMaps(const SweepPlan& p, const CellResults& r, const std::string& out, const SweepComm& comm) {
+  const std::vector<double>& stiff = p.stiff;
+  const std::vector<double>& hs = p.hs;
+  const int steps = p.steps, side = p.side;
+  const std::vector<int32_t>& outcome = r.outcome;
+  const std::vector<int32_t>& done = r.done;
+  const std::vector<double>& upd = r.upd;
+  const std::vector<double>& cgs = r.cgs;
+  const std::vector<double>& excess = r.excess;
+  ResultFile f(out);
+  WriteProvenance(f);
+  f.SetAttribute("/", "mpi_ranks", static_cast<long>(comm.size()));
+  f.CreateGroup("/stress");
+  f.WriteVector("/stress/stiffness", stiff, "");
+  f.WriteVector("/stress/h", hs, "s");
+  f.SetAttribute("/stress", "steps", static_cast<long>(steps));
+  f.SetAttribute("/stress", "side", static_cast<long>(side));
+  f.SetAttribute("/stress", "outcome_codes", std::string(kStabilityOutcomeCodes));
+  f.SetAttribute("/stress", "bounded_margin", std::string("E(t) - W_ext(t) <= E(0) + 1e-3 sum(m)|g| diag"));
+  const int nh = static_cast<int>(hs.size()), ns = static_cast<int>(stiff.size());
+  const std::size_t per_map = hs.size() * stiff.size();
+  std::size_t k0 = 0;  // first cell of the current map
+  for (const Scene& scene : p.scenes) {
+    fmt::print("\n{} ({}×{} particles, {} steps per cell, max_updates 30, cg_tolerance 1e-6, no retries)\n",
+               scene.name, side, side, steps);
+    fmt::print("cells: ok U/C = bounded, U updates and C CG iterations per step; at step n: GROW@n energy growth, "
+               "NaN@n non-finite state, CG@n PCG failed, FP@n fixed point not converged in 30 updates, FPdiv@n fixed "
+               "point diverged, NW@n Newton not converged in 30 updates, NWdiv@n Newton diverged\n");
+    for (const RowMethod& m : p.methods) {
+      fmt::print("\n{:<24} {:>8}", m.label(), "h \\ S");
+      for (double s : stiff) fmt::print(" {:>12g}", s);
+      fmt::print("\n");
+      for (std::size_t i = 0; i < hs.size(); ++i) {
+        fmt::print("{:<24} {:>8g}", "", hs[i]);
+        for (std::size_t j = 0; j < stiff.size(); ++j) {
+          const std::size_t k = k0 + i * stiff.size() + j;
+          StabilityCell c;
+          c.outcome = outcome[k];
+          c.steps = done[k];
+          c.updates_per_step = upd[k];
+          c.cg_per_step = cgs[k];
+          fmt::print(" {:>12}", StabilityCellText(c));
+        }
+        fmt::print("\n");
+      }
+      const auto slice = [&](const auto& v) {
+        using T = typename std::decay_t<decltype(v)>::value_type;
+        return std::vector<T>(v.begin() + static_cast<std::ptrdiff_t>(k0),
+                              v.begin() + static_cast<std::ptrdiff_t>(k0 + per_map));
+      };
+      const std::string g = fmt::format("/stress/{}/{}", scene.name, m.id());
+      f.CreateGroup(g);
+      f.WriteTable(g + "/outcome", nh, ns, slice(outcome));
+      f.WriteTable(g + "/steps_completed", nh, ns, slice(done));
+      f.WriteTable(g + "/updates_per_step", nh, ns, slice(upd), "");
+      f.WriteTable(g + "/cg_per_step", nh, ns, slice(cgs), "");
+      f.WriteTable(g + "/energy_excess", nh, ns, slice(excess), "");
+      k0 += per_map;
+    }
+  }
+  f.Commit();
+}
+
 int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench stability maps over numerical stiffness and step size"};
@@ -96,177 +302,18 @@ int Main(int argc, char** argv) {
   };
   std::optional<OutputLock> lock;
   try {
-    std::vector<std::string> names;
-    if (app.count("--integrators") && integrators_arg.empty())
-      throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
-    if (integrators_arg.empty()) {
-      for (Method m : AllMethods()) names.emplace_back(ToString(m));
-      names.emplace_back(ToString(Method::kSbdf3));
-      names.emplace_back(ToString(Method::kSymplecticEuler));
-    } else {
-      names = SplitList(integrators_arg, "--integrators");
-    }
-    std::vector<NonlinearSolver> solvers;
-    for (const std::string& n : SplitList(nonlinear_arg, "--nonlinear-solver")) solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
-    const std::vector<RowMethod> methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
-    for (std::size_t a = 0; a < methods.size(); ++a)
-      for (std::size_t b = 0; b < a; ++b)
-        if (methods[a].label() == methods[b].label())
-          throw std::invalid_argument(fmt::format("--integrators: {} is listed twice", methods[a].label()));
-    const std::vector<double> stiff = ParsePositiveList(stiffness_arg, "--stiffness"), hs = ParsePositiveList(h_arg, "--h");
-    std::vector<Scene> scenes;
-    for (const std::string& name : SplitList(scenes_arg, "--scenes")) {
-      scenes.push_back(StabilityScene(LoadSceneOrBuiltin(name), side));
-      for (std::size_t b = 0; b + 1 < scenes.size(); ++b)
-        if (scenes[b].name == scenes.back().name)
-          throw std::invalid_argument(fmt::format("--scenes: scene \"{}\" is listed twice", scenes.back().name));
-    }
-    // Each (scene, row, h) as a run of `steps` steps, by the rules every
-    // entry point shares (harness/run_request.h).
-    for (const Scene& sc : scenes)
-      for (const RowMethod& m : methods)
-        for (double h : hs) {
-          RunRequest q;
-          q.scene = sc;
-          q.method = m.label();
-          q.h = h;
-          q.t_end = steps * h;
-          q.names = FieldNames::kOption;
-          q.renamed = {{"t_end", "--steps x --h"}};
-          q.Validate();
-        }
+    const SweepPlan plan = PlanSweep(app, scenes_arg, integrators_arg, nonlinear_arg, stiffness_arg, h_arg, steps, side);
     if (!plot_dir.empty()) CheckPlotDir(plot_dir);
     lock.emplace(out, comm, false);  // <out>.lock, held to the exit; the journal is a file
-
-    std::vector<CellSpec> cells;
-    for (std::size_t sc = 0; sc < scenes.size(); ++sc)
-      for (std::size_t m = 0; m < methods.size(); ++m)
-        for (double h : hs)
-          for (double s : stiff) cells.push_back({sc, m, h, s});
-    // The journal's key: every argument that changes a cell's result.
-    std::string key = fmt::format("steps={} side={} stiffness=", steps, side);
-    for (double s : stiff) key += fmt::format("{:a},", s);
-    key += " h=";
-    for (double h : hs) key += fmt::format("{:a},", h);
-    key += " integrators=";
-    for (const RowMethod& m : methods) key += m.label() + ",";
-    key += " scenes=";
-    for (const Scene& sc : scenes) key += fmt::format("{}:{},", sc.name, Fnv1a64(sc.toml));
-    SweepJournal journal(out + ".journal", key, cells.size(), comm);
+    SweepJournal journal(out + ".journal", plan.key, plan.cells.size(), comm);
     if (comm.root() && journal.rejected() > 0)
       fmt::print(stderr, "stress_stability: {}: {} cell line{} failed the check (checksum or range); computing {} again\n",
                  journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "", journal.rejected() > 1 ? "them" : "it");
-
-    const std::size_t n = cells.size();
-    std::vector<int32_t> outcome(n, 0), done(n, 0);
-    std::vector<double> upd(n, 0.0), cgs(n, 0.0), excess(n, 0.0);
-    std::vector<std::size_t> missing;
-    for (std::size_t k = 0; k < n; ++k) {
-      const auto it = journal.done().find(static_cast<long>(k));
-      if (it == journal.done().end()) {
-        missing.push_back(k);
-      } else if (comm.root()) {  // summed onto rank 0: only rank 0 contributes journalled cells
-        outcome[k] = it->second.outcome;
-        done[k] = it->second.steps;
-        upd[k] = it->second.updates;
-        cgs[k] = it->second.cg;
-        excess[k] = it->second.excess;
-      }
-    }
-    // Rank 0's list for every rank: the ranks read the journal after one
-    // barrier, and rank 0 may append its first cells before another rank
-    // has read it; a rank with a shorter list would deal the cells
-    // differently (cells computed twice, others never).
-    {
-      std::vector<long> list(missing.begin(), missing.end());
-      comm.Broadcast(&list);
-      missing.assign(list.begin(), list.end());
-    }
-    const std::size_t to_compute =
-        max_cells > 0 ? std::min(missing.size(), static_cast<std::size_t>(max_cells)) : missing.size();
-    if (comm.root() && (missing.size() < n || comm.size() > 1 || to_compute < missing.size()))
-      fmt::print("{} of {} cells from {}; computing {} on {} rank{}\n", n - missing.size(), n, journal.path(),
-                 to_compute, comm.size(), comm.size() > 1 ? "s" : "");
-    for (std::size_t j = 0; j < to_compute; ++j) {
-      if (!comm.Owns(j)) continue;
-      ThrowIfInterrupted();  // between cells; the journal keeps the finished ones
-      const std::size_t k = missing[j];
-      const CellSpec& cs = cells[k];
-      const RowMethod& m = methods[cs.method];
-      const StabilityCell c = RunStabilityCell(
-          scenes[cs.scene], [&m](const ParticleSystem& sys, const SolverSpec& spec) { return m.Make(sys, spec); },
-          cs.h, cs.stiffness, steps);
-      outcome[k] = c.outcome;
-      done[k] = c.steps;
-      upd[k] = c.updates_per_step;
-      cgs[k] = c.cg_per_step;
-      excess[k] = c.energy_excess;
-      journal.Append(static_cast<long>(k), {c.outcome, c.steps, c.updates_per_step, c.cg_per_step, c.energy_excess});
-    }
-    comm.SumToRoot(&outcome);
-    comm.SumToRoot(&done);
-    comm.SumToRoot(&upd);
-    comm.SumToRoot(&cgs);
-    comm.SumToRoot(&excess);
+    bool partial = false;
+    const CellResults results = ComputeCells(plan, journal, max_cells, comm, &partial);
     if (!comm.root()) return comm.RootStatus(0);
-    if (to_compute < missing.size()) {
-      fmt::print("stopped after {} cells (--max-cells): {} of {} done; rerun the same command to continue ({})\n",
-                 to_compute, n - missing.size() + to_compute, n, journal.path());
-      return comm.RootStatus(kExitPartial);
-    }
-
-    ResultFile f(out);
-    WriteProvenance(f);
-    f.SetAttribute("/", "mpi_ranks", static_cast<long>(comm.size()));
-    f.CreateGroup("/stress");
-    f.WriteVector("/stress/stiffness", stiff, "");
-    f.WriteVector("/stress/h", hs, "s");
-    f.SetAttribute("/stress", "steps", static_cast<long>(steps));
-    f.SetAttribute("/stress", "side", static_cast<long>(side));
-    f.SetAttribute("/stress", "outcome_codes", std::string(kStabilityOutcomeCodes));
-    f.SetAttribute("/stress", "bounded_margin", std::string("E(t) - W_ext(t) <= E(0) + 1e-3 sum(m)|g| diag"));
-    const int nh = static_cast<int>(hs.size()), ns = static_cast<int>(stiff.size());
-    const std::size_t per_map = hs.size() * stiff.size();
-    std::size_t k0 = 0;  // first cell of the current map
-    for (const Scene& scene : scenes) {
-      fmt::print("\n{} ({}×{} particles, {} steps per cell, max_updates 30, cg_tolerance 1e-6, no retries)\n",
-                 scene.name, side, side, steps);
-      fmt::print("cells: ok U/C = bounded, U updates and C CG iterations per step; at step n: GROW@n energy growth, "
-                 "NaN@n non-finite state, CG@n PCG failed, FP@n fixed point not converged in 30 updates, FPdiv@n fixed "
-                 "point diverged, NW@n Newton not converged in 30 updates, NWdiv@n Newton diverged\n");
-      for (const RowMethod& m : methods) {
-        fmt::print("\n{:<24} {:>8}", m.label(), "h \\ S");
-        for (double s : stiff) fmt::print(" {:>12g}", s);
-        fmt::print("\n");
-        for (std::size_t i = 0; i < hs.size(); ++i) {
-          fmt::print("{:<24} {:>8g}", "", hs[i]);
-          for (std::size_t j = 0; j < stiff.size(); ++j) {
-            const std::size_t k = k0 + i * stiff.size() + j;
-            StabilityCell c;
-            c.outcome = outcome[k];
-            c.steps = done[k];
-            c.updates_per_step = upd[k];
-            c.cg_per_step = cgs[k];
-            fmt::print(" {:>12}", StabilityCellText(c));
-          }
-          fmt::print("\n");
-        }
-        const auto slice = [&](const auto& v) {
-          using T = typename std::decay_t<decltype(v)>::value_type;
-          return std::vector<T>(v.begin() + static_cast<std::ptrdiff_t>(k0),
-                                v.begin() + static_cast<std::ptrdiff_t>(k0 + per_map));
-        };
-        const std::string g = fmt::format("/stress/{}/{}", scene.name, m.id());
-        f.CreateGroup(g);
-        f.WriteTable(g + "/outcome", nh, ns, slice(outcome));
-        f.WriteTable(g + "/steps_completed", nh, ns, slice(done));
-        f.WriteTable(g + "/updates_per_step", nh, ns, slice(upd), "");
-        f.WriteTable(g + "/cg_per_step", nh, ns, slice(cgs), "");
-        f.WriteTable(g + "/energy_excess", nh, ns, slice(excess), "");
-        k0 += per_map;
-      }
-    }
-    f.Commit();
+    if (partial) return comm.RootStatus(kExitPartial);
+    WriteMaps(plan, results, out, comm);
     journal.Remove();
     fmt::print("\nmachine: {}, {} hardware threads, {} MPI rank{}, {}, commit {}\nresults: {}\n", HostName(),
                std::thread::hardware_concurrency(), comm.size(), comm.size() > 1 ? "s" : "", CompilerId(), GitCommit(),
