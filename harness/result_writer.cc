@@ -75,8 +75,12 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
   };
   for (std::size_t i = 0; i < rows->size(); ++i) {
     MethodRun& r = (*rows)[i];
+    // The energies of every frame a run kept, a failed run's too (its frames
+    // passed the blow-up guard, so they are finite): the file's energy
+    // series is as long as its times. dE/dt and the contact power are an ok
+    // run's only.
+    r.energy = ComputeEnergies(sys, r.traj);
     if (r.ok()) {
-      r.energy = ComputeEnergies(sys, r.traj);
       if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
       if (std::isfinite(r.energy.ContactPower())) r.contact_power_W = r.energy.ContactPower();
     }

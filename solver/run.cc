@@ -118,6 +118,42 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
 
 namespace {
 
+// Options the run cannot step with: sum's status "invalid_options" and
+// the reason. @return true if refused
+bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, const Stepper& engine, RunSummary* sum) {
+  std::string why;
+  if (!options.IsValid(&why) || !spec.IsValid(&why)) {
+    sum->status = "invalid_options";
+    sum->message = why;
+    return true;
+  }
+  if (spec.step_control == StepControl::kError && !engine.estimates_error()) {
+    sum->status = "invalid_options";
+    sum->message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
+    return true;
+  }
+  return false;
+}
+
+// The run's wall-time and step limits after `attempts` steps at `elapsed`
+// seconds. @return true (sum failed with time_limit or step_limit) if past one
+bool PastLimits(const StepStats& st, const RunOptions& options, double t, long attempts, double elapsed,
+                RunSummary* sum) {
+  const auto fail = [&](const char* status, std::string message) {
+    sum->ok = false;
+    sum->status = status;
+    sum->message = std::move(message);
+    return true;
+  };
+  if (st.status == StepStatus::kTimeLimit || (options.limits.time_limit_s > 0.0 && elapsed > options.limits.time_limit_s))
+    return fail("time_limit", fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
+                                          options.limits.time_limit_s, t, attempts));
+  if (attempts >= options.limits.max_steps && t < options.t_end - 1e-12 * options.t_end)
+    return fail("step_limit", fmt::format("{} step attempts reached t = {:.6g} s of t_end = {:g} s (the limit is {})",
+                                          attempts, t, options.t_end, options.limits.max_steps));
+  return false;
+}
+
 // The frames a run keeps and the work series beside them: allocated before
 // the step loop, filled by Hermite interpolation inside each step, trimmed
 // to the frames reached.
@@ -278,17 +314,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));
   const SolverSpec& spec = options.solver ? *options.solver : system.scene().solver;
   RunSummary sum;
-  std::string why;
-  if (!options.IsValid(&why) || !spec.IsValid(&why)) {
-    sum.status = "invalid_options";
-    sum.message = why;
-    return sum;
-  }
-  if (spec.step_control == StepControl::kError && !engine.estimates_error()) {
-    sum.status = "invalid_options";
-    sum.message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
-    return sum;
-  }
+  if (RefusedOptions(options, spec, engine, &sum)) return sum;
   sum.steps = sum.rejected_steps = sum.error_test_failures = sum.cg_unconverged_steps = 0;
   sum.fixed_point_updates = sum.cg_iterations = 0;
   double solver_seconds = 0.0;
@@ -340,18 +366,9 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     sum.cg_iterations += st.cg_iterations;
     sum.step_stats.push_back(st);
     ++attempts;
-    if (st.status == StepStatus::kTimeLimit ||
-        (options.limits.time_limit_s > 0.0 &&
-         std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
-      fail("time_limit", fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
-                                     options.limits.time_limit_s, engine.t(), attempts));
+    if (PastLimits(st, options, engine.t(), attempts, std::chrono::duration<double>(Clock::now() - wall_start).count(),
+                   &sum))
       break;
-    }
-    if (attempts >= options.limits.max_steps && engine.t() < options.t_end - 1e-12 * options.t_end) {
-      fail("step_limit", fmt::format("{} step attempts reached t = {:.6g} s of t_end = {:g} s (the limit is {})",
-                                     attempts, engine.t(), options.t_end, options.limits.max_steps));
-      break;
-    }
     if (st.status != StepStatus::kOk) {
       ++sum.rejected_steps;
       ++consecutive_rejections;

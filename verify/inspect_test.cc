@@ -550,3 +550,35 @@ TEST(InspectCommand, AFileThatCrashesHdf5IsRefusedWithExit2) {
 
 }  // namespace
 }  // namespace clothbench
+
+namespace clothbench {
+namespace {
+
+// A row that blows up (symplectic Euler at h = 0.01 s on the swinging
+// sheet: energy_growth after 4 steps) is stored with the frames it kept
+// and their energies, a series as long as its times: the file reads back
+// whole (a failed run used to leave its energy series empty, and the
+// reader refused the file the writer had just written).
+TEST(InspectCommand, AFileWithABlownUpRowReadsBack) {
+  const fs::path dir = TempDir() / "blown_up";
+  fs::create_directories(dir);
+  const std::string file = (dir / "se.h5").string();
+  const Outcome o = RunCommand(CLOTHBENCH_BENCH_BINARY, "--integrators symplectic_euler --h 0.01 --reference none "
+                                                        "--quiet --out " + file);
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  for (const char* args : {" summary", " table", " runs --json"}) {
+    const Outcome r = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + args);
+    EXPECT_EQ(r.exit_code, 0) << args << ": " << r.err;
+  }
+  const ResultReader f(file);
+  const RunTable t = ReadRunTable(f);
+  ASSERT_EQ(t.runs.size(), 1u);
+  EXPECT_NE(t.runs[0].status, "ok");
+  const std::size_t frames = f.Shape("/runs/symplectic_euler_h0.01/times")[0];
+  EXPECT_GT(frames, 1u);
+  EXPECT_EQ(f.Shape("/runs/symplectic_euler_h0.01/energy/kinetic")[0], frames);
+  EXPECT_FALSE(t.runs[0].energy_rate_W.has_value());  // dE/dt is an ok run's only
+}
+
+}  // namespace
+}  // namespace clothbench
