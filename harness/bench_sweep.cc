@@ -45,46 +45,133 @@ void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function
   r->solver_time_s_max = times.back();
 }
 
-int RunBench(const BenchRun& b, SweepComm& comm) {
-  using Row = MethodRun;
-  // The sweep: the reference (task 0, if any) and every row in table
-  // order. Under mpirun/srun the tasks are dealt over the ranks and rank 0
-  // assembles, prints and writes; every finished task is journalled in
-  // <out>.journal/, so that the same command rerun after an interruption
-  // computes only the missing ones (harness/sweep.h).
-  struct RowTask {
-    std::size_t mk;  // method
-    double eta, param;
-    int substeps;
-  };
-  std::vector<RowTask> row_tasks;
+// One run of one row: the method, its CG tolerance, h or rtol, substeps.
+struct RowTask {
+  std::size_t mk;  // method
+  double eta, param;
+  int substeps;
+};
+
+// The rows' runs in table order (rows that use the PCG once per η).
+std::vector<RowTask> RowTasks(const BenchRun& b) {
+  std::vector<RowTask> tasks;
   for (std::size_t mk = 0; mk < b.methods.size(); ++mk)
     for (double eta : b.methods[mk].uses_pcg() ? b.etas : std::vector<double>{b.scene.solver.cg_tolerance})
-      for (const auto& [p, n] : b.plan.params[mk]) row_tasks.push_back({mk, eta, p, n});
+      for (const auto& [p, n] : b.plan.params[mk]) tasks.push_back({mk, eta, p, n});
+  return tasks;
+}
+
+void ReportReferenceFailure(const BenchRun& b, bool self_convergence, double h_ref, const RunSummary& r) {
+  if (self_convergence)
+    fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
+               EscapeControl(r.message));
+  else
+    fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", b.reference->name, b.ref_rtol,
+               EscapeControl(r.message));
+}
+
+// Rank 0, after every run: errors and energies against the reference, the
+// printed tables, the series and the result file; the journal is removed
+// once the file is written, and kept (named in the error) if writing fails.
+void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
+                const ReferenceOptions& ref_opts, std::vector<MethodRun>& rows, const SweepComm& comm,
+                RecordJournal& journal) {
+  CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
+  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline, b.error_metric);
+  const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr,
+                                         b.error_metric);
+  if (!b.work_precision_only) PrintRunTable(stdout, run_table);
+  if (ref) PrintWorkPrecision(stdout, wp);
+  try {
+    if (!b.series.empty()) WriteSeries(b.series, rows);
+    WriteResults(b.out, b.scene, sys, ref, ref_opts, rows, run_table, comm.size());
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    // A full disk or a file-size limit at write time: the .tmp is gone
+    // (ResultFile unwinds), a .part never outlives its Store; the finished
+    // runs' entries are whole and checksummed, so a rerun writes the file
+    // without computing them again.
+    const std::size_t kept = journal.Stored().size();
+    if (kept == 0) journal.Remove();
+    throw std::runtime_error(
+        kept ? fmt::format("{}; no result file written; the {} finished runs stay in {}: free space and rerun the same "
+                           "command to write it without computing them again",
+                           e.what(), kept, journal.path())
+             : fmt::format("{}; no result file written", e.what()));
+  }
+  journal.Remove();
+  const std::string xdmf = WriteXdmf(b.out);
+  fmt::print("results: {}\n", b.out);
+  if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
+}
+
+// Rank 0: the tasks (0 the reference if any, then the rows) whose entry in
+// the journal is missing or fails its check (decoded and range-checked
+// before it is trusted; rejected ones are computed again).
+std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, bool has_reference, long n_particles) {
+  const std::vector<long> have = journal.Stored([&](long k, const std::string& bytes) {
+    if (k == 0 && has_reference) DecodeSummary(bytes, n_particles);
+    else DecodeRun(bytes, n_particles);
+  });
+  if (journal.rejected() > 0)
+    fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short, "
+                       "not of this command's key or values out of range; first: {}); computing {} again\n",
+               journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "",
+               EscapeControl(journal.first_rejection()), journal.rejected() > 1 ? "them" : "it");
+  std::vector<long> missing;
+  for (long k = 0; k < n_tasks; ++k)
+    if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
+  return missing;
+}
+
+// Rank 0: the reference (task 0, if any) and every row in task order, each
+// from this rank's results, another rank's bytes or the journal.
+// @throws std::runtime_error naming the journal if a stored entry is damaged
+void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJournal& journal, long n_ref,
+                  std::size_t n_rows, long n_particles, std::map<long, RunSummary>* own_ref,
+                  std::map<long, MethodRun>* own_rows, std::optional<RunSummary>* ref, std::vector<MethodRun>* rows) {
+  std::map<long, std::string> bytes_of(std::make_move_iterator(received.begin()),
+                                       std::make_move_iterator(received.end()));
+  const auto bytes = [&](long k) {
+    const auto it = bytes_of.find(k);
+    return it != bytes_of.end() ? std::move(it->second) : journal.Load(k);
+  };
+  if (n_ref) {
+    try {
+      *ref = own_ref->count(0) ? std::move(own_ref->at(0)) : DecodeSummary(bytes(0), n_particles);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: run 0: {}; delete the folder and rerun", journal.path(), e.what()));
+    }
+    if (!(*ref)->ok) return;  // the caller reports it
+  }
+  for (std::size_t i = 0; i < n_rows; ++i) {
+    const long k = n_ref + static_cast<long>(i);
+    try {
+      rows->push_back(own_rows->count(k) ? std::move(own_rows->at(k)) : DecodeRun(bytes(k), n_particles));
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
+    }
+  }
+}
+
+// The sweep: the reference (task 0, if any) and every row in table order.
+// Under mpirun/srun the tasks are dealt over the ranks and rank 0
+// assembles, prints and writes; every finished task is journalled in
+// <out>.journal/, so that the same command rerun after an interruption
+// computes only the missing ones (harness/sweep.h).
+int RunBench(const BenchRun& b, SweepComm& comm) {
+  using Row = MethodRun;
+  const std::vector<RowTask> row_tasks = RowTasks(b);
   const long n_ref = b.reference != nullptr ? 1 : 0;
   const long n_tasks = n_ref + static_cast<long>(row_tasks.size());
   // The model last: it loads the mesh obstacles, whose errors are refusals
   // too; the journal exists only for a run that is not refused.
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
-  std::vector<long> missing;
-  std::size_t stored = 0;
-  if (comm.root()) {
-    // Every entry is decoded and range-checked before it is trusted.
-    const long n = sys.num_particles();
-    const std::vector<long> have = journal.Stored([&](long k, const std::string& bytes) {
-      if (k == 0 && n_ref) DecodeSummary(bytes, n);
-      else DecodeRun(bytes, n);
-    });
-    if (journal.rejected() > 0)
-      fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short, "
-                         "not of this command's key or values out of range; first: {}); computing {} again\n",
-                 journal.path(), journal.rejected(), journal.rejected() > 1 ? "s" : "",
-                 EscapeControl(journal.first_rejection()), journal.rejected() > 1 ? "them" : "it");
-    for (long k = 0; k < n_tasks; ++k)
-      if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
-    stored = static_cast<std::size_t>(n_tasks) - missing.size();
-  }
+  std::vector<long> missing = comm.root() ? MissingTasks(journal, n_tasks, n_ref > 0, sys.num_particles())
+                                          : std::vector<long>{};
+  const std::size_t stored = comm.root() ? static_cast<std::size_t>(n_tasks) - missing.size() : 0;
   comm.Broadcast(&missing);
   const std::size_t to_compute =
       b.max_runs > 0 ? std::min(missing.size(), static_cast<std::size_t>(b.max_runs)) : missing.size();
@@ -104,11 +191,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   const double h_ref = (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 16.0;
   const auto reference_failed = [&](const RunSummary& r) {
     if (journal.Stored().empty()) journal.Remove();  // nothing to resume
-    if (self_convergence)
-      fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
-                 r.message);
-    else
-      fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", b.reference->name, b.ref_rtol, r.message);
+    ReportReferenceFailure(b, self_convergence, h_ref, r);
     return 1;
   };
   const RunContext ctx{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
@@ -186,59 +269,12 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
                to_compute, stored + to_compute, n_tasks, journal.path());
     return kExitPartial;
   }
-  // Assemble in task order: own results, then other ranks', then the journal's.
-  std::map<long, std::string> bytes_of(std::make_move_iterator(received.begin()),
-                                       std::make_move_iterator(received.end()));
-  const auto bytes = [&](long k) {
-    const auto it = bytes_of.find(k);
-    return it != bytes_of.end() ? std::move(it->second) : journal.Load(k);
-  };
   std::optional<RunSummary> ref;
-  if (n_ref) {
-    try {
-      ref = own_ref.count(0) ? std::move(own_ref.at(0)) : DecodeSummary(bytes(0), sys.num_particles());
-    } catch (const std::runtime_error& e) {
-      throw std::runtime_error(fmt::format("{}: run 0: {}; delete the folder and rerun", journal.path(), e.what()));
-    }
-    if (!ref->ok) return reference_failed(*ref);
-  }
   std::vector<Row> rows;
-  for (std::size_t i = 0; i < row_tasks.size(); ++i) {
-    const long k = n_ref + static_cast<long>(i);
-    try {
-      rows.push_back(own_rows.count(k) ? std::move(own_rows.at(k)) : DecodeRun(bytes(k), sys.num_particles()));
-    } catch (const std::runtime_error& e) {
-      throw std::runtime_error(fmt::format("{}: run {}: {}; delete the folder and rerun", journal.path(), k, e.what()));
-    }
-  }
-  CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline, b.error_metric);
-  const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr,
-                                         b.error_metric);
-  if (!b.work_precision_only) PrintRunTable(stdout, run_table);
-  if (ref) PrintWorkPrecision(stdout, wp);
-  try {
-    if (!b.series.empty()) WriteSeries(b.series, rows);
-    WriteResults(b.out, b.scene, sys, ref, ref_opts, rows, run_table, comm.size());
-  } catch (const Interrupted&) {
-    throw;
-  } catch (const std::exception& e) {
-    // A full disk or a file-size limit at write time: the .tmp is gone
-    // (ResultFile unwinds), a .part never outlives its Store; the finished
-    // runs' entries are whole and checksummed, so a rerun writes the file
-    // without computing them again.
-    const std::size_t kept = journal.Stored().size();
-    if (kept == 0) journal.Remove();
-    throw std::runtime_error(
-        kept ? fmt::format("{}; no result file written; the {} finished runs stay in {}: free space and rerun the same "
-                           "command to write it without computing them again",
-                           e.what(), kept, journal.path())
-             : fmt::format("{}; no result file written", e.what()));
-  }
-  journal.Remove();
-  const std::string xdmf = WriteXdmf(b.out);
-  fmt::print("results: {}\n", b.out);
-  if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
+  AssembleRuns(std::move(received), journal, n_ref, row_tasks.size(), sys.num_particles(), &own_ref, &own_rows, &ref,
+               &rows);
+  if (ref && !ref->ok) return reference_failed(*ref);
+  WriteBench(b, sys, ref, ref_opts, rows, comm, journal);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
   return 0;
 }
