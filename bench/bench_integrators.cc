@@ -305,10 +305,10 @@ int Main(int argc, char** argv) {
     if (!table.empty()) {
       // --table runs the thesis' own rows: options that choose rows or runs would be ignored.
       std::string ignored;
-      for (const CLI::Option* o : app.get_options())
-        if (o->count() > 0 && !std::set<std::string>{"--table", "--out", "--preconditioner", "--nonlinear-solver",
-                                                     "--cg-tolerances", "--quiet"}.count(o->get_name()))
-          ignored += (ignored.empty() ? "" : ", ") + o->get_name();
+      for (const CLI::Option* option : app.get_options())
+        if (option->count() > 0 && !std::set<std::string>{"--table", "--out", "--preconditioner", "--nonlinear-solver",
+                                                     "--cg-tolerances", "--quiet"}.count(option->get_name()))
+          ignored += (ignored.empty() ? "" : ", ") + option->get_name();
       if (!ignored.empty()) throw UsageError(fmt::format("--table: cannot be combined with {}", ignored));
       if (out.empty()) out = fmt::format("out/table_{}.h5", table == "3.1" ? "3_1" : "3_2");
       if (table == "3.1" || table == "3.2") lock.emplace(out, comm);

@@ -185,7 +185,45 @@ StepStats StepEngine::StepImpl(double h) {
   st.t = t_ + h;
   st.h = h;
   if (method_ == Method::kSymplecticEuler) return ExplicitStep(h, st);
+  bool sbdf3_start = false;
+  const Method m = StepMethod(h, &sbdf3_start);
+  const bool imex = IsImex(m);
+  // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)).
+  const double omega = have_history_ ? h / h_prev_ : 1.0;
+  const StageCoefficients c = PrepareStage(m, h, omega, imex);
 
+  if (!sysmat_.Update(c.alpha * h)) {
+    st.status = StepStatus::kPreconditionerFailed;
+    return st;
+  }
+  if (contacts_.active()) {
+    st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+    b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
+    if (!sysmat_.AdaptTo(filter_)) {
+      st.status = StepStatus::kPreconditionerFailed;
+      return st;
+    }
+  }
+  // SBDF(3)'s start step evaluates g₀ too, for the history.
+  if (imex || sbdf3_start) ExplicitTerms(m, omega);
+
+  // Predictor (3.25, 3.32): constant velocity, or linear extrapolation.
+  v1_ = v0_;
+  if (opts_.predictor == Predictor::kExtrapolate && have_history_) v1_ += omega * (v0_ - vm1_);
+
+  const PcgOptions pcg_opts{opts_.cg_tolerance, opts_.cg_max_iterations};
+  // With contacts and CgReference::kFixedOnly, η is relative to ‖S_F b‖:
+  // only the fixed particles' rows are left out (see CgReference).
+  const bool fixed_only_norm = contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly;
+  if (!imex && !sbdf3_start && tangent_) {
+    if (!NewtonIterate(h, c.alpha, c.beta, c.gamma_g, c.t_g, c.midpoint, fixed_only_norm, &st)) return st;
+  } else if (!FixedPointIterate(h, c, imex, sbdf3_start, fixed_only_norm, pcg_opts, &st)) {
+    return st;
+  }
+  return FinishStep(h, c.gamma, st);
+}
+
+Method StepEngine::StepMethod(double h, bool* sbdf3_start) const {
   // Multistep methods start with a one-step method of the same family
   // (docs/model.md §4): SBDF(2) with IMEX Euler, BDF(2) with implicit Euler.
   Method m = method_;
@@ -193,21 +231,26 @@ StepStats StepEngine::StepImpl(double h) {
   if (multistep && !have_history_) m = method_ == Method::kSbdf2 ? Method::kImexEuler : Method::kImplicitEuler;
   // SBDF(3): the IMEX midpoint start step, then SBDF(2) until three equal
   // steps give the BDF3 history.
-  const bool sbdf3_start = method_ == Method::kSbdf3 && sbdf3_history_ == 0;
-  if (sbdf3_start) m = Method::kImplicitMidpoint;
-  if (method_ == Method::kSbdf3 && !sbdf3_start && (sbdf3_history_ < 2 || h != h_prev_ || h_prev_ != h_prev2_))
+  *sbdf3_start = method_ == Method::kSbdf3 && sbdf3_history_ == 0;
+  if (*sbdf3_start) m = Method::kImplicitMidpoint;
+  if (method_ == Method::kSbdf3 && !*sbdf3_start && (sbdf3_history_ < 2 || h != h_prev_ || h_prev_ != h_prev2_))
     m = Method::kSbdf2;
-  const bool imex = IsImex(m);
+  return m;
+}
 
-  // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)).
-  const double omega = have_history_ ? h / h_prev_ : 1.0;
+StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, double omega, bool imex) {
   const Bdf2Coefficients bdf(omega);
   const double c1 = bdf.c1, c2 = bdf.c2, c3 = bdf.c3;
-
+  StageCoefficients k;
+  double& alpha = k.alpha;
+  double& beta = k.beta;
+  double& gamma = k.gamma;
+  double& gamma_g = k.gamma_g;
+  double& t_g = k.t_g;
+  bool& midpoint = k.midpoint;
+  t_g = t_ + h;
   const Eigen::VectorXd& mass = sys_.masses();
   const SparseMatrix& lk = sys_.stiffness_laplacian();
-  double alpha = 1.0, beta = 1.0, gamma = 1.0, gamma_g = 1.0, t_g = t_ + h;
-  bool midpoint = false;
   switch (m) {
     case Method::kImexEuler:
     case Method::kImplicitEuler:
@@ -268,52 +311,31 @@ StepStats StepEngine::StepImpl(double h) {
       break;
   }
 
-  if (!sysmat_.Update(alpha * h)) {
-    st.status = StepStatus::kPreconditionerFailed;
-    return st;
-  }
-  if (contacts_.active()) {
-    st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
-    b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
-    if (!sysmat_.AdaptTo(filter_)) {
-      st.status = StepStatus::kPreconditionerFailed;
-      return st;
-    }
-  }
+  return k;
+}
 
-  // Explicit terms of the IMEX methods: g(t₀, x₀, v₀), extrapolated for
-  // SBDF(2) and SBDF(3). SBDF(3)'s start step evaluates g₀ too, for the
-  // history.
-  if (imex || sbdf3_start) {
-    if (!have_g0_) {
-      sys_.ExplicitForces(t_, x0_, v0_, &g0_);
-      have_g0_ = true;
-    }
-    if (m == Method::kSbdf2)
-      g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (docs/model.md §4)
-    else if (m == Method::kSbdf3)
-      g_ = 3.0 * g0_ - 3.0 * gm1_ + gm2_;  // ĝ, third order at a constant step
-    else
-      g_ = g0_;
+void StepEngine::ExplicitTerms(Method m, double omega) {
+  if (!have_g0_) {
+    sys_.ExplicitForces(t_, x0_, v0_, &g0_);
+    have_g0_ = true;
   }
+  if (m == Method::kSbdf2)
+    g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (docs/model.md §4)
+  else if (m == Method::kSbdf3)
+    g_ = 3.0 * g0_ - 3.0 * gm1_ + gm2_;  // ĝ, third order at a constant step
+  else
+    g_ = g0_;
+}
 
-  // Predictor (3.25, 3.32): constant velocity, or linear extrapolation.
-  v1_ = v0_;
-  if (opts_.predictor == Predictor::kExtrapolate && have_history_) v1_ += omega * (v0_ - vm1_);
-
-  PcgOptions pcg_opts{opts_.cg_tolerance, opts_.cg_max_iterations};
-  // With contacts and CgReference::kFixedOnly, η is relative to ‖S_F b‖:
-  // only the fixed particles' rows are left out (see CgReference).
-  const bool fixed_only_norm = contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly;
+bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool imex, bool sbdf3_start,
+                                   bool fixed_only_norm, PcgOptions pcg_opts, StepStats* st) {
+  const double beta = c.beta, gamma_g = c.gamma_g, t_g = c.t_g;
+  const bool midpoint = c.midpoint;
   // SBDF(3)'s start is the midpoint rule with exactly two updates: g at
   // the midpoint of the first update's v₁ (an O(h²) midpoint state) gives a
   // local error O(h³), which keeps the method third order.
   const int max_updates = imex ? 1 : sbdf3_start ? 2 : opts_.max_updates;
   bool converged = false;
-  if (!imex && !sbdf3_start && tangent_) {
-    converged = NewtonIterate(h, alpha, beta, gamma_g, t_g, midpoint, fixed_only_norm, &st);
-    if (!converged) return st;
-  }
   for (int u = 0; u < max_updates && !converged; ++u) {
     if (!imex) {
       // Evaluate g at the current iterate (Alg. 6 line 7).
@@ -329,17 +351,17 @@ StepStats StepEngine::StepImpl(double h) {
     if (fixed_only_norm) pcg_opts.rhs_norm = FreeRowsNorm(b_, sys_.fixed());
     if (opts_.fixed_point_tolerance > 0.0) vprev_ = v1_;
     last_pcg_ = FilteredPcg(sysmat_.matrix(), b_, filter_, sysmat_.preconditioner(), pcg_opts, &v1_, &work_);
-    ++st.updates;
-    st.cg_iterations += last_pcg_.iterations;
+    ++st->updates;
+    st->cg_iterations += last_pcg_.iterations;
     if (last_pcg_.status != PcgStatus::kConverged) {
-      st.pcg_status = last_pcg_.status;
+      st->pcg_status = last_pcg_.status;
       if (last_pcg_.status == PcgStatus::kTimeLimit)
-        st.status = StepStatus::kTimeLimit;
+        st->status = StepStatus::kTimeLimit;
       else if (last_pcg_.status != PcgStatus::kNonFinite)
-        st.status = StepStatus::kCgFailed;
+        st->status = StepStatus::kCgFailed;
       else
-        st.status = (!imex && u > 0) ? StepStatus::kFixedPointDiverged : StepStatus::kNonFinite;
-      return st;
+        st->status = (!imex && u > 0) ? StepStatus::kFixedPointDiverged : StepStatus::kNonFinite;
+      return false;
     }
     // Alg. 6 line 11: converged when the PCG needed 0 iterations (the new
     // g did not move the solution beyond the CG tolerance); optionally also
@@ -351,10 +373,13 @@ StepStats StepEngine::StepImpl(double h) {
     }
   }
   if (!converged) {
-    st.status = StepStatus::kNoFixedPointConvergence;
-    return st;
+    st->status = StepStatus::kNoFixedPointConvergence;
+    return false;
   }
+  return true;
+}
 
+StepStats StepEngine::FinishStep(double h, double gamma, StepStats st) {
   x1_ = xhat_ + (gamma * h) * v1_;
   // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
   // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.

@@ -214,7 +214,29 @@ class StepEngine : public Stepper {
   bool newton() const { return tangent_ != nullptr; }
 
  private:
+  /// The coefficients of one step's velocity system (docs/model.md §4):
+  /// A_α v₁ = b₀ + βh g(t_g, x_g, v_g) with x_g = x̂_g + γ_g h v₁, x₁ = x̂ + γh v₁.
+  struct StageCoefficients {
+    double alpha = 1.0, beta = 1.0, gamma = 1.0, gamma_g = 1.0, t_g = 0.0;
+    bool midpoint = false;  ///< implicit midpoint: g at the mean velocity
+  };
   StepStats StepImpl(double h);
+  /// The method this step takes: the start steps of the multistep methods.
+  /// @param sbdf3_start set if this is SBDF(3)'s midpoint start step
+  Method StepMethod(double h, bool* sbdf3_start) const;
+  /// Sets x̂, v̂, x̂_g and b₀ of method `m` at step h (ω = h/h₋₁) and returns
+  /// its coefficients (thesis (3.22)–(3.36)).
+  StageCoefficients PrepareStage(Method m, double h, double omega, bool imex);
+  /// The explicit terms g of the IMEX methods: g(t₀, x₀, v₀), extrapolated
+  /// for SBDF(2) and SBDF(3).
+  void ExplicitTerms(Method m, double omega);
+  /// The fixed-point loop (Alg. 6) from the predictor v₁: returns true when
+  /// converged; on failure st->status says why.
+  bool FixedPointIterate(double h, const StageCoefficients& c, bool imex, bool sbdf3_start, bool fixed_only_norm,
+                         PcgOptions pcg_opts, StepStats* st);
+  /// x₁ from the converged v₁, the error test, the contact impulses and the
+  /// commit. @return st with its status
+  StepStats FinishStep(double h, double gamma, StepStats st);
   /// Newton's method for v₁ (docs/model.md §10): F(v) = A_α v − b₀ − βh g(t_g, x_g(v), v_g(v)),
   /// J_α δ = −F on the free directions. Returns true when converged; on
   /// failure st->status says why.
