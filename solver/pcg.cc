@@ -267,31 +267,7 @@ Eigen::Matrix3d ContactFrame(const Vector3& n) {
 
 bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter) {
   const int n = static_cast<int>(a.rows());
-  if (static_cast<int>(s_now_.size()) != n) {
-    s_now_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
-    system_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
-    fine_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
-    system_valid_ = false;
-  }
-  for (auto& s : s_now_) s.setIdentity();
-  int contacts = 0, off_axis = 0;
-  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
-    Eigen::Matrix3d& s = s_now_[static_cast<std::size_t>(p)];
-    int c = 0;
-    if (count == 1) off_axis += dirs.col(0).cwiseAbs().maxCoeff(&c) < kFrameSnap;
-    if (amg_diagnostics_.frames_only) {  // S = I: the contacts set only the frames
-      contacts += count < 3;
-      return;
-    }
-    if (count == 1 && amg_diagnostics_.axis_normals) {  // the normal rounded to its nearest axis c
-      s(c, c) = 0.0;
-      ++contacts;
-      return;
-    }
-    for (int k = 0; k < count; ++k) s -= dirs.col(k) * dirs.col(k).transpose();
-    contacts += count < 3;
-  });
-  contact_stats_.off_axis = off_axis;
+  const int contacts = ContactProjectors(filter, n);
   if (contacts == 0) {  // only the fixed particles: A_F's hierarchy is exact
     system_used_ = false;
     return true;
@@ -359,6 +335,42 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
       return true;
     }
   }
+  SetUpContactHierarchy(a, filter);
+  return true;
+}
+
+int Preconditioner::ContactProjectors(const VelocityFilter& filter, int n) {
+  if (static_cast<int>(s_now_.size()) != n) {
+    s_now_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+    system_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+    fine_s_.assign(static_cast<std::size_t>(n), Eigen::Matrix3d::Identity());
+    system_valid_ = false;
+  }
+  for (auto& s : s_now_) s.setIdentity();
+  int contacts = 0, off_axis = 0;
+  filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+    Eigen::Matrix3d& s = s_now_[static_cast<std::size_t>(p)];
+    int c = 0;
+    if (count == 1) off_axis += dirs.col(0).cwiseAbs().maxCoeff(&c) < kFrameSnap;
+    if (amg_diagnostics_.frames_only) {  // S = I: the contacts set only the frames
+      contacts += count < 3;
+      return;
+    }
+    if (count == 1 && amg_diagnostics_.axis_normals) {  // the normal rounded to its nearest axis c
+      s(c, c) = 0.0;
+      ++contacts;
+      return;
+    }
+    for (int k = 0; k < count; ++k) s -= dirs.col(k) * dirs.col(k).transpose();
+    contacts += count < 3;
+  });
+  contact_stats_.off_axis = off_axis;
+  return contacts;
+}
+
+void Preconditioner::SetUpContactHierarchy(const SparseMatrix& a, const VelocityFilter& filter) {
+  const int n = static_cast<int>(a.rows());
+  const auto mode = static_cast<std::size_t>(frame_mode_);
   const auto t0 = std::chrono::steady_clock::now();
   // The frames of this setup: the mode with the fewer V-cycles per solve
   // over the last hierarchy built with it. The other mode's record decays
@@ -394,7 +406,6 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   contact_stats_.seconds += dt;
   ++contact_stats_.refactorizations;
   system_used_ = system_valid_;
-  return true;
 }
 
 void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filter, bool smooth) {

@@ -269,6 +269,13 @@ class Preconditioner {
   // K = S A S + (I − S), whether the hierarchy is current for A's values
   // and used by Apply.
   bool AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& filter);
+  /// The contact projectors S = I − Σ n nᵀ of `filter`'s constraints into
+  /// s_now_ (sized for n particles). @return the contacts that constrain
+  /// fewer than three directions (the fixed particles are A_F's)
+  int ContactProjectors(const VelocityFilter& filter, int n);
+  /// A new hierarchy of the contact system in the frame mode the measured
+  /// V-cycles favour (the setup path of AdaptAmgTo).
+  void SetUpContactHierarchy(const SparseMatrix& a, const VelocityFilter& filter);
   // frames_ for the constraints of `filter` (with `smooth`, at a setup, the
   // free particles' directions spread again from the contacts first; at a
   // finest-level update only the contacts' frames turn); the CSR rows of K
