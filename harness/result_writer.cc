@@ -20,6 +20,7 @@
 #include "results/result_file.h"
 #include "results/result_reader.h"
 #include "results/run_records.h"
+#include "results/write_file.h"
 #include "results/work_precision.h"
 
 namespace clothbench {
@@ -278,9 +279,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
 // summary: the first impact, CG per step in the 0.1 s after it, and
 // fixed-point updates and CG per step over the last 0.3 s (resting contact).
 void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream csv(path);
-  if (!csv) throw std::runtime_error(fmt::format("--series: cannot write \"{}\"", path));
-  csv << "integrator,h,t,step_h,updates,cg_iterations,colliding,status\n";
+  std::string csv = "integrator,h,t,step_h,updates,cg_iterations,colliding,status\n";
   fmt::print("\nFig. 4.3 series: {}\n{:<24} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
              "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
   for (const Row& r : rows) {
@@ -288,7 +287,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
     double impact = -1.0, t_last = r.steps_table.empty() ? 0.0 : r.steps_table.back().t;
     long cg_a = 0, n_a = 0, upd_b = 0, cg_b = 0, n_b = 0;
     for (const StepRecord& s : r.steps_table) {
-      csv << fmt::format("{},{:g},{:.6f},{:.6g},{},{},{},{}\n", r.label, r.h, s.t, s.h, s.updates, s.cg_iterations,
+      csv += fmt::format("{},{:g},{:.6f},{:.6g},{},{},{},{}\n", r.label, r.h, s.t, s.h, s.updates, s.cg_iterations,
                          s.colliding, s.status);
       if (s.status != 0) continue;
       if (impact < 0.0 && s.colliding > 0) impact = s.t;
@@ -302,6 +301,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
                static_cast<double>(upd_b) / steps_b, static_cast<double>(cg_b) / steps_b,
                r.steps_table.empty() ? 0 : r.steps_table.back().colliding);
   }
+  WriteFileAtomically(path, csv, "--series");
 }
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "results/result_reader.h"
+#include "results/write_file.h"
 
 namespace clothbench {
 namespace {
@@ -103,20 +104,12 @@ std::string WriteXdmf(const std::string& h5_path) {
   }
   std::filesystem::path xdmf = h5_path;
   xdmf.replace_extension(".xdmf");
-  const std::string tmp = xdmf.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n" << body << "  </Domain>\n</Xdmf>\n";
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw ResultError(fmt::format("{}: cannot write", tmp));
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, xdmf, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw ResultError(fmt::format("{}: cannot rename from {}: {}", xdmf.string(), tmp, ec.message()));
+  try {
+    WriteFileAtomically(xdmf.string(),
+                        "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n" + body + "  </Domain>\n</Xdmf>\n",
+                        "XDMF");
+  } catch (const std::runtime_error& e) {
+    throw ResultError(e.what());
   }
   return xdmf.string();
 }
