@@ -72,7 +72,7 @@ void AddOptions(CLI::App& app, Options& o) {
                  "(default: per method, multiples of the scene's h chosen so that the default scene's runs bracket "
                  "e_rms = 1e-3 m; docs/work-precision.md)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
-  app.add_option("--reference", reference, "cvode | ida | none");
+  app.add_option("--reference", reference, fmt::format("the reference: {} (with KLU) or none", ReferenceNames()));
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--cvode-setting", cvode_setting_arg,
                  "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
