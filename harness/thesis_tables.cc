@@ -231,7 +231,8 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   f.WriteVector("/table/cg_tolerances", etas, "");
   int index = 0;
   // One HDF5 group per row: our counts and error beside the thesis'.
-  auto write_row = [&](const std::string& scene_name, PreconditionerType scene_preconditioner, const ThesisRow& tr, const RowMethod& m, double eta,
+  auto write_row = [&](const std::string& scene_name, PreconditionerType scene_preconditioner, double h,
+                       const ThesisRow& tr, const RowMethod& m, double eta,
                        const RunSummary& r, std::optional<double> err, double h_ref) {
     const std::string g = fmt::format("/table/row{}", index++);
     f.CreateGroup(g);
@@ -243,7 +244,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     rec.layer = std::string(m.entry->layer);
     rec.step_kind = std::string(ToString(m.kind()));
     if (m.fully_implicit()) rec.nonlinear_solver = std::string(ToString(m.solver));
-    rec.h = r.h;
+    rec.h = h;  // the scene's step (RunSummary::h is a self-convergence reference's only)
     rec.cg_tolerance = eta;
     rec.preconditioner = std::string(ToString(scene_preconditioner));
     RecordSummary(r, false, &rec);
@@ -286,7 +287,7 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                      m.label(), tr.k, tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "",
                      r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, ratio,
                      err ? Sci(*err) : "", r.rejected_steps, r.status);
-          write_row(blk.scene_name, blk.scene.solver.preconditioner, tr, m, eta, r, err, blk.h_ref);
+          write_row(blk.scene_name, blk.scene.solver.preconditioner, blk.scene.h, tr, m, eta, r, err, blk.h_ref);
         }
       }
     }
