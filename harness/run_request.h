@@ -1,11 +1,12 @@
 // One run of one row, as every entry point asks for it: the scene, the row
 // by its registry name, h or rtol, substeps, the solver options a user may
 // override, the frames kept, the limits and the reference it is compared
-// with. The Python module's run(), the rerun of a stored run
-// (clothbench_inspect … rerun / command) and contact_replay build one and
-// call Validate() before anything is computed, so that they refuse the same
-// input with the same line; bench_integrators validates each planned row
-// through it too. The rules (docs/scenes.md "Limits"):
+// with. The Python module's run() and reference(), the rerun of a stored
+// run (clothbench_inspect … rerun / command) and contact_replay build one
+// and call Validate() or Resolve() before anything is computed, so that
+// they refuse the same input with the same line; bench_integrators and
+// stress_stability validate each planned run through it too. The rules
+// (docs/scenes.md "Limits"):
 //  - method: a registry row ("bdf2/newton", "arkode/ark4"), runnable on the
 //    scene's step control;
 //  - h [s]: fixed-step and substepped rows only, finite, > 0, ≤ t_end, and
