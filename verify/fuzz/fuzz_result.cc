@@ -7,7 +7,7 @@
 // file, or accept it; after ValidateResultFile accepted it, the run table,
 // every attribute, every stored frame of every run, the faces, the step
 // tables and the printed table must be readable without another exception,
-// every frame value finite and every face index a particle of the scene.
+// every frame value finite (ValidateResultFile checks the face indices).
 // Anything else (another exception, a sanitizer report, a violated
 // invariant) aborts and is a finding. Seeds: small result files of
 // bench_integrators and stress_stability (verify/fuzz/results/).
@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <string>
 
 #include <fcntl.h>
@@ -56,15 +57,15 @@ int g_report_fd = 2;  // the child's stderr is /dev/null (HDF5 crashes' ASan rep
 }
 
 // Everything a reader reads after ValidateResultFile accepted the file
-// (results/contained_read.h: ReadValidatedFile), then the invariants: faces inside the particle range, every frame N×3
-// and finite, every time finite.
+// (results/contained_read.h: ReadValidatedFile), then the invariants that
+// do not depend on a second read of an attribute: every frame finite,
+// every time finite. (ValidateResultFile itself checks faces and frame
+// shapes against /scene@n_particles; HDF5 1.10 may read a damaged header
+// differently a second time, so re-reading N here gave false findings:
+// result_regressions/n_particles_reread_differs.bin.)
 void ReadEverything(const clothbench::ResultReader& f) {
   using namespace clothbench;
   ReadValidatedFile(f);
-  const long n = f.Long("/scene", "n_particles").value_or(0);
-  if (f.Exists("/scene/faces"))
-    for (int32_t q : f.Ints("/scene/faces"))
-      if (q < 0 || q >= n) Finding("face index outside the particles", std::to_string(q));
   std::vector<std::string> groups;
   if (f.Exists("/reference")) groups.push_back("/reference");
   for (const std::string& id : f.Children("/runs")) groups.push_back("/runs/" + id);
@@ -74,7 +75,7 @@ void ReadEverything(const clothbench::ResultReader& f) {
       if (!f.Exists(d)) continue;
       const std::size_t frames = f.Shape(d)[0];
       for (std::size_t k = 0; k < frames; ++k)
-        if (const MatrixN3 x = f.Frame(d, k); x.rows() != n || !x.allFinite()) Finding("frame not N×3 finite", d);
+        if (!f.Frame(d, k).allFinite()) Finding("frame not finite", d);
     }
     if (f.Exists(g + "/times"))
       for (double v : f.Doubles(g + "/times"))
