@@ -346,8 +346,7 @@ int RunSubcommand(const Args& a) {
   CheckReadableInChild(a.file);
   if (a.diff->parsed()) CheckReadableInChild(a.other);
   const ResultReader f(a.file);
-  ValidateResultFile(f);
-  const RunTable t = ReadRunTable(f);
+  const RunTable t = ValidateResultFile(f);
   if (a.summary->parsed()) {
     PrintSummary(f, t);
   } else if (a.table->parsed()) {
@@ -360,8 +359,7 @@ int RunSubcommand(const Args& a) {
     PrintRuns(f, t, a.json);
   } else if (a.diff->parsed()) {
     const ResultReader g(a.other);
-    ValidateResultFile(g);
-    return Diff(t, ReadRunTable(g), a.other, a.rtol, a.time_tolerance);
+    return Diff(t, ValidateResultFile(g), a.other, a.rtol, a.time_tolerance);
   } else if (a.exp->parsed()) {
     Export(f, a.run, a.frame, a.obj, a.ply);
   } else if (a.wp->parsed()) {

@@ -475,8 +475,7 @@ py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
 py::dict ReadResultFile(const std::string& path) {
   CheckReadableInChild(path);  // a file that crashes the HDF5 library: ValueError, not a dead interpreter
   const ResultReader reader(path);
-  ValidateResultFile(reader);
-  const RunTable t = ReadRunTable(reader);
+  const RunTable t = ValidateResultFile(reader);
   py::dict out;
   out["schema"] = t.schema;
   out["git_commit"] = t.git_commit;

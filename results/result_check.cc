@@ -112,7 +112,7 @@ void CheckRun(const ResultReader& f, const std::string& g, long n_particles) {
 
 }  // namespace
 
-void ValidateResultFile(const ResultReader& f) {
+RunTable ValidateResultFile(const ResultReader& f) {
   CheckAttributes(f, "/");
   long n = 0;
   if (f.Exists("/scene")) {
@@ -156,8 +156,9 @@ void ValidateResultFile(const ResultReader& f) {
   }
   // The run table as every reader reads it: its datasets present and
   // consistent (the equal-accuracy table's cells, labels and indices).
-  (void)ReadRunTable(f);
+  RunTable table = ReadRunTable(f);
   if (f.Exists("/scene/toml")) (void)f.Text("/scene/toml");
+  return table;
   if (f.Exists("/stress")) {
     CheckAttributes(f, "/stress");
     const std::size_t stiff = ShapeOf(f, "/stress/stiffness", 1)[0], hs = ShapeOf(f, "/stress/h", 1)[0];

@@ -72,8 +72,9 @@ class ResultReader {
 /// indices against the vertex count, /stress maps against their axes),
 /// finite values of the small datasets and attributes, non-decreasing times
 /// and attribute sizes. Frame values are checked when read (Frame).
+/// @return the file's run table (ReadRunTable), read as part of the checks
 /// @throws ResultError "<file>: <dataset or object@attribute>: <rule>".
-void ValidateResultFile(const ResultReader& file);
+RunTable ValidateResultFile(const ResultReader& file);
 
 }  // namespace clothbench
 
