@@ -134,17 +134,12 @@ void AddOptions(CLI::App& app, Options& o) {
                  "energy, Fig. 4.3 on obstacle scenes; PNG and SVG)");
 }
 
-// Validates everything before anything is computed, on every rank (rank 0
-// probes the file system and the memory): the scene and its overrides, the
-// rows and each planned run as a RunRequest, the output paths.
-// @param solvers, etas parsed --nonlinear-solver and --cg-tolerances (may be empty)
+// The scene of the invocation: --scene (or the default), with --t-end,
+// --cg-tolerance, --preconditioner, --tangent-terms and --frames applied.
 // @throws UsageError or SceneError, one line
-BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver> solvers, std::vector<double> etas,
-                   SweepComm& comm, int argc, char** argv) {
-  [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
-                          time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
-                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
+Scene SceneOfOptions(const CLI::App& app, const Options& o) {
+  const auto& [scene_path, t_end, cg_tolerance, preconditioner, tangent_terms, frames_mode] =
+      std::tie(o.scene_path, o.t_end, o.cg_tolerance, o.preconditioner, o.tangent_terms, o.frames_mode);
   Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
   if (app.count("--t-end")) {
     if (!std::isfinite(t_end) || !(t_end > 0.0) || t_end > 1e6)
@@ -154,11 +149,6 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     scene.h = std::min(scene.h, t_end);
     CheckRunLength(scene, fmt::format("--t-end {:g} on {}", t_end, scene.source));
   }
-  if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
-    throw UsageError(fmt::format("--time-limit: {:g} s must be a number in (0, 1e7]", time_limit));
-  if (!std::isfinite(time_budget)) throw UsageError(fmt::format("--time-budget: {:g} s must be a number in [0, 1e6]", time_budget));
-  if (app.count("--integrators") && integrators_arg.empty())
-    throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
   if (app.count("--cg-tolerance")) {
     if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
       throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
@@ -176,10 +166,11 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
   // leaves the frame datasets out of the file.
   if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
-  const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
-  if (reference != "none" && (!reference_entry || !reference_entry->reference))
-    throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
-  CheckTolerance(ref_rtol, "--reference-rtol");
+  return scene;
+}
+
+// --cvode-setting KEY=VALUE,… as CVODE's settings. @throws UsageError naming the pair
+CvodeSettings CvodeSettingsOf(const CLI::App& app, const std::string& cvode_setting_arg) {
   CvodeSettings cvode_settings;
   if (app.count("--cvode-setting"))
     for (const std::string& kv : SplitList(cvode_setting_arg, "--cvode-setting")) {
@@ -188,6 +179,31 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
         throw UsageError(fmt::format("--cvode-setting: {}", why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
     }
+  return cvode_settings;
+}
+
+// Validates everything before anything is computed, on every rank (rank 0
+// probes the file system and the memory): the scene and its overrides, the
+// rows and each planned run as a RunRequest, the output paths.
+// @param solvers, etas parsed --nonlinear-solver and --cg-tolerances (may be empty)
+// @throws UsageError or SceneError, one line
+BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver> solvers, std::vector<double> etas,
+                   SweepComm& comm, int argc, char** argv) {
+  [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
+                          time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
+                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
+  Scene scene = SceneOfOptions(app, o);
+  if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
+    throw UsageError(fmt::format("--time-limit: {:g} s must be a number in (0, 1e7]", time_limit));
+  if (!std::isfinite(time_budget)) throw UsageError(fmt::format("--time-budget: {:g} s must be a number in [0, 1e6]", time_budget));
+  if (app.count("--integrators") && integrators_arg.empty())
+    throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
+  const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
+  if (reference != "none" && (!reference_entry || !reference_entry->reference))
+    throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
+  CheckTolerance(ref_rtol, "--reference-rtol");
+  const CvodeSettings cvode_settings = CvodeSettingsOf(app, cvode_setting_arg);
   const std::vector<std::string> names =
       integrators_arg.empty() ? DefaultRowNames(scene.solver.nonlinear_solver, app.count("--nonlinear-solver") > 0)
                               : SplitList(integrators_arg, "--integrators");

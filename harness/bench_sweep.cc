@@ -29,9 +29,9 @@ void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function
     const auto start = std::chrono::steady_clock::now();
     const MethodRun again = run_again();
     *budget -= std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (!again.ok() || again.steps != r->steps || again.traj.positions.size() != r->traj.positions.size() ||
-        again.traj.positions.back() != r->traj.positions.back() ||
-        again.traj.velocities.back() != r->traj.velocities.back())
+    if (!again.ok() || again.steps != r->steps || again.trajectory.positions.size() != r->trajectory.positions.size() ||
+        again.trajectory.positions.back() != r->trajectory.positions.back() ||
+        again.trajectory.velocities.back() != r->trajectory.velocities.back())
       throw std::runtime_error(fmt::format("{}: timing {} of {} did not reproduce the first run's end state bit for "
                                            "bit (steps {} vs {}, status {})",
                                            r->id, times.size() + 1, k, again.steps, r->steps, again.status));
@@ -74,17 +74,17 @@ void ReportReferenceFailure(const BenchRun& b, bool self_convergence, double h_r
 // printed tables, the series and the result file; the journal is removed
 // once the file is written, and kept (named in the error) if writing fails.
 void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
-                const ReferenceOptions& ref_opts, std::vector<MethodRun>& rows, const SweepComm& comm,
+                std::vector<MethodRun>& rows, const SweepComm& comm,
                 RecordJournal& journal) {
   CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
   const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline, b.error_metric);
-  const RunTable run_table = MakeRunTable(b.scene, sys, ref, ref_opts, rows, b.frames_mode, ref ? &wp : nullptr,
+  const RunTable run_table = MakeRunTable(b.scene, sys, ref, rows, b.frames_mode, ref ? &wp : nullptr,
                                          b.error_metric);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);
   if (ref) PrintWorkPrecision(stdout, wp);
   try {
     if (!b.series.empty()) WriteSeries(b.series, rows);
-    WriteResults(b.out, b.scene, sys, ref, ref_opts, rows, run_table, comm.size());
+    WriteResults(b.out, b.scene, sys, ref, rows, run_table, comm.size());
   } catch (const Interrupted&) {
     throw;
   } catch (const std::exception& e) {
@@ -109,10 +109,10 @@ void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optiona
 // Rank 0: the tasks (0 the reference if any, then the rows) whose entry in
 // the journal is missing or fails its check (decoded and range-checked
 // before it is trusted; rejected ones are computed again).
-std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, bool has_reference, long n_particles) {
-  const std::vector<long> have = journal.Stored([&](long k, const std::string& bytes) {
-    if (k == 0 && has_reference) DecodeSummary(bytes, n_particles);
-    else DecodeRun(bytes, n_particles);
+std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_particles) {
+  const std::vector<long> have = journal.Stored([&](long, const std::string& bytes) {
+    RunSummary run;  // the reference (task 0, if any) and the rows share the codec
+    DecodeRun(bytes, n_particles, &run);
   });
   if (journal.rejected() > 0)
     fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short, "
@@ -139,11 +139,16 @@ void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJour
   };
   if (n_ref) {
     try {
-      *ref = own_ref->count(0) ? std::move(own_ref->at(0)) : DecodeSummary(bytes(0), n_particles);
+      if (own_ref->count(0)) {
+        *ref = std::move(own_ref->at(0));
+      } else {
+        ref->emplace();
+        DecodeRun(bytes(0), n_particles, &**ref);
+      }
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(fmt::format("{}: run 0: {}; delete the folder and rerun", journal.path(), e.what()));
     }
-    if (!(*ref)->ok) return;  // the caller reports it
+    if (!(*ref)->ok()) return;  // the caller reports it
   }
   for (std::size_t i = 0; i < n_rows; ++i) {
     const long k = n_ref + static_cast<long>(i);
@@ -169,7 +174,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   // too; the journal exists only for a run that is not refused.
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
-  std::vector<long> missing = comm.root() ? MissingTasks(journal, n_tasks, n_ref > 0, sys.num_particles())
+  std::vector<long> missing = comm.root() ? MissingTasks(journal, n_tasks, sys.num_particles())
                                           : std::vector<long>{};
   const std::size_t stored = comm.root() ? static_cast<std::size_t>(n_tasks) - missing.size() : 0;
   comm.Broadcast(&missing);
@@ -227,9 +232,9 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
         progress.Start(fmt::format("reference {} rtol {:g}", b.reference->name, b.ref_rtol), b.scene.t_end);
         r = b.reference->reference(sys, ref_opts);
       }
-      if (!r.ok && comm.size() == 1) return reference_failed(r);  // serial: before any row
-      std::string bytes = EncodeSummary(r);
-      if (r.ok) journal_store(k, bytes);  // a failed reference is computed again by a rerun
+      if (!r.ok() && comm.size() == 1) return reference_failed(r);  // serial: before any row
+      std::string bytes = EncodeRun(r);
+      if (r.ok()) journal_store(k, bytes);  // a failed reference is computed again by a rerun
       if (comm.root()) own_ref.emplace(k, std::move(r));
       else outgoing.emplace_back(k, std::move(bytes));
       continue;
@@ -273,8 +278,8 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   std::vector<Row> rows;
   AssembleRuns(std::move(received), journal, n_ref, row_tasks.size(), sys.num_particles(), &own_ref, &own_rows, &ref,
                &rows);
-  if (ref && !ref->ok) return reference_failed(*ref);
-  WriteBench(b, sys, ref, ref_opts, rows, comm, journal);
+  if (ref && !ref->ok()) return reference_failed(*ref);
+  WriteBench(b, sys, ref, rows, comm, journal);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
   return 0;
 }

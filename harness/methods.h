@@ -215,7 +215,7 @@ inline const std::vector<MethodEntry>& Registry() {
        .variants = {"ark4", "ark5"}, .arkode_table = true, .best_preconditioner = kBest},
       // cvode: the reduced velocity solve with the PCG; cvode/klu:
       // KLU on the 6N×6N first-order Jacobian (the reference's solver).
-      {.name = "cvode", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true,
+      {.name = kCvodeName, .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true,
        .sparse_jacobian = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                        const RunContext& ctx) {
@@ -224,7 +224,7 @@ inline const std::vector<MethodEntry>& Registry() {
        .reference = RunCvode, .variants = {"klu"}, .cvode_settings = true, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
-      {.name = "ida", .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
+      {.name = kIdaName, .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
@@ -236,9 +236,9 @@ inline const std::vector<MethodEntry>& Registry() {
 
 /// The row every equal-accuracy ratio is relative to (docs/work-precision.md):
 /// CVODE with the reduced velocity solve.
-inline constexpr std::string_view kWorkPrecisionBaseline = "cvode";
+inline constexpr std::string_view kWorkPrecisionBaseline = kCvodeName;
 /// The default reference (--reference).
-inline constexpr std::string_view kDefaultReference = "cvode";
+inline constexpr std::string_view kDefaultReference = kCvodeName;
 
 /// The methods that can be the reference, for messages ("cvode, ida").
 inline std::string ReferenceNames();
@@ -263,17 +263,11 @@ inline std::string KnownMethodNames() {
   return s;
 }
 
-/// One run of one row: its record (the attributes the table prints and the
-/// result file stores: results/run_table.h, the same record the journal
-/// codec and the reader use) and what the sweep derives the rest from. The
-/// error, order and energy fields of the record are filled by the caller
-/// against a reference.
-struct MethodRun : RunRecord {
-  Trajectory traj;
-  std::vector<StepRecord> steps_table;
-  std::vector<double> bdf_order;          ///< SUNDIALS rows: method order per step
-  std::optional<SundialsStats> sundials;  ///< cvode, ida, arkode counters
-  // Filled by the caller against a reference:
+/// One run of one row: the step loop's RunSummary (its record, the
+/// attributes the table prints and the result file stores, with the
+/// trajectory and step history) and what the caller derives from it against
+/// a reference: the record's error, order and energy fields and these.
+struct MethodRun : RunSummary {
   std::optional<TrajectoryErrors> err;
   EnergySeries energy;
 
@@ -291,25 +285,6 @@ inline std::string ArkodeRowTable(std::string_view modifier) {
   if (modifier == "ark4") return "ARK436L2SA";
   if (modifier == "ark5") return "ARK548L2SA";
   return "";
-}
-
-/// The counts, times and status of the step loop's summary `r` in a run's
-/// record: the one mapping from RunSummary's names to the record's
-/// (fixed_point_updates → updates, rejected_steps → rejected).
-/// @param error_control whether the run stepped under our error control
-///   (its error-test failures count; SUNDIALS runs always report theirs)
-inline void RecordSummary(const RunSummary& r, bool error_control, RunRecord* row) {
-  row->status = r.ok ? "ok" : r.status;
-  row->message = r.message;
-  row->steps = r.steps;
-  row->updates = r.fixed_point_updates;
-  row->cg_iterations = r.cg_iterations;
-  row->rejected = r.rejected_steps;
-  row->cg_unconverged = std::max(r.cg_unconverged_steps, 0);
-  row->error_test_failures = error_control || r.sundials ? r.error_test_failures : -1;
-  row->solver_time_s = r.solver_time_in_seconds;
-  row->setup_time_s = r.setup_time_in_seconds;
-  row->wall_time_s = r.wall_time_in_seconds;
 }
 
 /// One row's method: a registry entry with its nonlinear solver and, for
@@ -383,24 +358,6 @@ struct RowMethod {
   /// (see RunRecord::status).
   MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
                 const RunContext& ctx, int substeps = 1) const {
-    MethodRun row;
-    row.label = label();
-    row.integrator = name();
-    row.layer = std::string(entry->layer);
-    row.step_kind = std::string(ToString(kind()));
-    if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
-    row.id = RunId(param, substeps);
-    if (kind() == StepKind::kFixedStep) {
-      row.h = param;
-      row.numerical_stiffness = scene.NumericalStiffness(param);
-    } else if (kind() == StepKind::kSubstepped) {
-      row.h = param;
-      row.substeps = substeps;
-      row.numerical_stiffness = scene.NumericalStiffness(param / substeps);
-    } else {
-      row.rtol = param;
-      row.numerical_stiffness = scene.NumericalStiffness(scene.h);
-    }
     SolverSpec row_spec = spec;
     const std::optional<PreconditionerType>& best =
         error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
@@ -412,45 +369,56 @@ struct RowMethod {
     if (best && !ctx.preconditioner_from_cli && spec.preconditioner == PreconditionerType::kIc0)
       row_spec.preconditioner = *best;
     if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
-    if (uses_pcg()) row.cg_tolerance = row_spec.cg_tolerance;
     if (entry->best_tangent_explicit_terms && !ctx.tangent_terms_from_cli)
       row_spec.tangent_explicit_terms = *entry->best_tangent_explicit_terms;
-    if (builds_tangent()) row.tangent_terms = row_spec.tangent_explicit_terms ? "all" : "tension";
-    if (uses_pcg()) row.preconditioner = std::string(ToString(row_spec.preconditioner));
-    RunSummary r;
     RunContext row_ctx = ctx;
     if (!ArkodeRowTable(variant).empty()) row_ctx.arkode_table = ArkodeRowTable(variant);
     row_ctx.variant = variant;
-    row.threads = KernelThreads();
+    // The step loop fills the record's status, counts and times (and the
+    // SUNDIALS runs their settings); the row's identity follows.
+    MethodRun row;
+    const SolverSpec s = Settings(row_spec, param);
+    std::unique_ptr<Stepper> stepper;
+    if (entry->make) {
+      stepper = entry->make(sys, s, substeps);
+      // Error-controlled rows start at the scene's h; the controller takes over.
+      static_cast<RunSummary&>(row) =
+          RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
+      row.step_control = std::string(ToString(s.step_control));
+      if (entry->describe) entry->describe(*stepper, sys, &row);
+    } else {
+      static_cast<RunSummary&>(row) = entry->integrate(
+          sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, row_ctx);
+      row.step_control = "sundials";
+      if (entry->arkode_table) row.arkode_table = row_ctx.arkode_table;
+    }
+    row.label = label();
+    row.integrator = name();
+    row.layer = std::string(entry->layer);
+    row.step_kind = std::string(ToString(kind()));
+    if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
+    row.id = RunId(param, substeps);
+    row.h = row.rtol = row.atol = 0.0;
+    if (kind() == StepKind::kFixedStep) {
+      row.h = param;
+      row.numerical_stiffness = scene.NumericalStiffness(param);
+    } else if (kind() == StepKind::kSubstepped) {
+      row.h = param;
+      row.substeps = substeps;
+      row.numerical_stiffness = scene.NumericalStiffness(param / substeps);
+    } else {
+      row.rtol = row.atol = param;  // rtol = atol for every adaptive row
+      row.numerical_stiffness = scene.NumericalStiffness(scene.h);
+    }
     if (uses_pcg()) {
+      row.cg_tolerance = row_spec.cg_tolerance;
+      row.preconditioner = std::string(ToString(row_spec.preconditioner));
       row.predictor = std::string(ToString(row_spec.predictor));
       row.cg_reference = std::string(ToString(row_spec.cg_reference));
     }
+    if (builds_tangent()) row.tangent_terms = row_spec.tangent_explicit_terms ? "all" : "tension";
     if (solver == NonlinearSolver::kNewton) row.newton_jacobian = std::string(ToString(row_spec.newton_jacobian));
-    if (kind() == StepKind::kAdaptive) row.atol = param;  // rtol = atol for every adaptive row
-    if (entry->make) {
-      const SolverSpec s = Settings(row_spec, param);
-      row.step_control = std::string(ToString(s.step_control));
-      const std::unique_ptr<Stepper> stepper = entry->make(sys, s, substeps);
-      if (entry->describe) entry->describe(*stepper, sys, &row);
-      // Error-controlled rows start at the scene's h; the controller takes over.
-      r = RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
-    } else {
-      row.step_control = "sundials";
-      if (entry->arkode_table) row.arkode_table = row_ctx.arkode_table;
-      r = entry->integrate(sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec,
-                           row_ctx);
-    }
-    RecordSummary(r, error_control, &row);
-    row.traj = std::move(r.trajectory);
-    row.sundials = r.sundials;
-    row.sundials_settings = r.settings;
-    for (const StepStats& st : r.step_stats) {
-      row.steps_table.push_back(
-          {st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding, st.solve_time,
-           st.setup_time});
-      if (r.sundials) row.bdf_order.push_back(st.error_order);
-    }
+    row.threads = KernelThreads();
     return row;
   }
 };

@@ -259,10 +259,10 @@ RerunOutcome RerunStored(const ResultReader& file, const RunTable& table, const 
   const std::string g = "/runs/" + run_id;
   const std::string xs = file.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
   const std::string vs = file.Exists(g + "/velocities") ? g + "/velocities" : g + "/velocities_ends";
-  o.end_state_kept = file.Exists(xs) && file.Exists(vs) && !o.run.traj.positions.empty();
+  o.end_state_kept = file.Exists(xs) && file.Exists(vs) && !o.run.trajectory.positions.empty();
   if (o.end_state_kept) {
     const MatrixN3 x = file.Frame(xs, file.Shape(xs)[0] - 1), v = file.Frame(vs, file.Shape(vs)[0] - 1);
-    const MatrixN3 &y = o.run.traj.positions.back(), &w = o.run.traj.velocities.back();
+    const MatrixN3 &y = o.run.trajectory.positions.back(), &w = o.run.trajectory.velocities.back();
     if (x.rows() == y.rows() && v.rows() == w.rows()) {
       o.bit_for_bit = x == y && v == w;
       o.max_dx = (x - y).cwiseAbs().maxCoeff();
@@ -275,9 +275,9 @@ RerunOutcome RerunStored(const ResultReader& file, const RunTable& table, const 
     std::vector<MethodRun> rows;
     rows.push_back(o.run);
     CompareToReference(sys, nullptr, run.scene.t_end, ErrorMetric::kFinal, &rows);
-    const RunTable t = MakeRunTable(run.scene, sys, std::nullopt, ReferenceOptions{}, rows, q.frames, nullptr,
+    const RunTable t = MakeRunTable(run.scene, sys, std::nullopt, rows, q.frames, nullptr,
                                     ErrorMetric::kFinal);
-    WriteResults(out, run.scene, sys, std::nullopt, ReferenceOptions{}, rows, t, 1);
+    WriteResults(out, run.scene, sys, std::nullopt, rows, t, 1);
   }
   return o;
 }

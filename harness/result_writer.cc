@@ -45,6 +45,13 @@ void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
   f.WriteVectors3(g + "/momentum", e.momentum, "kg m/s");
 }
 
+// A SUNDIALS run's counters as attributes of group g (those it counted).
+void WriteSundialsStats(ResultFile& f, const std::string& g, const SundialsStats& s) {
+  for (auto [name, v] : {std::pair{"nst", s.nst}, {"nfe", s.nfe}, {"nfe_i", s.nfe_i}, {"nni", s.nni}, {"nli", s.nli},
+                         {"netf", s.netf}, {"ncfn", s.ncfn}, {"nje", s.nje}, {"nsetups", s.nsetups}})
+    if (v >= 0) f.SetAttribute(g, name, v);
+}
+
 // Writes a trajectory's frames under group g: "positions" / "velocities"
 // [F, N, 3] at every frame (aligned with g/times) when `every_*` is set,
 // else "positions_ends" / "velocities_ends" [2, N, 3] at t = 0 and t_end;
@@ -80,12 +87,12 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
     // passed the blow-up guard, so they are finite): the file's energy
     // series is as long as its times. dE/dt and the contact power are an ok
     // run's only.
-    r.energy = ComputeEnergies(sys, r.traj);
+    r.energy = ComputeEnergies(sys, r.trajectory);
     if (r.ok()) {
       if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
       if (std::isfinite(r.energy.ContactPower())) r.contact_power_W = r.energy.ContactPower();
     }
-    if (ref && r.ok()) r.err = CompareTrajectories(r.traj, ref->trajectory);
+    if (ref && r.ok()) r.err = CompareTrajectories(r.trajectory, ref->trajectory);
     if (r.err) {  // only where they exist: no NaN is ever written
       r.error_final_m = r.err->rms_at_end;
       r.error_l2_m = r.err->rms_l2;
@@ -105,7 +112,7 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
 }
 
 RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
-                      const ReferenceOptions& ref_opts, const std::vector<Row>& rows, const std::string& frames_mode,
+                      const std::vector<Row>& rows, const std::string& frames_mode,
                       const EqualAccuracyTable* wp, ErrorMetric metric) {
   RunTable t;
   t.error_metric = std::string(ToString(metric));
@@ -144,29 +151,11 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
   t.h_min = sv.h_min;
   t.h_max = sv.h_max;
   if (ref) {
-    // The reference as a run record: CVODE/IDA adaptive at ref_opts.rtol, or
-    // the fixed-step self-convergence run (RunSummary::h > 0).
-    RunRecord rr;
-    rr.id = "reference";
-    rr.integrator = rr.label = ref->integrator;
-    const bool self_convergence = ref->h > 0.0;
-    rr.layer = self_convergence ? "solver" : "reference";
-    rr.step_kind = std::string(ToString(self_convergence ? StepKind::kFixedStep : StepKind::kAdaptive));
-    if (self_convergence) {
-      rr.h = ref->h;
-      rr.cg_tolerance = 1e-10;
-    } else {
-      rr.rtol = ref_opts.rtol;
-    }
-    rr.status = ref->ok ? "ok" : ref->status;
-    rr.message = ref->message;
-    rr.steps = ref->steps;
-    rr.updates = ref->fixed_point_updates;
-    rr.cg_iterations = ref->cg_iterations;
-    rr.solver_time_s = ref->solver_time_in_seconds;
-    rr.wall_time_s = ref->wall_time_in_seconds;
-    rr.setup_time_s = ref->setup_time_in_seconds;
-    rr.numerical_stiffness = scene.NumericalStiffness(self_convergence ? ref->h : scene.h);
+    // The reference's record as its run filled it (CVODE/IDA adaptive at
+    // its rtol and atol, or the fixed-step self-convergence run), under the id
+    // "reference", with its energies.
+    RunRecord rr = *ref;
+    NameReference(scene, &rr);
     const EnergySeries e = ComputeEnergies(sys, ref->trajectory);
     if (e.t.size() >= 2 && std::isfinite(e.Rate())) rr.energy_rate_W = e.Rate();
     if (std::isfinite(e.ContactPower())) rr.contact_power_W = e.ContactPower();
@@ -178,7 +167,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
 }
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
-                  const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts, const std::vector<Row>& rows,
+                  const std::optional<RunSummary>& ref, const std::vector<Row>& rows,
                   const RunTable& table, long mpi_ranks) {
   const std::string& frames_mode = table.frames;
   const bool write_frames = frames_mode != "none";
@@ -219,21 +208,12 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   if (ref) {
     f.CreateGroup("/reference");
     WriteRunRecord(f, "/reference", *table.reference);
-    if (!IsSelfConvergence(*table.reference))
-      f.SetAttribute("/reference", "atol", ref_opts.atol > 0 ? ref_opts.atol : ref_opts.rtol);
-    if (const auto& s = ref->sundials)
-      for (auto [name, v] : {std::pair{"nst", s->nst}, {"nfe", s->nfe}, {"nni", s->nni}, {"nli", s->nli},
-                             {"netf", s->netf}, {"ncfn", s->ncfn}, {"nje", s->nje}, {"nsetups", s->nsetups}})
-        f.SetAttribute("/reference", name, v);
+    if (ref->sundials) WriteSundialsStats(f, "/reference", *ref->sundials);
     f.WriteVector("/reference/times", ref->trajectory.times, "s");
     if (write_frames)
       WriteTrajectoryFrames(f, "/reference", ref->trajectory, true, frames_mode == "all" || frames_mode == "ends");
     WriteEnergy(f, "/reference", ComputeEnergies(sys, ref->trajectory));
-    std::vector<StepRecord> st;
-    for (const StepStats& s : ref->step_stats)
-      st.push_back({s.t, s.h, s.updates, s.cg_iterations, static_cast<int32_t>(s.status), s.colliding, s.solve_time,
-                    s.setup_time});
-    f.WriteStepStats("/reference/step_stats", st);
+    f.WriteStepStats("/reference/step_stats", StepRecords(*ref));
   }
   f.CreateGroup("/runs");
   std::string last_label;
@@ -242,34 +222,29 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     const std::string g = "/runs/" + r.id;
     f.CreateGroup(g);
     WriteRunRecord(f, g, table.runs[k]);
-    if (r.sundials) {
-      for (auto [name, v] : {std::pair{"nst", r.sundials->nst}, {"nfe", r.sundials->nfe}, {"nfe_i", r.sundials->nfe_i},
-                             {"nni", r.sundials->nni}, {"nli", r.sundials->nli}, {"netf", r.sundials->netf},
-                             {"ncfn", r.sundials->ncfn}, {"nje", r.sundials->nje}, {"nsetups", r.sundials->nsetups}})
-        if (v >= 0) f.SetAttribute(g, name, v);
-    }
-    f.WriteVector(g + "/times", r.traj.times, "s");
+    if (r.sundials) WriteSundialsStats(f, g, *r.sundials);
+    f.WriteVector(g + "/times", r.trajectory.times, "s");
     // --frames default: every frame of each label's first row (its largest
     // h or rtol, where its motion differs most from the reference), the ends
     // of the others.
     const bool first_of_label = r.label != last_label;
     last_label = r.label;
     if (write_frames)
-      WriteTrajectoryFrames(f, g, r.traj,
+      WriteTrajectoryFrames(f, g, r.trajectory,
                             frames_mode == "all" || frames_mode == "positions" || frames_mode == "ends" ||
                                 (frames_mode == "default" && first_of_label),
                             frames_mode == "all" || frames_mode == "ends");
     WriteEnergy(f, g, r.energy);
     if (!sys.obstacles().empty()) {
-      const PenetrationSeries pen = ComputePenetration(sys, r.traj);
-      const int frames = static_cast<int>(r.traj.times.size());
+      const PenetrationSeries pen = ComputePenetration(sys, r.trajectory);
+      const int frames = static_cast<int>(r.trajectory.times.size());
       f.CreateGroup(g + "/penetration");
       f.WriteTable(g + "/penetration/max_depth", frames, pen.obstacles, pen.max_depth, "m");
       f.WriteTable(g + "/penetration/mean_depth", frames, pen.obstacles, pen.mean_depth, "m");
       f.WriteTable(g + "/penetration/close_count", frames, pen.obstacles, pen.close);
     }
-    f.WriteStepStats(g + "/step_stats", r.steps_table);
-    if (!r.bdf_order.empty()) f.WriteVector(g + "/method_order", r.bdf_order, "");
+    f.WriteStepStats(g + "/step_stats", StepRecords(r));
+    if (r.sundials) f.WriteVector(g + "/method_order", MethodOrders(r), "");
   }
   if (table.work_precision) WriteWorkPrecision(f, *table.work_precision);
   f.Commit();
@@ -284,12 +259,12 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
              "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
   for (const Row& r : rows) {
     if (r.kind() != StepKind::kFixedStep) continue;
-    double impact = -1.0, t_last = r.steps_table.empty() ? 0.0 : r.steps_table.back().t;
+    double impact = -1.0, t_last = r.step_stats.empty() ? 0.0 : r.step_stats.back().t;
     long cg_a = 0, n_a = 0, upd_b = 0, cg_b = 0, n_b = 0;
-    for (const StepRecord& s : r.steps_table) {
+    for (const StepStats& s : r.step_stats) {
       csv += fmt::format("{},{:g},{:.6f},{:.6g},{},{},{},{}\n", r.label, r.h, s.t, s.h, s.updates, s.cg_iterations,
-                         s.colliding, s.status);
-      if (s.status != 0) continue;
+                         s.colliding, static_cast<int>(s.status));
+      if (s.status != StepStatus::kOk) continue;
       if (impact < 0.0 && s.colliding > 0) impact = s.t;
       if (impact >= 0.0 && s.t <= impact + 0.1) cg_a += s.cg_iterations, ++n_a;
       if (s.t > t_last - 0.3) upd_b += s.updates, cg_b += s.cg_iterations, ++n_b;
@@ -299,12 +274,33 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
                impact < 0 ? "none" : fmt::format("{:.2f}", impact),
                n_a ? fmt::format("{:.1f}", static_cast<double>(cg_a) / static_cast<double>(n_a)) : "",
                static_cast<double>(upd_b) / steps_b, static_cast<double>(cg_b) / steps_b,
-               r.steps_table.empty() ? 0 : r.steps_table.back().colliding);
+               r.step_stats.empty() ? 0 : r.step_stats.back().colliding);
   }
   WriteFileAtomically(path, csv, "--series");
 }
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
+
+void NameReference(const Scene& scene, RunRecord* ref) {
+  ref->id = "reference";
+  ref->numerical_stiffness = scene.NumericalStiffness(ref->h > 0.0 ? ref->h : scene.h);
+}
+
+std::vector<StepRecord> StepRecords(const RunSummary& run) {
+  std::vector<StepRecord> out;
+  out.reserve(run.step_stats.size());
+  for (const StepStats& st : run.step_stats)
+    out.push_back({st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding,
+                   st.solve_time, st.setup_time});
+  return out;
+}
+
+std::vector<double> MethodOrders(const RunSummary& run) {
+  std::vector<double> out;
+  out.reserve(run.step_stats.size());
+  for (const StepStats& st : run.step_stats) out.push_back(st.error_order);
+  return out;
+}
 
 // The equal-accuracy table (docs/work-precision.md) of the rows' records,
 // after CompareToReference filled their errors.

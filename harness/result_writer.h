@@ -29,20 +29,32 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
 /// through CompareToReference (their records carry errors and energies).
 /// @param ref the reference run, if any; @param wp the equal-accuracy table, if any
 RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
-                      const ReferenceOptions& ref_opts, const std::vector<MethodRun>& rows,
+                      const std::vector<MethodRun>& rows,
                       const std::string& frames_mode, const EqualAccuracyTable* wp, ErrorMetric metric);
 
 /// Writes the result file `path` (atomically: a temporary file renamed on
 /// Commit) with the scene, the reference, every row and `table`'s records.
 /// @throws std::runtime_error if the file cannot be written
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
-                  const std::optional<RunSummary>& ref, const ReferenceOptions& ref_opts,
-                  const std::vector<MethodRun>& rows, const RunTable& table, long mpi_ranks);
+                  const std::optional<RunSummary>& ref, const std::vector<MethodRun>& rows, const RunTable& table,
+                  long mpi_ranks);
 
 /// Fig. 4.3: per-step CG iterations and colliding particles as CSV at
 /// `path`, and a summary printed on stdout.
 /// @throws std::runtime_error if `path` cannot be written
 void WriteSeries(const std::string& path, const std::vector<MethodRun>& rows);
+
+/// The reference's record as /reference stores it: id "reference" and the
+/// numerical stiffness h²k/(ρl²) at its step (a self-convergence run's h,
+/// else the scene's h). Its run filled the rest.
+void NameReference(const Scene& scene, RunRecord* ref);
+
+/// A run's step history as the file's /runs/<id>/step_stats rows
+/// (results/result_file.h StepRecord): every attempt, rejected ones included.
+std::vector<StepRecord> StepRecords(const RunSummary& run);
+
+/// A SUNDIALS run's method order q per step (/runs/<id>/method_order).
+std::vector<double> MethodOrders(const RunSummary& run);
 
 /// The equal-accuracy table (docs/work-precision.md) of the rows at the
 /// error `targets` [m] of `metric`, with ratios to the row labelled `baseline`

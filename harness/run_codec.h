@@ -172,10 +172,11 @@ inline void CheckStepStatus(int status) {
 
 }  // namespace internal
 
-/// One row's run as MethodRun::Run returned it: its id and the fields of
-/// RunRecordFields() that a rank computes (errors, order and energies
-/// excluded: rank 0 derives them), and its trajectory.
-inline std::string EncodeRun(const MethodRun& m) {
+/// One run as the step loop returned it (a row's MethodRun, the reference,
+/// a thesis table row): its id, the fields of RunRecordFields() that a run computes
+/// (errors, order and energies excluded: rank 0 derives them), its step
+/// history, trajectory and SUNDIALS counters.
+inline std::string EncodeRun(const RunSummary& m) {
   ByteWriter w;
   w.Str(m.id);
   for (const RecordField& field : RunRecordFields())
@@ -188,110 +189,61 @@ inline std::string EncodeRun(const MethodRun& m) {
             else if constexpr (!std::is_same_v<T, std::optional<double>>) w.Pod(v);
           },
           field.member);
-  internal::PutTrajectory(w, m.traj);
-  w.Vec(m.steps_table);
-  w.Vec(m.bdf_order);
+  w.Pod(m.matrix_rebuilds);
+  w.Vec(m.step_stats);
+  internal::PutTrajectory(w, m.trajectory);
   internal::PutSundials(w, m.sundials);
   return w.Take();
 }
 
-/// @param n_particles the scene's N (every frame is N×3)
+/// Decodes what EncodeRun wrote into `m`'s record, step history,
+/// trajectory and SUNDIALS counters (a MethodRun's derived fields are left
+/// alone). @param n_particles the scene's N (every frame is N×3)
 /// @throws std::runtime_error on a truncated or malformed record, or a
 /// value out of range (internal::CheckTrajectory and the counts).
-inline MethodRun DecodeRun(std::string_view bytes, long n_particles) {
+inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
   ByteReader r(bytes);
-  MethodRun m;
-  m.id = r.Str();
+  m->id = r.Str();
   for (const RecordField& field : RunRecordFields())
     if (!field.derived)
       std::visit(
           [&](auto member) {
-            auto& v = m.*member;
+            auto& v = m->*member;
             using T = std::remove_cvref_t<decltype(v)>;
             if constexpr (std::is_same_v<T, std::string>) v = r.Str();
             else if constexpr (!std::is_same_v<T, std::optional<double>>) v = r.Pod<T>();
           },
           field.member);
-  m.traj = internal::GetTrajectory(r);
-  m.steps_table = r.Vec<StepRecord>();
-  m.bdf_order = r.Vec<double>();
-  m.sundials = internal::GetSundials(r);
+  m->matrix_rebuilds = r.Pod<int>();
+  m->step_stats = r.Vec<StepStats>();
+  m->trajectory = internal::GetTrajectory(r);
+  m->sundials = internal::GetSundials(r);
   if (!r.done()) throw std::runtime_error("malformed run record");
   using namespace internal;
-  for (double v : {m.h, m.rtol, m.cg_tolerance, m.atol, m.solver_time_s, m.solver_time_s_median, m.solver_time_s_max,
-                   m.wall_time_s, m.setup_time_s, m.numerical_stiffness})
+  for (double v : {m->h, m->rtol, m->cg_tolerance, m->atol, m->solver_time_s, m->solver_time_s_median,
+                   m->solver_time_s_max, m->wall_time_s, m->setup_time_s, m->numerical_stiffness})
     CheckFinite(v, "a parameter or time");
-  if (m.h < 0.0 || m.rtol < 0.0 || m.solver_time_s < 0.0) OutOfRange("a negative step, tolerance or time");
-  CheckCount(m.repeats, 1, "repeats");
-  for (long v : {m.threads, m.substeps, m.steps, m.updates, m.cg_iterations, m.rejected, m.cg_unconverged})
+  if (m->h < 0.0 || m->rtol < 0.0 || m->solver_time_s < 0.0) OutOfRange("a negative step, tolerance or time");
+  CheckCount(m->repeats, 1, "repeats");
+  for (long v : {m->threads, m->substeps, m->steps, m->updates, m->cg_iterations, m->rejected, m->cg_unconverged})
     CheckCount(v, 0, "a count");
-  CheckCount(m.error_test_failures, -1, "error_test_failures");
-  CheckTrajectory(m.traj, n_particles);
-  for (const StepRecord& st : m.steps_table) {
-    CheckFinite(st.t, "step t");
-    CheckFinite(st.h, "step h");
-    CheckFinite(st.solve_time_s, "step solve time");
-    CheckFinite(st.setup_time_s, "step setup time");
+  CheckCount(m->error_test_failures, -1, "error_test_failures");
+  CheckCount(m->matrix_rebuilds, -1, "matrix_rebuilds");
+  CheckTrajectory(m->trajectory, n_particles);
+  for (const StepStats& st : m->step_stats) {
+    for (double v : {st.t, st.h, st.solve_time, st.setup_time, st.error_norm}) CheckFinite(v, "a step record");
     if (st.h < 0.0 || st.updates < -1 || st.cg_iterations < -1 || st.colliding < -1) OutOfRange("a step record");
-    CheckStepStatus(st.status);
-  }
-  for (double v : m.bdf_order) CheckFinite(v, "method order");
-  return m;
-}
-
-/// The reference run.
-inline std::string EncodeSummary(const RunSummary& s) {
-  ByteWriter w;
-  w.Str(s.integrator);
-  w.Str(s.status);
-  w.Str(s.message);
-  w.Pod(s.h);
-  w.Pod<uint8_t>(s.ok);
-  for (int v : {s.steps, s.rejected_steps, s.error_test_failures, s.matrix_rebuilds, s.cg_unconverged_steps}) w.Pod(v);
-  w.Pod(s.fixed_point_updates);
-  w.Pod(s.cg_iterations);
-  for (double v : {s.solver_time_in_seconds, s.setup_time_in_seconds, s.wall_time_in_seconds}) w.Pod(v);
-  w.Vec(s.step_stats);
-  internal::PutTrajectory(w, s.trajectory);
-  internal::PutSundials(w, s.sundials);
-  return w.Take();
-}
-
-/// The reference run: as DecodeRun.
-inline RunSummary DecodeSummary(std::string_view bytes, long n_particles) {
-  ByteReader r(bytes);
-  RunSummary s;
-  s.integrator = r.Str();
-  s.status = r.Str();
-  s.message = r.Str();
-  s.h = r.Pod<double>();
-  s.ok = r.Pod<uint8_t>() != 0;
-  for (int* v : {&s.steps, &s.rejected_steps, &s.error_test_failures, &s.matrix_rebuilds, &s.cg_unconverged_steps})
-    *v = r.Pod<int>();
-  s.fixed_point_updates = r.Pod<long>();
-  s.cg_iterations = r.Pod<long>();
-  for (double* v : {&s.solver_time_in_seconds, &s.setup_time_in_seconds, &s.wall_time_in_seconds}) *v = r.Pod<double>();
-  s.step_stats = r.Vec<StepStats>();
-  s.trajectory = internal::GetTrajectory(r);
-  s.sundials = internal::GetSundials(r);
-  if (!r.done()) throw std::runtime_error("malformed run record");
-  using namespace internal;
-  for (double v : {s.h, s.solver_time_in_seconds, s.setup_time_in_seconds, s.wall_time_in_seconds})
-    CheckFinite(v, "a step or time");
-  // −1: not set (RunSummary's defaults; SUNDIALS references report none of ours)
-  for (long v : {long{s.steps}, long{s.rejected_steps}, long{s.cg_unconverged_steps}, long{s.matrix_rebuilds}, s.fixed_point_updates,
-                 s.cg_iterations})
-    CheckCount(v, -1, "a count");
-  CheckCount(s.error_test_failures, -1, "error_test_failures");
-  CheckTrajectory(s.trajectory, n_particles);
-  for (const StepStats& st : s.step_stats) {
-    CheckFinite(st.t, "step t");
-    CheckFinite(st.h, "step h");
     CheckStepStatus(static_cast<int>(st.status));
     if (static_cast<int>(st.pcg_status) < 0 || static_cast<int>(st.pcg_status) > static_cast<int>(PcgStatus::kTimeLimit))
       OutOfRange("a PCG status");
   }
-  return s;
+}
+
+/// A row's run: DecodeRun into a MethodRun.
+inline MethodRun DecodeRun(std::string_view bytes, long n_particles) {
+  MethodRun m;
+  DecodeRun(bytes, n_particles, &m);
+  return m;
 }
 
 }  // namespace clothbench

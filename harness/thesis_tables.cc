@@ -39,8 +39,11 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
   tight.solver.max_updates = 200;
   const ParticleSystem tight_sys(tight);
   RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
-  r.integrator = "bdf2_self_convergence";
+  r.integrator = r.label = "bdf2_self_convergence";
+  r.layer = "solver";
+  r.step_kind = std::string(ToString(StepKind::kFixedStep));
   r.h = h_ref;
+  r.cg_tolerance = tight.solver.cg_tolerance;
   return r;
 }
 
@@ -75,8 +78,52 @@ struct CountDistance {
 
 }  // namespace
 
-int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner,
-                   std::vector<NonlinearSolver> solvers, std::vector<double> etas, SweepComm& comm) {
+namespace {
+
+// One block of rows on `scene` (k and d taken from each row), one table per η.
+struct Block {
+  std::string scene_name;
+  Scene scene;
+  std::vector<ThesisRow> rows;
+  double h_ref;
+};
+
+// A reference's end on every rank: ok, message and the positions at t_end.
+struct RefEnd {
+  bool ok = false;
+  std::string message;
+  MatrixN3 x_end;
+};
+
+struct RowTask {
+  std::size_t eta, b, i;
+  RowMethod m;
+};
+
+// The table is a sweep in two phases, each dealt over the MPI ranks
+// (harness/sweep.h): first the references, one per (block, k, d), whose
+// end positions every rank then has; then every (η, row, method) run,
+// whose counters and e_rms go to rank 0, which prints and writes.
+struct ThesisSweep {
+  std::vector<Block> blocks;
+  std::vector<std::pair<std::size_t, std::size_t>> ref_keys;  // (block, first row with that k, d)
+  std::vector<std::vector<std::size_t>> ref_of;               // ref_of[b][i]: row i's reference in ref_keys
+  std::vector<RefEnd> refs;
+  std::vector<RowTask> tasks;  // one per (η, block, row, method), in print order
+  std::vector<std::pair<RunSummary, double>> row_results;  // rank 0: each task's run and e_rms (< 0: none)
+
+  Scene SceneOf(std::size_t b, const ThesisRow& tr) const {
+    Scene s = blocks[b].scene;
+    s.material.tension = {tr.k, tr.k};
+    s.material.tension_damping = tr.d;
+    return s;
+  }
+};
+
+// The thesis' rows of Table `which` in blocks on `base` (the tablecloth),
+// and for 3.2 the avatar drape's. @throws UsageError for another table
+std::vector<Block> ThesisBlocks(const std::string& which, const Scene& base,
+                                std::optional<PreconditionerType> preconditioner) {
   std::vector<ThesisRow> rows;
   if (which == "3.1") {
     rows = {{Method::kBdf2, 1e4, 160, 803, 1160, -1}, {Method::kBdf2, 1e4, 1600, 198, 538, -1}, {Method::kBdf2, 1e5, 1600, 377, 566, -1},
@@ -88,19 +135,6 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
   } else {
     throw UsageError(fmt::format("--table: \"{}\" must be 3.1 or 3.2", which));
   }
-  if (out.empty()) out = fmt::format("out/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
-  Scene base = BuiltinScene("tablecloth");
-  if (preconditioner) base.solver.preconditioner = *preconditioner;
-  if (etas.empty()) etas = {base.solver.cg_tolerance};
-  if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
-  ProbeOnRoot(comm, [&out] { CheckOutputPaths(out); });
-  // One block of rows on `s` (k and d taken from each row), one table per η.
-  struct Block {
-    std::string scene_name;
-    Scene scene;
-    std::vector<ThesisRow> rows;
-    double h_ref;
-  };
   std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
   if (which == "3.2") {
     // Dress rows: the avatar drape (scenes/avatar_drape.toml), 5 s.
@@ -115,111 +149,105 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                        {Method::kImplicitMidpoint, kd, dd, 2078, 15877, 211.3}},
                       av.h / 16.0});
   }
-  const auto scene_of = [&](std::size_t b, const ThesisRow& tr) {
-    Scene s = blocks[b].scene;
-    s.material.tension = {tr.k, tr.k};
-    s.material.tension_damping = tr.d;
-    return s;
-  };
-  // The table is a sweep in two phases, each dealt over the MPI ranks
-  // (harness/sweep.h): first the references, one per (block, k, d), whose
-  // end positions every rank then has; then every (η, row, method) run,
-  // whose counters and e_rms go to rank 0, which prints and writes.
-  // ref_of[b][i] indexes row i's reference in `ref_keys`.
-  std::vector<std::pair<std::size_t, std::size_t>> ref_keys;  // (block, first row with that k, d)
-  std::vector<std::vector<std::size_t>> ref_of(blocks.size());
-  for (std::size_t b = 0; b < blocks.size(); ++b)
-    for (std::size_t i = 0; i < blocks[b].rows.size(); ++i) {
-      const ThesisRow& tr = blocks[b].rows[i];
+  return blocks;
+}
+
+// Phase 1: one self-convergence reference per (block, k, d); its end
+// (ok, message, positions at t_end) reaches every rank.
+void ComputeReferences(ThesisSweep& t, SweepComm& comm) {
+  t.ref_of.assign(t.blocks.size(), {});
+  for (std::size_t b = 0; b < t.blocks.size(); ++b)
+    for (std::size_t i = 0; i < t.blocks[b].rows.size(); ++i) {
+      const ThesisRow& tr = t.blocks[b].rows[i];
       std::size_t j = 0;
-      while (j < i && !(blocks[b].rows[j].k == tr.k && blocks[b].rows[j].d == tr.d)) ++j;
+      while (j < i && !(t.blocks[b].rows[j].k == tr.k && t.blocks[b].rows[j].d == tr.d)) ++j;
       if (j < i) {
-        ref_of[b].push_back(ref_of[b][j]);
+        t.ref_of[b].push_back(t.ref_of[b][j]);
         continue;
       }
-      ref_keys.emplace_back(b, i);
-      ref_of[b].push_back(ref_keys.size() - 1);
+      t.ref_keys.emplace_back(b, i);
+      t.ref_of[b].push_back(t.ref_keys.size() - 1);
     }
-  // A reference as bytes: ok, message and the positions at t_end.
   std::vector<std::pair<long, std::string>> mine;
-  for (std::size_t j = 0; j < ref_keys.size(); ++j) {
+  for (std::size_t j = 0; j < t.ref_keys.size(); ++j) {
     if (!comm.Owns(j)) continue;
-    const auto [b, i] = ref_keys[j];
-    const RunSummary r = SelfConvergenceReference(scene_of(b, blocks[b].rows[i]), blocks[b].h_ref);
+    const auto [b, i] = t.ref_keys[j];
+    const RunSummary r = SelfConvergenceReference(t.SceneOf(b, t.blocks[b].rows[i]), t.blocks[b].h_ref);
     ByteWriter w;
-    w.Pod<uint8_t>(r.ok);
+    w.Pod<uint8_t>(r.ok());
     w.Str(r.message);
     w.Frames({r.trajectory.positions.empty() ? MatrixN3() : r.trajectory.positions.back()});
     mine.emplace_back(static_cast<long>(j), w.Take());
   }
   std::vector<std::pair<long, std::string>> refs_bytes = comm.GatherToRoot(std::move(mine));
   comm.Broadcast(&refs_bytes);
-  struct RefEnd {
-    bool ok = false;
-    std::string message;
-    MatrixN3 x_end;
-  };
-  std::vector<RefEnd> refs(ref_keys.size());
+  t.refs.assign(t.ref_keys.size(), RefEnd());
   for (const auto& [j, bytes] : refs_bytes) {
     ByteReader r(bytes);
-    RefEnd& e = refs[static_cast<std::size_t>(j)];
+    RefEnd& e = t.refs[static_cast<std::size_t>(j)];
     e.ok = r.Pod<uint8_t>() != 0;
     e.message = r.Str();
     e.x_end = r.Frames().at(0);
   }
-  // Phase 2: one task per (η, block, row, method) in print order.
-  struct RowTask {
-    std::size_t eta, b, i;
-    RowMethod m;
-  };
-  std::vector<RowTask> tasks;
+}
+
+// Phase 2: every (η, block, row, method) run; rank 0 gathers each run's
+// record and e_rms at t_end against its row's reference.
+void ComputeRows(ThesisSweep& t, const std::vector<NonlinearSolver>& solvers, const std::vector<double>& etas,
+                 SweepComm& comm) {
   for (std::size_t e = 0; e < etas.size(); ++e)
-    for (std::size_t b = 0; b < blocks.size(); ++b)
-      for (std::size_t i = 0; i < blocks[b].rows.size(); ++i)
-        for (const RowMethod& m : ExpandMethods({std::string(ToString(blocks[b].rows[i].method))}, solvers, "--table"))
-          tasks.push_back({e, b, i, m});
-  mine.clear();
-  for (std::size_t k = 0; k < tasks.size(); ++k) {
+    for (std::size_t b = 0; b < t.blocks.size(); ++b)
+      for (std::size_t i = 0; i < t.blocks[b].rows.size(); ++i)
+        for (const RowMethod& m : ExpandMethods({std::string(ToString(t.blocks[b].rows[i].method))}, solvers, "--table"))
+          t.tasks.push_back({e, b, i, m});
+  std::vector<std::pair<long, std::string>> mine;
+  for (std::size_t k = 0; k < t.tasks.size(); ++k) {
     if (!comm.Owns(k)) continue;
-    const RowTask& t = tasks[k];
-    Scene s = scene_of(t.b, blocks[t.b].rows[t.i]);
-    s.solver.cg_tolerance = etas[t.eta];
+    const RowTask& task = t.tasks[k];
+    Scene s = t.SceneOf(task.b, t.blocks[task.b].rows[task.i]);
+    s.solver.cg_tolerance = etas[task.eta];
     const ParticleSystem sys(s);
-    const std::unique_ptr<Stepper> stepper = t.m.Make(sys, s.solver);
+    const std::unique_ptr<Stepper> stepper = task.m.Make(sys, s.solver);
     RunSummary r = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
     // e_rms at t_end against the row's reference (a complete run has every frame).
     double err = -1.0;
-    const RefEnd& ref = refs[ref_of[t.b][t.i]];
-    if (r.ok && ref.ok && !r.trajectory.positions.empty()) {
+    const RefEnd& ref = t.refs[t.ref_of[task.b][task.i]];
+    if (r.ok() && ref.ok && !r.trajectory.positions.empty()) {
       const double e = ErrorRms(r.trajectory.positions.back(), ref.x_end);
       if (std::isfinite(e)) err = e;
     }
     r.trajectory = Trajectory();
     r.step_stats.clear();
     ByteWriter w;
-    w.Str(EncodeSummary(r));
+    w.Str(EncodeRun(r));
     w.Pod(err);
     mine.emplace_back(static_cast<long>(k), w.Take());
   }
   std::vector<std::pair<long, std::string>> results = comm.GatherToRoot(std::move(mine));
-  if (!comm.root()) return 0;
-  std::vector<std::pair<RunSummary, double>> row_results(tasks.size());
+  if (!comm.root()) return;
+  t.row_results.resize(t.tasks.size());
   for (const auto& [k, bytes] : results) {
     ByteReader r(bytes);
     // Frames are not sent (trajectory cleared above): N does not matter.
-    row_results[static_cast<std::size_t>(k)] = {DecodeSummary(r.Str(), 0), r.Pod<double>()};
+    auto& [row, err] = t.row_results[static_cast<std::size_t>(k)];
+    DecodeRun(r.Str(), 0, &row);
+    err = r.Pod<double>();
   }
+}
 
+// Rank 0: prints the tables beside the thesis' numbers and writes `out`.
+void WriteThesisTable(const std::string& which, const std::string& out, const Scene& base,
+                      const std::vector<double>& etas, const ThesisSweep& t, const SweepComm& comm) {
   fmt::print("Table {} — tablecloth (scenes/tablecloth.toml: 20×20, 0.04 m, rho = 1, h = {:g} s, {:g} s, "
              "preconditioner {}); thesis numbers from the OCR (docs/model.md §9, thesis: IC(0)), thesis machine: "
              "Pentium III 660 MHz\n",
              which, base.h, base.t_end, ToString(base.solver.preconditioner));
   if (which == "3.2") fmt::print("k = 9000 N/m: the thesis gives numerical stiffness ~5.6e2 (k illegible)\n");
-  for (std::size_t j = 0; j < ref_keys.size(); ++j)
-    if (!refs[j].ok) {
-      const auto [b, i] = ref_keys[j];
+  for (std::size_t j = 0; j < t.ref_keys.size(); ++j)
+    if (!t.refs[j].ok) {
+      const auto [b, i] = t.ref_keys[j];
       fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
-                 blocks[b].h_ref, blocks[b].scene_name, blocks[b].rows[i].k, blocks[b].rows[i].d, refs[j].message);
+                 t.blocks[b].h_ref, t.blocks[b].scene_name, t.blocks[b].rows[i].k, t.blocks[b].rows[i].d, t.refs[j].message);
     }
   ResultFile f(out);
   WriteProvenance(f);
@@ -238,16 +266,15 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     f.CreateGroup(g);
     // The row's record as every result file stores a run's
     // (RunRecordFields), then what only a thesis row has.
-    RunRecord rec;
+    RunRecord rec = r;
     rec.label = m.label();
     rec.integrator = m.name();
     rec.layer = std::string(m.entry->layer);
     rec.step_kind = std::string(ToString(m.kind()));
     if (m.fully_implicit()) rec.nonlinear_solver = std::string(ToString(m.solver));
-    rec.h = h;  // the scene's step (RunSummary::h is a self-convergence reference's only)
+    rec.h = h;
     rec.cg_tolerance = eta;
     rec.preconditioner = std::string(ToString(scene_preconditioner));
-    RecordSummary(r, false, &rec);
     rec.error_final_m = err;
     WriteRunRecord(f, g, rec);
     f.SetAttribute(g, "scene", scene_name);
@@ -263,8 +290,8 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
     const double eta = etas[e];
     CountDistance distance;
     fmt::print("\ncg_tolerance = {:g}\n", eta);
-    for (std::size_t b = 0; b < blocks.size(); ++b) {
-      const Block& blk = blocks[b];
+    for (std::size_t b = 0; b < t.blocks.size(); ++b) {
+      const Block& blk = t.blocks[b];
       if (b > 0)
         fmt::print("\nDress → avatar_drape (scenes/avatar_drape.toml: 36×36 = 1296 particles on CGAL's man.off, k = "
                    "{:g} N/m, d = {:g} N s/m, {:g} s, h = {:g} s)\n",
@@ -274,19 +301,19 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
                  "rej", "status");
       for (std::size_t i = 0; i < blk.rows.size(); ++i) {
         const ThesisRow& tr = blk.rows[i];
-        for (; k < tasks.size() && tasks[k].eta == e && tasks[k].b == b && tasks[k].i == i; ++k) {
-          const RowMethod& m = tasks[k].m;
-          const auto& [r, e_rms] = row_results[k];
+        for (; k < t.tasks.size() && t.tasks[k].eta == e && t.tasks[k].b == b && t.tasks[k].i == i; ++k) {
+          const RowMethod& m = t.tasks[k].m;
+          const auto& [r, e_rms] = t.row_results[k];
           const std::optional<double> err = e_rms >= 0.0 ? std::optional(e_rms) : std::nullopt;
-          if (r.ok) {
-            distance.Add(r.fixed_point_updates, tr.updates);
+          if (r.ok()) {
+            distance.Add(r.updates, tr.updates);
             distance.Add(r.cg_iterations, tr.cg);
           }
-          const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_in_seconds / tr.time_s) : "";
+          const std::string ratio = tr.time_s > 0 ? fmt::format("{:.3f}", r.solver_time_s / tr.time_s) : "";
           fmt::print("{:<24} {:>8g} {:>6g} | {:>8} {:>7} {:>9} | {:>8} {:>7} {:>9.3f} {:>7} {:>10} | {:>6} {}\n",
                      m.label(), tr.k, tr.d, tr.updates, tr.cg, tr.time_s > 0 ? fmt::format("{:.2f}", tr.time_s) : "",
-                     r.fixed_point_updates, r.cg_iterations, r.solver_time_in_seconds, ratio,
-                     err ? Sci(*err) : "", r.rejected_steps, r.status);
+                     r.updates, r.cg_iterations, r.solver_time_s, ratio,
+                     err ? Sci(*err) : "", r.rejected, r.status);
           write_row(blk.scene_name, blk.scene.solver.preconditioner, blk.scene.h, tr, m, eta, r, err, blk.h_ref);
         }
       }
@@ -300,8 +327,24 @@ int RunThesisTable(const std::string& which, std::string out, std::optional<Prec
              "h/16 (avatar) with cg_tolerance 1e-10 and fixed-point tolerance 1e-12 m/s.\nmachine: {}, {}, {} MPI "
              "rank{}, commit {}\nresults: {}\n",
              HostName(), CompilerId(), comm.size(), comm.size() > 1 ? "s" : "", GitCommit(), out);
-  return 0;
 }
 
+}  // namespace
+
+int RunThesisTable(const std::string& which, std::string out, std::optional<PreconditionerType> preconditioner,
+                   std::vector<NonlinearSolver> solvers, std::vector<double> etas, SweepComm& comm) {
+  Scene base = BuiltinScene("tablecloth");
+  if (preconditioner) base.solver.preconditioner = *preconditioner;
+  ThesisSweep t;
+  t.blocks = ThesisBlocks(which, base, preconditioner);
+  if (out.empty()) out = fmt::format("out/table_{}.h5", which == "3.1" ? "3_1" : "3_2");
+  if (etas.empty()) etas = {base.solver.cg_tolerance};
+  if (solvers.empty()) solvers = {base.solver.nonlinear_solver};
+  ProbeOnRoot(comm, [&out] { CheckOutputPaths(out); });
+  ComputeReferences(t, comm);
+  ComputeRows(t, solvers, etas, comm);
+  if (comm.root()) WriteThesisTable(which, out, base, etas, t, comm);
+  return 0;
+}
 
 }  // namespace clothbench

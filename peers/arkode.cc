@@ -170,7 +170,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   RunSummary res;
-  res.integrator = kArkodeName;
+  internal::NameSundialsRun(kArkodeName, "peers", options, &res);
   if (!system.obstacles().empty()) {
     res.status = "unsupported_scene";
     res.message = "arkode has no collision response: the scene has obstacles";
@@ -237,9 +237,9 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   ARKStepGetNumErrTestFails(h.mem, &st.netf);
   ARKStepGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
   ARKStepGetNumLinSolvSetups(h.mem, &st.nsetups);
-  res.setup_time_in_seconds = ode.setup_seconds();
+  res.setup_time_s = ode.setup_seconds();
   internal::SummariseCounters(&res);
-  res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  res.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }
 

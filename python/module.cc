@@ -306,10 +306,10 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
     throw py::value_error("reference: its frames do not match the run's (the same scene and t_end?)");
   const int n = sys.num_particles();
   py::dict out = RecordDict(r);  // the attributes a result file stores for the run (error_* None without reference)
-  out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.traj.times.size()), r.traj.times.data());
-  out["positions"] = Frames(r.traj.positions, n);
-  out["velocities"] = Frames(r.traj.velocities, n);
-  out["step_stats"] = StepStatsArray(r.steps_table);
+  out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.trajectory.times.size()), r.trajectory.times.data());
+  out["positions"] = Frames(r.trajectory.positions, n);
+  out["velocities"] = Frames(r.trajectory.velocities, n);
+  out["step_stats"] = StepStatsArray(StepRecords(r));
   py::dict energy;
   energy["kinetic"] = r.energy.kinetic;
   energy["total"] = r.energy.total;
@@ -370,13 +370,12 @@ py::dict Reference(const py::object& scene_arg, const py::object& method, const 
       throw;
     }
   }
-  py::dict out;
+  NameReference(run.scene, &r);
+  py::dict out = RecordDict(r);  // the attributes a result file stores for /runs/reference
   out["method"] = name;
-  out["rtol"] = run.param;
   out["scene_hash"] = SceneHash(run.scene);
   out["record"] = record;  // for run(reference=...) and write_results
-  out["status"] = r.ok ? std::string("ok") : r.status;
-  out["steps"] = r.steps;
+  out["step_stats"] = StepStatsArray(StepRecords(r));
   out["times"] = py::array_t<double>(static_cast<py::ssize_t>(r.trajectory.times.size()), r.trajectory.times.data());
   out["positions"] = Frames(r.trajectory.positions, sys.num_particles());
   out["velocities"] = Frames(r.trajectory.velocities, sys.num_particles());
@@ -424,31 +423,27 @@ void WriteResultFile(const py::object& path_arg, const py::object& scene_arg, co
     rows.push_back(*RecordOf<MethodRun>(run, "runs", "run"));
     const MethodRun& q = rows.back();
     const py::dict dict = run.cast<py::dict>();
-    if (!q.traj.positions.empty() && q.traj.positions.front().rows() != scene.num_particles())
+    if (!q.trajectory.positions.empty() && q.trajectory.positions.front().rows() != scene.num_particles())
       throw py::value_error(fmt::format("runs: {} has {} particles, the scene {}", q.id,
-                                        q.traj.positions.front().rows(), scene.num_particles()));
+                                        q.trajectory.positions.front().rows(), scene.num_particles()));
     if (!dict.contains("scene_hash") || dict["scene_hash"].cast<std::string>() != hash)
       throw py::value_error(fmt::format("runs: {} was computed on another scene, t_end or frame spacing than `scene`",
                                         q.id));
   }
   std::optional<RunSummary> ref;
-  ReferenceOptions ref_opts;
-  ref_opts.t_end = scene.t_end;
-  ref_opts.frame_dt = scene.frame_dt;
   if (!reference.is_none()) {
     ref = *RecordOf<RunSummary>(reference, "reference", "reference");
     const py::dict d = reference.cast<py::dict>();
     if (!d.contains("scene_hash") || d["scene_hash"].cast<std::string>() != hash)
       throw py::value_error("reference: was computed on another scene, t_end or frame spacing than `scene`");
-    ref_opts.rtol = d["rtol"].cast<double>();
   }
   const ParticleSystem sys(scene);
   OutputLock lock(*path, /*journal_folder=*/true, "path");  // UsageError: ValueError naming path
   py::gil_scoped_release release;
   CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, *metric, &rows);
   const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric);
-  const RunTable table = MakeRunTable(scene, sys, ref, ref_opts, rows, frames, ref ? &wp : nullptr, *metric);
-  WriteResults(*path, scene, sys, ref, ref_opts, rows, table, 1);
+  const RunTable table = MakeRunTable(scene, sys, ref, rows, frames, ref ? &wp : nullptr, *metric);
+  WriteResults(*path, scene, sys, ref, rows, table, 1);
 }
 
 // An equal-accuracy table as a dict: targets, labels, cost, ratio,
@@ -576,8 +571,9 @@ PYBIND11_MODULE(clothbench, m) {
         "equal-accuracy table (work_precision). Arrays: read the file with h5py.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
-        "The reference run (CVODE or IDA with KLU, as --reference): times, positions, velocities, and the "
-        "scene_hash that run() and write_results() compare with their scene's.");
+        "The reference run (CVODE or IDA with KLU, as --reference): the attributes a result file stores for "
+        "/reference (the same record keys as run()'s dict: status, steps, rtol, atol, ...), times, positions, "
+        "velocities, step_stats, and the scene_hash that run() and write_results() compare with their scene's.");
   m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
         "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");
   m.def("error_rms", [](const py::array_t<double>& x, const py::array_t<double>& ref) {

@@ -74,6 +74,32 @@ def test_error_against_the_reference_equals_the_command_line(tmp_path):
                                                                                  ref["positions"][-1])
 
 
+def test_reference_and_run_carry_the_one_record_the_file_stores(tmp_path):
+    # One record from the step loop to the file and to Python: the dicts of
+    # reference() and run() have the same record keys, and write_results
+    # stores exactly their values as /reference and /runs/<id> attributes.
+    scene = clothbench.load_scene("swinging_sheet", {"t_end": 0.1})
+    ref = clothbench.reference(scene)
+    r = clothbench.run(scene, "sbdf2", h=0.01, reference=ref)
+    arrays = {"times", "positions", "velocities", "step_stats", "energy", "scene_hash", "record", "method"}
+    assert set(ref) - arrays <= set(r) - arrays
+    out = tmp_path / "one.h5"
+    clothbench.write_results(str(out), scene, [r], reference=ref, frames="none")
+    with h5py.File(out) as f:
+        for group, d in (("reference", ref), ("runs/" + r["id"], r)):
+            attrs = f[group].attrs
+            for key, value in d.items():
+                if key in arrays or key == "id" or value is None or key not in attrs:
+                    continue
+                stored = attrs[key]
+                stored = stored.decode() if isinstance(stored, bytes) else stored
+                assert stored == value, (group, key, stored, value)
+            assert attrs["status"] == "ok" or attrs["status"] == b"ok"
+            assert attrs["steps"] == d["steps"] > 0
+    assert ref["integrator"] == "cvode" and ref["step_kind"] == "adaptive" and ref["rtol"] == 1e-10
+    assert len(ref["step_stats"]) == ref["steps"]
+
+
 def test_equal_accuracy_interpolates_log_log():
     # "a": 1 s at 1e-2 m, 4 s at 1e-4 m; at 1e-3 m, halfway in log e, the
     # cost is the geometric mean 2 s (to round-off). "b" reaches 1e-3 m at

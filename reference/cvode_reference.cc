@@ -228,7 +228,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   RunSummary res;
-  res.integrator = "cvode";
+  internal::NameSundialsRun(kCvodeName, "reference", options, &res);
   FreeDofOde ode(system);
   std::unique_ptr<ReducedNewtonSolve> solve;
   if (reduced) solve = std::make_unique<ReducedNewtonSolve>(system, *reduced);
@@ -287,7 +287,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
        check(CVodeSetDeltaGammaMaxLSetup(h.mem, cs.dgmax_lsetup), "CVodeSetDeltaGammaMaxLSetup") &&
        check(CVodeSetStabLimDet(h.mem, cs.stab_lim_det ? SUNTRUE : SUNFALSE), "CVodeSetStabLimDet") &&
        (!solve || check(CVodeSetEpsLin(h.mem, cs.eps_lin), "CVodeSetEpsLin"));
-  res.settings = cs.ToString();
+  res.sundials_settings = cs.ToString();
   if (ok) {
     internal::OneStepDriver d;
     d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };
@@ -322,12 +322,12 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   if (solve) {
     st.nli = solve->tangent().total_iterations();
     st.nje = solve->tangent().jacobian_evaluations();
-    res.setup_time_in_seconds = solve->tangent().setup_seconds();
+    res.setup_time_s = solve->tangent().setup_seconds();
   } else {
-    res.setup_time_in_seconds = klu_seconds + ode.jacobian_seconds();
+    res.setup_time_s = klu_seconds + ode.jacobian_seconds();
   }
   internal::SummariseCounters(&res);
-  res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  res.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }
 

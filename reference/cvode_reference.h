@@ -11,6 +11,9 @@
 
 namespace clothbench {
 
+/// The registry row that runs CVODE (harness/methods.h).
+inline constexpr const char* kCvodeName = "cvode";
+
 /// Integrates `system` from rest to options.t_end; frames by CVODE's dense
 /// output (CVodeGetDky). Never throws for solver failure: see status.
 /// The Newton systems (I − γJ) δ = r are solved by KLU on the 6N×6N

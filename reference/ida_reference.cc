@@ -253,7 +253,7 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   RunSummary res;
-  res.integrator = "ida";
+  internal::NameSundialsRun(kIdaName, "reference", options, &res);
   ResidualForm form(system);
   std::unique_ptr<IdaReducedSolve> solve;
   if (reduced) solve = std::make_unique<IdaReducedSolve>(system, *reduced);
@@ -331,12 +331,12 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
   if (solve) {
     st.nli = solve->tangent().total_iterations();
     st.nje = solve->tangent().jacobian_evaluations();
-    res.setup_time_in_seconds = solve->tangent().setup_seconds();
+    res.setup_time_s = solve->tangent().setup_seconds();
   } else {
-    res.setup_time_in_seconds = klu_seconds + form.jacobian_seconds();
+    res.setup_time_s = klu_seconds + form.jacobian_seconds();
   }
   internal::SummariseCounters(&res);
-  res.wall_time_in_seconds = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  res.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
   return res;
 }
 

@@ -12,6 +12,9 @@
 
 namespace clothbench {
 
+/// The registry row that runs IDA (harness/methods.h).
+inline constexpr const char* kIdaName = "ida";
+
 /// Integrates `system` from rest to options.t_end; frames by IDA's dense
 /// output (IDAGetDky). Never throws for solver failure: see status.
 RunSummary RunIda(const ParticleSystem& system, const ReferenceOptions& options);

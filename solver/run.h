@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
+#include "model/run_record.h"
 #include "model/trajectory.h"
 #include "solver/integrator.h"
 
@@ -59,40 +60,23 @@ struct SundialsStats {
   long nsetups = -1;  ///< linear solver setups (KLU factorisations)
 };
 
-/// Summary of one run by any method: the thesis' integrators and the peers
-/// stepped by RunStepper, and the SUNDIALS runs (CVODE, IDA, ARKODE), which
-/// fill the same counters from their own (steps = nst, updates = nni,
-/// CG iterations = nli, rejected steps = error-test failures = netf) and add
-/// `sundials`. Counters −1 = not set (Ceres style).
-struct RunSummary {
-  std::string integrator;           ///< "cvode", "ida", "arkode", "bdf2_self_convergence"; empty for RunStepper runs
-  double h = 0.0;                   ///< fixed step [s] of a self-convergence reference run; 0 otherwise
-  bool ok = false;
-  std::string status = "not_run";   ///< "ok" or the failure (a StepStatus name)
-  std::string message;              ///< why it stopped
-  int steps = -1;                   ///< accepted steps
-  int rejected_steps = -1;          ///< attempts rejected and retried with a smaller h
-  int error_test_failures = -1;     ///< of those, rejected by the local error test (step_control = "error")
-  /// Accepted steps whose linear solve stopped unconverged at the CG
-  /// iteration cap and was kept (the `blender` row, as Blender ships).
-  int cg_unconverged_steps = -1;
-  long fixed_point_updates = -1;    ///< linear solves, over all attempts
-  long cg_iterations = -1;          ///< PCG iterations, over all attempts
-  int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds
-  double solver_time_in_seconds = -1.0;  ///< time inside the step engine
-  /// Wall time of matrix assembly, symbolic analysis and every numeric
-  /// factorisation or AMG setup (included in solver_time_in_seconds except
-  /// the engine's construction) [s].
-  double setup_time_in_seconds = -1.0;
-  double wall_time_in_seconds = -1.0;    ///< whole run including frame output
+/// One run by any method: its record (model/run_record.h) and what the
+/// record is derived from. RunStepper fills the record's status, message,
+/// counts and times for the thesis' integrators and the peers; the SUNDIALS
+/// runs (CVODE, IDA, ARKODE) fill the same counts from their own (steps =
+/// nst, updates = nni, CG iterations = nli, rejected steps = error-test
+/// failures = netf), their settings and `sundials`. The row's identity (id,
+/// label, parameters) is the caller's (harness MethodRow::Run), the errors
+/// and energies are derived against a reference.
+struct RunSummary : RunRecord {
+  RunSummary() { status = "not_run"; }
+  int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds; −1: not counted (SUNDIALS)
   /// Every attempt, rejected ones included. SUNDIALS runs: every accepted
   /// internal step with t, h, solve_time and error_order = the method order
   /// q; updates, cg_iterations and colliding −1 (not counted per step).
   std::vector<StepStats> step_stats;
   Trajectory trajectory;
   std::optional<SundialsStats> sundials;  ///< SUNDIALS runs only
-  /// The solver's own settings as "key=value,…" (CVODE runs: CvodeSettings).
-  std::string settings;
 
   /// One line: status, steps, updates, CG iterations, times.
   std::string BriefReport() const;

@@ -9,6 +9,47 @@
 #include <fmt/format.h>
 
 namespace clothbench {
+namespace {
+
+// Whether every force term has an exact potential (ParticleSystem::
+// Energies): tension, shear and gravity do; bending, transverse
+// contraction, wind and air do not.
+bool Conservative(const ParticleSystem& sys) {
+  for (const auto& t : sys.terms()) {
+    const std::string_view name = t->name();
+    if (name != "tension_nonlinear" && name != "shear" && name != "gravity") return false;
+  }
+  return true;
+}
+
+// Round-off floor of the force residual at positions `pos`: 256 ε times the
+// larger of the largest single force contribution (L_K x, F_nl, bending, …)
+// and max s_e·max|x| (a spring force inherits s_e times the round-off of
+// the absolute positions) [N].
+class RoundOffFloor {
+ public:
+  explicit RoundOffFloor(const ParticleSystem& sys)
+      : sys_(sys), v_(MatrixN3::Zero(sys.num_particles(), 3)), term_(sys.num_particles(), 3) {
+    for (const Spring& sp : sys.springs()) max_stiffness_ = std::max(max_stiffness_, sp.stiffness);
+  }
+  double operator()(const MatrixN3& pos) {
+    term_.noalias() = sys_.stiffness_laplacian() * pos;
+    double scale = std::max(term_.cwiseAbs().maxCoeff(), max_stiffness_ * pos.cwiseAbs().maxCoeff());
+    for (const auto& t : sys_.terms()) {
+      term_.setZero();
+      t->AddForce(0.0, pos, v_, &term_);
+      scale = std::max(scale, term_.cwiseAbs().maxCoeff());
+    }
+    return 256 * std::numeric_limits<double>::epsilon() * scale;
+  }
+
+ private:
+  const ParticleSystem& sys_;
+  MatrixN3 v_, term_;
+  double max_stiffness_ = 0.0;
+};
+
+}  // namespace
 
 StaticSummary SolveStatic(const ParticleSystem& sys, const std::vector<int>& constrained, const StaticOptions& opt,
                           MatrixN3* x) {
@@ -34,29 +75,8 @@ StaticSummary SolveStatic(const ParticleSystem& sys, const std::vector<int>& con
   };
 
   StaticSummary s;
-  // Tension, shear and gravity have an exact potential (ParticleSystem::
-  // Energies); bending, transverse contraction, wind and air do not.
-  bool conservative = true;
-  for (const auto& t : sys.terms()) {
-    const std::string_view name = t->name();
-    if (name != "tension_nonlinear" && name != "shear" && name != "gravity") conservative = false;
-  }
-  // Round-off floor: 256 ε times the larger of the largest single force
-  // contribution (L_K x, F_nl, bending, …) and max s_e·max|x| (a spring force
-  // inherits s_e times the round-off of the absolute positions).
-  double max_stiffness = 0.0;
-  for (const Spring& sp : sys.springs()) max_stiffness = std::max(max_stiffness, sp.stiffness);
-  MatrixN3 term(n, 3);
-  auto floor_at = [&](const MatrixN3& pos) {
-    term.noalias() = sys.stiffness_laplacian() * pos;
-    double scale = std::max(term.cwiseAbs().maxCoeff(), max_stiffness * pos.cwiseAbs().maxCoeff());
-    for (const auto& t : sys.terms()) {
-      term.setZero();
-      t->AddForce(0.0, pos, v, &term);
-      scale = std::max(scale, term.cwiseAbs().maxCoeff());
-    }
-    return 256 * std::numeric_limits<double>::epsilon() * scale;
-  };
+  const bool conservative = Conservative(sys);
+  RoundOffFloor floor_at(sys);
   Eigen::VectorXd r, r_trial;
   residual(*x, &r);
   std::vector<Triplet> dfdx, dfdv, kt;

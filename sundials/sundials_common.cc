@@ -127,18 +127,27 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     }
   }
   if (ok) {
-    res->ok = true;
     res->status = "ok";
   }
-  res->solver_time_in_seconds = solver_seconds;
+  res->solver_time_s = res->solver_time_s_median = res->solver_time_s_max = solver_seconds;  // one timing
+}
+
+void NameSundialsRun(const char* integrator, const char* layer, const ReferenceOptions& options, RunSummary* res) {
+  res->integrator = integrator;
+  res->label = integrator;
+  res->layer = layer;
+  res->step_kind = "adaptive";
+  res->rtol = options.rtol;
+  res->atol = options.AbsoluteTolerance();
+  res->step_control = "sundials";
 }
 
 void SummariseCounters(RunSummary* res) {
   const SundialsStats& s = *res->sundials;
   res->steps = static_cast<int>(s.nst);
-  res->fixed_point_updates = s.nni;
+  res->updates = s.nni;
   res->cg_iterations = s.nli;
-  res->rejected_steps = static_cast<int>(s.netf);
+  res->rejected = static_cast<int>(s.netf);
   res->error_test_failures = static_cast<int>(s.netf);
 }
 

@@ -53,10 +53,16 @@ struct ReferenceOptions {
 
 namespace internal {
 
-/// Copies the SUNDIALS counters `res->sundials` into the generic ones:
-/// steps = nst, fixed_point_updates = nni, cg_iterations = nli,
-/// rejected_steps = error_test_failures = netf.
+/// Copies the SUNDIALS counters `res->sundials` into the record's:
+/// steps = nst, updates = nni, cg_iterations = nli, rejected =
+/// error_test_failures = netf.
 void SummariseCounters(RunSummary* res);
+
+/// The record's identity of a SUNDIALS run as the reference it is: the
+/// `integrator` ("cvode", "ida", "arkode"), its `layer` ("reference",
+/// "peers"), step_kind "adaptive", rtol and atol from `options`, step
+/// control "sundials". A row that runs it names itself over these.
+void NameSundialsRun(const char* integrator, const char* layer, const ReferenceOptions& options, RunSummary* res);
 
 /// Calls of one SUNDIALS integrator used by the shared frame loop.
 struct OneStepDriver {

@@ -72,7 +72,7 @@ TEST_P(PenetrationTest, NoParticleDeeperThanHalfDeltaAfterSettling) {
   if (avatar) s.t_end = 1.5;
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, method, {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << r.BriefReport();
   const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
   const double delta = s.obstacles[0].collision_distance;
   const double depth = p.MaxDepthAfter(r.trajectory.times, 0.5);
@@ -89,7 +89,7 @@ TEST_P(RestingContactTest, CostsOneUpdateAndNoCgOnAPlane) {
   ObstacleSpec& plane = s.obstacles[0];
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, GetParam(), {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << r.BriefReport();
   int steps = 0, max_updates = 0, cg = 0, min_colliding = 1 << 30;
   for (const StepStats& st : r.step_stats) {
     if (st.t < 0.3 - 1e-12) continue;
@@ -124,7 +124,7 @@ TEST_P(ContactWorkTest, AccountsForTheImpactOnAPlane) {
   s.grid.origin.z() = 0.8;
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, GetParam(), {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << r.BriefReport();
   const EnergySeries e = ComputeEnergies(sys, r.trajectory);
   ASSERT_EQ(e.contact_work_holding.size(), e.t.size());
   const double w = e.ContactWork(e.t.size() - 1);

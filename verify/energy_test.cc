@@ -61,7 +61,7 @@ TEST(Energy, MidpointConservesAndTheOthersDissipate) {
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     const RunSummary r = RunIntegrator(sys, m, {0.002, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << r.BriefReport();
     const EnergySeries e = ComputeEnergies(sys, r.trajectory);
     const double kmax = *std::max_element(e.kinetic.begin(), e.kinetic.end());
     double drift = 0.0;

@@ -109,13 +109,13 @@ TEST(ErrorControl, ErrorFallsWithRtolOverThreeDecades) {
       const Scene s = ErrorControlledMembrane(rtol, 0.0);
       const ParticleSystem sys(s);
       const RunSummary r = RunIntegrator(sys, method, {0.01, s.t_end, s.frame_dt});
-      ASSERT_TRUE(r.ok) << r.BriefReport();
+      ASSERT_TRUE(r.ok()) << r.BriefReport();
       ASSERT_GE(r.error_test_failures, 0);
-      ASSERT_LE(r.error_test_failures, r.rejected_steps);
+      ASSERT_LE(r.error_test_failures, r.rejected);
       MatrixN3 x, v;
       testing::LinearModalFlow(sys).Flow(sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3), s.t_end, &x, &v);
       errors.push_back(ErrorRms(r.trajectory.positions.back(), x));
-      std::printf("[ error control ] %-5s rtol %.0e: %d steps, %d error-test failures, e_rms %.3e m\n",
+      std::printf("[ error control ] %-5s rtol %.0e: %ld steps, %ld error-test failures, e_rms %.3e m\n",
                   std::string(ToString(method)).c_str(), rtol, r.steps, r.error_test_failures, errors.back());
     }
     for (std::size_t k = 1; k < errors.size(); ++k) EXPECT_LT(errors[k], errors[k - 1]);
@@ -127,7 +127,7 @@ TEST(ErrorControl, RefusedForMethodsWithoutEstimate) {
   const Scene s = ErrorControlledMembrane(1e-4, 0.0);
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, Method::kImplicitEuler, {0.01, s.t_end, s.frame_dt});
-  EXPECT_FALSE(r.ok);
+  EXPECT_FALSE(r.ok());
   EXPECT_EQ(r.status, "invalid_options");
 }
 

@@ -53,7 +53,7 @@ TEST(FixedStep, OneBuildPerDistinctAlphaH) {
       o.t_end = 2.0;
       o.frame_dt = 0.1;
       const RunSummary r = RunIntegrator(sys, c.method, o);
-      ASSERT_TRUE(r.ok) << ToString(c.method) << ": " << r.message;
+      ASSERT_TRUE(r.ok()) << ToString(c.method) << ": " << r.message;
       ASSERT_EQ(r.steps, 200) << ToString(c.method);
       for (std::size_t n = 0; n < r.step_stats.size(); ++n) {
         ASSERT_EQ(r.step_stats[n].h, o.h) << ToString(c.method) << " step " << n;
@@ -76,7 +76,7 @@ TEST(FixedStep, BaraffWitkinStepsAreBitEqual) {
   o.t_end = 0.5;
   o.frame_dt = 0.1;
   const RunSummary r = RunStepper(sys, bw, o);
-  ASSERT_TRUE(r.ok) << r.message;
+  ASSERT_TRUE(r.ok()) << r.message;
   for (const StepStats& st : r.step_stats) ASSERT_EQ(st.h, o.h);
 }
 
@@ -94,7 +94,7 @@ TEST(FixedStep, FramesBetweenStepsDoNotPerturbH) {
   off.frame_dt = 0.025;
   const RunSummary a = RunIntegrator(sys, Method::kSbdf2, on);
   const RunSummary b = RunIntegrator(sys, Method::kSbdf2, off);
-  ASSERT_TRUE(a.ok && b.ok);
+  ASSERT_TRUE(a.ok() && b.ok());
   ASSERT_EQ(a.step_stats.size(), b.step_stats.size());
   for (const StepStats& st : b.step_stats) ASSERT_EQ(st.h, off.h);
   ASSERT_EQ(b.trajectory.times.size(), 13u);  // 0, 0.025, …, 0.3
@@ -123,7 +123,7 @@ TEST(FixedStep, LastStepIsTheRemainder) {
   o.t_end = 0.105;
   o.frame_dt = 0.105;
   const RunSummary r = RunIntegrator(sys, Method::kImexEuler, o);
-  ASSERT_TRUE(r.ok);
+  ASSERT_TRUE(r.ok());
   ASSERT_EQ(r.step_stats.size(), 11u);
   for (std::size_t n = 0; n + 1 < r.step_stats.size(); ++n) EXPECT_EQ(r.step_stats[n].h, 0.01);
   EXPECT_EQ(r.step_stats.back().h, 0.105 - 10 * 0.01);

@@ -268,7 +268,7 @@ TEST(ObstacleMotion, RisingPlaneLiftsTheCloth) {
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     const RunSummary r = RunIntegrator(sys, m, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << r.BriefReport();
     const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
     const double depth = p.MaxDepthAfter(r.trajectory.times, 0.0);
     const double z_err = (r.trajectory.positions.back().col(2).array() - 0.81).abs().maxCoeff();

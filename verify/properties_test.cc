@@ -65,7 +65,7 @@ TEST(Properties, PlacementInvariance) {
   for (Method m : AllMethods()) {
     const RunSummary ra = RunIntegrator(a, m, {0.001, s.t_end, s.frame_dt});
     const RunSummary rb = RunIntegrator(b, m, {0.001, s.t_end, s.frame_dt});
-    ASSERT_TRUE(ra.ok && rb.ok) << ToString(m);
+    ASSERT_TRUE(ra.ok() && rb.ok()) << ToString(m);
     const MatrixN3 expect = (ra.trajectory.positions.back() * rot.transpose()).rowwise() + shift.transpose();
     const double diff = (rb.trajectory.positions.back() - expect).cwiseAbs().maxCoeff();
     std::printf("[ placement ] %-18s max |x' - (R x + T)| = %.2e m\n", std::string(ToString(m)).c_str(), diff);
@@ -95,7 +95,7 @@ TEST(Properties, ParticleOrderInvariance) {
   for (Method m : AllMethods()) {
     const RunSummary ra = RunIntegrator(a, m, {0.001, s.t_end, s.frame_dt});
     const RunSummary rb = RunIntegrator(b, m, {0.001, s.t_end, s.frame_dt});
-    ASSERT_TRUE(ra.ok && rb.ok) << ToString(m);
+    ASSERT_TRUE(ra.ok() && rb.ok()) << ToString(m);
     double diff = 0.0;
     for (int j = 0; j < s.grid.nv; ++j)
       for (int i = 0; i < s.grid.nu; ++i)

@@ -29,9 +29,9 @@ class ReferenceAgreementTest : public ::testing::TestWithParam<const char*> {
   static ReferenceOptions Options(const Scene& s) { return {1e-8, 1e-8, 5, s.t_end, s.frame_dt}; }
   // max over frames of e_rms between two successful runs.
   static std::optional<TrajectoryErrors> Compare(const RunSummary& a, const RunSummary& c) {
-    EXPECT_TRUE(a.ok) << a.message;
-    EXPECT_TRUE(c.ok) << c.message;
-    if (!a.ok || !c.ok) return std::nullopt;
+    EXPECT_TRUE(a.ok()) << a.message;
+    EXPECT_TRUE(c.ok()) << c.message;
+    if (!a.ok() || !c.ok()) return std::nullopt;
     return CompareTrajectories(a.trajectory.positions, c.trajectory.positions);
   }
 };

@@ -217,8 +217,8 @@ TEST(Sweep, DamagedJournalEntriesAreComputedAgain) {
   {  // run 4 with a NaN in a stored frame, under a checksum that fits: caught by the range check
     const std::string key = testing::Slurp(journal / "key"), entry = testing::Slurp(journal / "4.run");
     MethodRun m = DecodeRun(entry.substr(entry.find('\n') + 1), 12);  // the tiny scene: 4 × 3
-    ASSERT_FALSE(m.traj.positions.empty());
-    m.traj.positions.back()(7, 2) = std::nan("");
+    ASSERT_FALSE(m.trajectory.positions.empty());
+    m.trajectory.positions.back()(7, 2) = std::nan("");
     const std::string bytes = EncodeRun(m);
     std::ofstream(journal / "4.run", std::ios::binary)
         << fmt::format("clothbench run crc={:08x} bytes={}\n", JournalChecksum(key, bytes), bytes.size()) << bytes;

@@ -68,7 +68,7 @@ TEST_P(ModalOrderTest, ObservedOrderMatchesClassicalOrder) {
   std::vector<double> hs = {0.004, 0.002, 0.001, 0.0005}, es;
   for (double h : hs) {
     const RunSummary r = RunIntegrator(sys, GetParam(), {h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok) << r.message;
+    ASSERT_TRUE(r.ok()) << r.message;
     es.push_back(ErrorRms(r.trajectory.positions.back(), exact));
   }
   const double slope = LeastSquaresOrder(hs, es);
@@ -98,7 +98,7 @@ const MatrixN3& Reference() {
   static const MatrixN3 ref = [] {
     const ParticleSystem sys(SmallSwingingSheet());
     const RunSummary r = RunCvode(sys, ReferenceOptions{1e-12, 1e-12, 5, 0.05, 0.05});
-    EXPECT_TRUE(r.ok) << r.message;
+    EXPECT_TRUE(r.ok()) << r.message;
     return r.trajectory.positions.back();
   }();
   return ref;
@@ -113,8 +113,8 @@ TEST_P(CvodeOrderTest, LeastSquaresSlopeMatchesClassicalOrder) {
   std::vector<double> es;
   for (double h : hs) {
     const RunSummary r = RunIntegrator(sys, GetParam(), {h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok) << r.BriefReport();
-    ASSERT_EQ(r.rejected_steps, 0) << "fixed-point loop did not converge: " << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_EQ(r.rejected, 0) << "fixed-point loop did not converge: " << r.BriefReport();
     es.push_back(ErrorRms(r.trajectory.positions.back(), Reference()));
   }
   const double slope = LeastSquaresOrder(hs, es);

@@ -82,12 +82,12 @@ TEST(Xpbd, ErrorFallsWithSubstepsOnTheSwingingSheet) {
   const Scene s = BuiltinScene("swinging_sheet");
   const ParticleSystem sys(s);
   const RunSummary ref = RunCvode(sys, {1e-10, -1.0, 5, s.t_end, s.frame_dt});
-  ASSERT_TRUE(ref.ok) << ref.message;
+  ASSERT_TRUE(ref.ok()) << ref.message;
   double previous = 0.0;
   for (int n : {4, 16, 64}) {
     Xpbd xpbd(sys, n);
     const RunSummary r = RunStepper(sys, xpbd, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << r.BriefReport();
     const double e = CompareTrajectories(r.trajectory.positions, ref.trajectory.positions)->rms_at_end;
     std::printf("[ xpbd ] swinging_sheet h = %g s, %d substeps: e_rms %.3e m\n", s.h, n, e);
     if (previous > 0.0) {
@@ -104,7 +104,7 @@ TEST(Xpbd, NoParticleDeeperThanHalfDeltaOnTheTablecloth) {
   for (int n : {4, 16}) {
     Xpbd xpbd(sys, n);
     const RunSummary r = RunStepper(sys, xpbd, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << r.BriefReport();
     const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
     const double depth = p.MaxDepthAfter(r.trajectory.times, 0.5);
     std::printf("[ xpbd ] tablecloth %d substeps: max depth after 0.5 s %.2e m (δ/2 = %.1e), colliding at t_end %d\n",

@@ -1,0 +1,79 @@
+// The record of one run, as plain data shared by every layer from the step
+// loop (solver/) to the result file (results/) and the entry points
+// (harness/, python/).
+#ifndef CLOTHBENCH_MODEL_RUN_RECORD_H_
+#define CLOTHBENCH_MODEL_RUN_RECORD_H_
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace clothbench {
+
+/// One run of one row: the attributes of /runs/<id> (docs/results-schema.md),
+/// the one record of a run from the step loop to the file and to Python.
+/// The step loop fills its status, counts and times (solver RunSummary
+/// extends it with the trajectory and the step history), the harness fills
+/// the row's identity and, against a reference, the errors and energies; the
+/// journal codec sends it, the writer writes it (results/run_table.h lists
+/// its fields once, RunRecordFields) and the reader reads it back.
+struct RunRecord {
+  std::string id;            ///< group name under /runs
+  std::string label;         ///< row label ("bdf2/newton", "xpbd", "cvode")
+  std::string integrator;    ///< registry name ("bdf2")
+  std::string layer;         ///< "solver", "peers", "reference"
+  std::string step_kind;     ///< "fixed_step", "adaptive", "substepped"
+  std::string nonlinear_solver;  ///< fully implicit thesis methods; else empty
+  std::string preconditioner;    ///< rows that use the PCG: the preconditioner they ran with; else empty
+  std::string tangent_terms;     ///< rows that build J_α: "all" or "tension" (its terms); else empty
+  double h = 0.0;            ///< fixed-step: the step [s]; substepped: the frame step [s]
+  double rtol = 0.0;         ///< adaptive rows: rtol = atol
+  long substeps = 0;         ///< substepped rows: substeps per frame step
+  double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
+  std::string constraints;   ///< xpbd: the terms solved as constraints ("tension,shear,obstacles")
+  std::string explicit_terms;///< xpbd: the terms applied in the prediction ("gravity,bend_thin_plate")
+  std::string sundials_settings;  ///< cvode rows: the setup knobs ("lsetup_frequency=20,…")
+  /// The settings the run used (not the scene's where the row overrides them):
+  /// step_control "fixed" | "iterations" | "error" (our steppers) or
+  /// "sundials" (SUNDIALS' own controller); predictor and cg_reference (rows
+  /// with the PCG); newton_jacobian "refresh" | "frozen" (Newton rows);
+  /// arkode_table (arkode rows).
+  std::string step_control, predictor, cg_reference, newton_jacobian, arkode_table;
+  double atol = 0.0;         ///< adaptive rows: atol (= rtol unless set)
+  long threads = 0;          ///< OpenMP threads of the kernels
+  std::string status = "ok"; ///< "ok" or the failure status
+  std::string message;       ///< failure message (empty when ok)
+  long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
+  long error_test_failures = -1;  ///< adaptive rows; −1: not applicable
+  long cg_unconverged = 0;        ///< accepted steps that kept an unconverged CG solve (blender)
+  /// Solver time [s]: the least over the `repeats` timings of the run (the
+  /// first computes the trajectory, the others reproduce it bit for bit).
+  double solver_time_s = 0.0, wall_time_s = 0.0;
+  double solver_time_s_median = 0.0, solver_time_s_max = 0.0;  ///< over the repeats
+  long repeats = 1;
+  /// (max − min)/min of the solver time over the repeats; 0 for one timing.
+  double TimeSpread() const {
+    return repeats > 1 && solver_time_s > 0.0 ? (solver_time_s_max - solver_time_s) / solver_time_s : 0.0;
+  }
+  double setup_time_s = -1.0;     ///< < 0: not measured
+  double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step
+  std::optional<double> error_final_m;   ///< e_rms at t_end against the reference [m]
+  std::optional<double> error_l2_m;      ///< root mean square over the frames of e_rms [m]
+  std::optional<double> error_max_m;     ///< largest e_rms over the frames [m]
+  std::optional<double> error_mean_m;    ///< mean particle distance at t_end [m]
+  /// The same three for the velocities [m/s].
+  std::optional<double> error_final_mps, error_l2_mps, error_max_mps;
+  /// The position error of `metric` ("final", "l2", "max") [m], if measured.
+  std::optional<double> Error(std::string_view metric) const {
+    return metric == "l2" ? error_l2_m : metric == "max" ? error_max_m : error_final_m;
+  }
+  std::optional<double> observed_order;  ///< against the previous row of the label
+  std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
+  std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
+
+  bool ok() const { return status == "ok"; }
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_RUN_RECORD_H_
