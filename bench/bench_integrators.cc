@@ -135,38 +135,23 @@ void AddOptions(CLI::App& app, Options& o) {
 }
 
 // The scene of the invocation: --scene (or the default), with --t-end,
-// --cg-tolerance, --preconditioner, --tangent-terms and --frames applied.
+// --frames, --cg-tolerance, --preconditioner and --tangent-terms applied and
+// --time-limit, --repeat and --time-budget checked, by the rules of every
+// entry point (RunRequest::SweepScene).
 // @throws UsageError or SceneError, one line
 Scene SceneOfOptions(const CLI::App& app, const Options& o) {
-  const auto& [scene_path, t_end, cg_tolerance, preconditioner, tangent_terms, frames_mode] =
-      std::tie(o.scene_path, o.t_end, o.cg_tolerance, o.preconditioner, o.tangent_terms, o.frames_mode);
-  Scene scene = scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(scene_path);
-  if (app.count("--t-end")) {
-    if (!std::isfinite(t_end) || !(t_end > 0.0) || t_end > 1e6)
-      throw UsageError(fmt::format("--t-end: {} is not a number in (0, 1e6] s", t_end));
-    scene.t_end = t_end;
-    scene.frame_dt = std::min(scene.frame_dt, t_end);
-    scene.h = std::min(scene.h, t_end);
-    CheckRunLength(scene, fmt::format("--t-end {:g} on {}", t_end, scene.source));
-  }
-  if (app.count("--cg-tolerance")) {
-    if (!(cg_tolerance > 0.0 && cg_tolerance < 1.0))
-      throw UsageError(fmt::format("--cg-tolerance: {} must be in (0, 1)", cg_tolerance));
-    scene.solver.cg_tolerance = cg_tolerance;
-  }
-  if (app.count("--preconditioner")) scene.solver.preconditioner = ParsePreconditioner(preconditioner, "--preconditioner");
-  if (app.count("--tangent-terms")) {
-    if (tangent_terms != "all" && tangent_terms != "tension")
-      throw UsageError(fmt::format("--tangent-terms: \"{}\" must be all or tension", EscapeControl(tangent_terms)));
-    scene.solver.tangent_explicit_terms = tangent_terms == "all";
-  }
-  if (frames_mode != "default" && frames_mode != "positions" && frames_mode != "all" && frames_mode != "ends" &&
-      frames_mode != "none")
-    throw UsageError(fmt::format("--frames: \"{}\" must be default, all, positions, ends or none", frames_mode));
-  // ends/none keep t = 0 and t_end only (frame_dt = t_end); none also
-  // leaves the frame datasets out of the file.
-  if (frames_mode == "ends" || frames_mode == "none") scene.frame_dt = scene.t_end;
-  return scene;
+  RunRequest q;
+  q.names = FieldNames::kOption;
+  q.scene = o.scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(o.scene_path);
+  if (app.count("--t-end")) q.t_end = o.t_end;
+  q.frames = o.frames_mode;
+  if (app.count("--cg-tolerance")) q.cg_tolerance = o.cg_tolerance;
+  if (app.count("--preconditioner")) q.preconditioner = o.preconditioner;
+  if (app.count("--tangent-terms")) q.tangent_terms = o.tangent_terms;
+  q.time_limit = o.time_limit;
+  if (o.repeat > 0) q.repeat = o.repeat;
+  q.time_budget = o.time_budget;
+  return q.SweepScene();
 }
 
 // --cvode-setting KEY=VALUE,… as CVODE's settings. @throws UsageError naming the pair
@@ -194,9 +179,6 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
                           substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
   Scene scene = SceneOfOptions(app, o);
-  if (!std::isfinite(time_limit) || !(time_limit > 0.0) || time_limit > 1e7)
-    throw UsageError(fmt::format("--time-limit: {:g} s must be a number in (0, 1e7]", time_limit));
-  if (!std::isfinite(time_budget)) throw UsageError(fmt::format("--time-budget: {:g} s must be a number in [0, 1e6]", time_budget));
   if (app.count("--integrators") && integrators_arg.empty())
     throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
   const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);

@@ -78,6 +78,27 @@ void ApplyTimes(const RunRequest& q, Scene* s) {
   if (q.frames == "ends" || q.frames == "none") s->frame_dt = s->t_end;
 }
 
+// The values of cg_tolerance and tangent_terms (whether a row reads them is
+// checked against the row).
+void CheckCgTolerance(const RunRequest& q) {
+  if (q.cg_tolerance && !(*q.cg_tolerance > 0.0 && *q.cg_tolerance < 1.0))
+    throw Fail(q, "cg_tolerance", fmt::format("{:g} must be in (0, 1)", *q.cg_tolerance));
+}
+void CheckTangentTerms(const RunRequest& q) {
+  if (q.tangent_terms && *q.tangent_terms != "all" && *q.tangent_terms != "tension")
+    throw Fail(q, "tangent_terms", fmt::format("\"{}\" must be all or tension", EscapeControl(*q.tangent_terms)));
+}
+
+// Time limit, repetitions and timing budget.
+void CheckTimes(const RunRequest& q) {
+  if (!std::isfinite(q.time_limit) || !(q.time_limit > 0.0) || q.time_limit > 1e7)
+    throw Fail(q, "time_limit", fmt::format("{:g} s must be a number in (0, 1e7]", q.time_limit));
+  if (q.repeat && (*q.repeat < 1 || *q.repeat > 1000))
+    throw Fail(q, "repeat", fmt::format("{} must be a whole number from 1 to 1000", *q.repeat));
+  if (!std::isfinite(q.time_budget) || !(q.time_budget >= 0.0) || q.time_budget > 1e6)
+    throw Fail(q, "time_budget", fmt::format("{:g} s must be a number in [0, 1e6]", q.time_budget));
+}
+
 // The one registry row the method names, on the scene's step control.
 RowMethod ResolveRow(const RunRequest& q, const Scene& s) {
   std::vector<RowMethod> rows;
@@ -134,8 +155,7 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
   const std::string label = m.label();
   if (q.cg_tolerance) {
     if (!m.uses_pcg()) throw Fail(q, "cg_tolerance", fmt::format("{} does not solve with the PCG", label));
-    if (!(*q.cg_tolerance > 0.0 && *q.cg_tolerance < 1.0))
-      throw Fail(q, "cg_tolerance", fmt::format("{:g} must be in (0, 1)", *q.cg_tolerance));
+    CheckCgTolerance(q);
     solver.cg_tolerance = *q.cg_tolerance;
     out->ctx.cg_tolerance_from_cli = true;
   }
@@ -148,8 +168,7 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
     if (!m.builds_tangent())
       throw Fail(q, "tangent_terms", fmt::format("{} does not build J_alpha (rows that do: Newton rows, {})", label,
                                                  RowsThat(&MethodEntry::tangent)));
-    if (*q.tangent_terms != "all" && *q.tangent_terms != "tension")
-      throw Fail(q, "tangent_terms", fmt::format("\"{}\" must be all or tension", EscapeControl(*q.tangent_terms)));
+    CheckTangentTerms(q);
     solver.tangent_explicit_terms = *q.tangent_terms == "all";
     out->ctx.tangent_terms_from_cli = true;
   }
@@ -182,13 +201,8 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
 void CheckLimits(const RunRequest& q, ResolvedRun* out) {
   if (q.threads < 0 || q.threads > kMaxThreads)
     throw Fail(q, "threads", fmt::format("{} must be 0 (the process' own) or from 1 to {}", q.threads, kMaxThreads));
-  if (!std::isfinite(q.time_limit) || !(q.time_limit > 0.0) || q.time_limit > 1e7)
-    throw Fail(q, "time_limit", fmt::format("{:g} s must be a number in (0, 1e7]", q.time_limit));
+  CheckTimes(q);
   out->ctx.limits.time_limit_s = q.time_limit;
-  if (q.repeat && (*q.repeat < 1 || *q.repeat > 1000))
-    throw Fail(q, "repeat", fmt::format("{} must be a whole number from 1 to 1000", *q.repeat));
-  if (!std::isfinite(q.time_budget) || !(q.time_budget >= 0.0) || q.time_budget > 1e6)
-    throw Fail(q, "time_budget", fmt::format("{:g} s must be a number in [0, 1e6]", q.time_budget));
   if (q.reference_scene && *q.reference_scene != SceneHash(out->scene))
     throw Fail(q, "reference",
                "was computed on another scene, t_end or frame spacing than this run's (scene hash " +
@@ -207,6 +221,18 @@ ResolvedRun RunRequest::Resolve() const {
   CheckLimits(*this, &out);
   out.spec = out.scene.solver;
   return out;
+}
+
+Scene RunRequest::SweepScene() const {
+  Scene s = scene;
+  ApplyTimes(*this, &s);
+  CheckCgTolerance(*this);
+  CheckTangentTerms(*this);
+  CheckTimes(*this);
+  if (cg_tolerance) s.solver.cg_tolerance = *cg_tolerance;
+  if (preconditioner) s.solver.preconditioner = ParsePreconditioner(EscapeControl(*preconditioner), Field("preconditioner"));
+  if (tangent_terms) s.solver.tangent_explicit_terms = *tangent_terms == "all";
+  return s;
 }
 
 void RunRequest::Validate() const { (void)Resolve(); }

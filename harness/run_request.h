@@ -87,6 +87,13 @@ struct RunRequest {
   bool IsValid(std::string* error) const;
   /// The run this request asks for. @throws UsageError as Validate()
   ResolvedRun Resolve() const;
+  /// The scene of a sweep over many rows (bench_integrators): `scene` with
+  /// t_end and frames applied and the values of cg_tolerance,
+  /// preconditioner, tangent_terms, time_limit, repeat and time_budget
+  /// checked by the rules Resolve() applies, the solver options set; method,
+  /// h, rtol and substeps are not read (each planned row resolves its own).
+  /// @throws UsageError as Validate()
+  Scene SweepScene() const;
   /// The name of `field` (a keyword) as this request's entry point spells it.
   std::string Field(std::string_view field) const;
 };
