@@ -64,7 +64,7 @@ int RunBench(const BenchRun& b, SweepComm& comm);
 /// those that change no result (--max-runs, --plot, --quiet), so that a rerun
 /// of the same command, sliced or not, finds its journal.
 inline std::string JournalKey(int argc, char** argv, const Scene& scene) {
-  std::string key = fmt::format("bench_integrators journal 5 scene={} args=", Fnv1a64(scene.toml));
+  std::string key = fmt::format("bench_integrators journal 6 scene={} args=", Fnv1a64(scene.toml));
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--max-runs" || a == "--plot") {

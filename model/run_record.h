@@ -68,6 +68,12 @@ struct RunRecord {
     return metric == "l2" ? error_l2_m : metric == "max" ? error_max_m : error_final_m;
   }
   std::optional<double> observed_order;  ///< against the previous row of the label
+  /// The blow-up guard's margins over the run (docs/model.md, "Blow-up
+  /// statuses"; −1: not measured): the largest energy gain over E_scale
+  /// (not measured where the energy balance is not closed), the largest
+  /// particle speed over v_bound, the deepest particle inside an obstacle
+  /// at a frame over its collision distance δ. A run fails above 1, 2 and 1.
+  double energy_gain_ratio = -1.0, speed_ratio = -1.0, penetration_ratio = -1.0;
   std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
   std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
 

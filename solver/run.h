@@ -82,31 +82,60 @@ struct RunSummary : RunRecord {
   std::string BriefReport() const;
 };
 
-/// Detects a blow-up at a frame (docs/verification.md, "Blow-ups and
-/// limits"): a non-finite state or energy, status "non_finite", or an energy
-/// gain E(t) − W_ext(t) − E(0) > kEnergyGrowthFactor · E_ref, status
-/// "energy_growth", with E_ref = Σ m (|g| L + 1 m²/s²) [J] (L the sheet's
-/// diagonal): a thousand times the energy gravity can release over the sheet
-/// plus that of every particle moving at 1 m/s, which no cloth motion of a
-/// passive model reaches (a gain of 1e3 E_ref is speeds of ~150 m/s when
-/// L = 1 m). W_ext is the work of wind and air drag, integrated over the
-/// frames by the trapezoidal rule (as results/metrics.h does). Check does
-/// not allocate (it runs inside the step loop).
+/// Detects a blow-up by the physics of the scene (docs/model.md, "Blow-up
+/// statuses"). With M the cloth's mass, g gravity, H the drop height (the
+/// initial state's extent along g plus the sheet's diagonal L when
+/// particles are fixed; without fixed particles, the extent plus the free
+/// fall ½|g|t_end² over the run) and K(0) the initial kinetic energy, a run
+/// fails
+///  - after any step (Check), with "non_finite": a non-finite state or
+///    energy; "energy_growth": the energy balance's gain E(t) − E(0) −
+///    W_ext(t) − W_contact(t) > kEnergyGainFactor · E_scale, E_scale =
+///    M(|g|H + ½ (1 m/s)²) + K(0) [J] (W_ext: work of wind and air drag by the trapezoidal
+///    rule over the checked states; W_contact: the collision response's
+///    work, the stepper's own count); "speed": max_p |v_p| > kSpeedFactor ·
+///    v_bound, v_bound = sqrt(2|g|H) + 1 m/s + max_p |v_p(0)| + the wind's largest
+///    speed + the keyframed obstacles' largest surface speed within reach of
+///    the cloth [m/s] (the energy balance only where it is closed: a method
+///    that does not count its contact work is not checked on it on a scene
+///    with obstacles);
+///  - at a stored frame (CheckFrame), with "penetration": a particle more
+///    than its obstacle's collision distance δ inside a solid obstacle
+///    (signed distance < −δ; open meshes have no inside).
+/// The message names t, the quantity and its bound. Neither check
+/// allocates for analytic obstacles (they run inside the step loop).
 class BlowUpGuard {
  public:
-  static constexpr double kEnergyGrowthFactor = 1e3;
+  static constexpr double kEnergyGainFactor = 1.0;
+  static constexpr double kSpeedFactor = 2.0;
   /// The run's initial state at t = 0: N×3 positions x0 [m] and velocities
-  /// v0 [m/s] (finite), whose energy is E(0).
-  BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0);
-  /// Checks the frame at time t [s] with N×3 positions x [m] and velocities v
-  /// [m/s]; frames must come in increasing t after 0. Returns true if the
-  /// frame is sound, else false with `status` ("non_finite" |
-  /// "energy_growth") and a one-line `message` naming t and the values.
-  bool Check(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message);
+  /// v0 [m/s] (finite), whose energy is E(0); t_end [s] the run's end.
+  BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0, double t_end);
+  /// Checks the state after a step at time t [s]: N×3 positions x [m],
+  /// velocities v [m/s], and the contact work W_contact(t) [J] done since
+  /// t = 0, or nothing for a method that does not count it (XPBD's
+  /// positional projection): on a scene with obstacles its energy balance
+  /// is not closed and is not checked (speed and penetration still are).
+  /// States must come in increasing t after 0. Returns true if the state is
+  /// sound, else false with `status` ("non_finite" | "energy_growth" |
+  /// "speed") and a one-line `message` naming t, the quantity and the bound.
+  bool Check(double t, const MatrixN3& x, const MatrixN3& v, std::optional<double> contact_work, std::string* status,
+             std::string* message);
+  /// Checks a stored frame at time t [s] with N×3 positions x [m] and
+  /// velocities v [m/s]: false with status "non_finite", or "penetration"
+  /// against the obstacles and a message naming the particle, its depth,
+  /// the obstacle and t.
+  bool CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message);
+  /// The margins of the states and frames checked so far into `record`
+  /// (RunRecord::energy_gain_ratio, speed_ratio, penetration_ratio).
+  void StoreMargins(RunRecord* record) const;
+  double energy_scale() const { return e_scale_; }  ///< E_scale [J]
+  double speed_bound() const { return v_bound_; }   ///< v_bound [m/s]
 
  private:
   const ParticleSystem& sys_;
-  double e_ref_ = 0.0, e0_ = 0.0, work_ = 0.0, power_ = 0.0, t_prev_ = 0.0;
+  double e_scale_ = 0.0, v_bound_ = 0.0, e0_ = 0.0, work_ = 0.0, power_ = 0.0, t_prev_ = 0.0;
+  double gain_ratio_ = -1.0, speed_ratio_ = -1.0, depth_ratio_ = -1.0;  // largest so far; −1: not measured
   MatrixN3 f_ext_;
 };
 

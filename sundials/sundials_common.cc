@@ -64,7 +64,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   double solver_seconds = 0.0, t = 0.0;
   MatrixN3 frame, frame_v;
   bool ok = true;
-  BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0]);
+  BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0], options.t_end);
   const auto wall_start = Clock::now();
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
   long steps = 0;
@@ -107,6 +107,11 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     st.error_order = q;
     res->step_stats.push_back(st);
     ReportProgress(t);
+    d.current_state(&frame, &frame_v);  // every internal step's state against the guard (no contact response)
+    if (!guard.Check(t, frame, frame_v, 0.0, &res->status, &res->message)) {
+      ok = false;
+      break;
+    }
     while (next < frames.size() && frames[next] <= t + 1e-12) {
       if (next + 1 == frames.size() || frames[next] == t) {
         d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly
@@ -116,7 +121,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
         ok = false;
         break;
       }
-      if (!guard.Check(frames[next], frame, frame_v, &res->status, &res->message)) {
+      if (!guard.CheckFrame(frames[next], frame, frame_v, &res->status, &res->message)) {
         ok = false;
         break;
       }
@@ -126,6 +131,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       ++next;
     }
   }
+  guard.StoreMargins(res);
   if (ok) {
     res->status = "ok";
   }
