@@ -97,7 +97,8 @@ void AddOptions(CLI::App& app, Options& o) {
                  "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
   app.add_option("--error-metric", error_metric,
                  "the error of the e_rms column, the observed orders, the equal-accuracy table and the plots: final "
-                 "(e_rms at t_end, default) | l2 (rms over the frames) | max (max over the frames)");
+                 "(e_rms at t_end; the default without obstacles) | l2 (rms over the frames; the default on scenes with "
+                 "obstacles, whose contact events are not smooth) | max (max over the frames)");
   app.add_option("--baseline", baseline,
                  "the row the equal-accuracy ratios are relative to (default cvode: CVODE with the reduced solve)");
   app.add_option("--tangent-terms", tangent_terms,
@@ -213,6 +214,9 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                 app.count("--baseline") ? EscapeControl(baseline) : ""});
   if (!unused.empty()) throw UsageError(unused);
   const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
+  // Contact events are not smooth: on scenes with obstacles the errors are
+  // measured over the whole trajectory unless --error-metric says otherwise.
+  if (!app.count("--error-metric") && !scene.obstacles.empty()) error_metric = "l2";
   const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
   if (!metric)
     throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));

@@ -228,6 +228,13 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
       if (self_convergence) {
         progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), b.scene.t_end);
         r = SelfConvergenceReference(b.scene, h_ref);
+        if (r.ok()) {  // its own error: against the same run at 2 h_ref
+          progress.Start(fmt::format("reference bdf2 h = {:g} s (self-convergence)", 2.0 * h_ref), b.scene.t_end);
+          const RunSummary coarse = SelfConvergenceReference(b.scene, 2.0 * h_ref);
+          const std::optional<TrajectoryErrors> e =
+              coarse.ok() ? CompareTrajectories(coarse.trajectory, r.trajectory) : std::nullopt;
+          if (e && std::isfinite(e->rms_l2)) r.self_convergence_l2_m = e->rms_l2;
+        }
       } else {
         progress.Start(fmt::format("reference {} rtol {:g}", b.reference->name, b.ref_rtol), b.scene.t_end);
         r = b.reference->reference(sys, ref_opts);

@@ -74,6 +74,10 @@ struct RunRecord {
   /// particle speed over v_bound, the deepest particle inside an obstacle
   /// at a frame over its collision distance δ. A run fails above 1, 2 and 1.
   double energy_gain_ratio = -1.0, speed_ratio = -1.0, penetration_ratio = -1.0;
+  /// A self-convergence reference's own error estimate: e_l2 (the root mean
+  /// square over the frames of e_rms) between it and the same method at
+  /// twice its step [m]; −1: not measured.
+  double self_convergence_l2_m = -1.0;
   std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
   std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
 

@@ -54,6 +54,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"energy_gain_ratio", &R::energy_gain_ratio, S::kNonNegative},
       {"speed_ratio", &R::speed_ratio, S::kNonNegative},
       {"penetration_ratio", &R::penetration_ratio, S::kNonNegative},
+      {"self_convergence_l2_m", &R::self_convergence_l2_m, S::kNonNegative},
       {"error_final_m", &R::error_final_m, S::kSet, true},
       {"error_l2_m", &R::error_l2_m, S::kSet, true},
       {"error_max_m", &R::error_max_m, S::kSet, true},
@@ -139,8 +140,10 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   if (ref && IsSelfConvergence(*ref))
     fmt::print(out,
                "reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
-               "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s\n",
-               ref->h, ref->steps, ref->wall_time_s);
+               "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s; its "
+               "self-convergence: e_l2 against BDF(2) at 2h = {}\n",
+               ref->h, ref->steps, ref->wall_time_s,
+               ref->self_convergence_l2_m >= 0.0 ? fmt::format("{:.3e} m", ref->self_convergence_l2_m) : "-");
   else if (ref)
     fmt::print(out, "reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}\n",
                Upper(ref->integrator), ref->rtol, ref->steps, ref->wall_time_s,
