@@ -28,6 +28,8 @@ std::string_view ToString(CgReference r) {
 std::string_view ToString(NonlinearSolver s) {
   return s == NonlinearSolver::kFixedPoint ? "fixed_point" : "newton";
 }
+std::string_view ToString(ContactHistory c) { return c == ContactHistory::kKeep ? "keep" : "restart"; }
+
 std::string_view ToString(NewtonJacobian j) {
   return j == NewtonJacobian::kRefresh ? "refresh" : "frozen";
 }

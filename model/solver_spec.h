@@ -48,6 +48,12 @@ enum class NewtonJacobian { kRefresh, kFrozen };
 /// "clamp" keeps J_α definite with the transverse factor max(0, 1 − l_e/|d|)
 /// (Choi & Ko 2002); "none" is the exact spring Jacobian.
 enum class TangentProjection { kClamp, kNone };
+/// What a multistep method (SBDF(2), BDF(2), SBDF(3)) does with its history
+/// when the set of colliding particles changes between steps: "keep" it
+/// (the thesis' response (4.4) acts on the current step only), or
+/// "restart" with the one-step start, as after Reset (docs/collisions.md,
+/// "Multistep history across contact events").
+enum class ContactHistory { kKeep, kRestart };
 
 std::string_view ToString(PreconditionerType p);
 std::string_view ToString(CholeskyOrdering o);
@@ -58,6 +64,7 @@ std::string_view ToString(CgReference r);
 std::string_view ToString(NonlinearSolver s);
 std::string_view ToString(NewtonJacobian j);
 std::string_view ToString(TangentProjection p);
+std::string_view ToString(ContactHistory c);
 
 /// Settings of the step engine (docs/model.md §5, §6).
 struct SolverSpec {
@@ -85,6 +92,9 @@ struct SolverSpec {
   /// Newton: J_α at every iterate or once per step (docs/newton.md).
   NewtonJacobian newton_jacobian = NewtonJacobian::kRefresh;
   TangentProjection tangent_projection = TangentProjection::kClamp;
+  /// Multistep methods on scenes with obstacles: keep or restart the
+  /// history when the contact set changes.
+  ContactHistory contact_history = ContactHistory::kKeep;
   /// Newton and Baraff–Witkin: the explicit terms' Jacobians (shear, bending,
   /// transverse, air) enter J_α; false: tension and mass only.
   bool tangent_explicit_terms = true;

@@ -71,6 +71,7 @@ RunTable ReadRunTable(const ResultReader& f) {
   t.contact_factors = str("/scene", "solver_contact_factors");
   t.tangent_projection = str("/scene", "solver_tangent_projection");
   t.newton_jacobian = str("/scene", "solver_newton_jacobian");
+  t.contact_history = str("/scene", "solver_contact_history");
   t.controller_updates = str("/scene", "solver_controller_updates");
   t.cg_max_iterations = f.Long("/scene", "solver_cg_max_iterations").value_or(0);
   t.max_rejections = f.Long("/scene", "solver_max_rejections").value_or(0);
@@ -184,6 +185,7 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
     f.SetAttribute("/scene", "solver_contact_factors", t.contact_factors);
     f.SetAttribute("/scene", "solver_tangent_projection", t.tangent_projection);
     f.SetAttribute("/scene", "solver_newton_jacobian", t.newton_jacobian);
+    if (!t.contact_history.empty()) f.SetAttribute("/scene", "solver_contact_history", t.contact_history);
     f.SetAttribute("/scene", "solver_controller_updates", t.controller_updates);
     f.SetAttribute("/scene", "solver_cg_max_iterations", t.cg_max_iterations);
     f.SetAttribute("/scene", "solver_max_rejections", t.max_rejections);

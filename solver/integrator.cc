@@ -127,6 +127,11 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
+  const bool multistep = method == Method::kSbdf2 || method == Method::kBdf2 || method == Method::kSbdf3;
+  if (multistep && contacts_.active() && solver.contact_history == ContactHistory::kRestart) {
+    in_contact_.assign(static_cast<std::size_t>(n), 0);
+    in_contact_prev_.assign(static_cast<std::size_t>(n), 0);
+  }
   if (IsFullyImplicit(method) && solver.nonlinear_solver == NonlinearSolver::kNewton) {
     const auto start = std::chrono::steady_clock::now();
     TangentOptions to;
@@ -163,6 +168,7 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   history_ = 0;
   sbdf3_history_ = 0;
   contacts_.Reset();
+  std::fill(in_contact_prev_.begin(), in_contact_prev_.end(), 0);
   if (error_control_) {
     // v̇ at the start, the exact slope of the error estimate's predictors.
     sys_.Forces(t, x0_, v0_, &a_init_);
@@ -185,6 +191,17 @@ StepStats StepEngine::StepImpl(double h) {
   st.t = t_ + h;
   st.h = h;
   if (method_ == Method::kSymplecticEuler) return ExplicitStep(h, st);
+  // The contacts first: under ContactHistory::kRestart a multistep method
+  // whose contact set changed restarts with its one-step start.
+  int colliding = 0;
+  if (contacts_.active()) {
+    colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+    if (!in_contact_.empty() && ContactSetChanged() && have_history_) {
+      have_history_ = false;
+      history_ = 0;
+      sbdf3_history_ = 0;
+    }
+  }
   bool sbdf3_start = false;
   const Method m = StepMethod(h, &sbdf3_start);
   const bool imex = IsImex(m);
@@ -197,7 +214,7 @@ StepStats StepEngine::StepImpl(double h) {
     return st;
   }
   if (contacts_.active()) {
-    st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+    st.colliding = colliding;
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
     if (!sysmat_.AdaptTo(filter_)) {
       st.status = StepStatus::kPreconditionerFailed;
@@ -221,6 +238,16 @@ StepStats StepEngine::StepImpl(double h) {
     return st;
   }
   return FinishStep(h, c.gamma, st);
+}
+
+bool StepEngine::ContactSetChanged() {
+  std::fill(in_contact_.begin(), in_contact_.end(), 0);
+  filter_.ForEachConstraint([&](int p, int count, const auto&) {
+    if (count < 3) in_contact_[static_cast<std::size_t>(p)] = 1;  // fixed particles: 3 directions, always
+  });
+  const bool changed = in_contact_ != in_contact_prev_;
+  in_contact_prev_.swap(in_contact_);
+  return changed;
 }
 
 Method StepEngine::StepMethod(double h, bool* sbdf3_start) const {

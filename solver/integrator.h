@@ -268,6 +268,10 @@ class StepEngine : public Stepper {
   MatrixN3 xm1_, vm1_, gm1_;     // previous state and g there (multistep)
   double h_prev_ = 0.0;
   bool have_history_ = false;
+  // ContactHistory::kRestart: which particles the obstacles constrained in
+  // this step and the previous one (allocated once, multistep methods only).
+  std::vector<char> in_contact_, in_contact_prev_;
+  bool ContactSetChanged();
   bool have_g0_ = false;         // g0_ holds g(t0, x0, v0)
   bool error_control_ = false;   // SBDF(2)/BDF(2) with step_control = "error"
   // Error control only: (x₋₂, v₋₂), v̇ = M⁻¹f at the last Reset, the step

@@ -459,7 +459,7 @@ TEST(BenchCli, TheSceneStoresEverySolverSetting) {
                                            "cg_max_iterations = 77\ntangent_projection = \"none\"\n"
                                            "newton_jacobian = \"frozen\"\ncontroller_updates = [2, 5]\n"
                                            "fixed_point_tolerance = 1e-7\nstep_factor = 1.5\nh_min = 1e-5\n"
-                                           "h_max = 0.02\nmax_rejections = 7\n");
+                                           "h_max = 0.02\nmax_rejections = 7\ncontact_history = \"restart\"\n");
   const Outcome o = RunBench("--scene " + scene + " --integrators sbdf2 --h 0.01 --reference none --frames none " +
                              "--quiet --out " + out.string());
   ASSERT_EQ(o.exit_code, 0) << o.err;
@@ -469,6 +469,7 @@ TEST(BenchCli, TheSceneStoresEverySolverSetting) {
   EXPECT_EQ(t.cg_max_iterations, 77);
   EXPECT_EQ(t.tangent_projection, "none");
   EXPECT_EQ(t.newton_jacobian, "frozen");
+  EXPECT_EQ(t.contact_history, "restart");
   EXPECT_EQ(t.controller_updates, "2,5");
   EXPECT_EQ(t.fixed_point_tolerance, 1e-7);
   EXPECT_EQ(t.step_factor, 1.5);
