@@ -224,7 +224,9 @@ void WriteMaps(const SweepPlan& p, const CellResults& r, const std::string& out,
                scene.name, side, side, steps);
     fmt::print("cells: ok U/C = bounded, U updates and C CG iterations per step; at step n: GROW@n energy growth, "
                "NaN@n non-finite state, CG@n PCG failed, FP@n fixed point not converged in 30 updates, FPdiv@n fixed "
-               "point diverged, NW@n Newton not converged in 30 updates, NWdiv@n Newton diverged\n");
+               "point diverged, NW@n Newton not converged in 30 updates, NWdiv@n Newton diverged, SPD@n a particle "
+               "faster than twice the speed bound, PEN@n a particle deeper than delta inside an obstacle "
+               "(docs/model.md, \"Blow-up statuses\")\n");
     for (const RowMethod& m : p.methods) {
       fmt::print("\n{:<24} {:>8}", m.label(), "h \\ S");
       for (double s : stiff) fmt::print(" {:>12g}", s);

@@ -40,6 +40,8 @@
 
 #include <fmt/format.h>
 
+#include "solver/stability_map.h"
+
 #include "model/scene.h"
 
 namespace clothbench {
@@ -285,7 +287,7 @@ class SweepJournal {
           crc == JournalChecksum(header_, entry.substr(0, at)) &&
           std::sscanf(all.c_str() + start, "cell %ld %d %d %63s %63s %63s", &index, &c.outcome, &c.steps, upd, cg,
                       ex) == 6 &&
-          index >= 0 && static_cast<std::size_t>(index) < cells && c.outcome >= 0 && c.outcome <= 8 && c.steps >= 0;
+          index >= 0 && static_cast<std::size_t>(index) < cells && c.outcome >= 0 && c.outcome <= kPenetration && c.steps >= 0;
       if (ok) {
         c.updates = std::strtod(upd, nullptr);
         c.cg = std::strtod(cg, nullptr);

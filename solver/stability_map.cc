@@ -3,14 +3,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <string>
 
 #include <fmt/format.h>
+
+#include "solver/run.h"
 
 namespace clothbench {
 
 const char* const kStabilityOutcomeCodes =
     "0 bounded, 1 energy_growth, 2 non_finite, 3 cg_failed, 4 no_fixed_point_convergence, 5 fixed_point_diverged, "
-    "6 other, 7 no_newton_convergence, 8 newton_diverged";
+    "6 other, 7 no_newton_convergence, 8 newton_diverged, 9 speed, 10 penetration";
 
 Scene StabilityScene(Scene s, int side) {
   const double lu = s.lu(), lv = s.lv();
@@ -57,6 +61,10 @@ StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h
     return (fext.array() * engine.v().array()).sum();
   };
   double work = 0.0, p0 = power();
+  // The run's blow-up statuses besides the map's stricter energy bound:
+  // speed after every step, penetration at every step's state.
+  BlowUpGuard guard(sys, engine.x(), engine.v(), h * steps);
+  std::string guard_status, guard_message;
   StabilityCell c;
   long updates = 0, cg = 0;
   for (int n = 0; n < steps; ++n) {
@@ -87,6 +95,17 @@ StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h
       c.outcome = kEnergyGrowth;
       break;
     }
+    const ContactResponse::Work* contact = engine.contact_work();
+    if (!guard.Check(engine.t(), engine.x(), engine.v(),
+                     contact ? std::optional(contact->holding + contact->pulling + contact->friction) : std::nullopt,
+                     &guard_status, &guard_message) ||
+        !guard.CheckFrame(engine.t(), engine.x(), engine.v(), &guard_status, &guard_message)) {
+      c.outcome = guard_status == "speed"         ? kSpeed
+                  : guard_status == "penetration" ? kPenetration
+                  : guard_status == "non_finite"  ? kNonFinite
+                                                  : kEnergyGrowth;
+      break;
+    }
   }
   const int attempted = std::max(1, c.steps + (c.outcome == kBounded ? 0 : 1));
   c.updates_per_step = static_cast<double>(updates) / attempted;
@@ -104,6 +123,8 @@ std::string StabilityCellText(const StabilityCell& c) {
     case kFixedPointDiverged: return fmt::format("FPdiv@{}", c.steps);
     case kNoNewton: return fmt::format("NW@{}", c.steps);
     case kNewtonDiverged: return fmt::format("NWdiv@{}", c.steps);
+    case kSpeed: return fmt::format("SPD@{}", c.steps);
+    case kPenetration: return fmt::format("PEN@{}", c.steps);
     default: return fmt::format("FAIL@{}", c.steps);
   }
 }

@@ -23,7 +23,9 @@ enum StabilityOutcome : int32_t {
   kFixedPointDiverged = 5,  ///< fixed-point iterates became non-finite
   kOtherFailure = 6,
   kNoNewton = 7,            ///< Newton not converged in max_updates
-  kNewtonDiverged = 8       ///< Newton iterates became non-finite
+  kNewtonDiverged = 8,      ///< Newton iterates became non-finite
+  kSpeed = 9,               ///< a particle faster than the run's speed bound (BlowUpGuard)
+  kPenetration = 10         ///< a particle deeper than δ inside an obstacle (BlowUpGuard)
 };
 /// "0 bounded, 1 energy_growth, …" for the HDF5 attribute.
 extern const char* const kStabilityOutcomeCodes;
@@ -51,7 +53,8 @@ using StepperFactory = std::function<std::unique_ptr<Stepper>(const ParticleSyst
 StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h, double stiffness, int steps);
 
 /// Short text for a printed map: "ok U/C", "GROW@n", "NaN@n", "CG@n", "FP@n",
-/// "FPdiv@n", "NW@n" (Newton not converged), "NWdiv@n".
+/// "FPdiv@n", "NW@n" (Newton not converged), "NWdiv@n", "SPD@n" (speed),
+/// "PEN@n" (penetration).
 std::string StabilityCellText(const StabilityCell& c);
 
 }  // namespace clothbench
