@@ -214,9 +214,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                 app.count("--baseline") ? EscapeControl(baseline) : ""});
   if (!unused.empty()) throw UsageError(unused);
   const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
-  // Contact events are not smooth: on scenes with obstacles the errors are
-  // measured over the whole trajectory unless --error-metric says otherwise.
-  if (!app.count("--error-metric") && !scene.obstacles.empty()) error_metric = "l2";
+  if (!app.count("--error-metric")) error_metric = std::string(ToString(DefaultErrorMetric(scene)));
   const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
   if (!metric)
     throw UsageError(fmt::format("--error-metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));

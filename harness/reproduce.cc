@@ -274,9 +274,10 @@ RerunOutcome RerunStored(const ResultReader& file, const RunTable& table, const 
   if (!out.empty()) {
     std::vector<MethodRun> rows;
     rows.push_back(o.run);
-    CompareToReference(sys, nullptr, run.scene.t_end, ErrorMetric::kFinal, &rows);
-    const RunTable t = MakeRunTable(run.scene, sys, std::nullopt, rows, q.frames, nullptr,
-                                    ErrorMetric::kFinal);
+    // The stored file's metric (validated), so that the rerun's file names the same one.
+    const ErrorMetric metric = ParseErrorMetric(table.error_metric).value_or(DefaultErrorMetric(run.scene));
+    CompareToReference(sys, nullptr, run.scene.t_end, metric, &rows);
+    const RunTable t = MakeRunTable(run.scene, sys, std::nullopt, rows, q.frames, nullptr, metric);
     WriteResults(out, run.scene, sys, std::nullopt, rows, t, 1);
   }
   return o;

@@ -59,6 +59,21 @@ Obstacle::Obstacle(const ObstacleSpec& spec) : spec_(spec) {
     key_rotations_.emplace_back(Eigen::Quaterniond(RotationFromDegrees(k.rotate)).normalized());
 }
 
+Penetration Obstacle::PenetrationOf(const ObstaclePose& pose, const MatrixN3& x) const {
+  Penetration r;
+  for (int p = 0; p < x.rows(); ++p) {
+    Vector3 dir;
+    const double d = SignedDistance(pose, x.row(p).transpose(), &dir);
+    if (d < 0.0) {
+      if (-d > r.max_depth) r.max_depth = -d, r.deepest = p;
+      r.depth_sum += -d;
+      ++r.inside;
+    }
+    if (d < 0.5 * spec_.collision_distance) ++r.close;
+  }
+  return r;
+}
+
 ObstaclePose Obstacle::PoseAt(double t) const {
   ObstaclePose pose;
   pose.anchor = anchor_;

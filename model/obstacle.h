@@ -70,6 +70,15 @@ struct SegmentHit {
   Vector3 normal = Vector3::Zero();    ///< unit surface normal at the hit, facing a's side
 };
 
+/// How N particles lie against an obstacle at one pose (Obstacle::Penetration).
+struct Penetration {
+  double max_depth = 0.0;  ///< largest depth inside, max(0, −d) [m]
+  int deepest = -1;        ///< the particle at max_depth; −1 if none is inside
+  double depth_sum = 0.0;  ///< sum of −d over the particles inside [m]
+  int inside = 0;          ///< particles with d < 0
+  int close = 0;           ///< particles with d < δ/2
+};
+
 /// An obstacle as written in a scene (`[[obstacle]]`).
 struct ObstacleSpec {
   ObstacleType type = ObstacleType::kPlane;
@@ -119,6 +128,9 @@ class Obstacle {
   /// golden-section search and the entry by bisection (to 1e-12 of the
   /// segment). Meshes: the first intersection of CGAL's AABB tree.
   std::optional<SegmentHit> FirstHit(const ObstaclePose& pose, const Vector3& a, const Vector3& b) const;
+  /// The signed distances d of the N×3 positions x [m] at `pose`, summed up:
+  /// the deepest particle inside, the depths and the particles within δ/2.
+  Penetration PenetrationOf(const ObstaclePose& pose, const MatrixN3& x) const;
   /// The rigid placement at time t [s] from the keyframes (identity if none).
   ObstaclePose PoseAt(double t) const;
   bool moving() const { return !spec_.keyframes.empty(); }

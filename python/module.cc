@@ -393,15 +393,20 @@ void WriteResultFile(const py::object& path_arg, const py::object& scene_arg, co
                      const py::object& baseline_arg, const py::object& error_metric_arg) {
   const std::optional<std::string> path = Arg<std::string>(path_arg, "path");
   if (!path || path->empty()) throw py::type_error("path: a non-empty str expected");
-  const std::string error_metric = Arg<std::string>(error_metric_arg, "error_metric").value_or("final");
-  const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
-  if (!metric)
-    throw py::value_error(fmt::format("error_metric: \"{}\" must be final, l2 or max", EscapeControl(error_metric)));
+  const std::optional<std::string> error_metric = Arg<std::string>(error_metric_arg, "error_metric");
+  std::optional<ErrorMetric> metric;
+  if (error_metric && !(metric = ParseErrorMetric(*error_metric)))
+    throw py::value_error(fmt::format("error_metric: \"{}\" must be final, l2 or max", EscapeControl(*error_metric)));
   const Scene scene = SceneArg(scene_arg, py::none());
+  if (!metric) metric = DefaultErrorMetric(scene);  // as bench_integrators without --error-metric
   const std::string frames = Arg<std::string>(frames_arg, "frames").value_or("default");
-  if (frames != "default" && frames != "positions" && frames != "all" && frames != "ends" && frames != "none")
-    throw py::value_error(fmt::format("frames: \"{}\" must be default, all, positions, ends or none",
-                                      EscapeControl(frames)));
+  {
+    // The frames mode by the rule every entry point shares (harness/run_request.h).
+    RunRequest frames_only;
+    frames_only.scene = scene;
+    frames_only.frames = frames;
+    (void)frames_only.SweepScene();
+  }
   const std::string baseline = Arg<std::string>(baseline_arg, "baseline").value_or(std::string(kWorkPrecisionBaseline));
   std::vector<double> targets = {1e-2, 1e-3, 1e-4};
   if (!targets_arg.is_none()) {
@@ -563,7 +568,8 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("baseline") = py::none(), py::arg("error_metric") = py::none(),
         "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
         "as the HDF5 result file bench_integrators writes (docs/results-schema.md), under <path>.lock and "
-        "through a temporary file renamed at the end. ValueError for a path that is not a regular file or is "
+        "through a temporary file renamed at the end. error_metric: final | l2 | max (default: l2 on scenes with "
+        "obstacles, final otherwise, as bench_integrators). ValueError for a path that is not a regular file or is "
         "being written by another process, and for runs or a reference of another scene; RuntimeError if the "
         "file cannot be written."),
   m.def("read_results", &ReadResultFile, py::arg("path"),

@@ -342,3 +342,19 @@ def test_read_results_refuses_a_file_that_crashes_hdf5():
                         "hdf5_crash_signed.bin")
     with pytest.raises(ValueError, match="crashed the HDF5 library"):
         clothbench.read_results(path)
+
+
+def test_write_results_defaults_to_the_metric_bench_integrators_uses(tmp_path):
+    # Without error_metric the file's metric is the command line's default:
+    # l2 on a scene with obstacles (contact events are not smooth), final
+    # without; a named metric is kept.
+    for name, expected in (("swinging_box", "l2"), ("swinging_sheet", "final")):
+        scene = clothbench.load_scene(name, {"t_end": 0.05})
+        run = clothbench.run(scene, "sbdf2", h=0.01)
+        out = tmp_path / (name + ".h5")
+        clothbench.write_results(str(out), scene, [run], frames="none")
+        named = tmp_path / (name + "_max.h5")
+        clothbench.write_results(str(named), scene, [run], frames="none", error_metric="max")
+        with h5py.File(out) as f, h5py.File(named) as g:
+            assert f.attrs["error_metric"] in (expected, expected.encode())
+            assert g.attrs["error_metric"] in ("max", b"max")

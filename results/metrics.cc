@@ -24,6 +24,10 @@ std::optional<ErrorMetric> ParseErrorMetric(std::string_view text) {
   return std::nullopt;
 }
 
+ErrorMetric DefaultErrorMetric(const Scene& scene) {
+  return scene.obstacles.empty() ? ErrorMetric::kFinal : ErrorMetric::kL2;
+}
+
 namespace {
 
 // e_rms at the last frame, its root mean square over the frames and its
@@ -131,22 +135,10 @@ PenetrationSeries ComputePenetration(const ParticleSystem& system, const Traject
   for (std::size_t f = 0; f < traj.positions.size(); ++f) {
     const MatrixN3& x = traj.positions[f];
     for (const Obstacle& o : obs) {
-      const ObstaclePose pose = o.PoseAt(traj.times[f]);
-      double max_depth = 0.0, sum = 0.0;
-      int below = 0, close = 0;
-      for (int p = 0; p < x.rows(); ++p) {
-        Vector3 dir;
-        const double d = o.SignedDistance(pose, x.row(p).transpose(), &dir);
-        if (d < 0.0) {
-          max_depth = std::max(max_depth, -d);
-          sum += -d;
-          ++below;
-        }
-        if (d < 0.5 * o.spec().collision_distance) ++close;
-      }
-      s.max_depth.push_back(max_depth);
-      s.mean_depth.push_back(below ? sum / below : 0.0);
-      s.close.push_back(close);
+      const Penetration p = o.PenetrationOf(o.PoseAt(traj.times[f]), x);
+      s.max_depth.push_back(p.max_depth);
+      s.mean_depth.push_back(p.inside ? p.depth_sum / p.inside : 0.0);
+      s.close.push_back(p.close);
     }
   }
   return s;

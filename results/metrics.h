@@ -26,6 +26,10 @@ enum class ErrorMetric { kFinal, kL2, kMax };
 std::string_view ToString(ErrorMetric m);
 /// "final", "l2" or "max"; nothing for any other text.
 std::optional<ErrorMetric> ParseErrorMetric(std::string_view text);
+/// The metric of a scene's tables when the caller names none, the same for
+/// every entry point: l2 on scenes with obstacles (contact events are not
+/// smooth, so the whole trajectory is compared), final otherwise.
+ErrorMetric DefaultErrorMetric(const Scene& scene);
 
 struct TrajectoryErrors {
   double rms_at_end = 0.0;   ///< e_rms at the last frame [m]

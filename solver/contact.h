@@ -84,6 +84,7 @@ class ContactResponse {
     double holding = 0.0;   ///< of the constraint impulses that push (stopping impacts, position correction)
     double pulling = 0.0;   ///< of those that pull (constraints held in the step before their release)
     double friction = 0.0;  ///< of the Coulomb friction impulses
+    double total() const { return holding + pulling + friction; }  ///< W_contact [J]
   };
   const Work& work() const { return work_; }
 

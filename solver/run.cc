@@ -101,19 +101,32 @@ BlowUpGuard::BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const
   e_scale_ = system.masses().sum() * (g * drop + 0.5 * v_floor * v_floor) + k0;
   double v_obstacle = 0.0;
   for (const Obstacle& o : system.obstacles()) {
+    if (!o.moving()) continue;
     const ObstaclePose rest = o.PoseAt(0.0);
     double reach = 0.0;  // from the anchor to the cloth, plus the sheet's diagonal
     for (int p = 0; p < x0.rows(); ++p)
       reach = std::max(reach, (x0.row(p).transpose() - rest.anchor - rest.translation).norm());
-    if (o.moving()) v_obstacle = std::max(v_obstacle, ObstacleSpeed(o, reach + diagonal));
+    v_obstacle = std::max(v_obstacle, ObstacleSpeed(o, reach + diagonal));
   }
   double v_wind = 0.0;
   if (const auto& w = s.forces.wind) v_wind = w->direction.norm() * (std::abs(w->constant) + 1.0);
   const double v0_max = v0.rows() ? v0.rowwise().norm().maxCoeff() : 0.0;
   v_bound_ = std::sqrt(2.0 * g * drop) + v_floor + v0_max + v_wind + v_obstacle;
-  if (system.has_external_work()) f_ext_.resize(system.num_particles(), 3);
   e0_ = system.Energies(x0, v0).total();
-  if (system.has_external_work()) power_ = ExternalPower(system, 0.0, x0, v0, &f_ext_);
+}
+
+ExternalWork::ExternalWork(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0) : sys_(system) {
+  if (!system.has_external_work()) return;
+  f_ext_.resize(system.num_particles(), 3);
+  power_ = ExternalPower(system, 0.0, x0, v0, &f_ext_);
+}
+
+double ExternalWork::Advance(double dt, double t, const MatrixN3& x, const MatrixN3& v) {
+  if (!sys_.has_external_work()) return work_;
+  const double power = ExternalPower(sys_, t, x, v, &f_ext_);
+  work_ += 0.5 * dt * (power_ + power);
+  power_ = power;
+  return work_;
 }
 
 void BlowUpGuard::StoreMargins(RunRecord* record) const {
@@ -131,46 +144,35 @@ bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, std
   }
   for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
     const Obstacle& o = sys_.obstacles()[k];
-    const ObstaclePose pose = o.PoseAt(t);
+    const Penetration p = o.PenetrationOf(o.PoseAt(t), x);
     const double delta = o.spec().collision_distance;
-    double deepest = 0.0;
-    int at = -1;
-    for (int p = 0; p < x.rows(); ++p) {
-      Vector3 dir;
-      const double d = o.SignedDistance(pose, x.row(p).transpose(), &dir);
-      if (d < -delta && -d > deepest) deepest = -d, at = p;
-      depth_ratio_ = std::max(depth_ratio_, std::max(0.0, -d) / delta);
-    }
-    if (at >= 0) {
+    depth_ratio_ = std::max(depth_ratio_, p.max_depth / delta);
+    if (p.max_depth > delta) {
       *status = "penetration";
       *message = fmt::format("particle {} lies {:.3g} m inside obstacle {} ({}) at t = {:.6g} s, deeper than its "
                              "collision distance {:g} m",
-                             at, deepest, k, ToString(o.spec().type), t, delta);
+                             p.deepest, p.max_depth, k, ToString(o.spec().type), t, delta);
       return false;
     }
   }
   return true;
 }
 
-bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, std::optional<double> contact_work,
-                        std::string* status, std::string* message) {
+bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double external_work,
+                        std::optional<double> contact_work, std::string* status, std::string* message) {
   if (!x.allFinite() || !v.allFinite()) {
     *status = "non_finite";
     *message = fmt::format("the state became non-finite by t = {:.6g} s", t);
     return false;
   }
   const double e = sys_.Energies(x, v).total();
-  const double power = sys_.has_external_work() ? ExternalPower(sys_, t, x, v, &f_ext_) : 0.0;
-  work_ += 0.5 * (t - t_prev_) * (power + power_);
-  power_ = power;
-  t_prev_ = t;
-  if (!std::isfinite(e) || !std::isfinite(work_) || (contact_work && !std::isfinite(*contact_work))) {
+  if (!std::isfinite(e) || !std::isfinite(external_work) || (contact_work && !std::isfinite(*contact_work))) {
     *status = "non_finite";
     *message = fmt::format("the energy became non-finite by t = {:.6g} s", t);
     return false;
   }
   const bool balance_closed = contact_work || sys_.obstacles().empty();
-  const double gain = e - e0_ - work_ - contact_work.value_or(0.0);
+  const double gain = e - e0_ - external_work - contact_work.value_or(0.0);
   if (balance_closed) gain_ratio_ = std::max({gain_ratio_, 0.0, gain / e_scale_});  // the gain at t = 0 is 0
   if (balance_closed && gain > kEnergyGainFactor * e_scale_) {
     *status = "energy_growth";
@@ -179,8 +181,12 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, std::opt
                            gain, t, kEnergyGainFactor, kEnergyGainFactor * e_scale_);
     return false;
   }
+  return CheckSpeed(t, v, status, message);
+}
+
+bool BlowUpGuard::CheckSpeed(double t, const MatrixN3& v, std::string* status, std::string* message) {
   int fastest = 0;
-  const double speed = x.rows() ? v.rowwise().norm().maxCoeff(&fastest) : 0.0;
+  const double speed = v.rows() ? v.rowwise().norm().maxCoeff(&fastest) : 0.0;
   speed_ratio_ = std::max(speed_ratio_, speed / v_bound_);
   if (speed > kSpeedFactor * v_bound_) {
     *status = "speed";
@@ -263,7 +269,6 @@ class FrameRecorder {
     tr.positions[0] = engine.x();
     tr.velocities[0] = engine.v();
   }
-  bool track_work() const { return track_work_; }
   bool track_contact() const { return track_contact_; }
 
   /// Keeps the frames inside (t_start, t_start + step] of the step from
@@ -411,9 +416,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   // Frames, work series and step statistics are allocated before the loop.
   FrameRecorder recorder(system, engine, options, &sum);
   ContactResponse::Work contact0;  // at the start of the step
-  MatrixN3 f_ext(system.num_particles(), 3);
-  double work = 0.0,
-         power = recorder.track_work() ? ExternalPower(system, 0.0, engine.x(), engine.v(), &f_ext) : 0.0;
+  ExternalWork external(system, engine.x(), engine.v());
   sum.step_stats.reserve(static_cast<std::size_t>(
       std::min(std::ceil(options.t_end / options.h), static_cast<double>(options.limits.max_steps))) + 64);
   BlowUpGuard guard(system, engine.x(), engine.v(), options.t_end);
@@ -476,17 +479,12 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     ReportProgress(engine.t());
 
     // External work by the trapezoidal rule on the step (second order).
-    const double work0 = work;
-    if (recorder.track_work()) {
-      const double power1 = ExternalPower(system, engine.t(), engine.x(), engine.v(), &f_ext);
-      work += 0.5 * step * (power + power1);
-      power = power1;
-    }
+    const double work0 = external.work();
+    const double work = external.Advance(step, engine.t(), engine.x(), engine.v());
     // Every accepted step's state against the guard, then its frames.
     const ContactResponse::Work* contact = engine.contact_work();
-    if (!guard.Check(engine.t(), engine.x(), engine.v(),
-                     contact ? std::optional(contact->holding + contact->pulling + contact->friction) : std::nullopt,
-                     &sum.status, &sum.message) ||
+    if (!guard.Check(engine.t(), engine.x(), engine.v(), work,
+                     contact ? std::optional(contact->total()) : std::nullopt, &sum.status, &sum.message) ||
         !recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, contact0, guard))
       break;
 

@@ -82,6 +82,26 @@ struct RunSummary : RunRecord {
   std::string BriefReport() const;
 };
 
+/// W_ext(t), the work of the non-conservative external forces (wind, air
+/// drag) Σ f_ext·v integrated by the trapezoidal rule over the states it is
+/// given [J] (second order, as results/metrics.h integrates it over the
+/// frames); 0 for a scene without them, whose states are never evaluated.
+/// No allocation after construction.
+class ExternalWork {
+ public:
+  /// From the state at t = 0: N×3 positions x0 [m], velocities v0 [m/s].
+  ExternalWork(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0);
+  /// Adds the interval of length dt [s] that ends at the state (t, x, v) and
+  /// returns W_ext(t) [J].
+  double Advance(double dt, double t, const MatrixN3& x, const MatrixN3& v);
+  double work() const { return work_; }  ///< W_ext at the last state [J]
+
+ private:
+  const ParticleSystem& sys_;
+  MatrixN3 f_ext_;
+  double work_ = 0.0, power_ = 0.0;
+};
+
 /// Detects a blow-up by the physics of the scene (docs/model.md, "Blow-up
 /// statuses"). With M the cloth's mass, g gravity, H the drop height (the
 /// initial state's extent along g plus the sheet's diagonal L when
@@ -91,9 +111,9 @@ struct RunSummary : RunRecord {
 ///  - after any step (Check), with "non_finite": a non-finite state or
 ///    energy; "energy_growth": the energy balance's gain E(t) − E(0) −
 ///    W_ext(t) − W_contact(t) > kEnergyGainFactor · E_scale, E_scale =
-///    M(|g|H + ½ (1 m/s)²) + K(0) [J] (W_ext: work of wind and air drag by the trapezoidal
-///    rule over the checked states; W_contact: the collision response's
-///    work, the stepper's own count); "speed": max_p |v_p| > kSpeedFactor ·
+///    M(|g|H + ½ (1 m/s)²) + K(0) [J] (W_ext: work of wind and air drag,
+///    ExternalWork; W_contact: the collision response's work, the
+///    stepper's own count); "speed": max_p |v_p| > kSpeedFactor ·
 ///    v_bound, v_bound = sqrt(2|g|H) + 1 m/s + max_p |v_p(0)| + the wind's largest
 ///    speed + the keyframed obstacles' largest surface speed within reach of
 ///    the cloth [m/s] (the energy balance only where it is closed: a method
@@ -112,15 +132,18 @@ class BlowUpGuard {
   /// v0 [m/s] (finite), whose energy is E(0); t_end [s] the run's end.
   BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0, double t_end);
   /// Checks the state after a step at time t [s]: N×3 positions x [m],
-  /// velocities v [m/s], and the contact work W_contact(t) [J] done since
-  /// t = 0, or nothing for a method that does not count it (XPBD's
-  /// positional projection): on a scene with obstacles its energy balance
-  /// is not closed and is not checked (speed and penetration still are).
-  /// States must come in increasing t after 0. Returns true if the state is
-  /// sound, else false with `status` ("non_finite" | "energy_growth" |
+  /// velocities v [m/s], the external work W_ext(t) [J] (ExternalWork) and
+  /// the contact work W_contact(t) [J] done since t = 0, or nothing for a
+  /// method that does not count it (XPBD's positional projection): on a
+  /// scene with obstacles its energy balance is not closed and is not
+  /// checked (speed and penetration still are). Returns true if the state
+  /// is sound, else false with `status` ("non_finite" | "energy_growth" |
   /// "speed") and a one-line `message` naming t, the quantity and the bound.
-  bool Check(double t, const MatrixN3& x, const MatrixN3& v, std::optional<double> contact_work, std::string* status,
-             std::string* message);
+  bool Check(double t, const MatrixN3& x, const MatrixN3& v, double external_work, std::optional<double> contact_work,
+             std::string* status, std::string* message);
+  /// The speed check alone (part of Check), for a caller with its own
+  /// energy bound (the stability maps): false with status "speed".
+  bool CheckSpeed(double t, const MatrixN3& v, std::string* status, std::string* message);
   /// Checks a stored frame at time t [s] with N×3 positions x [m] and
   /// velocities v [m/s]: false with status "non_finite", or "penetration"
   /// against the obstacles and a message naming the particle, its depth,
@@ -129,14 +152,11 @@ class BlowUpGuard {
   /// The margins of the states and frames checked so far into `record`
   /// (RunRecord::energy_gain_ratio, speed_ratio, penetration_ratio).
   void StoreMargins(RunRecord* record) const;
-  double energy_scale() const { return e_scale_; }  ///< E_scale [J]
-  double speed_bound() const { return v_bound_; }   ///< v_bound [m/s]
 
  private:
   const ParticleSystem& sys_;
-  double e_scale_ = 0.0, v_bound_ = 0.0, e0_ = 0.0, work_ = 0.0, power_ = 0.0, t_prev_ = 0.0;
+  double e_scale_ = 0.0, v_bound_ = 0.0, e0_ = 0.0;
   double gain_ratio_ = -1.0, speed_ratio_ = -1.0, depth_ratio_ = -1.0;  // largest so far; −1: not measured
-  MatrixN3 f_ext_;
 };
 
 /// Integrates `system` from rest (x = rest positions, v = 0) to t_end.

@@ -65,6 +65,8 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   MatrixN3 frame, frame_v;
   bool ok = true;
   BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0], options.t_end);
+  ExternalWork external(system, res->trajectory.positions[0], res->trajectory.velocities[0]);
+  double t_checked = 0.0;
   const auto wall_start = Clock::now();
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
   long steps = 0;
@@ -108,7 +110,9 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     res->step_stats.push_back(st);
     ReportProgress(t);
     d.current_state(&frame, &frame_v);  // every internal step's state against the guard (no contact response)
-    if (!guard.Check(t, frame, frame_v, 0.0, &res->status, &res->message)) {
+    const double work = external.Advance(t - t_checked, t, frame, frame_v);
+    t_checked = t;
+    if (!guard.Check(t, frame, frame_v, work, 0.0, &res->status, &res->message)) {
       ok = false;
       break;
     }
