@@ -28,7 +28,15 @@ std::string_view ToString(CgReference r) {
 std::string_view ToString(NonlinearSolver s) {
   return s == NonlinearSolver::kFixedPoint ? "fixed_point" : "newton";
 }
-std::string_view ToString(ContactHistory c) { return c == ContactHistory::kKeep ? "keep" : "restart"; }
+std::string_view ToString(ContactHistory c) {
+  switch (c) {
+    case ContactHistory::kKeep: return "keep";
+    case ContactHistory::kRestart: return "restart";
+    case ContactHistory::kProject: return "project";
+    case ContactHistory::kLand: return "land";
+  }
+  return "keep";
+}
 
 std::string_view ToString(NewtonJacobian j) {
   return j == NewtonJacobian::kRefresh ? "refresh" : "frozen";

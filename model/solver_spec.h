@@ -49,11 +49,19 @@ enum class NewtonJacobian { kRefresh, kFrozen };
 /// (Choi & Ko 2002); "none" is the exact spring Jacobian.
 enum class TangentProjection { kClamp, kNone };
 /// What a multistep method (SBDF(2), BDF(2), SBDF(3)) does with its history
-/// when the set of colliding particles changes between steps: "keep" it
-/// (the thesis' response (4.4) acts on the current step only), or
-/// "restart" with the one-step start, as after Reset (docs/collisions.md,
-/// "Multistep history across contact events").
-enum class ContactHistory { kKeep, kRestart };
+/// at the obstacles (docs/collisions.md, "Multistep history across contact
+/// events"):
+///  - "keep": nothing (the thesis' response (4.4) acts on the current step only);
+///  - "restart": the one-step start, as after Reset, whenever the set of
+///    colliding particles changes between steps;
+///  - "project": each constrained particle's history (x₋ₖ, v₋ₖ) is projected
+///    along its collision direction D onto a constant normal velocity equal
+///    to the response's target, so that the method's position formula moves
+///    it along D as the one-step update does, by h·target;
+///  - "land": the target velocity is taken from the method's own position
+///    formula x₁ = x̂ + γ h v₁, so that the particle moves along D by
+///    h·target (4.4) with the history kept: an entering particle lands on δ.
+enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 
 std::string_view ToString(PreconditionerType p);
 std::string_view ToString(CholeskyOrdering o);

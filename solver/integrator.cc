@@ -207,7 +207,10 @@ StepStats StepEngine::StepImpl(double h) {
   const bool imex = IsImex(m);
   // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)).
   const double omega = have_history_ ? h / h_prev_ : 1.0;
+  const bool multistep_form = m == Method::kSbdf2 || m == Method::kBdf2 || m == Method::kSbdf3;
+  if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kProject) ProjectContactHistory();
   const StageCoefficients c = PrepareStage(m, h, omega, imex);
+  if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kLand) LandContactTargets(h, c.gamma);
 
   if (!sysmat_.Update(c.alpha * h)) {
     st.status = StepStatus::kPreconditionerFailed;
@@ -248,6 +251,45 @@ bool StepEngine::ContactSetChanged() {
   const bool changed = in_contact_ != in_contact_prev_;
   in_contact_prev_.swap(in_contact_);
   return changed;
+}
+
+// ContactHistory::kProject: along the collision direction D of each particle
+// the response constrains, with target velocity u = ⟨v₁, D⟩ (4.4), the
+// history is replaced by a constant normal velocity u:
+//   ⟨x₋ₖ, D⟩ ← ⟨x₀, D⟩ − (t₀ − t₋ₖ) u,  ⟨v₋ₖ, D⟩ ← u,
+// tangential components kept. Any BDF formula is exact on a linear path, so
+// x̂ then lies at ⟨x₀, D⟩ + (1 − γ) h u and x₁ = x̂ + γ h v₁ at ⟨x₀, D⟩ + h u:
+// along D the multistep method moves as the one-step update of (4.4) does
+// (variable step: c2 h₋₁ = h ω/(1 + 2ω) = (1 − c3) h).
+void StepEngine::ProjectContactHistory() {
+  const bool second = xm2_.rows() > 0;
+  const double back2 = h_prev_ + h_prev2_;
+  filter_.ForEachTarget([&](int p, int count, const Eigen::Matrix3d& dirs, const Vector3& targets) {
+    if (count >= 3) return;  // fixed particles
+    const Vector3 d = dirs.col(0);
+    const double u = targets(0), x0 = x0_.row(p).dot(d);
+    auto set = [&](MatrixN3& m, double value) { m.row(p) += (value - m.row(p).dot(d)) * d.transpose(); };
+    set(xm1_, x0 - h_prev_ * u);
+    set(vm1_, u);
+    if (second) {
+      set(xm2_, x0 - back2 * u);
+      set(vm2_, u);
+    }
+  });
+}
+
+// ContactHistory::kLand: the target velocity u of (4.4) moves a particle by
+// h u along D in the one-step update x₁ = x₀ + h v₁. The multistep formula
+// x₁ = x̂ + γ h v₁ does so with
+//   ⟨v₁, D⟩ = (h u − ⟨x̂ − x₀, D⟩)/(γ h),
+// which lands an entering particle on δ (and moves a particle in the band
+// by ω_r (δ − d)) with the history kept.
+void StepEngine::LandContactTargets(double h, double gamma) {
+  filter_.ForEachTarget([&](int p, int count, const Eigen::Matrix3d& dirs, Vector3& targets) {
+    if (count >= 3) return;
+    const double drift = (xhat_.row(p) - x0_.row(p)).dot(dirs.col(0).transpose());
+    targets(0) = (h * targets(0) - drift) / (gamma * h);
+  });
 }
 
 Method StepEngine::StepMethod(double h, bool* sbdf3_start) const {

@@ -272,6 +272,8 @@ class StepEngine : public Stepper {
   // this step and the previous one (allocated once, multistep methods only).
   std::vector<char> in_contact_, in_contact_prev_;
   bool ContactSetChanged();
+  void ProjectContactHistory();                // ContactHistory::kProject
+  void LandContactTargets(double h, double gamma);  // ContactHistory::kLand
   bool have_g0_ = false;         // g0_ holds g(t0, x0, v0)
   bool error_control_ = false;   // SBDF(2)/BDF(2) with step_control = "error"
   // Error control only: (x₋₂, v₋₂), v̇ = M⁻¹f at the last Reset, the step

@@ -56,6 +56,13 @@ class VelocityFilter {
   void ForEachConstraint(F&& f) const {
     for (const Entry& e : entries_) f(e.particle, e.count, e.dirs);
   }
+  /// Calls f(particle, count, dirs, targets) for every constrained
+  /// particle, with its prescribed velocities along dirs' first `count`
+  /// columns [m/s] writable (StepEngine's ContactHistory::kLand).
+  template <class F>
+  void ForEachTarget(F&& f) {
+    for (Entry& e : entries_) f(e.particle, e.count, e.dirs, e.targets);
+  }
   int size() const { return static_cast<int>(entries_.size()); }
   /// v ← S v. @tparam M MatrixN3 or MatrixN3R.
   template <class M>
