@@ -6,6 +6,8 @@
 //
 //   contact_replay save   --scene S --at T[,T...] --out PREFIX
 //   contact_replay replay --scene S --state FILE --steps K
+//   (both end with the run's mean cost of a refactorisation and a row change,
+//   or of a setup and a V-cycle: PrintCosts)
 //   common options: --integrator sbdf2 --preconditioner amg --amg-frames adaptive
 //                   --cycle-factor --axis-normals --frames-only (diagnostics of the prefiltered AMG,
 //                   Preconditioner::AmgDiagnostics)
@@ -288,6 +290,28 @@ State PrepareReplay(const Args& a, const ParticleSystem& system) {
   return *start;
 }
 
+// What the contact-aware preconditioner's choices cost over the run: the
+// measured break-even of kModifyRowsPerSqrtN and kSetupVCycles
+// (docs/performance.md, "Contact factors", "Prefiltered AMG").
+void PrintCosts(const StepEngine& engine, int num_particles) {
+  const ContactFactorStats& c = engine.system_matrix().preconditioner().contact_stats();
+  const double root_n = std::sqrt(static_cast<double>(num_particles));
+  if (c.v_cycles > 0 && c.refactorizations > 0) {
+    const double setup = c.refactor_seconds / static_cast<double>(c.refactorizations);
+    const double cycle = c.v_cycle_seconds / static_cast<double>(c.v_cycles);
+    fmt::print("# prefiltered AMG: {} setups, mean {:.4g} s; {} V-cycles, mean {:.4g} s: a setup costs {:.1f} V-cycles "
+               "(kSetupVCycles = {})\n",
+               c.refactorizations, setup, c.v_cycles, cycle, setup / cycle, Preconditioner::kSetupVCycles);
+  } else if (c.refactorizations > 0 && c.modifications > 0) {
+    const double refactor = c.refactor_seconds / static_cast<double>(c.refactorizations);
+    const double row = c.modify_seconds / static_cast<double>(c.modifications);
+    fmt::print("# contact factors: {} refactorisations, mean {:.4g} s; {} row changes, mean {:.4g} s: break-even {:.0f} "
+               "rows = {:.2f} sqrt(N) (kModifyRowsPerSqrtN = {})\n",
+               c.refactorizations, refactor, c.modifications, row, refactor / row, refactor / row / root_n,
+               Preconditioner::kModifyRowsPerSqrtN);
+  }
+}
+
 // `save`: the run from rest, a state written after the step that reaches
 // each time. @return the exit code
 int Save(const Args& a, const ParticleSystem& system, const SaveOutputs& outputs, StepEngine& engine) {
@@ -309,6 +333,7 @@ int Save(const Args& a, const ParticleSystem& system, const SaveOutputs& outputs
     fmt::print("# saved t = {:.4f} s to {}\n", engine.t(), outputs.paths[next]);
     ++next;
   }
+  PrintCosts(engine, system.num_particles());
   return 0;
 }
 
@@ -319,6 +344,7 @@ int Replay(const Args& a, const ParticleSystem& system, const State& start, Step
   engine.Reset(start.t, start.x, start.v);
   for (int k = 1; k <= a.steps; ++k)
     if (!StepTo(engine, h, start.t + k * h)) return 1;
+  PrintCosts(engine, system.num_particles());
   return 0;
 }
 

@@ -273,18 +273,18 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     return true;
   }
   // Rebuild or keep: a kept hierarchy is that of a slightly different K and
-  // costs CG iterations. Those beyond the first solve after the last setup
-  // are summed (Apply counts and times its V-cycles), and the hierarchy is
+  // costs CG iterations. The V-cycles beyond those of the first solve after
+  // the last setup are counted (Apply counts them), and the hierarchy is
   // rebuilt once they, plus what the next kept step is expected to cost,
-  // reach the cost of the last setup (the rule of the contact factors:
-  // whichever measured cost is lower). A hierarchy is never kept over more
-  // than kSystemKeepShare of the contacts changed.
+  // reach the cost of a setup, kSetupVCycles V-cycles. Counts, not times:
+  // the choice, and so the run, is the same on every repetition. A
+  // hierarchy is never kept over more than kSystemKeepShare of the contacts
+  // changed.
   if (system_valid_) {
     const long applications = system_applications_ - applications_at_adapt_;
     if (solves_since_setup_ == 1) baseline_applications_ = applications;
-    if (solves_since_setup_ >= 1 && system_applications_ > 0)
-      stale_seconds_ += static_cast<double>(std::max(0L, applications - baseline_applications_)) *
-                        (system_apply_seconds_ / static_cast<double>(system_applications_));
+    if (solves_since_setup_ >= 1)
+      stale_cycles_ += static_cast<double>(std::max(0L, applications - baseline_applications_));
   }
   applications_at_adapt_ = system_applications_;
   // A hierarchy that needs more V-cycles per solve than the other frame
@@ -317,7 +317,7 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     for (std::size_t p = 0; p < s_now_.size(); ++p)
       changed += (s_now_[p] - system_s_[p]).cwiseAbs().maxCoeff() > kSystemTurn;
   if (system_valid_ && !losing && changed <= kSystemKeepShare * contacts &&
-      stale_seconds_ + stale_rate_ < setup_seconds_) {
+      stale_cycles_ + stale_rate_ < kSetupVCycles) {
     // Kept with changed contacts: the finest level gets the current K (in
     // the current contact frames); the coarse levels and the interpolation
     // stay the hierarchy's (AmgPreconditioner::UpdateSystemFineLevel). If
@@ -326,7 +326,9 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
     SetFrames(a, filter, /*smooth=*/false);
     AssembleSystem(a, s_now_);
     const bool updated = amg_->UpdateSystemFineLevel(n, k_start_, k_cols_, k_values_);
-    contact_stats_.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    contact_stats_.seconds += dt;
+    contact_stats_.modify_seconds += dt;
     if (updated) {
       fine_s_ = s_now_;
       ++contact_stats_.modifications;
@@ -394,16 +396,16 @@ void Preconditioner::SetUpContactHierarchy(const SparseMatrix& a, const Velocity
   system_valid_ = amg_->FactorizeSystem(n, k_start_, k_cols_, k_values_);
   if (!system_valid_) ++contact_stats_.fallbacks;
   const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  setup_seconds_ = dt;
   if (amg_diagnostics_.cycle_factor && system_valid_)
     contact_stats_.cycle_factor = amg_->SystemCycleFactor(kDiagnosticCycles);
   // The expected cost of a kept step: the mean over those since the last
   // setup, or, if none was kept, 0.9 of the last estimate (so that keeping
   // is tried again once the contacts settle).
-  stale_rate_ = solves_since_setup_ > 1 ? stale_seconds_ / (solves_since_setup_ - 1) : 0.9 * stale_rate_;
-  stale_seconds_ = 0.0;
+  stale_rate_ = solves_since_setup_ > 1 ? stale_cycles_ / (solves_since_setup_ - 1) : 0.9 * stale_rate_;
+  stale_cycles_ = 0.0;
   solves_since_setup_ = 1;
   contact_stats_.seconds += dt;
+  contact_stats_.refactor_seconds += dt;
   ++contact_stats_.refactorizations;
   system_used_ = system_valid_;
 }
@@ -583,11 +585,9 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
     // than their row adds (docs/performance.md, "Contact factors").
     const int changes = added + released;
     // Changes are applied as row deletes and adds while that is cheaper than
-    // a refactorisation, by the last measured cost of each (until a
-    // modification has been timed, up to 5 % of the contacts are modified).
-    const bool modify = axis_valid_[c] && changes > 0 &&
-                        (modify_seconds_ > 0.0 ? changes * modify_seconds_ < refactor_seconds_
-                                               : changes <= 0.05 * want[c]);
+    // a refactorisation: up to kModifyRowsPerSqrtN·√N changed rows. Counts,
+    // not times: the choice, and so the run, is the same on every repetition.
+    const bool modify = axis_valid_[c] && changes > 0 && changes <= kModifyRowsPerSqrtN * std::sqrt(n);
     if (modify) {
       const auto t0 = Clock::now();
       std::vector<char>& set = axis_set_[c];
@@ -606,9 +606,9 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
           ok = axis_factor_[c]->CoupleRow(static_cast<int>(p), a, set);
         }
       const double dt = seconds_since(t0);
-      modify_seconds_ = dt / changes;
       contact_stats_.modifications += changes;
       contact_stats_.seconds += dt;
+      contact_stats_.modify_seconds += dt;
       if (!ok) axis_valid_[c] = false;  // refactorised below
     }
     if (!axis_valid_[c] || (changes > 0 && !modify)) {
@@ -616,8 +616,9 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
       if (!axis_factor_[c]) axis_factor_[c] = cholesky_->CloneAnalysis();
       axis_set_[c].swap(axis_want_[c]);
       axis_valid_[c] = axis_factor_[c] && axis_factor_[c]->Factorize(a, &axis_set_[c]);
-      refactor_seconds_ = seconds_since(t0);
-      contact_stats_.seconds += refactor_seconds_;
+      const double dt = seconds_since(t0);
+      contact_stats_.seconds += dt;
+      contact_stats_.refactor_seconds += dt;
       ++contact_stats_.refactorizations;
       if (!axis_valid_[c]) return false;
     }
@@ -666,8 +667,9 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
         amg_->SolveSystem(rotated_r_, &rotated_z_);
         for (Eigen::Index p = 0; p < r.rows(); ++p)
           z->row(p) = rotated_z_.row(p) * frames_[static_cast<std::size_t>(p)].transpose();
-        system_apply_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         ++system_applications_;
+        ++contact_stats_.v_cycles;
+        contact_stats_.v_cycle_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } else
         amg_->Solve(r, z);
       break;

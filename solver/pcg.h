@@ -117,6 +117,11 @@ struct ContactFactorStats {
   long modifications = 0;     ///< row deletes and adds on the axis factors; finest-level updates of a kept prefiltered hierarchy
   long fallbacks = 0;         ///< failed setups of the prefiltered hierarchy (A_F's served instead)
   double seconds = 0.0;       ///< their wall time [s]
+  /// Of `seconds`: the refactorisations' (setups') and the row changes' (finest-level updates') [s].
+  double refactor_seconds = 0.0, modify_seconds = 0.0;
+  /// V-cycles of the prefiltered hierarchy applied, and their wall time [s].
+  long v_cycles = 0;
+  double v_cycle_seconds = 0.0;
   int decoupled[3] = {0, 0, 0};  ///< contacts decoupled in each column's factor (last AdaptTo; "cholesky")
   /// Setups of the prefiltered hierarchy in nearest-axis and in spread frames
   /// (Preconditioner::FrameMode).
@@ -146,8 +151,8 @@ struct ContactFactorStats {
 /// from every axis stay coupled (the factor then preconditions them), as do
 /// those of an axis with fewer than kContactAxisShare·N contacts. The
 /// factors follow the contacts step by step: by row deletes and adds
-/// (CHOLMOD's Modify module) while their measured cost is below a
-/// refactorisation's, else by a refactorisation.
+/// (CHOLMOD's Modify module) while few rows change (kModifyRowsPerSqrtN),
+/// else by a refactorisation.
 ///
 /// Prefiltered AMG ("amg" with contact_factors; Tamstorf, Jones & McCormick
 /// 2015): with contacts, one V-cycle of BoomerAMG in systems mode on the
@@ -155,9 +160,9 @@ struct ContactFactorStats {
 /// (a contact's normal is one unknown, decoupled; FrameMode), instead of A_F's
 /// hierarchy on each column. Every constraint, tilted or not, is built in;
 /// the V-cycle is an approximate inverse, as A_F's is without contacts. The
-/// hierarchy is kept while the contacts do not change, and while the
-/// measured cost of the extra CG iterations of a kept hierarchy stays below
-/// that of a setup; a kept hierarchy's finest level is given the current K
+/// hierarchy is kept while the contacts do not change, and while the extra
+/// V-cycles of a kept hierarchy stay below a setup's cost (kSetupVCycles);
+/// a kept hierarchy's finest level is given the current K
 /// (its smoother sees the current constraints, its coarse levels are the
 /// setup's).
 class Preconditioner {
@@ -167,6 +172,17 @@ class Preconditioner {
   /// An axis gets a factor of its own once at least this share of the
   /// particles are in contact along it (docs/performance.md).
   static constexpr double kContactAxisShare = 0.02;
+  /// Contact factors: changed rows applied by row deletes and adds up to
+  /// this times √N, else a refactorisation. The measured break-even (mean
+  /// time of a refactorisation over that of one row change, SBDF(2) on the
+  /// round table, contact_replay) is 6.5 √N at N = 10⁴ and 4.3 √N at 10⁵
+  /// (docs/performance.md).
+  static constexpr double kModifyRowsPerSqrtN = 4.0;
+  /// Prefiltered AMG: a setup costs this many V-cycles (measured mean 13.8
+  /// at N = 10⁴ and 13.5 at 10⁵ on the round table, contact_replay;
+  /// docs/performance.md): a kept hierarchy is rebuilt once its extra
+  /// V-cycles reach it.
+  static constexpr double kSetupVCycles = 12.0;
   /// Prefiltered AMG: a particle's constraint has changed when its S_p
   /// changed by more than this (max-norm; a direction turned by ≈ this [rad]).
   static constexpr double kSystemTurn = 1e-3;
@@ -270,8 +286,7 @@ class Preconditioner {
   std::array<std::unique_ptr<CholeskyFactor>, 3> axis_factor_;
   std::array<std::vector<char>, 3> axis_set_, axis_want_;
   std::array<bool, 3> axis_valid_{}, axis_used_{};
-  double modify_seconds_ = 0.0, refactor_seconds_ = 0.0;  // measured: one row change, one refactorisation
-  ContactFactorStats contact_stats_;
+  mutable ContactFactorStats contact_stats_;  // Apply counts and times the V-cycles
   // Prefiltered AMG ("amg" with contact_factors): the CSR rows of
   // K = S A S + (I − S), whether the hierarchy is current for A's values
   // and used by Apply.
@@ -307,15 +322,14 @@ class Preconditioner {
   std::vector<Eigen::Matrix3d> frames_;
   mutable MatrixN3 rotated_r_, rotated_z_;
   bool system_valid_ = false, system_used_ = false;
-  // The rebuild rule (AdaptAmgTo): V-cycles applied and their time, the
-  // count at the last AdaptTo, solves since the last setup, the V-cycles of
-  // the first of them, the cost of the V-cycles beyond that count since the
-  // setup and the setup's cost [s].
+  // The rebuild rule (AdaptAmgTo): V-cycles applied, the count at the last
+  // AdaptTo, solves since the last setup, the V-cycles of
+  // the first of them, the V-cycles beyond that count since the setup, and
+  // those expected of the next kept step.
   mutable long system_applications_ = 0;
-  mutable double system_apply_seconds_ = 0.0;
   long applications_at_adapt_ = 0, baseline_applications_ = 0;
   int solves_since_setup_ = 0;
-  double stale_seconds_ = 0.0, setup_seconds_ = 0.0, stale_rate_ = 0.0;
+  double stale_cycles_ = 0.0, stale_rate_ = 0.0;
   // The frame rule: the current mode, each mode's V-cycles per solve over
   // its last hierarchy (0: untried) as measured and as decayed since, and
   // the V-cycle count at the setup.
