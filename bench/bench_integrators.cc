@@ -4,7 +4,7 @@
 // stores everything in HDF5 (docs/model.md §9).
 //
 //   bench_integrators [--scene FILE.toml] [--integrators LIST] [--h LIST] [--t-end T]
-//                     [--reference cvode|ida|none] [--out FILE.h5] [--rtols LIST] [--substeps LIST]
+//                     [--reference cvode|cvode/klu|ida|ida/klu|none] [--out FILE.h5] [--rtols LIST] [--substeps LIST]
 //                     [--cg-tolerance ETA] [--work-precision] ... (--help lists every option)
 
 #include <cmath>
@@ -72,7 +72,10 @@ void AddOptions(CLI::App& app, Options& o) {
                  "(default: per method, multiples of the scene's h chosen so that the default scene's runs bracket "
                  "e_rms = 1e-3 m; docs/work-precision.md)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
-  app.add_option("--reference", reference, fmt::format("the reference: {} (with KLU) or none", ReferenceNames()));
+  app.add_option("--reference", reference,
+                 fmt::format("the reference: {} (cvode, ida: the reduced velocity solve; /klu: KLU on the first-order "
+                             "Jacobian) or none (default {})",
+                             ReferenceNames(), kDefaultReference));
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--cvode-setting", cvode_setting_arg,
                  "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
@@ -182,9 +185,14 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   Scene scene = SceneOfOptions(app, o);
   if (app.count("--integrators") && integrators_arg.empty())
     throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
-  const MethodEntry* reference_entry = reference == "none" ? nullptr : FindMethod(reference);
-  if (reference != "none" && (!reference_entry || !reference_entry->reference))
-    throw UsageError(fmt::format("--reference: \"{}\" must be {} or none", reference, ReferenceNames()));
+  std::optional<RowMethod> reference_row;
+  if (reference != "none") {
+    try {
+      reference_row = ParseReference(reference, "--reference");
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string(e.what()) + " or none");
+    }
+  }
   CheckTolerance(ref_rtol, "--reference-rtol");
   const CvodeSettings cvode_settings = CvodeSettingsOf(app, cvode_setting_arg);
   const std::vector<std::string> names =
@@ -256,7 +264,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
   });
 
-  return BenchRun{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_entry,
+  return BenchRun{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_row,
                   ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
                   quiet, app.count("--preconditioner") > 0,
                   app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,

@@ -84,7 +84,7 @@ void PrintSummary(const ResultReader& f, const RunTable& t) {
              t.scene_name, t.scene_source, t.n_particles, t.n_fixed, t.t_end, t.frame_dt,
              t.frames.empty() ? "-" : t.frames);
   if (t.reference)
-    fmt::print("reference: {}{}: {} steps, {:.2f} s\n", t.reference->integrator,
+    fmt::print("reference: {}{}: {} steps, {:.2f} s\n", t.reference->label,
                IsSelfConvergence(*t.reference) ? fmt::format(" at h = {:g} s", t.reference->h)
                                                                    : fmt::format(" rtol {:g}", t.reference->rtol),
                t.reference->steps, t.reference->wall_time_s);
@@ -318,7 +318,11 @@ void PrintWorkPrecisionAs(const RunTable& t, const std::string& file, std::strin
   std::vector<const RunRecord*> records;
   for (const RunRecord& r : t.runs) records.push_back(&r);
   fmt::print("# {}: written {} by commit {}; errors: {}\n", file, t.created, t.git_commit, metric);
-  PrintWorkPrecision(stdout, WorkPrecisionOf(records, t.work_precision->targets, t.work_precision->reference, metric));
+  // The reference's error estimate is in the file's metric: known for that one only.
+  const double reference_error =
+      t.reference && metric == t.error_metric ? t.reference->error_estimate_m : -1.0;
+  PrintWorkPrecision(stdout, WorkPrecisionOf(records, t.work_precision->targets, t.work_precision->reference, metric,
+                                             reference_error));
 }
 
 // `command`: the script; bench_integrators next to this executable unless --bench names one.

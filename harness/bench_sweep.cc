@@ -66,7 +66,7 @@ void ReportReferenceFailure(const BenchRun& b, bool self_convergence, double h_r
     fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
                EscapeControl(r.message));
   else
-    fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", b.reference->name, b.ref_rtol,
+    fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", b.reference->label(), b.ref_rtol,
                EscapeControl(r.message));
 }
 
@@ -77,7 +77,8 @@ void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optiona
                 std::vector<MethodRun>& rows, const SweepComm& comm,
                 RecordJournal& journal) {
   CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, b.targets, b.baseline, b.error_metric);
+  const EqualAccuracyTable wp =
+      WorkPrecision(rows, b.targets, b.baseline, b.error_metric, ref ? ref->error_estimate_m : -1.0);
   const RunTable run_table = MakeRunTable(b.scene, sys, ref, rows, b.frames_mode, ref ? &wp : nullptr,
                                          b.error_metric);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);
@@ -168,7 +169,7 @@ void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJour
 int RunBench(const BenchRun& b, SweepComm& comm) {
   using Row = MethodRun;
   const std::vector<RowTask> row_tasks = RowTasks(b);
-  const long n_ref = b.reference != nullptr ? 1 : 0;
+  const long n_ref = b.reference ? 1 : 0;
   const long n_tasks = n_ref + static_cast<long>(row_tasks.size());
   // The model last: it loads the mesh obstacles, whose errors are refusals
   // too; the journal exists only for a run that is not refused.
@@ -188,12 +189,11 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   double budget = b.time_budget;
   RunLimits limits;
   limits.time_limit_s = b.time_limit;
-  ReferenceOptions ref_opts{b.ref_rtol, -1.0, 5, b.scene.t_end, b.scene.frame_dt, limits};
   // CVODE and IDA have no collision response: on obstacle scenes the
-  // reference is a self-convergence run, BDF(2) at h_min/16 (without
-  // --h: h/128) with tight CG and fixed-point tolerances.
+  // reference is a self-convergence run, BDF(2) at h_min/32 (without
+  // --h: h/256) with tight CG and fixed-point tolerances.
   const bool self_convergence = !sys.obstacles().empty();
-  const double h_ref = (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 16.0;
+  const double h_ref = (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
   const auto reference_failed = [&](const RunSummary& r) {
     if (journal.Stored().empty()) journal.Remove();  // nothing to resume
     ReportReferenceFailure(b, self_convergence, h_ref, r);
@@ -233,11 +233,14 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
           const RunSummary coarse = SelfConvergenceReference(b.scene, 2.0 * h_ref);
           const std::optional<TrajectoryErrors> e =
               coarse.ok() ? CompareTrajectories(coarse.trajectory, r.trajectory) : std::nullopt;
-          if (e && std::isfinite(e->rms_l2)) r.self_convergence_l2_m = e->rms_l2;
+          if (e && std::isfinite(e->Of(b.error_metric))) r.error_estimate_m = e->Of(b.error_metric);
         }
       } else {
-        progress.Start(fmt::format("reference {} rtol {:g}", b.reference->name, b.ref_rtol), b.scene.t_end);
-        r = b.reference->reference(sys, ref_opts);
+        r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, ctx, b.error_metric, [&](double rtol) {
+          progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
+                                     rtol < b.ref_rtol ? " (its error estimate)" : ""),
+                         b.scene.t_end);
+        });
       }
       if (!r.ok() && comm.size() == 1) return reference_failed(r);  // serial: before any row
       std::string bytes = EncodeRun(r);

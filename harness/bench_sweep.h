@@ -31,7 +31,7 @@ struct BenchRun {
   int repeat = 0;
   double time_budget = 30.0;  ///< wall time [s] all repetitions after the first may take (--time-budget)
   std::vector<double> hs;          ///< --h (empty: defaults); sets the self-convergence reference's h
-  const MethodEntry* reference = nullptr;  ///< the reference method (nullptr: none)
+  std::optional<RowMethod> reference;  ///< the reference row (ParseReference; none: --reference none)
   double ref_rtol = 1e-10;
   std::string out, plot_dir, series;  ///< result file; --plot folder and --series CSV (empty: none)
   std::string frames_mode;            ///< --frames
@@ -64,7 +64,7 @@ int RunBench(const BenchRun& b, SweepComm& comm);
 /// those that change no result (--max-runs, --plot, --quiet), so that a rerun
 /// of the same command, sliced or not, finds its journal.
 inline std::string JournalKey(int argc, char** argv, const Scene& scene) {
-  std::string key = fmt::format("bench_integrators journal 6 scene={} args=", Fnv1a64(scene.toml));
+  std::string key = fmt::format("bench_integrators journal 7 scene={} args=", Fnv1a64(scene.toml));
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--max-runs" || a == "--plot") {

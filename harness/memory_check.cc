@@ -49,8 +49,11 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
-  bool sundials = reference != "none" && scene.obstacles.empty();
-  bool tangent = false;
+  // The reduced references (cvode, ida) hold J_α like a tangent row; the
+  // /klu ones the 6N×6N Jacobian and its factor.
+  const bool klu_reference = reference.size() > 4 && reference.compare(reference.size() - 4, 4, "/klu") == 0;
+  bool sundials = klu_reference && scene.obstacles.empty();
+  bool tangent = reference != "none" && !klu_reference && scene.obstacles.empty();
   for (std::size_t k = 0; k < methods.size(); ++k) {
     const RowMethod& m = methods[k];
     const double per = static_cast<double>(n_params[k]);

@@ -11,6 +11,8 @@
 #define CLOTHBENCH_HARNESS_METHODS_H_
 
 #include <algorithm>
+#include <cmath>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -77,10 +79,10 @@ struct MethodEntry {
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                           const RunContext& ctx) = nullptr;
-  /// The method as the reference (--reference NAME): the tight run every
-  /// row's error is measured against (KLU on the analytic Jacobian);
-  /// nullptr if it cannot be one.
-  RunSummary (*reference)(const ParticleSystem& sys, const ReferenceOptions& o) = nullptr;
+  /// Whether the method can be the reference (--reference NAME,
+  /// clothbench.reference(): RunReference), the tight run every row's error
+  /// is measured against.
+  bool reference = false;
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
   /// Rows without a variant read an ARKODE IMEX table (--arkode-table).
@@ -221,7 +223,7 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
-       .reference = RunCvode, .variants = {"klu"}, .cvode_settings = true, .best_preconditioner = kBest},
+       .reference = true, .variants = {"klu"}, .cvode_settings = true, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
       {.name = kIdaName, .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
@@ -229,7 +231,7 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
        },
-       .reference = RunIda, .variants = {"klu"}, .best_preconditioner = kBest},
+       .reference = true, .variants = {"klu"}, .best_preconditioner = kBest},
   };
   return r;
 }
@@ -237,7 +239,9 @@ inline const std::vector<MethodEntry>& Registry() {
 /// The row every equal-accuracy ratio is relative to (docs/work-precision.md):
 /// CVODE with the reduced velocity solve.
 inline constexpr std::string_view kWorkPrecisionBaseline = kCvodeName;
-/// The default reference (--reference).
+/// The default reference (--reference): CVODE with the reduced velocity
+/// solve, the fastest of the candidates at every size measured
+/// (docs/work-precision.md, "The reference").
 inline constexpr std::string_view kDefaultReference = kCvodeName;
 
 /// The methods that can be the reference, for messages ("cvode, ida").
@@ -252,7 +256,10 @@ inline const MethodEntry* FindMethod(std::string_view name) {
 inline std::string ReferenceNames() {
   std::string s;
   for (const MethodEntry& e : Registry())
-    if (e.reference) s += (s.empty() ? "" : ", ") + std::string(e.name);
+    if (e.reference) {
+      s += (s.empty() ? "" : ", ") + std::string(e.name);
+      for (std::string_view v : e.variants) s += fmt::format(", {}/{}", e.name, v);
+    }
   return s;
 }
 
@@ -661,6 +668,44 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
     }
   }
   return out;
+}
+
+/// The reference row a name gives (--reference, clothbench.reference()):
+/// "cvode" or "ida" (the reduced velocity solve with the PCG), "cvode/klu" or
+/// "ida/klu" (KLU on the first-order Jacobian).
+/// @throws std::invalid_argument naming `option` for any other name
+inline RowMethod ParseReference(const std::string& name, const std::string& option) {
+  std::vector<RowMethod> rows;
+  try {
+    rows = ExpandMethods({name}, {NonlinearSolver::kFixedPoint}, option, {StepKind::kAdaptive});
+  } catch (const std::invalid_argument&) {
+    rows.clear();
+  }
+  if (rows.size() != 1 || !rows[0].entry->reference || rows[0].error_control)
+    throw std::invalid_argument(fmt::format("{}: \"{}\" must be {}", option, name, ReferenceNames()));
+  return rows[0];
+}
+
+/// The reference run (docs/work-precision.md, "The reference"): `row` at
+/// rtol = atol = `rtol`, run as the row of that label is (RowMethod::Run: its
+/// best preconditioner, the context's limits), and its error estimate:
+/// the same row at rtol/10, and error_estimate_m the error `metric` of the
+/// reference against it [m] (−1 if that run fails or reaches no frame
+/// pairing). Both doors (bench_integrators --reference,
+/// clothbench.reference()) call this.
+/// @param started called with the rtol before each of the two runs (progress)
+inline RunSummary RunReference(const ParticleSystem& sys, const Scene& scene, const RowMethod& row, double rtol,
+                               const RunContext& ctx, ErrorMetric metric,
+                               const std::function<void(double rtol)>& started = {}) {
+  if (started) started(rtol);
+  RunSummary ref = row.Run(sys, scene, scene.solver, rtol, ctx);
+  if (!ref.ok()) return ref;
+  if (started) started(0.1 * rtol);
+  const RunSummary tight = row.Run(sys, scene, scene.solver, 0.1 * rtol, ctx);
+  const std::optional<TrajectoryErrors> e =
+      tight.ok() ? CompareTrajectories(ref.trajectory, tight.trajectory) : std::nullopt;
+  if (e && std::isfinite(e->Of(metric))) ref.error_estimate_m = e->Of(metric);
+  return ref;
 }
 
 }  // namespace clothbench

@@ -306,10 +306,10 @@ std::vector<double> MethodOrders(const RunSummary& run) {
 // The equal-accuracy table (docs/work-precision.md) of the rows' records,
 // after CompareToReference filled their errors.
 EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets,
-                                 const std::string& baseline, ErrorMetric metric) {
+                                 const std::string& baseline, ErrorMetric metric, double reference_error) {
   std::vector<const RunRecord*> records;
   for (const Row& r : rows) records.push_back(&r);
-  return WorkPrecisionOf(records, targets, baseline, ToString(metric));
+  return WorkPrecisionOf(records, targets, baseline, ToString(metric), reference_error);
 }
 
 

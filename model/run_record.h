@@ -74,10 +74,11 @@ struct RunRecord {
   /// particle speed over v_bound, the deepest particle inside an obstacle
   /// at a frame over its collision distance δ. A run fails above 1, 2 and 1.
   double energy_gain_ratio = -1.0, speed_ratio = -1.0, penetration_ratio = -1.0;
-  /// A self-convergence reference's own error estimate: e_l2 (the root mean
-  /// square over the frames of e_rms) between it and the same method at
-  /// twice its step [m]; −1: not measured.
-  double self_convergence_l2_m = -1.0;
+  /// A reference's own error estimate [m] in the table's error metric:
+  /// against the same SUNDIALS row at rtol/10 (RunReference), or, for a
+  /// self-convergence reference, against the same method at twice its step;
+  /// −1: not measured.
+  double error_estimate_m = -1.0;
   std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
   std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
 

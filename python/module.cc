@@ -336,26 +336,25 @@ MatrixN3 ToMatrix(const py::array_t<double, py::array::c_style | py::array::forc
   return m;
 }
 
-// The reference run of `method` (a registry entry with a reference role)
-// at `rtol` [-], as --reference does: validated as the request of the
-// method's KLU row at that rtol, t_end and scene.
+// The reference run of `method` ("cvode", "cvode/klu", "ida", "ida/klu") at
+// `rtol` [-], as --reference does (RunReference, with its error estimate at
+// rtol/10): validated as the request of that row at that rtol, t_end and
+// scene.
 py::dict Reference(const py::object& scene_arg, const py::object& method, const py::object& rtol,
                    const py::object& t_end, const py::object& overrides) {
   RunRequest q;
   q.scene = SceneArg(scene_arg, overrides);
   const std::string name = Arg<std::string>(method, "method").value_or(std::string(kDefaultReference));
-  const MethodEntry* e = FindMethod(name);
-  if (!e || !e->reference)
-    throw py::value_error(fmt::format("method: \"{}\" must be {}", EscapeControl(name), ReferenceNames()));
-  q.method = name + "/klu";
+  try {
+    ParseReference(name, "method");
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(EscapeControl(e.what()));
+  }
+  q.method = name;
   q.rtol = Arg<double>(rtol, "rtol").value_or(1e-10);
   q.t_end = Arg<double>(t_end, "t_end");
   const ResolvedRun run = q.Resolve();
   const ParticleSystem sys(run.scene);
-  ReferenceOptions o;
-  o.rtol = run.param;
-  o.t_end = run.scene.t_end;
-  o.frame_dt = run.scene.frame_dt;
   auto record = std::make_shared<RunSummary>();
   RunSummary& r = *record;
   {
@@ -364,7 +363,7 @@ py::dict Reference(const py::object& scene_arg, const py::object& method, const 
       py::gil_scoped_release release;
       const std::lock_guard<std::mutex> one_at_a_time(g_run_mutex);
       const PythonProgress::Installed installed(&sink);
-      r = e->reference(sys, o);
+      r = RunReference(sys, run.scene, run.row, run.param, run.ctx, DefaultErrorMetric(run.scene));
     } catch (const PythonProgress::Stopped&) {
       sink.RethrowError();
       throw;
@@ -446,7 +445,7 @@ void WriteResultFile(const py::object& path_arg, const py::object& scene_arg, co
   OutputLock lock(*path, /*journal_folder=*/true, "path");  // UsageError: ValueError naming path
   py::gil_scoped_release release;
   CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, *metric, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric);
+  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric, ref ? ref->error_estimate_m : -1.0);
   const RunTable table = MakeRunTable(scene, sys, ref, rows, frames, ref ? &wp : nullptr, *metric);
   WriteResults(*path, scene, sys, ref, rows, table, 1);
 }
@@ -467,6 +466,8 @@ py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
   for (int k : t.fastest) fastest.push_back(k >= 0 ? std::optional(t.labels[static_cast<std::size_t>(k)]) : std::nullopt);
   out["fastest"] = fastest;
   out["baseline"] = t.reference;
+  out["unresolved"] = t.unresolved;
+  out["reference_error_m"] = t.reference_error_m >= 0.0 ? py::object(py::float_(t.reference_error_m)) : py::none();
   return out;
 }
 
@@ -577,8 +578,10 @@ PYBIND11_MODULE(clothbench, m) {
         "equal-accuracy table (work_precision). Arrays: read the file with h5py.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
-        "The reference run (CVODE or IDA with KLU, as --reference): the attributes a result file stores for "
-        "/reference (the same record keys as run()'s dict: status, steps, rtol, atol, ...), times, positions, "
+        "The reference run (method: cvode or ida with the reduced velocity solve, cvode/klu or ida/klu with KLU; "
+        "as --reference, with its error estimate error_estimate_m against the same at rtol/10): the attributes a "
+        "result file stores for /reference (the same record keys as run()'s dict: status, steps, rtol, atol, ...), "
+        "times, positions, "
         "velocities, step_stats, and the scene_hash that run() and write_results() compare with their scene's.");
   m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
         "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");

@@ -98,6 +98,14 @@ def test_reference_and_run_carry_the_one_record_the_file_stores(tmp_path):
             assert attrs["steps"] == d["steps"] > 0
     assert ref["integrator"] == "cvode" and ref["step_kind"] == "adaptive" and ref["rtol"] == 1e-10
     assert len(ref["step_stats"]) == ref["steps"]
+    # The reference is the reduced CVODE with its error estimate (against
+    # itself at rtol/10), as bench_integrators --reference cvode computes it;
+    # at rtol 1e-10 over 0.1 s it is far below a micrometre.
+    assert ref["label"] == "cvode" and ref["preconditioner"] == "cholesky"
+    assert 0.0 < ref["error_estimate_m"] < 1e-8
+    klu = clothbench.reference(scene, method="cvode/klu")
+    assert klu["label"] == "cvode/klu" and klu["error_estimate_m"] > 0.0
+    assert clothbench.error_rms(klu["positions"][-1], ref["positions"][-1]) < 1e-8
 
 
 def test_equal_accuracy_interpolates_log_log():

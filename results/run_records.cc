@@ -112,6 +112,14 @@ RunTable ReadRunTable(const ResultReader& f) {
       }
       w.min_error.push_back(!min_error.empty() && min_error[m] > 0.0 ? std::optional(min_error[m]) : std::nullopt);
     }
+    w.reference_error_m = f.Double("/work_precision", "reference_error_estimate_m").value_or(-1.0);
+    if (f.Exists("/work_precision/unresolved")) {
+      const std::vector<int32_t> unresolved = f.Ints("/work_precision/unresolved");
+      if (unresolved.size() != cols)
+        throw ResultError(fmt::format("{}: /work_precision/unresolved: {} entries, {} targets", f.path(),
+                                      unresolved.size(), cols));
+      for (int32_t u : unresolved) w.unresolved.push_back(u != 0);
+    }
     for (int32_t k : f.Ints("/work_precision/fastest")) {
       if (k < -1 || k >= static_cast<int32_t>(w.labels.size()))
         throw ResultError(fmt::format("{}: /work_precision/fastest: {} is not a label index (-1 … {})", f.path(), k,
@@ -224,6 +232,13 @@ void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
   f.WriteTable("/work_precision/ratio", rows, cols, ratio, "");
   f.WriteTable("/work_precision/upper_bound", rows, cols, bound);
   f.WriteVector("/work_precision/min_error", min_error, "m");
+  // unresolved [T]: 1 where the target is below 10× the reference's error
+  // estimate (no cost given there); the estimate itself, −1 if unknown.
+  std::vector<int32_t> unresolved;
+  for (std::size_t j = 0; j < static_cast<std::size_t>(cols); ++j)
+    unresolved.push_back(j < t.unresolved.size() && t.unresolved[j] ? 1 : 0);
+  f.WriteTable("/work_precision/unresolved", 1, cols, unresolved);
+  f.SetAttribute("/work_precision", "reference_error_estimate_m", t.reference_error_m);
   // tied [T, M]: 1 where the method is tied with the fastest at the target.
   std::vector<int32_t> tied(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
   for (std::size_t j = 0; j < t.tied.size(); ++j)

@@ -54,7 +54,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"energy_gain_ratio", &R::energy_gain_ratio, S::kNonNegative},
       {"speed_ratio", &R::speed_ratio, S::kNonNegative},
       {"penetration_ratio", &R::penetration_ratio, S::kNonNegative},
-      {"self_convergence_l2_m", &R::self_convergence_l2_m, S::kNonNegative},
+      {"error_estimate_m", &R::error_estimate_m, S::kNonNegative},
       {"error_final_m", &R::error_final_m, S::kSet, true},
       {"error_l2_m", &R::error_l2_m, S::kSet, true},
       {"error_max_m", &R::error_max_m, S::kSet, true},
@@ -139,15 +139,22 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   const auto& ref = t.reference;
   if (ref && IsSelfConvergence(*ref))
     fmt::print(out,
-               "reference: self-convergence, BDF(2) at h = {:g} s (h_min/16), cg_tolerance 1e-10, fixed-point "
+               "reference: self-convergence, BDF(2) at h = {:g} s (h_min/32), cg_tolerance 1e-10, fixed-point "
                "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s; its "
                "self-convergence: e_l2 against BDF(2) at 2h = {}\n",
                ref->h, ref->steps, ref->wall_time_s,
-               ref->self_convergence_l2_m >= 0.0 ? fmt::format("{:.3e} m", ref->self_convergence_l2_m) : "-");
+               ref->error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref->error_estimate_m) : "-");
   else if (ref)
-    fmt::print(out, "reference: {} BDF/Newton/KLU, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}\n",
-               Upper(ref->integrator), ref->rtol, ref->steps, ref->wall_time_s,
-               ref->energy_rate_W ? fmt::format("{:.3e} W", *ref->energy_rate_W) : "-");
+    fmt::print(out,
+               "reference: {} BDF/Newton, {}, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}; its error "
+               "estimate: {} against rtol/10 = {}\n",
+               Upper(ref->integrator), ref->label.find("/klu") != std::string::npos
+                               ? std::string("KLU on the first-order Jacobian")
+                               : fmt::format("the reduced velocity solve ({} PCG)",
+                                             ref->preconditioner.empty() ? std::string("-") : ref->preconditioner),
+               ref->rtol, ref->steps, ref->wall_time_s,
+               ref->energy_rate_W ? fmt::format("{:.3e} W", *ref->energy_rate_W) : "-", ErrorName(t.error_metric),
+               ref->error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref->error_estimate_m) : "-");
   else
     fmt::print(out, "reference: none (error columns empty)\n");
   // The contact power column only where a run has one (scenes with obstacles).
@@ -212,7 +219,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
 }
 
 EqualAccuracyTable WorkPrecisionOf(const std::vector<const RunRecord*>& runs, const std::vector<double>& targets,
-                                   const std::string& baseline, std::string_view metric) {
+                                   const std::string& baseline, std::string_view metric, double reference_error) {
   std::vector<std::string> labels;
   std::vector<std::vector<WorkPoint>> points;
   for (const RunRecord* r : runs) {
@@ -227,6 +234,7 @@ EqualAccuracyTable WorkPrecisionOf(const std::vector<const RunRecord*>& runs, co
   }
   EqualAccuracyTable t = BuildEqualAccuracyTable(labels, points, targets, baseline);
   t.metric = std::string(metric);
+  MarkUnresolvedTargets(&t, reference_error);
   return t;
 }
 
@@ -237,9 +245,11 @@ void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
              "run already meets the target; '- (min e)': no run reaches it, e the smallest error; '- (failed)': no run "
              "ended ok); x = ratio to the baseline {}\n",
              ErrorName(t.metric), t.reference.empty() ? "(none)" : t.reference);
+  const auto unresolved = [&](std::size_t j) { return j < t.unresolved.size() && t.unresolved[j]; };
   fmt::print(out, "{:<28}", "method");
-  for (double e : t.targets)
-    fmt::print(out, " {:>22}", fmt::format("{} {:g} m", t.metric == "final" ? "e_rms" : "e_" + t.metric, e));
+  for (std::size_t j = 0; j < t.targets.size(); ++j)
+    fmt::print(out, " {:>22}", fmt::format("{} {:g} m{}", t.metric == "final" ? "e_rms" : "e_" + t.metric,
+                                           t.targets[j], unresolved(j) ? "*" : ""));
   fmt::print(out, "\n");
   for (std::size_t m = 0; m < t.labels.size(); ++m) {
     fmt::print(out, "{:<28}", t.labels[m]);
@@ -247,6 +257,7 @@ void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
       std::string cell = m < t.min_error.size() && t.min_error[m] ? fmt::format("- (min {:.1e} m)", *t.min_error[m])
                          : m < t.min_error.size()                ? std::string("- (failed)")
                                                                  : std::string("-");
+      if (unresolved(j)) cell = "unresolved*";
       if (t.cost[m][j]) {
         const bool bound = m < t.upper_bound.size() && t.upper_bound[m][j];
         cell = t.ratio[m][j] ? fmt::format("{}{:.3f} s ({:.2f}x)", bound ? "≤ " : "", *t.cost[m][j], *t.ratio[m][j])
@@ -268,6 +279,9 @@ void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
     fmt::print(out, "tied with the fastest at {:g} m (within the timing spread): {}\n", t.targets[j],
                fmt::join(names, ", "));
   }
+  if (std::any_of(t.unresolved.begin(), t.unresolved.end(), [](bool u) { return u; }))
+    fmt::print(out, "*: below {:g}x the reference's error estimate ({:.1e} m): the reference cannot rank the methods "
+               "there, so no cost is given\n", kResolvedFactor, t.reference_error_m);
 }
 
 }  // namespace clothbench

@@ -55,7 +55,7 @@ struct RecordField {
 const std::vector<RecordField>& RunRecordFields();
 
 /// True if `reference` (RunTable::reference) is a fixed-step
-/// self-convergence run (obstacle scenes: BDF(2) at h_min/16) rather than
+/// self-convergence run (obstacle scenes: BDF(2) at h_min/32) rather than
 /// CVODE or IDA at an rtol.
 inline bool IsSelfConvergence(const RunRecord& reference) { return reference.step_kind == "fixed_step"; }
 
@@ -105,9 +105,11 @@ void PrintRunTable(std::FILE* out, const RunTable& table);
 /// The equal-accuracy table of `runs` (docs/work-precision.md): per row
 /// label, in order of first appearance, the (solver time, error, timing
 /// spread) of its ok runs that have an error of `metric` ("final", "l2",
-/// "max"), against `targets` [m], ratios to `baseline` (a label; empty: none).
+/// "max"), against `targets` [m], ratios to `baseline` (a label; empty: none);
+/// targets below 10× `reference_error` [m] (the reference's error estimate in
+/// `metric`; negative: not known) unresolved (MarkUnresolvedTargets).
 EqualAccuracyTable WorkPrecisionOf(const std::vector<const RunRecord*>& runs, const std::vector<double>& targets,
-                                   const std::string& baseline, std::string_view metric);
+                                   const std::string& baseline, std::string_view metric, double reference_error);
 
 /// Prints the equal-accuracy table (docs/work-precision.md).
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& table);

@@ -95,4 +95,21 @@ EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& label
   return t;
 }
 
+void MarkUnresolvedTargets(EqualAccuracyTable* t, double reference_error) {
+  t->reference_error_m = reference_error;
+  t->unresolved.assign(t->targets.size(), false);
+  if (!(reference_error >= 0.0)) return;
+  for (std::size_t j = 0; j < t->targets.size(); ++j) {
+    if (t->targets[j] >= kResolvedFactor * reference_error) continue;
+    t->unresolved[j] = true;
+    for (std::size_t m = 0; m < t->labels.size(); ++m) {
+      t->cost[m][j].reset();
+      t->ratio[m][j].reset();
+      t->upper_bound[m][j] = false;
+    }
+    if (j < t->fastest.size()) t->fastest[j] = -1;
+    if (j < t->tied.size()) t->tied[j].clear();
+  }
+}
+
 }  // namespace clothbench

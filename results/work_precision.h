@@ -62,7 +62,21 @@ struct EqualAccuracyTable {
   std::vector<std::optional<double>> min_error;
   std::string reference;                                ///< the baseline label the ratios are relative to (may be absent)
   std::string metric = "final";                         ///< the error norm of the targets (results/metrics.h ErrorMetric)
+  /// The reference's own error estimate in `metric` [m] (RunRecord::
+  /// error_estimate_m); −1: not known.
+  double reference_error_m = -1.0;
+  /// Per target: below kResolvedFactor × reference_error_m, where the
+  /// reference cannot rank the methods: no cost, ratio or fastest is given.
+  std::vector<bool> unresolved;
 };
+
+/// A target is resolved by the reference only from this many times its error estimate on.
+inline constexpr double kResolvedFactor = 10.0;
+
+/// Sets t->reference_error_m and marks the targets below kResolvedFactor ×
+/// it unresolved, clearing their costs, ratios, fastest and ties. A
+/// negative `reference_error` [m] marks none.
+void MarkUnresolvedTargets(EqualAccuracyTable* t, double reference_error);
 
 /// @param labels  method labels; points[k] are the runs of labels[k]
 /// @param reference the baseline label the ratios are relative to

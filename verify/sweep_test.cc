@@ -283,6 +283,7 @@ TEST(Sweep, AStoppedSweepResumesWithOnlyTheMissingCells) {
   const fs::path whole = Dir() / "whole.h5", sliced = Dir() / "sliced.h5";
   const fs::path journal = sliced.string() + ".journal";
   fs::remove(journal);
+  fs::remove(sliced);  // an earlier run's complete file
   ASSERT_EQ(Sweep(kSweep + " --out " + whole.string()).exit_code, 0);
   // First slice: 30 cells, exit 75, the journal holds them, no file.
   const Outcome first = Sweep(kSweep + " --max-cells 30 --out " + sliced.string());

@@ -111,6 +111,23 @@ TEST(WorkPrecision, TableRatiosAndFastest) {
   EXPECT_EQ(t.fastest[1], 0);
 }
 
+// A target below 10× the reference's error estimate is unresolved: its
+// costs, ratios and fastest are cleared; the others are kept.
+TEST(WorkPrecision, TargetsBelowTenTimesTheReferenceErrorAreUnresolved) {
+  const std::vector<std::string> labels = {"a", "cvode"};
+  const std::vector<std::vector<WorkPoint>> pts = {{{1.0, 1e-2}, {4.0, 1e-8}}, {{2.0, 1e-2}, {8.0, 1e-8}}};
+  EqualAccuracyTable t = BuildEqualAccuracyTable(labels, pts, {1e-3, 1e-7}, "cvode");
+  ASSERT_TRUE(t.cost[0][1].has_value() && t.fastest[1] == 0);
+  MarkUnresolvedTargets(&t, 2e-8);  // 10× = 2e-7: 1e-7 is below it, 1e-3 is not
+  EXPECT_EQ(t.unresolved, (std::vector<bool>{false, true}));
+  EXPECT_TRUE(t.cost[0][0].has_value());
+  EXPECT_EQ(t.fastest[0], 0);
+  EXPECT_FALSE(t.cost[0][1].has_value() || t.cost[1][1].has_value() || t.ratio[0][1].has_value());
+  EXPECT_EQ(t.fastest[1], -1);
+  MarkUnresolvedTargets(&t, -1.0);  // unknown estimate: nothing marked
+  EXPECT_EQ(t.unresolved, (std::vector<bool>{false, false}));
+}
+
 // The three error norms over frames (results/metrics.h) on a 3-frame,
 // 1-particle trajectory with known offsets 0, 3, 4 m: final 4 m, max 4 m,
 // l2 sqrt((0 + 9 + 16)/3) m; the velocities' offsets 1, 1, 2 m/s likewise.
