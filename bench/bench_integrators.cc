@@ -46,13 +46,14 @@ struct Options {
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
   std::string cvode_setting_arg;
+  bool sweep_to_targets = false;
 };
 
 void AddOptions(CLI::App& app, Options& o) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -131,6 +132,10 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--time-limit", time_limit,
                  "wall-time budget of each run [s] (default 3600): a run past it ends with status time_limit and the "
                  "other rows still run and are written");
+  app.add_flag("--sweep-to-targets", sweep_to_targets,
+               "choose each method's h, substeps or rtol run by run from its errors against the reference until its "
+               "runs bracket every --targets value, it fails, reaches --time-limit or stalls (instead of the fixed "
+               "lists; docs/work-precision.md)");
   app.add_flag("--quiet", quiet, "no progress line on stderr (it is shown only when stderr is a terminal and a run takes "
                                  "more than 2 s)");
   app.add_option("--plot", plot_dir,
@@ -181,7 +186,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets] = o;
   Scene scene = SceneOfOptions(app, o);
   if (app.count("--integrators") && integrators_arg.empty())
     throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
@@ -238,6 +243,14 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
     substeps.push_back(static_cast<int>(n));
   }
+  if (sweep_to_targets) {
+    for (const char* option : {"--h", "--rtols", "--substeps"})
+      if (app.count(option))
+        throw UsageError(fmt::format("{}: --sweep-to-targets chooses the runs itself", option));
+    if (etas.size() > 1) throw UsageError("--cg-tolerances: --sweep-to-targets runs one CG tolerance");
+    if (reference == "none") throw UsageError("--reference none: --sweep-to-targets needs the reference's errors");
+    if (max_runs > 0) throw UsageError("--max-runs: --sweep-to-targets does not stop early (the journal resumes it)");
+  }
   const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
   // Every planned run as a request, by the rules every entry point shares
   // (harness/run_request.h); the options only some rows read were checked
@@ -268,7 +281,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                   ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
                   quiet, app.count("--preconditioner") > 0,
                   app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
-                  time_limit, max_runs, arkode_table, cvode_settings};
+                  time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets};
 }
 
 int Main(int argc, char** argv) {
@@ -279,7 +292,7 @@ int Main(int argc, char** argv) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg] = o;
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets] = o;
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -7,6 +7,8 @@
 #include <iterator>
 #include <map>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -75,10 +77,11 @@ void ReportReferenceFailure(const BenchRun& b, bool self_convergence, double h_r
 // once the file is written, and kept (named in the error) if writing fails.
 void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                 std::vector<MethodRun>& rows, const SweepComm& comm,
-                RecordJournal& journal) {
+                RecordJournal& journal, const std::vector<std::string>& stop_reasons = {}) {
   CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
-  const EqualAccuracyTable wp =
+  EqualAccuracyTable wp =
       WorkPrecision(rows, b.targets, b.baseline, b.error_metric, ref ? ref->error_estimate_m : -1.0);
+  wp.stop_reasons = stop_reasons;
   const RunTable run_table = MakeRunTable(b.scene, sys, ref, rows, b.frames_mode, ref ? &wp : nullptr,
                                          b.error_metric);
   if (!b.work_precision_only) PrintRunTable(stdout, run_table);
@@ -161,12 +164,190 @@ void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJour
   }
 }
 
+// The reference run (task 0): on obstacle scenes the self-convergence run
+// at h_ref with its own error against the same at 2 h_ref, otherwise
+// RunReference (the reference row and its error estimate at rtol/10).
+RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const RunContext& ctx, double h_ref,
+                            TerminalProgress& progress) {
+  RunSummary r;
+  if (!sys.obstacles().empty()) {
+    progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), b.scene.t_end);
+    r = SelfConvergenceReference(b.scene, h_ref);
+    if (r.ok()) {  // its own error: against the same run at 2 h_ref
+      progress.Start(fmt::format("reference bdf2 h = {:g} s (self-convergence)", 2.0 * h_ref), b.scene.t_end);
+      const RunSummary coarse = SelfConvergenceReference(b.scene, 2.0 * h_ref);
+      const std::optional<TrajectoryErrors> e =
+          coarse.ok() ? CompareTrajectories(coarse.trajectory, r.trajectory) : std::nullopt;
+      if (e && std::isfinite(e->Of(b.error_metric))) r.error_estimate_m = e->Of(b.error_metric);
+    }
+  } else {
+    r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, ctx, b.error_metric, [&](double rtol) {
+      progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
+                                 rtol < b.ref_rtol ? " (its error estimate)" : ""),
+                     b.scene.t_end);
+    });
+  }
+  return r;
+}
+
+// --sweep-to-targets (docs/work-precision.md, "Sweeps driven by the
+// targets"): each method's h (fixed-step), substeps (substepped) or rtol
+// (adaptive) is chosen run by run from the errors against the reference.
+// From the scene's h (1 substep; rtol 1e-4) it coarsens (h × 2, rtol × 10)
+// while its coarsest run reached --time-limit, or is ok and already meets
+// the largest target, so that the largest target is bracketed, then refines (h / 2, substeps × 2,
+// rtol / 10) until its finest ok run meets the smallest target, a run fails
+// after an ok one, a run reaches --time-limit, two refinements in a row gain
+// less than 20 % each (stalled), or the ladder's end. Each method's reason
+// is stored and printed with the equal-accuracy table. The decisions follow
+// from bit-reproducible errors, so the task indices are the same in every
+// run of the command and the journal resumes an interrupted sweep.
+constexpr int kMaxCoarsenings = 4, kMaxRunsPerMethod = 14;
+
+// One rung of a method's ladder: index 0 is the start, negative coarser.
+struct Rung {
+  double param;  // h [s] (fixed-step, substepped: the frame step) or rtol
+  int substeps;
+};
+
+Rung RungOf(const RowMethod& m, const Scene& scene, int index) {
+  const StepKind kind = m.kind();
+  if (kind == StepKind::kAdaptive) return {1e-4 * std::pow(10.0, -index), 1};
+  if (kind == StepKind::kSubstepped) return {scene.h, 1 << std::max(0, index)};
+  return {scene.h * std::pow(2.0, -index), 1};
+}
+
+// Whether rung `index` exists: h at most t_end/4 and at least h/4096;
+// substeps 1 … 1024; rtol 1e-1 … 10 × the reference's rtol.
+bool RungExists(const RowMethod& m, const BenchRun& b, int index) {
+  const Rung r = RungOf(m, b.scene, index);
+  switch (m.kind()) {
+    case StepKind::kAdaptive: return r.param <= 0.1 * (1.0 + 1e-9) && r.param >= 10.0 * b.ref_rtol * (1.0 - 1e-9);
+    case StepKind::kSubstepped: return index >= 0 && r.substeps <= 1024;
+    default: return r.param <= 0.25 * b.scene.t_end && r.param >= b.scene.h / 4096.0;
+  }
+}
+
+std::string RungName(const RowMethod& m, const Rung& r) {
+  switch (m.kind()) {
+    case StepKind::kAdaptive: return fmt::format("rtol {:g}", r.param);
+    case StepKind::kSubstepped: return fmt::format("{} substeps", r.substeps);
+    default: return fmt::format("h = {:g} s", r.param);
+  }
+}
+
+int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
+  if (comm.size() > 1)
+    throw std::runtime_error("--sweep-to-targets chooses each run from the errors of the one before: run it on one "
+                             "rank (without mpirun)");
+  const ParticleSystem sys(b.scene);
+  RecordJournal journal(b.out + ".journal", b.journal_key, comm);
+  std::vector<long> have = journal.Stored([&](long, const std::string& bytes) {
+    RunSummary run;
+    DecodeRun(bytes, sys.num_particles(), &run);
+  });
+  TerminalProgress progress(!b.quiet);
+  double budget = b.time_budget;
+  RunLimits limits;
+  limits.time_limit_s = b.time_limit;
+  const RunContext ctx{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
+                       b.tangent_terms_from_cli, b.cvode};
+  const double h_ref = b.scene.h / 8.0 / 32.0;
+  long next = 0;
+  // Task `k`: from the journal if stored, else computed and stored.
+  const auto task = [&](auto compute, auto* out) {
+    const long k = next++;
+    if (std::binary_search(have.begin(), have.end(), k)) {
+      DecodeRun(journal.Load(k), sys.num_particles(), out);
+      return;
+    }
+    *out = compute();
+    if (out->ok() || k > 0) journal.Store(k, EncodeRun(*out));
+  };
+  RunSummary ref;
+  task([&] { return ComputeReference(b, sys, ctx, h_ref, progress); }, &ref);
+  if (!ref.ok()) {
+    if (journal.Stored().empty()) journal.Remove();
+    ReportReferenceFailure(b, !sys.obstacles().empty(), h_ref, ref);
+    return 1;
+  }
+  const double largest = *std::max_element(b.targets.begin(), b.targets.end());
+  const double smallest = *std::min_element(b.targets.begin(), b.targets.end());
+  std::vector<MethodRun> rows;
+  std::vector<std::string> reasons;
+  for (const RowMethod& m : b.methods) {
+    SolverSpec spec = b.scene.solver;
+    spec.cg_tolerance = b.etas.front();
+    std::map<int, MethodRun> runs;
+    std::map<int, double> error;  // of the ok runs
+    const auto run = [&](int index) {
+      const Rung r = RungOf(m, b.scene, index);
+      MethodRun& out = runs[index];
+      task(
+          [&] {
+            progress.Start(fmt::format("{} {}", m.label(), RungName(m, r)), b.scene.t_end);
+            MethodRun first = m.Run(sys, b.scene, spec, r.param, ctx, r.substeps);
+            RepeatTimings(&first, b.repeat, &budget, [&] { return m.Run(sys, b.scene, spec, r.param, ctx, r.substeps); });
+            return first;
+          },
+          &out);
+      if (!out.ok()) return;
+      std::vector<MethodRun> one{out};
+      CompareToReference(sys, &ref, b.scene.t_end, b.error_metric, &one);
+      if (const std::optional<double> e = one[0].Error(ToString(b.error_metric)); e && std::isfinite(*e))
+        error[index] = *e;
+    };
+    run(0);
+    int lo = 0, hi = 0;
+    // A start past --time-limit tries the cheaper rungs first.
+    while (runs[lo].status == "time_limit" && lo > -kMaxCoarsenings && RungExists(m, b, lo - 1))
+      run(--lo);
+    while (error.count(lo) && error[lo] <= largest && lo > -kMaxCoarsenings && RungExists(m, b, lo - 1) &&
+           static_cast<int>(runs.size()) < kMaxRunsPerMethod)
+      run(--lo);
+    std::string reason;
+    for (;;) {
+      const MethodRun& f = runs[hi];
+      const bool any_ok = !error.empty();
+      if (f.status == "time_limit") {
+        reason = fmt::format("time_limit at {}", RungName(m, RungOf(m, b.scene, hi)));
+        break;
+      }
+      if (!f.ok() && any_ok && error.begin()->first < hi) {
+        reason = fmt::format("failed ({}) at {}", f.status, RungName(m, RungOf(m, b.scene, hi)));
+        break;
+      }
+      if (f.ok() && error.count(hi) && error[hi] <= smallest) {
+        reason = "targets met";
+        break;
+      }
+      if (error.count(hi) && error.count(hi - 1) && error.count(hi - 2) && error[hi] > 0.8 * error[hi - 1] &&
+          error[hi - 1] > 0.8 * error[hi - 2]) {
+        reason = fmt::format("stalled at {:.1e} m (two refinements gained less than 20 % each)", error[hi]);
+        break;
+      }
+      if (!RungExists(m, b, hi + 1) || static_cast<int>(runs.size()) >= kMaxRunsPerMethod) {
+        reason = fmt::format("the ladder ends at {}", RungName(m, RungOf(m, b.scene, hi)));
+        break;
+      }
+      run(++hi);
+    }
+    progress.Finish();
+    reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), reason, runs.size()));
+    for (auto& [index, r] : runs) rows.push_back(std::move(r));
+  }
+  WriteBench(b, sys, ref, rows, comm, journal, reasons);
+  if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
+  return 0;
+}
+
 // The sweep: the reference (task 0, if any) and every row in table order.
 // Under mpirun/srun the tasks are dealt over the ranks and rank 0
 // assembles, prints and writes; every finished task is journalled in
 // <out>.journal/, so that the same command rerun after an interruption
 // computes only the missing ones (harness/sweep.h).
 int RunBench(const BenchRun& b, SweepComm& comm) {
+  if (b.sweep_to_targets) return RunTargetSweep(b, comm);
   using Row = MethodRun;
   const std::vector<RowTask> row_tasks = RowTasks(b);
   const long n_ref = b.reference ? 1 : 0;
@@ -224,24 +405,7 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
     if (!comm.Owns(j)) continue;
     const long k = missing[j];
     if (k < n_ref) {
-      RunSummary r;
-      if (self_convergence) {
-        progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), b.scene.t_end);
-        r = SelfConvergenceReference(b.scene, h_ref);
-        if (r.ok()) {  // its own error: against the same run at 2 h_ref
-          progress.Start(fmt::format("reference bdf2 h = {:g} s (self-convergence)", 2.0 * h_ref), b.scene.t_end);
-          const RunSummary coarse = SelfConvergenceReference(b.scene, 2.0 * h_ref);
-          const std::optional<TrajectoryErrors> e =
-              coarse.ok() ? CompareTrajectories(coarse.trajectory, r.trajectory) : std::nullopt;
-          if (e && std::isfinite(e->Of(b.error_metric))) r.error_estimate_m = e->Of(b.error_metric);
-        }
-      } else {
-        r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, ctx, b.error_metric, [&](double rtol) {
-          progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
-                                     rtol < b.ref_rtol ? " (its error estimate)" : ""),
-                         b.scene.t_end);
-        });
-      }
+      RunSummary r = ComputeReference(b, sys, ctx, h_ref, progress);
       if (!r.ok() && comm.size() == 1) return reference_failed(r);  // serial: before any row
       std::string bytes = EncodeRun(r);
       if (r.ok()) journal_store(k, bytes);  // a failed reference is computed again by a rerun

@@ -42,6 +42,9 @@ struct BenchRun {
   long max_runs = 0;        ///< > 0: compute at most this many runs, then exit kExitPartial
   std::string arkode_table;
   CvodeSettings cvode;
+  /// --sweep-to-targets: each method's h, substeps or rtol chosen run by run
+  /// until its runs bracket every target (RunBench; docs/work-precision.md).
+  bool sweep_to_targets = false;
 };
 
 /// Times run `r` again with `run_again` until it has `repeat` timings (0:

@@ -467,6 +467,7 @@ py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
   out["fastest"] = fastest;
   out["baseline"] = t.reference;
   out["unresolved"] = t.unresolved;
+  out["stop_reasons"] = t.stop_reasons;
   out["reference_error_m"] = t.reference_error_m >= 0.0 ? py::object(py::float_(t.reference_error_m)) : py::none();
   return out;
 }

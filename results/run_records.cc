@@ -113,6 +113,10 @@ RunTable ReadRunTable(const ResultReader& f) {
       w.min_error.push_back(!min_error.empty() && min_error[m] > 0.0 ? std::optional(min_error[m]) : std::nullopt);
     }
     w.reference_error_m = f.Double("/work_precision", "reference_error_estimate_m").value_or(-1.0);
+    if (const std::optional<std::string> lines = f.String("/work_precision", "stop_reasons")) {
+      std::stringstream in(*lines);
+      for (std::string line; std::getline(in, line);) w.stop_reasons.push_back(line);
+    }
     if (f.Exists("/work_precision/unresolved")) {
       const std::vector<int32_t> unresolved = f.Ints("/work_precision/unresolved");
       if (unresolved.size() != cols)
@@ -239,6 +243,11 @@ void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
     unresolved.push_back(j < t.unresolved.size() && t.unresolved[j] ? 1 : 0);
   f.WriteTable("/work_precision/unresolved", 1, cols, unresolved);
   f.SetAttribute("/work_precision", "reference_error_estimate_m", t.reference_error_m);
+  if (!t.stop_reasons.empty()) {  // --sweep-to-targets: one line per method
+    std::string lines;
+    for (const std::string& r : t.stop_reasons) lines += (lines.empty() ? "" : "\n") + r;
+    f.SetAttribute("/work_precision", "stop_reasons", lines);
+  }
   // tied [T, M]: 1 where the method is tied with the fastest at the target.
   std::vector<int32_t> tied(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
   for (std::size_t j = 0; j < t.tied.size(); ++j)

@@ -279,6 +279,10 @@ void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& t) {
     fmt::print(out, "tied with the fastest at {:g} m (within the timing spread): {}\n", t.targets[j],
                fmt::join(names, ", "));
   }
+  if (!t.stop_reasons.empty()) {
+    fmt::print(out, "sweep to the targets, why each method stopped:\n");
+    for (const std::string& r : t.stop_reasons) fmt::print(out, "  {}\n", r);
+  }
   if (std::any_of(t.unresolved.begin(), t.unresolved.end(), [](bool u) { return u; }))
     fmt::print(out, "*: below {:g}x the reference's error estimate ({:.1e} m): the reference cannot rank the methods "
                "there, so no cost is given\n", kResolvedFactor, t.reference_error_m);

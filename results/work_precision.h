@@ -68,6 +68,9 @@ struct EqualAccuracyTable {
   /// Per target: below kResolvedFactor × reference_error_m, where the
   /// reference cannot rank the methods: no cost, ratio or fastest is given.
   std::vector<bool> unresolved;
+  /// --sweep-to-targets: per method, "label: why its sweep stopped (n runs)";
+  /// empty for a sweep over fixed lists.
+  std::vector<std::string> stop_reasons;
 };
 
 /// A target is resolved by the reference only from this many times its error estimate on.

@@ -424,6 +424,43 @@ TEST(BenchCli, OnlyASceneIc0GivesWayToTheMethodsBest) {
   }
 }
 
+// --sweep-to-targets: each row's runs are chosen from its errors until
+// they bracket every target, or the row stops for a stated reason. On the
+// swinging sheet over 0.2 s with sbdf2 and cvode at targets 1e-3 and 1e-5 m:
+// a row whose reason is "targets met" has a cost at every target and a run
+// below the smallest; the reasons are printed and stored; the options that
+// set the runs by hand are refused.
+TEST(BenchCli, SweepToTargetsBracketsEveryTargetOrSaysWhy) {
+  const fs::path out = TempDir() / "sweep_to_targets.h5";
+  const std::string common = " --integrators sbdf2,cvode --t-end 0.2 --targets 1e-3,1e-5 --repeat 1 --frames none";
+  const Outcome o = RunBench(common + " --sweep-to-targets --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_NE(o.out.find("sweep to the targets, why each method stopped:"), std::string::npos) << o.out;
+  const RunTable t = ReadRunTable(ResultReader(out.string()));
+  ASSERT_TRUE(t.work_precision.has_value());
+  const EqualAccuracyTable& w = *t.work_precision;
+  ASSERT_EQ(w.stop_reasons.size(), 2u);
+  EXPECT_EQ(w.stop_reasons[0].rfind("sbdf2: ", 0), 0u) << w.stop_reasons[0];
+  for (std::size_t m = 0; m < w.labels.size(); ++m) {
+    const bool met = w.stop_reasons[m].find("targets met") != std::string::npos;
+    for (std::size_t j = 0; j < w.targets.size(); ++j)
+      EXPECT_TRUE(w.cost[m][j].has_value() || !met) << w.labels[m] << " at " << w.targets[j];
+    // A row that met the targets has a run below the smallest.
+    double smallest = 1e300;
+    for (const RunRecord& r : t.runs)
+      if (r.label == w.labels[m] && r.ok() && r.error_final_m) smallest = std::min(smallest, *r.error_final_m);
+    if (met) {
+      EXPECT_LE(smallest, 1e-5) << w.labels[m];
+    }
+  }
+  for (const char* option : {"--h 0.01", "--rtols 1e-4", "--reference none", "--max-runs 3"}) {
+    const Outcome refused = RunBench(common + " --sweep-to-targets " + option + " --out " + out.string());
+    EXPECT_EQ(refused.exit_code, 2) << option;
+    EXPECT_NE(refused.err.find(std::string(option).substr(0, std::string(option).find(' '))), std::string::npos)
+        << refused.err;
+  }
+}
+
 // A contact scene's equal-accuracy table: against the stated
 // self-convergence reference (BDF(2) at h_min/32 with tight tolerances),
 // whose own error (e_l2 against the same run at 2 h_ref) is measured,
