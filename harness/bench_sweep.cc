@@ -194,8 +194,9 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
 // targets"): each method's h (fixed-step), substeps (substepped) or rtol
 // (adaptive) is chosen run by run from the errors against the reference.
 // From the scene's h (1 substep; rtol 1e-4) it coarsens (h × 2, rtol × 10)
-// while its coarsest run reached --time-limit, or is ok and already meets
-// the largest target, so that the largest target is bracketed, then refines (h / 2, substeps × 2,
+// once if its start reached --time-limit, and while its coarsest run is ok
+// and already meets the largest target, so that the largest target is
+// bracketed, then refines (h / 2, substeps × 2,
 // rtol / 10) until its finest ok run meets the smallest target, a run fails
 // after an ok one, a run reaches --time-limit, two refinements in a row gain
 // less than 20 % each (stalled), or the ladder's end. Each method's reason
@@ -299,9 +300,8 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
     };
     run(0);
     int lo = 0, hi = 0;
-    // A start past --time-limit tries the cheaper rungs first.
-    while (runs[lo].status == "time_limit" && lo > -kMaxCoarsenings && RungExists(m, b, lo - 1))
-      run(--lo);
+    // A start past --time-limit tries the next cheaper rung once.
+    if (runs[lo].status == "time_limit" && RungExists(m, b, lo - 1)) run(--lo);
     while (error.count(lo) && error[lo] <= largest && lo > -kMaxCoarsenings && RungExists(m, b, lo - 1) &&
            static_cast<int>(runs.size()) < kMaxRunsPerMethod)
       run(--lo);
