@@ -271,11 +271,13 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
       if (s.t > t_last - 0.3) upd_b += s.updates, cg_b += s.cg_iterations, ++n_b;
     }
     const double steps_b = n_b ? static_cast<double>(n_b) : 1.0;
-    fmt::print("{:<24} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}\n", r.label, r.h,
+    // A run that did not end ok is named so: its columns cover the steps before it stopped.
+    fmt::print("{:<24} {:>8g} {:>10} {:>16} {:>16.1f} {:>16.1f} {:>14}{}\n", r.label, r.h,
                impact < 0 ? "none" : fmt::format("{:.2f}", impact),
                n_a ? fmt::format("{:.1f}", static_cast<double>(cg_a) / static_cast<double>(n_a)) : "",
                static_cast<double>(upd_b) / steps_b, static_cast<double>(cg_b) / steps_b,
-               r.step_stats.empty() ? 0 : r.step_stats.back().colliding);
+               r.step_stats.empty() ? 0 : r.step_stats.back().colliding,
+               r.ok() ? std::string() : fmt::format("  {} (stopped at t = {:.3g} s)", r.status, t_last));
   }
   WriteFileAtomically(path, csv, "--series");
 }

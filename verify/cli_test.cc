@@ -424,6 +424,23 @@ TEST(BenchCli, OnlyASceneIc0GivesWayToTheMethodsBest) {
   }
 }
 
+// The Fig. 4.3 series table names a run that did not end ok (its columns
+// cover only the steps before it stopped): SBDF(3) at h = 0.01 s on the
+// swinging box ends energy_growth (verify/blow_up_test.cc).
+TEST(BenchCli, SeriesTableNamesARunThatStopped) {
+  const fs::path csv = TempDir() / "fig_4_3.csv", out = TempDir() / "fig_4_3.h5";
+  const Outcome o = RunBench("--scene swinging_box --integrators sbdf3,sbdf2 --h 0.01 --reference none --repeat 1 "
+                             "--frames none --series " + csv.string() + " --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const std::size_t row = o.out.find("\nsbdf3 ", o.out.find("Fig. 4.3 series"));
+  ASSERT_NE(row, std::string::npos) << o.out;
+  const std::string line = o.out.substr(row + 1, o.out.find('\n', row + 1) - row - 1);
+  EXPECT_NE(line.find("energy_growth (stopped at t = "), std::string::npos) << line;
+  const std::size_t ok_row = o.out.find("\nsbdf2 ", o.out.find("Fig. 4.3 series"));
+  ASSERT_NE(ok_row, std::string::npos);
+  EXPECT_EQ(o.out.substr(ok_row + 1, o.out.find('\n', ok_row + 1) - ok_row - 1).find("stopped"), std::string::npos);
+}
+
 // --sweep-to-targets: each row's runs are chosen from its errors until
 // they bracket every target, or the row stops for a stated reason. On the
 // swinging sheet over 0.2 s with sbdf2 and cvode at targets 1e-3 and 1e-5 m:
