@@ -250,6 +250,9 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     if (etas.size() > 1) throw UsageError("--cg-tolerances: --sweep-to-targets runs one CG tolerance");
     if (reference == "none") throw UsageError("--reference none: --sweep-to-targets needs the reference's errors");
     if (max_runs > 0) throw UsageError("--max-runs: --sweep-to-targets does not stop early (the journal resumes it)");
+    if (comm.size() > 1)
+      throw UsageError("--sweep-to-targets: it chooses each run from the errors of the one before; run it on one "
+                       "rank (without mpirun)");
   }
   const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
   // Every planned run as a request, by the rules every entry point shares
@@ -271,7 +274,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     }
   if (out.empty()) out = fmt::format("out/{}.h5", scene.name);
   ProbeOnRoot(comm, [&] {
-    CheckMemory(scene, methods, plan.n_params, etas.size(), reference, plan.step_records, out);
+    CheckMemory(scene, methods, plan.n_params, etas.size(), reference_row, plan.step_records, out);
     if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
       throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
     if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing

@@ -164,6 +164,20 @@ void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJour
   }
 }
 
+// The self-convergence reference's step on obstacle scenes (CVODE and IDA
+// have no collision response): BDF(2) at h_min/32 (without --h: h/256).
+double SelfConvergenceStep(const BenchRun& b) {
+  return (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
+}
+
+// The rows' context: the command's limits and the settings it named.
+RunContext ContextOf(const BenchRun& b) {
+  RunLimits limits;
+  limits.time_limit_s = b.time_limit;
+  return RunContext{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
+                    b.tangent_terms_from_cli, b.cvode};
+}
+
 // The reference run (task 0): on obstacle scenes the self-convergence run
 // at h_ref with its own error against the same at 2 h_ref, otherwise
 // RunReference (the reference row and its error estimate at rtol/10).
@@ -175,10 +189,7 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
     r = SelfConvergenceReference(b.scene, h_ref);
     if (r.ok()) {  // its own error: against the same run at 2 h_ref
       progress.Start(fmt::format("reference bdf2 h = {:g} s (self-convergence)", 2.0 * h_ref), b.scene.t_end);
-      const RunSummary coarse = SelfConvergenceReference(b.scene, 2.0 * h_ref);
-      const std::optional<TrajectoryErrors> e =
-          coarse.ok() ? CompareTrajectories(coarse.trajectory, r.trajectory) : std::nullopt;
-      if (e && std::isfinite(e->Of(b.error_metric))) r.error_estimate_m = e->Of(b.error_metric);
+      SetReferenceErrorEstimate(&r, SelfConvergenceReference(b.scene, 2.0 * h_ref), b.error_metric);
     }
   } else {
     r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, ctx, b.error_metric, [&](double rtol) {
@@ -238,9 +249,6 @@ std::string RungName(const RowMethod& m, const Rung& r) {
 }
 
 int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
-  if (comm.size() > 1)
-    throw std::runtime_error("--sweep-to-targets chooses each run from the errors of the one before: run it on one "
-                             "rank (without mpirun)");
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
   std::vector<long> have = journal.Stored([&](long, const std::string& bytes) {
@@ -249,11 +257,8 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
   });
   TerminalProgress progress(!b.quiet);
   double budget = b.time_budget;
-  RunLimits limits;
-  limits.time_limit_s = b.time_limit;
-  const RunContext ctx{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
-                       b.tangent_terms_from_cli, b.cvode};
-  const double h_ref = b.scene.h / 8.0 / 32.0;
+  const RunContext ctx = ContextOf(b);
+  const double h_ref = SelfConvergenceStep(b);
   long next = 0;
   // Task `k`: from the journal if stored, else computed and stored.
   const auto task = [&](auto compute, auto* out) {
@@ -293,9 +298,11 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
           },
           &out);
       if (!out.ok()) return;
-      std::vector<MethodRun> one{out};
+      std::vector<MethodRun> one;  // moved in and out: no copy of the trajectory
+      one.push_back(std::move(out));
       CompareToReference(sys, &ref, b.scene.t_end, b.error_metric, &one);
-      if (const std::optional<double> e = one[0].Error(ToString(b.error_metric)); e && std::isfinite(*e))
+      out = std::move(one[0]);
+      if (const std::optional<double> e = out.Error(ToString(b.error_metric)); e && std::isfinite(*e))
         error[index] = *e;
     };
     run(0);
@@ -368,20 +375,14 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
 
   TerminalProgress progress(!b.quiet && comm.root());
   double budget = b.time_budget;
-  RunLimits limits;
-  limits.time_limit_s = b.time_limit;
-  // CVODE and IDA have no collision response: on obstacle scenes the
-  // reference is a self-convergence run, BDF(2) at h_min/32 (without
-  // --h: h/256) with tight CG and fixed-point tolerances.
   const bool self_convergence = !sys.obstacles().empty();
-  const double h_ref = (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
+  const double h_ref = SelfConvergenceStep(b);
   const auto reference_failed = [&](const RunSummary& r) {
     if (journal.Stored().empty()) journal.Remove();  // nothing to resume
     ReportReferenceFailure(b, self_convergence, h_ref, r);
     return 1;
   };
-  const RunContext ctx{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
-                       b.tangent_terms_from_cli, b.cvode};
+  const RunContext ctx = ContextOf(b);
   std::map<long, RunSummary> own_ref;
   std::map<long, Row> own_rows;
   std::vector<std::pair<long, std::string>> outgoing;

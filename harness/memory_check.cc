@@ -45,15 +45,16 @@ double FreeDiskBytes(const std::string& path) {
 // Every attempted step keeps a StepStats in the run and a StepRecord in its
 // row until the file is written (`step_records` of all rows, ~100 bytes each).
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
-                 std::size_t n_eta, const std::string& reference, double step_records, const std::string& out) {
+                 std::size_t n_eta, const std::optional<RowMethod>& reference, double step_records,
+                 const std::string& out) {
   const double n = scene.num_particles();
   const double frames = static_cast<double>(FrameTimes(scene.t_end, scene.frame_dt).size());
   double rows = 0.0;
   // The reduced references (cvode, ida) hold J_α like a tangent row; the
   // /klu ones the 6N×6N Jacobian and its factor.
-  const bool klu_reference = reference.size() > 4 && reference.compare(reference.size() - 4, 4, "/klu") == 0;
-  bool sundials = klu_reference && scene.obstacles.empty();
-  bool tangent = reference != "none" && !klu_reference && scene.obstacles.empty();
+  const bool sundials_reference = reference && scene.obstacles.empty();
+  bool sundials = sundials_reference && !reference->uses_pcg();
+  bool tangent = sundials_reference && reference->uses_pcg();
   for (std::size_t k = 0; k < methods.size(); ++k) {
     const RowMethod& m = methods[k];
     const double per = static_cast<double>(n_params[k]);
@@ -61,7 +62,7 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
     if (m.entry->sparse_jacobian) sundials = true;
     if (m.solver == NonlinearSolver::kNewton || m.entry->tangent) tangent = true;
   }
-  if (reference != "none") rows += 1.0;
+  if (reference) rows += 1.0;
   // (rows + 1): the frames of every row, and one more copy of a row's as the
   // bytes that go to the journal and to rank 0 (harness/run_codec.h).
   double bytes = n * (25.0 * 24.0 + 200.0) + (rows + 1.0) * frames * 2.0 * 24.0 * n + step_records * 100.0;

@@ -2,6 +2,7 @@
 #ifndef CLOTHBENCH_HARNESS_MEMORY_CHECK_H_
 #define CLOTHBENCH_HARNESS_MEMORY_CHECK_H_
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,12 +21,13 @@ double FreeDiskBytes(const std::string& path);
 
 /// @throws UsageError naming the scene and the estimate if the run's frames
 /// and solver state (methods × parameter counts × CG tolerances, the
-/// reference, `step_records` step records) would take more than 80 % of
+/// reference row if any, `step_records` step records) would take more than 80 % of
 /// the available memory, or, with `out` given, if its journal and result
 /// file (each about the frames and step records) would not fit on the
 /// disk holding `out`.
 void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<std::size_t>& n_params,
-                 std::size_t n_eta, const std::string& reference, double step_records, const std::string& out = "");
+                 std::size_t n_eta, const std::optional<RowMethod>& reference, double step_records,
+                 const std::string& out = "");
 
 }  // namespace clothbench
 

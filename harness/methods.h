@@ -686,6 +686,15 @@ inline RowMethod ParseReference(const std::string& name, const std::string& opti
   return rows[0];
 }
 
+/// Sets ref->error_estimate_m to the error `metric` between the reference
+/// and `other`, the same method at a 10× tighter rtol or twice the step
+/// (left −1 if `other` failed or the frames do not pair) [m].
+inline void SetReferenceErrorEstimate(RunSummary* ref, const RunSummary& other, ErrorMetric metric) {
+  const std::optional<TrajectoryErrors> e =
+      other.ok() ? CompareTrajectories(other.trajectory, ref->trajectory) : std::nullopt;
+  if (e && std::isfinite(e->Of(metric))) ref->error_estimate_m = e->Of(metric);
+}
+
 /// The reference run (docs/work-precision.md, "The reference"): `row` at
 /// rtol = atol = `rtol`, run as the row of that label is (RowMethod::Run: its
 /// best preconditioner, the context's limits), and its error estimate:
@@ -701,10 +710,7 @@ inline RunSummary RunReference(const ParticleSystem& sys, const Scene& scene, co
   RunSummary ref = row.Run(sys, scene, scene.solver, rtol, ctx);
   if (!ref.ok()) return ref;
   if (started) started(0.1 * rtol);
-  const RunSummary tight = row.Run(sys, scene, scene.solver, 0.1 * rtol, ctx);
-  const std::optional<TrajectoryErrors> e =
-      tight.ok() ? CompareTrajectories(ref.trajectory, tight.trajectory) : std::nullopt;
-  if (e && std::isfinite(e->Of(metric))) ref.error_estimate_m = e->Of(metric);
+  SetReferenceErrorEstimate(&ref, row.Run(sys, scene, scene.solver, 0.1 * rtol, ctx), metric);
   return ref;
 }
 

@@ -445,7 +445,9 @@ void WriteResultFile(const py::object& path_arg, const py::object& scene_arg, co
   OutputLock lock(*path, /*journal_folder=*/true, "path");  // UsageError: ValueError naming path
   py::gil_scoped_release release;
   CompareToReference(sys, ref ? &*ref : nullptr, scene.t_end, *metric, &rows);
-  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric, ref ? ref->error_estimate_m : -1.0);
+  // reference() estimates its error in the scene's default metric: known for that one only.
+  const double reference_error = ref && *metric == DefaultErrorMetric(scene) ? ref->error_estimate_m : -1.0;
+  const EqualAccuracyTable wp = WorkPrecision(rows, targets, baseline, *metric, reference_error);
   const RunTable table = MakeRunTable(scene, sys, ref, rows, frames, ref ? &wp : nullptr, *metric);
   WriteResults(*path, scene, sys, ref, rows, table, 1);
 }

@@ -281,12 +281,12 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   // hierarchy is never kept over more than kSystemKeepShare of the contacts
   // changed.
   if (system_valid_) {
-    const long applications = system_applications_ - applications_at_adapt_;
+    const long applications = contact_stats_.v_cycles - applications_at_adapt_;
     if (solves_since_setup_ == 1) baseline_applications_ = applications;
     if (solves_since_setup_ >= 1)
       stale_cycles_ += static_cast<double>(std::max(0L, applications - baseline_applications_));
   }
-  applications_at_adapt_ = system_applications_;
+  applications_at_adapt_ = contact_stats_.v_cycles;
   // A hierarchy that needs more V-cycles per solve than the other frame
   // mode's last one did is rebuilt at once (and so in the other mode):
   // trying a mode again costs one solve. So is the first hierarchy that has
@@ -295,7 +295,7 @@ bool Preconditioner::AdaptAmgTo(const SparseMatrix& a, const VelocityFilter& fil
   // round_table_1m at rest otherwise stayed in spread frames, 47–55 CG per
   // step, until the contacts changed; nearest-axis frames need 10–21).
   const auto mode = static_cast<std::size_t>(frame_mode_);
-  const long applied = system_applications_ - applications_at_setup_;
+  const long applied = contact_stats_.v_cycles - applications_at_setup_;
   const bool losing = amg_frames_ == AmgFrames::kAdaptive && system_valid_ && solves_since_setup_ >= 1 &&
                       applied > 0 &&
                       (mode_measured_[1 - mode] == 0.0 ||
@@ -380,12 +380,12 @@ void Preconditioner::SetUpContactHierarchy(const SparseMatrix& a, const Velocity
   // contacts have moved on (an untried mode is tried first).
   if (system_valid_ && solves_since_setup_ > 0) {
     mode_measured_[mode] = mode_rate_[mode] =
-        static_cast<double>(system_applications_ - applications_at_setup_) / solves_since_setup_;
+        static_cast<double>(contact_stats_.v_cycles - applications_at_setup_) / solves_since_setup_;
     mode_rate_[1 - mode] *= kFrameModeDecay;
     if (amg_frames_ == AmgFrames::kAdaptive && mode_rate_[1 - mode] < mode_rate_[mode])
       frame_mode_ = mode == 0 ? FrameMode::kSpread : FrameMode::kNearestAxis;
   }
-  applications_at_setup_ = system_applications_;
+  applications_at_setup_ = contact_stats_.v_cycles;
   ++contact_stats_.frame_setups[static_cast<std::size_t>(frame_mode_)];
   system_s_.swap(s_now_);
   fine_s_ = system_s_;
@@ -667,7 +667,6 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
         amg_->SolveSystem(rotated_r_, &rotated_z_);
         for (Eigen::Index p = 0; p < r.rows(); ++p)
           z->row(p) = rotated_z_.row(p) * frames_[static_cast<std::size_t>(p)].transpose();
-        ++system_applications_;
         ++contact_stats_.v_cycles;
         contact_stats_.v_cycle_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } else

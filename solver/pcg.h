@@ -322,11 +322,10 @@ class Preconditioner {
   std::vector<Eigen::Matrix3d> frames_;
   mutable MatrixN3 rotated_r_, rotated_z_;
   bool system_valid_ = false, system_used_ = false;
-  // The rebuild rule (AdaptAmgTo): V-cycles applied, the count at the last
-  // AdaptTo, solves since the last setup, the V-cycles of
-  // the first of them, the V-cycles beyond that count since the setup, and
-  // those expected of the next kept step.
-  mutable long system_applications_ = 0;
+  // The rebuild rule (AdaptAmgTo), on contact_stats_.v_cycles (the V-cycles
+  // applied): the count at the last AdaptTo, solves since the last setup,
+  // the V-cycles of the first of them, the V-cycles beyond that count since
+  // the setup, and those expected of the next kept step.
   long applications_at_adapt_ = 0, baseline_applications_ = 0;
   int solves_since_setup_ = 0;
   double stale_cycles_ = 0.0, stale_rate_ = 0.0;
