@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -47,13 +48,19 @@ struct Options {
   long max_runs = 0;
   std::string cvode_setting_arg;
   bool sweep_to_targets = false;
+  std::string sizes_arg;
 };
+
+// A --sweep-to-targets run's --time-limit when the command gives none [s]:
+// the sweep's runs are chosen by error, and a method whose next run takes
+// longer is stopped there with reason time_limit.
+constexpr double kSweepTimeLimit = 30.0;
 
 void AddOptions(CLI::App& app, Options& o) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets] = o;
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -131,11 +138,17 @@ void AddOptions(CLI::App& app, Options& o) {
       ->check(CLI::Range(1L, 1000000000L));
   app.add_option("--time-limit", time_limit,
                  "wall-time budget of each run [s] (default 3600): a run past it ends with status time_limit and the "
-                 "other rows still run and are written");
+                 "other rows still run and are written; with --sweep-to-targets or --sizes: 30)");
   app.add_flag("--sweep-to-targets", sweep_to_targets,
                "choose each method's h, substeps or rtol run by run from its errors against the reference until its "
                "runs bracket every --targets value, it fails, reaches --time-limit or stalls (instead of the fixed "
                "lists; docs/work-precision.md)");
+  app.add_option("--sizes", sizes_arg,
+                 "comma-separated particle counts, increasing: the scene's grid refined to about N particles each "
+                 "(sheet size, material per unit length and area, forces, constraints and t_end kept; "
+                 "docs/model.md, \"Resolution\"), a --sweep-to-targets run per size with its own result file "
+                 "(<out stem>.n<N>.h5), then the verdict across sizes in --out (default out/<scene>_sizes.h5, "
+                 "/scale_verdict; clothbench_inspect FILE verdict)");
   app.add_flag("--quiet", quiet, "no progress line on stderr (it is shown only when stderr is a terminal and a run takes "
                                  "more than 2 s)");
   app.add_option("--plot", plot_dir,
@@ -148,10 +161,12 @@ void AddOptions(CLI::App& app, Options& o) {
 // --time-limit, --repeat and --time-budget checked, by the rules of every
 // entry point (RunRequest::SweepScene).
 // @throws UsageError or SceneError, one line
-Scene SceneOfOptions(const CLI::App& app, const Options& o) {
+// @param size --sizes: the grid refined to about this many particles (RefineGrid) before the overrides
+Scene SceneOfOptions(const CLI::App& app, const Options& o, std::optional<long> size = std::nullopt) {
   RunRequest q;
   q.names = FieldNames::kOption;
   q.scene = o.scene_path.empty() ? DefaultScene() : LoadSceneOrBuiltin(o.scene_path);
+  if (size) q.scene = RefineGrid(q.scene, *size);
   if (app.count("--t-end")) q.t_end = o.t_end;
   q.frames = o.frames_mode;
   if (app.count("--cg-tolerance")) q.cg_tolerance = o.cg_tolerance;
@@ -180,14 +195,16 @@ CvodeSettings CvodeSettingsOf(const CLI::App& app, const std::string& cvode_sett
 // probes the file system and the memory): the scene and its overrides, the
 // rows and each planned run as a RunRequest, the output paths.
 // @param solvers, etas parsed --nonlinear-solver and --cg-tolerances (may be empty)
+// @param size --sizes: this size's refined grid (SceneOfOptions)
 // @throws UsageError or SceneError, one line
 BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver> solvers, std::vector<double> etas,
-                   SweepComm& comm, int argc, char** argv) {
+                   SweepComm& comm, int argc, char** argv, std::optional<long> size = std::nullopt) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets] = o;
-  Scene scene = SceneOfOptions(app, o);
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
+  if (sweep_to_targets && !app.count("--time-limit")) time_limit = kSweepTimeLimit;
+  Scene scene = SceneOfOptions(app, o, size);
   if (app.count("--integrators") && integrators_arg.empty())
     throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
   std::optional<RowMethod> reference_row;
@@ -295,7 +312,7 @@ int Main(int argc, char** argv) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets] = o;
+                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -340,6 +357,50 @@ int Main(int argc, char** argv) {
                             app.count("--preconditioner") ? std::optional(ParsePreconditioner(preconditioner, "--preconditioner"))
                                                           : std::nullopt,
                             solvers, etas, comm));
+    }
+    if (app.count("--sizes")) {
+      // One target sweep per size, then the verdict: every size planned
+      // (and refused) before the first computes.
+      std::vector<long> sizes;
+      for (double n : ParsePositiveList(sizes_arg, "--sizes")) {
+        if (n != std::floor(n) || n < 4 || n > kMaxParticles)
+          throw UsageError(fmt::format("--sizes: {:g} must be a whole number of particles from 4 to {:g}", n,
+                                       kMaxParticles));
+        if (!sizes.empty() && n <= static_cast<double>(sizes.back()))
+          throw UsageError(fmt::format("--sizes: {:g} must be larger than the size before it ({})", n, sizes.back()));
+        sizes.push_back(static_cast<long>(n));
+      }
+      for (const char* option : {"--series", "--max-runs"})
+        if (app.count(option)) throw UsageError(fmt::format("{}: cannot be combined with --sizes", option));
+      sweep_to_targets = true;
+      const std::string verdict_out =
+          out.empty() ? fmt::format("out/{}_sizes.h5", SceneOfOptions(app, o).name) : out;
+      if (std::filesystem::path(verdict_out).extension() != ".h5")
+        throw UsageError(fmt::format("--out: \"{}\" must end in .h5 with --sizes (the sizes' files are named after "
+                                     "it)", EscapeControl(verdict_out)));
+      std::vector<BenchRun> runs;
+      std::set<int> seen;
+      for (long n : sizes) {
+        Options size_options = o;
+        Scene refined = SceneOfOptions(app, o, n);
+        if (!seen.insert(refined.num_particles()).second)
+          throw UsageError(fmt::format("--sizes: {} gives the same {}×{} grid as a size before it", n,
+                                       refined.grid.nu, refined.grid.nv));
+        size_options.out = std::filesystem::path(verdict_out)
+                               .replace_extension(fmt::format("n{}.h5", refined.num_particles()))
+                               .string();
+        size_options.plot_dir.clear();  // the verdict's plot; scripts/plot draws a size's file
+        runs.push_back(PlanBench(app, size_options, solvers, etas, comm, argc, argv, n));
+        runs.back().keep_journal = true;
+      }
+      ProbeOnRoot(comm, [&] {
+        if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
+          throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
+      });
+      lock.emplace(verdict_out, comm);
+      std::vector<std::unique_ptr<OutputLock>> size_locks;
+      for (const BenchRun& r : runs) size_locks.push_back(std::make_unique<OutputLock>(r.out, comm));
+      return comm.RootStatus(RunSizes(runs, sizes, verdict_out, plot_dir, comm));
     }
     const BenchRun run = PlanBench(app, o, solvers, etas, comm, argc, argv);
     lock.emplace(run.out, comm);

@@ -5,6 +5,7 @@
 //   clothbench_inspect FILE.h5 table                the table bench_integrators printed
 //   clothbench_inspect FILE.h5 runs [--json]        one line (or JSON object) per run
 //   clothbench_inspect FILE.h5 work-precision [--error-metric final|l2|max]
+//   clothbench_inspect FILE.h5 verdict              the size × target verdict of a --sizes file
 //   clothbench_inspect A.h5 diff B.h5 [--rtol R] [--time-tolerance T]
 //   clothbench_inspect FILE.h5 export RUN --frame K (--obj OUT | --ply OUT)
 //   clothbench_inspect FILE.h5 rerun RUN [--out F]     recompute RUN in-process, compare bit for bit
@@ -32,6 +33,7 @@
 #include "results/result_reader.h"
 #include "results/run_records.h"
 #include "results/run_table.h"
+#include "results/scale_verdict.h"
 
 namespace clothbench {
 namespace {
@@ -78,6 +80,14 @@ void PrintSummary(const ResultReader& f, const RunTable& t) {
       for (const std::string& s : sub) list += (list.empty() ? "" : ", ") + s;
       fmt::print("  {}{}\n", c, list.empty() ? "" : ": " + list);
     }
+  }
+  if (f.Exists("/scale_verdict")) {
+    const ScaleVerdict v = ReadScaleVerdict(f);
+    std::string sizes;
+    for (long n : v.sizes) sizes += (sizes.empty() ? "" : ", ") + std::to_string(n);
+    fmt::print("scale verdict (bench_integrators --sizes): N = {}; {} methods × {} targets; each size's runs in "
+               "{} (clothbench_inspect FILE verdict)\n",
+               sizes, v.labels.size(), v.targets.size(), fmt::join(v.result_files, ", "));
   }
   if (!f.Exists("/scene")) return;
   fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, frame_dt = {:g} s, frames kept: {}\n",
@@ -267,7 +277,7 @@ struct Args {
   double rtol = 1e-6, time_tolerance = 0.5;
   ReproduceOptions reproduce;
   CLI::App *summary = nullptr, *table = nullptr, *runs = nullptr, *diff = nullptr, *exp = nullptr, *wp = nullptr,
-           *command = nullptr, *rerun_app = nullptr;
+           *command = nullptr, *rerun_app = nullptr, *verdict = nullptr;
 };
 
 void AddSubcommands(CLI::App& app, Args* a) {
@@ -295,6 +305,8 @@ void AddSubcommands(CLI::App& app, Args* a) {
   a->wp = app.add_subcommand("work-precision", "the equal-accuracy table, from the stored runs under an error "
                                                "norm of choice (same targets and baseline)");
   a->wp->add_option("--error-metric", a->metric, "final | l2 | max (default: the file's)");
+  a->verdict = app.add_subcommand("verdict", "the verdict of a bench_integrators --sizes file: per size and target "
+                                             "the fastest method, its solver time and its margin over the runner-up");
   a->command = app.add_subcommand("command", "a shell script that writes the file's scene text to a scene file "
                                              "and runs bench_integrators with exactly the settings of RUN");
   a->command->add_option("run", a->rerun, "run id (clothbench_inspect FILE runs)")->required();
@@ -368,6 +380,11 @@ int RunSubcommand(const Args& a) {
     Export(f, a.run, a.frame, a.obj, a.ply);
   } else if (a.wp->parsed()) {
     PrintWorkPrecisionAs(t, a.file, a.metric);
+  } else if (a.verdict->parsed()) {
+    if (!f.Exists("/scale_verdict"))
+      throw UsageError(fmt::format("verdict: {} has no /scale_verdict (written by bench_integrators --sizes)", a.file));
+    fmt::print("# {}: written {} by commit {}\n", a.file, t.created, t.git_commit);
+    PrintScaleVerdict(stdout, ReadScaleVerdict(f));
   } else if (a.rerun_app->parsed()) {
     return Rerun(f, t, a.rerun, a.rerun_out);
   } else if (a.command->parsed()) {

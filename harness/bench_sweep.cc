@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <iterator>
 #include <map>
 #include <optional>
@@ -19,6 +21,9 @@
 #include "harness/thesis_tables.h"
 #include "model/particle_system.h"
 #include "results/metrics.h"
+#include "results/result_file.h"
+#include "results/run_records.h"
+#include "results/scale_verdict.h"
 #include "results/run_table.h"
 #include "results/xdmf.h"
 
@@ -77,7 +82,8 @@ void ReportReferenceFailure(const BenchRun& b, bool self_convergence, double h_r
 // once the file is written, and kept (named in the error) if writing fails.
 void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optional<RunSummary>& ref,
                 std::vector<MethodRun>& rows, const SweepComm& comm,
-                RecordJournal& journal, const std::vector<std::string>& stop_reasons = {}) {
+                RecordJournal& journal, const std::vector<std::string>& stop_reasons = {},
+                EqualAccuracyTable* wp_out = nullptr) {
   CompareToReference(sys, ref ? &*ref : nullptr, b.scene.t_end, b.error_metric, &rows);
   EqualAccuracyTable wp =
       WorkPrecision(rows, b.targets, b.baseline, b.error_metric, ref ? ref->error_estimate_m : -1.0);
@@ -104,7 +110,8 @@ void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optiona
                            e.what(), kept, journal.path())
              : fmt::format("{}; no result file written", e.what()));
   }
-  journal.Remove();
+  if (!b.keep_journal) journal.Remove();
+  if (wp_out) *wp_out = wp;
   const std::string xdmf = WriteXdmf(b.out);
   fmt::print("results: {}\n", b.out);
   if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
@@ -248,7 +255,7 @@ std::string RungName(const RowMethod& m, const Rung& r) {
   }
 }
 
-int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
+int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
   std::vector<long> have = journal.Stored([&](long, const std::string& bytes) {
@@ -343,7 +350,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
     reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), reason, runs.size()));
     for (auto& [index, r] : runs) rows.push_back(std::move(r));
   }
-  WriteBench(b, sys, ref, rows, comm, journal, reasons);
+  WriteBench(b, sys, ref, rows, comm, journal, reasons, wp);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
   return 0;
 }
@@ -353,8 +360,8 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm) {
 // assembles, prints and writes; every finished task is journalled in
 // <out>.journal/, so that the same command rerun after an interruption
 // computes only the missing ones (harness/sweep.h).
-int RunBench(const BenchRun& b, SweepComm& comm) {
-  if (b.sweep_to_targets) return RunTargetSweep(b, comm);
+int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
+  if (b.sweep_to_targets) return RunTargetSweep(b, comm, wp);
   using Row = MethodRun;
   const std::vector<RowTask> row_tasks = RowTasks(b);
   const long n_ref = b.reference ? 1 : 0;
@@ -454,8 +461,61 @@ int RunBench(const BenchRun& b, SweepComm& comm) {
   AssembleRuns(std::move(received), journal, n_ref, row_tasks.size(), sys.num_particles(), &own_ref, &own_rows, &ref,
                &rows);
   if (ref && !ref->ok()) return reference_failed(*ref);
-  WriteBench(b, sys, ref, rows, comm, journal);
+  WriteBench(b, sys, ref, rows, comm, journal, {}, wp);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
+  return 0;
+}
+
+int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, const std::string& out,
+             const std::string& plot_dir, SweepComm& comm) {
+  std::vector<EqualAccuracyTable> tables;
+  std::vector<std::string> files;
+  for (std::size_t s = 0; s < runs.size(); ++s) {
+    const BenchRun& b = runs[s];
+    fmt::print("\n== N = {} ({}×{} particles, {}) ==\n", b.scene.num_particles(), b.scene.grid.nu, b.scene.grid.nv,
+               b.scene.name);
+    std::fflush(stdout);
+    EqualAccuracyTable wp;
+    const int status = RunBench(b, comm, &wp);
+    if (status != 0) {
+      fmt::print(stderr, "bench_integrators: --sizes: size {} ({} particles) ended with status {}; no verdict "
+                         "written (the finished sizes' runs stay in their journals: rerun the same command)\n",
+                 sizes[s], b.scene.num_particles(), status);
+      return status;
+    }
+    tables.push_back(std::move(wp));
+    files.push_back(std::filesystem::path(b.out).filename().string());
+  }
+  std::vector<long> particles;
+  for (const BenchRun& b : runs) particles.push_back(b.scene.num_particles());
+  const ScaleVerdict verdict = BuildScaleVerdict(particles, tables, files);
+  PrintScaleVerdict(stdout, verdict);
+  {
+    ResultFile f(out);
+    WriteProvenance(f);
+    f.SetAttribute("/", "mpi_ranks", static_cast<long>(comm.size()));
+    f.SetAttribute("/", "error_metric", verdict.metric);
+    for (std::size_t s = 0; s < runs.size(); ++s) {
+      const std::string g = fmt::format("/sizes/n{}", particles[s]);
+      f.CreateGroup(g);
+      f.SetAttribute(g, "n_particles", particles[s]);
+      f.SetAttribute(g, "nu", static_cast<long>(runs[s].scene.grid.nu));
+      f.SetAttribute(g, "nv", static_cast<long>(runs[s].scene.grid.nv));
+      f.SetAttribute(g, "scene_name", runs[s].scene.name);
+      f.SetAttribute(g, "result_file", files[s]);
+      f.WriteString(g + "/scene_toml", runs[s].scene.toml);
+      WriteWorkPrecision(f, tables[s], g + "/work_precision");
+    }
+    WriteScaleVerdict(f, verdict);
+    f.Commit();
+  }
+  // The sizes' journals served a resumed --sizes run; the verdict is written.
+  for (const BenchRun& b : runs) {
+    std::error_code ec;
+    std::filesystem::remove_all(b.out + ".journal", ec);
+  }
+  fmt::print("scale verdict: {}\n", out);
+  if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
   return 0;
 }
 

@@ -14,6 +14,7 @@
 #include "harness/plan.h"
 #include "harness/sweep.h"
 #include "model/scene.h"
+#include "results/work_precision.h"
 
 namespace clothbench {
 
@@ -45,6 +46,9 @@ struct BenchRun {
   /// --sweep-to-targets: each method's h, substeps or rtol chosen run by run
   /// until its runs bracket every target (RunBench; docs/work-precision.md).
   bool sweep_to_targets = false;
+  /// Keep <out>.journal after the file is written (--sizes: removed once
+  /// the verdict is written, so that a rerun finds every finished size).
+  bool keep_journal = false;
 };
 
 /// Times run `r` again with `run_again` until it has `repeat` timings (0:
@@ -61,7 +65,19 @@ void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function
 /// plots). @return 0, 1 if the reference failed, kExitPartial after
 /// --max-runs. @throws Interrupted on SIGINT/SIGTERM, std::runtime_error on
 /// an unreadable journal record or an unwritable file.
-int RunBench(const BenchRun& b, SweepComm& comm);
+/// @param wp if given, set to the equal-accuracy table written (rank 0)
+int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp = nullptr);
+
+/// --sizes (docs/work-precision.md, "The size axis"): RunBench for each of
+/// `runs` (one per size, increasing, each on its refined scene with its own
+/// result file and journal), then the verdict file `out`: per size
+/// /sizes/n<N> (its scene text, result file name and work_precision) and
+/// /scale_verdict (results/scale_verdict.h), printed and, with `plot_dir`,
+/// drawn. @return 0, or the first size's non-zero RunBench status (no
+/// verdict then; the finished sizes' journals are kept for a rerun)
+/// @throws as RunBench, and std::runtime_error if `out` cannot be written
+int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, const std::string& out,
+             const std::string& plot_dir, SweepComm& comm);
 
 /// bench_integrators' journal key: the scene's text and the command's arguments, except
 /// those that change no result (--max-runs, --plot, --quiet), so that a rerun

@@ -525,6 +525,37 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   return s;
 }
 
+Scene RefineGrid(const Scene& scene, long n) {
+  if (n < 4 || static_cast<double>(n) > kMaxParticles)
+    throw SceneError(fmt::format("{}: a refined grid must have 4 … {:g} particles (asked for {})", scene.source,
+                                 kMaxParticles, n));
+  for (const std::string& f : scene.fixed_specs)
+    if (f.rfind("particle:", 0) == 0)
+      throw SceneError(fmt::format("{}: constraints.fixed: \"{}\" names a particle by index, which does not follow "
+                                   "a refinement of the grid (use edge:… or corner:…)",
+                                   scene.source, EscapeControl(f)));
+  // nu·nv ≈ n with (nu − 1)/(nv − 1) = r, the scene's ratio: nu ≈ √(n r), nv ≈ √(n/r).
+  const double r = static_cast<double>(scene.grid.nu - 1) / static_cast<double>(scene.grid.nv - 1);
+  const int nu = std::max(2, static_cast<int>(std::lround(std::sqrt(static_cast<double>(n) * r))));
+  const int nv = std::max(2, static_cast<int>(std::lround(static_cast<double>(n) / nu)));
+  toml::table root;
+  try {
+    root = toml::parse(scene.toml, scene.source);
+  } catch (const toml::parse_error& e) {
+    throw SceneError(fmt::format("{}: TOML syntax error: {}", scene.source, std::string(e.description())));
+  }
+  toml::table* grid = root["grid"].as_table();
+  if (!grid) grid = root.insert_or_assign("grid", toml::table{}).first->second.as_table();
+  grid->insert_or_assign("nu", nu);
+  grid->insert_or_assign("nv", nv);
+  root.insert_or_assign("name", fmt::format("{}_{}x{}", scene.name, nu, nv));
+  std::ostringstream text;
+  text << fmt::format("# {} on a {}×{} grid (RefineGrid: bench_integrators --sizes)\n", scene.name, nu, nv) << root
+       << '\n';
+  Scene refined = ParseScene(text.str(), scene.source);
+  return refined;
+}
+
 Scene LoadScene(const std::string& path) {
   // A directory, a FIFO or a device is refused before it is opened (a FIFO
   // would block, /dev/null would read as an empty all-defaults scene).

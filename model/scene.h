@@ -141,6 +141,20 @@ Scene BuiltinScene(std::string_view name);
 /// A built-in scene if `arg` names one, else the scene file at path `arg`.
 Scene LoadSceneOrBuiltin(const std::string& arg);
 
+/// The scene on a finer or coarser grid of about `n` particles: nu and nv
+/// chosen so that nu·nv ≈ n with the rest spacings' ratio lu/lv of `scene`
+/// kept (nu − 1 : nv − 1 as in the scene, each at least 2), and the sheet's
+/// size, material (per unit length and area, docs/model.md §1, "Resolution"),
+/// forces, constraints, obstacles, h and t_end unchanged. The TOML text is
+/// rewritten (toml++; the comments are dropped) with the new [grid] nu, nv
+/// and the name "<name>_<nu>x<nv>", and parsed again by ParseScene, so the
+/// stored text reproduces the refined scene.
+/// @param n the particle count wanted, 4 … kMaxParticles
+/// @throws SceneError "<source>: constraints.fixed: …" if a fixed spec names
+///   particles by index ("particle:I,J" does not follow a refinement), or a
+///   ParseScene error of the rewritten text
+Scene RefineGrid(const Scene& scene, long n);
+
 /// Resolves a constraint spec ("edge:u0", "corner:u1v0", "particle:I,J") to
 /// flat indices. @throws SceneError naming `what` on a malformed spec.
 std::vector<int> ResolveFixed(const std::string& spec, int nu, int nv, const std::string& what);

@@ -70,9 +70,14 @@ void SetKey(toml::table& table, const std::string& path, const py::handle& value
 
 // A built-in name, a file path, or TOML text (if it contains a newline or
 // '='), with dotted-key overrides.
-Scene MakeScene(const std::string& what, const py::dict& overrides) {
+Scene MakeScene(const std::string& what, const py::dict& overrides, const py::object& particles) {
   const bool text = what.find('\n') != std::string::npos || what.find('=') != std::string::npos;
   Scene s = text ? ParseScene(what, "<python>") : LoadSceneOrBuiltin(what);
+  if (!particles.is_none()) {
+    if (!py::isinstance<py::int_>(particles) || py::isinstance<py::bool_>(particles))
+      throw py::type_error("particles: an int expected");
+    s = RefineGrid(s, particles.cast<long>());
+  }
   if (overrides.empty()) return s;
   toml::table t = toml::parse(s.toml);
   for (const auto& [k, v] : overrides) SetKey(t, k.cast<std::string>(), v);
@@ -198,7 +203,7 @@ Scene SceneArg(const py::object& scene, const py::object& overrides, const char*
   if (!overrides.is_none() && !py::isinstance<py::dict>(overrides))
     throw py::type_error("overrides: a dict of dotted keys expected");
   const py::dict o = overrides.is_none() ? py::dict() : overrides.cast<py::dict>();
-  if (py::isinstance<py::str>(scene)) return MakeScene(scene.cast<std::string>(), o);
+  if (py::isinstance<py::str>(scene)) return MakeScene(scene.cast<std::string>(), o, py::none());
   if (py::isinstance<Scene>(scene)) {
     if (!o.empty()) throw py::value_error("overrides: give them to load_scene() for a Scene object");
     return scene.cast<Scene>();
@@ -503,7 +508,7 @@ py::dict ReadResultFile(const std::string& path) {
 
 // The default run's parameters of a row: h [s] or rtol values.
 std::vector<double> DefaultParamsOf(const py::object& scene_arg, const std::string& method) {
-  const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict())
+  const Scene scene = py::isinstance<py::str>(scene_arg) ? MakeScene(scene_arg.cast<std::string>(), py::dict(), py::none())
                                                          : scene_arg.cast<Scene>();
   const std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
   const DefaultParams d = DefaultRowParams(rows.front());
@@ -542,8 +547,11 @@ PYBIND11_MODULE(clothbench, m) {
       .def_readonly("toml", &Scene::toml)
       .def_property_readonly("num_particles", &Scene::num_particles);
   m.def("load_scene", &MakeScene, py::arg("scene"), py::arg("overrides") = py::dict(),
-        "A built-in scene by name, a TOML file, or TOML text; `overrides` sets dotted keys "
-        "({'material.density': 0.2}). Raises ValueError (SceneError) on bad input.");
+        py::arg("particles") = py::none(),
+        "A built-in scene by name, a TOML file, or TOML text; `particles` refines its grid to about that many "
+        "particles, as bench_integrators --sizes does (sheet, material per unit length and area, constraints and "
+        "t_end kept; docs/model.md, Resolution); `overrides` then sets dotted keys ({'material.density': 0.2}). "
+        "Raises ValueError (SceneError) on bad input.");
   m.def("methods", [] {
     std::vector<std::string> names;
     for (const MethodEntry& e : Registry()) names.emplace_back(e.name);

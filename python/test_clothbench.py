@@ -40,6 +40,20 @@ def test_overrides_and_toml_text():
     assert not np.array_equal(c["positions"][-1], b["positions"][-1])
 
 
+def test_load_scene_refines_the_grid_as_bench_integrators_sizes():
+    fine = clothbench.load_scene("swinging_sheet", particles=2500, overrides={"t_end": 0.05})
+    assert fine.num_particles == 2500 and fine.name == "swinging_sheet_50x50" and fine.t_end == 0.05
+    assert "nu = 50" in fine.toml
+    r = clothbench.run(fine, "sbdf2", h=0.01)
+    assert r["positions"].shape[1] == 2500
+    with pytest.raises(ValueError, match="constraints.fixed"):
+        clothbench.load_scene('[constraints]\nfixed = ["particle:1,1"]\n', particles=400)
+    with pytest.raises(ValueError):
+        clothbench.load_scene("swinging_sheet", particles=3)
+    with pytest.raises(TypeError, match="particles"):
+        clothbench.load_scene("swinging_sheet", particles=400.0)
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ValueError):
         clothbench.load_scene("swinging_sheet", {"material.no_such_key": 1.0})

@@ -12,6 +12,7 @@
 
 #include "model/scene.h"
 #include "results/result_reader.h"
+#include "results/scale_verdict.h"
 #include "results/run_records.h"
 
 namespace clothbench {
@@ -149,6 +150,10 @@ RunTable ValidateResultFile(const ResultReader& f) {
   if (runs && !f.Exists("/scene")) Broken(f, "/scene", "missing, but the file holds runs");
   if (f.Exists("/reference")) CheckRun(f, "/reference", n);
   for (const std::string& id : f.Children("/runs")) CheckRun(f, "/runs/" + id, n);
+  if (f.Exists("/scale_verdict")) {
+    CheckAttributes(f, "/scale_verdict");
+    (void)ReadScaleVerdict(f);  // shapes, labels and values
+  }
   if (f.Exists("/work_precision")) {
     CheckAttributes(f, "/work_precision");
     for (const char* d : {"targets", "solver_time", "ratio", "min_error"})

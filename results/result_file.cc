@@ -5,6 +5,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -174,6 +175,33 @@ void ResultFile::WriteTable(const std::string& path, int rows, int cols, const s
 void ResultFile::WriteTable(const std::string& path, int rows, int cols, const std::vector<int32_t>& values) {
   const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
   WriteRaw(file_, path_, path, 2, dims, H5T_STD_I32LE, H5T_NATIVE_INT32, values.data(), values.empty());
+}
+
+void ResultFile::WriteArray3(const std::string& path, const std::array<std::size_t, 3>& dims,
+                             const std::vector<double>& values, const std::string& units) {
+  RequireFinite(values.data(), values.size(), path, path_);
+  const hsize_t d[3] = {dims[0], dims[1], dims[2]};
+  WriteRaw(file_, path_, path, 3, d, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, values.data(), values.empty());
+  if (!units.empty()) SetAttribute(path, "units", units);
+}
+
+void ResultFile::WriteArray3(const std::string& path, const std::array<std::size_t, 3>& dims,
+                             const std::vector<int32_t>& values) {
+  const hsize_t d[3] = {dims[0], dims[1], dims[2]};
+  WriteRaw(file_, path_, path, 3, d, H5T_STD_I32LE, H5T_NATIVE_INT32, values.data(), values.empty());
+}
+
+void ResultFile::WriteStrings(const std::string& path, int rows, int cols, const std::vector<std::string>& values) {
+  std::size_t width = 1;
+  for (const std::string& v : values) width = std::max(width, v.size());
+  Handle type{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(type.id, width);
+  H5Tset_strpad(type.id, H5T_STR_NULLPAD);
+  H5Tset_cset(type.id, H5T_CSET_UTF8);
+  std::string buf(values.size() * width, '\0');
+  for (std::size_t k = 0; k < values.size(); ++k) values[k].copy(buf.data() + k * width, values[k].size());
+  const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
+  WriteRaw(file_, path_, path, 2, dims, type.id, type.id, buf.data(), values.empty());
 }
 
 void ResultFile::WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units) {

@@ -7,6 +7,7 @@
 #ifndef CLOTHBENCH_RESULTS_RESULT_FILE_H_
 #define CLOTHBENCH_RESULTS_RESULT_FILE_H_
 
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <stdexcept>
@@ -71,6 +72,14 @@ class ResultFile {
   /// 2-D row-major table [rows, cols] of float64 or int32.
   void WriteTable(const std::string& path, int rows, int cols, const std::vector<double>& values, const std::string& units);
   void WriteTable(const std::string& path, int rows, int cols, const std::vector<int32_t>& values);
+  /// 3-D row-major array [d0, d1, d2] of float64 (every value finite).
+  void WriteArray3(const std::string& path, const std::array<std::size_t, 3>& dims, const std::vector<double>& values,
+                   const std::string& units);
+  /// 3-D row-major array [d0, d1, d2] of int32.
+  void WriteArray3(const std::string& path, const std::array<std::size_t, 3>& dims, const std::vector<int32_t>& values);
+  /// 2-D row-major table [rows, cols] of fixed-length, NUL-padded UTF-8
+  /// strings (width: the longest value; h5py reads them as bytes).
+  void WriteStrings(const std::string& path, int rows, int cols, const std::vector<std::string>& values);
   /// [F, 3] float64 from F 3-vectors.
   void WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units);
   /// Compound table (t, h, updates, cg_iterations, status, colliding, solve_time_s, setup_time_s) [S].

@@ -286,6 +286,29 @@ std::string ResultReader::Text(const std::string& dataset) const {
   return text;
 }
 
+std::vector<std::string> ResultReader::Strings(const std::string& dataset) const {
+  if (!Exists(dataset)) throw ResultError(fmt::format("{}: no dataset {}", path_, dataset));
+  const std::vector<std::size_t> shape = Shape(dataset);
+  Handle ds{H5Dopen2(file_, dataset.c_str(), H5P_DEFAULT), H5Dclose};
+  Handle type{H5Dget_type(ds.id), H5Tclose};
+  if (ds.id < 0 || H5Tget_class(type.id) != H5T_STRING || H5Tis_variable_str(type.id) > 0)
+    throw ResultError(fmt::format("{}: {} is not a table of fixed-length strings", path_, dataset));
+  const std::size_t width = H5Tget_size(type.id);
+  if (width == 0) throw ResultError(fmt::format("{}: {} has strings of width 0", path_, dataset));
+  std::vector<std::size_t> bytes = shape;
+  bytes.push_back(width);
+  std::string buf(CheckedCount(ds.id, path_, dataset, bytes, 1), '\0');
+  if (!buf.empty() && H5Dread(ds.id, type.id, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data()) < 0)
+    throw ResultError(fmt::format("{}: cannot read {}", path_, dataset));
+  std::vector<std::string> out;
+  for (std::size_t k = 0; k + width <= buf.size(); k += width) {
+    std::string v = buf.substr(k, width);
+    v.erase(std::find(v.begin(), v.end(), '\0'), v.end());
+    out.push_back(std::move(v));
+  }
+  return out;
+}
+
 MatrixN3 ResultReader::Frame(const std::string& dataset, std::size_t k) const {
   const std::vector<std::size_t> shape = Shape(dataset);
   if (shape.size() != 3 || shape[2] != 3) throw ResultError(fmt::format("{}: {} is not [F, N, 3]", path_, dataset));

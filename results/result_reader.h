@@ -54,6 +54,10 @@ class ResultReader {
   /// trailing NUL padding removed. @throws ResultError if missing or not a
   /// string.
   std::string Text(const std::string& dataset) const;
+  /// A table of fixed-length strings (ResultFile::WriteStrings), flattened
+  /// row-major, each value's NUL padding removed. @throws ResultError if
+  /// missing or not fixed-length strings.
+  std::vector<std::string> Strings(const std::string& dataset) const;
   /// Frame k of an [F, N, 3] dataset as N×3. @throws ResultError if k ≥ F or a value is not finite.
   MatrixN3 Frame(const std::string& dataset, std::size_t k) const;
   /// A step_stats table. @throws ResultError if missing.

@@ -208,19 +208,19 @@ void WriteSceneRecord(ResultFile& f, const RunTable& t) {
   }
 }
 
-void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
-  f.CreateGroup("/work_precision");
-  f.SetAttribute("/work_precision", "baseline", t.reference);
-  f.SetAttribute("/work_precision", "error_metric", t.metric);
-  f.SetAttribute("/work_precision", "measure",
+void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t, const std::string& g) {
+  f.CreateGroup(g);
+  f.SetAttribute(g, "baseline", t.reference);
+  f.SetAttribute(g, "error_metric", t.metric);
+  f.SetAttribute(g, "measure",
                  std::string("solver_time_s at e_rms(t_end) = target on each method's lower envelope of (error, "
                              "solver_time_s) runs, log-log interpolation between adjacent envelope runs; upper_bound 1: "
                              "the cheapest run already meets the target (cost <= that run's); -1 where no run reaches "
                              "the target (min_error: the smallest error reached, -1 if every run failed)"));
-  f.WriteVector("/work_precision/targets", t.targets, "m");
+  f.WriteVector(g + "/targets", t.targets, "m");
   std::string labels;
   for (const std::string& l : t.labels) labels += (labels.empty() ? "" : ",") + l;
-  f.SetAttribute("/work_precision", "labels", labels);
+  f.SetAttribute(g, "labels", labels);
   const int rows = static_cast<int>(t.labels.size()), cols = static_cast<int>(t.targets.size());
   std::vector<double> cost, ratio, min_error;
   std::vector<int32_t> bound;
@@ -232,29 +232,29 @@ void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t) {
     }
     min_error.push_back(m < t.min_error.size() && t.min_error[m] ? *t.min_error[m] : -1.0);
   }
-  f.WriteTable("/work_precision/solver_time", rows, cols, cost, "s");
-  f.WriteTable("/work_precision/ratio", rows, cols, ratio, "");
-  f.WriteTable("/work_precision/upper_bound", rows, cols, bound);
-  f.WriteVector("/work_precision/min_error", min_error, "m");
+  f.WriteTable(g + "/solver_time", rows, cols, cost, "s");
+  f.WriteTable(g + "/ratio", rows, cols, ratio, "");
+  f.WriteTable(g + "/upper_bound", rows, cols, bound);
+  f.WriteVector(g + "/min_error", min_error, "m");
   // unresolved [T]: 1 where the target is below 10× the reference's error
   // estimate (no cost given there); the estimate itself, −1 if unknown.
   std::vector<int32_t> unresolved;
   for (std::size_t j = 0; j < static_cast<std::size_t>(cols); ++j)
     unresolved.push_back(j < t.unresolved.size() && t.unresolved[j] ? 1 : 0);
-  f.WriteTable("/work_precision/unresolved", 1, cols, unresolved);
-  f.SetAttribute("/work_precision", "reference_error_estimate_m", t.reference_error_m);
+  f.WriteTable(g + "/unresolved", 1, cols, unresolved);
+  f.SetAttribute(g, "reference_error_estimate_m", t.reference_error_m);
   if (!t.stop_reasons.empty()) {  // --sweep-to-targets: one line per method
     std::string lines;
     for (const std::string& r : t.stop_reasons) lines += (lines.empty() ? "" : "\n") + r;
-    f.SetAttribute("/work_precision", "stop_reasons", lines);
+    f.SetAttribute(g, "stop_reasons", lines);
   }
   // tied [T, M]: 1 where the method is tied with the fastest at the target.
   std::vector<int32_t> tied(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows), 0);
   for (std::size_t j = 0; j < t.tied.size(); ++j)
     for (int m : t.tied[j]) tied[j * static_cast<std::size_t>(rows) + static_cast<std::size_t>(m)] = 1;
-  f.WriteTable("/work_precision/tied", cols, rows, tied);
+  f.WriteTable(g + "/tied", cols, rows, tied);
   std::vector<int32_t> fastest(t.fastest.begin(), t.fastest.end());
-  f.WriteTable("/work_precision/fastest", 1, cols, fastest);
+  f.WriteTable(g + "/fastest", 1, cols, fastest);
 }
 
 }  // namespace clothbench

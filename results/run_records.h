@@ -26,9 +26,11 @@ RunRecord ReadRunRecord(const ResultReader& file, const std::string& group, cons
 /// Writes the /scene attributes and solver settings that RunTable holds
 /// (the group must exist).
 void WriteSceneRecord(ResultFile& file, const RunTable& table);
-/// Writes /work_precision: targets, labels, solver_time, ratio_to_cvode,
-/// fastest (−1 where a cell is empty).
-void WriteWorkPrecision(ResultFile& file, const EqualAccuracyTable& table);
+/// Writes the group `group` (/work_precision; /sizes/n<N>/work_precision in
+/// a --sizes verdict file): targets, labels, solver_time, ratio, fastest
+/// (−1 where a cell is empty).
+void WriteWorkPrecision(ResultFile& file, const EqualAccuracyTable& table,
+                        const std::string& group = "/work_precision");
 
 }  // namespace clothbench
 

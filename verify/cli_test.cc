@@ -20,6 +20,7 @@
 #include "model/scene.h"
 #include "results/result_file.h"
 #include "results/result_reader.h"
+#include "results/scale_verdict.h"
 #include "results/run_records.h"
 #include "results/run_table.h"
 #include "verify/cli_helpers.h"
@@ -476,6 +477,63 @@ TEST(BenchCli, SweepToTargetsBracketsEveryTargetOrSaysWhy) {
     EXPECT_NE(refused.err.find(std::string(option).substr(0, std::string(option).find(' '))), std::string::npos)
         << refused.err;
   }
+}
+
+// --sizes: one target sweep per size on the refined grid, each size's
+// file, and the verdict file whose /scale_verdict holds every size's fastest
+// method per target with its cost, read back and printed by
+// clothbench_inspect verdict; combinations it cannot honour are refused.
+TEST(BenchCli, SizesWriteOneFilePerSizeAndTheScaleVerdict) {
+  const fs::path out = TempDir() / "sizes.h5";
+  const std::string common =
+      " --integrators sbdf2,cvode --t-end 0.2 --targets 1e-2,1e-3 --repeat 1 --frames none --quiet";
+  const Outcome o = RunBench(common + " --sizes 100,400 --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  EXPECT_NE(o.out.find("Scale verdict"), std::string::npos) << o.out;
+  for (const char* size : {"n100", "n400"}) {
+    const fs::path f = TempDir() / (std::string("sizes.") + size + ".h5");
+    ASSERT_TRUE(fs::exists(f)) << f;
+    EXPECT_FALSE(fs::exists(f.string() + ".journal")) << "a size's journal outlived the verdict";
+    const RunTable t = ReadRunTable(ResultReader(f.string()));
+    EXPECT_EQ(t.n_particles, size == std::string("n100") ? 100 : 400);
+    ASSERT_TRUE(t.work_precision.has_value());
+    EXPECT_EQ(t.work_precision->stop_reasons.size(), 2u);  // the sizes are target sweeps
+  }
+  const ResultReader r(out.string());
+  (void)ValidateResultFile(r);
+  const ScaleVerdict v = ReadScaleVerdict(r);
+  ASSERT_EQ(v.sizes, (std::vector<long>{100, 400}));
+  ASSERT_EQ(v.targets, (std::vector<double>{1e-2, 1e-3}));
+  ASSERT_EQ(v.labels, (std::vector<std::string>{"sbdf2", "cvode"}));
+  EXPECT_TRUE(r.Exists("/sizes/n100/work_precision/solver_time"));
+  for (std::size_t s = 0; s < 2; ++s)
+    for (std::size_t j = 0; j < 2; ++j) {
+      // Both rows bracket 1e-2 and 1e-3 m on these sheets: a fastest with the least cost.
+      ASSERT_GE(v.fastest[s][j], 0) << s << " " << j;
+      const double best = *v.cost[s][j][static_cast<std::size_t>(v.fastest[s][j])];
+      for (std::size_t m = 0; m < 2; ++m)
+        if (v.cost[s][j][m]) {
+          EXPECT_LE(best, *v.cost[s][j][m]);
+        }
+      if (v.margin[s][j]) {
+        EXPECT_GE(*v.margin[s][j], 1.0);
+      }
+    }
+  const Outcome printed = testing::RunCommand(CLOTHBENCH_INSPECT_BINARY, out.string() + " verdict", TempDir());
+  ASSERT_EQ(printed.exit_code, 0) << printed.err;
+  EXPECT_NE(printed.out.find("Scale verdict"), std::string::npos) << printed.out;
+  EXPECT_NE(printed.out.find("      400 "), std::string::npos) << printed.out;
+  for (const char* bad : {"--sizes 400,100", "--sizes 100,2.5", "--sizes 100 --h 0.01", "--sizes 100 --series x.csv",
+                          "--sizes 100,101"}) {
+    const Outcome refused = RunBench(common + " " + bad + " --out " + out.string());
+    EXPECT_EQ(refused.exit_code, 2) << bad << ": " << refused.err;
+    EXPECT_EQ(std::count(refused.err.begin(), refused.err.end(), '\n'), 1) << refused.err;
+  }
+  const Outcome particle = RunBench(
+      common + " --sizes 100 --scene " +
+      WriteScene("indexed.toml", "[constraints]\nfixed = [\"particle:1,1\"]\n") + " --out " + out.string());
+  EXPECT_EQ(particle.exit_code, 2);
+  EXPECT_NE(particle.err.find("constraints.fixed"), std::string::npos) << particle.err;
 }
 
 // A contact scene's equal-accuracy table: against the stated
