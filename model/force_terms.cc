@@ -9,6 +9,7 @@
 #include "model/block_scatter.h"
 
 #include <array>
+#include <type_traits>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -167,8 +168,10 @@ struct LinearWeights {
 // AddTo's `negate(entry)` says which entries are subtracted.
 struct GatherLists {
   GatherLists() = default;
+  // @param with_buffer false: the caller keeps its own values (entries
+  // only; ShearKernel's pair buffer)
   template <class NodeOf>
-  GatherLists(int num_particles, std::size_t items, int outputs, NodeOf node) {
+  GatherLists(int num_particles, std::size_t items, int outputs, NodeOf node, bool with_buffer = true) {
     offsets.assign(static_cast<std::size_t>(num_particles) + 1, 0);
     for (std::size_t c = 0; c < items; ++c)
       for (int k = 0; k < outputs; ++k) ++offsets[static_cast<std::size_t>(node(c, k)) + 1];
@@ -179,7 +182,7 @@ struct GatherLists {
       for (int k = 0; k < outputs; ++k)
         entries[static_cast<std::size_t>(fill[static_cast<std::size_t>(node(c, k))]++)] =
             static_cast<int>(c) * outputs + k;
-    buffer.assign(3 * items * static_cast<std::size_t>(outputs), 0.0);
+    if (with_buffer) buffer.assign(3 * items * static_cast<std::size_t>(outputs), 0.0);
   }
   // f(p) += Σ buffer entries of p, in item order; `negate(e)` says whether
   // entry e is subtracted.
@@ -217,6 +220,8 @@ struct GatherLists {
   std::vector<double> buffer;
 };
 
+struct ShearKernel;  // its outputs come in pairs (StencilTerm's gather reads them so)
+
 // Generic term over per-centre stencils of K particles; the kernel writes
 // forces into the first Kernel::kOutputs slots, and its closed-form
 // Jacobian as Kernel::kBlocks 3×3 blocks ∂f_a/∂x_b (and ∂f_a/∂v_b) for the
@@ -234,9 +239,19 @@ class StencilTerm final : public ForceTerm {
 
   StencilTerm(std::string name, Kernel kernel, std::vector<Centre> centres, int num_particles)
       : name_(std::move(name)), kernel_(std::move(kernel)), centres_(std::move(centres)) {
-    if (Kernel::kOutputs > 1 && static_cast<int>(centres_.size()) >= kParallelMinimum)
+    if constexpr (std::is_same_v<Kernel, ShearKernel>) {
+      // Outputs 1–4 only (the centre's output 0 is always zero), their
+      // values read from the per-centre pair (ShearKernel::Pair).
+      if (static_cast<int>(centres_.size()) >= kParallelMinimum) {
+        gather_ = GatherLists(
+            num_particles, centres_.size(), 4,
+            [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k) + 1]; }, false);
+        pairs_.assign(6 * centres_.size(), 0.0);
+      }
+    } else if (Kernel::kOutputs > 1 && static_cast<int>(centres_.size()) >= kParallelMinimum) {
       gather_ = GatherLists(num_particles, centres_.size(), Kernel::kOutputs,
                             [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
+    }
     if constexpr (Kernel::kLinear) {
       // One weight set per validity mask (a grid has a few dozen).
       weight_set_.resize(centres_.size());
@@ -257,26 +272,102 @@ class StencilTerm final : public ForceTerm {
   std::string_view name() const override { return name_; }
   bool depends_on_velocity() const override { return kernel_.uses_velocity(); }
 
+  /// A linear kernel on GridCentres of an nu × nv grid: the centres whose
+  /// K slots all exist (2 ≤ i < nu − 2 for the thin plate, 1 ≤ i < nu − 1
+  /// for the membrane, the same in j) are evaluated row by row
+  /// (AddInterior), the others one by one (Evaluate).
+  void UseGridRows(int nu, int nv) {
+    static_assert(Kernel::kLinear);
+    constexpr int r = K == 13 ? 2 : 1;
+    nu_ = nu;
+    const std::uint32_t full = (1u << K) - 1u;
+    full_weights_ = kernel_.Weights(full);
+    interior_rows_ = std::max(0, nv - 2 * r);
+    if (nu - 2 * r <= 0) interior_rows_ = 0;
+    border_.clear();
+    for (std::size_t c = 0; c < centres_.size(); ++c) {
+      const int i = static_cast<int>(c) % nu, j = static_cast<int>(c) / nu;
+      if (interior_rows_ == 0 || i < r || i >= nu - r || j < r || j >= nv - r) border_.push_back(c);
+    }
+  }
+
   // Serial below kParallelMinimum centres. Above it, the centres are split
   // over the OpenMP threads: a kernel with one output writes only its own
   // centre particle; one with several writes its outputs to a buffer, and
   // each particle then sums its entries in centre order. Either way every
   // force is summed in the serial order: bit-identical for any thread count.
   void AddForce(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const override {
+    if constexpr (Kernel::kLinear) {
+      if (!border_.empty() || interior_rows_ > 0) {
+        AddInterior(x, v, f);
+        for (std::size_t c : border_) {
+          std::array<Vector3, 1> fs;
+          Evaluate(t, x, v, c, &fs);
+          f->row(centres_[c].nodes[0]) += fs[0].transpose();
+        }
+        return;
+      }
+    }
     const auto n = static_cast<std::ptrdiff_t>(centres_.size());
     if (n < kParallelMinimum) {
       for (std::ptrdiff_t c = 0; c < n; ++c) {
         std::array<Vector3, Kernel::kOutputs> fs;
-        Evaluate(t, x, v, centres_[static_cast<std::size_t>(c)], &fs);
+        Evaluate(t, x, v, static_cast<std::size_t>(c), &fs);
         for (int k = 0; k < Kernel::kOutputs; ++k) f->row(centres_[static_cast<std::size_t>(c)].nodes[k]) += fs[k].transpose();
       }
       return;
     }
-    if constexpr (Kernel::kOutputs == 1) {
+    if constexpr (std::is_same_v<Kernel, ShearKernel>) {
+      // Per centre the pair (fu, fv): outputs 1–4 are −fu, +fu, −fv, +fv.
+      // Each particle then sums its entries in centre order, as the
+      // buffered gather below does (a − fu is a + (−fu) to the bit).
+      double* pairs = pairs_.data();
+      const bool with_v = kernel_.uses_velocity();
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t c = 0; c < n; ++c) {
+        const Centre& ce = centres_[static_cast<std::size_t>(c)];
+        std::array<Vector3, 5> xs, vs;
+        for (std::size_t k = 0; k < 5; ++k) {
+          xs[k] = x.row(ce.nodes[k]).transpose();
+          if (with_v) vs[k] = v.row(ce.nodes[k]).transpose();
+          else vs[k].setZero();
+        }
+        Vector3 fu, fv;
+        kernel_.template Pair<double>(ce.valid, xs, vs, &fu, &fv);
+        Eigen::Map<Vector3>(pairs + 6 * c) = fu;
+        Eigen::Map<Vector3>(pairs + 6 * c + 3) = fv;
+      }
+      const auto np = static_cast<std::ptrdiff_t>(gather_.offsets.size()) - 1;
+      double* f0 = f->col(0).data();
+      double* f1 = f->col(1).data();
+      double* f2 = f->col(2).data();
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t p = 0; p < np; ++p) {
+        double a0 = f0[p], a1 = f1[p], a2 = f2[p];
+        for (int q = gather_.offsets[static_cast<std::size_t>(p)]; q < gather_.offsets[static_cast<std::size_t>(p) + 1];
+             ++q) {
+          const int e = gather_.entries[static_cast<std::size_t>(q)];
+          const int k = e & 3;  // output k + 1
+          const double* b = pairs + 6 * static_cast<std::size_t>(e >> 2) + (k < 2 ? 0 : 3);
+          if ((k & 1) == 0) {
+            a0 -= b[0];
+            a1 -= b[1];
+            a2 -= b[2];
+          } else {
+            a0 += b[0];
+            a1 += b[1];
+            a2 += b[2];
+          }
+        }
+        f0[p] = a0;
+        f1[p] = a1;
+        f2[p] = a2;
+      }
+    } else if constexpr (Kernel::kOutputs == 1) {
 #pragma omp parallel for schedule(static)
       for (std::ptrdiff_t c = 0; c < n; ++c) {
         std::array<Vector3, 1> fs;
-        Evaluate(t, x, v, centres_[static_cast<std::size_t>(c)], &fs);
+        Evaluate(t, x, v, static_cast<std::size_t>(c), &fs);
         f->row(centres_[static_cast<std::size_t>(c)].nodes[0]) += fs[0].transpose();
       }
     } else {
@@ -284,7 +375,7 @@ class StencilTerm final : public ForceTerm {
 #pragma omp parallel for schedule(static)
       for (std::ptrdiff_t c = 0; c < n; ++c) {
         std::array<Vector3, Kernel::kOutputs> fs;
-        Evaluate(t, x, v, centres_[static_cast<std::size_t>(c)], &fs);
+        Evaluate(t, x, v, static_cast<std::size_t>(c), &fs);
         for (int k = 0; k < Kernel::kOutputs; ++k)
           Eigen::Map<Vector3>(buffer + 3 * (c * Kernel::kOutputs + k)) = fs[static_cast<std::size_t>(k)];
       }
@@ -416,22 +507,117 @@ class StencilTerm final : public ForceTerm {
     }
   }
 
-  void Evaluate(double t, const MatrixN3& x, const MatrixN3& v, const Centre& c,
+  // The force of centre `ci`. A linear kernel (the bending models) takes
+  // its curvature s = Σ_k wx_k x_k (+ Σ_k wv_k v_k with damping) from the
+  // per-mask weights that its Jacobian uses (WeightsOf: the same operator
+  // as Stiff/Damp, summed in slot order) and projects it on the normal:
+  // one multiply-add per slot instead of the nested second differences,
+  // and v is read only with damping.
+  void Evaluate(double t, const MatrixN3& x, const MatrixN3& v, std::size_t ci,
                 std::array<Vector3, Kernel::kOutputs>* out) const {
+    const Centre& c = centres_[ci];
+    if constexpr (Kernel::kLinear) {
+      const LinearWeights<K>& w = weights_[static_cast<std::size_t>(weight_set_[ci])];
+      std::array<Vector3, K> xs;
+      Vector3 s = Vector3::Zero();
+      for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+        xs[k] = x.row(c.nodes[k]).transpose();
+        s += w.x[k] * xs[k];
+      }
+      if (kernel_.damping != 0.0)
+        for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.v[k] * v.row(c.nodes[k]).transpose();
+      const Vector3 n = Patch<double, K>{xs, c.valid}.Normal();
+      (*out)[0] = (Kernel::kProjectionSign * s.dot(n) * (kernel_.lu * kernel_.lv)) * n;
+      return;
+    }
     std::array<Vector3, K> xs, vs, fs;
+    const bool with_v = kernel_.uses_velocity();  // else v is not read (the kernel does not)
     for (int k = 0; k < K; ++k) {
       xs[k] = x.row(c.nodes[k]).transpose();
-      vs[k] = v.row(c.nodes[k]).transpose();
+      if (with_v) vs[k] = v.row(c.nodes[k]).transpose();
+      else vs[k].setZero();
       fs[k].setZero();
     }
     kernel_.template Evaluate<double>(t, c.valid, c.weight, xs, vs, fs);
     for (int k = 0; k < Kernel::kOutputs; ++k) (*out)[static_cast<std::size_t>(k)] = fs[static_cast<std::size_t>(k)];
   }
 
+  // The interior centres (UseGridRows), one grid row after another: the
+  // curvature s = Σ_k wx_k x_{p+o_k} (+ Σ_k wv_k v_{p+o_k}) with the full
+  // mask's weights and flat offsets o_k = di + nu·dj, the unit normal as
+  // Patch::Normal (the four quads' unit normals in the same order, their
+  // sum normalised; each normalisation one division and three products), and f_p += ±A (s·n̂) n̂. The loop over i reads
+  // contiguous columns, so the compiler vectorises it; each centre writes
+  // only its own particle, so rows run on the OpenMP threads with a result
+  // independent of the thread count.
+  void AddInterior(const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
+    constexpr int r = K == 13 ? 2 : 1;
+    const std::ptrdiff_t nu = nu_;
+    std::array<std::ptrdiff_t, K> off{};
+    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) off[k] = kOffsets[k][0] + nu * kOffsets[k][1];
+    const std::array<double, K> wx = full_weights_.x, wv = full_weights_.v;
+    const double scale = Kernel::kProjectionSign * (kernel_.lu * kernel_.lv);
+    const bool damp = kernel_.damping != 0.0;
+    const double* __restrict x0 = x.col(0).data();
+    const double* __restrict x1 = x.col(1).data();
+    const double* __restrict x2 = x.col(2).data();
+    const double* __restrict v0 = v.col(0).data();
+    const double* __restrict v1 = v.col(1).data();
+    const double* __restrict v2 = v.col(2).data();
+    double* __restrict f0 = f->col(0).data();
+    double* __restrict f1 = f->col(1).data();
+    double* __restrict f2 = f->col(2).data();
+    const std::ptrdiff_t rows = interior_rows_;
+#pragma omp parallel for schedule(static) if (rows * nu >= kParallelMinimum)
+    for (std::ptrdiff_t jr = 0; jr < rows; ++jr) {
+      const std::ptrdiff_t first = (jr + r) * nu + r, last = (jr + r) * nu + nu - r;
+      for (std::ptrdiff_t p = first; p < last; ++p) {
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+        for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+          s0 += wx[k] * x0[p + off[k]];
+          s1 += wx[k] * x1[p + off[k]];
+          s2 += wx[k] * x2[p + off[k]];
+        }
+        if (damp)
+          for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+            s0 += wv[k] * v0[p + off[k]];
+            s1 += wv[k] * v1[p + off[k]];
+            s2 += wv[k] * v2[p + off[k]];
+          }
+        double n0 = 0.0, n1 = 0.0, n2 = 0.0;
+        for (int si : {1, -1})
+          for (int ti : {1, -1}) {
+            const std::ptrdiff_t pst = p + si + ti * nu, pt = p + ti * nu, ps = p + si;
+            const double a0 = x0[pst] - x0[p], a1 = x1[pst] - x1[p], a2 = x2[pst] - x2[p];
+            const double b0 = x0[pt] - x0[ps], b1 = x1[pt] - x1[ps], b2 = x2[pt] - x2[ps];
+            const double st = static_cast<double>(si * ti);
+            const double c0 = (a1 * b2 - a2 * b1) * st, c1 = (a2 * b0 - a0 * b2) * st, c2 = (a0 * b1 - a1 * b0) * st;
+            const double inv = 1.0 / std::sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+            n0 += c0 * inv;
+            n1 += c1 * inv;
+            n2 += c2 * inv;
+          }
+        const double inv = 1.0 / std::sqrt(n0 * n0 + n1 * n1 + n2 * n2);
+        n0 *= inv;
+        n1 *= inv;
+        n2 *= inv;
+        const double d = (s0 * n0 + s1 * n1 + s2 * n2) * scale;
+        f0[p] += d * n0;
+        f1[p] += d * n1;
+        f2[p] += d * n2;
+      }
+    }
+  }
+
   std::string name_;
   Kernel kernel_;
   std::vector<Centre> centres_;
+  int nu_ = 0;                      // UseGridRows: the grid's nu
+  std::ptrdiff_t interior_rows_ = 0;  // rows of interior centres (0: every centre through Evaluate)
+  std::vector<std::size_t> border_;   // the other centres, in order
+  LinearWeights<K> full_weights_;     // of the mask with every slot
   mutable GatherLists gather_;  // kOutputs > 1 and many centres only
+  mutable std::vector<double> pairs_;  // ShearKernel with many centres: (fu, fv) per centre
   std::vector<LinearWeights<K>> weights_;  // Kernel::kLinear only: one set per validity mask
   std::vector<int> weight_set_;            // of each centre
 };
@@ -489,20 +675,30 @@ struct ShearKernel {
        {3, 1}, {3, 2}, {3, 3}, {3, 4}, {4, 1}, {4, 2}, {4, 3}, {4, 4}}};
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double mu, damping, lu, lv;
+  // The pair fu = s b/Δu, fv = s a/Δv (s = σ lu lv) of the centre's
+  // outputs: f_r = −fu, f_l = +fu, f_u = −fv, f_d = +fv. Two divisions per
+  // centre: the spacings' reciprocals.
+  template <class S>
+  void Pair(std::uint32_t valid, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v, V3<S>* fu,
+            V3<S>* fv) const {
+    const double iu = 1.0 / (lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u)));
+    const double iv = 1.0 / (lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u)));
+    const V3<S> a = (x[1] - x[2]) * iu, b = (x[3] - x[4]) * iv;
+    S sigma = mu * a.dot(b);
+    if (damping != 0.0) sigma += damping * (((v[1] - v[2]) * iu).dot(b) + a.dot((v[3] - v[4]) * iv));
+    const S s = sigma * (lu * lv);
+    *fu = (s * iu) * b;
+    *fv = (s * iv) * a;
+  }
   template <class S>
   void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v,
                 std::array<V3<S>, 5>& f) const {
-    const double du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
-    const double dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
-    const V3<S> a = (x[1] - x[2]) / du, b = (x[3] - x[4]) / dv;
-    const V3<S> ad = (v[1] - v[2]) / du, bd = (v[3] - v[4]) / dv;
-    S sigma = mu * a.dot(b);
-    if (damping != 0.0) sigma += damping * (ad.dot(b) + a.dot(bd));
-    const S s = sigma * (lu * lv);
-    f[1] -= s * b / du;
-    f[2] += s * b / du;
-    f[3] -= s * a / dv;
-    f[4] += s * a / dv;
+    V3<S> fu, fv;
+    Pair<S>(valid, x, v, &fu, &fv);
+    f[1] -= fu;
+    f[2] += fu;
+    f[3] -= fv;
+    f[4] += fv;
   }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<5>*, const std::array<Vector3, 5>& x,
               const std::array<Vector3, 5>& v, std::array<Matrix3, 16>& jx, std::array<Matrix3, 16>& jv) const {
@@ -584,6 +780,7 @@ struct MembraneKernel {
   static constexpr int kNodes = 9;
   static constexpr int kOutputs = 1;
   static constexpr bool kLinear = true;
+  static constexpr double kProjectionSign = 1.0;  ///< f_0 = +A (s·n̂) n̂
   static constexpr int kBlocks = 9;
   static constexpr std::array<std::array<int, 2>, 9> kBlockSlots = CentreRowSlots<9>();
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
@@ -608,7 +805,7 @@ struct MembraneKernel {
   }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<9>* w, const std::array<Vector3, 9>& x,
               const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>& jv) const {
-    ProjectedBlocks<9>(1.0, lu * lv, *w, Patch<double, 9>{x, valid}, v, damping != 0.0, jx, jv);
+    ProjectedBlocks<9>(kProjectionSign, lu * lv, *w, Patch<double, 9>{x, valid}, v, damping != 0.0, jx, jv);
   }
 };
 
@@ -619,6 +816,7 @@ struct ThinPlateKernel {
   static constexpr int kNodes = 13;
   static constexpr int kOutputs = 1;
   static constexpr bool kLinear = true;
+  static constexpr double kProjectionSign = -1.0;  ///< f_0 = −A (s·n̂) n̂
   static constexpr int kBlocks = 13;
   static constexpr std::array<std::array<int, 2>, 13> kBlockSlots = CentreRowSlots<13>();
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
@@ -654,7 +852,7 @@ struct ThinPlateKernel {
   }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<13>* w, const std::array<Vector3, 13>& x,
               const std::array<Vector3, 13>& v, std::array<Matrix3, 13>& jx, std::array<Matrix3, 13>& jv) const {
-    ProjectedBlocks<13>(-1.0, lu * lv, *w, Patch<double, 13>{x, valid}, v, damping != 0.0, jx, jv);
+    ProjectedBlocks<13>(kProjectionSign, lu * lv, *w, Patch<double, 13>{x, valid}, v, damping != 0.0, jx, jv);
   }
 };
 
@@ -877,6 +1075,7 @@ class Gravity final : public ForceTerm {
   Gravity(const Eigen::VectorXd& m, const Vector3& g) : force_(m * g.transpose()) {}
   std::string_view name() const override { return "gravity"; }
   void AddForce(double, const MatrixN3&, const MatrixN3&, MatrixN3* f) const override { *f += force_; }
+  const MatrixN3* constant_force() const override { return &force_; }
   void AddJacobian(double, const MatrixN3&, const MatrixN3&, std::vector<Triplet>*, std::vector<Triplet>*) const override {}
   bool depends_on_velocity() const override { return false; }
   void JacobianBlocks(std::vector<BlockPair>*) const override {}
@@ -904,13 +1103,17 @@ std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double 
 }
 
 std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping) {
-  return std::make_unique<StencilTerm<MembraneKernel>>(
+  auto term = std::make_unique<StencilTerm<MembraneKernel>>(
       "bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<MembraneKernel>(geo), geo.nu * geo.nv);
+  term->UseGridRows(geo.nu, geo.nv);
+  return term;
 }
 
 std::unique_ptr<ForceTerm> MakeThinPlateBend(const GridGeometry& geo, double bu, double bv, double damping) {
-  return std::make_unique<StencilTerm<ThinPlateKernel>>(
+  auto term = std::make_unique<StencilTerm<ThinPlateKernel>>(
       "bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<ThinPlateKernel>(geo), geo.nu * geo.nv);
+  term->UseGridRows(geo.nu, geo.nv);
+  return term;
 }
 
 std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122) {

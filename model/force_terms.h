@@ -40,6 +40,9 @@ class ForceTerm {
   /// True if g_k depends on v (damping, air): AccumulateJacobian then writes
   /// ∂g/∂v.
   virtual bool depends_on_velocity() const = 0;
+  /// A force independent of t, x and v (gravity): its N×3 values [N], so
+  /// that a sum can start from them instead of from zero; nullptr otherwise.
+  virtual const MatrixN3* constant_force() const { return nullptr; }
   /// Appends the (row particle, column particle) pairs of the 3×3 blocks
   /// that AccumulateJacobian writes, item by item (stencil centres in
   /// particle order, springs), the same number per item. Fixed for the term.

@@ -60,7 +60,10 @@ class CholeskyFactor {
   /// map), to be factorised with other decoupled particles; nullptr if
   /// CHOLMOD failed or this factor is not analysed. Allocates.
   std::unique_ptr<CholeskyFactor> CloneAnalysis() const;
-  /// z ← A_F⁻¹ r for the three columns at once. @param r, z N×3.
+  /// z ← A_F⁻¹ r for the three columns at once: one pass over L each way,
+  /// the elimination tree's two halves on two threads (tree_solve()), else
+  /// CHOLMOD's solve on two lanes. The same bits for any thread count.
+  /// @param r, z N×3.
   void Solve(const MatrixN3& r, MatrixN3* z) const;
   /// Columns col0 … col0 + ncol − 1 of z ← A_F⁻¹ r, with the workspace of
   /// `lane` (0 or 1): two lanes may run at once on different columns.
@@ -71,6 +74,10 @@ class CholeskyFactor {
   /// a supernodal factor.
   long factor_nonzeros() const;
   bool supernodal() const;
+  /// Whether Solve runs the tree-parallel solve (a fresh simplicial LLᵀ
+  /// copy whose elimination tree splits into two parts; docs/performance.md)
+  /// rather than CHOLMOD's solve.
+  bool tree_solve() const;
 
  private:
   bool PrepareRow(long n, long nnz);  // room for one column of nnz entries

@@ -330,7 +330,7 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
       b0_.noalias() = mass.asDiagonal() * v0_;
       tmp_.noalias() = lk * x0_;
       b0_ -= h * tmp_;
-      xg0_ = x0_;
+      if (!imex) xg0_ = x0_;
       t_g = imex ? t_ : t_ + h;
       break;
     case Method::kSbdf2:
@@ -350,10 +350,9 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
         xhat_ = c1 * x0_ - c2 * xm1_;
         vhat_ = c1 * v0_ - c2 * vm1_;
       }
-      b0_.noalias() = mass.asDiagonal() * vhat_;
       tmp_.noalias() = lk * xhat_;
-      b0_ -= (alpha * h) * tmp_;
-      xg0_ = xhat_;
+      b0_ = mass.asDiagonal() * vhat_ - (alpha * h) * tmp_;  // one pass (the same roundings as two)
+      if (!imex) xg0_ = xhat_;  // g's base point: only the fully implicit updates move it
       t_g = t_ + h;
       break;
     }

@@ -85,6 +85,23 @@ void VelocityFilter::Impose(M* v) const {
   }
 }
 
+template <class M>
+double VelocityFilter::ProjectedNorm(const M& b) const {
+  double sq = b.squaredNorm();
+  for (const Entry& e : entries_) {
+    const Vector3 x = b.row(e.particle).transpose();
+    if (e.count == 3) {
+      sq -= x.squaredNorm();
+      continue;
+    }
+    // The directions are orthonormal: the removed part's square is Σ_k (d_k·x)².
+    for (int k = 0; k < e.count; ++k) sq -= e.dirs.col(k).dot(x) * e.dirs.col(k).dot(x);
+  }
+  return std::sqrt(std::max(sq, 0.0));
+}
+
+template double VelocityFilter::ProjectedNorm(const MatrixN3&) const;
+template double VelocityFilter::ProjectedNorm(const MatrixN3R&) const;
 template void VelocityFilter::Project(MatrixN3*) const;
 template void VelocityFilter::Project(MatrixN3R*) const;
 template void VelocityFilter::Impose(MatrixN3*) const;
@@ -840,9 +857,7 @@ PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& fil
   if (options.rhs_norm >= 0.0) {
     s.rhs_norm = options.rhs_norm;
   } else {
-    r = b;
-    if (filtered) filter.Project(&r);
-    s.rhs_norm = r.norm();
+    s.rhs_norm = filtered ? filter.ProjectedNorm(b) : b.norm();
   }
   const double threshold = options.tolerance * s.rhs_norm;
 
@@ -861,8 +876,9 @@ PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& fil
   }
   precond.Apply(r, &z);  // line 5
   if (filtered) filter.Project(&z);  // line 6
-  p = z;
   double rho = (r.array() * z.array()).sum();
+  p.swap(z);  // p = z without a copy: z is overwritten by the next Apply
+  if (z.rows() != p.rows()) z.resizeLike(p);
   for (int k = 0; k < options.max_iterations; ++k) {
     op.Apply(p, &q);  // line 9
     if (filtered) filter.Project(&q);  // line 10
@@ -873,9 +889,21 @@ PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& fil
       return s;
     }
     const double alpha = rho / pq;  // line 11
-    *v += alpha * p;                // line 12
-    r -= alpha * q;                 // line 13
-    rnorm = r.norm();
+    // Lines 12 and 13 and ‖r‖ in one pass over the 3N entries.
+    {
+      double* vd = v->data();
+      double* rd = r.data();
+      const double* pd = p.data();
+      const double* qd = q.data();
+      const std::ptrdiff_t m = static_cast<std::ptrdiff_t>(r.size());
+      double rr = 0.0;
+      for (std::ptrdiff_t i = 0; i < m; ++i) {
+        vd[i] += alpha * pd[i];
+        rd[i] -= alpha * qd[i];
+        rr += rd[i] * rd[i];
+      }
+      rnorm = std::sqrt(rr);
+    }
     s.iterations = k + 1;
     s.residual_norm = rnorm;
     if (!std::isfinite(rnorm)) {

@@ -67,6 +67,10 @@ class VelocityFilter {
   /// v ← S v. @tparam M MatrixN3 or MatrixN3R.
   template <class M>
   void Project(M* v) const;
+  /// ‖S b‖₂ without a copy of b: ‖b‖² less the constrained components'
+  /// squares, Σ_p Σ_k (d_k·b_p)² (one pass over b, then the entries).
+  template <class M>
+  double ProjectedNorm(const M& b) const;
   /// v ← S v + (I − S) z: imposes the prescribed components.
   template <class M>
   void Impose(M* v) const;

@@ -48,7 +48,8 @@ Dense FiniteDifference(const MatrixN3& x, const MatrixN3& v, bool wrt_x, F force
 class JacobianTest : public ::testing::TestWithParam<BendModel> {};
 
 TEST_P(JacobianTest, EveryTermMatchesCentralDifferences) {
-  const ParticleSystem sys(testing::AllTermsScene(5, 4, GetParam()));
+  // 7×6: the bending terms have interior centres (their row path, AddInterior) and border ones.
+  const ParticleSystem sys(testing::AllTermsScene(7, 6, GetParam()));
   MatrixN3 x, v;
   testing::PerturbedState(sys, 7, &x, &v);
   const int n3 = 3 * sys.num_particles();

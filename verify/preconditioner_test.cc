@@ -565,12 +565,32 @@ TEST(ParallelKernels, ProductAndForcesBitIdenticalAcrossThreadCounts) {
   EXPECT_GT(g1.norm(), 0.0);
 }
 
-// The Cholesky solve of the three columns runs as two CHOLMOD solves on two
-// threads above 4096 particles (columns 0–1 and column 2): the same bits as
-// the three-column solve on one thread (each column's arithmetic does not
-// depend on the others), and a solve: A z = r to round-off (A_α's condition
-// number ~1e4 at this size times 1e-16, far below 1e-9 relative).
+// The Cholesky solve of the three columns runs on two threads above 4096
+// particles (the tree-parallel solve of the simplicial copy, or CHOLMOD's
+// solve on two lanes): the same bits as on one thread, and a solve: A z = r
+// to round-off (A_α's condition number ~1e4 at this size times 1e-16, far
+// below 1e-9 relative). The factor of this sheet takes the tree solve.
 TEST(ParallelKernels, CholeskySolveBitIdenticalAcrossThreadCounts) {
+  {
+    const ParticleSystem sheet(testing::AllTermsScene(100, 80));
+    SystemMatrix m(sheet, PreconditionerType::kIc0);
+    ASSERT_TRUE(m.Update(0.01));
+    CholeskyFactor f;
+    ASSERT_TRUE(f.Analyze(m.matrix(), sheet.fixed(), CholeskyOrdering::kMetis));
+    ASSERT_TRUE(f.Factorize(m.matrix()));
+    EXPECT_TRUE(f.tree_solve());
+    const MatrixN3 r = MatrixN3::Random(sheet.num_particles(), 3);
+    MatrixN3 z1(sheet.num_particles(), 3), z2(sheet.num_particles(), 3);
+    testing::WithThreads(1, [&] { f.Solve(r, &z1); });
+    testing::WithThreads(2, [&] { f.Solve(r, &z2); });
+    EXPECT_EQ((z1 - z2).cwiseAbs().maxCoeff(), 0.0);
+    MatrixN3 residual = m.matrix() * z2 - r;
+    for (int p : sheet.fixed()) residual.row(p).setZero();
+    EXPECT_LT(residual.norm(), 1e-9 * r.norm());
+    // A row modification leaves the tree solve (the factor becomes LDLᵀ).
+    ASSERT_TRUE(f.DecoupleRow(sheet.num_particles() / 2, m.matrix()));
+    EXPECT_FALSE(f.tree_solve());
+  }
   const ParticleSystem sys(testing::AllTermsScene(100, 80));
   ASSERT_GE(sys.num_particles(), 4096);
   SystemMatrix sm(sys, PreconditionerType::kCholesky);
