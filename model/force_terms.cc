@@ -10,6 +10,7 @@
 
 #include <array>
 #include <type_traits>
+#include <utility>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -188,6 +189,12 @@ struct GatherLists {
   // entry e is subtracted.
   template <class Negate>
   void AddTo(MatrixN3* f, Negate negate) const {
+    Sum(f, [&](int e) { return std::pair<const double*, bool>(buffer.data() + 3 * static_cast<std::size_t>(e), negate(e)); });
+  }
+  // f(p) ±= the 3-vector value(e) names (pointer, subtract) for each entry
+  // e of p, in item order.
+  template <class Value>
+  void Sum(MatrixN3* f, Value value) const {
     const auto n = static_cast<std::ptrdiff_t>(offsets.size()) - 1;
     double* f0 = f->col(0).data();
     double* f1 = f->col(1).data();
@@ -196,9 +203,8 @@ struct GatherLists {
     for (std::ptrdiff_t p = 0; p < n; ++p) {
       double a0 = f0[p], a1 = f1[p], a2 = f2[p];
       for (int q = offsets[static_cast<std::size_t>(p)]; q < offsets[static_cast<std::size_t>(p) + 1]; ++q) {
-        const int e = entries[static_cast<std::size_t>(q)];
-        const double* b = buffer.data() + 3 * static_cast<std::size_t>(e);
-        if (negate(e)) {
+        const auto [b, subtract] = value(entries[static_cast<std::size_t>(q)]);
+        if (subtract) {
           a0 -= b[0];
           a1 -= b[1];
           a2 -= b[2];
@@ -337,32 +343,11 @@ class StencilTerm final : public ForceTerm {
         Eigen::Map<Vector3>(pairs + 6 * c) = fu;
         Eigen::Map<Vector3>(pairs + 6 * c + 3) = fv;
       }
-      const auto np = static_cast<std::ptrdiff_t>(gather_.offsets.size()) - 1;
-      double* f0 = f->col(0).data();
-      double* f1 = f->col(1).data();
-      double* f2 = f->col(2).data();
-#pragma omp parallel for schedule(static)
-      for (std::ptrdiff_t p = 0; p < np; ++p) {
-        double a0 = f0[p], a1 = f1[p], a2 = f2[p];
-        for (int q = gather_.offsets[static_cast<std::size_t>(p)]; q < gather_.offsets[static_cast<std::size_t>(p) + 1];
-             ++q) {
-          const int e = gather_.entries[static_cast<std::size_t>(q)];
-          const int k = e & 3;  // output k + 1
-          const double* b = pairs + 6 * static_cast<std::size_t>(e >> 2) + (k < 2 ? 0 : 3);
-          if ((k & 1) == 0) {
-            a0 -= b[0];
-            a1 -= b[1];
-            a2 -= b[2];
-          } else {
-            a0 += b[0];
-            a1 += b[1];
-            a2 += b[2];
-          }
-        }
-        f0[p] = a0;
-        f1[p] = a1;
-        f2[p] = a2;
-      }
+      gather_.Sum(f, [pairs](int e) {
+        const int k = e & 3;  // output k + 1: −fu, +fu, −fv, +fv
+        return std::pair<const double*, bool>(pairs + 6 * static_cast<std::size_t>(e >> 2) + (k < 2 ? 0 : 3),
+                                              (k & 1) == 0);
+      });
     } else if constexpr (Kernel::kOutputs == 1) {
 #pragma omp parallel for schedule(static)
       for (std::ptrdiff_t c = 0; c < n; ++c) {

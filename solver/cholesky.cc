@@ -218,6 +218,13 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
     y[3 * k + 1] = r1[p];
     y[3 * k + 2] = r2[p];
   }
+  // Forward: y_j ← y_j / L_jj, returned for the updates below it.
+  const auto pivot = [&](int j) {
+    const double d = lx[lp[j]];
+    const std::array<double, 3> yj = {y[3 * j] / d, y[3 * j + 1] / d, y[3 * j + 2] / d};
+    std::copy(yj.begin(), yj.end(), y + 3 * j);
+    return yj;
+  };
 #pragma omp parallel for num_threads(2) schedule(static, 1) if (parallel)
   for (int t = 0; t < 2; ++t) {
     double* acc = tree.acc[static_cast<std::size_t>(t)].data();
@@ -225,11 +232,7 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
     for (const auto& [f, root] : tree.ranges[static_cast<std::size_t>(t)])
       for (int j = f; j <= root; ++j) {
         const int b = lp[j], e = lp[j + 1];
-        const double d = lx[b];
-        const double y0 = y[3 * j] / d, y1 = y[3 * j + 1] / d, y2 = y[3 * j + 2] / d;
-        y[3 * j] = y0;
-        y[3 * j + 1] = y1;
-        y[3 * j + 2] = y2;
+        const auto [y0, y1, y2] = pivot(j);
         for (int q = b + 1; q < e; ++q) {
           const int i = li[q];
           const double w = lx[q];
@@ -249,11 +252,7 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
   }
   for (int j : tree.top) {
     const int b = lp[j], e = lp[j + 1];
-    const double d = lx[b];
-    const double y0 = y[3 * j] / d, y1 = y[3 * j + 1] / d, y2 = y[3 * j + 2] / d;
-    y[3 * j] = y0;
-    y[3 * j + 1] = y1;
-    y[3 * j + 2] = y2;
+    const auto [y0, y1, y2] = pivot(j);
     for (int q = b + 1; q < e; ++q) {
       const int i = li[q];
       y[3 * i] -= lx[q] * y0;
