@@ -211,7 +211,8 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
   const double* r1 = r.col(1).data();
   const double* r2 = r.col(2).data();
   const bool parallel = n >= 4096;
-#pragma omp parallel for num_threads(2) schedule(static) if (parallel)
+  const int threads = std::min(2, omp_get_max_threads());  // OMP_NUM_THREADS=1: one core
+#pragma omp parallel for num_threads(threads) schedule(static) if (parallel)
   for (int k = 0; k < n; ++k) {
     const int p = perm[k];
     y[3 * k] = r0[p];
@@ -225,7 +226,7 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
     std::copy(yj.begin(), yj.end(), y + 3 * j);
     return yj;
   };
-#pragma omp parallel for num_threads(2) schedule(static, 1) if (parallel)
+#pragma omp parallel for num_threads(threads) schedule(static, 1) if (parallel)
   for (int t = 0; t < 2; ++t) {
     double* acc = tree.acc[static_cast<std::size_t>(t)].data();
     std::fill_n(acc, tree.acc[static_cast<std::size_t>(t)].size(), 0.0);
@@ -276,7 +277,7 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
     y[3 * j + 2] = s2 / d;
   };
   for (std::size_t s = nt; s-- > 0;) back(tree.top[s]);
-#pragma omp parallel for num_threads(2) schedule(static, 1) if (parallel)
+#pragma omp parallel for num_threads(threads) schedule(static, 1) if (parallel)
   for (int t = 0; t < 2; ++t) {
     const auto& ranges = tree.ranges[static_cast<std::size_t>(t)];
     for (std::size_t g = ranges.size(); g-- > 0;)
@@ -285,7 +286,7 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
   double* z0 = z->col(0).data();
   double* z1 = z->col(1).data();
   double* z2 = z->col(2).data();
-#pragma omp parallel for num_threads(2) schedule(static) if (parallel)
+#pragma omp parallel for num_threads(threads) schedule(static) if (parallel)
   for (int k = 0; k < n; ++k) {
     const int p = perm[k];
     z0[p] = y[3 * k];
