@@ -32,6 +32,7 @@
 #include "results/metrics.h"
 #include "results/result_reader.h"
 #include "results/run_records.h"
+#include "results/scale_verdict.h"
 #include "results/work_precision.h"
 #include "solver/progress.h"
 
@@ -481,6 +482,41 @@ py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
 
 // A result file's records (ReadRunTable): provenance, scene, the reference
 // and every run as dicts of their attributes, and the equal-accuracy table.
+// A --sizes file's verdict as a dict: sizes, targets, labels, error_metric,
+// result_files, and per size and target fastest, runner_up (labels or
+// None), margin (or None) and cost_s ({label: solver time [s]}).
+py::dict ScaleVerdictDict(const ScaleVerdict& v) {
+  const auto label = [&](int m) { return m >= 0 ? py::object(py::str(v.labels[static_cast<std::size_t>(m)])) : py::none(); };
+  py::dict d;
+  d["sizes"] = v.sizes;
+  d["targets"] = v.targets;
+  d["labels"] = v.labels;
+  d["error_metric"] = v.metric;
+  d["result_files"] = v.result_files;
+  py::list fastest, runner, margin, cost;
+  for (std::size_t i = 0; i < v.sizes.size(); ++i) {
+    py::list f, r, g, c;
+    for (std::size_t j = 0; j < v.targets.size(); ++j) {
+      f.append(label(v.fastest[i][j]));
+      r.append(label(v.runner_up[i][j]));
+      g.append(v.margin[i][j] ? py::object(py::float_(*v.margin[i][j])) : py::none());
+      py::dict per;
+      for (std::size_t m = 0; m < v.labels.size(); ++m)
+        if (v.cost[i][j][m]) per[py::str(v.labels[m])] = *v.cost[i][j][m];
+      c.append(per);
+    }
+    fastest.append(f);
+    runner.append(r);
+    margin.append(g);
+    cost.append(c);
+  }
+  d["fastest"] = fastest;      // [size][target] label or None
+  d["runner_up"] = runner;
+  d["margin"] = margin;        // [size][target] runner-up cost / fastest cost, or None
+  d["cost_s"] = cost;          // [size][target] {label: solver time [s]} of the methods with a number
+  return d;
+}
+
 py::dict ReadResultFile(const std::string& path) {
   CheckReadableInChild(path);  // a file that crashes the HDF5 library: ValueError, not a dead interpreter
   const ResultReader reader(path);
@@ -503,6 +539,7 @@ py::dict ReadResultFile(const std::string& path) {
   for (const RunRecord& r : t.runs) runs.append(RecordDict(r));
   out["runs"] = runs;
   out["work_precision"] = t.work_precision ? py::object(EqualAccuracyDict(*t.work_precision)) : py::none();
+  if (reader.Exists("/scale_verdict")) out["scale_verdict"] = ScaleVerdictDict(ReadScaleVerdict(reader));
   return out;
 }
 
@@ -586,7 +623,9 @@ PYBIND11_MODULE(clothbench, m) {
         "file cannot be written."),
   m.def("read_results", &ReadResultFile, py::arg("path"),
         "A result file's records: schema, scene, reference and runs (dicts of their attributes) and the "
-        "equal-accuracy table (work_precision). Arrays: read the file with h5py.");
+        "equal-accuracy table (work_precision); for a bench_integrators --sizes file also scale_verdict (sizes, "
+        "targets, labels, fastest, runner_up, margin and cost_s per size and target). Arrays: read the file with "
+        "h5py.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         "The reference run (method: cvode or ida with the reduced velocity solve, cvode/klu or ida/klu with KLU; "

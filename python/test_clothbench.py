@@ -54,6 +54,24 @@ def test_load_scene_refines_the_grid_as_bench_integrators_sizes():
         clothbench.load_scene("swinging_sheet", particles=400.0)
 
 
+def test_read_results_gives_the_scale_verdict_of_a_sizes_file(tmp_path):
+    # bench_integrators --sizes writes one file per size and the verdict;
+    # read_results gives the verdict as the file holds it: the fastest label
+    # per size and target has the least cost of that cell.
+    out = tmp_path / "sizes.h5"
+    subprocess.run([os.environ["CLOTHBENCH_BENCH_INTEGRATORS"], "--integrators", "sbdf2,cvode", "--t-end", "0.2",
+                    "--targets", "1e-2,1e-3", "--repeat", "1", "--frames", "none", "--quiet", "--sizes", "100,400",
+                    "--out", str(out)], check=True, capture_output=True)
+    v = clothbench.read_results(str(out))["scale_verdict"]
+    assert v["sizes"] == [100, 400] and v["targets"] == [1e-2, 1e-3] and v["labels"] == ["sbdf2", "cvode"]
+    assert v["result_files"] == ["sizes.n100.h5", "sizes.n400.h5"]
+    for s in range(2):
+        for j in range(2):
+            costs = v["cost_s"][s][j]
+            assert v["fastest"][s][j] == min(costs, key=costs.get)
+    assert clothbench.read_results(str(tmp_path / "sizes.n400.h5"))["scene"]["n_particles"] == 400
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ValueError):
         clothbench.load_scene("swinging_sheet", {"material.no_such_key": 1.0})
