@@ -138,7 +138,7 @@ void AddOptions(CLI::App& app, Options& o) {
       ->check(CLI::Range(1L, 1000000000L));
   app.add_option("--time-limit", time_limit,
                  "wall-time budget of each run [s] (default 3600): a run past it ends with status time_limit and the "
-                 "other rows still run and are written; with --sweep-to-targets or --sizes: 30)");
+                 "other rows still run and are written; with --sweep-to-targets or --sizes: 30, the reference's 3600)");
   app.add_flag("--sweep-to-targets", sweep_to_targets,
                "choose each method's h, substeps or rtol run by run from its errors against the reference until its "
                "runs bracket every --targets value, it fails, reaches --time-limit or stalls (instead of the fixed "
@@ -297,11 +297,13 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
   });
 
-  return BenchRun{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_row,
-                  ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
-                  quiet, app.count("--preconditioner") > 0,
-                  app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
-                  time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets};
+  BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_row,
+               ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
+               quiet, app.count("--preconditioner") > 0,
+               app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
+               time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets};
+  run.reference_time_limit = app.count("--time-limit") ? time_limit : RunLimits().time_limit_s;
+  return run;
 }
 
 int Main(int argc, char** argv) {
@@ -372,6 +374,11 @@ int Main(int argc, char** argv) {
       }
       for (const char* option : {"--series", "--max-runs"})
         if (app.count(option)) throw UsageError(fmt::format("{}: cannot be combined with --sizes", option));
+      // Each size is a sweep to the targets: the options it refuses, named as --sizes'.
+      for (const char* option : {"--h", "--rtols", "--substeps"})
+        if (app.count(option))
+          throw UsageError(fmt::format("{}: --sizes sweeps each size to the targets and chooses the runs itself", option));
+      if (reference == "none") throw UsageError("--reference none: --sizes needs the reference's errors at each size");
       sweep_to_targets = true;
       const std::string verdict_out =
           out.empty() ? fmt::format("out/{}_sizes.h5", SceneOfOptions(app, o).name) : out;

@@ -199,7 +199,9 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
       SetReferenceErrorEstimate(&r, SelfConvergenceReference(b.scene, 2.0 * h_ref), b.error_metric);
     }
   } else {
-    r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, ctx, b.error_metric, [&](double rtol) {
+    RunContext reference_ctx = ctx;
+    if (b.reference_time_limit > 0.0) reference_ctx.limits.time_limit_s = b.reference_time_limit;
+    r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, reference_ctx, b.error_metric, [&](double rtol) {
       progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
                                  rtol < b.ref_rtol ? " (its error estimate)" : ""),
                      b.scene.t_end);

@@ -49,6 +49,10 @@ struct BenchRun {
   /// Keep <out>.journal after the file is written (--sizes: removed once
   /// the verdict is written, so that a rerun finds every finished size).
   bool keep_journal = false;
+  /// The reference's wall-time budget [s]: --time-limit if the command gave
+  /// one, else RunLimits' default (the 30 s a sweep's runs default to is
+  /// not the reference's: at 10⁵ particles it needs minutes).
+  double reference_time_limit = 0.0;
 };
 
 /// Times run `r` again with `run_again` until it has `repeat` timings (0:

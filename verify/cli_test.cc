@@ -524,7 +524,7 @@ TEST(BenchCli, SizesWriteOneFilePerSizeAndTheScaleVerdict) {
   EXPECT_NE(printed.out.find("Scale verdict"), std::string::npos) << printed.out;
   EXPECT_NE(printed.out.find("      400 "), std::string::npos) << printed.out;
   for (const char* bad : {"--sizes 400,100", "--sizes 100,2.5", "--sizes 100 --h 0.01", "--sizes 100 --series x.csv",
-                          "--sizes 100,101"}) {
+                          "--sizes 100,101", "--sizes 100 --reference none"}) {
     const Outcome refused = RunBench(common + " " + bad + " --out " + out.string());
     EXPECT_EQ(refused.exit_code, 2) << bad << ": " << refused.err;
     EXPECT_EQ(std::count(refused.err.begin(), refused.err.end(), '\n'), 1) << refused.err;
