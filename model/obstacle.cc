@@ -54,9 +54,25 @@ Eigen::Matrix3d RotationFromDegrees(const Vector3& deg) {
 Obstacle::Obstacle(const ObstacleSpec& spec) : spec_(spec) {
   if (spec.type == ObstacleType::kMesh)
     mesh_ = std::make_shared<const TriangleMesh>(spec.path, spec.scale, spec.rotate, spec.translate);
+  if (mesh_ && !spec.keyframes.empty()) {
+    std::vector<double> xyz;
+    std::vector<int32_t> triangles;
+    mesh_->Export(&xyz, &triangles);
+    auto vertices = std::make_shared<std::vector<Vector3>>(xyz.size() / 3);
+    for (std::size_t i = 0; i < vertices->size(); ++i) (*vertices)[i] = Vector3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    vertices_ = std::move(vertices);
+  }
   anchor_ = spec.type == ObstacleType::kMesh ? spec.translate : spec.center;
   for (const ObstacleKeyframe& k : spec.keyframes)
     key_rotations_.emplace_back(Eigen::Quaterniond(RotationFromDegrees(k.rotate)).normalized());
+}
+
+double Obstacle::MotionBound(const ObstaclePose& a, const ObstaclePose& b) const {
+  if (!mesh_) return std::numeric_limits<double>::infinity();
+  if (!moving()) return 0.0;
+  double largest = 0.0;
+  for (const Vector3& v : *vertices_) largest = std::max(largest, (b.ToWorld(v) - a.ToWorld(v)).norm());
+  return largest;
 }
 
 Penetration Obstacle::PenetrationOf(const ObstaclePose& pose, const MatrixN3& x) const {

@@ -133,6 +133,14 @@ class Obstacle {
   Penetration PenetrationOf(const ObstaclePose& pose, const MatrixN3& x) const;
   /// The rigid placement at time t [s] from the keyframes (identity if none).
   ObstaclePose PoseAt(double t) const;
+  /// An upper bound [m] on how far any point of a mesh obstacle's solid
+  /// moves from pose a to pose b: the largest displacement of its vertices
+  /// (the displacement of a rigid motion is affine in the point, so its norm
+  /// is largest at a vertex of the convex hull). The signed distance of
+  /// every world point changes by at most this much (ContactResponse's
+  /// distance cull). 0 for a static obstacle; +∞ for analytic obstacles
+  /// (not needed: their distances cost less than the bound).
+  double MotionBound(const ObstaclePose& a, const ObstaclePose& b) const;
   bool moving() const { return !spec_.keyframes.empty(); }
   const ObstacleSpec& spec() const { return spec_; }
   /// The placed triangle mesh of a mesh obstacle (at rest, before any
@@ -146,6 +154,7 @@ class Obstacle {
   Vector3 anchor_ = Vector3::Zero();
   std::vector<Eigen::Quaterniond> key_rotations_;  // one per keyframe
   std::shared_ptr<const TriangleMesh> mesh_;  // kMesh only (shared by copies)
+  std::shared_ptr<const std::vector<Vector3>> vertices_;  // kMesh: placed vertices (MotionBound)
 };
 
 }  // namespace clothbench

@@ -3,8 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace clothbench {
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+}  // namespace
 
 ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system) {
   const int n = system.num_particles();
@@ -13,11 +17,21 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system) {
   poses_.resize(system.obstacles().size());
   last_distance_.assign(static_cast<std::size_t>(n) * system.obstacles().size(), 1e300);
   friction_.setZero(n, 3);
+  const std::size_t n_obs = system.obstacles().size();
+  for (const Obstacle& o : system.obstacles()) cullable_.push_back(o.mesh() != nullptr);
+  cull_anchor_.assign(static_cast<std::size_t>(n) * n_obs, Vector3::Zero());
+  cull_distance_.assign(static_cast<std::size_t>(n) * n_obs, -kInf);
+  cull_motion_.assign(static_cast<std::size_t>(n) * n_obs, 0.0);
+  motion_.assign(n_obs, 0.0);
+  last_pose_.resize(n_obs);
+  for (std::size_t k = 0; k < n_obs; ++k) last_pose_[k] = system.obstacles()[k].PoseAt(0.0);
 }
 
 void ContactResponse::Reset() {
   for (Contact& c : contacts_) c = Contact{};
   std::fill(last_distance_.begin(), last_distance_.end(), 1e300);
+  std::fill(cull_distance_.begin(), cull_distance_.end(), -kInf);
+  queries_ = culled_ = 0;
   release_tolerance_ = 0.0;
   work_ = Work{};
 }
@@ -39,7 +53,14 @@ void ContactResponse::Reset() {
 //      linear estimate is a lower bound) or, failing that, the segment
 //      x₀ → x₀ + h v_rel enters the obstacle (a cast, for non-convex meshes).
 // Segment casts run only where the distance bound allows a hit (d is
-// 1-Lipschitz). The target velocity is (4.4) with the obstacle's motion:
+// 1-Lipschitz). The same bound culls a mesh obstacle's exact distance
+// query: with d_a measured at x_a, d(x₀) ≥ d_a − |x₀ − x_a| − m, m the
+// obstacle's motion bound since (Obstacle::MotionBound), and a particle not
+// in contact with it whose bound exceeds both δ + h|v_rel| and |x₀ − x₋₁|
+// passes none of the tests below (1: d ≥ δ; 2: a crossing needs
+// d ≤ |x₀ − x₋₁|; 3: d + h⟨v_rel, D⟩ ≥ δ and d > h|v_rel| + δ), so it is
+// skipped and the bound stored as its distance (a lower one only makes the
+// cast of the next step's test 2 likelier). The target velocity is (4.4) with the obstacle's motion:
 //   ⟨v₁, D⟩ = ⟨v_obs, D⟩ + ω_r (δ − d)/h  (in the area),
 //   ⟨v₁, D⟩ = ⟨v_obs, D⟩ + (δ − d)/h      (predicted entry),
 // for every method: the relative normal velocity is replaced, so contact is
@@ -60,7 +81,13 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
   int count = 0;
   const auto& obstacles = sys_.obstacles();
   const std::size_t n_obs = obstacles.size();
-  for (std::size_t k = 0; k < n_obs; ++k) poses_[k] = obstacles[k].PoseAt(t0);
+  for (std::size_t k = 0; k < n_obs; ++k) {
+    poses_[k] = obstacles[k].PoseAt(t0);
+    if (cullable_[k] && obstacles[k].moving()) {
+      motion_[k] += obstacles[k].MotionBound(last_pose_[k], poses_[k]);
+      last_pose_[k] = poses_[k];
+    }
+  }
   for (int p = 0; p < sys_.num_particles(); ++p) {
     Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (sys_.is_fixed(p)) continue;
@@ -81,23 +108,40 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
       const Obstacle& o = obstacles[k];
       const ObstaclePose& pose = poses_[k];
       const double delta = o.spec().collision_distance;
+      const bool same_contact = was && static_cast<int>(k) == last_obstacle;
+      const std::size_t pk = static_cast<std::size_t>(p) * n_obs + k;
+      double& d_stored = last_distance_[pk];
+      const Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
+      const Vector3 v_rel = v0 - v_obs;
+      if (cullable_[k] && !same_contact) {
+        const double bound =
+            cull_distance_[pk] - (x0 - cull_anchor_[pk]).norm() - (motion_[k] - cull_motion_[pk]);
+        const double moved = have_history ? (x0 - xm1->row(p).transpose()).norm() : 0.0;
+        if (bound > std::max(delta + h * v_rel.norm(), moved)) {
+          d_stored = bound;
+          ++culled_;
+          continue;
+        }
+      }
       Vector3 d_k;
       double d = o.SignedDistance(pose, x0, &d_k);
+      ++queries_;
+      if (cullable_[k]) {
+        cull_anchor_[pk] = x0;
+        cull_distance_[pk] = std::isfinite(d) ? d : -kInf;
+        cull_motion_[pk] = motion_[k];
+      }
       // Side memory: a particle in contact that now finds the obstacle's
       // direction turned against its contact direction has crossed a thin or
       // open part (an open mesh's distance is unsigned): it is behind the
       // surface, d < 0, on the side it came from.
-      const bool same_contact = was && static_cast<int>(k) == last_obstacle;
       if (same_contact && d_k.dot(last_direction) < 0.0) {
         d = -d;
         d_k = -d_k;
       }
-      double& d_stored = last_distance_[static_cast<std::size_t>(p) * n_obs + k];
       const double d_old = d_stored;  // at x₋₁ (+inf after Reset)
       d_stored = d;
       if (released) continue;
-      const Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
-      const Vector3 v_rel = v0 - v_obs;
       // 2. Old→new cast: possible only if d(x₋₁) + d(x₀) ≤ |x₀ − x₋₁|.
       // For a moving obstacle d(x₋₁) is re-measured at the current pose (the
       // stored one is at the old pose, where the bound does not hold).

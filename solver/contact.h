@@ -88,6 +88,17 @@ class ContactResponse {
   };
   const Work& work() const { return work_; }
 
+  /// Exact signed-distance queries SetUp made and skipped since Reset (the
+  /// distance cull of mesh obstacles: a query is skipped where a lower bound
+  /// of the distance rules out every contact test).
+  long distance_queries() const { return queries_; }
+  /// Turns the distance cull off (every query exact; for the test that the
+  /// cull changes no contact).
+  void set_distance_cull(bool on) {
+    for (std::size_t k = 0; k < cullable_.size(); ++k) cullable_[k] = on && sys_.obstacles()[k].mesh() != nullptr;
+  }
+  long culled_queries() const { return culled_; }
+
  private:
   struct Contact {
     int obstacle = -1;            // obstacle index, −1: none
@@ -100,7 +111,17 @@ class ContactResponse {
   double h_ = 0.0;                         // step of the last SetUp [s]
   Work work_;                              // since Reset
   std::vector<ObstaclePose> poses_;        // of each obstacle at t₀ (per step)
-  std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now)
+  std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now), or a lower bound
+  // The distance cull (mesh obstacles): per particle and obstacle the point
+  // of the last exact query, its distance (−∞: none) and the obstacle's
+  // accumulated motion bound then; per obstacle whether it is culled, the
+  // motion bound accumulated over the setups and the pose of the last.
+  std::vector<Vector3> cull_anchor_;
+  std::vector<double> cull_distance_, cull_motion_;
+  std::vector<char> cullable_;
+  std::vector<double> motion_;
+  std::vector<ObstaclePose> last_pose_;
+  long queries_ = 0, culled_ = 0;
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit
 };
 
