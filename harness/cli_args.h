@@ -32,13 +32,13 @@ struct UsageError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
-/// "ic0" | "cholesky" | "amg" | "jacobi" | "none".
+/// "ic0" | "cholesky" | "amg" | "auto" | "jacobi" | "none".
 /// @throws UsageError naming `option` for any other name
 inline PreconditionerType ParsePreconditioner(const std::string& name, const std::string& option) {
   for (PreconditionerType t : {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
-                               PreconditionerType::kJacobi, PreconditionerType::kNone})
+                               PreconditionerType::kAuto, PreconditionerType::kJacobi, PreconditionerType::kNone})
     if (name == ToString(t)) return t;
-  throw UsageError(fmt::format("{}: \"{}\" must be ic0, cholesky, amg, jacobi or none", option, name));
+  throw UsageError(fmt::format("{}: \"{}\" must be ic0, cholesky, amg, auto, jacobi or none", option, name));
 }
 
 /// "adaptive" | "nearest_axis" | "spread" (SolverSpec::amg_frames).

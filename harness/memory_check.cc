@@ -66,7 +66,9 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
   // (rows + 1): the frames of every row, and one more copy of a row's as the
   // bytes that go to the journal and to rank 0 (harness/run_codec.h).
   double bytes = n * (25.0 * 24.0 + 200.0) + (rows + 1.0) * frames * 2.0 * 24.0 * n + step_records * 100.0;
-  if (scene.solver.preconditioner == PreconditionerType::kCholesky) bytes += n * 45.0 * 12.0;
+  if (scene.solver.preconditioner == PreconditionerType::kCholesky ||
+      scene.solver.preconditioner == PreconditionerType::kAuto)
+    bytes += n * 45.0 * 12.0;
   if (sundials) bytes += n * 4096.0;
   // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α with
   // ∂f/∂x, ∂f/∂v, its constant part and transpose positions on its pattern,

@@ -132,7 +132,10 @@ struct MethodEntry {
 /// timing noise of the minimum. At 10⁴–10⁶ particles the factor wins for
 /// SBDF(2) by 10–30× (docs/performance.md, bench_scaling), and it is the
 /// large_sheet scene's own setting.
-inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kCholesky;
+/// Without contacts "auto" is that factor; in contact it chooses between the
+/// factor with contact factors and the prefiltered AMG (docs/performance.md,
+/// "The contact policy").
+inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kAuto;
 
 namespace internal {
 template <Method M>

@@ -307,7 +307,7 @@ void ParseSolver(TableReader& top, const std::string& source, Scene& s) {
   so.cg_max_iterations = v.Integer("cg_max_iterations", std::max(1000, 4 * std::max(s.grid.nu, s.grid.nv)), 1);
   so.preconditioner = v.Choice("preconditioner", so.preconditioner,
                                {PreconditionerType::kIc0, PreconditionerType::kCholesky, PreconditionerType::kAmg,
-                                PreconditionerType::kJacobi, PreconditionerType::kNone});
+                                PreconditionerType::kAuto, PreconditionerType::kJacobi, PreconditionerType::kNone});
   so.cholesky_ordering =
       v.Choice("cholesky_ordering", so.cholesky_ordering, {CholeskyOrdering::kMetis, CholeskyOrdering::kAmd});
   so.max_updates = v.Integer("max_updates", so.max_updates, 1);

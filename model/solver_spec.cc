@@ -12,6 +12,7 @@ std::string_view ToString(PreconditionerType p) {
     case PreconditionerType::kIc0: return "ic0";
     case PreconditionerType::kCholesky: return "cholesky";
     case PreconditionerType::kAmg: return "amg";
+    case PreconditionerType::kAuto: return "auto";
   }
   return "?";
 }

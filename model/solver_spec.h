@@ -15,8 +15,17 @@ namespace clothbench {
 /// Preconditioner of the filtered PCG (docs/model.md §5): none, Jacobi (diag(A) ⊗ I₃),
 /// IC(0) of A_α (the thesis' choice), a sparse Cholesky factor from CHOLMOD
 /// ("cholesky"), or one V-cycle of algebraic multigrid from hypre BoomerAMG
-/// ("amg").
-enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg };
+/// ("amg"), or the contact policy "auto": the Cholesky factor without
+/// contacts and, in contact, the factor with contact factors or the
+/// prefiltered AMG, whichever the counted cost of its last steps favours
+/// (Preconditioner, solver/pcg.h).
+enum class PreconditionerType { kNone, kJacobi, kIc0, kCholesky, kAmg, kAuto };
+/// Whether the type preconditions with A_α's factor or hierarchy
+/// ("cholesky", "amg", "auto"): the 3N×3N tangent systems of Newton,
+/// Baraff–Witkin and the SUNDIALS rows then apply it to the three columns.
+inline bool UsesAlphaPreconditioner(PreconditionerType t) {
+  return t == PreconditionerType::kCholesky || t == PreconditionerType::kAmg || t == PreconditionerType::kAuto;
+}
 /// Fill-reducing ordering of the CHOLMOD factor (solver key cholesky_ordering).
 enum class CholeskyOrdering { kMetis, kAmd };
 /// Frames of the prefiltered AMG's hierarchy (solver key amg_frames;
@@ -79,8 +88,11 @@ struct SolverSpec {
   double cg_tolerance = 1e-6;        ///< η: stop when ‖r‖₂ ≤ η ‖S_F b‖₂ (docs/model.md §5, see CgReference)
   CgReference cg_reference = CgReference::kFixedOnly;  ///< the norm η is relative to
   int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
-  /// The CHOLMOD factor: fastest on the thesis scenes and at scale (docs/performance.md); the thesis scenes name "ic0" explicitly.
-  PreconditionerType preconditioner = PreconditionerType::kCholesky;
+  /// The contact policy: the CHOLMOD factor (fastest on the thesis scenes
+  /// and at scale) and in contact the factor with contact factors or the
+  /// prefiltered AMG by their counted cost (docs/performance.md, "The
+  /// contact policy"); the thesis scenes name "ic0" explicitly.
+  PreconditionerType preconditioner = PreconditionerType::kAuto;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
   /// Contact-aware preconditioners (Preconditioner, solver/pcg.h): "cholesky"
   /// preconditions each column with a factor that also decouples the

@@ -43,7 +43,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
       contacts_(system) {
   const auto start = std::chrono::steady_clock::now();
   const int n = system.num_particles();
-  if (opts_.preconditioner == PreconditionerType::kCholesky || opts_.preconditioner == PreconditionerType::kAmg)
+  if (UsesAlphaPreconditioner(opts_.preconditioner))
     laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering,
                                                 opts_.contact_factors);
   if (laplacian_) laplacian_->set_amg_frames(opts_.amg_frames);

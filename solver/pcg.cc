@@ -210,7 +210,11 @@ void IncompleteCholesky0::SolveInPlace(double* y) const {
 
 // ---------------------------------------------------------------------------
 Preconditioner::Preconditioner(PreconditionerType type, CholeskyOrdering ordering, bool contact_factors)
-    : type_(type), ordering_(ordering), contact_factors_(contact_factors && (type == PreconditionerType::kCholesky || type == PreconditionerType::kAmg)) {
+    : type_(type == PreconditionerType::kAuto ? PreconditionerType::kCholesky : type),
+      ordering_(ordering),
+      contact_factors_(contact_factors && (type == PreconditionerType::kCholesky || type == PreconditionerType::kAmg ||
+                                           type == PreconditionerType::kAuto)),
+      auto_(type == PreconditionerType::kAuto) {
   // Started here, not in Analyze: MPI's start-up (≈0.3 s, once per process)
   // is not part of the setup time of A's preconditioner.
   if (type_ == PreconditionerType::kAmg) amg_ = std::make_unique<AmgPreconditioner>();
@@ -235,6 +239,7 @@ bool Preconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixe
         }
       return cholesky_->Analyze(a, fixed, ordering_);
     case PreconditionerType::kAmg: return amg_->Analyze(a, fixed);  // amg_ made by the constructor
+    case PreconditionerType::kAuto: break;  // never type_ (kCholesky with auto_)
   }
   return false;
 }
@@ -249,10 +254,12 @@ bool Preconditioner::Factorize(const SparseMatrix& a) {
     case PreconditionerType::kCholesky:
       axis_valid_ = {false, false, false};  // new values of A: the contact factors are stale
       axis_used_ = {false, false, false};
+      system_valid_ = system_used_ = false;  // and "auto"'s prefiltered hierarchy
       return cholesky_ && cholesky_->Factorize(a);
     case PreconditionerType::kAmg:
       system_valid_ = system_used_ = false;  // new values of A: the system hierarchy is stale
       return amg_ && amg_->Factorize(a);
+    case PreconditionerType::kAuto: break;  // never type_
   }
   return false;
 }
@@ -566,7 +573,64 @@ void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eig
 }
 
 bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter) {
+  if (auto_) return AdaptAutoTo(a, filter);
   if (contact_factors_ && type_ == PreconditionerType::kAmg) return AdaptAmgTo(a, filter);
+  return AdaptFactorsTo(a, filter);
+}
+
+// The contact policy (pcg.h, AutoChoice): the step since the last AdaptTo
+// is counted to the mode that served it, then the mode of the next step is
+// chosen and adapted to the filter.
+bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& filter) {
+  if (!contact_factors_) return true;  // contact_factors = false: the factor alone
+  const double n = static_cast<double>(a.rows());
+  const double cycle = VCycleIterations(n);
+  const std::size_t m = auto_mode_ == AutoChoice::kPrefilteredAmg ? 1 : 0;
+  if (auto_counting_) {
+    const auto apps = static_cast<double>(applications_ - applications_at_auto_);
+    const auto setups = static_cast<double>(contact_stats_.refactorizations - refactorizations_at_auto_);
+    const auto changes = static_cast<double>(contact_stats_.modifications - modifications_at_auto_);
+    // A finest-level update of a kept hierarchy costs about a V-cycle.
+    const double cost = m == 1 ? cycle * (apps + kSetupVCycles * setups + changes)
+                               : apps + kRefactorIterations * (setups + changes / (kModifyRowsPerSqrtN * std::sqrt(n)));
+    stay_cost_ += cost;
+    ++stay_steps_;
+    auto_cost_[m] = stay_cost_ / stay_steps_;
+    if (auto_cost_[1 - m] >= 0.0) auto_cost_[1 - m] *= kAutoDecay;
+  }
+  applications_at_auto_ = applications_;
+  refactorizations_at_auto_ = contact_stats_.refactorizations;
+  modifications_at_auto_ = contact_stats_.modifications;
+  int contacts = 0;
+  filter.ForEachConstraint([&](int, int count, const Eigen::Matrix3d&) { contacts += count < 3; });
+  if (contacts == 0) {  // A_F's factor is exact
+    auto_counting_ = false;
+    axis_used_ = {false, false, false};
+    system_used_ = false;
+    auto_choice_ = AutoChoice::kFactor;
+    return true;
+  }
+  if (auto_counting_) {
+    const double other = auto_cost_[1 - m] >= 0.0 ? auto_cost_[1 - m] : cycle * kAmgPriorIterations;
+    const bool settled = stay_steps_ >= kAutoMinStay || auto_cost_[m] > kAutoAbort * other;
+    if (settled && other < auto_cost_[m]) {
+      auto_mode_ = m == 1 ? AutoChoice::kContactFactors : AutoChoice::kPrefilteredAmg;
+      stay_cost_ = 0.0;
+      stay_steps_ = 0;
+    }
+  }
+  auto_counting_ = true;
+  auto_choice_ = auto_mode_;
+  if (auto_mode_ == AutoChoice::kPrefilteredAmg) {
+    axis_used_ = {false, false, false};
+    if (!amg_) amg_ = std::make_unique<AmgPreconditioner>();
+    return AdaptAmgTo(a, filter);  // a failed setup leaves system_used_ false: the factor serves
+  }
+  system_used_ = false;
+  return AdaptFactorsTo(a, filter);
+}
+
+bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter) {
   if (!contact_factors_ || !cholesky_) return true;
   int want[3] = {0, 0, 0};
   for (auto& w : axis_want_) std::fill(w.begin(), w.end(), 0);
@@ -644,7 +708,24 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
   return true;
 }
 
+void Preconditioner::ApplySystem(const MatrixN3& r, MatrixN3* z) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  rotated_r_.resize(r.rows(), 3);
+  rotated_z_.resize(r.rows(), 3);
+  for (Eigen::Index p = 0; p < r.rows(); ++p) rotated_r_.row(p) = r.row(p) * frames_[static_cast<std::size_t>(p)];
+  amg_->SolveSystem(rotated_r_, &rotated_z_);
+  for (Eigen::Index p = 0; p < r.rows(); ++p)
+    z->row(p) = rotated_z_.row(p) * frames_[static_cast<std::size_t>(p)].transpose();
+  ++contact_stats_.v_cycles;
+  contact_stats_.v_cycle_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
+  ++applications_;
+  if (auto_ && system_used_) {
+    ApplySystem(r, z);
+    return;
+  }
   switch (type_) {
     case PreconditionerType::kNone: *z = r; break;
     case PreconditionerType::kJacobi: z->noalias() = inv_diag_.asDiagonal() * r; break;
@@ -675,20 +756,12 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       break;
     }
     case PreconditionerType::kAmg:
-      if (system_used_) {
-        const auto t0 = std::chrono::steady_clock::now();
-        rotated_r_.resize(r.rows(), 3);
-        rotated_z_.resize(r.rows(), 3);
-        for (Eigen::Index p = 0; p < r.rows(); ++p)
-          rotated_r_.row(p) = r.row(p) * frames_[static_cast<std::size_t>(p)];
-        amg_->SolveSystem(rotated_r_, &rotated_z_);
-        for (Eigen::Index p = 0; p < r.rows(); ++p)
-          z->row(p) = rotated_z_.row(p) * frames_[static_cast<std::size_t>(p)].transpose();
-        ++contact_stats_.v_cycles;
-        contact_stats_.v_cycle_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      } else
+      if (system_used_)
+        ApplySystem(r, z);
+      else
         amg_->Solve(r, z);
       break;
+    case PreconditionerType::kAuto: break;  // never type_ (kCholesky with auto_)
   }
 }
 
@@ -709,6 +782,7 @@ void TangentPreconditioner::Analyze(const SparseMatrix& j, const Preconditioner*
     case PreconditionerType::kIc0: ic0_.Analyze(j); break;
     case PreconditionerType::kCholesky:
     case PreconditionerType::kAmg:
+    case PreconditionerType::kAuto:
       rc_.resize(n, 3);
       zc_.resize(n, 3);
       break;
@@ -734,7 +808,8 @@ bool TangentPreconditioner::Factorize(const SparseMatrix& j) {
     }
     case PreconditionerType::kIc0: return ic0_.Factorize(j);
     case PreconditionerType::kCholesky:
-    case PreconditionerType::kAmg: return laplacian_ != nullptr;
+    case PreconditionerType::kAmg:
+    case PreconditionerType::kAuto: return laplacian_ != nullptr;
     case PreconditionerType::kNone: return true;
   }
   return false;
@@ -754,6 +829,7 @@ void TangentPreconditioner::Apply(const MatrixN3R& r, MatrixN3R* z) const {
       break;
     case PreconditionerType::kCholesky:
     case PreconditionerType::kAmg:
+    case PreconditionerType::kAuto:
       rc_ = r;  // layout change only
       laplacian_->Apply(rc_, &zc_);
       *z = zc_;

@@ -251,12 +251,43 @@ class Preconditioner {
   /// world frame (its blocks stay a_pq I, not full 3×3 ones).
   static constexpr double kFrameSnap = 0.999;
 
+  /// The contact policy ("auto"). Without contacts the Cholesky factor of
+  /// A_F serves (exact: one CG iteration). In contact, each AdaptTo chooses
+  /// between the factor with contact factors and the prefiltered AMG by the
+  /// counted cost of the steps each has served, in units of one CG
+  /// iteration with the factor: a V-cycle iteration costs
+  /// VCycleIterations(N) of them, a hierarchy setup kSetupVCycles V-cycles,
+  /// a contact-factor refactorisation kRefactorIterations and a row change
+  /// kRefactorIterations / (kModifyRowsPerSqrtN √N). Counts, not times, so
+  /// that a run is the same on every repetition. A mode's cost is the mean
+  /// over its current stay; the other mode's record decays by kAutoDecay
+  /// per step, so that it is tried again, and an untried AMG starts from
+  /// kAmgPriorIterations V-cycles per step. A stay lasts at least
+  /// kAutoMinStay steps unless its cost exceeds the other's record by
+  /// kAutoAbort. (docs/performance.md, "The contact policy".)
+  enum class AutoChoice { kFactor = 0, kContactFactors = 1, kPrefilteredAmg = 2 };
+  /// A V-cycle iteration of the prefiltered AMG in CG iterations with the
+  /// factor (both with the product and vector work of a CG iteration):
+  /// 7 at N = 10⁴ and 2.4 at 10⁵ (sphere_drape_10k resting: 3.1 ms against
+  /// 0.43 ms; avatar_drape_100k in contact: 15 ms against 6.4 ms), fitted
+  /// as 7 (10⁴/N)^0.47, at least 2.4.
+  static double VCycleIterations(double n) { return std::max(2.4, 7.0 * std::pow(1e4 / n, 0.47)); }
+  /// A refactorisation of a contact factor in CG iterations with the factor
+  /// (0.14 s against 6.4 ms at 10⁵: 22).
+  static constexpr double kRefactorIterations = 20.0;
+  static constexpr double kAutoDecay = 0.97;
+  static constexpr double kAmgPriorIterations = 12.0;
+  static constexpr int kAutoMinStay = 2;
+  static constexpr double kAutoAbort = 4.0;
+  /// The choice of the last AdaptTo ("auto"; kFactor without contacts).
+  AutoChoice auto_choice() const { return auto_choice_; }
+
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
                           CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
   ~Preconditioner();
   Preconditioner(Preconditioner&&) noexcept;
   Preconditioner& operator=(Preconditioner&&) noexcept;
-  PreconditionerType type() const { return type_; }
+  PreconditionerType type() const { return auto_ ? PreconditionerType::kAuto : type_; }
   /// Symbolic phase for the pattern of `a` (allocates). @param fixed sorted
   /// fixed particles (used by "cholesky" and "amg"). @return false if the
   /// library failed.
@@ -341,6 +372,23 @@ class Preconditioner {
   FrameMode frame_mode_ = FrameMode::kSpread;
   double mode_measured_[2] = {0.0, 0.0}, mode_rate_[2] = {0.0, 0.0};
   long applications_at_setup_ = 0;
+  // The contact policy ("auto"; type_ is then kCholesky and auto_ true;
+  // without contact_factors it is the factor alone):
+  // the current choice, the cost records (CG iterations with the factor
+  // per step; < 0: untried), the current stay's summed cost and steps,
+  // whether the last AdaptTo had contacts (its step is then counted), and
+  // the counters at that AdaptTo.
+  bool auto_ = false;
+  AutoChoice auto_choice_ = AutoChoice::kFactor, auto_mode_ = AutoChoice::kContactFactors;
+  double auto_cost_[2] = {-1.0, -1.0};
+  double stay_cost_ = 0.0;
+  int stay_steps_ = 0;
+  bool auto_counting_ = false;
+  mutable long applications_ = 0;
+  long applications_at_auto_ = 0, refactorizations_at_auto_ = 0, modifications_at_auto_ = 0;
+  bool AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter);
+  bool AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& filter);
+  void ApplySystem(const MatrixN3& r, MatrixN3* z) const;  // one V-cycle of the prefiltered hierarchy
 };
 
 /// y ← A x for a symmetric N×N A applied to the three columns of x in one

@@ -297,7 +297,7 @@ ReducedTangent::ReducedTangent(const ParticleSystem& sys, const SolverSpec& spec
     : tangent_(sys, TangentOptions{spec.tangent_projection, spec.tangent_explicit_terms, true}),
       pre_(spec.preconditioner) {
   const auto start = std::chrono::steady_clock::now();
-  if (spec.preconditioner == PreconditionerType::kCholesky || spec.preconditioner == PreconditionerType::kAmg)
+  if (UsesAlphaPreconditioner(spec.preconditioner))
     laplacian_ = std::make_unique<SystemMatrix>(sys, spec.preconditioner, spec.cholesky_ordering);
   pre_.Analyze(tangent_.matrix(), laplacian_ ? &laplacian_->preconditioner() : nullptr);
   filter_.Reserve(sys.num_particles());

@@ -198,7 +198,7 @@ class ReducedTangent {
 
  private:
   TangentSystem tangent_;
-  std::unique_ptr<SystemMatrix> laplacian_;  // "cholesky", "amg": A_γ's preconditioner
+  std::unique_ptr<SystemMatrix> laplacian_;  // "cholesky", "amg", "auto": A_γ's preconditioner
   TangentPreconditioner pre_;
   VelocityFilter filter_;
   TangentPcgWorkspace work_;
