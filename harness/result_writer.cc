@@ -294,7 +294,7 @@ std::vector<StepRecord> StepRecords(const RunSummary& run) {
   out.reserve(run.step_stats.size());
   for (const StepStats& st : run.step_stats)
     out.push_back({st.t, st.h, st.updates, st.cg_iterations, static_cast<int32_t>(st.status), st.colliding,
-                   st.solve_time, st.setup_time});
+                   st.solve_time, st.setup_time, st.preconditioner});
   return out;
 }
 

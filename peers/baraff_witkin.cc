@@ -90,6 +90,7 @@ StepStats BaraffWitkin::Step(double h) {
     // A_α's update and contact adaptation count in laplacian_->setup_seconds();
     // setup_seconds_ holds J's assembly and its preconditioner's own work.
     bool ok = !laplacian_ || (laplacian_->Update(h) && laplacian_->AdaptTo(filter_));
+    if (laplacian_) st.preconditioner = laplacian_->preconditioner().ServedBy();
     const auto t0 = std::chrono::steady_clock::now();
     tangent_.Update(t_, x0_, v0_, h);
     ok = ok && precond_.Factorize(tangent_.matrix());

@@ -98,16 +98,17 @@ py::array_t<double> Frames(const std::vector<MatrixN3>& frames, int n) {
 
 py::array StepStatsArray(const std::vector<StepRecord>& steps) {
   py::list names, formats;
-  for (const char* n : {"t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s", "setup_time_s"})
+  for (const char* n :
+       {"t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s", "setup_time_s", "preconditioner"})
     names.append(n);
-  for (const char* f : {"f8", "f8", "i4", "i4", "i4", "i4", "f8", "f8"}) formats.append(f);
+  for (const char* f : {"f8", "f8", "i4", "i4", "i4", "i4", "f8", "f8", "i4"}) formats.append(f);
   py::dict spec;
   spec["names"] = names;
   spec["formats"] = formats;
   spec["offsets"] = py::make_tuple(offsetof(StepRecord, t), offsetof(StepRecord, h), offsetof(StepRecord, updates),
                                    offsetof(StepRecord, cg_iterations), offsetof(StepRecord, status),
                                    offsetof(StepRecord, colliding), offsetof(StepRecord, solve_time_s),
-                                   offsetof(StepRecord, setup_time_s));
+                                   offsetof(StepRecord, setup_time_s), offsetof(StepRecord, preconditioner));
   spec["itemsize"] = sizeof(StepRecord);
   const py::module_ np = py::module_::import("numpy");
   py::array a = np.attr("zeros")(steps.size(), np.attr("dtype")(spec));

@@ -88,7 +88,8 @@ def test_adaptive_row_and_step_stats():
     assert r["status"] == "ok"
     s = r["step_stats"]
     assert s.dtype.names == ("t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s",
-                             "setup_time_s")
+                             "setup_time_s", "preconditioner")
+    assert np.all(s["preconditioner"] == 0)  # no obstacle: the factor of A_F
     assert len(s) == r["steps"] + np.count_nonzero(s["status"] != 0)
     assert np.all(np.diff(s["t"][s["status"] == 0]) > 0)
 

@@ -42,6 +42,7 @@ inline hid_t StepRecordType() {
   H5Tinsert(t, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
   H5Tinsert(t, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
   H5Tinsert(t, "setup_time_s", HOFFSET(StepRecord, setup_time_s), H5T_NATIVE_DOUBLE);
+  H5Tinsert(t, "preconditioner", HOFFSET(StepRecord, preconditioner), H5T_NATIVE_INT32);
   return t;
 }
 

@@ -40,6 +40,10 @@ struct StepRecord {
   /// preconditioners (factorisations, AMG setup, contact factors) [s]; 0
   /// for SUNDIALS rows and in files written before it was stored.
   double setup_time_s;
+  /// What preconditioned the step's last solve: 0 the scene's preconditioner
+  /// of A_F (and every SUNDIALS row, and files written before it was
+  /// stored), 1 the contact factors, 2 the prefiltered AMG.
+  int32_t preconditioner;
 };
 
 class ResultFile {

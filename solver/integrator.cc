@@ -219,7 +219,9 @@ StepStats StepEngine::StepImpl(double h) {
   if (contacts_.active()) {
     st.colliding = colliding;
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
-    if (!sysmat_.AdaptTo(filter_)) {
+    const bool adapted = sysmat_.AdaptTo(filter_);
+    st.preconditioner = sysmat_.preconditioner().ServedBy();
+    if (!adapted) {
       st.status = StepStatus::kPreconditionerFailed;
       return st;
     }

@@ -85,6 +85,10 @@ struct StepStats {
   int updates = 0;         ///< fixed-point or Newton updates: evaluations of g, each with its linear solve (the last one only checks the residual)
   int cg_iterations = 0;   ///< PCG iterations summed over the updates
   int colliding = 0;       ///< particles constrained by obstacles in this step (Fig. 4.3)
+  /// What preconditioned the step's last solve (Preconditioner::ServedBy):
+  /// 0 the scene's preconditioner of A_F (factor, hierarchy, IC(0), …),
+  /// 1 the contact factors, 2 the prefiltered AMG.
+  int preconditioner = 0;
   StepStatus status = StepStatus::kOk;
   double solve_time = 0.0; ///< wall time of the attempt in the step engine [s], setup of A and P included
   double setup_time = 0.0; ///< part of solve_time spent refreshing A_α, J_α and their preconditioners [s]

@@ -591,7 +591,7 @@ bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& fi
     const auto setups = static_cast<double>(contact_stats_.refactorizations - refactorizations_at_auto_);
     const auto changes = static_cast<double>(contact_stats_.modifications - modifications_at_auto_);
     // A finest-level update of a kept hierarchy costs about a V-cycle.
-    const double cost = m == 1 ? cycle * (apps + kSetupVCycles * setups + changes)
+    const double cost = m == 1 ? cycle * (apps + kAutoSetupVCycles * setups + changes)
                                : apps + kRefactorIterations * (setups + changes / (kModifyRowsPerSqrtN * std::sqrt(n)));
     stay_cost_ += cost;
     ++stay_steps_;
@@ -624,7 +624,10 @@ bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& fi
   if (auto_mode_ == AutoChoice::kPrefilteredAmg) {
     axis_used_ = {false, false, false};
     if (!amg_) amg_ = std::make_unique<AmgPreconditioner>();
-    return AdaptAmgTo(a, filter);  // a failed setup leaves system_used_ false: the factor serves
+    if (!AdaptAmgTo(a, filter)) return false;
+    // A failed setup (hypre, or a V-cycle that is not finite) leaves
+    // system_used_ false: the contact factors serve this step.
+    if (system_used_) return true;
   }
   system_used_ = false;
   return AdaptFactorsTo(a, filter);

@@ -256,9 +256,10 @@ class Preconditioner {
   /// between the factor with contact factors and the prefiltered AMG by the
   /// counted cost of the steps each has served, in units of one CG
   /// iteration with the factor: a V-cycle iteration costs
-  /// VCycleIterations(N) of them, a hierarchy setup kSetupVCycles V-cycles,
-  /// a contact-factor refactorisation kRefactorIterations and a row change
-  /// kRefactorIterations / (kModifyRowsPerSqrtN √N). Counts, not times, so
+  /// VCycleIterations(N) of them, a hierarchy setup kAutoSetupVCycles
+  /// V-cycle iterations, a contact-factor refactorisation
+  /// kRefactorIterations and a row change kRefactorIterations /
+  /// (kModifyRowsPerSqrtN √N). Counts, not times, so
   /// that a run is the same on every repetition. A mode's cost is the mean
   /// over its current stay; the other mode's record decays by kAutoDecay
   /// per step, so that it is tried again, and an untried AMG starts from
@@ -267,20 +268,31 @@ class Preconditioner {
   /// kAutoAbort. (docs/performance.md, "The contact policy".)
   enum class AutoChoice { kFactor = 0, kContactFactors = 1, kPrefilteredAmg = 2 };
   /// A V-cycle iteration of the prefiltered AMG in CG iterations with the
-  /// factor (both with the product and vector work of a CG iteration):
-  /// 7 at N = 10⁴ and 2.4 at 10⁵ (sphere_drape_10k resting: 3.1 ms against
-  /// 0.43 ms; avatar_drape_100k in contact: 15 ms against 6.4 ms), fitted
-  /// as 7 (10⁴/N)^0.47, at least 2.4.
-  static double VCycleIterations(double n) { return std::max(2.4, 7.0 * std::pow(1e4 / n, 0.47)); }
+  /// factor and contact factors (each with the product and vector work of
+  /// a CG iteration), measured on the sphere drape in contact (SBDF(2),
+  /// step time less setup over CG iterations): 3.1 ms against 0.43 ms at
+  /// N = 10⁴ (7.2), 27 ms against 13.5 ms at 10⁵ (2.0); fitted as
+  /// 7.2 (10⁴/N)^0.556, at least 2.
+  static double VCycleIterations(double n) { return std::max(2.0, 7.2 * std::pow(1e4 / n, 0.556)); }
+  /// A prefiltered hierarchy's setup in V-cycle iterations (the same runs:
+  /// 0.034 s at 10⁴ = 11, 0.17 s at 10⁵ = 6.3).
+  static constexpr double kAutoSetupVCycles = 8.0;
   /// A refactorisation of a contact factor in CG iterations with the factor
-  /// (0.14 s against 6.4 ms at 10⁵: 22).
-  static constexpr double kRefactorIterations = 20.0;
+  /// (0.14 s against 13.5 ms at 10⁵: 10; about 25 at 10⁴).
+  static constexpr double kRefactorIterations = 15.0;
   static constexpr double kAutoDecay = 0.97;
   static constexpr double kAmgPriorIterations = 12.0;
   static constexpr int kAutoMinStay = 2;
-  static constexpr double kAutoAbort = 4.0;
+  static constexpr double kAutoAbort = 2.0;
   /// The choice of the last AdaptTo ("auto"; kFactor without contacts).
   AutoChoice auto_choice() const { return auto_choice_; }
+  /// What Apply uses now: 0 the preconditioner of A_F (its factor or
+  /// hierarchy, or IC(0), Jacobi, none), 1 a contact factor in at least
+  /// one column, 2 the prefiltered AMG (StepStats::preconditioner).
+  int ServedBy() const {
+    if (system_used_) return 2;
+    return axis_used_[0] || axis_used_[1] || axis_used_[2] ? 1 : 0;
+  }
 
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
                           CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
