@@ -22,10 +22,23 @@
 //    updates and rejected every step, and implicit midpoint fell through
 //    the plane.
 // 7. Multistep history at contact events (ContactHistoryTest, below).
+// 8. The contact policy ("auto", the default; Preconditioner::AdaptTo) on
+//    the sphere drape: at 10⁴ it keeps the factor (an untried AMG step
+//    counts as 86 factor CG iterations there, more than the factor's 16–24
+//    in the first contact steps), so the run is the "cholesky" run bit for
+//    bit, and a second run repeats it bit for bit (counts, not times). At
+//    10⁵ the factor's contact steps cost more than the AMG's prior, so the
+//    prefiltered AMG serves most steps in contact and the median CG per
+//    contact step is at most 15 (6–9 measured once the AMG serves;
+//    docs/performance.md, "The contact policy"). Every step without a
+//    contact is served by the factor.
 // 4. The avatar (CGAL mesh man.off, scripts/setup extracts it): the same
 //    depth bound for every integrator over the first 1.5 s of the drape,
 //    and more than 20 particles in contact at 1.5 s (36–43 measured, printed):
 //    a response that lets the sheet fall through leaves 0.
+#include <algorithm>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "results/metrics.h"
@@ -170,6 +183,60 @@ TEST_P(ContactHistoryTest, ProjectAndLandPutAnEnteringSheetOnTheBorder) {
     else
       EXPECT_LT(off, 1e-12);
   }
+}
+
+Scene SphereDrape(const char* name, double t_end) {
+  Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/" + name + ".toml");
+  s.t_end = t_end;
+  s.frame_dt = t_end;
+  return s;
+}
+
+TEST(ContactPolicy, KeepsTheFactorAt1e4AndRepeatsBitForBit) {
+  Scene s = SphereDrape("sphere_drape_10k", 0.2);  // the sheet reaches the sphere at t = 0.1 s
+  ASSERT_EQ(s.solver.preconditioner, PreconditionerType::kAuto);
+  const ParticleSystem sys(s);
+  const RunSummary a = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
+  const RunSummary b = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
+  s.solver.preconditioner = PreconditionerType::kCholesky;
+  const ParticleSystem sys_c(s);
+  const RunSummary c = RunIntegrator(sys_c, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok()) << a.BriefReport();
+  int in_contact = 0;
+  for (const StepStats& st : a.step_stats) {
+    if (st.colliding == 0) EXPECT_EQ(st.preconditioner, 0) << "t = " << st.t;
+    EXPECT_NE(st.preconditioner, 2) << "t = " << st.t;
+    in_contact += st.colliding > 0;
+  }
+  EXPECT_GT(in_contact, 5);
+  EXPECT_TRUE(a.trajectory.positions.back() == b.trajectory.positions.back());
+  EXPECT_TRUE(a.trajectory.positions.back() == c.trajectory.positions.back());
+}
+
+TEST(ContactPolicy, ChoosesThePrefilteredAmgOnTheSphereAt1e5) {
+  const Scene s = SphereDrape("sphere_drape_100k", 0.3);  // 20 steps in contact
+  const ParticleSystem sys(s);
+  const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
+  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  std::vector<int> cg;
+  int amg = 0;
+  for (const StepStats& st : r.step_stats) {
+    std::printf("[ policy ] t %.2f colliding %6d CG %3d served by %d\n", st.t, st.colliding, st.cg_iterations,
+                st.preconditioner);
+    if (st.colliding == 0) {
+      EXPECT_EQ(st.preconditioner, 0) << "t = " << st.t;
+      continue;
+    }
+    cg.push_back(st.cg_iterations);
+    amg += st.preconditioner == 2;
+  }
+  ASSERT_GE(cg.size(), 15u);
+  // The factor's contact steps need 16–126 CG here (the contact factors
+  // hold only normals within 25.8° of an axis), the AMG's 6–9 once its
+  // frame rule has tried both modes: the median is the AMG's.
+  std::nth_element(cg.begin(), cg.begin() + static_cast<std::ptrdiff_t>(cg.size() / 2), cg.end());
+  EXPECT_LE(cg[cg.size() / 2], 15);
+  EXPECT_GT(amg, static_cast<int>(cg.size()) / 2);
 }
 
 INSTANTIATE_TEST_SUITE_P(Multistep, ContactHistoryTest, ::testing::Values(Method::kSbdf2, Method::kBdf2),
