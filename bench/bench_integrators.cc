@@ -105,7 +105,7 @@ void AddOptions(CLI::App& app, Options& o) {
                "print only the equal-accuracy table (it is also printed under the default table)");
   app.add_option("--cg-tolerance", cg_tolerance, "override the scene's solver.cg_tolerance (PCG stop ‖r‖ ≤ η‖Sb‖)");
   app.add_option("--preconditioner", preconditioner,
-                 "override the scene's solver.preconditioner: ic0 | cholesky | amg | jacobi | none");
+                 "override the scene's solver.preconditioner: auto | ic0 | cholesky | amg | jacobi | none");
   app.add_option("--error-metric", error_metric,
                  "the error of the e_rms column, the observed orders, the equal-accuracy table and the plots: final "
                  "(e_rms at t_end; the default without obstacles) | l2 (rms over the frames; the default on scenes with "
