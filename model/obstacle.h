@@ -154,7 +154,7 @@ class Obstacle {
   Vector3 anchor_ = Vector3::Zero();
   std::vector<Eigen::Quaterniond> key_rotations_;  // one per keyframe
   std::shared_ptr<const TriangleMesh> mesh_;  // kMesh only (shared by copies)
-  std::shared_ptr<const std::vector<Vector3>> vertices_;  // kMesh: placed vertices (MotionBound)
+  std::shared_ptr<const std::vector<Vector3>> vertices_;  // keyframed kMesh: placed vertices (MotionBound)
 };
 
 }  // namespace clothbench

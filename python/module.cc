@@ -481,8 +481,6 @@ py::dict EqualAccuracyDict(const EqualAccuracyTable& t) {
   return out;
 }
 
-// A result file's records (ReadRunTable): provenance, scene, the reference
-// and every run as dicts of their attributes, and the equal-accuracy table.
 // A --sizes file's verdict as a dict: sizes, targets, labels, error_metric,
 // result_files, and per size and target fastest, runner_up (labels or
 // None), margin (or None) and cost_s ({label: solver time [s]}).
@@ -518,6 +516,8 @@ py::dict ScaleVerdictDict(const ScaleVerdict& v) {
   return d;
 }
 
+// A result file's records (ReadRunTable): provenance, scene, the reference
+// and every run as dicts of their attributes, and the equal-accuracy table.
 py::dict ReadResultFile(const std::string& path) {
   CheckReadableInChild(path);  // a file that crashes the HDF5 library: ValueError, not a dead interpreter
   const ResultReader reader(path);

@@ -60,7 +60,8 @@ void ContactResponse::Reset() {
 // passes none of the tests below (1: d ≥ δ; 2: a crossing needs
 // d ≤ |x₀ − x₋₁|; 3: d + h⟨v_rel, D⟩ ≥ δ and d > h|v_rel| + δ), so it is
 // skipped and the bound stored as its distance (a lower one only makes the
-// cast of the next step's test 2 likelier). The target velocity is (4.4) with the obstacle's motion:
+// cast of the next step's test 2 likelier). The target velocity is (4.4)
+// with the obstacle's motion:
 //   ⟨v₁, D⟩ = ⟨v_obs, D⟩ + ω_r (δ − d)/h  (in the area),
 //   ⟨v₁, D⟩ = ⟨v_obs, D⟩ + (δ − d)/h      (predicted entry),
 // for every method: the relative normal velocity is replaced, so contact is

@@ -578,14 +578,14 @@ bool Preconditioner::AdaptTo(const SparseMatrix& a, const VelocityFilter& filter
   return AdaptFactorsTo(a, filter);
 }
 
-// The contact policy (pcg.h, AutoChoice): the step since the last AdaptTo
+// The contact policy (pcg.h, "The contact policy"): the step since the last AdaptTo
 // is counted to the mode that served it, then the mode of the next step is
 // chosen and adapted to the filter.
 bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& filter) {
   if (!contact_factors_) return true;  // contact_factors = false: the factor alone
   const double n = static_cast<double>(a.rows());
   const double cycle = VCycleIterations(n);
-  const std::size_t m = auto_mode_ == AutoChoice::kPrefilteredAmg ? 1 : 0;
+  const std::size_t m = auto_amg_ ? 1 : 0;
   if (auto_counting_) {
     const auto apps = static_cast<double>(applications_ - applications_at_auto_);
     const auto setups = static_cast<double>(contact_stats_.refactorizations - refactorizations_at_auto_);
@@ -607,21 +607,19 @@ bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& fi
     auto_counting_ = false;
     axis_used_ = {false, false, false};
     system_used_ = false;
-    auto_choice_ = AutoChoice::kFactor;
     return true;
   }
   if (auto_counting_) {
     const double other = auto_cost_[1 - m] >= 0.0 ? auto_cost_[1 - m] : cycle * kAmgPriorIterations;
     const bool settled = stay_steps_ >= kAutoMinStay || auto_cost_[m] > kAutoAbort * other;
     if (settled && other < auto_cost_[m]) {
-      auto_mode_ = m == 1 ? AutoChoice::kContactFactors : AutoChoice::kPrefilteredAmg;
+      auto_amg_ = m == 0;
       stay_cost_ = 0.0;
       stay_steps_ = 0;
     }
   }
   auto_counting_ = true;
-  auto_choice_ = auto_mode_;
-  if (auto_mode_ == AutoChoice::kPrefilteredAmg) {
+  if (auto_amg_) {
     axis_used_ = {false, false, false};
     if (!amg_) amg_ = std::make_unique<AmgPreconditioner>();
     if (!AdaptAmgTo(a, filter)) return false;

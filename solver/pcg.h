@@ -265,8 +265,8 @@ class Preconditioner {
   /// per step, so that it is tried again, and an untried AMG starts from
   /// kAmgPriorIterations V-cycles per step. A stay lasts at least
   /// kAutoMinStay steps unless its cost exceeds the other's record by
-  /// kAutoAbort. (docs/performance.md, "The contact policy".)
-  enum class AutoChoice { kFactor = 0, kContactFactors = 1, kPrefilteredAmg = 2 };
+  /// kAutoAbort. ServedBy() tells what served a step. (docs/performance.md,
+  /// "The contact policy".)
   /// A V-cycle iteration of the prefiltered AMG in CG iterations with the
   /// factor and contact factors (each with the product and vector work of
   /// a CG iteration), measured on the sphere drape in contact (SBDF(2),
@@ -284,8 +284,6 @@ class Preconditioner {
   static constexpr double kAmgPriorIterations = 12.0;
   static constexpr int kAutoMinStay = 2;
   static constexpr double kAutoAbort = 2.0;
-  /// The choice of the last AdaptTo ("auto"; kFactor without contacts).
-  AutoChoice auto_choice() const { return auto_choice_; }
   /// What Apply uses now: 0 the preconditioner of A_F (its factor or
   /// hierarchy, or IC(0), Jacobi, none), 1 a contact factor in at least
   /// one column, 2 the prefiltered AMG (StepStats::preconditioner).
@@ -386,12 +384,14 @@ class Preconditioner {
   long applications_at_setup_ = 0;
   // The contact policy ("auto"; type_ is then kCholesky and auto_ true;
   // without contact_factors it is the factor alone):
-  // the current choice, the cost records (CG iterations with the factor
-  // per step; < 0: untried), the current stay's summed cost and steps,
+  // the current mode (the prefiltered AMG, else the contact factors), the
+  // cost records of the contact factors [0] and the AMG [1] (CG iterations
+  // with the factor per step; < 0: untried), the current stay's summed
+  // cost and steps,
   // whether the last AdaptTo had contacts (its step is then counted), and
   // the counters at that AdaptTo.
   bool auto_ = false;
-  AutoChoice auto_choice_ = AutoChoice::kFactor, auto_mode_ = AutoChoice::kContactFactors;
+  bool auto_amg_ = false;
   double auto_cost_[2] = {-1.0, -1.0};
   double stay_cost_ = 0.0;
   int stay_steps_ = 0;
