@@ -233,7 +233,7 @@ inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
   for (const StepStats& st : m->step_stats) {
     for (double v : {st.t, st.h, st.solve_time, st.setup_time, st.error_norm}) CheckFinite(v, "a step record");
     if (st.h < 0.0 || st.updates < -1 || st.cg_iterations < -1 || st.colliding < -1 || st.preconditioner < 0 ||
-        st.preconditioner > 2)
+        st.preconditioner > 3)
       OutOfRange("a step record");
     CheckStepStatus(static_cast<int>(st.status));
     if (static_cast<int>(st.pcg_status) < 0 || static_cast<int>(st.pcg_status) > static_cast<int>(PcgStatus::kTimeLimit))

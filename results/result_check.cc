@@ -99,8 +99,8 @@ void CheckRun(const ResultReader& f, const std::string& g, long n_particles) {
       if (!std::isfinite(r.t) || !(r.h >= 0.0) || !std::isfinite(r.h) || !std::isfinite(r.solve_time_s) ||
           !std::isfinite(r.setup_time_s))
         Broken(f, g + "/step_stats", fmt::format("row {}: t, h or a time is not finite (h must be ≥ 0)", k));
-      if (r.preconditioner < 0 || r.preconditioner > 2)
-        Broken(f, g + "/step_stats", fmt::format("row {}: preconditioner {} is not 0, 1 or 2", k, r.preconditioner));
+      if (r.preconditioner < 0 || r.preconditioner > 3)
+        Broken(f, g + "/step_stats", fmt::format("row {}: preconditioner {} is not 0, 1, 2 or 3", k, r.preconditioner));
     }
   }
   if (f.Exists(g + "/penetration")) {

@@ -42,7 +42,8 @@ struct StepRecord {
   double setup_time_s;
   /// What preconditioned the step's last solve: 0 the scene's preconditioner
   /// of A_F (and every SUNDIALS row, and files written before it was
-  /// stored), 1 the contact factors, 2 the prefiltered AMG.
+  /// stored), 1 the contact factors, 2 the prefiltered AMG, 3 the contact
+  /// factor in contact frames.
   int32_t preconditioner;
 };
 

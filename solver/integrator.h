@@ -87,7 +87,8 @@ struct StepStats {
   int colliding = 0;       ///< particles constrained by obstacles in this step (Fig. 4.3)
   /// What preconditioned the step's last solve (Preconditioner::ServedBy):
   /// 0 the scene's preconditioner of A_F (factor, hierarchy, IC(0), …),
-  /// 1 the contact factors, 2 the prefiltered AMG.
+  /// 1 the contact factors, 2 the prefiltered AMG, 3 the contact factor in
+  /// contact frames.
   int preconditioner = 0;
   StepStatus status = StepStatus::kOk;
   double solve_time = 0.0; ///< wall time of the attempt in the step engine [s], setup of A and P included
@@ -121,6 +122,8 @@ class SystemMatrix {
   const Preconditioner& preconditioner() const { return precond_; }
   /// The prefiltered AMG's frame rule (Preconditioner::set_amg_frames).
   void set_amg_frames(AmgFrames frames) { precond_.set_amg_frames(frames); }
+  /// Contact factors in contact frames as a choice (Preconditioner::set_frame_factors).
+  void set_frame_factors(bool on) { precond_.set_frame_factors(on); }
   /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
   void set_amg_diagnostics(Preconditioner::AmgDiagnostics d) { precond_.set_amg_diagnostics(d); }
   int rebuilds() const { return rebuilds_; }
@@ -210,6 +213,8 @@ class StepEngine : public Stepper {
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   Method method() const { return method_; }
   const SystemMatrix& system_matrix() const { return sysmat_; }
+  /// Contact factors in contact frames as a choice (SystemMatrix::set_frame_factors).
+  void set_frame_factors(bool on) { sysmat_.set_frame_factors(on); }
   /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
   void set_amg_diagnostics(Preconditioner::AmgDiagnostics d) { sysmat_.set_amg_diagnostics(d); }
   /// Residual of the last PCG solve, ‖S(b − A v)‖₂.

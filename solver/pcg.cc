@@ -254,6 +254,7 @@ bool Preconditioner::Factorize(const SparseMatrix& a) {
     case PreconditionerType::kCholesky:
       axis_valid_ = {false, false, false};  // new values of A: the contact factors are stale
       axis_used_ = {false, false, false};
+      cf_frames_ = false;
       system_valid_ = system_used_ = false;  // and "auto"'s prefiltered hierarchy
       return cholesky_ && cholesky_->Factorize(a);
     case PreconditionerType::kAmg:
@@ -285,6 +286,12 @@ Eigen::Matrix3d ContactFrame(const Vector3& n) {
   int c = 0;
   n.cwiseAbs().maxCoeff(&c);
   return SmallestRotation(Vector3::Unit(c), n(c) < 0.0 ? Vector3(-n) : n);
+}
+
+// A contact's direction: its (first) normal, turned into the upper
+// half-space where it points mostly down (S_p depends on n nᵀ alone).
+Vector3 ContactDirection(const Eigen::Matrix3d& dirs) {
+  return dirs(2, 0) < -0.5 ? Vector3(-dirs.col(0)) : Vector3(dirs.col(0));
 }
 
 }  // namespace
@@ -446,11 +453,6 @@ void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filt
     return;
   }
   std::fill(held_.begin(), held_.end(), 0);
-  // A contact's direction is its normal, turned into the upper half-space
-  // where it points mostly down (S_p depends on n nᵀ alone).
-  const auto direction = [](const Eigen::Matrix3d& dirs) {
-    return dirs(2, 0) < -0.5 ? Vector3(-dirs.col(0)) : Vector3(dirs.col(0));
-  };
   if (frame_mode_ == FrameMode::kNearestAxis) {
     // Contact frames only (ContactFrame), at a setup and at an update; free
     // particles in the world frame.
@@ -468,25 +470,37 @@ void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filt
       const auto i = static_cast<std::size_t>(p);
       held_[i] = 1;
       if (count != 1) return;
-      field_[i] = direction(dirs);
+      field_[i] = ContactDirection(dirs);
       frames_[i] = SmallestRotation(frames_[i].col(2), field_[i]) * frames_[i];
     });
     return;
   }
-  // A setup: every free particle first takes the direction of its nearest
-  // contact (a breadth-first search from all contacts over A's graph), so
-  // that a hanging part keeps the frame of the contacts it hangs from
-  // instead of returning to the world frame; kFrameSweeps Jacobi sweeps
-  // then turn the seams between regions of different contacts gradually.
-  // A free particle no contact reaches keeps e_z.
-  std::fill(field_.begin(), field_.end(), Vector3::UnitZ());
+  SpreadDirections(a, filter, /*flip=*/true, &field_);
+  for (std::size_t p = 0; p < n; ++p)
+    frames_[p] = !held_[p] && field_[p].z() > kFrameSnap ? Eigen::Matrix3d::Identity()
+                                                         : SmallestRotation(Vector3::UnitZ(), field_[p]);
+}
+
+void Preconditioner::SpreadDirections(const SparseMatrix& a, const VelocityFilter& filter, bool flip,
+                                      std::vector<Vector3>* field) {
+  // Every free particle first takes the direction of its nearest contact (a
+  // breadth-first search from all contacts over A's graph), so that a
+  // hanging part keeps the frame of the contacts it hangs from instead of
+  // returning to the world frame; kFrameSweeps Jacobi sweeps then turn the
+  // seams between regions of different contacts gradually. A free particle
+  // no contact reaches keeps e_z.
+  const std::size_t n = static_cast<std::size_t>(a.rows());
+  std::vector<Vector3>& f = *field;
+  f.assign(n, Vector3::UnitZ());
+  held_.assign(n, 0);
   reached_.assign(n, 0);
   queue_.clear();
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
     const auto i = static_cast<std::size_t>(p);
-    held_[i] = reached_[i] = 1;
-    if (count != 1) return;  // fixed: keeps e_z and is no source
-    field_[i] = direction(dirs);
+    held_[i] = count >= 3 ? 2 : 1;
+    reached_[i] = 1;
+    if (count != 1) return;  // fixed (or two directions): keeps e_z and is no source
+    f[i] = flip ? ContactDirection(dirs) : Vector3(dirs.col(0));
     queue_.push_back(p);
   });
   const int* outer = a.outerIndexPtr();
@@ -497,24 +511,29 @@ void Preconditioner::SetFrames(const SparseMatrix& a, const VelocityFilter& filt
       const auto q = static_cast<std::size_t>(inner[pos]);
       if (reached_[q]) continue;
       reached_[q] = 1;
-      field_[q] = field_[static_cast<std::size_t>(p)];
+      f[q] = f[static_cast<std::size_t>(p)];
       queue_.push_back(inner[pos]);
     }
   }
+  next_field_.resize(n);
   for (int sweep = 0; sweep < kFrameSweeps; ++sweep) {
-    next_field_ = field_;
-    for (std::size_t p = 0; p < n; ++p) {
+    // Each particle from the last sweep's field alone: the same bits for
+    // any thread count.
+#pragma omp parallel for schedule(static) if (n >= 4096)
+    for (std::ptrdiff_t pi = 0; pi < static_cast<std::ptrdiff_t>(n); ++pi) {
+      const auto p = static_cast<std::size_t>(pi);
+      next_field_[p] = f[p];
       if (held_[p]) continue;
       Vector3 sum = Vector3::Zero();
-      for (int pos = outer[p]; pos < outer[p + 1]; ++pos) sum += field_[static_cast<std::size_t>(inner[pos])];
+      // A fixed particle's direction (decoupled in A_F, its frame is free)
+      // does not pull its neighbours'.
+      for (int pos = outer[p]; pos < outer[p + 1]; ++pos)
+        if (held_[static_cast<std::size_t>(inner[pos])] != 2) sum += f[static_cast<std::size_t>(inner[pos])];
       const double length = sum.norm();
       if (length > 0.0) next_field_[p] = sum / length;
     }
-    field_.swap(next_field_);
+    f.swap(next_field_);
   }
-  for (std::size_t p = 0; p < n; ++p)
-    frames_[p] = !held_[p] && field_[p].z() > kFrameSnap ? Eigen::Matrix3d::Identity()
-                                                         : SmallestRotation(Vector3::UnitZ(), field_[p]);
 }
 
 void Preconditioner::AssembleSystem(const SparseMatrix& a, const std::vector<Eigen::Matrix3d>& s) {
@@ -585,42 +604,26 @@ bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& fi
   if (!contact_factors_) return true;  // contact_factors = false: the factor alone
   const double n = static_cast<double>(a.rows());
   const double cycle = VCycleIterations(n);
-  const std::size_t m = auto_amg_ ? 1 : 0;
-  if (auto_counting_) {
-    const auto apps = static_cast<double>(applications_ - applications_at_auto_);
-    const auto setups = static_cast<double>(contact_stats_.refactorizations - refactorizations_at_auto_);
-    const auto changes = static_cast<double>(contact_stats_.modifications - modifications_at_auto_);
-    // A finest-level update of a kept hierarchy costs about a V-cycle.
-    const double cost = m == 1 ? cycle * (apps + kAutoSetupVCycles * setups + changes)
-                               : apps + kRefactorIterations * (setups + changes / (kModifyRowsPerSqrtN * std::sqrt(n)));
-    stay_cost_ += cost;
-    ++stay_steps_;
-    auto_cost_[m] = stay_cost_ / stay_steps_;
-    if (auto_cost_[1 - m] >= 0.0) auto_cost_[1 - m] *= kAutoDecay;
-  }
-  applications_at_auto_ = applications_;
-  refactorizations_at_auto_ = contact_stats_.refactorizations;
-  modifications_at_auto_ = contact_stats_.modifications;
+  ModeChoice& c = auto_choice_;
+  const auto [apps, setups, changes] = CountSince(&c);
+  // A finest-level update of a kept hierarchy costs about a V-cycle.
+  if (c.counting)
+    c.Count(c.mode == 1 ? cycle * (apps + kAutoSetupVCycles * setups + changes)
+                        : apps + kRefactorIterations * (setups + changes / (kModifyRowsPerSqrtN * std::sqrt(n))));
   int contacts = 0;
   filter.ForEachConstraint([&](int, int count, const Eigen::Matrix3d&) { contacts += count < 3; });
   if (contacts == 0) {  // A_F's factor is exact
-    auto_counting_ = false;
+    c.counting = false;
     axis_used_ = {false, false, false};
+    cf_frames_ = false;
     system_used_ = false;
     return true;
   }
-  if (auto_counting_) {
-    const double other = auto_cost_[1 - m] >= 0.0 ? auto_cost_[1 - m] : cycle * kAmgPriorIterations;
-    const bool settled = stay_steps_ >= kAutoMinStay || auto_cost_[m] > kAutoAbort * other;
-    if (settled && other < auto_cost_[m]) {
-      auto_amg_ = m == 0;
-      stay_cost_ = 0.0;
-      stay_steps_ = 0;
-    }
-  }
-  auto_counting_ = true;
-  if (auto_amg_) {
+  if (c.counting) c.Choose(c.record[1 - c.mode] >= 0.0 ? c.record[1 - c.mode] : cycle * kAmgPriorIterations);
+  c.counting = true;
+  if (c.mode == 1) {
     axis_used_ = {false, false, false};
+    cf_frames_ = frame_choice_.counting = false;
     if (!amg_) amg_ = std::make_unique<AmgPreconditioner>();
     if (!AdaptAmgTo(a, filter)) return false;
     // A failed setup (hypre, or a V-cycle that is not finite) leaves
@@ -631,12 +634,72 @@ bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& fi
   return AdaptFactorsTo(a, filter);
 }
 
+std::array<double, 3> Preconditioner::CountSince(ModeChoice* c) const {
+  const std::array<double, 3> since = {static_cast<double>(applications_ - c->applications_at),
+                                       static_cast<double>(contact_stats_.refactorizations - c->refactorizations_at),
+                                       static_cast<double>(contact_stats_.modifications - c->modifications_at)};
+  c->applications_at = applications_;
+  c->refactorizations_at = contact_stats_.refactorizations;
+  c->modifications_at = contact_stats_.modifications;
+  return since;
+}
+
+void Preconditioner::ModeChoice::Count(double cost) {
+  stay_cost += cost;
+  ++stay_steps;
+  record[mode] = stay_cost / stay_steps;
+  if (record[1 - mode] >= 0.0) record[1 - mode] *= kAutoDecay;
+}
+
+bool Preconditioner::ModeChoice::Choose(double other) {
+  const bool settled = stay_steps >= kAutoMinStay || (other >= 0.0 && record[mode] > kAutoAbort * other);
+  if (!settled || other >= record[mode]) return false;
+  mode = 1 - mode;
+  stay_cost = 0.0;
+  stay_steps = 0;
+  return true;
+}
+
 bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter) {
   if (!contact_factors_ || !cholesky_) return true;
+  const double n = static_cast<double>(a.rows());
+  // The factor modes (pcg.h, "Contact frames"): the step since the last
+  // call is counted to the mode that served it, in CG iterations with the
+  // factor (as the contact policy counts them).
+  ModeChoice& c = frame_choice_;
+  const auto [apps, setups, changes] = CountSince(&c);
+  if (c.counting) c.Count(apps + kRefactorIterations * (setups + changes / (kModifyRowsPerSqrtN * std::sqrt(n))));
+  // Contact frames are a choice once the contacts off every axis (by more
+  // than acos(kFrameSnap)) are as many as an axis factor needs; then the
+  // mode with the lower cost record serves, each stay lasting at least
+  // kAutoMinStay steps unless it costs kAutoAbort times the other's record,
+  // and an untried mode is tried next.
+  int tilted = 0;
+  filter.ForEachConstraint([&](int, int count, const Eigen::Matrix3d& dirs) {
+    tilted += count == 1 && dirs.col(0).cwiseAbs().maxCoeff() < kFrameSnap;
+  });
+  const bool choice = frame_factors_ && tilted >= kContactAxisShare * n;
+  if (!choice) {
+    c.counting = false;  // the axis factors serve; the chosen mode is kept
+  } else {
+    if (c.counting) {
+      c.Choose(c.record[1 - c.mode]);
+    } else {
+      c.stay_cost = 0.0;
+      c.stay_steps = 0;
+    }
+    c.counting = true;
+  }
+  const bool frames = choice && c.mode == 1;
   int want[3] = {0, 0, 0};
   for (auto& w : axis_want_) std::fill(w.begin(), w.end(), 0);
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
     if (count >= 3) return;  // fixed: decoupled in A_F already
+    if (frames) {  // the first direction; a second is left to the PCG
+      axis_want_[2][static_cast<std::size_t>(p)] = 1;
+      ++want[2];
+      return;
+    }
     for (int k = 0; k < count; ++k) {
       int c = 0;
       if (dirs.col(k).cwiseAbs().maxCoeff(&c) < kContactAxisCosine) continue;
@@ -647,7 +710,8 @@ bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter&
   });
   using Clock = std::chrono::steady_clock;
   const auto seconds_since = [](Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); };
-  const double n = static_cast<double>(a.rows());
+  bool refactorised = false;
+  const long modifications_before = contact_stats_.modifications;
   for (std::size_t c = 0; c < 3; ++c) {
     contact_stats_.decoupled[c] = want[c];
     // An axis with few contacts keeps A_F's factor: a factor of its own
@@ -702,11 +766,70 @@ bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter&
       contact_stats_.seconds += dt;
       contact_stats_.refactor_seconds += dt;
       ++contact_stats_.refactorizations;
+      refactorised = true;
       if (!axis_valid_[c]) return false;
     }
     axis_used_[c] = true;
   }
+  if (frames && axis_used_[2]) {
+    // The frames are spread again with every refactorisation and once the
+    // contacts added and released since the last spread exceed
+    // kRespreadShare of the contacts: turning only the contacts' frames
+    // leaves the free particles' beside them as they were, and over 0.3 s of
+    // the sphere drape at 10⁵ particles those seams grew to 60, 197 and 691
+    // CG per step (12–15 with the frames spread again).
+    cf_changes_since_spread_ += contact_stats_.modifications - modifications_before;
+    const bool spread = refactorised || !cf_frames_ || cf_changes_since_spread_ > kRespreadShare * want[2];
+    SetFactorFrames(a, filter, spread);
+    if (spread) cf_changes_since_spread_ = 0;
+    cf_frames_ = true;
+  } else {
+    cf_frames_ = false;
+  }
   return true;
+}
+
+void Preconditioner::SetFactorFrames(const SparseMatrix& a, const VelocityFilter& filter, bool spread) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t n = static_cast<std::size_t>(a.rows());
+  if (spread || cf_frame_.size() != n) {
+    // With the factor refactorised: every particle's frame from the spread
+    // contact normals (SpreadDirections, outward as the obstacles give
+    // them), R_p = Q(u, d_p) Q(e_z, u) with Q(e, d) the smallest rotation
+    // taking e to d and u the contacts' mean normal, so that R_p e_z = d_p
+    // and the frames turn smoothly everywhere except near d_p = −u, the
+    // direction fewest contacts face. (Turning each normal into the upper
+    // half-space, as the prefiltered AMG's frames do, made the frames jump
+    // where a drape wraps past a sphere's lower half: 308 CG per step.)
+    SpreadDirections(a, filter, /*flip=*/false, &cf_field_);
+    Vector3 u = Vector3::Zero();
+    filter.ForEachConstraint([&](int, int count, const Eigen::Matrix3d& dirs) {
+      if (count < 3) u += dirs.col(0);
+    });
+    u = u.norm() > 0.0 ? Vector3(u.normalized()) : Vector3::UnitZ();
+    const Eigen::Matrix3d to_u = SmallestRotation(Vector3::UnitZ(), u);
+    cf_frame_.resize(n);
+    cf_rotated_.resize(n);
+#pragma omp parallel for schedule(static) if (n >= 4096)
+    for (std::ptrdiff_t pi = 0; pi < static_cast<std::ptrdiff_t>(n); ++pi) {
+      const auto p = static_cast<std::size_t>(pi);
+      const bool plain = !held_[p] && cf_field_[p].z() > kFrameSnap;
+      cf_frame_[p] = plain ? Eigen::Matrix3d::Identity() : Eigen::Matrix3d(SmallestRotation(u, cf_field_[p]) * to_u);
+      cf_rotated_[p] = !plain;
+    }
+  } else {
+    // Between refactorisations only the contacts' frames turn, each by the
+    // smallest rotation that takes its column z (R_p e_z) to its normal.
+    filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {
+      if (count >= 3) return;
+      const auto i = static_cast<std::size_t>(p);
+      cf_frame_[i] = SmallestRotation(cf_frame_[i].col(2), dirs.col(0)) * cf_frame_[i];
+      cf_rotated_[i] = 1;
+    });
+  }
+  const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  contact_stats_.seconds += dt;
+  contact_stats_.modify_seconds += dt;
 }
 
 void Preconditioner::ApplySystem(const MatrixN3& r, MatrixN3* z) const {
@@ -736,6 +859,20 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
         cholesky_->Solve(r, z);
         break;
       }
+      // In contact frames: r and z in each particle's frame (r_p R_p),
+      // column z with the contacts decoupled.
+      const MatrixN3* in = &r;
+      MatrixN3* out = z;
+      if (cf_frames_) {
+        rotated_r_ = r;
+        rotated_z_.resize(r.rows(), 3);
+#pragma omp parallel for schedule(static) if (r.rows() >= 4096)
+        for (Eigen::Index p = 0; p < r.rows(); ++p)
+          if (cf_rotated_[static_cast<std::size_t>(p)])
+            rotated_r_.row(p) = r.row(p) * cf_frame_[static_cast<std::size_t>(p)];
+        in = &rotated_r_;
+        out = &rotated_z_;
+      }
       // Each column with its own factor; lane 0 solves columns 0 and 1,
       // lane 1 column 2, on two threads at scale (as CholeskyFactor::Solve).
       const CholeskyFactor* f[3];
@@ -745,14 +882,21 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       for (int lane = 0; lane < 2; ++lane) {
         if (lane == 0) {
           if (f[0] == f[1]) {
-            f[0]->SolveColumns(r, z, 0, 2, 0);
+            f[0]->SolveColumns(*in, out, 0, 2, 0);
           } else {
-            f[0]->SolveColumns(r, z, 0, 1, 0);
-            f[1]->SolveColumns(r, z, 1, 1, 0);
+            f[0]->SolveColumns(*in, out, 0, 1, 0);
+            f[1]->SolveColumns(*in, out, 1, 1, 0);
           }
         } else {
-          f[2]->SolveColumns(r, z, 2, 1, 1);
+          f[2]->SolveColumns(*in, out, 2, 1, 1);
         }
+      }
+      if (cf_frames_) {
+        *z = rotated_z_;
+#pragma omp parallel for schedule(static) if (r.rows() >= 4096)
+        for (Eigen::Index p = 0; p < r.rows(); ++p)
+          if (cf_rotated_[static_cast<std::size_t>(p)])
+            z->row(p) = rotated_z_.row(p) * cf_frame_[static_cast<std::size_t>(p)].transpose();
       }
       break;
     }

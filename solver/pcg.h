@@ -158,6 +158,21 @@ struct ContactFactorStats {
 /// (CHOLMOD's Modify module) while few rows change (kModifyRowsPerSqrtN),
 /// else by a refactorisation.
 ///
+/// Contact frames (contact factors, "cholesky" and "auto"): where many
+/// contacts are tilted off every axis, each particle p gets a frame R_p
+/// whose column z is its contact's normal (a free particle's: its nearest
+/// contact's, smoothed as the prefiltered AMG's spread frames), and P⁻¹ r =
+/// R (F_x⁻¹, F_y⁻¹, F_z⁻¹) Rᵀ r with A_F's factor in the tangent columns
+/// and, in column z, the factor with every contact decoupled. It is exact
+/// where the frames are constant (the tilted plane, SBDF(2): 7 CG per
+/// contact step with the axis factors, 1 in frames at 10⁴; 34 and 1 at
+/// 10⁵) and approximates a_pq R_pᵀ R_q by a_pq I where they turn (the
+/// sphere: 21 → 9 CG at 10⁴, 126 → 11 at 10⁵), but where the normals turn
+/// quickly it can lose (the avatar at 10⁴: 12 → 15). So the two factor
+/// modes are chosen by their counted cost per step as the contact policy
+/// chooses (kAutoMinStay, kAutoAbort, kAutoDecay; docs/performance.md,
+/// "Contact frames").
+///
 /// Prefiltered AMG ("amg" with contact_factors; Tamstorf, Jones & McCormick
 /// 2015): with contacts, one V-cycle of BoomerAMG in systems mode on the
 /// 3N×3N filtered matrix K = S A S + (I − S) itself, in per-particle frames
@@ -286,11 +301,20 @@ class Preconditioner {
   static constexpr double kAutoAbort = 2.0;
   /// What Apply uses now: 0 the preconditioner of A_F (its factor or
   /// hierarchy, or IC(0), Jacobi, none), 1 a contact factor in at least
-  /// one column, 2 the prefiltered AMG (StepStats::preconditioner).
+  /// one column, 2 the prefiltered AMG, 3 the contact factor in contact
+  /// frames (StepStats::preconditioner).
   int ServedBy() const {
     if (system_used_) return 2;
+    if (cf_frames_) return 3;
     return axis_used_[0] || axis_used_[1] || axis_used_[2] ? 1 : 0;
   }
+  /// Contact frames: the share of the contacts that, added or released
+  /// since the frames were last spread, makes them spread again.
+  static constexpr double kRespreadShare = 0.05;
+  /// Contact factors in contact frames: whether they are a choice (default
+  /// true; false: the axis factors alone, for comparisons). Before the
+  /// first AdaptTo.
+  void set_frame_factors(bool on) { frame_factors_ = on; }
 
   explicit Preconditioner(PreconditionerType type = PreconditionerType::kIc0,
                           CholeskyOrdering ordering = CholeskyOrdering::kMetis, bool contact_factors = false);
@@ -382,23 +406,55 @@ class Preconditioner {
   FrameMode frame_mode_ = FrameMode::kSpread;
   double mode_measured_[2] = {0.0, 0.0}, mode_rate_[2] = {0.0, 0.0};
   long applications_at_setup_ = 0;
+  // A measured choice between two modes (the contact policy's between the
+  // contact factors [0] and the prefiltered AMG [1]; AdaptFactorsTo's
+  // between the axis factors [0] and contact frames [1]): the current mode,
+  // each mode's cost record (CG iterations with the factor per step; < 0:
+  // untried), the current stay's summed cost and steps, whether the step
+  // since the last call is counted, and the counters at that call.
+  struct ModeChoice {
+    std::size_t mode = 0;
+    double record[2] = {-1.0, -1.0};
+    double stay_cost = 0.0;
+    int stay_steps = 0;
+    bool counting = false;
+    long applications_at = 0, refactorizations_at = 0, modifications_at = 0;
+    // Counts a step of `cost` to the current mode; the other's record decays
+    // by kAutoDecay.
+    void Count(double cost);
+    // Leaves the current mode for the other, whose record is `other` (< 0:
+    // untried), once the stay has lasted kAutoMinStay steps or costs
+    // kAutoAbort times `other`, if `other` is lower. @return whether it left
+    bool Choose(double other);
+  };
+  // The applications, setups (refactorisations) and row changes since the
+  // last call for `c`, whose counters move to now.
+  std::array<double, 3> CountSince(ModeChoice* c) const;
   // The contact policy ("auto"; type_ is then kCholesky and auto_ true;
-  // without contact_factors it is the factor alone):
-  // the current mode (the prefiltered AMG, else the contact factors), the
-  // cost records of the contact factors [0] and the AMG [1] (CG iterations
-  // with the factor per step; < 0: untried), the current stay's summed
-  // cost and steps,
-  // whether the last AdaptTo had contacts (its step is then counted), and
-  // the counters at that AdaptTo.
+  // without contact_factors it is the factor alone), and the Apply count.
   bool auto_ = false;
-  bool auto_amg_ = false;
-  double auto_cost_[2] = {-1.0, -1.0};
-  double stay_cost_ = 0.0;
-  int stay_steps_ = 0;
-  bool auto_counting_ = false;
+  ModeChoice auto_choice_;
   mutable long applications_ = 0;
-  long applications_at_auto_ = 0, refactorizations_at_auto_ = 0, modifications_at_auto_ = 0;
   bool AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter);
+  // Contact factors in contact frames (AdaptFactorsTo): whether they are
+  // a choice (set_frame_factors), the choice of the factor mode (mode 1
+  // frames: starts there); whether Apply rotates into the frames, the
+  // contacts changed since they were last spread, each particle's frame
+  // R_p and direction, and whether R_p ≠ I. SetFactorFrames' `spread`: all
+  // frames from SpreadDirections, else only the contacts' turned to their
+  // normals.
+  bool frame_factors_ = true;
+  ModeChoice frame_choice_{.mode = 1};
+  bool cf_frames_ = false;
+  long cf_changes_since_spread_ = 0;
+  std::vector<Eigen::Matrix3d> cf_frame_;
+  std::vector<Vector3> cf_field_;
+  std::vector<char> cf_rotated_;
+  void SetFactorFrames(const SparseMatrix& a, const VelocityFilter& filter, bool spread);
+  // The directions of SetFrames' spread frames into `field` (held_: the
+  // particles the filter holds); `flip`: each contact's normal turned into
+  // the upper half-space where it points mostly down (ContactDirection).
+  void SpreadDirections(const SparseMatrix& a, const VelocityFilter& filter, bool flip, std::vector<Vector3>* field);
   bool AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& filter);
   void ApplySystem(const MatrixN3& r, MatrixN3* z) const;  // one V-cycle of the prefiltered hierarchy
 };

@@ -478,6 +478,17 @@ TEST(AmgPreconditioner, KeptHierarchyTakesChangedContactsOnItsFinestLevel) {
   EXPECT_LT(k, a);
 }
 
+// The fixed particles of `sys`, and half of the default sheet (its rows
+// j < 10, 200 of 400 particles) constrained along `normal`.
+VelocityFilter HalfSheetContacts(const Scene& scene, const ParticleSystem& sys, const Vector3& normal) {
+  VelocityFilter half;
+  half.Reserve(sys.num_particles());
+  for (int p : sys.fixed()) half.Fix(p);
+  for (int j = 0; j < 10; ++j)
+    for (int i = 0; i < scene.grid.nu; ++i) half.Constrain(scene.Index(i, j), normal, 0.0);
+  return half;
+}
+
 // A filter with contacts along z on half of the default sheet (200 of 400
 // particles, the two fixed corners elsewhere). The contact factor of column
 // z is the exact inverse of the filtered system, so the PCG converges in
@@ -487,11 +498,7 @@ TEST(CholeskyPreconditioner, ContactFactorsAreExactForAxisContacts) {
   Scene scene = DefaultScene();
   const ParticleSystem sys(scene);
   const int n = sys.num_particles();
-  VelocityFilter half;
-  half.Reserve(n);
-  for (int p : sys.fixed()) half.Fix(p);
-  for (int j = 0; j < 10; ++j)
-    for (int i = 0; i < scene.grid.nu; ++i) half.Constrain(scene.Index(i, j), Vector3(0, 0, 1), 0.0);
+  const VelocityFilter half = HalfSheetContacts(scene, sys, Vector3(0, 0, 1));
   const MatrixN3 b = MatrixN3::Random(n, 3);
   SystemMatrix with(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
   SystemMatrix without(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/false);
@@ -500,6 +507,42 @@ TEST(CholeskyPreconditioner, ContactFactorsAreExactForAxisContacts) {
   EXPECT_EQ(PcgIterations(with, b, half), 1);
   EXPECT_GT(PcgIterations(without, b, half), 3);
   EXPECT_EQ(with.preconditioner().contact_stats().refactorizations, 1);
+}
+
+// Contact frames: half of the default sheet (200 of 400 particles)
+// constrained along one tilted normal (1, 1, 1)/√3. Every particle's frame
+// then takes e_z to that normal (the free half takes its nearest contact's
+// direction), so R_pᵀ R_q = I and the preconditioner in frames is the exact
+// inverse of the filtered system: one PCG iteration (η = 1e-10, far above
+// the round-off of a direct solve). The axis factors cannot decouple a
+// normal 54.7° from every axis and need several. The first solve serves in
+// frames and is counted as 1 iteration plus a refactorisation (15); after
+// the two steps of a stay the untried axis factors serve two steps, cost
+// more than the frames' mean of 8, and the frames return with their factor
+// kept (the contacts have not changed).
+TEST(CholeskyPreconditioner, ContactFramesAreExactForOneTiltedNormal) {
+  Scene scene = DefaultScene();
+  const ParticleSystem sys(scene);
+  const int n = sys.num_particles();
+  const VelocityFilter half = HalfSheetContacts(scene, sys, Vector3(1, 1, 1).normalized());
+  const MatrixN3 b = MatrixN3::Random(n, 3);
+  SystemMatrix frames(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+  SystemMatrix axes(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+  axes.set_frame_factors(false);
+  ASSERT_TRUE(frames.Update(0.01) && axes.Update(0.01));
+  ASSERT_TRUE(frames.AdaptTo(half) && axes.AdaptTo(half));
+  EXPECT_EQ(frames.preconditioner().ServedBy(), 3);
+  EXPECT_EQ(axes.preconditioner().ServedBy(), 0);  // no normal near an axis: A_F's factor
+  EXPECT_EQ(PcgIterations(frames, b, half), 1);
+  const int axis_iterations = PcgIterations(axes, b, half);
+  EXPECT_GT(axis_iterations, 3);
+  const std::vector<int> expected = {3, 0, 0, 3};  // steps 2 to 5
+  for (int served : expected) {
+    ASSERT_TRUE(frames.AdaptTo(half));
+    EXPECT_EQ(frames.preconditioner().ServedBy(), served);
+    EXPECT_EQ(PcgIterations(frames, b, half), served == 3 ? 1 : axis_iterations);
+  }
+  EXPECT_EQ(frames.preconditioner().contact_stats().refactorizations, 1);
 }
 
 // Row deletes and adds (CholeskyFactor::DecoupleRow, CoupleRow) must leave
