@@ -43,7 +43,8 @@ struct Options {
   int repeat = 0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline), error_metric = "final";
-  std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64";
+  std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64",
+                                                                                    iterations_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
   std::string cvode_setting_arg;
@@ -60,7 +61,7 @@ void AddOptions(CLI::App& app, Options& o) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -95,6 +96,9 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--substeps", substeps_arg,
                  "comma-separated substeps per frame step of the substepped rows (xpbd): one row per h and value "
                  "(default 1,4,16,64)");
+  app.add_option("--iterations", iterations_arg,
+                 "comma-separated iterations per step of the iterated rows (pd, pd/chebyshev): one row per h and "
+                 "value (default 1,4,16,64)");
   app.add_option("--arkode-table", arkode_table,
                  "ARKODE IMEX pair: ARK324L2SA (default), ARK436L2SA, ARK437L2SA, ARK548L2SA, ARK548L2SAb");
   app.add_option("--targets", targets_arg, "e_rms targets [m] of the equal-accuracy table (default 1e-2,1e-3,1e-4)");
@@ -202,7 +206,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
   if (sweep_to_targets && !app.count("--time-limit")) time_limit = kSweepTimeLimit;
   Scene scene = SceneOfOptions(app, o, size);
   if (app.count("--integrators") && integrators_arg.empty())
@@ -237,7 +241,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                                      methods[a].label()));
   CheckArkodeTable(arkode_table);
   const std::string unused = UnusedOption(
-      methods, {app.count("--rtols") > 0, app.count("--substeps") > 0,
+      methods, {app.count("--rtols") > 0, app.count("--substeps") > 0, app.count("--iterations") > 0,
                 app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--preconditioner") > 0,
                 app.count("--nonlinear-solver") > 0, app.count("--arkode-table") > 0,
                 app.count("--cvode-setting") > 0, app.count("--tangent-terms") > 0,
@@ -260,8 +264,14 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
     substeps.push_back(static_cast<int>(n));
   }
+  std::vector<int> iterations;
+  for (double k : ParsePositiveList(iterations_arg, "--iterations")) {
+    if (k != std::floor(k) || k > 1e6)
+      throw UsageError(fmt::format("--iterations: {:g} must be a whole number from 1 to 1e6", k));
+    iterations.push_back(static_cast<int>(k));
+  }
   if (sweep_to_targets) {
-    for (const char* option : {"--h", "--rtols", "--substeps"})
+    for (const char* option : {"--h", "--rtols", "--substeps", "--iterations"})
       if (app.count(option))
         throw UsageError(fmt::format("{}: --sweep-to-targets chooses the runs itself", option));
     if (etas.size() > 1) throw UsageError("--cg-tolerances: --sweep-to-targets runs one CG tolerance");
@@ -271,7 +281,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       throw UsageError("--sweep-to-targets: it chooses each run from the errors of the one before; run it on one "
                        "rank (without mpirun)");
   }
-  const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, etas.size());
+  const RowPlan plan = PlanRows(scene, methods, hs, rtols, substeps, iterations, etas.size());
   // Every planned run as a request, by the rules every entry point shares
   // (harness/run_request.h); the options only some rows read were checked
   // by UnusedOption above.
@@ -284,6 +294,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       if (methods[k].kind() == StepKind::kAdaptive) q.rtol = param;
       else q.h = param;
       if (methods[k].kind() == StepKind::kSubstepped) q.substeps = n;
+      if (methods[k].kind() == StepKind::kIterated) q.iterations = n;
       q.time_limit = time_limit;
       if (repeat > 0) q.repeat = repeat;
       q.time_budget = time_budget;
@@ -314,7 +325,7 @@ int Main(int argc, char** argv) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -375,7 +386,7 @@ int Main(int argc, char** argv) {
       for (const char* option : {"--series", "--max-runs"})
         if (app.count(option)) throw UsageError(fmt::format("{}: cannot be combined with --sizes", option));
       // Each size is a sweep to the targets: the options it refuses, named as --sizes'.
-      for (const char* option : {"--h", "--rtols", "--substeps"})
+      for (const char* option : {"--h", "--rtols", "--substeps", "--iterations"})
         if (app.count(option))
           throw UsageError(fmt::format("{}: --sizes sweeps each size to the targets and chooses the runs itself", option));
       if (reference == "none") throw UsageError("--reference none: --sizes needs the reference's errors at each size");

@@ -52,11 +52,11 @@ void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function
   r->solver_time_s_max = times.back();
 }
 
-// One run of one row: the method, its CG tolerance, h or rtol, substeps.
+// One run of one row: the method, its CG tolerance, h or rtol, substeps or iterations.
 struct RowTask {
   std::size_t mk;  // method
   double eta, param;
-  int substeps;
+  int count;  // substeps (substepped) or iterations (iterated); 1 otherwise
 };
 
 // The rows' runs in table order (rows that use the PCG once per η).
@@ -227,24 +227,25 @@ constexpr int kMaxCoarsenings = 4, kMaxRunsPerMethod = 14;
 
 // One rung of a method's ladder: index 0 is the start, negative coarser.
 struct Rung {
-  double param;  // h [s] (fixed-step, substepped: the frame step) or rtol
-  int substeps;
+  double param;  // h [s] (fixed-step, iterated; substepped: the frame step) or rtol
+  int count;  // substeps (substepped) or iterations (iterated); 1 otherwise
 };
 
 Rung RungOf(const RowMethod& m, const Scene& scene, int index) {
   const StepKind kind = m.kind();
   if (kind == StepKind::kAdaptive) return {1e-4 * std::pow(10.0, -index), 1};
-  if (kind == StepKind::kSubstepped) return {scene.h, 1 << std::max(0, index)};
+  if (CountedKind(kind)) return {scene.h, 1 << std::max(0, index)};
   return {scene.h * std::pow(2.0, -index), 1};
 }
 
 // Whether rung `index` exists: h at most t_end/4 and at least h/4096;
-// substeps 1 … 1024; rtol 1e-1 … 10 × the reference's rtol.
+// substeps or iterations 1 … 1024; rtol 1e-1 … 10 × the reference's rtol.
 bool RungExists(const RowMethod& m, const BenchRun& b, int index) {
   const Rung r = RungOf(m, b.scene, index);
   switch (m.kind()) {
     case StepKind::kAdaptive: return r.param <= 0.1 * (1.0 + 1e-9) && r.param >= 10.0 * b.ref_rtol * (1.0 - 1e-9);
-    case StepKind::kSubstepped: return index >= 0 && r.substeps <= 1024;
+    case StepKind::kSubstepped:
+    case StepKind::kIterated: return index >= 0 && r.count <= 1024;
     default: return r.param <= 0.25 * b.scene.t_end && r.param >= b.scene.h / 4096.0;
   }
 }
@@ -252,7 +253,8 @@ bool RungExists(const RowMethod& m, const BenchRun& b, int index) {
 std::string RungName(const RowMethod& m, const Rung& r) {
   switch (m.kind()) {
     case StepKind::kAdaptive: return fmt::format("rtol {:g}", r.param);
-    case StepKind::kSubstepped: return fmt::format("{} substeps", r.substeps);
+    case StepKind::kSubstepped: return fmt::format("{} substeps", r.count);
+    case StepKind::kIterated: return fmt::format("{} iterations", r.count);
     default: return fmt::format("h = {:g} s", r.param);
   }
 }
@@ -301,8 +303,8 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
       task(
           [&] {
             progress.Start(fmt::format("{} {}", m.label(), RungName(m, r)), b.scene.t_end);
-            MethodRun first = m.Run(sys, b.scene, spec, r.param, ctx, r.substeps);
-            RepeatTimings(&first, b.repeat, &budget, [&] { return m.Run(sys, b.scene, spec, r.param, ctx, r.substeps); });
+            MethodRun first = m.Run(sys, b.scene, spec, r.param, ctx, r.count);
+            RepeatTimings(&first, b.repeat, &budget, [&] { return m.Run(sys, b.scene, spec, r.param, ctx, r.count); });
             return first;
           },
           &out);
@@ -427,10 +429,11 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     const RowMethod& m = b.methods[t.mk];
     const SolverSpec spec = task_spec(t);
     progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), t.param)
-                   : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.substeps)
+                   : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.count)
+                   : m.kind() == StepKind::kIterated   ? fmt::format("{} h = {:g} s x{}", m.label(), t.param, t.count)
                                                        : fmt::format("{} h = {:g} s", m.label(), t.param),
                    b.scene.t_end);
-    Row r = m.Run(sys, b.scene, spec, t.param, ctx, t.substeps);
+    Row r = m.Run(sys, b.scene, spec, t.param, ctx, t.count);
     if (b.etas.size() > 1 && m.uses_pcg()) {
       r.id += fmt::format("_eta{:g}", t.eta);
       r.label += fmt::format(" eta={:g}", t.eta);
@@ -446,7 +449,7 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
             [](const auto& a, const auto& c) { return a.second.wall_time_s < c.second.wall_time_s; });
   for (auto& [k, r] : computed) {
     const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
-    RepeatTimings(&r, b.repeat, &budget, [&] { return b.methods[t.mk].Run(sys, b.scene, task_spec(t), t.param, ctx, t.substeps); });
+    RepeatTimings(&r, b.repeat, &budget, [&] { return b.methods[t.mk].Run(sys, b.scene, task_spec(t), t.param, ctx, t.count); });
     if (r.repeats > 1) journal_store(k, EncodeRun(r));
     if (comm.root()) own_rows.emplace(k, std::move(r));
     else outgoing.emplace_back(k, EncodeRun(r));

@@ -1,8 +1,9 @@
 // The registry of every method the executables run, by name: the thesis'
-// integrators and symplectic Euler (solver/), the peers baraff_witkin, xpbd
-// and arkode (peers/), and the references cvode and ida (reference/). Each entry
-// says how it is stepped (fixed h, adaptive at an rtol, substepped) and every
-// row runs through the same call, returning the same MethodRun.
+// integrators and symplectic Euler (solver/), the peers baraff_witkin, xpbd,
+// pd and arkode (peers/), and the references cvode and ida (reference/). Each
+// entry says how it is stepped (fixed h, adaptive at an rtol, substepped,
+// iterated) and every row runs through the same call, returning the same
+// MethodRun.
 //
 // Row labels: the name, then "/newton" for a fully implicit method with
 // Newton's method, then "/error" for SBDF(2) and BDF(2) under local error
@@ -26,6 +27,7 @@
 #include "model/trajectory.h"
 #include "peers/arkode.h"
 #include "peers/baraff_witkin.h"
+#include "peers/projective_dynamics.h"
 #include "peers/xpbd.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
@@ -38,11 +40,18 @@
 namespace clothbench {
 
 /// How a method's rows are parameterised: a list of step sizes h, a list of
-/// tolerances rtol, or frame steps h each split into substeps.
-enum class StepKind { kFixedStep, kAdaptive, kSubstepped };
+/// tolerances rtol, frame steps h each split into substeps, or steps h each
+/// with a fixed number of iterations (projective dynamics).
+enum class StepKind { kFixedStep, kAdaptive, kSubstepped, kIterated };
 inline std::string_view ToString(StepKind k) {
-  return k == StepKind::kFixedStep ? "fixed_step" : k == StepKind::kAdaptive ? "adaptive" : "substepped";
+  return k == StepKind::kFixedStep    ? "fixed_step"
+         : k == StepKind::kAdaptive   ? "adaptive"
+         : k == StepKind::kSubstepped ? "substepped"
+                                      : "iterated";
 }
+/// Whether a kind's rows take a count besides h: substeps (substepped
+/// rows) or iterations per step (iterated rows).
+inline bool CountedKind(StepKind k) { return k == StepKind::kSubstepped || k == StepKind::kIterated; }
 
 /// Settings shared by all rows of one invocation.
 struct RunContext {
@@ -72,10 +81,12 @@ struct MethodEntry {
   bool pcg = false;               ///< solves with the filtered PCG (so the CG tolerance η applies)
   bool tangent = false;           ///< always holds the 3N×3N tangent system J_α (memory check)
   bool sparse_jacobian = false;   ///< holds a 6N×6N Jacobian and its KLU factor (memory check)
-  /// Fixed-step and substepped methods (and error-controlled SBDF(2)/BDF(2)):
-  /// the stepper on `sys` with settings `spec` (`substeps` per step for
-  /// substepped ones); nullptr for the SUNDIALS-stepped ones.
-  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec, int substeps) = nullptr;
+  /// Fixed-step, substepped and iterated methods (and error-controlled
+  /// SBDF(2)/BDF(2)): the stepper on `sys` with settings `spec`, `count`
+  /// substeps or iterations per step for substepped and iterated ones, and
+  /// the row's `variant` ("chebyshev"); nullptr for the SUNDIALS-stepped ones.
+  std::unique_ptr<Stepper> (*make)(const ParticleSystem& sys, const SolverSpec& spec, int count,
+                                   std::string_view variant) = nullptr;
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                           const RunContext& ctx) = nullptr;
@@ -137,9 +148,24 @@ struct MethodEntry {
 /// "The contact policy").
 inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kAuto;
 
+/// pd/chebyshev's acceleration (Wang 2015). ρ = 0.91 is the plain
+/// iteration's measured contraction on the default scene at h = 0.01 s
+/// (test PdChebyshev.RhoOfThePlainIteration: 0.9101 over iterations
+/// 32–64 of a step at t = 0.3 s). γ and the delay were measured there too:
+/// the rms difference of the final positions to implicit_euler/newton
+/// after 0.5 s, with 4 / 8 / 16 / 32 iterations, is 1.7e-2 / 3.9e-3 / 7.1e-4
+/// / – m for plain PD, and with ρ = 0.91: γ = 1, delay 1: 6.0e-2 / 3.3e-3 /
+/// 3.4e-4 / 6.6e-7; γ = 0.9, delay 2: 3.9e-3 / 3.9e-3 / 2.4e-5 / 1.6e-6;
+/// γ = 1, delay 4: 1.7e-2 / 1.8e-3 / 2.9e-5 / 9.1e-7 (ρ = 0.85 and 0.95
+/// were no better at 16). γ = 0.9 with delay 2 is the only setting better
+/// than plain PD at every count. Measured on one scene and h: ρ grows with
+/// the numerical stiffness h²k/m, so other scenes may want other values.
+inline constexpr ChebyshevSettings kPdChebyshev{.on = true, .rho = 0.91, .gamma = 0.9, .delay = 2};
+
 namespace internal {
 template <Method M>
-std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec, int /*substeps*/) {
+std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec, int /*count*/,
+                                    std::string_view /*variant*/) {
   return std::make_unique<StepEngine>(sys, M, spec);
 }
 }  // namespace internal
@@ -147,7 +173,7 @@ std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec&
 /// Every method, in table order.
 inline const std::vector<MethodEntry>& Registry() {
   using internal::MakeEngine;
-  constexpr auto kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped;
+  constexpr auto kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped, kIterated = StepKind::kIterated;
   constexpr auto kBest = kBestPreconditioner;
   static const std::vector<MethodEntry> r = {
       {.name = "imex_euler", .layer = "solver", .collisions = true, .pcg = true,
@@ -194,25 +220,41 @@ inline const std::vector<MethodEntry>& Registry() {
       // convergence needs the whole J (bdf2/newton at h = 0.01 s: 503
       // instead of 300 updates, the same time).
       {.name = kBaraffWitkinName, .layer = "peers", .collisions = true, .pcg = true, .tangent = true,
-       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
+       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int, std::string_view) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec);
        },
        .best_preconditioner = kBest, .best_cg_tolerance = 1e-2, .best_tangent_explicit_terms = false},
       // Blender's solver as it ships (peers/baraff_witkin.h): its own CG
       // settings, so the scene's η does not apply.
       {.name = kBlenderName, .layer = "peers", .collisions = true, .tangent = true,
-       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int) -> std::unique_ptr<Stepper> {
+       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int, std::string_view) -> std::unique_ptr<Stepper> {
          return std::make_unique<BaraffWitkin>(sys, spec, BaraffWitkinOptions{true});
        }},
       {.name = kXpbdName, .kind = kSubstepped, .layer = "peers", .collisions = true,
-       .make = [](const ParticleSystem& sys, const SolverSpec&, int substeps) -> std::unique_ptr<Stepper> {
-         return std::make_unique<Xpbd>(sys, substeps);
-       },
+       .make = [](const ParticleSystem& sys, const SolverSpec&, int substeps,
+                  std::string_view) -> std::unique_ptr<Stepper> { return std::make_unique<Xpbd>(sys, substeps); },
        .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
          const auto& x = static_cast<const Xpbd&>(stepper);  // this entry's make builds an Xpbd
          for (const std::string& t : x.explicit_terms()) row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
          row->constraints = std::string("tension") + (x.shear_constraint() ? ",shear" : "") +
                             (sys.obstacles().empty() ? "" : ",obstacles");
+       }},
+      // pd: projective dynamics, the model's springs projected and A₁
+      // prefactored; pd/chebyshev with Wang's acceleration at the measured
+      // ρ (kPdChebyshev).
+      {.name = kProjectiveDynamicsName, .kind = kIterated, .layer = "peers", .collisions = true,
+       .make = [](const ParticleSystem& sys, const SolverSpec& spec, int iterations,
+                  std::string_view variant) -> std::unique_ptr<Stepper> {
+         return std::make_unique<ProjectiveDynamics>(
+             sys, spec, iterations, variant == "chebyshev" ? kPdChebyshev : ChebyshevSettings{});
+       },
+       .variants = {"chebyshev"},
+       .describe = [](const Stepper&, const ParticleSystem& sys, RunRecord* row) {
+         // The springs are projected (F_nl); every other explicit term
+         // enters the global step's right-hand side at the iterate.
+         row->constraints = "tension";
+         for (const std::string& t : sys.TermNames())
+           if (t != "tension_nonlinear") row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
        }},
       {.name = kArkodeName, .kind = kAdaptive, .layer = "peers", .pcg = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
@@ -284,6 +326,7 @@ struct MethodRun : RunSummary {
   StepKind kind() const {
     return step_kind == "adaptive"     ? StepKind::kAdaptive
            : step_kind == "substepped" ? StepKind::kSubstepped
+           : step_kind == "iterated"   ? StepKind::kIterated
                                        : StepKind::kFixedStep;
   }
 };
@@ -326,12 +369,14 @@ struct RowMethod {
       if (c == '/') c = '_';
     return s;
   }
-  /// The id of this row's run at `param` (h [s] or rtol) and `substeps`:
-  /// "bdf2_newton_h0.01", "xpbd_h0.01_n4", "cvode_rtol0.0001" (a sweep
-  /// over CG tolerances appends "_eta<η>").
-  std::string RunId(double param, int substeps) const {
+  /// The id of this row's run at `param` (h [s] or rtol) and `count`
+  /// (substeps or iterations): "bdf2_newton_h0.01", "xpbd_h0.01_n4",
+  /// "pd_chebyshev_h0.01_k16", "cvode_rtol0.0001" (a sweep over CG
+  /// tolerances appends "_eta<η>").
+  std::string RunId(double param, int count) const {
     return kind() == StepKind::kFixedStep    ? fmt::format("{}_h{:g}", id(), param)
-           : kind() == StepKind::kSubstepped ? fmt::format("{}_h{:g}_n{}", id(), param, substeps)
+           : kind() == StepKind::kSubstepped ? fmt::format("{}_h{:g}_n{}", id(), param, count)
+           : kind() == StepKind::kIterated   ? fmt::format("{}_h{:g}_k{}", id(), param, count)
                                              : fmt::format("{}_rtol{:g}", id(), param);
   }
   bool fully_implicit() const { return entry->nonlinear_solver; }
@@ -358,16 +403,16 @@ struct RowMethod {
   /// solver settings and this row's nonlinear solver; nullptr for adaptive
   /// methods that SUNDIALS steps.
   std::unique_ptr<Stepper> Make(const ParticleSystem& sys, const SolverSpec& spec) const {
-    return entry->make ? entry->make(sys, Settings(spec), 1) : nullptr;
+    return entry->make ? entry->make(sys, Settings(spec), 1, variant) : nullptr;
   }
 
-  /// Runs `sys` from rest to scene.t_end. `param` is h [s] for fixed-step
-  /// and substepped rows (the frame step, split into `substeps`) and rtol
-  /// (= atol) for adaptive ones; `spec` the solver settings (the scene's,
-  /// with the invocation's overrides). Never throws for a numerical failure
-  /// (see RunRecord::status).
+  /// Runs `sys` from rest to scene.t_end. `param` is h [s] for fixed-step,
+  /// substepped and iterated rows (the frame step, split into `count`
+  /// substeps, or with `count` iterations) and rtol (= atol) for adaptive
+  /// ones; `spec` the solver settings (the scene's, with the invocation's
+  /// overrides). Never throws for a numerical failure (see RunRecord::status).
   MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
-                const RunContext& ctx, int substeps = 1) const {
+                const RunContext& ctx, int count = 1) const {
     SolverSpec row_spec = spec;
     const std::optional<PreconditionerType>& best =
         error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
@@ -390,7 +435,7 @@ struct RowMethod {
     const SolverSpec s = Settings(row_spec, param);
     std::unique_ptr<Stepper> stepper;
     if (entry->make) {
-      stepper = entry->make(sys, s, substeps);
+      stepper = entry->make(sys, s, count, variant);
       // Error-controlled rows start at the scene's h; the controller takes over.
       static_cast<RunSummary&>(row) =
           RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
@@ -407,15 +452,19 @@ struct RowMethod {
     row.layer = std::string(entry->layer);
     row.step_kind = std::string(ToString(kind()));
     if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
-    row.id = RunId(param, substeps);
+    row.id = RunId(param, count);
     row.h = row.rtol = row.atol = 0.0;
     if (kind() == StepKind::kFixedStep) {
       row.h = param;
       row.numerical_stiffness = scene.NumericalStiffness(param);
     } else if (kind() == StepKind::kSubstepped) {
       row.h = param;
-      row.substeps = substeps;
-      row.numerical_stiffness = scene.NumericalStiffness(param / substeps);
+      row.substeps = count;
+      row.numerical_stiffness = scene.NumericalStiffness(param / count);
+    } else if (kind() == StepKind::kIterated) {
+      row.h = param;
+      row.iterations = count;
+      row.numerical_stiffness = scene.NumericalStiffness(param);
     } else {
       row.rtol = row.atol = param;  // rtol = atol for every adaptive row
       row.numerical_stiffness = scene.NumericalStiffness(scene.h);
@@ -435,7 +484,7 @@ struct RowMethod {
 
 /// The command-line options that only some rows read, and whether each was given.
 struct GivenOptions {
-  bool rtols = false, substeps = false, cg_tolerance = false, preconditioner = false, nonlinear_solver = false,
+  bool rtols = false, substeps = false, iterations = false, cg_tolerance = false, preconditioner = false, nonlinear_solver = false,
        arkode_table = false, cvode_setting = false, tangent_terms = false;
   std::string baseline;  ///< --baseline ROW; empty: not given
 };
@@ -454,6 +503,8 @@ inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenO
        "adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error"},
       {given.substeps, any([](const RowMethod& m) { return m.kind() == StepKind::kSubstepped; }), "--substeps",
        "substepped rows: xpbd"},
+      {given.iterations, any([](const RowMethod& m) { return m.kind() == StepKind::kIterated; }), "--iterations",
+       "iterated rows: pd, pd/chebyshev"},
       {given.cg_tolerance, any([](const RowMethod& m) { return m.uses_pcg(); }), "--cg-tolerance/--cg-tolerances",
        "rows that solve with the PCG"},
       {given.preconditioner, any([](const RowMethod& m) { return m.uses_pcg(); }), "--preconditioner",

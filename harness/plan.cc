@@ -20,7 +20,8 @@ std::vector<std::string> DefaultRowNames(NonlinearSolver scene_solver, bool solv
 }
 
 RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<double>& hs,
-                 const std::vector<double>& rtols, const std::vector<int>& substeps, std::size_t n_eta) {
+                 const std::vector<double>& rtols, const std::vector<int>& substeps, const std::vector<int>& iterations,
+                 std::size_t n_eta) {
   RowPlan plan;
   plan.params.resize(methods.size());
   for (std::size_t k = 0; k < methods.size(); ++k) {
@@ -38,6 +39,9 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
         for (int n : substeps) ps.emplace_back(h, n);
       std::stable_sort(ps.begin(), ps.end(),
                        [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
+    } else if (m.kind() == StepKind::kIterated) {
+      for (double h : mh)  // h decreasing, each with its iteration counts increasing
+        for (int k : iterations) ps.emplace_back(h, k);
     } else if (m.kind() == StepKind::kFixedStep) {
       for (double h : mh) ps.emplace_back(h, 1);
     } else {
@@ -49,7 +53,8 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
     plan.n_params.push_back(ps.size());
     // The longest fixed-step or substepped run must stay within the step limit.
     if (m.kind() != StepKind::kAdaptive)
-      for (const auto& [h, n] : ps) {
+      for (const auto& [h, count] : ps) {
+        const int n = m.kind() == StepKind::kSubstepped ? count : 1;  // steps per h
         plan.step_records += std::ceil(scene.t_end / h * n) * static_cast<double>(m.uses_pcg() ? n_eta : 1);
         if (scene.t_end / h * n > kMaxStepsPerRun)
           throw UsageError(fmt::format("{}: {} at h = {:g} s{} needs t_end/h = {:.3g} steps, more than the limit of "

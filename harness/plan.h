@@ -19,7 +19,7 @@ namespace clothbench {
 /// the three ARKODE pairs, CVODE and CVODE with KLU.
 std::vector<std::string> DefaultRowNames(NonlinearSolver scene_solver, bool solver_from_cli);
 
-/// Each row's (h or rtol, substeps) in run order, and what the memory check needs.
+/// Each row's (h or rtol, substeps or iterations) in run order, and what the memory check needs.
 struct RowPlan {
   std::vector<std::vector<std::pair<double, int>>> params;  ///< per method
   std::vector<std::size_t> n_params;                        ///< per method
@@ -28,12 +28,14 @@ struct RowPlan {
 
 /// Plans the rows of `methods`: h decreasing (`hs`, else the method's
 /// DefaultRowParams × the scene's h, at most t_end), rtol (`rtols`, else the
-/// defaults), substepped rows by their substep h/n decreasing.
+/// defaults), substepped rows by their substep h/n decreasing, iterated rows
+/// by h decreasing, each h with every count of `iterations`.
 /// @param n_eta the number of CG tolerances (rows that use the PCG run once per η)
 /// @throws UsageError naming the option if a fixed-step row would need more
 ///         than kMaxStepsPerRun steps
 RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, const std::vector<double>& hs,
-                 const std::vector<double>& rtols, const std::vector<int>& substeps, std::size_t n_eta);
+                 const std::vector<double>& rtols, const std::vector<int>& substeps, const std::vector<int>& iterations,
+                 std::size_t n_eta);
 
 }  // namespace clothbench
 

@@ -133,6 +133,7 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   switch (m.kind()) {
     case StepKind::kFixedStep: q.h = r.h; break;
     case StepKind::kSubstepped: q.h = r.h, q.substeps = r.substeps; break;
+    case StepKind::kIterated: q.h = r.h, q.iterations = r.iterations; break;
     case StepKind::kAdaptive: q.rtol = r.rtol; break;
   }
   if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
@@ -154,7 +155,7 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   // The stored label, integrator, kind and parameters must name this run:
   // an edited label would otherwise recompute another method under the id.
   const std::size_t eta = r.label.find(" eta=");
-  const std::string id = run.row.RunId(run.param, run.substeps) +
+  const std::string id = run.row.RunId(run.param, run.count) +
                          (eta == std::string::npos ? "" : fmt::format("_eta{:g}", run.spec.cg_tolerance));
   const std::string label = run.row.label() + (eta == std::string::npos ? "" : r.label.substr(eta));
   if (label != r.label || r.integrator != run.row.name() || r.step_kind != ToString(run.row.kind()))
@@ -163,9 +164,8 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
                                  where, r.label, r.integrator, r.step_kind, run.row.name(), ToString(run.row.kind())));
   if (id != run_id) {
     const char* field = run.row.kind() == StepKind::kAdaptive ? "rtol"
-                        : run.row.kind() == StepKind::kSubstepped && fmt::format("{:g}", run.param) ==
-                                                                         fmt::format("{:g}", r.h)
-                            ? "substeps"
+                        : CountedKind(run.row.kind()) && fmt::format("{:g}", run.param) == fmt::format("{:g}", r.h)
+                            ? (run.row.kind() == StepKind::kSubstepped ? "substeps" : "iterations")
                             : eta != std::string::npos && run_id.find("_eta") != std::string::npos &&
                                       id.substr(0, id.find("_eta")) == run_id.substr(0, run_id.find("_eta"))
                                   ? "cg_tolerance"
@@ -228,6 +228,7 @@ std::string ReproduceScript(const ResultReader& file, const RunTable& table, con
                      ShellQuote(q.method));
   if (q.h) cmd += fmt::format(" --h {}", number(*q.h));
   if (q.substeps) cmd += fmt::format(" --substeps {}", ShellQuote(std::to_string(*q.substeps)));
+  if (q.iterations) cmd += fmt::format(" --iterations {}", ShellQuote(std::to_string(*q.iterations)));
   if (q.rtol) cmd += fmt::format(" --rtols {}", number(*q.rtol));
   if (q.preconditioner) cmd += fmt::format(" --preconditioner {}", ShellQuote(*q.preconditioner));
   if (q.cg_tolerance) cmd += fmt::format(" --cg-tolerance {}", number(*q.cg_tolerance));
@@ -253,7 +254,7 @@ RerunOutcome RerunStored(const ResultReader& file, const RunTable& table, const 
   if (q.threads > 0) SetKernelThreads(static_cast<int>(q.threads));
   const ParticleSystem sys(run.scene);
   RerunOutcome o;
-  o.run = run.row.Run(sys, run.scene, run.spec, run.param, run.ctx, run.substeps);
+  o.run = run.row.Run(sys, run.scene, run.spec, run.param, run.ctx, run.count);
   o.run.id = stored.id;  // a sweep over CG tolerances named it with its η
   o.run.label = stored.label;
   const std::string g = "/runs/" + run_id;

@@ -79,7 +79,7 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
                         std::vector<MethodRun>* rows) {
   const auto step = [&](const MethodRun& q) {
     if (q.kind() == StepKind::kAdaptive) return q.steps > 0 ? t_end / static_cast<double>(q.steps) : 0.0;
-    return q.substeps > 0 ? q.h / static_cast<double>(q.substeps) : q.h;
+    return q.kind() == StepKind::kSubstepped && q.substeps > 0 ? q.h / static_cast<double>(q.substeps) : q.h;
   };
   for (std::size_t i = 0; i < rows->size(); ++i) {
     MethodRun& r = (*rows)[i];

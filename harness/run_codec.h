@@ -225,7 +225,7 @@ inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
     CheckFinite(v, "a parameter or time");
   if (m->h < 0.0 || m->rtol < 0.0 || m->solver_time_s < 0.0) OutOfRange("a negative step, tolerance or time");
   CheckCount(m->repeats, 1, "repeats");
-  for (long v : {m->threads, m->substeps, m->steps, m->updates, m->cg_iterations, m->rejected, m->cg_unconverged})
+  for (long v : {m->threads, m->substeps, m->iterations, m->steps, m->updates, m->cg_iterations, m->rejected, m->cg_unconverged})
     CheckCount(v, 0, "a count");
   CheckCount(m->error_test_failures, -1, "error_test_failures");
   CheckCount(m->matrix_rebuilds, -1, "matrix_rebuilds");

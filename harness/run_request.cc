@@ -40,7 +40,7 @@ std::string RunRequest::Field(std::string_view field) const {
   if (names == FieldNames::kKeyword) return std::string(field);
   static const std::pair<std::string_view, std::string_view> kOptions[] = {
       {"method", "--integrators"},       {"h", "--h"},
-      {"rtol", "--rtols"},               {"substeps", "--substeps"},
+      {"rtol", "--rtols"},               {"substeps", "--substeps"},        {"iterations", "--iterations"},
       {"cg_tolerance", "--cg-tolerance"}, {"preconditioner", "--preconditioner"},
       {"tangent_terms", "--tangent-terms"}, {"arkode_table", "--arkode-table"},
       {"cvode_setting", "--cvode-setting"}, {"t_end", "--t-end"},
@@ -113,7 +113,7 @@ RowMethod ResolveRow(const RunRequest& q, const Scene& s) {
   return rows.front();
 }
 
-// h, rtol and substeps, each only where the row reads it.
+// h, rtol, substeps and iterations, each only where the row reads it.
 void ResolveStep(const RunRequest& q, ResolvedRun* out) {
   const RowMethod& m = out->row;
   const Scene& s = out->scene;
@@ -139,9 +139,17 @@ void ResolveStep(const RunRequest& q, ResolvedRun* out) {
                  fmt::format("{} is not substepped (substepped rows: {})", label, RowsOfKind(StepKind::kSubstepped)));
     if (*q.substeps < 1 || *q.substeps > 1000000)
       throw Fail(q, "substeps", fmt::format("{} must be a whole number from 1 to 1e6", *q.substeps));
-    out->substeps = static_cast<int>(*q.substeps);
+    out->count = static_cast<int>(*q.substeps);
   }
-  const double step = out->param / out->substeps;
+  if (q.iterations) {
+    if (m.kind() != StepKind::kIterated)
+      throw Fail(q, "iterations",
+                 fmt::format("{} is not iterated (iterated rows: {})", label, RowsOfKind(StepKind::kIterated)));
+    if (*q.iterations < 1 || *q.iterations > 1000000)
+      throw Fail(q, "iterations", fmt::format("{} must be a whole number from 1 to 1e6", *q.iterations));
+    out->count = static_cast<int>(*q.iterations);
+  }
+  const double step = m.kind() == StepKind::kSubstepped ? out->param / out->count : out->param;
   if (m.kind() != StepKind::kAdaptive && s.t_end / step > kMaxStepsPerRun)
     throw Fail(q, "h", fmt::format("t_end/h = {:g}/{:g} = {:.3g} steps exceeds the limit of {:g}", s.t_end, step,
                                    s.t_end / step, kMaxStepsPerRun));

@@ -9,9 +9,10 @@
 // (docs/scenes.md "Limits"):
 //  - method: a registry row ("bdf2/newton", "arkode/ark4"), runnable on the
 //    scene's step control;
-//  - h [s]: fixed-step and substepped rows only, finite, > 0, ≤ t_end, and
-//    t_end/h ≤ kMaxStepsPerRun; rtol: adaptive rows only, in
+//  - h [s]: fixed-step, substepped and iterated rows only, finite, > 0,
+//    ≤ t_end, and t_end/h ≤ kMaxStepsPerRun; rtol: adaptive rows only, in
 //    [kMinRelativeTolerance, 1); substeps: substepped rows only, 1 … 10⁶;
+//    iterations: iterated rows only, 1 … 10⁶;
 //  - cg_tolerance in (0, 1) and preconditioner: rows that solve with the
 //    PCG; tangent_terms "all" | "tension": rows that build J_α;
 //    arkode_table: arkode rows without /ark4 or /ark5; cvode_setting: cvode
@@ -57,15 +58,15 @@ struct ResolvedRun {
   RowMethod row;
   SolverSpec spec;   ///< the scene's solver settings with the request's overrides
   RunContext ctx;
-  double param = 0.0;  ///< h [s] (fixed-step, substepped) or rtol (adaptive)
-  int substeps = 1;
+  double param = 0.0;  ///< h [s] (fixed-step, substepped, iterated) or rtol (adaptive)
+  int count = 1;       ///< substeps (substepped rows) or iterations per step (iterated rows)
 };
 
 struct RunRequest {
   Scene scene;         ///< as loaded, before t_end and frames are applied
   std::string method;  ///< registry row label
   std::optional<double> h, rtol;
-  std::optional<long> substeps;
+  std::optional<long> substeps, iterations;
   std::optional<double> cg_tolerance;
   std::optional<std::string> preconditioner, tangent_terms, arkode_table, cvode_setting;
   std::optional<double> t_end;  ///< overrides the scene's t_end [s]
@@ -91,7 +92,7 @@ struct RunRequest {
   /// t_end and frames applied and the values of cg_tolerance,
   /// preconditioner, tangent_terms, time_limit, repeat and time_budget
   /// checked by the rules Resolve() applies, the solver options set; method,
-  /// h, rtol and substeps are not read (each planned row resolves its own).
+  /// h, rtol, substeps and iterations are not read (each planned row resolves its own).
   /// @throws UsageError as Validate()
   Scene SweepScene() const;
   /// The name of `field` (a keyword) as this request's entry point spells it.

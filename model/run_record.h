@@ -22,16 +22,17 @@ struct RunRecord {
   std::string label;         ///< row label ("bdf2/newton", "xpbd", "cvode")
   std::string integrator;    ///< registry name ("bdf2")
   std::string layer;         ///< "solver", "peers", "reference"
-  std::string step_kind;     ///< "fixed_step", "adaptive", "substepped"
+  std::string step_kind;     ///< "fixed_step", "adaptive", "substepped", "iterated"
   std::string nonlinear_solver;  ///< fully implicit thesis methods; else empty
   std::string preconditioner;    ///< rows that use the PCG: the preconditioner they ran with; else empty
   std::string tangent_terms;     ///< rows that build J_α: "all" or "tension" (its terms); else empty
-  double h = 0.0;            ///< fixed-step: the step [s]; substepped: the frame step [s]
+  double h = 0.0;            ///< fixed-step and iterated: the step [s]; substepped: the frame step [s]
   double rtol = 0.0;         ///< adaptive rows: rtol = atol
   long substeps = 0;         ///< substepped rows: substeps per frame step
+  long iterations = 0;       ///< iterated rows (pd): iterations per step
   double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
-  std::string constraints;   ///< xpbd: the terms solved as constraints ("tension,shear,obstacles")
-  std::string explicit_terms;///< xpbd: the terms applied in the prediction ("gravity,bend_thin_plate")
+  std::string constraints;   ///< xpbd, pd: the terms solved as constraints or projections ("tension,shear,obstacles")
+  std::string explicit_terms;///< xpbd: the terms applied in the prediction; pd: those at the iterate ("gravity,bend_thin_plate")
   std::string sundials_settings;  ///< cvode rows: the setup knobs ("lsetup_frequency=20,…")
   /// The settings the run used (not the scene's where the row overrides them):
   /// step_control "fixed" | "iterations" | "error" (our steppers) or

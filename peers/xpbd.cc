@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "model/interrupt.h"
+#include "peers/position_contacts.h"
 
 namespace clothbench {
 
@@ -126,41 +127,6 @@ void Xpbd::ProjectShear(double dt) {
   }
 }
 
-// The obstacle constraint d(p) − δ ≥ 0 with zero compliance moves a particle
-// inside the collision area to its border along D; friction then removes the
-// tangential displacement relative to the obstacle, all of it while it is
-// below μ (δ − d) (static), otherwise by μ (δ − d) (kinetic) (Macklin et al.
-// 2014, Eq. 24–25).
-int Xpbd::ProjectObstacles(double t_end_substep, double dt) {
-  int colliding = 0;
-  const int n = sys_.num_particles();
-  for (const Obstacle& o : sys_.obstacles()) {
-    const ObstaclePose pose = o.PoseAt(t_end_substep);
-    const double delta = o.spec().collision_distance, mu = o.spec().friction;
-    for (int i = 0; i < n; ++i) {
-      if (w_(i) == 0.0) continue;
-      Vector3 p = p_.row(i).transpose(), dir;
-      const double d = o.SignedDistance(pose, p, &dir);
-      if (!(d < delta)) continue;
-      ++colliding;
-      const double depth = delta - d;
-      p += depth * dir;
-      if (mu > 0.0) {
-        Vector3 rel = p - x_.row(i).transpose();
-        if (!pose.identity) rel -= pose.Velocity(p) * dt;
-        const Vector3 tangential = rel - rel.dot(dir) * dir;
-        const double len = tangential.norm();
-        if (len < mu * depth)
-          p -= tangential;
-        else
-          p -= tangential * (mu * depth / len);
-      }
-      p_.row(i) = p.transpose();
-    }
-  }
-  return colliding;
-}
-
 StepStats Xpbd::Step(double h) {
   const auto start = std::chrono::steady_clock::now();
   StepStats st;
@@ -210,7 +176,7 @@ StepStats Xpbd::Step(double h) {
         blown_up = true;
         break;
       }
-      st.colliding = ProjectObstacles(t + dt, dt);
+      st.colliding = ProjectOntoObstacles(sys_, w_, t + dt, dt, x_, &p_);
     }
     // 5. v ← (p − x)/Δt, x ← p.
     v_ = (p_ - x_) / dt;

@@ -18,8 +18,7 @@
 //    as explicit forces in the velocity prediction (explicit_terms());
 //  - obstacles: the inequality C = d(x) − δ ≥ 0 on the signed distance d,
 //    with zero compliance, and Coulomb friction on the tangential
-//    displacement (Macklin et al. 2014, "Unified particle physics for
-//    real-time applications", Eq. 24–25) with μ_s = μ_k = c_f;
+//    displacement (peers/position_contacts.h);
 //  - fixed particles have inverse mass 0.
 #ifndef CLOTHBENCH_PEERS_XPBD_H_
 #define CLOTHBENCH_PEERS_XPBD_H_
@@ -102,7 +101,6 @@ class Xpbd : public Stepper {
   };
   void PredictionForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const;
   void ProjectShear(double dt);
-  int ProjectObstacles(double t_end_substep, double dt);
 
   const ParticleSystem& sys_;
   int substeps_;

@@ -253,7 +253,7 @@ py::dict RecordDict(const RunRecord& r) {
 // Every argument is validated as a RunRequest (harness/run_request.h), the
 // same rules and text as the command line's, before anything is computed.
 py::dict Run(const py::object& scene_arg, const py::object& method, const py::object& h, const py::object& rtol,
-             const py::object& substeps, const py::object& cg_tolerance, const py::object& preconditioner,
+             const py::object& substeps, const py::object& iterations, const py::object& cg_tolerance, const py::object& preconditioner,
              const py::object& tangent_terms, const py::object& t_end, const py::object& overrides,
              const py::object& progress, const py::object& reference, const py::object& repeat,
              const py::object& time_budget, const py::object& time_limit, const py::object& arkode_table,
@@ -266,6 +266,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
   q.h = Arg<double>(h, "h");
   q.rtol = Arg<double>(rtol, "rtol");
   q.substeps = Arg<long>(substeps, "substeps");
+  q.iterations = Arg<long>(iterations, "iterations");
   q.cg_tolerance = Arg<double>(cg_tolerance, "cg_tolerance");
   q.preconditioner = Arg<std::string>(preconditioner, "preconditioner");
   q.tangent_terms = Arg<std::string>(tangent_terms, "tangent_terms");
@@ -294,7 +295,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
       py::gil_scoped_release release;
       const std::lock_guard<std::mutex> one_at_a_time(g_run_mutex);
       const PythonProgress::Installed installed(&sink);
-      const auto once = [&] { return run.row.Run(sys, run.scene, run.spec, run.param, run.ctx, run.substeps); };
+      const auto once = [&] { return run.row.Run(sys, run.scene, run.spec, run.param, run.ctx, run.count); };
       r = once();
       // Repetitions as bench_integrators' (--repeat, --time-budget); the
       // progress callback follows each timing.
@@ -596,7 +597,7 @@ PYBIND11_MODULE(clothbench, m) {
     return names;
   });
   m.def("run", &Run, py::arg("scene"), py::arg("method"), py::arg("h") = py::none(), py::arg("rtol") = py::none(),
-        py::arg("substeps") = py::none(), py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
+        py::arg("substeps") = py::none(), py::arg("iterations") = py::none(), py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
         py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         py::arg("progress") = py::none(), py::arg("reference") = py::none(), py::arg("repeat") = py::none(),
         py::arg("time_budget") = py::none(), py::arg("time_limit") = py::none(), py::arg("arkode_table") = py::none(),

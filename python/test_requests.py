@@ -35,6 +35,7 @@ BAD = {
     "cg_tolerance": [0.0, 1.0, NAN, -1e-6],
     "tangent_terms": ["some", ""],
     "substeps": [0, -1, 2000000],
+    "iterations": [0, -1, 2000000],
     "time_limit": [0.0, NAN, -1.0, INF],
     "repeat": [0, 1001, -1],
     "time_budget": [NAN, -1.0, 2e6],
@@ -43,10 +44,11 @@ BAD = {
 }
 # The row whose request reads the field, and its step (or rtol).
 ROW = {"rtol": ("cvode", {}), "arkode_table": ("arkode", {"rtol": 1e-3}), "cvode_setting": ("cvode", {"rtol": 1e-3}),
-       "tangent_terms": ("bdf2/newton", {"h": 0.01}), "substeps": ("xpbd", {"h": 0.01})}
+       "tangent_terms": ("bdf2/newton", {"h": 0.01}), "substeps": ("xpbd", {"h": 0.01}),
+       "iterations": ("pd", {"h": 0.01})}
 OPTION = {"method": "--integrators", "h": "--h", "rtol": "--rtols", "t_end": "--t-end",
           "preconditioner": "--preconditioner", "cg_tolerance": "--cg-tolerance", "tangent_terms": "--tangent-terms",
-          "substeps": "--substeps", "time_limit": "--time-limit", "repeat": "--repeat", "time_budget": "--time-budget",
+          "substeps": "--substeps", "iterations": "--iterations", "time_limit": "--time-limit", "repeat": "--repeat", "time_budget": "--time-budget",
           "arkode_table": "--arkode-table", "cvode_setting": "--cvode-setting"}
 
 
@@ -135,7 +137,8 @@ def test_python_write_results_refusals(tmp_path):
 
 @pytest.mark.parametrize("field,value", [(f, v) for f, v in cases()
                                          if f in ("method", "h", "rtol", "t_end", "preconditioner", "cg_tolerance",
-                                                  "tangent_terms", "substeps", "time_limit", "repeat", "time_budget",
+                                                  "tangent_terms", "substeps", "iterations", "time_limit", "repeat",
+                                                  "time_budget",
                                                   "arkode_table", "cvode_setting")])
 def test_bench_integrators(field, value, tmp_path):
     method, base = ROW.get(field, ("sbdf2", {"h": 0.01}))
@@ -238,8 +241,9 @@ def sign(path):
 @pytest.fixture(scope="module")
 def stored(tmp_path_factory):
     d = tmp_path_factory.mktemp("stored")
-    p = run_binary("bench_integrators", ["--integrators", "sbdf2,bdf2/newton,xpbd,arkode,cvode", "--h", "0.01",
-                                         "--rtols", "1e-3", "--substeps", "2", "--t-end", "0.05", "--reference",
+    p = run_binary("bench_integrators", ["--integrators", "sbdf2,bdf2/newton,xpbd,pd,arkode,cvode", "--h", "0.01",
+                                         "--rtols", "1e-3", "--substeps", "2", "--iterations", "2", "--t-end", "0.05",
+                                         "--reference",
                                          "none", "--quiet", "--out", str(d / "a.h5")], d)
     assert p.returncode == 0, p.stderr
     return d / "a.h5"
@@ -267,6 +271,7 @@ STORED = [("/runs/sbdf2_h0.01", "label", "sbdf2_h0.01", BAD["method"] + ["bdf2",
           ("/runs/sbdf2_h0.01", "cg_tolerance", "sbdf2_h0.01", [0.0, 1.0, NAN, -1e-6], "cg_tolerance"),
           ("/runs/bdf2_newton_h0.01", "tangent_terms", "bdf2_newton_h0.01", ["some", "$(x)"], "tangent_terms"),
           ("/runs/xpbd_h0.01_n2", "substeps", "xpbd_h0.01_n2", [0, -1, 2000000, 3], "substeps"),
+          ("/runs/pd_h0.01_k2", "iterations", "pd_h0.01_k2", [0, -1, 2000000, 3], "iterations"),
           ("/runs/arkode_rtol0.001", "arkode_table", "arkode_rtol0.001", ["ARK999", "x\ny"], "arkode_table"),
           ("/runs/cvode_rtol0.001", "sundials_settings", "cvode_rtol0.001", ["foo=1", "lsetup_frequency"],
            "cvode_setting"),

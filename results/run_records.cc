@@ -162,6 +162,7 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record
             case Stored::kAdaptive: store = r.step_kind == "adaptive"; break;
             case Stored::kStepped: store = r.step_kind != "adaptive"; break;
             case Stored::kSubstepped: store = r.step_kind == "substepped"; break;
+            case Stored::kIterated: store = r.step_kind == "iterated"; break;
             default:
               if constexpr (std::is_same_v<T, std::string>) store = !v.empty();
               else if constexpr (std::is_same_v<T, std::optional<double>>) store = v.has_value();

@@ -23,6 +23,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"rtol", &R::rtol, S::kAdaptive},
       {"h", &R::h, S::kStepped},
       {"substeps", &R::substeps, S::kSubstepped},
+      {"iterations", &R::iterations, S::kIterated},
       {"constraints", &R::constraints, S::kNonEmpty},
       {"explicit_terms", &R::explicit_terms, S::kNonEmpty},
       {"tangent_terms", &R::tangent_terms, S::kNonEmpty},
@@ -169,6 +170,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
     last = r.label;
     const std::string hcol = r.step_kind == "adaptive"     ? fmt::format("{:g}", r.rtol)
                              : r.step_kind == "substepped" ? fmt::format("{:g}/{}", r.h, r.substeps)
+                             : r.step_kind == "iterated"   ? fmt::format("{:g}x{}", r.h, r.iterations)
                                                            : fmt::format("{:g}", r.h);
     const std::string contact_col =
         !contact ? "" : fmt::format(" {:>11}", r.ok() && r.contact_power_W ? Sci(*r.contact_power_W) : "");
@@ -187,17 +189,23 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   }
   fmt::print(out,
              "\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
-             "frame step/substeps of substepped rows (xpbd).\n"
+             "frame step/substeps of substepped rows (xpbd), step x iterations of iterated rows (pd).\n"
              "order: observed order between consecutive rows, against h (h/substeps); adaptive rows against their "
              "mean step t_end/steps.\n");
-  for (const RunRecord& r : t.runs)
-    if (r.step_kind == "substepped") {
-      fmt::print(out,
-                 "xpbd rows: updates = substeps (one constraint sweep each); constraints: {}; explicit forces in the "
-                 "prediction: {}.\n",
-                 r.constraints, r.explicit_terms.empty() ? "none" : r.explicit_terms);
-      break;
-    }
+  // The first run of a kind says what its rows' columns mean.
+  const auto note = [&](std::string_view kind, std::string_view text, std::string_view terms) {
+    for (const RunRecord& r : t.runs)
+      if (r.step_kind == kind) {
+        fmt::print(out, "{}{}; {}{}.\n", text, r.constraints, terms, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+        return;
+      }
+  };
+  note("substepped", "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
+       "explicit forces in the prediction: ");
+  note("iterated",
+       "pd rows: updates = iterations (each projects the springs, evaluates the other forces at the iterate and "
+       "solves with A_1's factor, factorised once per h); projected: ",
+       "at the iterate: ");
   fmt::print(out,
              "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, ida, arkode: "
              "our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the direct KLU solver).\n");

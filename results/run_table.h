@@ -33,6 +33,7 @@ enum class Stored {
   kAdaptive,     ///< only for adaptive rows (rtol)
   kStepped,      ///< only for fixed-step and substepped rows (h)
   kSubstepped,   ///< only for substepped rows (substeps)
+  kIterated,     ///< only for iterated rows (iterations)
   kSet,          ///< optionals: when they hold a value (no NaN is ever written)
 };
 

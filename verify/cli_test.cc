@@ -597,17 +597,18 @@ TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
   const fs::path out = TempDir() / "settings.h5";
   const std::string scene = WriteScene("settings.toml", kTiny);
   const Outcome o = RunBench("--scene " + scene + " --integrators sbdf2,sbdf2/error,bdf2/newton,cvode,arkode,xpbd," +
-                             "baraff_witkin --h 0.01 --rtols 1e-3 --substeps 2 --preconditioner jacobi " +
+                             "baraff_witkin,pd/chebyshev --h 0.01 --rtols 1e-3 --substeps 2 --iterations 3 " +
+                             "--preconditioner jacobi " +
                              "--cg-tolerance 1e-5 --tangent-terms all --arkode-table ARK437L2SA --reference none " +
                              "--frames none --quiet --out " + out.string());
   ASSERT_EQ(o.exit_code, 0) << o.err;
   const RunTable t = ReadRunTable(ResultReader(out.string()));
-  ASSERT_EQ(t.runs.size(), 7u);
+  ASSERT_EQ(t.runs.size(), 8u);
   for (const RunRecord& r : t.runs) {
     SCOPED_TRACE(r.id);
     EXPECT_EQ(r.status, "ok");
     EXPECT_GT(r.threads, 0);
-    const bool pcg = r.integrator != "xpbd";
+    const bool pcg = r.integrator != "xpbd" && r.integrator != "pd";
     EXPECT_EQ(r.preconditioner, pcg ? "jacobi" : "");  // --preconditioner overrides each method's best
     EXPECT_EQ(r.cg_tolerance, pcg ? 1e-5 : 0.0);       // and --cg-tolerance baraff_witkin's 1e-2
     EXPECT_EQ(r.predictor, pcg ? "constant" : "");
@@ -617,10 +618,14 @@ TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
     EXPECT_EQ(r.arkode_table, r.integrator == "arkode" ? "ARK437L2SA" : "");
     const bool sundials = r.integrator == "cvode" || r.integrator == "arkode";
     EXPECT_EQ(r.step_control, sundials ? "sundials" : r.label == "sbdf2/error" ? "error" : "fixed");
-    EXPECT_EQ(r.step_kind, r.integrator == "xpbd" ? "substepped" : sundials || r.label == "sbdf2/error" ? "adaptive"
-                                                                                                         : "fixed_step");
+    EXPECT_EQ(r.step_kind, r.integrator == "xpbd"                          ? "substepped"
+                           : r.integrator == "pd"                          ? "iterated"
+                           : sundials || r.label == "sbdf2/error"          ? "adaptive"
+                                                                           : "fixed_step");
     if (r.step_kind == "adaptive") { EXPECT_TRUE(r.rtol == 1e-3 && r.atol == 1e-3); }
     if (r.step_kind == "substepped") { EXPECT_EQ(r.substeps, 2); }
+    if (r.step_kind == "iterated") { EXPECT_TRUE(r.iterations == 3 && r.id == "pd_chebyshev_h0.01_k3"); }
+    EXPECT_EQ(r.iterations, r.step_kind == "iterated" ? 3 : 0);
   }
 }
 
