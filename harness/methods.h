@@ -148,19 +148,19 @@ struct MethodEntry {
 /// "The contact policy").
 inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kAuto;
 
-/// pd/chebyshev's acceleration (Wang 2015). ρ = 0.91 is the plain
-/// iteration's measured contraction on the default scene at h = 0.01 s
-/// (test PdChebyshev.RhoOfThePlainIteration: 0.9101 over iterations
-/// 32–64 of a step at t = 0.3 s). γ and the delay were measured there too:
-/// the rms difference of the final positions to implicit_euler/newton
-/// after 0.5 s, with 4 / 8 / 16 / 32 iterations, is 1.7e-2 / 3.9e-3 / 7.1e-4
-/// / – m for plain PD, and with ρ = 0.91: γ = 1, delay 1: 6.0e-2 / 3.3e-3 /
-/// 3.4e-4 / 6.6e-7; γ = 0.9, delay 2: 3.9e-3 / 3.9e-3 / 2.4e-5 / 1.6e-6;
-/// γ = 1, delay 4: 1.7e-2 / 1.8e-3 / 2.9e-5 / 9.1e-7 (ρ = 0.85 and 0.95
-/// were no better at 16). γ = 0.9 with delay 2 is the only setting better
-/// than plain PD at every count. Measured on one scene and h: ρ grows with
-/// the numerical stiffness h²k/m, so other scenes may want other values.
-inline constexpr ChebyshevSettings kPdChebyshev{.on = true, .rho = 0.91, .gamma = 0.9, .delay = 2};
+/// pd/chebyshev's acceleration (Wang 2015). ρ is measured in each run, at
+/// the first step of each h (ProjectiveDynamics::kRhoIterations plain
+/// iterations), because it depends on the scene: on the default scene at
+/// h = 0.01 s the plain iteration contracts by 0.9101 per iteration at
+/// t = 0.3 s (test PdChebyshev.RhoOfThePlainIteration). γ and the delay
+/// were measured there with ρ fixed at 0.91: the rms difference of the
+/// final positions to implicit_euler/newton after 0.5 s, with 4 / 8 / 16 /
+/// 32 iterations, is 1.7e-2 / 3.9e-3 / 7.1e-4 / – m for plain PD; with
+/// γ = 1, delay 1: 6.0e-2 / 3.3e-3 / 3.4e-4 / 6.6e-7; γ = 0.9, delay 2:
+/// 3.9e-3 / 3.9e-3 / 2.4e-5 / 1.6e-6; γ = 1, delay 4: 1.7e-2 / 1.8e-3 /
+/// 2.9e-5 / 9.1e-7 (ρ = 0.85 and 0.95 were no better at 16). γ = 0.9 with
+/// delay 2 is the only setting better than plain PD at every count.
+inline constexpr ChebyshevSettings kPdChebyshev{.on = true, .rho = 0.0, .gamma = 0.9, .delay = 2};
 
 namespace internal {
 template <Method M>
@@ -249,9 +249,10 @@ inline const std::vector<MethodEntry>& Registry() {
              sys, spec, iterations, variant == "chebyshev" ? kPdChebyshev : ChebyshevSettings{});
        },
        .variants = {"chebyshev"},
-       .describe = [](const Stepper&, const ParticleSystem& sys, RunRecord* row) {
+       .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
          // The springs are projected (F_nl); every other explicit term
          // enters the global step's right-hand side at the iterate.
+         row->chebyshev_rho = static_cast<const ProjectiveDynamics&>(stepper).rho();  // this entry builds one
          row->constraints = "tension";
          for (const std::string& t : sys.TermNames())
            if (t != "tension_nonlinear") row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;

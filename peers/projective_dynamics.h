@@ -44,7 +44,9 @@ inline constexpr std::string_view kProjectiveDynamicsName = "pd";
 ///   ω = 1 for k < delay, ω = 2/(2 − ρ²) at k = delay, then ω ← 4/(4 − ρ² ω).
 struct ChebyshevSettings {
   bool on = false;
-  double rho = 0.0;    ///< spectral radius of the plain iteration, in [0, 1)
+  /// Spectral radius of the plain iteration, in [0, 1); 0: measured at the
+  /// first step of each h (ProjectiveDynamics::rho()).
+  double rho = 0.0;
   double gamma = 1.0;  ///< under-relaxation γ in (0, 1]
   int delay = 1;       ///< plain iterations before ω leaves 1 (Wang's S)
 };
@@ -78,6 +80,15 @@ class ProjectiveDynamics : public Stepper {
   double setup_seconds() const override { return sm_.setup_seconds(); }
 
   int iterations() const { return iterations_; }
+  /// Plain iterations of the measurement of ρ (ChebyshevSettings::rho = 0):
+  /// ρ is the geometric mean of ‖v^{k+1} − v^k‖ / ‖v^k − v^{k−1}‖ over the
+  /// last half of them, from a copy of the state at the first step of each h
+  /// (the step itself is then taken with that ρ; the measurement's time
+  /// counts as the step's setup).
+  static constexpr int kRhoIterations = 32;
+  /// The ρ the acceleration uses (the measured one once a step has run;
+  /// 0 before, or without Chebyshev).
+  double rho() const { return rho_; }
   /// ‖v^{k+1} − v^k‖ of each iteration of the last step (plain or
   /// accelerated), for measuring the contraction ρ.
   const std::vector<double>& last_increments() const { return increments_; }
@@ -88,6 +99,11 @@ class ProjectiveDynamics : public Stepper {
   ChebyshevSettings cheb_;
   SystemMatrix sm_;
   double h_ = 0.0;  // h of A₁'s factor (0: none yet)
+  double rho_ = 0.0;  // the Chebyshev ρ in use
+  // The k iterations of a step from x0_, v0_ into v_, with ρ = rho_ (when
+  // accelerated); false if an iterate is not finite, `timed_out` past the
+  // run's deadline. Records each increment in increments_.
+  bool Iterate(double h, int k, bool accelerate, bool* timed_out);
   double t_ = 0.0;
   Eigen::VectorXd w_;    // inverse masses, 0 for fixed particles
   MatrixN3 f_ext_;       // the constant forces (gravity) [N]

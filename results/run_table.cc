@@ -24,6 +24,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"h", &R::h, S::kStepped},
       {"substeps", &R::substeps, S::kSubstepped},
       {"iterations", &R::iterations, S::kIterated},
+      {"chebyshev_rho", &R::chebyshev_rho, S::kPositive},
       {"constraints", &R::constraints, S::kNonEmpty},
       {"explicit_terms", &R::explicit_terms, S::kNonEmpty},
       {"tangent_terms", &R::tangent_terms, S::kNonEmpty},

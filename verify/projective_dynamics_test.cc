@@ -6,7 +6,7 @@
 //    implicit_euler/newton's. On the default scene over 0.5 s at h = 0.01 s
 //    the rms difference of the final positions falls monotonically over
 //    1, 4, 16, 64 iterations and is at most 1e-4 m at 64, for PD and for
-//    PD with Chebyshev acceleration at the registry's ρ (the Newton run
+//    PD with Chebyshev acceleration at the ρ it measures (the Newton run
 //    itself stops at a relative update below 1e-10 of the CG tolerance's
 //    order, far below 1e-4 m over 50 steps).
 // 2. Rest: a flat sheet at its rest lengths without gravity, two corners
@@ -14,8 +14,8 @@
 //    round-off (1e-12 m), without drift or spin.
 // 3. The contraction ρ of the plain iteration (Chebyshev's parameter):
 //    ‖v^{k+1} − v^k‖ / ‖v^k − v^{k−1}‖ over the last half of 64 iterations
-//    in a step of the default scene, printed and checked against the
-//    registry's value.
+//    in a step of the default scene, printed and compared with the ρ that
+//    pd/chebyshev measures at its first step.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -91,10 +91,19 @@ TEST(PdChebyshev, RhoOfThePlainIteration) {
     }
   ASSERT_GT(count, 0);
   const double rho = std::exp(log_sum / count);
-  std::printf("[ pd ] contraction of the plain iteration over iterations 32-64: rho = %.4f\n", rho);
+  // The ρ pd/chebyshev measures at its first step (from rest).
+  ProjectiveDynamics cheb(sys, sys.scene().solver, 4, kPdChebyshev);
+  Advance(sys, cheb, 0.01, 1);
+  std::printf("[ pd ] contraction of the plain iteration over iterations 32-64 at t = 0.3 s: rho = %.4f; "
+              "measured by pd/chebyshev at its first step: %.4f\n",
+              rho, cheb.rho());
   EXPECT_GT(rho, 0.0);
   EXPECT_LT(rho, 1.0);
-  EXPECT_NEAR(kPdChebyshev.rho, rho, 0.02);
+  // Both are contractions of the same linear part (A₁⁻¹ times the
+  // derivative of h g): within 0.05 of each other (measured 0.91 and the
+  // printed first-step value).
+  EXPECT_GT(cheb.rho(), 0.0);
+  EXPECT_NEAR(cheb.rho(), rho, 0.05);
 }
 
 }  // namespace
