@@ -589,6 +589,10 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 ///    --h 0.01,0.005,0.0025,0.00125,0.000625,0.0003125`).
 ///  - xpbd: frame steps h and h/16 with --substeps 1,4,16,64 give
 ///    substeps h/1 … h/1024: 0.19 … 2.7e-3 m at h/256 and ≈ 6.7e-4 m at h/1024.
+///  - pd, pd/chebyshev: h, h/4, h/16 with --iterations 1,4,16,64: implicit
+///    Euler's floor 2.2e-2, 5.9e-3, 1.5e-3 m, reached in 16, 16 and 4
+///    iterations; one iteration gives 2.2e-2, 1.8e-3, 1.2e-3 m
+///    (docs/work-precision.md, "pd").
 ///  - sbdf3: 4.2e-1, 4.6e-2, 1.7e-4, 2.2e-5 m at h, h/2, h/4, h/8; at h and
 ///    h/2 it gains energy (+294 W and +2.2 W: BDF3 is not A-stable), so its
 ///    rows start at h/4.
@@ -635,6 +639,8 @@ inline const std::vector<DefaultRow>& DefaultRows() {
       {"baraff_witkin", {{1.0 / 8, 1.0 / 32}, {}}},
       {"blender", {{1.0 / 8, 1.0 / 32}, {}}},
       {"xpbd", {{1.0, 1.0 / 16}, {}}},
+      {"pd", {{1.0, 1.0 / 4, 1.0 / 16}, {}}},
+      {"pd/chebyshev", {{1.0, 1.0 / 4, 1.0 / 16}, {}}},
       {"sbdf2/error", {{}, kRtols}},
       {"bdf2/newton/error", {{}, kRtols}},
       {"arkode", {{}, kArkodeRtols}},

@@ -15,7 +15,8 @@ namespace clothbench {
 /// The default run's rows, in table order: the five thesis methods with the
 /// scene's nonlinear solver (and each fully implicit one also with Newton,
 /// unless `solver_from_cli` or the scene already uses Newton), SBDF(3),
-/// Baraff–Witkin, Blender, XPBD, the error-controlled SBDF(2) and BDF(2),
+/// Baraff–Witkin, Blender, XPBD, PD and PD with Chebyshev acceleration, the
+/// error-controlled SBDF(2) and BDF(2),
 /// the three ARKODE pairs, CVODE and CVODE with KLU.
 std::vector<std::string> DefaultRowNames(NonlinearSolver scene_solver, bool solver_from_cli);
 
