@@ -162,13 +162,15 @@ std::optional<State> ReadState(const std::string& path, const Scene& scene, Eige
 }
 
 // One line per step: what the step and the preconditioner did.
-void PrintStep(const StepEngine& engine, const StepStats& st, const ContactFactorStats& before) {
+void PrintStep(const StepEngine& engine, const StepStats& st, const ContactFactorStats& before,
+               double contact_seconds_before) {
   const ContactFactorStats& now = engine.system_matrix().preconditioner().contact_stats();
   const long setups = now.refactorizations - before.refactorizations;
-  fmt::print("{:8.4f} {:8d} {:8d} {:9.4f} {:9.4f} {:7d} {:7d} {:7d} {:7d} {:8d} {:>8}\n", st.t, st.cg_iterations,
+  fmt::print("{:8.4f} {:8d} {:8d} {:9.4f} {:9.4f} {:7d} {:7d} {:7d} {:7d} {:8d} {:>8} {:9.4f}\n", st.t, st.cg_iterations,
              st.colliding, st.solve_time, st.setup_time, setups, now.modifications - before.modifications,
              now.frame_setups[0] - before.frame_setups[0], now.frame_setups[1] - before.frame_setups[1],
-             now.off_axis, setups > 0 && std::isfinite(now.cycle_factor) ? fmt::format("{:.4f}", now.cycle_factor) : "-");
+             now.off_axis, setups > 0 && std::isfinite(now.cycle_factor) ? fmt::format("{:.4f}", now.cycle_factor) : "-",
+             engine.contact_seconds() - contact_seconds_before);
   std::fflush(stdout);
 }
 
@@ -176,7 +178,8 @@ void PrintHeader() {
   fmt::print("# t [s], CG iterations, constrained particles, step [s], setup [s], and the preconditioner's\n"
              "# setups, finest-level updates, setups in nearest-axis and in spread frames during the step,\n"
              "# and, for the prefiltered AMG, the contacts off every axis (by more than acos(kFrameSnap)) and\n"
-             "# the V-cycle factor of the step's last setup (--cycle-factor; -: not measured)\n");
+             "# the V-cycle factor of the step's last setup (--cycle-factor; -: not measured), and the\n"
+             "# collision detection's wall time in the step [s] (part of the step's)\n");
 }
 
 int Fail(const std::string& line) {
@@ -249,6 +252,7 @@ ResolvedRun ResolveRun(const Args& a) {
 // One step to t_next, printed. @return false (after one line on stderr) if it failed
 bool StepTo(StepEngine& engine, double h, double t_next) {
   const ContactFactorStats before = engine.system_matrix().preconditioner().contact_stats();
+  const double contact_before = engine.contact_seconds();
   const StepStats st = engine.Step(h);
   if (st.status != StepStatus::kOk) {
     std::fprintf(stderr, "contact_replay: the step to t = %.4f s failed (%s)\n", t_next,
@@ -256,7 +260,7 @@ bool StepTo(StepEngine& engine, double h, double t_next) {
     return false;
   }
   engine.SetTime(t_next);
-  PrintStep(engine, st, before);
+  PrintStep(engine, st, before, contact_before);
   return true;
 }
 

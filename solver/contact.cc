@@ -2,6 +2,7 @@
 #include "solver/contact.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -32,6 +33,7 @@ void ContactResponse::Reset() {
   std::fill(last_distance_.begin(), last_distance_.end(), 1e300);
   std::fill(cull_distance_.begin(), cull_distance_.end(), -kInf);
   queries_ = culled_ = 0;
+  seconds_ = 0.0;
   release_tolerance_ = 0.0;
   work_ = Work{};
 }
@@ -74,6 +76,14 @@ void ContactResponse::Reset() {
 // impulse pulled it toward the obstacle in the last step is released.
 int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                            VelocityFilter* filter) {
+  const auto start = std::chrono::steady_clock::now();
+  const int colliding = Detect(t0, h, x_start, v_start, xm1, filter);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return colliding;
+}
+
+int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
+                            VelocityFilter* filter) {
   const bool have_history = xm1 != nullptr;
   h_ = h;
   filter->Clear();

@@ -98,6 +98,9 @@ class ContactResponse {
     for (std::size_t k = 0; k < cullable_.size(); ++k) cullable_[k] = on && sys_.obstacles()[k].mesh() != nullptr;
   }
   long culled_queries() const { return culled_; }
+  /// Wall time of SetUp since Reset [s]: the collision detection (distance
+  /// queries, the cull) and the filter's constraints.
+  double setup_seconds() const { return seconds_; }
 
  private:
   struct Contact {
@@ -122,6 +125,9 @@ class ContactResponse {
   std::vector<double> motion_;
   std::vector<ObstaclePose> last_pose_;
   long queries_ = 0, culled_ = 0;
+  double seconds_ = 0.0;                   // SetUp's wall time since Reset [s]
+  int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
+             VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit
 };
 

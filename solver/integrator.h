@@ -213,6 +213,8 @@ class StepEngine : public Stepper {
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   Method method() const { return method_; }
   const SystemMatrix& system_matrix() const { return sysmat_; }
+  /// Wall time of the collision detection since Reset [s] (ContactResponse::setup_seconds).
+  double contact_seconds() const { return contacts_.setup_seconds(); }
   /// Contact factors in contact frames as a choice (SystemMatrix::set_frame_factors).
   void set_frame_factors(bool on) { sysmat_.set_frame_factors(on); }
   /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
