@@ -122,7 +122,7 @@ class SystemMatrix {
   const Preconditioner& preconditioner() const { return precond_; }
   /// The prefiltered AMG's frame rule (Preconditioner::set_amg_frames).
   void set_amg_frames(AmgFrames frames) { precond_.set_amg_frames(frames); }
-  /// Contact factors in contact frames as a choice (Preconditioner::set_frame_factors).
+  /// Whether contact factors in contact frames may serve (Preconditioner::set_frame_factors).
   void set_frame_factors(bool on) { precond_.set_frame_factors(on); }
   /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
   void set_amg_diagnostics(Preconditioner::AmgDiagnostics d) { precond_.set_amg_diagnostics(d); }
@@ -215,7 +215,7 @@ class StepEngine : public Stepper {
   const SystemMatrix& system_matrix() const { return sysmat_; }
   /// Wall time of the collision detection since Reset [s] (ContactResponse::setup_seconds).
   double contact_seconds() const { return contacts_.setup_seconds(); }
-  /// Contact factors in contact frames as a choice (SystemMatrix::set_frame_factors).
+  /// Whether contact factors in contact frames may serve (SystemMatrix::set_frame_factors).
   void set_frame_factors(bool on) { sysmat_.set_frame_factors(on); }
   /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).
   void set_amg_diagnostics(Preconditioner::AmgDiagnostics d) { sysmat_.set_amg_diagnostics(d); }

@@ -623,7 +623,7 @@ bool Preconditioner::AdaptAutoTo(const SparseMatrix& a, const VelocityFilter& fi
   c.counting = true;
   if (c.mode == 1) {
     axis_used_ = {false, false, false};
-    cf_frames_ = frame_choice_.counting = false;
+    cf_frames_ = false;
     if (!amg_) amg_ = std::make_unique<AmgPreconditioner>();
     if (!AdaptAmgTo(a, filter)) return false;
     // A failed setup (hypre, or a V-cycle that is not finite) leaves
@@ -663,34 +663,14 @@ bool Preconditioner::ModeChoice::Choose(double other) {
 bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter) {
   if (!contact_factors_ || !cholesky_) return true;
   const double n = static_cast<double>(a.rows());
-  // The factor modes (pcg.h, "Contact frames"): the step since the last
-  // call is counted to the mode that served it, in CG iterations with the
-  // factor (as the contact policy counts them).
-  ModeChoice& c = frame_choice_;
-  const auto [apps, setups, changes] = CountSince(&c);
-  if (c.counting) c.Count(apps + kRefactorIterations * (setups + changes / (kModifyRowsPerSqrtN * std::sqrt(n))));
-  // Contact frames are a choice once the contacts off every axis (by more
-  // than acos(kFrameSnap)) are as many as an axis factor needs; then the
-  // mode with the lower cost record serves, each stay lasting at least
-  // kAutoMinStay steps unless it costs kAutoAbort times the other's record,
-  // and an untried mode is tried next.
+  // Contact frames once the contacts off every axis (by more than
+  // acos(kFrameSnap)) are as many as an axis factor needs (pcg.h, "Contact
+  // frames").
   int tilted = 0;
   filter.ForEachConstraint([&](int, int count, const Eigen::Matrix3d& dirs) {
     tilted += count == 1 && dirs.col(0).cwiseAbs().maxCoeff() < kFrameSnap;
   });
-  const bool choice = frame_factors_ && tilted >= kContactAxisShare * n;
-  if (!choice) {
-    c.counting = false;  // the axis factors serve; the chosen mode is kept
-  } else {
-    if (c.counting) {
-      c.Choose(c.record[1 - c.mode]);
-    } else {
-      c.stay_cost = 0.0;
-      c.stay_steps = 0;
-    }
-    c.counting = true;
-  }
-  const bool frames = choice && c.mode == 1;
+  const bool frames = frame_factors_ && tilted >= kContactAxisShare * n;
   int want[3] = {0, 0, 0};
   for (auto& w : axis_want_) std::fill(w.begin(), w.end(), 0);
   filter.ForEachConstraint([&](int p, int count, const Eigen::Matrix3d& dirs) {

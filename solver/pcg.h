@@ -167,11 +167,13 @@ struct ContactFactorStats {
 /// where the frames are constant (the tilted plane, SBDF(2): 7 CG per
 /// contact step with the axis factors, 1 in frames at 10⁴; 34 and 1 at
 /// 10⁵) and approximates a_pq R_pᵀ R_q by a_pq I where they turn (the
-/// sphere: 21 → 9 CG at 10⁴, 126 → 11 at 10⁵), but where the normals turn
-/// quickly it can lose (the avatar at 10⁴: 12 → 15). So the two factor
-/// modes are chosen by their counted cost per step as the contact policy
-/// chooses (kAutoMinStay, kAutoAbort, kAutoDecay; docs/performance.md,
-/// "Contact frames").
+/// sphere: 21 → 9 CG at 10⁴, 126 → 11 at 10⁵). They serve whenever at
+/// least kContactAxisShare·N contacts are off every axis by more than
+/// acos(kFrameSnap). A choice between them and the axis factors by
+/// measured cost (the axis factors took 12 CG on the avatar at 10⁴ against
+/// the frames' 15) had to try the axis factors, and on round_table_1m that
+/// one trial step took 289 CG and 69.5 s, the rest of the 0.3 s run 81 s
+/// (docs/performance.md, "Contact frames").
 ///
 /// Prefiltered AMG ("amg" with contact_factors; Tamstorf, Jones & McCormick
 /// 2015): with contacts, one V-cycle of BoomerAMG in systems mode on the
@@ -311,7 +313,7 @@ class Preconditioner {
   /// Contact frames: the share of the contacts that, added or released
   /// since the frames were last spread, makes them spread again.
   static constexpr double kRespreadShare = 0.05;
-  /// Contact factors in contact frames: whether they are a choice (default
+  /// Contact factors in contact frames: whether they may serve (default
   /// true; false: the axis factors alone, for comparisons). Before the
   /// first AdaptTo.
   void set_frame_factors(bool on) { frame_factors_ = on; }
@@ -407,8 +409,7 @@ class Preconditioner {
   double mode_measured_[2] = {0.0, 0.0}, mode_rate_[2] = {0.0, 0.0};
   long applications_at_setup_ = 0;
   // A measured choice between two modes (the contact policy's between the
-  // contact factors [0] and the prefiltered AMG [1]; AdaptFactorsTo's
-  // between the axis factors [0] and contact frames [1]): the current mode,
+  // contact factors [0] and the prefiltered AMG [1]): the current mode,
   // each mode's cost record (CG iterations with the factor per step; < 0:
   // untried), the current stay's summed cost and steps, whether the step
   // since the last call is counted, and the counters at that call.
@@ -436,15 +437,13 @@ class Preconditioner {
   ModeChoice auto_choice_;
   mutable long applications_ = 0;
   bool AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter);
-  // Contact factors in contact frames (AdaptFactorsTo): whether they are
-  // a choice (set_frame_factors), the choice of the factor mode (mode 1
-  // frames: starts there); whether Apply rotates into the frames, the
+  // Contact factors in contact frames (AdaptFactorsTo): whether they may
+  // serve (set_frame_factors); whether Apply rotates into the frames, the
   // contacts changed since they were last spread, each particle's frame
   // R_p and direction, and whether R_p ≠ I. SetFactorFrames' `spread`: all
   // frames from SpreadDirections, else only the contacts' turned to their
   // normals.
   bool frame_factors_ = true;
-  ModeChoice frame_choice_{.mode = 1};
   bool cf_frames_ = false;
   long cf_changes_since_spread_ = 0;
   std::vector<Eigen::Matrix3d> cf_frame_;

@@ -213,13 +213,16 @@ TEST(ContactPolicy, KeepsTheFactorAt1e4AndRepeatsBitForBit) {
   EXPECT_TRUE(a.trajectory.positions.back() == c.trajectory.positions.back());
 }
 
-TEST(ContactPolicy, ChoosesThePrefilteredAmgOnTheSphereAt1e5) {
+// The sphere at 10⁵ particles with the default settings: its contacts are
+// tilted, so every contact step is served by contact frames or the
+// prefiltered AMG (never the axis factors, which took 16–126 CG here), at
+// 9–13 CG per step (23 in one AMG step): the median at most 15.
+TEST(ContactPolicy, FramesOrAmgServeTheSphereAt1e5) {
   const Scene s = SphereDrape("sphere_drape_100k", 0.3);  // 20 steps in contact
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
   ASSERT_TRUE(r.ok()) << r.BriefReport();
   std::vector<int> cg;
-  int amg = 0;
   for (const StepStats& st : r.step_stats) {
     std::printf("[ policy ] t %.2f colliding %6d CG %3d served by %d\n", st.t, st.colliding, st.cg_iterations,
                 st.preconditioner);
@@ -228,22 +231,18 @@ TEST(ContactPolicy, ChoosesThePrefilteredAmgOnTheSphereAt1e5) {
       continue;
     }
     cg.push_back(st.cg_iterations);
-    amg += st.preconditioner == 2;
+    EXPECT_TRUE(st.preconditioner == 2 || st.preconditioner == 3) << "t = " << st.t;
   }
   ASSERT_GE(cg.size(), 15u);
-  // The factor's contact steps need 16–126 CG here (the contact factors
-  // hold only normals within 25.8° of an axis), the AMG's 6–9 once its
-  // frame rule has tried both modes: the median is the AMG's.
   std::nth_element(cg.begin(), cg.begin() + static_cast<std::ptrdiff_t>(cg.size() / 2), cg.end());
   EXPECT_LE(cg[cg.size() / 2], 15);
-  EXPECT_GT(amg, static_cast<int>(cg.size()) / 2);
 }
 
 // With the default settings (SBDF(2), "auto"), each obstacle type at 10⁴
 // particles: the median CG iterations over the steps with at least 1 % of
 // the particles constrained stay at or below 15 (measured over 1 s of
 // drape, docs/performance.md's obstacle × N table: sphere 9, avatar 12,
-// tilted plane 1, round table 4; here over 0.6 s: 10, 12, 5, 4). Before contact frames
+// tilted plane 1, round table 4; here over 0.6 s: 10, 15, 3, 4). Before contact frames
 // the sphere needed 21 (its contacts within 25.8° of e_z were decoupled
 // along e_z, not along their normals).
 TEST(ContactPolicy, FifteenCgPerContactStepOnEveryObstacleAt1e4) {
