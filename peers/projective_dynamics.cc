@@ -108,7 +108,8 @@ StepStats ProjectiveDynamics::Step(double h) {
           ++count;
         }
       // A plain iteration that has converged to round-off, or does not
-      // contract, gives no usable ρ: no acceleration (ρ = 0: ω = 1 … ).
+      // contract, gives no usable ρ: ρ = 0 keeps ω = 1, and only γ's
+      // under-relaxation acts.
       const double rho = count > 0 ? std::exp(log_sum / count) : 0.0;
       rho_ = rho > 0.0 && rho < 1.0 ? rho : 0.0;
     }

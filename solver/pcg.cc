@@ -651,13 +651,12 @@ void Preconditioner::ModeChoice::Count(double cost) {
   if (record[1 - mode] >= 0.0) record[1 - mode] *= kAutoDecay;
 }
 
-bool Preconditioner::ModeChoice::Choose(double other) {
+void Preconditioner::ModeChoice::Choose(double other) {
   const bool settled = stay_steps >= kAutoMinStay || (other >= 0.0 && record[mode] > kAutoAbort * other);
-  if (!settled || other >= record[mode]) return false;
+  if (!settled || other >= record[mode]) return;
   mode = 1 - mode;
   stay_cost = 0.0;
   stay_steps = 0;
-  return true;
 }
 
 bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter& filter) {
@@ -839,19 +838,16 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
         cholesky_->Solve(r, z);
         break;
       }
-      // In contact frames: r and z in each particle's frame (r_p R_p),
-      // column z with the contacts decoupled.
+      // In contact frames: r rotated into each particle's frame (r_p R_p),
+      // column z with the contacts decoupled, z rotated back in place.
       const MatrixN3* in = &r;
-      MatrixN3* out = z;
       if (cf_frames_) {
         rotated_r_ = r;
-        rotated_z_.resize(r.rows(), 3);
 #pragma omp parallel for schedule(static) if (r.rows() >= 4096)
         for (Eigen::Index p = 0; p < r.rows(); ++p)
           if (cf_rotated_[static_cast<std::size_t>(p)])
             rotated_r_.row(p) = r.row(p) * cf_frame_[static_cast<std::size_t>(p)];
         in = &rotated_r_;
-        out = &rotated_z_;
       }
       // Each column with its own factor; lane 0 solves columns 0 and 1,
       // lane 1 column 2, on two threads at scale (as CholeskyFactor::Solve).
@@ -862,21 +858,22 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       for (int lane = 0; lane < 2; ++lane) {
         if (lane == 0) {
           if (f[0] == f[1]) {
-            f[0]->SolveColumns(*in, out, 0, 2, 0);
+            f[0]->SolveColumns(*in, z, 0, 2, 0);
           } else {
-            f[0]->SolveColumns(*in, out, 0, 1, 0);
-            f[1]->SolveColumns(*in, out, 1, 1, 0);
+            f[0]->SolveColumns(*in, z, 0, 1, 0);
+            f[1]->SolveColumns(*in, z, 1, 1, 0);
           }
         } else {
-          f[2]->SolveColumns(*in, out, 2, 1, 1);
+          f[2]->SolveColumns(*in, z, 2, 1, 1);
         }
       }
       if (cf_frames_) {
-        *z = rotated_z_;
 #pragma omp parallel for schedule(static) if (r.rows() >= 4096)
         for (Eigen::Index p = 0; p < r.rows(); ++p)
-          if (cf_rotated_[static_cast<std::size_t>(p)])
-            z->row(p) = rotated_z_.row(p) * cf_frame_[static_cast<std::size_t>(p)].transpose();
+          if (cf_rotated_[static_cast<std::size_t>(p)]) {
+            const Eigen::RowVector3d local = z->row(p);
+            z->row(p) = local * cf_frame_[static_cast<std::size_t>(p)].transpose();
+          }
       }
       break;
     }

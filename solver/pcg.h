@@ -425,8 +425,8 @@ class Preconditioner {
     void Count(double cost);
     // Leaves the current mode for the other, whose record is `other` (< 0:
     // untried), once the stay has lasted kAutoMinStay steps or costs
-    // kAutoAbort times `other`, if `other` is lower. @return whether it left
-    bool Choose(double other);
+    // kAutoAbort times `other`, if `other` is lower.
+    void Choose(double other);
   };
   // The applications, setups (refactorisations) and row changes since the
   // last call for `c`, whose counters move to now.
