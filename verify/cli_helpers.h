@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -36,10 +37,22 @@ fixed = ["corner:u0v1", "corner:u1v1"]
 cg_tolerance = 1e-10
 )";
 
-/// <tmp>/<prefix><pid>, created.
+/// <tmp>/<prefix><pid>, created; removed with its contents when the test
+/// process exits.
 inline std::filesystem::path TempDir(const std::string& prefix) {
+  struct Removed {
+    std::set<std::filesystem::path> dirs;
+    ~Removed() {
+      for (const auto& d : dirs) {
+        std::error_code ignored;
+        std::filesystem::remove_all(d, ignored);
+      }
+    }
+  };
+  static Removed made;
   std::filesystem::path d = std::filesystem::temp_directory_path() / (prefix + std::to_string(::getpid()));
   std::filesystem::create_directories(d);
+  made.dirs.insert(d);
   return d;
 }
 

@@ -31,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 
 #include <unistd.h>
 
@@ -123,17 +124,30 @@ TEST(ObstacleMotion, MovingMeshCubeMatchesAnalyticBox) {
 // Writes an OFF file of quads in the plane z = 0: each [x0, x1] × [-1, 1],
 // named after the process (ctest runs the tests of this file as parallel
 // processes, which must not write one file).
-std::string WriteQuadsOff(const std::string& name, const std::vector<std::pair<double, double>>& spans) {
-  const std::string path =
-      (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name)).string();
-  std::ofstream off(path);
+// An OFF file in the temporary directory, removed when the test that
+// wrote it ends.
+struct TempOff {
+  std::string path;
+  explicit TempOff(std::string p) : path(std::move(p)) {}
+  TempOff(const TempOff&) = delete;
+  TempOff& operator=(const TempOff&) = delete;
+  ~TempOff() {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  }
+};
+
+std::unique_ptr<TempOff> WriteQuadsOff(const std::string& name, const std::vector<std::pair<double, double>>& spans) {
+  auto file = std::make_unique<TempOff>(
+      (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name)).string());
+  std::ofstream off(file->path);
   off << "OFF\n" << 4 * spans.size() << " " << 2 * spans.size() << " 0\n";
   for (auto [x0, x1] : spans) off << x0 << " -1 0\n" << x1 << " -1 0\n" << x1 << " 1 0\n" << x0 << " 1 0\n";
   for (std::size_t q = 0; q < spans.size(); ++q) {
     const std::size_t b = 4 * q;
     off << "3 " << b << " " << b + 1 << " " << b + 2 << "\n3 " << b << " " << b + 2 << " " << b + 3 << "\n";
   }
-  return path;
+  return file;
 }
 
 TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
@@ -175,7 +189,8 @@ TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
 
   ObstacleSpec sheet_spec;  // open: unsigned distance, normal faces the start
   sheet_spec.type = ObstacleType::kMesh;
-  sheet_spec.path = WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}});
+  const auto sheet_off = WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}});
+  sheet_spec.path = sheet_off->path;
   const Obstacle sheet(sheet_spec);
   hit = sheet.FirstHit(rest, Vector3(0.2, 0.3, -0.5), Vector3(0.2, 0.3, 0.5));
   ASSERT_TRUE(hit);
@@ -206,7 +221,8 @@ TEST(ObstacleCast, PredictedPathIntoANonConvexMeshIsStopped) {
   // fast to the right: its closest point is on the left quad, and the linear
   // prediction d + h⟨v, D⟩ = 0.058 + 0.465 m says it stays clear, but its
   // path x₀ → x₀ + h v crosses the right quad at x = 0.13 m.
-  Scene s = PointScene(WriteQuadsOff("clothbench_gap.off", {{-1.0, -0.1}, {0.1, 1.0}}));
+  const auto gap_off = WriteQuadsOff("clothbench_gap.off", {{-1.0, -0.1}, {0.1, 1.0}});
+  Scene s = PointScene(gap_off->path);
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     StepEngine engine(sys, m, s.solver);
@@ -241,7 +257,8 @@ TEST(ObstacleCast, ParticleThatWentThroughASheetIsSentBack) {
   // through and turns it back; the side memory keeps it on that side. After
   // 20 more steps every method has it above the sheet (multistep histories
   // carry the fall's momentum, so SBDF(2)/BDF(2) need a few steps more).
-  Scene s = PointScene(WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}}));
+  const auto sheet_off = WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}});
+  Scene s = PointScene(sheet_off->path);
   s.obstacles[0].keyframes = {{0.005, Vector3(0, 0, -10), Vector3::Zero()},
                               {0.0050001, Vector3::Zero(), Vector3::Zero()}};
   const ParticleSystem sys(s);
