@@ -97,8 +97,8 @@ void AddOptions(CLI::App& app, Options& o) {
                  "comma-separated substeps per frame step of the substepped rows (xpbd): one row per h and value "
                  "(default 1,4,16,64)");
   app.add_option("--iterations", iterations_arg,
-                 "comma-separated iterations per step of the iterated rows (pd, pd/chebyshev): one row per h and "
-                 "value (default 1,4,16,64)");
+                 "comma-separated iterations per step of the iterated rows (pd, vbd and their /chebyshev): one row "
+                 "per h and value (default 1,4,16,64; vbd rows 1,4)");
   app.add_option("--arkode-table", arkode_table,
                  "ARKODE IMEX pair: ARK324L2SA (default), ARK436L2SA, ARK437L2SA, ARK548L2SA, ARK548L2SAb");
   app.add_option("--targets", targets_arg, "e_rms targets [m] of the equal-accuracy table (default 1e-2,1e-3,1e-4)");
@@ -264,7 +264,8 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       throw UsageError(fmt::format("--substeps: {:g} must be a whole number from 1 to 1e6", n));
     substeps.push_back(static_cast<int>(n));
   }
-  std::vector<int> iterations;
+  std::vector<int> iterations;  // empty: each iterated row's default counts (PlanRows)
+  if (app.count("--iterations"))
   for (double k : ParsePositiveList(iterations_arg, "--iterations")) {
     if (k != std::floor(k) || k > 1e6)
       throw UsageError(fmt::format("--iterations: {:g} must be a whole number from 1 to 1e6", k));

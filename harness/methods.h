@@ -28,6 +28,7 @@
 #include "peers/arkode.h"
 #include "peers/baraff_witkin.h"
 #include "peers/projective_dynamics.h"
+#include "peers/vbd.h"
 #include "peers/xpbd.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
@@ -162,6 +163,18 @@ inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kA
 /// delay 2 is the only setting better than plain PD at every count.
 inline constexpr ChebyshevSettings kPdChebyshev{.on = true, .rho = 0.0, .gamma = 0.9, .delay = 2};
 
+/// vbd/chebyshev's acceleration, with ρ measured in each run at the first
+/// step of each h (VertexBlockDescent::kRhoIterations plain sweeps; 0.980
+/// on the default scene at h = 0.01 s). The paper's schedule (Chen et al.
+/// 2024, §3.8: γ = 1, ω leaves 1 at the second sweep) diverges there with
+/// 4 sweeps per step (rms difference to implicit_euler/newton after 0.5 s:
+/// 1.3e21 m; 4.2e-2 and 3.0e-4 m with 16 and 64 sweeps), and so does ρ
+/// = 0.99 with it at 16 and 64; pd/chebyshev's γ = 0.9 and delay 2 give
+/// 3.1e-1, 4.8e-2, 4.7e-4 m at 4, 16, 64 sweeps, falling at every count
+/// (plain VBD: 3.7e-1, 2.3e-1, 7.8e-2 m; test
+/// VertexBlockDescent.ConvergesToImplicitEulerWithTheIterations).
+inline constexpr ChebyshevSettings kVbdChebyshev{.on = true, .rho = 0.0, .gamma = 0.9, .delay = 2};
+
 namespace internal {
 template <Method M>
 std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec, int /*count*/,
@@ -256,6 +269,22 @@ inline const std::vector<MethodEntry>& Registry() {
          row->constraints = "tension";
          for (const std::string& t : sys.TermNames())
            if (t != "tension_nonlinear") row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
+       }},
+      // vbd: Vertex Block Descent, one local Newton step per particle and
+      // sweep, colours in sequence; vbd/chebyshev with the paper's
+      // acceleration at the measured ρ (kVbdChebyshev). Every term is
+      // implicit in the local steps.
+      {.name = kVbdName, .kind = kIterated, .layer = "peers", .collisions = true,
+       .make = [](const ParticleSystem& sys, const SolverSpec&, int iterations,
+                  std::string_view variant) -> std::unique_ptr<Stepper> {
+         return std::make_unique<VertexBlockDescent>(sys, iterations,
+                                                     variant == "chebyshev" ? kVbdChebyshev : ChebyshevSettings{});
+       },
+       .variants = {"chebyshev"},
+       .describe = [](const Stepper& stepper, const ParticleSystem&, RunRecord* row) {
+         const auto& vbd = static_cast<const VertexBlockDescent&>(stepper);  // this entry builds one
+         row->chebyshev_rho = vbd.rho();
+         row->colours = vbd.colours();
        }},
       {.name = kArkodeName, .kind = kAdaptive, .layer = "peers", .pcg = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
@@ -505,7 +534,7 @@ inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenO
       {given.substeps, any([](const RowMethod& m) { return m.kind() == StepKind::kSubstepped; }), "--substeps",
        "substepped rows: xpbd"},
       {given.iterations, any([](const RowMethod& m) { return m.kind() == StepKind::kIterated; }), "--iterations",
-       "iterated rows: pd, pd/chebyshev"},
+       "iterated rows: pd, pd/chebyshev, vbd, vbd/chebyshev"},
       {given.cg_tolerance, any([](const RowMethod& m) { return m.uses_pcg(); }), "--cg-tolerance/--cg-tolerances",
        "rows that solve with the PCG"},
       {given.preconditioner, any([](const RowMethod& m) { return m.uses_pcg(); }), "--preconditioner",
@@ -593,6 +622,14 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 ///    Euler's floor 2.2e-2, 5.9e-3, 1.5e-3 m, reached in 16, 16 and 4
 ///    iterations; one iteration gives 2.2e-2, 1.8e-3, 1.2e-3 m
 ///    (docs/work-precision.md, "pd").
+///  - vbd, vbd/chebyshev: a sweep costs 0.34 ms at 400 particles (100× a
+///    pd iteration), so their own counts are 1 and 4 at h, h/4, h/16: at
+///    h = 0.01 s 1 and 4 sweeps gain energy (energy_growth) and 16, 64
+///    give 0.23, 0.11 m; at h/4 9.8e-2 … 5.9e-3 m (1 … 64); at h/16
+///    4.8e-2, 2.5e-3, 1.5e-3 m with 1, 4, 16 (the floor); with Chebyshev
+///    the same within 20 % (`bench_integrators --integrators
+///    vbd,vbd/chebyshev --h 0.01,0.0025,0.000625`, docs/work-precision.md,
+///    "vbd").
 ///  - sbdf3: 4.2e-1, 4.6e-2, 1.7e-4, 2.2e-5 m at h, h/2, h/4, h/8; at h and
 ///    h/2 it gains energy (+294 W and +2.2 W: BDF3 is not A-stable), so its
 ///    rows start at h/4.
@@ -609,7 +646,12 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 struct DefaultParams {
   std::vector<double> h_factors;  ///< fixed-step and substepped rows: h = factor × scene h
   std::vector<double> rtols;      ///< adaptive rows
+  std::vector<int> iterations;    ///< iterated rows without --iterations (empty: kDefaultIterations)
 };
+
+/// The iteration counts of an iterated row without --iterations, unless
+/// its DefaultParams name its own.
+inline const std::vector<int> kDefaultIterations = {1, 4, 16, 64};
 
 /// One row of the default run, in table order, with its parameters.
 struct DefaultRow {
@@ -641,6 +683,8 @@ inline const std::vector<DefaultRow>& DefaultRows() {
       {"xpbd", {{1.0, 1.0 / 16}, {}}},
       {"pd", {{1.0, 1.0 / 4, 1.0 / 16}, {}}},
       {"pd/chebyshev", {{1.0, 1.0 / 4, 1.0 / 16}, {}}},
+      {"vbd", {{1.0, 1.0 / 4, 1.0 / 16}, {}, {1, 4}}},
+      {"vbd/chebyshev", {{1.0, 1.0 / 4, 1.0 / 16}, {}, {1, 4}}},
       {"sbdf2/error", {{}, kRtols}},
       {"bdf2/newton/error", {{}, kRtols}},
       {"arkode", {{}, kArkodeRtols}},

@@ -40,8 +40,11 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
       std::stable_sort(ps.begin(), ps.end(),
                        [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
     } else if (m.kind() == StepKind::kIterated) {
+      const std::vector<int>& counts = !iterations.empty()    ? iterations
+                                       : !d.iterations.empty() ? d.iterations
+                                                               : kDefaultIterations;
       for (double h : mh)  // h decreasing, each with its iteration counts increasing
-        for (int k : iterations) ps.emplace_back(h, k);
+        for (int k : counts) ps.emplace_back(h, k);
     } else if (m.kind() == StepKind::kFixedStep) {
       for (double h : mh) ps.emplace_back(h, 1);
     } else {

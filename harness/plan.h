@@ -30,7 +30,8 @@ struct RowPlan {
 /// Plans the rows of `methods`: h decreasing (`hs`, else the method's
 /// DefaultRowParams × the scene's h, at most t_end), rtol (`rtols`, else the
 /// defaults), substepped rows by their substep h/n decreasing, iterated rows
-/// by h decreasing, each h with every count of `iterations`.
+/// by h decreasing, each h with every count of `iterations` (empty: the
+/// row's DefaultParams::iterations, else kDefaultIterations).
 /// @param n_eta the number of CG tolerances (rows that use the PCG run once per η)
 /// @throws UsageError naming the option if a fixed-step row would need more
 ///         than kMaxStepsPerRun steps

@@ -25,7 +25,6 @@
 
 namespace clothbench {
 
-using Matrix3 = Eigen::Matrix3d;
 
 /// Closed-form Jacobians run on the OpenMP threads from this many particles
 /// up; an item (stencil centre, spring) costs about a microsecond.

@@ -13,6 +13,7 @@
 #include <utility>
 #include <cmath>
 #include <cstdint>
+#include <mutex>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -433,7 +434,47 @@ class StencilTerm final : public ForceTerm {
     }
   }
 
+  // The centres whose outputs land on each particle (shear: outputs 1–4,
+  // its output 0 is always zero), in centre order.
+  void PrepareParticleForces(int num_particles) const override {
+    std::call_once(particle_once_, [&] {
+      particle_items_ = GatherLists(
+          num_particles, centres_.size(), kParticleOutputs,
+          [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k + kFirstOutput)]; },
+          false);
+    });
+  }
+
+  // Each centre that writes p is evaluated once: its outputs on p summed,
+  // and its blocks (output on p, node p).
+  void AddParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f, Matrix3* dfdx,
+                        Matrix3* dfdv) const override {
+    const bool with_v = kernel_.uses_velocity();
+    const std::vector<int>& entries = particle_items_.entries;
+    const int end = particle_items_.offsets[static_cast<std::size_t>(p) + 1];
+    for (int q = particle_items_.offsets[static_cast<std::size_t>(p)]; q < end;) {
+      const int c = entries[static_cast<std::size_t>(q)] / kParticleOutputs;
+      std::uint32_t outputs = 0;
+      for (; q < end && entries[static_cast<std::size_t>(q)] / kParticleOutputs == c; ++q)
+        outputs |= 1u << (entries[static_cast<std::size_t>(q)] % kParticleOutputs + kFirstOutput);
+      std::array<Vector3, Kernel::kOutputs> fs;
+      Evaluate(t, x, v, static_cast<std::size_t>(c), &fs);
+      for (int o = 0; o < Kernel::kOutputs; ++o)
+        if ((outputs >> o) & 1u) *f += fs[static_cast<std::size_t>(o)];
+      std::array<Matrix3, kBlocks> jx, jv;
+      Blocks(t, x, v, static_cast<std::size_t>(c), &jx, &jv);
+      const Centre& ce = centres_[static_cast<std::size_t>(c)];
+      for (int k = 0; k < kBlocks; ++k) {
+        if (!((outputs >> Kernel::kBlockSlots[k][0]) & 1u) || ce.nodes[Kernel::kBlockSlots[k][1]] != p) continue;
+        *dfdx += jx[static_cast<std::size_t>(k)];
+        if (with_v) *dfdv += jv[static_cast<std::size_t>(k)];
+      }
+    }
+  }
+
  private:
+  static constexpr int kFirstOutput = std::is_same_v<Kernel, ShearKernel> ? 1 : 0;
+  static constexpr int kParticleOutputs = Kernel::kOutputs - kFirstOutput;
   void Blocks(double t, const MatrixN3& x, const MatrixN3& v, std::size_t ci, std::array<Matrix3, kBlocks>* jx,
               std::array<Matrix3, kBlocks>* jv) const {
     const Centre& c = centres_[ci];
@@ -605,6 +646,8 @@ class StencilTerm final : public ForceTerm {
   mutable std::vector<double> pairs_;  // ShearKernel with many centres: (fu, fv) per centre
   std::vector<LinearWeights<K>> weights_;  // Kernel::kLinear only: one set per validity mask
   std::vector<int> weight_set_;            // of each centre
+  mutable std::once_flag particle_once_;   // PrepareParticleForces
+  mutable GatherLists particle_items_;     // entries c·kParticleOutputs + (output − kFirstOutput)
 };
 
 // Builds one centre per particle with the first K patch slots.
@@ -1049,10 +1092,31 @@ class TensionNonlinear final : public ForceTerm {
         }
     }
   }
+  void PrepareParticleForces(int num_particles) const override {
+    std::call_once(particle_once_, [&] {
+      particle_springs_ = GatherLists(
+          num_particles, springs_.size(), 2, [this](std::size_t s, int k) { return k == 0 ? springs_[s].a : springs_[s].b; },
+          false);
+    });
+  }
+  // F_nl on a is +Force, on b −Force; both diagonal blocks are −Block.
+  void AddParticleForce(double, const MatrixN3& x, const MatrixN3&, int p, Vector3* f, Matrix3* dfdx,
+                        Matrix3*) const override {
+    for (int q = particle_springs_.offsets[static_cast<std::size_t>(p)];
+         q < particle_springs_.offsets[static_cast<std::size_t>(p) + 1]; ++q) {
+      const int e = particle_springs_.entries[static_cast<std::size_t>(q)];
+      const Spring& s = springs_[static_cast<std::size_t>(e >> 1)];
+      if ((e & 1) == 0) *f += Force(x, s);
+      else *f -= Force(x, s);
+      *dfdx -= Block(x, s);
+    }
+  }
 
  private:
   std::vector<Spring> springs_;
   mutable GatherLists gather_;  // many springs only
+  mutable std::once_flag particle_once_;  // PrepareParticleForces
+  mutable GatherLists particle_springs_;  // entries 2·spring + end (0: a, 1: b)
 };
 
 class Gravity final : public ForceTerm {
@@ -1067,6 +1131,10 @@ class Gravity final : public ForceTerm {
   std::size_t jacobian_items() const override { return 0; }
   void AccumulateJacobian(double, const MatrixN3&, const MatrixN3&, const int*, double*, double*, std::size_t,
                           std::size_t) const override {}
+  void PrepareParticleForces(int) const override {}
+  void AddParticleForce(double, const MatrixN3&, const MatrixN3&, int p, Vector3* f, Matrix3*, Matrix3*) const override {
+    *f += force_.row(p).transpose();
+  }
 
  private:
   MatrixN3 force_;

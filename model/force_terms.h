@@ -57,6 +57,20 @@ class ForceTerm {
   /// allocation. @param t [s]; @param x, v N×3 [m], [m/s]
   virtual void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
                                   double* dfdv, std::size_t first, std::size_t last) const = 0;
+  /// Builds, once, the lists of the items that write each particle, which
+  /// AddParticleForce reads (vertex-block methods, peers/vbd.h, call it;
+  /// other methods never pay for the lists). Thread safe.
+  /// @param num_particles N
+  virtual void PrepareParticleForces(int num_particles) const = 0;
+  /// The force of this term on particle p and the diagonal blocks of its
+  /// Jacobian: f += g_k,p(t, x, v) [N], dfdx += ∂g_k,p/∂x_p [N/m] and, if
+  /// depends_on_velocity(), dfdv += ∂g_k,p/∂v_p [N s/m]: row p of AddForce
+  /// and block (p, p) of AccumulateJacobian, from the items that write p
+  /// (summed in item order, so f may differ from AddForce's row in the last
+  /// bits). Needs PrepareParticleForces; no allocation; concurrent calls
+  /// for different p are safe. @param x, v N×3 [m], [m/s]
+  virtual void AddParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f, Matrix3* dfdx,
+                                Matrix3* dfdv) const = 0;
 };
 
 /// One spring of the tension model (docs/model.md §2.1): a u- or v-edge.

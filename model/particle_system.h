@@ -67,6 +67,23 @@ class ParticleSystem {
   void ForceJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
                      std::vector<Triplet>* dfdv) const;
 
+  /// Prepares ParticleForce (each term's per-particle lists, built once;
+  /// thread safe). Vertex-block methods (peers/vbd.h) call it.
+  void PrepareParticleForces() const;
+  /// The total force on particle p and the diagonal blocks of its Jacobian:
+  /// f = −(L_K x)_p − (L_D v)_p + g_p(t, x, v) [N], dfdx = ∂f_p/∂x_p [N/m],
+  /// dfdv = ∂f_p/∂v_p [N s/m] (3.19, 3.20; the blocks (p, p) of
+  /// ForceJacobian), overwritten. Needs PrepareParticleForces; no
+  /// allocation; concurrent calls for different p are safe.
+  /// @param t [s]; @param x, v N×3 [m], [m/s]; @param p particle index
+  void ParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f, Matrix3* dfdx,
+                     Matrix3* dfdv) const;
+  /// The particle graph of the force: q is a neighbour of p (and p of q)
+  /// if f_p reads x_q or v_q, i.e. ForceJacobian has a block (p, q) or
+  /// (q, p), p ≠ q. Sorted lists in compressed form: the neighbours of p
+  /// are neighbours[offsets[p] … offsets[p + 1]). Built on each call.
+  void ParticleGraph(std::vector<int>* offsets, std::vector<int>* neighbours) const;
+
   /// Energies and momentum of (x, v). Tension, shear and gravity are exact
   /// potentials of their forces. The bending value is the normal-curvature
   /// energy of (2.25)/(2.26) evaluated with the discrete second differences;

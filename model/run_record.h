@@ -29,8 +29,9 @@ struct RunRecord {
   double h = 0.0;            ///< fixed-step and iterated: the step [s]; substepped: the frame step [s]
   double rtol = 0.0;         ///< adaptive rows: rtol = atol
   long substeps = 0;         ///< substepped rows: substeps per frame step
-  long iterations = 0;       ///< iterated rows (pd): iterations per step
-  double chebyshev_rho = 0.0;  ///< pd/chebyshev: the ρ measured at the first step and used (0: none)
+  long iterations = 0;       ///< iterated rows (pd, vbd): iterations per step
+  double chebyshev_rho = 0.0;  ///< pd/chebyshev, vbd/chebyshev: the ρ measured at the first step and used (0: none)
+  long colours = 0;          ///< vbd: colours of the particle graph (its sweeps' sequential stages)
   double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
   std::string constraints;   ///< xpbd, pd: the terms solved as constraints or projections ("tension,shear,obstacles")
   std::string explicit_terms;///< xpbd: the terms applied in the prediction; pd: those at the iterate ("gravity,bend_thin_plate")

@@ -17,6 +17,7 @@ using MatrixN3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 /// the interleaved index 3p + c of the tangent system J_α (solver/tangent.h).
 using MatrixN3R = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Vector3 = Eigen::Vector3d;
+using Matrix3 = Eigen::Matrix3d;
 /// Compressed sparse matrix used for L_K, L_D and A_α (N×N).
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 using Triplet = Eigen::Triplet<double, int>;

@@ -241,7 +241,7 @@ def sign(path):
 @pytest.fixture(scope="module")
 def stored(tmp_path_factory):
     d = tmp_path_factory.mktemp("stored")
-    p = run_binary("bench_integrators", ["--integrators", "sbdf2,bdf2/newton,xpbd,pd,arkode,cvode", "--h", "0.01",
+    p = run_binary("bench_integrators", ["--integrators", "sbdf2,bdf2/newton,xpbd,pd,vbd/chebyshev,arkode,cvode", "--h", "0.01",
                                          "--rtols", "1e-3", "--substeps", "2", "--iterations", "2", "--t-end", "0.05",
                                          "--reference",
                                          "none", "--quiet", "--out", str(d / "a.h5")], d)
@@ -272,6 +272,7 @@ STORED = [("/runs/sbdf2_h0.01", "label", "sbdf2_h0.01", BAD["method"] + ["bdf2",
           ("/runs/bdf2_newton_h0.01", "tangent_terms", "bdf2_newton_h0.01", ["some", "$(x)"], "tangent_terms"),
           ("/runs/xpbd_h0.01_n2", "substeps", "xpbd_h0.01_n2", [0, -1, 2000000, 3], "substeps"),
           ("/runs/pd_h0.01_k2", "iterations", "pd_h0.01_k2", [0, -1, 2000000, 3], "iterations"),
+          ("/runs/vbd_chebyshev_h0.01_k2", "iterations", "vbd_chebyshev_h0.01_k2", [0, -1, 2000000, 3], "iterations"),
           ("/runs/arkode_rtol0.001", "arkode_table", "arkode_rtol0.001", ["ARK999", "x\ny"], "arkode_table"),
           ("/runs/cvode_rtol0.001", "sundials_settings", "cvode_rtol0.001", ["foo=1", "lsetup_frequency"],
            "cvode_setting"),

@@ -25,6 +25,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"substeps", &R::substeps, S::kSubstepped},
       {"iterations", &R::iterations, S::kIterated},
       {"chebyshev_rho", &R::chebyshev_rho, S::kPositive},
+      {"colours", &R::colours, S::kPositive},
       {"constraints", &R::constraints, S::kNonEmpty},
       {"explicit_terms", &R::explicit_terms, S::kNonEmpty},
       {"tangent_terms", &R::tangent_terms, S::kNonEmpty},
@@ -190,23 +191,29 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   }
   fmt::print(out,
              "\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
-             "frame step/substeps of substepped rows (xpbd), step x iterations of iterated rows (pd).\n"
+             "frame step/substeps of substepped rows (xpbd), step x iterations of iterated rows (pd, vbd).\n"
              "order: observed order between consecutive rows, against h (h/substeps); adaptive rows against their "
              "mean step t_end/steps.\n");
-  // The first run of a kind says what its rows' columns mean.
-  const auto note = [&](std::string_view kind, std::string_view text, std::string_view terms) {
+  // The first run of an integrator says what its rows' columns mean.
+  const auto note = [&](std::string_view integrator, std::string_view text, std::string_view terms) {
     for (const RunRecord& r : t.runs)
-      if (r.step_kind == kind) {
-        fmt::print(out, "{}{}; {}{}.\n", text, r.constraints, terms, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+      if (r.integrator == integrator) {
+        fmt::print(out, "{}{}", text, r.constraints);
+        if (!terms.empty()) fmt::print(out, "; {}{}", terms, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+        fmt::print(out, ".\n");
         return;
       }
   };
-  note("substepped", "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
+  note("xpbd", "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
        "explicit forces in the prediction: ");
-  note("iterated",
+  note("pd",
        "pd rows: updates = iterations (each projects the springs, evaluates the other forces at the iterate and "
        "solves with A_1's factor, factorised once per h); projected: ",
        "at the iterate: ");
+  note("vbd",
+       "vbd rows: updates = iterations (each a sweep of one local Newton step per particle, every term implicit, "
+       "the colours of the particle graph in sequence)",
+       "");
   fmt::print(out,
              "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, ida, arkode: "
              "our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the direct KLU solver).\n");

@@ -645,17 +645,17 @@ std::array<double, 3> Preconditioner::CountSince(ModeChoice* c) const {
 }
 
 void Preconditioner::ModeChoice::Count(double cost) {
-  stay_cost += cost;
+  record[mode] = stay_steps == 0 ? cost : kAutoRecent * cost + (1.0 - kAutoRecent) * record[mode];
+  stay_least = stay_steps == 0 ? cost : std::min(stay_least, cost);
   ++stay_steps;
-  record[mode] = stay_cost / stay_steps;
   if (record[1 - mode] >= 0.0) record[1 - mode] *= kAutoDecay;
 }
 
 void Preconditioner::ModeChoice::Choose(double other) {
   const bool settled = stay_steps >= kAutoMinStay || (other >= 0.0 && record[mode] > kAutoAbort * other);
   if (!settled || other >= record[mode]) return;
+  record[mode] = stay_least;
   mode = 1 - mode;
-  stay_cost = 0.0;
   stay_steps = 0;
 }
 

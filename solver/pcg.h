@@ -277,8 +277,9 @@ class Preconditioner {
   /// V-cycle iterations, a contact-factor refactorisation
   /// kRefactorIterations and a row change kRefactorIterations /
   /// (kModifyRowsPerSqrtN √N). Counts, not times, so
-  /// that a run is the same on every repetition. A mode's cost is the mean
-  /// over its current stay; the other mode's record decays by kAutoDecay
+  /// that a run is the same on every repetition. A mode's cost is an
+  /// exponential mean over its current stay (kAutoRecent); a mode that is
+  /// left keeps its stay's least step cost, which decays by kAutoDecay
   /// per step, so that it is tried again, and an untried AMG starts from
   /// kAmgPriorIterations V-cycles per step. A stay lasts at least
   /// kAutoMinStay steps unless its cost exceeds the other's record by
@@ -298,6 +299,10 @@ class Preconditioner {
   /// (0.14 s against 13.5 ms at 10⁵: 10; about 25 at 10⁴).
   static constexpr double kRefactorIterations = 15.0;
   static constexpr double kAutoDecay = 0.97;
+  /// Weight of the latest step in the current mode's cost (an exponential
+  /// mean, so that a cost that grows over the stay is seen within a few
+  /// steps).
+  static constexpr double kAutoRecent = 0.5;
   static constexpr double kAmgPriorIterations = 12.0;
   static constexpr int kAutoMinStay = 2;
   static constexpr double kAutoAbort = 2.0;
@@ -411,12 +416,15 @@ class Preconditioner {
   // A measured choice between two modes (the contact policy's between the
   // contact factors [0] and the prefiltered AMG [1]): the current mode,
   // each mode's cost record (CG iterations with the factor per step; < 0:
-  // untried), the current stay's summed cost and steps, whether the step
-  // since the last call is counted, and the counters at that call.
+  // untried): the current mode's an exponential mean of its stay's steps
+  // (kAutoRecent), a mode left behind its stay's least step (a stay that
+  // met an impact is not remembered by the impact); the current stay's
+  // least step cost and its steps, whether the step since the last call is
+  // counted, and the counters at that call.
   struct ModeChoice {
     std::size_t mode = 0;
     double record[2] = {-1.0, -1.0};
-    double stay_cost = 0.0;
+    double stay_least = 0.0;
     int stay_steps = 0;
     bool counting = false;
     long applications_at = 0, refactorizations_at = 0, modifications_at = 0;

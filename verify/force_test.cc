@@ -6,6 +6,8 @@
 // truncation error O(ε² |f'''|) ≈ 1e-12·|f'''| and round-off
 // O(1e-16 |f| / ε) ≈ 1e-10 |f|; relative to the largest Jacobian entry a
 // mismatch above 1e-6 therefore means a wrong derivative, not noise.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -77,6 +79,55 @@ TEST_P(JacobianTest, EveryTermMatchesCentralDifferences) {
   const Dense jv = ToDense(n3, tv), fv = FiniteDifference(x, v, false, f);
   EXPECT_LT((jx - fx).cwiseAbs().maxCoeff() / jx.cwiseAbs().maxCoeff(), 1e-6);
   EXPECT_LT((jv - fv).cwiseAbs().maxCoeff() / jv.cwiseAbs().maxCoeff(), 1e-6);
+}
+
+// The per-particle access of vertex-block methods (ParticleSystem::
+// ParticleForce) is row p of the assembled force and block (p, p) of the
+// assembled Jacobians, every term included; the particle graph holds every
+// off-diagonal block of the Jacobians. The forces are summed in another
+// order than Forces' (by the items that write p), so they agree to
+// round-off: 1e-12 of the largest force.
+TEST_P(JacobianTest, ParticleForceIsTheRowAndDiagonalBlock) {
+  const ParticleSystem sys(testing::AllTermsScene(7, 6, GetParam()));
+  MatrixN3 x, v, f(sys.num_particles(), 3);
+  testing::PerturbedState(sys, 11, &x, &v);
+  const int n = sys.num_particles();
+  const double t = 0.37;
+  sys.Forces(t, x, v, &f);
+  std::vector<Triplet> tx, tv;
+  sys.ForceJacobian(t, x, v, &tx, &tv);
+  const Dense jx = ToDense(3 * n, tx), jv = ToDense(3 * n, tv);
+  sys.PrepareParticleForces();
+  const double fscale = f.cwiseAbs().maxCoeff();
+  const double jscale = std::max(jx.cwiseAbs().maxCoeff(), jv.cwiseAbs().maxCoeff());
+  for (int p = 0; p < n; ++p) {
+    Vector3 fp;
+    Matrix3 dx, dv;
+    sys.ParticleForce(t, x, v, p, &fp, &dx, &dv);
+    EXPECT_LT((fp - f.row(p).transpose()).cwiseAbs().maxCoeff(), 1e-12 * fscale) << p;
+    EXPECT_LT((dx - jx.block<3, 3>(3 * p, 3 * p)).cwiseAbs().maxCoeff(), 1e-12 * jscale) << p;
+    EXPECT_LT((dv - jv.block<3, 3>(3 * p, 3 * p)).cwiseAbs().maxCoeff(), 1e-12 * jscale) << p;
+  }
+  std::vector<int> offsets, neighbours;
+  sys.ParticleGraph(&offsets, &neighbours);
+  ASSERT_EQ(offsets.size(), static_cast<std::size_t>(n) + 1);
+  const auto linked = [&](int p, int q) {
+    return std::binary_search(neighbours.begin() + offsets[static_cast<std::size_t>(p)],
+                              neighbours.begin() + offsets[static_cast<std::size_t>(p) + 1], q);
+  };
+  int blocks = 0;
+  for (int p = 0; p < n; ++p)
+    for (int q = 0; q < n; ++q) {
+      if (p == q) continue;
+      const bool nonzero = jx.block<3, 3>(3 * p, 3 * q).cwiseAbs().maxCoeff() > 0.0 ||
+                           jv.block<3, 3>(3 * p, 3 * q).cwiseAbs().maxCoeff() > 0.0;
+      if (!nonzero) continue;
+      ++blocks;
+      EXPECT_TRUE(linked(p, q) && linked(q, p)) << p << " reads " << q;
+    }
+  // 378 blocks on this 7×6 sheet, mostly border: at least the four spring
+  // neighbours' (p, q) and (q, p) of every particle's edges, 2·(6·6 + 7·5).
+  EXPECT_GE(blocks, 2 * (6 * 6 + 7 * 5));
 }
 
 INSTANTIATE_TEST_SUITE_P(BendModels, JacobianTest, ::testing::Values(BendModel::kThinPlate, BendModel::kMembrane),

@@ -24,37 +24,24 @@
 #include "harness/methods.h"
 #include "peers/projective_dynamics.h"
 #include "solver/integrator.h"
+#include "verify/stepping.h"
 
 namespace clothbench {
 namespace {
 
-// The final positions after `steps` steps of h from rest.
-MatrixN3 Advance(const ParticleSystem& sys, Stepper& stepper, double h, int steps) {
-  stepper.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
-  for (int k = 0; k < steps; ++k) {
-    const StepStats st = stepper.Step(h);
-    EXPECT_EQ(st.status, StepStatus::kOk) << "step " << k;
-  }
-  return stepper.x();
-}
-
-double Rms(const MatrixN3& a, const MatrixN3& b) { return (a - b).norm() / std::sqrt(static_cast<double>(a.rows())); }
+using testing::AdvanceFromRest;
+using testing::RmsDifference;
 
 TEST(ProjectiveDynamics, ConvergesToImplicitEulerWithTheIterations) {
   const ParticleSystem sys(BuiltinScene("swinging_sheet"));
   const double h = 0.01;
   const int steps = 50;
-  SolverSpec newton = sys.scene().solver;
-  newton.nonlinear_solver = NonlinearSolver::kNewton;
-  newton.preconditioner = PreconditionerType::kCholesky;
-  newton.cg_tolerance = 1e-10;
-  StepEngine reference(sys, Method::kImplicitEuler, newton);
-  const MatrixN3 x_ref = Advance(sys, reference, h, steps);
+  const MatrixN3 x_ref = testing::ImplicitEulerNewtonFromRest(sys, h, steps);
   for (const ChebyshevSettings& cheb : {ChebyshevSettings{}, kPdChebyshev}) {
     double last = 1e300;
     for (int k : {1, 4, 16, 64}) {
       ProjectiveDynamics pd(sys, sys.scene().solver, k, cheb);
-      const double d = Rms(Advance(sys, pd, h, steps), x_ref);
+      const double d = RmsDifference(AdvanceFromRest(sys, pd, h, steps), x_ref);
       std::printf("[ pd%s ] %2d iterations: rms difference to implicit_euler/newton %.3e m\n",
                   cheb.on ? "/chebyshev" : "", k, d);
       EXPECT_LT(d, last) << k << " iterations";
@@ -70,7 +57,7 @@ TEST(ProjectiveDynamics, PinnedSheetAtRestStaysAtRest) {
   const ParticleSystem sys(scene);
   for (const ChebyshevSettings& cheb : {ChebyshevSettings{}, kPdChebyshev}) {
     ProjectiveDynamics pd(sys, scene.solver, 4, cheb);
-    const MatrixN3 x = Advance(sys, pd, 0.01, 100);
+    const MatrixN3 x = AdvanceFromRest(sys, pd, 0.01, 100);
     EXPECT_LT((x - sys.rest_positions()).cwiseAbs().maxCoeff(), 1e-12);
     EXPECT_LT(pd.v().cwiseAbs().maxCoeff(), 1e-10);
   }
@@ -79,7 +66,7 @@ TEST(ProjectiveDynamics, PinnedSheetAtRestStaysAtRest) {
 TEST(PdChebyshev, RhoOfThePlainIteration) {
   const ParticleSystem sys(BuiltinScene("swinging_sheet"));
   ProjectiveDynamics pd(sys, sys.scene().solver, 64);
-  Advance(sys, pd, 0.01, 30);  // into the swing (t = 0.3 s)
+  AdvanceFromRest(sys, pd, 0.01, 30);  // into the swing (t = 0.3 s)
   const std::vector<double>& inc = pd.last_increments();
   ASSERT_EQ(inc.size(), 64u);
   double log_sum = 0.0;
@@ -93,7 +80,7 @@ TEST(PdChebyshev, RhoOfThePlainIteration) {
   const double rho = std::exp(log_sum / count);
   // The ρ pd/chebyshev measures at its first step (from rest).
   ProjectiveDynamics cheb(sys, sys.scene().solver, 4, kPdChebyshev);
-  Advance(sys, cheb, 0.01, 1);
+  AdvanceFromRest(sys, cheb, 0.01, 1);
   std::printf("[ pd ] contraction of the plain iteration over iterations 32-64 at t = 0.3 s: rho = %.4f; "
               "measured by pd/chebyshev at its first step: %.4f\n",
               rho, cheb.rho());

@@ -1,0 +1,65 @@
+// Chebyshev semi-iterative acceleration of a fixed-iteration solver
+// (Wang 2015, "A Chebyshev semi-iterative approach for accelerating
+// projective and position-based dynamics", ACM TOG 34(6), Eq. 10–12; the
+// same schedule is Vertex Block Descent's §3.8), shared by pd/chebyshev
+// and vbd/chebyshev (docs/model.md §10).
+#ifndef CLOTHBENCH_PEERS_CHEBYSHEV_H_
+#define CLOTHBENCH_PEERS_CHEBYSHEV_H_
+
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+namespace clothbench {
+
+/// The acceleration's settings: with u^k the iterate and û the plain
+/// iteration's result from u^k,
+///   u^{k+1} = ω_{k+1} (γ (û − u^k) + u^k − u^{k−1}) + u^{k−1},
+///   ω = 1 for k < delay, ω = 2/(2 − ρ²) at k = delay, then ω ← 4/(4 − ρ² ω).
+struct ChebyshevSettings {
+  bool on = false;
+  /// Spectral radius of the plain iteration, in [0, 1); 0: measured at the
+  /// first step of each h (ChebyshevRho).
+  double rho = 0.0;
+  double gamma = 1.0;  ///< under-relaxation γ in (0, 1]
+  int delay = 1;       ///< plain iterations before ω leaves 1 (Wang's S)
+
+  /// True if the settings are in their ranges (or the acceleration is off).
+  bool valid() const { return !on || (rho >= 0.0 && rho < 1.0 && gamma > 0.0 && gamma <= 1.0 && delay >= 1); }
+  /// ω of iteration k (0-based) after ω = `omega` at k − 1, for ρ = `rho`.
+  double Omega(int k, double rho_used, double omega) const {
+    if (k < delay) return 1.0;
+    return k == delay ? 2.0 / (2.0 - rho_used * rho_used) : 4.0 / (4.0 - rho_used * rho_used * omega);
+  }
+};
+
+/// The noise level of ChebyshevRho for velocity iterates: an increment Δv
+/// whose displacement h Δv is below 1e-13 of the positions x₀ (N×3
+/// Frobenius norms) is round-off.
+inline double VelocityNoise(double position_norm, double h) { return 1e-13 * position_norm / h; }
+
+/// Plain iterations from which ChebyshevRho measures ρ.
+inline constexpr int kChebyshevRhoIterations = 32;
+
+/// The contraction ρ of a plain iteration from its increments
+/// ‖u^{k+1} − u^k‖: the geometric mean of the ratios of consecutive
+/// increments over the last half, leaving out increments at or below
+/// `noise` (round-off of the state: a sheet at rest has increments of
+/// 1e-17 whose ratios are near 1 and would make ω amplify round-off). An
+/// iteration that has converged to round-off, or does not contract, gives
+/// no usable ρ: 0 (ω then stays 1, and only γ's under-relaxation acts).
+inline double ChebyshevRho(const std::vector<double>& increments, double noise) {
+  double log_sum = 0.0;
+  int count = 0;
+  for (std::size_t k = increments.size() / 2; k < increments.size(); ++k)
+    if (k > 0 && increments[k - 1] > noise && increments[k] > noise) {
+      log_sum += std::log(increments[k] / increments[k - 1]);
+      ++count;
+    }
+  const double rho = count > 0 ? std::exp(log_sum / count) : 0.0;
+  return rho > 0.0 && rho < 1.0 ? rho : 0.0;
+}
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_PEERS_CHEBYSHEV_H_

@@ -1,0 +1,87 @@
+// The skeleton the iterated peers share (projective dynamics, Vertex Block
+// Descent; docs/model.md §10): implicit Euler in velocities, x = x₀ + h v,
+// approached by a fixed number of plain iterations v ← G(v) per step from
+// the inertial guess v₀ + h M⁻¹ f_ext, with optional Chebyshev acceleration
+// (peers/chebyshev.h) at a ρ measured at the first step of each h, then
+// the obstacles on the positions (peers/position_contacts.h) and
+// v₁ = (x₁ − x₀)/h. Fixed particles have v = 0.
+#ifndef CLOTHBENCH_PEERS_ITERATED_H_
+#define CLOTHBENCH_PEERS_ITERATED_H_
+
+#include <string_view>
+#include <vector>
+
+#include "model/particle_system.h"
+#include "peers/chebyshev.h"
+#include "solver/integrator.h"
+
+namespace clothbench {
+
+class IteratedStepper : public Stepper {
+ public:
+  void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
+  /// One step of size h [s]: Prepare when h changes (and ρ measured from
+  /// rho_iterations plain iterations on a copy of the state, if the
+  /// settings ask for it; both count as the step's setup), k iterations,
+  /// then the obstacles. stats.updates = k, cg_iterations = 0, colliding
+  /// = particles projected out of an obstacle. Status kNonFinite (state
+  /// unchanged) if an iterate is not finite, kTimeLimit past the run's
+  /// deadline, Prepare's status if it fails.
+  StepStats Step(double h) override;
+  double t() const override { return t_; }
+  void SetTime(double t) override { t_ = t; }
+  const MatrixN3& x() const override { return x0_; }
+  const MatrixN3& v() const override { return v0_; }
+  bool single_update() const override { return true; }
+
+  int iterations() const { return iterations_; }
+  /// The ρ the acceleration uses (the measured one once a step has run;
+  /// 0 before, or without Chebyshev).
+  double rho() const { return rho_; }
+  /// ‖v^{k+1} − v^k‖ of each iteration of the last step (plain or
+  /// accelerated), for measuring the contraction ρ.
+  const std::vector<double>& last_increments() const { return increments_; }
+
+ protected:
+  /// @param name the row's name, for the error messages
+  /// @param rho_iterations plain iterations of the measurement of ρ
+  /// @throws std::invalid_argument if iterations < 1 or the Chebyshev
+  ///   settings are outside their ranges
+  IteratedStepper(const ParticleSystem& system, std::string_view name, int iterations, ChebyshevSettings chebyshev,
+                  int rho_iterations);
+  /// Called when h changes, before ρ is measured (a factorisation); its
+  /// status ends the step unless kOk.
+  virtual StepStatus Prepare(double /*h*/) { return StepStatus::kOk; }
+  /// Called at the start of each step's iterations, after v_ is the
+  /// inertial guess (the constant part of a right-hand side).
+  virtual void BeginIterations(double /*h*/) {}
+  /// One plain iteration v_ ← G(v_) at t₁ = t + h, in place; x_ is not
+  /// kept (the iteration sets x_ = x₀ + h v_ itself where it reads it).
+  virtual void Iteration(double h) = 0;
+  /// Time of the ρ measurements so far [s].
+  double rho_seconds() const { return rho_seconds_; }
+
+  const ParticleSystem& sys_;
+  double t_ = 0.0;
+  Eigen::VectorXd w_;  // inverse masses, 0 for fixed particles
+  MatrixN3 x0_, v0_, v_, x_;
+
+ private:
+  int iterations_;
+  ChebyshevSettings cheb_;
+  int rho_iterations_;
+  double h_ = 0.0;    // h of the last step (0: none yet)
+  double rho_ = 0.0;  // the Chebyshev ρ in use
+  double rho_seconds_ = 0.0;
+  MatrixN3 f_ext_;    // the constant forces (gravity) [N]
+  MatrixN3 v_start_, v_prev_;
+  std::vector<double> increments_;
+  // The k iterations of a step from x0_, v0_ into v_, with ρ = rho_ when
+  // accelerated; false if an iterate is not finite, `timed_out` past the
+  // run's deadline.
+  bool Iterate(double h, int k, bool accelerate, bool* timed_out);
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_PEERS_ITERATED_H_

@@ -1,0 +1,81 @@
+// Vertex Block Descent (Chen et al. 2024; Chebyshev: §3.8, Wang 2015;
+// docs/model.md §10).
+#include "peers/vbd.h"
+
+#include <chrono>
+#include <vector>
+
+#include "model/block_scatter.h"
+
+namespace clothbench {
+
+VertexBlockDescent::VertexBlockDescent(const ParticleSystem& system, int iterations, ChebyshevSettings chebyshev)
+    : IteratedStepper(system, "vbd", iterations, chebyshev, kRhoIterations) {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = system.num_particles();
+  system.PrepareParticleForces();
+  // Greedy colouring in particle order: each free particle takes the least
+  // colour that none of its neighbours has (fixed particles never move, so
+  // they constrain nobody).
+  std::vector<int> offsets, neighbours;
+  system.ParticleGraph(&offsets, &neighbours);
+  std::vector<int> colour(static_cast<std::size_t>(n), -1);
+  std::vector<int> taken;  // taken[c] == p: colour c is a neighbour's of p
+  int colours = 0;
+  for (int p = 0; p < n; ++p) {
+    if (system.is_fixed(p)) continue;
+    for (int q = offsets[static_cast<std::size_t>(p)]; q < offsets[static_cast<std::size_t>(p) + 1]; ++q) {
+      const int c = colour[static_cast<std::size_t>(neighbours[static_cast<std::size_t>(q)])];
+      if (c >= 0) taken[static_cast<std::size_t>(c)] = p;
+    }
+    int c = 0;
+    while (c < colours && taken[static_cast<std::size_t>(c)] == p) ++c;
+    if (c == colours) {
+      ++colours;
+      taken.push_back(-1);
+    }
+    colour[static_cast<std::size_t>(p)] = c;
+  }
+  colour_start_.assign(static_cast<std::size_t>(colours) + 1, 0);
+  for (int p = 0; p < n; ++p)
+    if (colour[static_cast<std::size_t>(p)] >= 0) ++colour_start_[static_cast<std::size_t>(colour[static_cast<std::size_t>(p)]) + 1];
+  for (std::size_t c = 0; c < static_cast<std::size_t>(colours); ++c) colour_start_[c + 1] += colour_start_[c];
+  order_.resize(static_cast<std::size_t>(colour_start_.back()));
+  std::vector<int> fill(colour_start_.begin(), colour_start_.end() - 1);
+  for (int p = 0; p < n; ++p)
+    if (colour[static_cast<std::size_t>(p)] >= 0)
+      order_[static_cast<std::size_t>(fill[static_cast<std::size_t>(colour[static_cast<std::size_t>(p)])]++)] = p;
+
+  colouring_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void VertexBlockDescent::Relax(double t1, double h, int p) {
+  Vector3 f;
+  Matrix3 dfdx, dfdv;
+  sys_.ParticleForce(t1, x_, v_, p, &f, &dfdx, &dfdv);
+  const double m = sys_.masses()(p);
+  const Vector3 vp = v_.row(p).transpose();
+  const Vector3 r = m * (vp - v0_.row(p).transpose()) - h * f;
+  const Matrix3 j = m * Matrix3::Identity() - h * dfdv - (h * h) * dfdx;
+  Matrix3 inverse;
+  bool invertible = false;
+  const double scale = j.cwiseAbs().maxCoeff();
+  j.computeInverseWithCheck(inverse, invertible, 1e-12 * scale * scale * scale);
+  if (!invertible) return;
+  const Vector3 v1 = vp - inverse * r;
+  v_.row(p) = v1.transpose();
+  x_.row(p) = x0_.row(p) + h * v1.transpose();
+}
+
+// One sweep: the colours in sequence, each colour's particles in parallel.
+void VertexBlockDescent::Iteration(double h) {
+  const double t1 = t_ + h;
+  x_.noalias() = x0_ + h * v_;
+  for (std::size_t c = 0; c + 1 < colour_start_.size(); ++c) {
+    const std::ptrdiff_t first = colour_start_[c], last = colour_start_[c + 1];
+#pragma omp parallel for schedule(static) if (last - first >= kBlockParallelMinimum)
+    for (std::ptrdiff_t i = first; i < last; ++i) Relax(t1, h, order_[static_cast<std::size_t>(i)]);
+  }
+}
+
+}  // namespace clothbench

@@ -1,0 +1,87 @@
+// Vertex Block Descent (Chen, Liu, Yang, Yuksel 2024, "Vertex Block
+// Descent", ACM TOG 43(4)) on the thesis' particle model, with optional
+// Chebyshev acceleration (its §3.8; Wang 2015), docs/model.md §10.
+//
+// VBD minimises the incremental potential of implicit Euler one particle
+// at a time: with the other particles held, particle p takes one 3×3
+// Newton step on its local potential, the particles of one graph colour in
+// parallel (they do not read each other), Gauss–Seidel across colours. For
+// a force that is the gradient of an energy that is the paper's step
+// x_p += H_p⁻¹ f_p. This model also has forces that are not gradients
+// (the projected bending of (2.25)/(2.26), air, wind) and its own damping
+// (the springs' L_D, shear viscosity, bending damping), so the local step
+// here is Newton's on particle p's row of the implicit Euler equations in
+// velocities, x = x₀ + h v:
+//   r_p(v) = m_p (v_p − v₀_p) − h f_p(t₁, x₀ + h v, v) = 0,
+//   J_p = m_p I − h ∂f_p/∂v_p − h² ∂f_p/∂x_p,  v_p ← v_p − J_p⁻¹ r_p,
+// with every term of the model in f_p (ParticleSystem::ParticleForce).
+// Scaled by h this is the paper's step in positions; its Rayleigh damping
+// H_d = (k_d/h) H is one particular ∂f/∂v, and the model's own damping
+// terms enter the same way, implicitly. The fixed point is implicit
+// Euler's for the whole model, so as the iterations grow VBD converges to
+// implicit_euler/newton at the same h (test VertexBlockDescent.*). The
+// first iterate is the inertial guess v₀ + h M⁻¹ f_ext (the paper's
+// "inertia and acceleration" initialisation). A J_p whose determinant is
+// negligible leaves p unchanged in that sweep, as Warp's VBD does
+// (warp/sim/integrator_vbd.py, `if abs(wp.determinant(h)) > 1e-5`).
+//
+// Contacts: after the iterations, the positions are projected out of the
+// obstacles with friction (peers/position_contacts.h) and v = (x₁ − x₀)/h,
+// as for XPBD and projective dynamics (the paper's own contacts are
+// penalty energies inside the iterations; this model's contact is the
+// thesis' non-penetration constraint). Fixed particles have v = 0.
+#ifndef CLOTHBENCH_PEERS_VBD_H_
+#define CLOTHBENCH_PEERS_VBD_H_
+
+#include <string_view>
+#include <vector>
+
+#include "model/particle_system.h"
+#include "peers/iterated.h"
+#include "solver/integrator.h"
+
+namespace clothbench {
+
+/// The integrator name used by the executables and result files.
+inline constexpr std::string_view kVbdName = "vbd";
+
+/// Vertex Block Descent with a fixed number of iterations (sweeps over all
+/// colours) per step (peers/iterated.h: the step, Chebyshev and the
+/// obstacles). The particles of a colour run on the OpenMP threads; each
+/// writes only its own row, so a step is bit-identical for any thread
+/// count. No allocation in a step.
+class VertexBlockDescent : public IteratedStepper {
+ public:
+  /// Colours the particle graph (ParticleSystem::ParticleGraph) greedily in
+  /// particle order, once.
+  /// @param system the model (must outlive the stepper)
+  /// @param iterations k ≥ 1 sweeps per step
+  /// @param chebyshev acceleration (off: plain VBD)
+  /// @throws std::invalid_argument if iterations < 1 or the Chebyshev
+  ///   settings are outside their ranges
+  VertexBlockDescent(const ParticleSystem& system, int iterations, ChebyshevSettings chebyshev = {});
+
+  int matrix_rebuilds() const override { return 0; }
+  /// The colouring and the ρ measurements [s].
+  double setup_seconds() const override { return colouring_seconds_ + rho_seconds(); }
+  /// The number of colours of the particle graph (free particles only).
+  int colours() const { return static_cast<int>(colour_start_.size()) - 1; }
+  /// Plain sweeps from which ρ is measured (ChebyshevRho, at the first step
+  /// of each h when ChebyshevSettings::rho is 0). Gauss–Seidel's slowest
+  /// mode dominates only after many sweeps: on the default scene at
+  /// h = 0.01 s, 32 sweeps from rest give ρ = 0.835, under the asymptotic
+  /// 0.98 that 128 give (docs/work-precision.md, "vbd").
+  static constexpr int kRhoIterations = 128;
+
+ private:
+  void Iteration(double h) override;
+  // One local Newton step of particle p at t₁ (reads x_, v_; writes row p).
+  void Relax(double t1, double h, int p);
+  double colouring_seconds_ = 0.0;
+  // Free particles by colour: colour c is order_[colour_start_[c] … colour_start_[c + 1]).
+  std::vector<int> order_, colour_start_;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_PEERS_VBD_H_
