@@ -8,6 +8,7 @@
 //   build/bench/bench_kernels [--benchmark_filter=REGEX]
 #include <chrono>
 #include <cmath>
+#include <string>
 
 #include <benchmark/benchmark.h>
 #include <Eigen/CholmodSupport>
@@ -159,6 +160,44 @@ void BM_ForceJacobian(benchmark::State& state) {
   state.counters["triplets"] = static_cast<double>(dx.size() + dv.size());
 }
 BENCHMARK(BM_ForceJacobian)->ArgName("side")->Arg(20)->Arg(316);
+
+// Every particle's force and diagonal Jacobian blocks through the
+// per-particle access of Vertex Block Descent (ParticleSystem::
+// ParticleForce), serially: one VBD sweep's force work. Per term with
+// range(1) = the term's index in ParticleSystem::terms(), −1: the whole
+// force (the linear part's row included).
+void BM_ParticleForces(benchmark::State& state) {
+  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  sys.PrepareParticleForces();
+  const int term = static_cast<int>(state.range(1));
+  if (term >= static_cast<int>(sys.terms().size())) {
+    state.SkipWithError("no such term");
+    return;
+  }
+  if (term >= 0) state.SetLabel(std::string(sys.terms()[static_cast<std::size_t>(term)]->name()));
+  for (auto _ : state) {
+    Vector3 f;
+    Matrix3 dx, dv;
+    for (int p = 0; p < sys.num_particles(); ++p) {
+      if (term < 0) {
+        sys.ParticleForce(0.2, x, v, p, &f, &dx, &dv);
+      } else {
+        f.setZero();
+        dx.setZero();
+        dv.setZero();
+        sys.terms()[static_cast<std::size_t>(term)]->AddParticleForce(0.2, x, v, p, &f, &dx, &dv);
+      }
+      benchmark::DoNotOptimize(f.data());
+      benchmark::DoNotOptimize(dx.data());
+    }
+  }
+  state.counters["ns/particle"] = benchmark::Counter(static_cast<double>(sys.num_particles()),
+                                                     benchmark::Counter::kIsIterationInvariantRate |
+                                                         benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_ParticleForces)->ArgNames({"side", "term"})->ArgsProduct({{20, 100}, {-1, 0, 1, 2, 3}});
 
 // The same triplets by forward-mode AutoDiff of the force kernels (the test
 // oracle of the closed forms; what every Jacobian cost before them).
