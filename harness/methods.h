@@ -622,8 +622,9 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 ///    Euler's floor 2.2e-2, 5.9e-3, 1.5e-3 m, reached in 16, 16 and 4
 ///    iterations; one iteration gives 2.2e-2, 1.8e-3, 1.2e-3 m
 ///    (docs/work-precision.md, "pd").
-///  - vbd, vbd/chebyshev: a sweep costs 0.34 ms at 400 particles (100× a
-///    pd iteration), so their own counts are 1 and 4 at h, h/4, h/16: at
+///  - vbd, vbd/chebyshev: a sweep costs 0.34 ms at 400 particles (9× a
+///    pd iteration) and the default run's budget holds 1 and 4 sweeps at
+///    h, h/4, h/16 (10,500 sweeps per row, 3.6 s), their own counts: at
 ///    h = 0.01 s 1 and 4 sweeps gain energy (energy_growth) and 16, 64
 ///    give 0.23, 0.11 m; at h/4 9.8e-2 … 5.9e-3 m (1 … 64); at h/16
 ///    4.8e-2, 2.5e-3, 1.5e-3 m with 1, 4, 16 (the floor); with Chebyshev

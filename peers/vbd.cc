@@ -5,7 +5,6 @@
 #include <chrono>
 #include <vector>
 
-#include "model/block_scatter.h"
 
 namespace clothbench {
 
@@ -73,7 +72,7 @@ void VertexBlockDescent::Iteration(double h) {
   x_.noalias() = x0_ + h * v_;
   for (std::size_t c = 0; c + 1 < colour_start_.size(); ++c) {
     const std::ptrdiff_t first = colour_start_[c], last = colour_start_[c + 1];
-#pragma omp parallel for schedule(static) if (last - first >= kBlockParallelMinimum)
+#pragma omp parallel for schedule(static) if (last - first >= kParallelColour)
     for (std::ptrdiff_t i = first; i < last; ++i) Relax(t1, h, order_[static_cast<std::size_t>(i)]);
   }
 }

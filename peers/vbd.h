@@ -72,6 +72,11 @@ class VertexBlockDescent : public IteratedStepper {
   /// h = 0.01 s, 32 sweeps from rest give ρ = 0.835, under the asymptotic
   /// 0.98 that 128 give (docs/work-precision.md, "vbd").
   static constexpr int kRhoIterations = 128;
+  /// A colour runs on the OpenMP threads from this many particles up: a
+  /// particle's local step costs about 0.85 µs (bench_kernels,
+  /// BM_ParticleForces), so 256 of them are ~0.2 ms, far above the few µs
+  /// of a parallel region.
+  static constexpr int kParallelColour = 256;
 
  private:
   void Iteration(double h) override;
