@@ -622,9 +622,9 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 ///    Euler's floor 2.2e-2, 5.9e-3, 1.5e-3 m, reached in 16, 16 and 4
 ///    iterations; one iteration gives 2.2e-2, 1.8e-3, 1.2e-3 m
 ///    (docs/work-precision.md, "pd").
-///  - vbd, vbd/chebyshev: a sweep costs 0.34 ms at 400 particles (9× a
+///  - vbd, vbd/chebyshev: a sweep costs 0.22 ms at 400 particles (6× a
 ///    pd iteration) and the default run's budget holds 1 and 4 sweeps at
-///    h, h/4, h/16 (10,500 sweeps per row, 3.6 s), their own counts: at
+///    h, h/4, h/16 (10,500 sweeps per row, 2.3 s), their own counts: at
 ///    h = 0.01 s 1 and 4 sweeps gain energy (energy_growth) and 16, 64
 ///    give 0.23, 0.11 m; at h/4 9.8e-2 … 5.9e-3 m (1 … 64); at h/16
 ///    4.8e-2, 2.5e-3, 1.5e-3 m with 1, 4, 16 (the floor); with Chebyshev
@@ -670,29 +670,29 @@ inline const std::vector<DefaultRow>& DefaultRows() {
   static const std::vector<double> kRtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
   static const std::vector<double> kArkodeRtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6};
   static const std::vector<DefaultRow> rows = {
-      {"imex_euler", {{1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}, {}}},
-      {"implicit_euler", {{1.0 / 8, 1.0 / 16, 1.0 / 32}, {}}},
-      {"implicit_euler/newton", {{1.0, 1.0 / 2, 1.0 / 4}, {}}, true},
-      {"sbdf2", {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}, {}}},
-      {"bdf2", {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, kRtols}},
-      {"bdf2/newton", {{4.0, 2.0, 1.0}, {}}, true},
-      {"implicit_midpoint", {{1.0, 1.0 / 2, 1.0 / 4}, {}}},
-      {"implicit_midpoint/newton", {{4.0, 2.0, 1.0}, {}}, true},
-      {"sbdf3", {{1.0 / 4, 1.0 / 8, 1.0 / 16}, {}}},
-      {"baraff_witkin", {{1.0 / 8, 1.0 / 32}, {}}},
-      {"blender", {{1.0 / 8, 1.0 / 32}, {}}},
-      {"xpbd", {{1.0, 1.0 / 16}, {}}},
-      {"pd", {{1.0, 1.0 / 4, 1.0 / 16}, {}}},
-      {"pd/chebyshev", {{1.0, 1.0 / 4, 1.0 / 16}, {}}},
+      {"imex_euler", {{1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}, {}, {}}},
+      {"implicit_euler", {{1.0 / 8, 1.0 / 16, 1.0 / 32}, {}, {}}},
+      {"implicit_euler/newton", {{1.0, 1.0 / 2, 1.0 / 4}, {}, {}}, true},
+      {"sbdf2", {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}, {}, {}}},
+      {"bdf2", {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, kRtols, {}}},
+      {"bdf2/newton", {{4.0, 2.0, 1.0}, {}, {}}, true},
+      {"implicit_midpoint", {{1.0, 1.0 / 2, 1.0 / 4}, {}, {}}},
+      {"implicit_midpoint/newton", {{4.0, 2.0, 1.0}, {}, {}}, true},
+      {"sbdf3", {{1.0 / 4, 1.0 / 8, 1.0 / 16}, {}, {}}},
+      {"baraff_witkin", {{1.0 / 8, 1.0 / 32}, {}, {}}},
+      {"blender", {{1.0 / 8, 1.0 / 32}, {}, {}}},
+      {"xpbd", {{1.0, 1.0 / 16}, {}, {}}},
+      {"pd", {{1.0, 1.0 / 4, 1.0 / 16}, {}, {}}},
+      {"pd/chebyshev", {{1.0, 1.0 / 4, 1.0 / 16}, {}, {}}},
       {"vbd", {{1.0, 1.0 / 4, 1.0 / 16}, {}, {1, 4}}},
       {"vbd/chebyshev", {{1.0, 1.0 / 4, 1.0 / 16}, {}, {1, 4}}},
-      {"sbdf2/error", {{}, kRtols}},
-      {"bdf2/newton/error", {{}, kRtols}},
-      {"arkode", {{}, kArkodeRtols}},
-      {"arkode/ark4", {{}, kArkodeRtols}},
-      {"arkode/ark5", {{}, {1e-3, 1e-4, 1e-5, 1e-6}}},
-      {"cvode", {{}, kRtols}},
-      {"cvode/klu", {{}, kRtols}},
+      {"sbdf2/error", {{}, kRtols, {}}},
+      {"bdf2/newton/error", {{}, kRtols, {}}},
+      {"arkode", {{}, kArkodeRtols, {}}},
+      {"arkode/ark4", {{}, kArkodeRtols, {}}},
+      {"arkode/ark5", {{}, {1e-3, 1e-4, 1e-5, 1e-6}, {}}},
+      {"cvode", {{}, kRtols, {}}},
+      {"cvode/klu", {{}, kRtols, {}}},
   };
   return rows;
 }
@@ -701,7 +701,7 @@ inline DefaultParams DefaultRowParams(const RowMethod& m) {
   const std::string label = m.label();
   for (const DefaultRow& d : DefaultRows())
     if (d.label == label) return d.params;
-  return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7}};
+  return {{1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8}, {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7}, {}};
 }
 
 /// Parses "fixed_point" | "newton". @throws std::invalid_argument naming `option`.

@@ -44,7 +44,7 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
                                        : !d.iterations.empty() ? d.iterations
                                                                : kDefaultIterations;
       for (double h : mh)  // h decreasing, each with its iteration counts increasing
-        for (int k : counts) ps.emplace_back(h, k);
+        for (int count : counts) ps.emplace_back(h, count);
     } else if (m.kind() == StepKind::kFixedStep) {
       for (double h : mh) ps.emplace_back(h, 1);
     } else {

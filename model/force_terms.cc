@@ -447,6 +447,8 @@ class StencilTerm final : public ForceTerm {
 
   // Each centre that writes p is evaluated once: its outputs on p summed,
   // and its blocks (output on p, node p).
+  // The bending kernels (linear, one output) through ProjectedParticle and
+  // shear through its ParticleTerms form only the blocks on p.
   void AddParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f, Matrix3* dfdx,
                         Matrix3* dfdv) const override {
     const bool with_v = kernel_.uses_velocity();
@@ -457,15 +459,31 @@ class StencilTerm final : public ForceTerm {
       std::uint32_t outputs = 0;
       for (; q < end && entries[static_cast<std::size_t>(q)] / kParticleOutputs == c; ++q)
         outputs |= 1u << (entries[static_cast<std::size_t>(q)] % kParticleOutputs + kFirstOutput);
+      const Centre& centre = centres_[static_cast<std::size_t>(c)];
+      if constexpr (Kernel::kLinear || requires { Kernel::kParticleTerms; }) {
+        std::array<Vector3, K> xs, vs;
+        std::uint32_t nodes = 0;
+        for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+          xs[k] = x.row(centre.nodes[k]).transpose();
+          vs[k] = with_v ? Vector3(v.row(centre.nodes[k]).transpose()) : Vector3::Zero();
+          nodes |= static_cast<std::uint32_t>(centre.nodes[k] == p) << k;
+        }
+        if constexpr (Kernel::kLinear)
+          ProjectedParticle<K>(Kernel::kProjectionSign, kernel_.lu * kernel_.lv,
+                               weights_[static_cast<std::size_t>(weight_set_[static_cast<std::size_t>(c)])],
+                               Patch<double, K>{xs, centre.valid}, vs, kernel_.damping != 0.0, nodes, f, dfdx, dfdv);
+        else
+          kernel_.ParticleTerms(centre.valid, xs, vs, outputs, nodes, f, dfdx, dfdv);
+        continue;
+      }
       std::array<Vector3, Kernel::kOutputs> fs;
       Evaluate(t, x, v, static_cast<std::size_t>(c), &fs);
       for (int o = 0; o < Kernel::kOutputs; ++o)
         if ((outputs >> o) & 1u) *f += fs[static_cast<std::size_t>(o)];
       std::array<Matrix3, kBlocks> jx, jv;
       Blocks(t, x, v, static_cast<std::size_t>(c), &jx, &jv);
-      const Centre& ce = centres_[static_cast<std::size_t>(c)];
       for (int k = 0; k < kBlocks; ++k) {
-        if (!((outputs >> Kernel::kBlockSlots[k][0]) & 1u) || ce.nodes[Kernel::kBlockSlots[k][1]] != p) continue;
+        if (!((outputs >> Kernel::kBlockSlots[k][0]) & 1u) || centre.nodes[Kernel::kBlockSlots[k][1]] != p) continue;
         *dfdx += jx[static_cast<std::size_t>(k)];
         if (with_v) *dfdv += jv[static_cast<std::size_t>(k)];
       }
@@ -728,6 +746,39 @@ struct ShearKernel {
     f[3] -= fv;
     f[4] += fv;
   }
+  // For one particle (vertex-block methods): f += Σ f_o over the outputs o
+  // in `outputs`, and the blocks (o, k) of Blocks for o in `outputs` and k
+  // in `nodes` (the slots that hold the particle), without the others.
+  static constexpr bool kParticleTerms = true;
+  void ParticleTerms(std::uint32_t valid, const std::array<Vector3, 5>& x, const std::array<Vector3, 5>& v,
+                     std::uint32_t outputs, std::uint32_t nodes, Vector3* f, Matrix3* jx, Matrix3* jv) const {
+    const double du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
+    const double dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
+    const Vector3 a = (x[1] - x[2]) / du, b = (x[3] - x[4]) / dv;
+    const Vector3 ad = (v[1] - v[2]) / du, bd = (v[3] - v[4]) / dv;
+    double sigma = mu * a.dot(b);
+    if (damping != 0.0) sigma += damping * (ad.dot(b) + a.dot(bd));
+    const double area = lu * lv, s = sigma * area;
+    const double ea[5] = {0.0, 1.0 / du, -1.0 / du, 0.0, 0.0}, eb[5] = {0.0, 0.0, 0.0, 1.0 / dv, -1.0 / dv};
+    const Vector3 ga = mu * b + damping * bd, gb = mu * a + damping * ad;
+    const double c[5] = {0.0, -1.0 / du, 1.0 / du, -1.0 / dv, 1.0 / dv};
+    // Σ over k in nodes of ∂σ/∂x_k (and of the slot weights), the same for every output.
+    double sa = 0.0, sb = 0.0;
+    for (int k = 1; k <= 4; ++k)
+      if ((nodes >> k) & 1u) {
+        sa += ea[k];
+        sb += eb[k];
+      }
+    const Vector3 px = sa * ga + sb * gb, pv = sa * b + sb * a;
+    for (int o = 1; o <= 4; ++o) {
+      if (!((outputs >> o) & 1u)) continue;
+      const Vector3& u = o <= 2 ? b : a;
+      *f += (c[o] * s) * u;
+      jx->noalias() += (c[o] * area) * u * px.transpose();
+      jx->diagonal().array() += c[o] * s * (o <= 2 ? sb : sa);
+      if (damping != 0.0) jv->noalias() += (c[o] * area * damping) * u * pv.transpose();
+    }
+  }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<5>*, const std::array<Vector3, 5>& x,
               const std::array<Vector3, 5>& v, std::array<Matrix3, 16>& jx, std::array<Matrix3, 16>& jv) const {
     const double du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
@@ -785,6 +836,40 @@ void ProjectedBlocks(double sign, double area, const LinearWeights<K>& w, const 
     if (k < 9) jx[k] += gdn[k];
     if (damping) jv[k] = (c * w.v[k]) * nn;
   }
+}
+
+// The same force and blocks for one particle (vertex-block methods): f_0
+// and Σ_k ∂f_0/∂x_k, ∂f_0/∂v_k over the slots k in `nodes` (the slots that
+// hold the particle), without forming the other blocks.
+template <int K>
+void ProjectedParticle(double sign, double area, const LinearWeights<K>& w, const Patch<double, K>& px,
+                       const std::array<Vector3, K>& v, bool damping, std::uint32_t nodes, Vector3* f, Matrix3* jx,
+                       Matrix3* jv) {
+  Vector3 s = Vector3::Zero();
+  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.x[k] * px.x[k];
+  if (damping)
+    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.v[k] * v[k];
+  std::array<Matrix3, 9> gdn;
+  const double c = sign * area;
+  const Vector3 n = NormalJacobian(
+      px,
+      [&](const Vector3& nh) {
+        Matrix3 m = nh * s.transpose();
+        m.diagonal().array() += s.dot(nh);
+        return Matrix3(c * m);
+      },
+      &gdn);
+  *f += (c * s.dot(n)) * n;
+  const Matrix3 nn = n * n.transpose();
+  double wx = 0.0, wv = 0.0;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+    if (!((nodes >> k) & 1u)) continue;
+    wx += w.x[k];
+    wv += w.v[k];
+    if (k < 9) *jx += gdn[k];
+  }
+  *jx += (c * wx) * nn;
+  if (damping) *jv += (c * wv) * nn;
 }
 
 // Weights of a kernel's linear part: its Stiff/Damp operator on unit

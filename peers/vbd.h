@@ -73,8 +73,8 @@ class VertexBlockDescent : public IteratedStepper {
   /// 0.98 that 128 give (docs/work-precision.md, "vbd").
   static constexpr int kRhoIterations = 128;
   /// A colour runs on the OpenMP threads from this many particles up: a
-  /// particle's local step costs about 0.85 µs (bench_kernels,
-  /// BM_ParticleForces), so 256 of them are ~0.2 ms, far above the few µs
+  /// particle's local step costs about 0.55 µs (bench_kernels,
+  /// BM_ParticleForces), so 256 of them are ~0.14 ms, far above the few µs
   /// of a parallel region.
   static constexpr int kParallelColour = 256;
 

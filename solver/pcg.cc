@@ -758,7 +758,8 @@ bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter&
     // the sphere drape at 10⁵ particles those seams grew to 60, 197 and 691
     // CG per step (12–15 with the frames spread again).
     cf_changes_since_spread_ += contact_stats_.modifications - modifications_before;
-    const bool spread = refactorised || !cf_frames_ || cf_changes_since_spread_ > kRespreadShare * want[2];
+    const bool spread =
+        refactorised || !cf_frames_ || static_cast<double>(cf_changes_since_spread_) > kRespreadShare * want[2];
     SetFactorFrames(a, filter, spread);
     if (spread) cf_changes_since_spread_ = 0;
     cf_frames_ = true;
