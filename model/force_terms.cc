@@ -812,24 +812,34 @@ struct ShearKernel {
 // ∂f_0/∂x_k = ±A (wx_k n̂n̂ᵀ + (n̂ sᵀ + (s·n̂) I) ∂n̂/∂x_k) and
 // ∂f_0/∂v_k = ±A wv_k n̂n̂ᵀ (∂n̂/∂x_k from NormalJacobian, zero outside
 // the 3×3 box).
+// The curvature s = Σ_k wx_k x_k (+ Σ_k wv_k v_k), the unit normal n̂ and
+// gdn[k] = ±A (n̂ sᵀ + (s·n̂) I) ∂n̂/∂x_k for the 3×3 box, shared by the
+// blocks and the per-particle terms below.
+template <int K>
+Vector3 ProjectedNormal(double c, const LinearWeights<K>& w, const Patch<double, K>& px,
+                        const std::array<Vector3, K>& v, bool damping, Vector3* s, std::array<Matrix3, 9>* gdn) {
+  s->setZero();  // the linear part from its weights (a missing slot has weight 0)
+  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) *s += w.x[k] * px.x[k];
+  if (damping)
+    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) *s += w.v[k] * v[k];
+  return NormalJacobian(
+      px,
+      [&](const Vector3& nh) {
+        Matrix3 m = nh * s->transpose();
+        m.diagonal().array() += s->dot(nh);
+        return Matrix3(c * m);
+      },
+      gdn);
+}
+
 template <int K>
 void ProjectedBlocks(double sign, double area, const LinearWeights<K>& w, const Patch<double, K>& px,
                      const std::array<Vector3, K>& v, bool damping, std::array<Matrix3, K>& jx,
                      std::array<Matrix3, K>& jv) {
-  Vector3 s = Vector3::Zero();  // the linear part from its weights (a missing slot has weight 0)
-  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.x[k] * px.x[k];
-  if (damping)
-    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.v[k] * v[k];
-  std::array<Matrix3, 9> gdn;
   const double c = sign * area;
-  const Vector3 n = NormalJacobian(
-      px,
-      [&](const Vector3& nh) {
-        Matrix3 m = nh * s.transpose();
-        m.diagonal().array() += s.dot(nh);
-        return Matrix3(c * m);
-      },
-      &gdn);
+  Vector3 s;
+  std::array<Matrix3, 9> gdn;
+  const Vector3 n = ProjectedNormal<K>(c, w, px, v, damping, &s, &gdn);
   const Matrix3 nn = n * n.transpose();
   for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
     jx[k] = (c * w.x[k]) * nn;
@@ -845,20 +855,10 @@ template <int K>
 void ProjectedParticle(double sign, double area, const LinearWeights<K>& w, const Patch<double, K>& px,
                        const std::array<Vector3, K>& v, bool damping, std::uint32_t nodes, Vector3* f, Matrix3* jx,
                        Matrix3* jv) {
-  Vector3 s = Vector3::Zero();
-  for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.x[k] * px.x[k];
-  if (damping)
-    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.v[k] * v[k];
-  std::array<Matrix3, 9> gdn;
   const double c = sign * area;
-  const Vector3 n = NormalJacobian(
-      px,
-      [&](const Vector3& nh) {
-        Matrix3 m = nh * s.transpose();
-        m.diagonal().array() += s.dot(nh);
-        return Matrix3(c * m);
-      },
-      &gdn);
+  Vector3 s;
+  std::array<Matrix3, 9> gdn;
+  const Vector3 n = ProjectedNormal<K>(c, w, px, v, damping, &s, &gdn);
   *f += (c * s.dot(n)) * n;
   const Matrix3 nn = n * n.transpose();
   double wx = 0.0, wv = 0.0;
