@@ -1,0 +1,76 @@
+// The projection of an obstacle edge onto a cloth face, the geometric core
+// of the thesis' collision-adaptive virtual particles (thesis §5.3,
+// Figs. 5.6–5.8; docs/model.md, "Virtual particles").
+//
+// Each cloth triangle f = (P1, P2, P3) with unit normal n_f has a centre of
+// projection C_f, the intersection of three planes S_i, one through each
+// edge of f. S_i contains the edge and has the normal
+// (n_f − n_{f_i})/‖n_f − n_{f_i}‖, with n_{f_i} the normal of the face
+// across that edge: it bisects the dihedral angle's complement, so the S_i
+// of neighbouring faces coincide and the volumes above the faces tile the
+// space above the cloth. Where the normals agree (a flat neighbourhood) or
+// there is no neighbour (the cloth's border) that normal is undefined and
+// S_i is its limit, the plane through the edge that contains n_f (normal
+// e × n_f). C_f is kept in homogeneous coordinates: when the three planes
+// meet at infinity (all three contain n_f, the flat cloth) C_f is the
+// direction n_f and the projection is parallel, along n_f.
+//
+// An edge XY penetrates where its height h = ⟨n_f, Z − P1⟩ is positive; a
+// part below the face is clipped off at h = 0. The kept segment is
+// projected centrally from C_f onto the plane of f and clipped to the
+// triangle; a clipped endpoint V̄ is mapped back to the point V of XY by
+// the cross ratio, which a central projection preserves:
+// ratio(X, Y, V) / ratio(X, Y, A) = ratio(X̄, Ȳ, V̄) / ratio(X̄, Ȳ, Ā) with
+// A = (X + Y)/2 and ratio(X, Y, Z) = α/β for Z = αX + βY.
+#ifndef CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
+#define CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
+
+#include <array>
+#include <optional>
+
+#include <Eigen/Core>
+
+#include "model/types.h"
+
+namespace clothbench {
+
+/// A cloth triangle and the normals of its neighbours across its edges.
+struct ProjectionFace {
+  std::array<Vector3, 3> p;  ///< vertices P1, P2, P3 [m], counter-clockwise about n_f
+  /// Unit normal of the face across edge i (from p[i] to p[(i + 1) % 3]);
+  /// none on the cloth's border.
+  std::array<std::optional<Vector3>, 3> neighbour_normal;
+  /// n_f = (P2 − P1) × (P3 − P1) / ‖…‖.
+  Vector3 Normal() const;
+};
+
+/// The centre of projection C_f of `f` in homogeneous coordinates (c, w):
+/// the point c/w when w ≠ 0, the direction c (= ±n_f up to scale) when the
+/// planes S_i meet at infinity (w = 0 within round-off). Unit length.
+Eigen::Vector4d CentreOfProjection(const ProjectionFace& f);
+
+/// Where an edge's projection lies in a face: the clipped segment V̄W̄ in
+/// the face and the points V, W of the edge it comes from.
+struct EdgeProjection {
+  bool hit = false;       ///< false: no part of the edge projects into the face from above it
+  Vector3 v_bar, w_bar;   ///< endpoints of the clipped projection, in the face's plane [m]
+  Vector3 v, w;           ///< the points of the edge XY they are projections of [m]
+  double sv = 0.0, sw = 0.0;  ///< their parameters on XY (Z = (1 − s) X + s Y), sv ≤ sw
+  /// The face edge (0, 1, 2: from p[i] to p[i + 1]) each projected
+  /// endpoint lies on, −1 if it is inside the face (an end of the kept
+  /// segment, e.g. an obstacle vertex through the cloth).
+  int v_edge = -1, w_edge = -1;
+};
+
+/// Projects the obstacle edge XY onto face `f` from `centre`
+/// (CentreOfProjection(f)), §5.3: heights, clipping at height 0, central
+/// projection onto the face's plane, clipping to the triangle, the cross
+/// ratio back onto XY. A kept point on the far side of C_f (its ray does
+/// not reach the plane forwards) does not project.
+/// @param x, y the edge's end points [m]
+EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const ProjectionFace& f,
+                                   const Eigen::Vector4d& centre);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_EDGE_PROJECTION_H_

@@ -1,0 +1,121 @@
+// The projection of an obstacle edge onto a cloth face (model/
+// edge_projection.h; thesis §5.3) on hand-built cases: an edge across one
+// flat face (parallel projection), across two faces that share an edge,
+// clipped at the face's plane, wholly below it, and a folded pair of faces
+// whose centre of projection is finite. Coordinates are O(1) m, so 1e-12
+// is round-off.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "model/edge_projection.h"
+
+namespace clothbench {
+namespace {
+
+constexpr double kTol = 1e-12;
+
+// The unit right triangle in z = 0, normal +z.
+ProjectionFace FlatTriangle() {
+  ProjectionFace f;
+  f.p = {Vector3(0, 0, 0), Vector3(1, 0, 0), Vector3(0, 1, 0)};
+  return f;
+}
+
+TEST(EdgeProjection, FlatFaceProjectsInParallelAndClipsToTheTriangle) {
+  ProjectionFace f = FlatTriangle();
+  f.neighbour_normal = {Vector3::UnitZ(), Vector3::UnitZ(), std::nullopt};  // flat neighbours and a border
+  const Eigen::Vector4d c = CentreOfProjection(f);
+  EXPECT_NEAR(c(3), 0.0, kTol);  // at infinity
+  EXPECT_NEAR(std::abs(c(2)), 1.0, kTol);  // along n_f
+  // An edge 0.1 m above the face along y = 0.2 from x = −1 to 2: it enters
+  // across edge 2 (x = 0) and leaves across edge 1 (x + y = 1).
+  const Vector3 x(-1, 0.2, 0.1), y(2, 0.2, 0.1);
+  const EdgeProjection e = ProjectEdgeOntoFace(x, y, f, c);
+  ASSERT_TRUE(e.hit);
+  EXPECT_NEAR((e.v_bar - Vector3(0, 0.2, 0)).norm(), 0.0, kTol);
+  EXPECT_NEAR((e.w_bar - Vector3(0.8, 0.2, 0)).norm(), 0.0, kTol);
+  EXPECT_EQ(e.v_edge, 2);
+  EXPECT_EQ(e.w_edge, 1);
+  // Parallel projection: V and W are straight above V̄ and W̄.
+  EXPECT_NEAR((e.v - Vector3(0, 0.2, 0.1)).norm(), 0.0, kTol);
+  EXPECT_NEAR((e.w - Vector3(0.8, 0.2, 0.1)).norm(), 0.0, kTol);
+  EXPECT_NEAR(e.sv, 1.0 / 3.0, kTol);
+  EXPECT_NEAR(e.sw, 1.8 / 3.0, kTol);
+}
+
+TEST(EdgeProjection, AnEdgeAcrossTwoFacesMeetsAtTheSharedEdge) {
+  // The unit square split along its diagonal from (1, 0) to (0, 1).
+  ProjectionFace a = FlatTriangle(), b;
+  b.p = {Vector3(1, 0, 0), Vector3(1, 1, 0), Vector3(0, 1, 0)};
+  a.neighbour_normal[1] = Vector3::UnitZ();
+  b.neighbour_normal[2] = Vector3::UnitZ();
+  const Vector3 x(-0.5, 0.5, 0.05), y(1.5, 0.6, 0.05);
+  const EdgeProjection ea = ProjectEdgeOntoFace(x, y, a, CentreOfProjection(a));
+  const EdgeProjection eb = ProjectEdgeOntoFace(x, y, b, CentreOfProjection(b));
+  ASSERT_TRUE(ea.hit);
+  ASSERT_TRUE(eb.hit);
+  EXPECT_EQ(ea.w_edge, 1);  // leaves a across the diagonal …
+  EXPECT_EQ(eb.v_edge, 2);  // … and enters b across it, at the same point
+  EXPECT_NEAR((ea.w_bar - eb.v_bar).norm(), 0.0, kTol);
+  EXPECT_NEAR((ea.w - eb.v).norm(), 0.0, kTol);
+  EXPECT_NEAR(ea.sw, eb.sv, kTol);
+  EXPECT_NEAR(ea.w_bar.x() + ea.w_bar.y(), 1.0, kTol);  // on the diagonal
+}
+
+TEST(EdgeProjection, OnlyThePartAboveTheFaceProjects) {
+  const ProjectionFace f = FlatTriangle();
+  const Eigen::Vector4d c = CentreOfProjection(f);
+  // From 0.1 m below to 0.1 m above, over the face: the kept part starts at
+  // the crossing, which is inside the face (not on an edge).
+  const Vector3 x(0.1, 0.1, -0.1), y(0.5, 0.1, 0.1);
+  const EdgeProjection e = ProjectEdgeOntoFace(x, y, f, c);
+  ASSERT_TRUE(e.hit);
+  EXPECT_EQ(e.v_edge, -1);
+  EXPECT_EQ(e.w_edge, -1);
+  EXPECT_NEAR(e.sv, 0.5, kTol);
+  EXPECT_NEAR((e.v - Vector3(0.3, 0.1, 0.0)).norm(), 0.0, kTol);
+  EXPECT_NEAR((e.w_bar - Vector3(0.5, 0.1, 0.0)).norm(), 0.0, kTol);
+  // Wholly below: nothing.
+  EXPECT_FALSE(ProjectEdgeOntoFace(Vector3(0.1, 0.1, -0.1), Vector3(0.5, 0.1, -0.2), f, c).hit);
+}
+
+TEST(EdgeProjection, FoldedFacesHaveAFiniteCentreAndProjectCentrally) {
+  // A face whose three neighbours are folded down by 30° about its edges
+  // (a cap over a convex obstacle): the bisecting planes meet below it.
+  ProjectionFace f = FlatTriangle();
+  const Vector3 n = f.Normal();
+  for (int i = 0; i < 3; ++i) {
+    const Vector3 e = (f.p[static_cast<std::size_t>((i + 1) % 3)] - f.p[static_cast<std::size_t>(i)]).normalized();
+    // Rotating n by +30° about the edge direction e (counter-clockwise
+    // about n_f) tips the neighbour's normal away from f: a convex fold.
+    f.neighbour_normal[static_cast<std::size_t>(i)] = Eigen::AngleAxisd(M_PI / 6, e) * n;
+  }
+  const Eigen::Vector4d c = CentreOfProjection(f);
+  ASSERT_GT(std::abs(c(3)), 1e-6);
+  const Vector3 cp = c.head<3>() / c(3);
+  EXPECT_LT(cp.z(), 0.0);  // below the face
+  // C_f lies on each plane S_i (through edge i, normal n_f − n_{f_i}).
+  for (int i = 0; i < 3; ++i) {
+    const Vector3 m = (n - *f.neighbour_normal[static_cast<std::size_t>(i)]).normalized();
+    EXPECT_NEAR(m.dot(cp - f.p[static_cast<std::size_t>(i)]), 0.0, 1e-10);
+  }
+  // An edge above the face: its projected end points lie on the rays from
+  // C_f through the points of XY they come from (the cross ratio recovers
+  // the central projection's preimage), and in the face's plane.
+  const Vector3 x(-0.4, 0.3, 0.2), y(1.2, 0.25, 0.3);
+  const EdgeProjection e = ProjectEdgeOntoFace(x, y, f, c);
+  ASSERT_TRUE(e.hit);
+  for (const auto& [bar, point] : {std::pair{e.v_bar, e.v}, std::pair{e.w_bar, e.w}}) {
+    EXPECT_NEAR(bar.z(), 0.0, kTol);
+    EXPECT_NEAR((bar - cp).normalized().cross((point - cp).normalized()).norm(), 0.0, 1e-10);
+  }
+  EXPECT_GE(e.v_edge, 0);
+  EXPECT_GE(e.w_edge, 0);
+  EXPECT_LT(e.sv, e.sw);
+}
+
+}  // namespace
+}  // namespace clothbench
