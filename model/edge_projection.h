@@ -27,6 +27,7 @@
 
 #include <array>
 #include <optional>
+#include <utility>
 
 #include <Eigen/Core>
 
@@ -70,6 +71,23 @@ struct EdgeProjection {
 /// @param x, y the edge's end points [m]
 EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const ProjectionFace& f,
                                    const Eigen::Vector4d& centre);
+
+/// The rejection of Fig. 5.9: a projection stands only if the rays from
+/// its points V̄, W̄ in the face back to V, W on the obstacle edge meet no
+/// other obstacle face first (else the cloth lies on the obstacle's far
+/// side of that edge). `first_hit(a, b)` is the obstacle's first
+/// intersection with the segment a → b as a fraction of it (nothing if
+/// none), e.g. TriangleMesh::FirstHit's `s`; a hit within 1e-9 of the
+/// ray's end is the edge itself. False if `e` has no hit.
+template <class FirstHit>
+bool RaysReachTheEdge(const EdgeProjection& e, const FirstHit& first_hit) {
+  if (!e.hit) return false;
+  for (const auto& [from, to] : {std::pair{e.v_bar, e.v}, std::pair{e.w_bar, e.w}}) {
+    const std::optional<double> s = first_hit(from, to);
+    if (s && *s < 1.0 - 1e-9) return false;
+  }
+  return true;
+}
 
 }  // namespace clothbench
 

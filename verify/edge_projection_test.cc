@@ -7,10 +7,16 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 
 #include "model/edge_projection.h"
+#include "model/triangle_mesh.h"
 
 namespace clothbench {
 namespace {
@@ -115,6 +121,51 @@ TEST(EdgeProjection, FoldedFacesHaveAFiniteCentreAndProjectCentrally) {
   EXPECT_GE(e.v_edge, 0);
   EXPECT_GE(e.w_edge, 0);
   EXPECT_LT(e.sv, e.sw);
+}
+
+// The unit cube as a closed OFF mesh (two triangles per side; the bottom
+// side's diagonal runs from (0, 0, 0) to (1, 1, 0)), removed at the end.
+struct UnitCubeOff {
+  std::string path;
+  UnitCubeOff() {
+    path = (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_clothbench_cube.off")).string();
+    std::ofstream off(path);
+    off << "OFF\n8 12 0\n";
+    for (int k = 0; k < 8; ++k) off << (k & 1) << " " << ((k >> 1) & 1) << " " << ((k >> 2) & 1) << "\n";
+    // Outward-oriented triangles: bottom (z = 0) split along 0–3, top, and the four sides.
+    off << "3 0 2 3\n3 0 3 1\n3 4 5 7\n3 4 7 6\n3 0 1 5\n3 0 5 4\n"
+        << "3 2 6 7\n3 2 7 3\n3 0 4 6\n3 0 6 2\n3 1 3 7\n3 1 7 5\n";
+  }
+  ~UnitCubeOff() {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  }
+};
+
+TEST(EdgeProjection, RaysThatCrossAnotherObstacleFaceAreRejected) {
+  const UnitCubeOff cube;
+  const TriangleMesh mesh(cube.path, 1.0, Vector3::Zero(), Vector3::Zero());
+  const auto first_hit = [&](const Vector3& a, const Vector3& b) -> std::optional<double> {
+    if (const auto hit = mesh.FirstHit(a, b)) return hit->s;
+    return std::nullopt;
+  };
+  // The bottom diagonal, 0.05 m above a face below the cube (normal +z):
+  // the rays up to it meet only the bottom side, at the edge.
+  const Vector3 x(0, 0, 0), y(1, 1, 0);
+  ProjectionFace below;
+  below.p = {Vector3(-1, -1, -0.05), Vector3(2, -1, -0.05), Vector3(-1, 2, -0.05)};
+  const EdgeProjection from_below = ProjectEdgeOntoFace(x, y, below, CentreOfProjection(below));
+  ASSERT_TRUE(from_below.hit);
+  EXPECT_TRUE(RaysReachTheEdge(from_below, first_hit));
+  // A face above the cube facing down (normal −z): the same edge is above
+  // it by its normal, but the rays down to it cross the top side first:
+  // the cloth is on the cube's far side (Fig. 5.9).
+  ProjectionFace above;
+  above.p = {Vector3(-1, -1, 1.05), Vector3(-1, 2, 1.05), Vector3(2, -1, 1.05)};
+  ASSERT_NEAR(above.Normal().z(), -1.0, kTol);
+  const EdgeProjection from_above = ProjectEdgeOntoFace(x, y, above, CentreOfProjection(above));
+  ASSERT_TRUE(from_above.hit);
+  EXPECT_FALSE(RaysReachTheEdge(from_above, first_hit));
 }
 
 }  // namespace
