@@ -204,7 +204,9 @@ TEST(ContactPolicy, KeepsTheFactorAt1e4AndRepeatsBitForBit) {
   ASSERT_TRUE(a.ok() && b.ok() && c.ok()) << a.BriefReport();
   int in_contact = 0;
   for (const StepStats& st : a.step_stats) {
-    if (st.colliding == 0) EXPECT_EQ(st.preconditioner, 0) << "t = " << st.t;
+    if (st.colliding == 0) {
+      EXPECT_EQ(st.preconditioner, 0) << "t = " << st.t;
+    }
     EXPECT_NE(st.preconditioner, 2) << "t = " << st.t;
     in_contact += st.colliding > 0;
   }
