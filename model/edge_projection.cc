@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
@@ -105,6 +106,33 @@ EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const Pro
   out.w = x + out.sw * (y - x);
   out.v_edge = lo_edge;
   out.w_edge = hi_edge;
+  return out;
+}
+
+ClothTriangles GridTriangles(int nu, int nv) {
+  if (nu < 2 || nv < 2) throw std::invalid_argument("GridTriangles: the grid needs at least 2 × 2 particles");
+  ClothTriangles out;
+  const int quads = (nu - 1) * (nv - 1);
+  out.vertices.reserve(static_cast<std::size_t>(2 * quads));
+  out.across.reserve(static_cast<std::size_t>(2 * quads));
+  // Quad q = i + (nu − 1) j has triangles 2q (lower: (i, j), (i+1, j),
+  // (i+1, j+1)) and 2q + 1 (upper: (i, j), (i+1, j+1), (i, j+1)).
+  const auto quad = [&](int i, int j) { return i >= 0 && i < nu - 1 && j >= 0 && j < nv - 1 ? i + (nu - 1) * j : -1; };
+  for (int j = 0; j < nv - 1; ++j)
+    for (int i = 0; i < nu - 1; ++i) {
+      const int p = i + nu * j, q = quad(i, j);
+      const int below = quad(i, j - 1), right = quad(i + 1, j), above = quad(i, j + 1), left = quad(i - 1, j);
+      // Lower: edge (i,j)→(i+1,j) is the top of the quad below, in its
+      // upper triangle; (i+1,j)→(i+1,j+1) the left side of the quad to the
+      // right, in its upper triangle; (i+1,j+1)→(i,j) this quad's diagonal.
+      out.vertices.push_back({p, p + 1, p + 1 + nu});
+      out.across.push_back({below >= 0 ? 2 * below + 1 : -1, right >= 0 ? 2 * right + 1 : -1, 2 * q + 1});
+      // Upper: the diagonal; (i+1,j+1)→(i,j+1) the bottom of the quad
+      // above, in its lower triangle; (i,j+1)→(i,j) the right side of the
+      // quad to the left, in its lower triangle.
+      out.vertices.push_back({p, p + 1 + nu, p + nu});
+      out.across.push_back({2 * q, above >= 0 ? 2 * above : -1, left >= 0 ? 2 * left : -1});
+    }
   return out;
 }
 

@@ -25,11 +25,14 @@
 #ifndef CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
 #define CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
 
+#include <algorithm>
 #include <array>
 #include <optional>
 #include <utility>
+#include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "model/types.h"
 
@@ -87,6 +90,84 @@ bool RaysReachTheEdge(const EdgeProjection& e, const FirstHit& first_hit) {
     if (s && *s < 1.0 - 1e-9) return false;
   }
   return true;
+}
+
+/// The cloth's triangles on its nu × nv grid (particle i + nu j): each
+/// quad (i, j), (i+1, j), (i+1, j+1), (i, j+1) split along its diagonal
+/// from (i, j) to (i+1, j+1) into two triangles counter-clockwise about
+/// u × v, and for each triangle the one across each of its edges (edge k
+/// runs from vertex k to vertex k + 1; −1 on the cloth's border).
+struct ClothTriangles {
+  std::vector<std::array<int, 3>> vertices;
+  std::vector<std::array<int, 3>> across;
+};
+/// @throws std::invalid_argument if nu or nv is below 2
+ClothTriangles GridTriangles(int nu, int nv);
+
+/// A standing projection of obstacle edge `edge` onto cloth face `face`.
+struct FaceEdgeHit {
+  int face = 0, edge = 0;
+  EdgeProjection projection;
+};
+
+/// Every standing projection of the obstacle's edges onto the cloth at
+/// positions x (§5.3). Each face is oriented away from the obstacle, its
+/// normal turned to agree with outward(centroid), the direction from the
+/// obstacle toward the face's centroid (the signed distance's D), so that
+/// a positive height is an obstacle part through the cloth; its
+/// neighbours' normals are turned the same way. A face and an edge are
+/// paired only if their boxes, the face's grown by its longest side, meet:
+/// an obstacle edge through the cloth is within about a cloth spacing of
+/// it, as the particles themselves are kept outside. Rays are checked with
+/// RaysReachTheEdge(first_hit).
+/// @param x N×3 cloth positions [m]
+/// @param vertices obstacle vertices [m]; @param edges pairs of indices into them
+template <class Outward, class FirstHit>
+std::vector<FaceEdgeHit> ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth,
+                                              const std::vector<Vector3>& vertices,
+                                              const std::vector<std::array<int, 2>>& edges, const Outward& outward,
+                                              const FirstHit& first_hit) {
+  const std::size_t nf = cloth.vertices.size();
+  std::vector<Vector3> normal(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto& t = cloth.vertices[f];
+    const Vector3 a = x.row(t[0]).transpose(), b = x.row(t[1]).transpose(), c = x.row(t[2]).transpose();
+    Vector3 n = (b - a).cross(c - a).normalized();
+    if (n.dot(outward(Vector3((a + b + c) / 3.0))) < 0.0) n = -n;
+    normal[f] = n;
+  }
+  std::vector<FaceEdgeHit> hits;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto& t = cloth.vertices[f];
+    ProjectionFace face;
+    for (std::size_t k = 0; k < 3; ++k) face.p[k] = x.row(t[k]).transpose();
+    const bool flipped = (face.p[1] - face.p[0]).cross(face.p[2] - face.p[0]).dot(normal[f]) < 0.0;
+    std::array<int, 3> across = cloth.across[f];
+    if (flipped) {  // counter-clockwise about the turned normal: reverse, and the edges with it
+      std::swap(face.p[1], face.p[2]);
+      across = {across[2], across[1], across[0]};
+    }
+    for (std::size_t k = 0; k < 3; ++k)
+      if (across[k] >= 0) face.neighbour_normal[k] = normal[static_cast<std::size_t>(across[k])];
+    const Eigen::Vector4d centre = CentreOfProjection(face);
+    Eigen::AlignedBox3d box;
+    for (const Vector3& p : face.p) box.extend(p);
+    const double grow = std::max({(face.p[1] - face.p[0]).norm(), (face.p[2] - face.p[1]).norm(),
+                                  (face.p[0] - face.p[2]).norm()});
+    box.min().array() -= grow;
+    box.max().array() += grow;
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      const Vector3& ex = vertices[static_cast<std::size_t>(edges[e][0])];
+      const Vector3& ey = vertices[static_cast<std::size_t>(edges[e][1])];
+      Eigen::AlignedBox3d edge_box(ex);
+      edge_box.extend(ey);
+      if (!box.intersects(edge_box)) continue;
+      const EdgeProjection pr = ProjectEdgeOntoFace(ex, ey, face, centre);
+      if (RaysReachTheEdge(pr, first_hit))
+        hits.push_back({static_cast<int>(f), static_cast<int>(e), pr});
+    }
+  }
+  return hits;
 }
 
 }  // namespace clothbench

@@ -168,5 +168,63 @@ TEST(EdgeProjection, RaysThatCrossAnotherObstacleFaceAreRejected) {
   EXPECT_FALSE(RaysReachTheEdge(from_above, first_hit));
 }
 
+TEST(EdgeProjection, GridTrianglesKnowTheirNeighbours) {
+  const ClothTriangles t = GridTriangles(3, 3);  // 2 × 2 quads, 8 triangles
+  ASSERT_EQ(t.vertices.size(), 8u);
+  for (std::size_t f = 0; f < t.vertices.size(); ++f)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const int g = t.across[f][k];
+      if (g < 0) continue;
+      // The face across edge k holds the same two particles, and points back.
+      const int a = t.vertices[f][k], b = t.vertices[f][(k + 1) % 3];
+      const auto& tg = t.vertices[static_cast<std::size_t>(g)];
+      int back = -1;
+      for (std::size_t m = 0; m < 3; ++m)
+        if (tg[m] == b && tg[(m + 1) % 3] == a) back = static_cast<int>(m);
+      ASSERT_GE(back, 0) << f << " " << k;
+      EXPECT_EQ(t.across[static_cast<std::size_t>(g)][static_cast<std::size_t>(back)], static_cast<int>(f));
+    }
+  int border = 0;
+  for (const auto& a : t.across)
+    for (int g : a) border += g < 0;
+  EXPECT_EQ(border, 8);  // the grid's 8 outer edges, each in one triangle
+}
+
+// The thesis' Fig. 5.13: a 4-particle cloth whose particles are all
+// outside a box while its plane cuts the box, 0.2 m below the box's top.
+// The top's four edges project onto the cloth (parallel: the cloth is
+// flat); the two that cross the cloth's diagonal do so in both triangles,
+// meeting on it; the vertical edges project to points and give nothing.
+TEST(EdgeProjection, TheTopEdgesOfABoxThroughAFourParticleCloth) {
+  MatrixN3 x(4, 3);
+  x << -1, -1, 0.3, 1, -1, 0.3, -1, 1, 0.3, 1, 1, 0.3;  // grid 2 × 2, particle i + 2 j
+  const std::vector<Vector3> v = {{-0.5, -0.2, -0.5}, {0.5, -0.2, -0.5}, {0.5, 0.6, -0.5}, {-0.5, 0.6, -0.5},
+                                  {-0.5, -0.2, 0.5},  {0.5, -0.2, 0.5},  {0.5, 0.6, 0.5},  {-0.5, 0.6, 0.5}};
+  const std::vector<std::array<int, 2>> edges = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                                 {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+  // The box's outward direction at the cloth's centroids (inside the box,
+  // nearest its top): up.
+  const auto outward = [](const Vector3&) { return Vector3(Vector3::UnitZ()); };
+  const auto no_block = [](const Vector3&, const Vector3&) { return std::optional<double>(); };
+  const std::vector<FaceEdgeHit> hits = ProjectObstacleEdges(x, GridTriangles(2, 2), v, edges, outward, no_block);
+  ASSERT_EQ(hits.size(), 6u);
+  std::array<int, 12> per_edge{};
+  for (const FaceEdgeHit& h : hits) {
+    ++per_edge[static_cast<std::size_t>(h.edge)];
+    EXPECT_NEAR(h.projection.v_bar.z(), 0.3, kTol);
+    EXPECT_NEAR(h.projection.v.z(), 0.5, kTol);
+    EXPECT_NEAR((h.projection.v_bar.head<2>() - h.projection.v.head<2>()).norm(), 0.0, kTol);
+  }
+  // y = −0.2 (edge 4) and x = 0.5 (edge 5) cross the diagonal x = y.
+  EXPECT_EQ(per_edge, (std::array<int, 12>{0, 0, 0, 0, 2, 2, 1, 1, 0, 0, 0, 0}));
+  for (const FaceEdgeHit& a : hits)
+    for (const FaceEdgeHit& b : hits)
+      if (a.edge == b.edge && a.face < b.face) {
+        const double gap = std::min((a.projection.w_bar - b.projection.v_bar).norm(),
+                                    (a.projection.v_bar - b.projection.w_bar).norm());
+        EXPECT_NEAR(gap, 0.0, kTol) << "edge " << a.edge;
+      }
+}
+
 }  // namespace
 }  // namespace clothbench
