@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <numbers>
 #include <Eigen/Geometry>
 
 namespace clothbench {
@@ -223,6 +225,77 @@ double Obstacle::PlacedSignedDistance(const Vector3& p, Vector3* dir) const {
   }
   *dir = Vector3::UnitZ();
   return 1e300;
+}
+
+void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
+                     std::vector<std::array<int, 2>>* edges) const {
+  vertices->clear();
+  edges->clear();
+  const ObstacleSpec& s = spec_;
+  const auto circle = [&](const Vector3& centre, double radius) {  // a closed polygon in a z-plane
+    const int first = static_cast<int>(vertices->size());
+    for (int k = 0; k < kCircleSegments; ++k) {
+      const double phi = 2.0 * std::numbers::pi * k / kCircleSegments;
+      vertices->push_back(centre + radius * Vector3(std::cos(phi), std::sin(phi), 0.0));
+      edges->push_back({first + k, first + (k + 1) % kCircleSegments});
+    }
+    return first;
+  };
+  switch (s.type) {
+    case ObstacleType::kPlane:
+      break;
+    case ObstacleType::kBox: {
+      const Vector3 half = 0.5 * s.size;
+      for (int k = 0; k < 8; ++k)
+        vertices->push_back(s.center + Vector3((k & 1) ? half.x() : -half.x(), (k & 2) ? half.y() : -half.y(),
+                                               (k & 4) ? half.z() : -half.z()));
+      for (int k = 0; k < 8; ++k)  // the corners that differ in one coordinate
+        for (int bit : {1, 2, 4})
+          if (!(k & bit)) edges->push_back({k, k | bit});
+      break;
+    }
+    case ObstacleType::kCylinder: {
+      const int top = circle(s.center, s.radius);
+      const int bottom = circle(s.center - Vector3(0.0, 0.0, s.height), s.radius);
+      for (int k = 0; k < kCircleSegments; ++k) edges->push_back({top + k, bottom + k});
+      break;
+    }
+    case ObstacleType::kSphere: {
+      const int rings = kCircleSegments / 2 - 1;  // parallels between the poles
+      const int north = 0, south = 1;
+      vertices->push_back(s.center + Vector3(0.0, 0.0, s.radius));
+      vertices->push_back(s.center - Vector3(0.0, 0.0, s.radius));
+      std::vector<int> ring(static_cast<std::size_t>(rings));
+      for (int r = 0; r < rings; ++r) {
+        const double theta = std::numbers::pi * (r + 1) / (rings + 1);
+        ring[static_cast<std::size_t>(r)] =
+            circle(s.center + Vector3(0.0, 0.0, s.radius * std::cos(theta)), s.radius * std::sin(theta));
+      }
+      for (int k = 0; k < kCircleSegments; ++k) {  // meridians
+        edges->push_back({north, ring.front() + k});
+        for (int r = 0; r + 1 < rings; ++r)
+          edges->push_back({ring[static_cast<std::size_t>(r)] + k, ring[static_cast<std::size_t>(r) + 1] + k});
+        edges->push_back({ring.back() + k, south});
+      }
+      break;
+    }
+    case ObstacleType::kMesh: {
+      std::vector<double> xyz;
+      std::vector<int32_t> triangles;
+      mesh_->Export(&xyz, &triangles);
+      for (std::size_t v = 0; v + 2 < xyz.size(); v += 3) vertices->emplace_back(xyz[v], xyz[v + 1], xyz[v + 2]);
+      for (std::size_t t = 0; t + 2 < triangles.size(); t += 3)
+        for (std::size_t k = 0; k < 3; ++k) {
+          const int a = triangles[t + k], b = triangles[t + (k + 1) % 3];
+          edges->push_back({std::min(a, b), std::max(a, b)});
+        }
+      std::sort(edges->begin(), edges->end());
+      edges->erase(std::unique(edges->begin(), edges->end()), edges->end());
+      break;
+    }
+  }
+  if (!pose.identity)
+    for (Vector3& v : *vertices) v = pose.ToWorld(v);
 }
 
 }  // namespace clothbench

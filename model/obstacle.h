@@ -8,6 +8,7 @@
 #ifndef CLOTHBENCH_MODEL_OBSTACLE_H_
 #define CLOTHBENCH_MODEL_OBSTACLE_H_
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -142,6 +143,17 @@ class Obstacle {
   /// (not needed: their distances cost less than the bound).
   double MotionBound(const ObstaclePose& a, const ObstaclePose& b) const;
   bool moving() const { return !spec_.keyframes.empty(); }
+  /// The obstacle's edges at `pose` (world coordinates), for the projection
+  /// onto the cloth of the thesis' virtual particles (§5.3;
+  /// model/edge_projection.h): a mesh's triangle edges, each once; a box's
+  /// 12 edges; a cylinder's top and bottom rims as kCircleSegments-gons and
+  /// kCircleSegments vertical edges; a sphere as a latitude–longitude net
+  /// of kCircleSegments meridians and kCircleSegments/2 − 1 parallels; a
+  /// plane has none.
+  /// @param vertices [m], overwritten; @param edges index pairs into them, overwritten
+  void Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices, std::vector<std::array<int, 2>>* edges) const;
+  /// Segments of a cylinder's rims and of a sphere's parallels.
+  static constexpr int kCircleSegments = 64;
   const ObstacleSpec& spec() const { return spec_; }
   /// The placed triangle mesh of a mesh obstacle (at rest, before any
   /// keyframed motion); nullptr for analytic obstacles.

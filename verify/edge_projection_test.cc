@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <string>
 
 #include <unistd.h>
@@ -16,6 +17,7 @@
 #include <Eigen/Geometry>
 
 #include "model/edge_projection.h"
+#include "model/obstacle.h"
 #include "model/triangle_mesh.h"
 
 namespace clothbench {
@@ -97,7 +99,7 @@ TEST(EdgeProjection, FoldedFacesHaveAFiniteCentreAndProjectCentrally) {
     const Vector3 e = (f.p[static_cast<std::size_t>((i + 1) % 3)] - f.p[static_cast<std::size_t>(i)]).normalized();
     // Rotating n by +30° about the edge direction e (counter-clockwise
     // about n_f) tips the neighbour's normal away from f: a convex fold.
-    f.neighbour_normal[static_cast<std::size_t>(i)] = Eigen::AngleAxisd(M_PI / 6, e) * n;
+    f.neighbour_normal[static_cast<std::size_t>(i)] = Eigen::AngleAxisd(std::numbers::pi / 6, e) * n;
   }
   const Eigen::Vector4d c = CentreOfProjection(f);
   ASSERT_GT(std::abs(c(3)), 1e-6);
@@ -224,6 +226,62 @@ TEST(EdgeProjection, TheTopEdgesOfABoxThroughAFourParticleCloth) {
                                     (a.projection.v_bar - b.projection.w_bar).norm());
         EXPECT_NEAR(gap, 0.0, kTol) << "edge " << a.edge;
       }
+}
+
+// The obstacles' edge sets (Obstacle::Edges): a box's 12 edges of its
+// three lengths, a cylinder's rims on its circles, a sphere's net on the
+// sphere, a mesh's triangle edges once each, all moved by the pose.
+TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
+  std::vector<Vector3> v;
+  std::vector<std::array<int, 2>> e;
+  ObstacleSpec box;
+  box.type = ObstacleType::kBox;
+  box.center = Vector3(1, 2, 3);
+  box.size = Vector3(0.2, 0.4, 0.8);
+  Obstacle(box).Edges(ObstaclePose{}, &v, &e);
+  ASSERT_EQ(v.size(), 8u);
+  ASSERT_EQ(e.size(), 12u);
+  std::array<int, 3> lengths{};
+  for (const auto& [a, b] : e) {
+    const double len = (v[static_cast<std::size_t>(a)] - v[static_cast<std::size_t>(b)]).norm();
+    for (int k = 0; k < 3; ++k) lengths[static_cast<std::size_t>(k)] += std::abs(len - box.size(k)) < kTol;
+  }
+  EXPECT_EQ(lengths, (std::array<int, 3>{4, 4, 4}));
+
+  ObstacleSpec cylinder;
+  cylinder.type = ObstacleType::kCylinder;
+  cylinder.center = Vector3(0, 0, 0.7);
+  cylinder.radius = 0.5;
+  cylinder.height = 0.7;
+  Obstacle(cylinder).Edges(ObstaclePose{}, &v, &e);
+  constexpr int kN = Obstacle::kCircleSegments;
+  ASSERT_EQ(v.size(), static_cast<std::size_t>(2 * kN));
+  EXPECT_EQ(e.size(), static_cast<std::size_t>(3 * kN));
+  for (const Vector3& p : v) {
+    EXPECT_NEAR(std::hypot(p.x(), p.y()), 0.5, kTol);
+    EXPECT_TRUE(std::abs(p.z() - 0.7) < kTol || std::abs(p.z()) < kTol);
+  }
+
+  ObstacleSpec sphere;
+  sphere.type = ObstacleType::kSphere;
+  sphere.center = Vector3(0, 0, 1);
+  sphere.radius = 0.3;
+  ObstaclePose moved;  // 0.5 m along x
+  moved.identity = false;
+  moved.translation = Vector3(0.5, 0, 0);
+  moved.anchor = sphere.center;
+  Obstacle(sphere).Edges(moved, &v, &e);
+  EXPECT_EQ(v.size(), static_cast<std::size_t>(2 + (kN / 2 - 1) * kN));
+  EXPECT_EQ(e.size(), static_cast<std::size_t>((kN / 2 - 1) * kN + (kN / 2) * kN));
+  for (const Vector3& p : v) EXPECT_NEAR((p - Vector3(0.5, 0, 1)).norm(), 0.3, kTol);
+
+  const UnitCubeOff cube;
+  ObstacleSpec mesh;
+  mesh.type = ObstacleType::kMesh;
+  mesh.path = cube.path;
+  Obstacle(mesh).Edges(ObstaclePose{}, &v, &e);
+  EXPECT_EQ(v.size(), 8u);
+  EXPECT_EQ(e.size(), 18u);  // 12 sides and 6 diagonals, 12 triangles' 36 half-edges
 }
 
 }  // namespace
