@@ -746,60 +746,70 @@ struct ShearKernel {
     f[3] -= fv;
     f[4] += fv;
   }
+  // The quantities of the Jacobian (comment above) at one centre: the
+  // spacings, a, b and their rates, s = σ lu lv, the slot weights ea, eb,
+  // ∂σ/∂a, ∂σ/∂b and the output coefficients c.
+  struct Strain {
+    double du, dv, area, s;
+    Vector3 a, b, ga, gb;
+    std::array<double, 5> ea, eb, c;
+  };
+  Strain StrainAt(std::uint32_t valid, const std::array<Vector3, 5>& x, const std::array<Vector3, 5>& v) const {
+    Strain st;
+    st.du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
+    st.dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
+    st.a = (x[1] - x[2]) / st.du;
+    st.b = (x[3] - x[4]) / st.dv;
+    const Vector3 ad = (v[1] - v[2]) / st.du, bd = (v[3] - v[4]) / st.dv;
+    double sigma = mu * st.a.dot(st.b);
+    if (damping != 0.0) sigma += damping * (ad.dot(st.b) + st.a.dot(bd));
+    st.area = lu * lv;
+    st.s = sigma * st.area;
+    const double iu = 1.0 / st.du, iv = 1.0 / st.dv;
+    st.ea = {0.0, iu, -iu, 0.0, 0.0};
+    st.eb = {0.0, 0.0, 0.0, iv, -iv};
+    st.c = {0.0, -iu, iu, -iv, iv};
+    st.ga = mu * st.b + damping * bd;  // ∂σ/∂a
+    st.gb = mu * st.a + damping * ad;  // ∂σ/∂b
+    return st;
+  }
   // For one particle (vertex-block methods): f += Σ f_o over the outputs o
   // in `outputs`, and the blocks (o, k) of Blocks for o in `outputs` and k
   // in `nodes` (the slots that hold the particle), without the others.
   static constexpr bool kParticleTerms = true;
   void ParticleTerms(std::uint32_t valid, const std::array<Vector3, 5>& x, const std::array<Vector3, 5>& v,
                      std::uint32_t outputs, std::uint32_t nodes, Vector3* f, Matrix3* jx, Matrix3* jv) const {
-    const double du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
-    const double dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
-    const Vector3 a = (x[1] - x[2]) / du, b = (x[3] - x[4]) / dv;
-    const Vector3 ad = (v[1] - v[2]) / du, bd = (v[3] - v[4]) / dv;
-    double sigma = mu * a.dot(b);
-    if (damping != 0.0) sigma += damping * (ad.dot(b) + a.dot(bd));
-    const double area = lu * lv, s = sigma * area;
-    const double ea[5] = {0.0, 1.0 / du, -1.0 / du, 0.0, 0.0}, eb[5] = {0.0, 0.0, 0.0, 1.0 / dv, -1.0 / dv};
-    const Vector3 ga = mu * b + damping * bd, gb = mu * a + damping * ad;
-    const double c[5] = {0.0, -1.0 / du, 1.0 / du, -1.0 / dv, 1.0 / dv};
+    const Strain st = StrainAt(valid, x, v);
     // Σ over k in nodes of ∂σ/∂x_k (and of the slot weights), the same for every output.
     double sa = 0.0, sb = 0.0;
     for (int k = 1; k <= 4; ++k)
       if ((nodes >> k) & 1u) {
-        sa += ea[k];
-        sb += eb[k];
+        sa += st.ea[k];
+        sb += st.eb[k];
       }
-    const Vector3 px = sa * ga + sb * gb, pv = sa * b + sb * a;
+    const Vector3 px = sa * st.ga + sb * st.gb, pv = sa * st.b + sb * st.a;
     for (int o = 1; o <= 4; ++o) {
       if (!((outputs >> o) & 1u)) continue;
-      const Vector3& u = o <= 2 ? b : a;
-      *f += (c[o] * s) * u;
-      jx->noalias() += (c[o] * area) * u * px.transpose();
-      jx->diagonal().array() += c[o] * s * (o <= 2 ? sb : sa);
-      if (damping != 0.0) jv->noalias() += (c[o] * area * damping) * u * pv.transpose();
+      const Vector3& u = o <= 2 ? st.b : st.a;
+      *f += (st.c[o] * st.s) * u;
+      jx->noalias() += (st.c[o] * st.area) * u * px.transpose();
+      jx->diagonal().array() += st.c[o] * st.s * (o <= 2 ? sb : sa);
+      if (damping != 0.0) jv->noalias() += (st.c[o] * st.area * damping) * u * pv.transpose();
     }
   }
   void Blocks(double, std::uint32_t valid, double, const LinearWeights<5>*, const std::array<Vector3, 5>& x,
               const std::array<Vector3, 5>& v, std::array<Matrix3, 16>& jx, std::array<Matrix3, 16>& jv) const {
-    const double du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
-    const double dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
-    const Vector3 a = (x[1] - x[2]) / du, b = (x[3] - x[4]) / dv;
-    const Vector3 ad = (v[1] - v[2]) / du, bd = (v[3] - v[4]) / dv;
-    double sigma = mu * a.dot(b);
-    if (damping != 0.0) sigma += damping * (ad.dot(b) + a.dot(bd));
-    const double area = lu * lv, s = sigma * area;
-    const double ea[5] = {0.0, 1.0 / du, -1.0 / du, 0.0, 0.0}, eb[5] = {0.0, 0.0, 0.0, 1.0 / dv, -1.0 / dv};
-    const Vector3 ga = mu * b + damping * bd, gb = mu * a + damping * ad;  // ∂σ/∂a, ∂σ/∂b
-    const double c[5] = {0.0, -1.0 / du, 1.0 / du, -1.0 / dv, 1.0 / dv};
+    const Strain st = StrainAt(valid, x, v);
     for (int o = 1; o <= 4; ++o) {
-      const Vector3& u = o <= 2 ? b : a;
-      const double* eu = o <= 2 ? eb : ea;
+      const Vector3& u = o <= 2 ? st.b : st.a;
+      const std::array<double, 5>& eu = o <= 2 ? st.eb : st.ea;
       for (int k = 1; k <= 4; ++k) {
         const std::size_t blk = static_cast<std::size_t>(4 * (o - 1) + (k - 1));
-        const Vector3 px = ea[k] * ga + eb[k] * gb;
-        jx[blk].noalias() = (c[o] * area) * u * px.transpose();
-        jx[blk].diagonal().array() += c[o] * s * eu[k];
-        if (damping != 0.0) jv[blk].noalias() = (c[o] * area * damping) * u * (ea[k] * b + eb[k] * a).transpose();
+        const Vector3 px = st.ea[k] * st.ga + st.eb[k] * st.gb;
+        jx[blk].noalias() = (st.c[o] * st.area) * u * px.transpose();
+        jx[blk].diagonal().array() += st.c[o] * st.s * eu[k];
+        if (damping != 0.0)
+          jv[blk].noalias() = (st.c[o] * st.area * damping) * u * (st.ea[k] * st.b + st.eb[k] * st.a).transpose();
       }
     }
   }

@@ -7,18 +7,16 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <numbers>
 #include <string>
 
-#include <unistd.h>
 
 #include <Eigen/Geometry>
 
 #include "model/edge_projection.h"
 #include "model/obstacle.h"
 #include "model/triangle_mesh.h"
+#include "verify/temp_file.h"
 
 namespace clothbench {
 namespace {
@@ -106,6 +104,10 @@ TEST(EdgeProjection, FoldedFacesHaveAFiniteCentreAndProjectCentrally) {
   const Vector3 cp = c.head<3>() / c(3);
   EXPECT_LT(cp.z(), 0.0);  // below the face
   // C_f lies on each plane S_i (through edge i, normal n_f − n_{f_i}).
+  // C_f comes from an SVD null vector divided by its w: round-off of
+  // 1e-16 grows by 1/|w| and the O(1) coordinates, so 1e-10 here and for
+  // the rays' directions below leaves a wide margin while a wrong centre
+  // (off by the face's size) fails by far.
   for (int i = 0; i < 3; ++i) {
     const Vector3 m = (n - *f.neighbour_normal[static_cast<std::size_t>(i)]).normalized();
     EXPECT_NEAR(m.dot(cp - f.p[static_cast<std::size_t>(i)]), 0.0, 1e-10);
@@ -126,27 +128,20 @@ TEST(EdgeProjection, FoldedFacesHaveAFiniteCentreAndProjectCentrally) {
 }
 
 // The unit cube as a closed OFF mesh (two triangles per side; the bottom
-// side's diagonal runs from (0, 0, 0) to (1, 1, 0)), removed at the end.
-struct UnitCubeOff {
-  std::string path;
-  UnitCubeOff() {
-    path = (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_clothbench_cube.off")).string();
-    std::ofstream off(path);
-    off << "OFF\n8 12 0\n";
-    for (int k = 0; k < 8; ++k) off << (k & 1) << " " << ((k >> 1) & 1) << " " << ((k >> 2) & 1) << "\n";
-    // Outward-oriented triangles: bottom (z = 0) split along 0–3, top, and the four sides.
-    off << "3 0 2 3\n3 0 3 1\n3 4 5 7\n3 4 7 6\n3 0 1 5\n3 0 5 4\n"
-        << "3 2 6 7\n3 2 7 3\n3 0 4 6\n3 0 6 2\n3 1 3 7\n3 1 7 5\n";
-  }
-  ~UnitCubeOff() {
-    std::error_code ignored;
-    std::filesystem::remove(path, ignored);
-  }
-};
+// side's diagonal runs from (0, 0, 0) to (1, 1, 0)).
+testing::TempFile UnitCubeOff() {
+  std::string off = "OFF\n8 12 0\n";
+  for (int k = 0; k < 8; ++k)
+    off += std::to_string(k & 1) + " " + std::to_string((k >> 1) & 1) + " " + std::to_string((k >> 2) & 1) + "\n";
+  // Outward-oriented triangles: bottom (z = 0) split along 0–3, top, and the four sides.
+  off += "3 0 2 3\n3 0 3 1\n3 4 5 7\n3 4 7 6\n3 0 1 5\n3 0 5 4\n"
+         "3 2 6 7\n3 2 7 3\n3 0 4 6\n3 0 6 2\n3 1 3 7\n3 1 7 5\n";
+  return testing::TempFile("clothbench_cube.off", off);
+}
 
 TEST(EdgeProjection, RaysThatCrossAnotherObstacleFaceAreRejected) {
-  const UnitCubeOff cube;
-  const TriangleMesh mesh(cube.path, 1.0, Vector3::Zero(), Vector3::Zero());
+  const testing::TempFile cube = UnitCubeOff();
+  const TriangleMesh mesh(cube.path(), 1.0, Vector3::Zero(), Vector3::Zero());
   const auto first_hit = [&](const Vector3& a, const Vector3& b) -> std::optional<double> {
     if (const auto hit = mesh.FirstHit(a, b)) return hit->s;
     return std::nullopt;
@@ -275,10 +270,10 @@ TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   EXPECT_EQ(e.size(), static_cast<std::size_t>((kN / 2 - 1) * kN + (kN / 2) * kN));
   for (const Vector3& p : v) EXPECT_NEAR((p - Vector3(0.5, 0, 1)).norm(), 0.3, kTol);
 
-  const UnitCubeOff cube;
+  const testing::TempFile cube = UnitCubeOff();
   ObstacleSpec mesh;
   mesh.type = ObstacleType::kMesh;
-  mesh.path = cube.path;
+  mesh.path = cube.path();
   Obstacle(mesh).Edges(ObstaclePose{}, &v, &e);
   EXPECT_EQ(v.size(), 8u);
   EXPECT_EQ(e.size(), 18u);  // 12 sides and 6 diagonals, 12 triangles' 36 half-edges

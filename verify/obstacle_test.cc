@@ -29,11 +29,8 @@
 //    substep turned non-finite before its obstacle queries.
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <limits>
-#include <memory>
-
-#include <unistd.h>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -42,6 +39,7 @@
 #include "results/metrics.h"
 #include "solver/contact.h"
 #include "solver/run.h"
+#include "verify/temp_file.h"
 #include "verify/test_scenes.h"
 
 namespace clothbench {
@@ -121,33 +119,17 @@ TEST(ObstacleMotion, MovingMeshCubeMatchesAnalyticBox) {
   EXPECT_GT(compared, 500);
 }
 
-// Writes an OFF file of quads in the plane z = 0: each [x0, x1] × [-1, 1],
-// named after the process (ctest runs the tests of this file as parallel
-// processes, which must not write one file).
-// An OFF file in the temporary directory, removed when the test that
-// wrote it ends.
-struct TempOff {
-  std::string path;
-  explicit TempOff(std::string p) : path(std::move(p)) {}
-  TempOff(const TempOff&) = delete;
-  TempOff& operator=(const TempOff&) = delete;
-  ~TempOff() {
-    std::error_code ignored;
-    std::filesystem::remove(path, ignored);
-  }
-};
-
-std::unique_ptr<TempOff> WriteQuadsOff(const std::string& name, const std::vector<std::pair<double, double>>& spans) {
-  auto file = std::make_unique<TempOff>(
-      (std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name)).string());
-  std::ofstream off(file->path);
+// An OFF file of quads in the plane z = 0: each [x0, x1] × [-1, 1]
+// (testing::TempFile: per process, removed after the test).
+testing::TempFile WriteQuadsOff(const std::string& name, const std::vector<std::pair<double, double>>& spans) {
+  std::ostringstream off;
   off << "OFF\n" << 4 * spans.size() << " " << 2 * spans.size() << " 0\n";
   for (auto [x0, x1] : spans) off << x0 << " -1 0\n" << x1 << " -1 0\n" << x1 << " 1 0\n" << x0 << " 1 0\n";
   for (std::size_t q = 0; q < spans.size(); ++q) {
     const std::size_t b = 4 * q;
     off << "3 " << b << " " << b + 1 << " " << b + 2 << "\n3 " << b << " " << b + 2 << " " << b + 3 << "\n";
   }
-  return file;
+  return testing::TempFile(name, off.str());
 }
 
 TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
@@ -190,7 +172,7 @@ TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
   ObstacleSpec sheet_spec;  // open: unsigned distance, normal faces the start
   sheet_spec.type = ObstacleType::kMesh;
   const auto sheet_off = WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}});
-  sheet_spec.path = sheet_off->path;
+  sheet_spec.path = sheet_off.path();
   const Obstacle sheet(sheet_spec);
   hit = sheet.FirstHit(rest, Vector3(0.2, 0.3, -0.5), Vector3(0.2, 0.3, 0.5));
   ASSERT_TRUE(hit);
@@ -222,7 +204,7 @@ TEST(ObstacleCast, PredictedPathIntoANonConvexMeshIsStopped) {
   // prediction d + h⟨v, D⟩ = 0.058 + 0.465 m says it stays clear, but its
   // path x₀ → x₀ + h v crosses the right quad at x = 0.13 m.
   const auto gap_off = WriteQuadsOff("clothbench_gap.off", {{-1.0, -0.1}, {0.1, 1.0}});
-  Scene s = PointScene(gap_off->path);
+  Scene s = PointScene(gap_off.path());
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     StepEngine engine(sys, m, s.solver);
@@ -258,7 +240,7 @@ TEST(ObstacleCast, ParticleThatWentThroughASheetIsSentBack) {
   // 20 more steps every method has it above the sheet (multistep histories
   // carry the fall's momentum, so SBDF(2)/BDF(2) need a few steps more).
   const auto sheet_off = WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}});
-  Scene s = PointScene(sheet_off->path);
+  Scene s = PointScene(sheet_off.path());
   s.obstacles[0].keyframes = {{0.005, Vector3(0, 0, -10), Vector3::Zero()},
                               {0.0050001, Vector3::Zero(), Vector3::Zero()}};
   const ParticleSystem sys(s);
