@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <array>
 #include <optional>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -107,13 +108,18 @@ ClothTriangles GridTriangles(int nu, int nv);
 /// A standing projection of obstacle edge `edge` onto cloth face `face`.
 struct FaceEdgeHit {
   int face = 0, edge = 0;
+  /// The face's particles in the order of projection.p (the face as
+  /// oriented away from the obstacle): EdgeProjection::v_edge = k is the
+  /// cloth edge from vertices[k] to vertices[(k + 1) % 3].
+  std::array<int, 3> vertices{};
   EdgeProjection projection;
 };
 
 /// Every standing projection of the obstacle's edges onto the cloth at
 /// positions x (§5.3). Each face is oriented away from the obstacle, its
-/// normal turned to agree with outward(centroid), the direction from the
-/// obstacle toward the face's centroid (the signed distance's D), so that
+/// normal turned to agree with outward(centroid) (or outward(face index,
+/// centroid)), the direction from the obstacle toward the face's centroid
+/// (the signed distance's D), so that
 /// a positive height is an obstacle part through the cloth; its
 /// neighbours' normals are turned the same way. A face and an edge are
 /// paired only if their boxes, the face's grown by its longest side, meet:
@@ -122,40 +128,53 @@ struct FaceEdgeHit {
 /// RaysReachTheEdge(first_hit).
 /// @param x N×3 cloth positions [m]
 /// @param vertices obstacle vertices [m]; @param edges pairs of indices into them
+/// @param normal scratch, one per face; @param hits overwritten (their
+///        capacity is kept: no allocation once it suffices)
 template <class Outward, class FirstHit>
-std::vector<FaceEdgeHit> ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth,
-                                              const std::vector<Vector3>& vertices,
-                                              const std::vector<std::array<int, 2>>& edges, const Outward& outward,
-                                              const FirstHit& first_hit) {
+void ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth, const std::vector<Vector3>& vertices,
+                          const std::vector<std::array<int, 2>>& edges, const Outward& outward,
+                          const FirstHit& first_hit, std::vector<Vector3>* normal, std::vector<FaceEdgeHit>* hits) {
   const std::size_t nf = cloth.vertices.size();
-  std::vector<Vector3> normal(nf);
+  normal->resize(nf);
+  hits->clear();
+  // The edges' boxes, once.
+  Eigen::AlignedBox3d all;
+  for (const Vector3& v : vertices) all.extend(v);
   for (std::size_t f = 0; f < nf; ++f) {
     const auto& t = cloth.vertices[f];
     const Vector3 a = x.row(t[0]).transpose(), b = x.row(t[1]).transpose(), c = x.row(t[2]).transpose();
     Vector3 n = (b - a).cross(c - a).normalized();
-    if (n.dot(outward(Vector3((a + b + c) / 3.0))) < 0.0) n = -n;
-    normal[f] = n;
+    const Vector3 centroid = (a + b + c) / 3.0;
+    Vector3 out;
+    if constexpr (std::is_invocable_v<Outward, std::size_t, Vector3>)
+      out = outward(f, centroid);
+    else
+      out = outward(centroid);
+    if (n.dot(out) < 0.0) n = -n;
+    (*normal)[f] = n;
   }
-  std::vector<FaceEdgeHit> hits;
   for (std::size_t f = 0; f < nf; ++f) {
     const auto& t = cloth.vertices[f];
     ProjectionFace face;
+    std::array<int, 3> order = t;
     for (std::size_t k = 0; k < 3; ++k) face.p[k] = x.row(t[k]).transpose();
-    const bool flipped = (face.p[1] - face.p[0]).cross(face.p[2] - face.p[0]).dot(normal[f]) < 0.0;
-    std::array<int, 3> across = cloth.across[f];
-    if (flipped) {  // counter-clockwise about the turned normal: reverse, and the edges with it
-      std::swap(face.p[1], face.p[2]);
-      across = {across[2], across[1], across[0]};
-    }
-    for (std::size_t k = 0; k < 3; ++k)
-      if (across[k] >= 0) face.neighbour_normal[k] = normal[static_cast<std::size_t>(across[k])];
-    const Eigen::Vector4d centre = CentreOfProjection(face);
     Eigen::AlignedBox3d box;
     for (const Vector3& p : face.p) box.extend(p);
     const double grow = std::max({(face.p[1] - face.p[0]).norm(), (face.p[2] - face.p[1]).norm(),
                                   (face.p[0] - face.p[2]).norm()});
     box.min().array() -= grow;
     box.max().array() += grow;
+    if (!box.intersects(all)) continue;
+    const bool flipped = (face.p[1] - face.p[0]).cross(face.p[2] - face.p[0]).dot((*normal)[f]) < 0.0;
+    std::array<int, 3> across = cloth.across[f];
+    if (flipped) {  // counter-clockwise about the turned normal: reverse, and the edges with it
+      std::swap(face.p[1], face.p[2]);
+      std::swap(order[1], order[2]);
+      across = {across[2], across[1], across[0]};
+    }
+    for (std::size_t k = 0; k < 3; ++k)
+      if (across[k] >= 0) face.neighbour_normal[k] = (*normal)[static_cast<std::size_t>(across[k])];
+    const Eigen::Vector4d centre = CentreOfProjection(face);
     for (std::size_t e = 0; e < edges.size(); ++e) {
       const Vector3& ex = vertices[static_cast<std::size_t>(edges[e][0])];
       const Vector3& ey = vertices[static_cast<std::size_t>(edges[e][1])];
@@ -163,10 +182,20 @@ std::vector<FaceEdgeHit> ProjectObstacleEdges(const MatrixN3& x, const ClothTria
       edge_box.extend(ey);
       if (!box.intersects(edge_box)) continue;
       const EdgeProjection pr = ProjectEdgeOntoFace(ex, ey, face, centre);
-      if (RaysReachTheEdge(pr, first_hit))
-        hits.push_back({static_cast<int>(f), static_cast<int>(e), pr});
+      if (RaysReachTheEdge(pr, first_hit)) hits->push_back({static_cast<int>(f), static_cast<int>(e), order, pr});
     }
   }
+}
+
+/// The same, returning the hits (tests, one-off calls).
+template <class Outward, class FirstHit>
+std::vector<FaceEdgeHit> ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth,
+                                              const std::vector<Vector3>& vertices,
+                                              const std::vector<std::array<int, 2>>& edges, const Outward& outward,
+                                              const FirstHit& first_hit) {
+  std::vector<Vector3> normal;
+  std::vector<FaceEdgeHit> hits;
+  ProjectObstacleEdges(x, cloth, vertices, edges, outward, first_hit, &normal, &hits);
   return hits;
 }
 

@@ -298,4 +298,68 @@ void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
     for (Vector3& v : *vertices) v = pose.ToWorld(v);
 }
 
+void Obstacle::Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const {
+  triangles->clear();
+  std::vector<std::array<int, 2>> edges;
+  Edges(ObstaclePose{}, vertices, &edges);
+  const ObstacleSpec& s = spec_;
+  std::vector<Vector3>& v = *vertices;
+  Vector3 interior = s.center;  // the analytic obstacles are convex: outward is away from an interior point
+  const auto add = [&](int a, int b, int c) {
+    const Vector3 n = (v[static_cast<std::size_t>(b)] - v[static_cast<std::size_t>(a)])
+                          .cross(v[static_cast<std::size_t>(c)] - v[static_cast<std::size_t>(a)]);
+    const Vector3 centroid = (v[static_cast<std::size_t>(a)] + v[static_cast<std::size_t>(b)] + v[static_cast<std::size_t>(c)]) / 3.0;
+    if (n.dot(centroid - interior) < 0.0) std::swap(b, c);
+    triangles->push_back({a, b, c});
+  };
+  const auto quad = [&](int a, int b, int c, int d) {  // a b c d around the quad
+    add(a, b, c);
+    add(a, c, d);
+  };
+  const int m = kCircleSegments;
+  switch (s.type) {
+    case ObstacleType::kPlane:
+      vertices->clear();
+      break;
+    case ObstacleType::kBox:
+      // The corners with bit `axis` equal to `side`, in cyclic order.
+      for (int axis : {1, 2, 4})
+        for (int side : {0, 1}) {
+          const int o1 = axis == 1 ? 2 : 1, o2 = axis == 4 ? 2 : 4, base = side ? axis : 0;
+          quad(base, base | o1, base | o1 | o2, base | o2);
+        }
+      break;
+    case ObstacleType::kCylinder: {
+      interior = s.center - Vector3(0.0, 0.0, 0.5 * s.height);
+      const int top_centre = static_cast<int>(v.size()), bottom_centre = top_centre + 1;
+      v.push_back(s.center);
+      v.push_back(s.center - Vector3(0.0, 0.0, s.height));
+      for (int k = 0; k < m; ++k) {
+        const int next = (k + 1) % m;
+        add(top_centre, k, next);
+        add(bottom_centre, m + k, m + next);
+        quad(k, m + k, m + next, next);
+      }
+      break;
+    }
+    case ObstacleType::kSphere: {
+      const int rings = m / 2 - 1, north = 0, south = 1;
+      const auto at = [&](int r, int k) { return 2 + m * r + (k % m); };
+      for (int k = 0; k < m; ++k) {
+        add(north, at(0, k), at(0, k + 1));
+        for (int r = 0; r + 1 < rings; ++r) quad(at(r, k), at(r + 1, k), at(r + 1, k + 1), at(r, k + 1));
+        add(south, at(rings - 1, k), at(rings - 1, k + 1));
+      }
+      break;
+    }
+    case ObstacleType::kMesh: {
+      std::vector<double> xyz;
+      std::vector<int32_t> t;
+      mesh_->Export(&xyz, &t);
+      for (std::size_t k = 0; k + 2 < t.size(); k += 3) triangles->push_back({t[k], t[k + 1], t[k + 2]});
+      break;
+    }
+  }
+}
+
 }  // namespace clothbench

@@ -91,6 +91,9 @@ struct ObstacleSpec {
   double collision_distance = 0.01;          ///< δ, thickness of the collision area [m]
   double friction = 0.0;                     ///< Coulomb coefficient c_f (docs/model.md §2.5)
   double relaxation = 0.5;                   ///< ω_r in (4.4), 0 < ω_r ≤ 1
+  /// Insert the thesis' virtual particles where this obstacle's edges pass
+  /// through the cloth (§5.2–5.4; model/virtual_particles.h). Not for a plane.
+  bool virtual_particles = false;
   // Triangle meshes (OFF/OBJ/PLY through CGAL): x ↦ R(scale·x) + translate.
   std::string path;                          ///< resolved mesh file
   double scale = 1.0;
@@ -152,6 +155,17 @@ class Obstacle {
   /// plane has none.
   /// @param vertices [m], overwritten; @param edges index pairs into them, overwritten
   void Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices, std::vector<std::array<int, 2>>* edges) const;
+  /// The closed triangle surface whose edges include Edges(identity pose),
+  /// on the same vertices, in the placed (scene) frame: a box's 6 faces as
+  /// 12 triangles; a cylinder's rims closed by a fan to each rim's centre
+  /// (two extra vertices) and its side as quads between the rims; a
+  /// sphere's net with its quads split and fans at the poles; a mesh's own
+  /// triangles. Triangles are counter-clockwise seen from outside. A plane
+  /// has none. The virtual particles' ray check (Fig. 5.9) casts against it,
+  /// so that a ray to a point on a polygonised rim or parallel does not
+  /// meet the smooth surface first.
+  /// @param vertices [m], overwritten; @param triangles index triples, overwritten
+  void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const;
   /// Segments of a cylinder's rims and of a sphere's parallels.
   static constexpr int kCircleSegments = 64;
   const ObstacleSpec& spec() const { return spec_; }

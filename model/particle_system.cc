@@ -96,6 +96,15 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
     terms_.push_back(MakeAirResistance(geo, scene.forces.air));
     external_terms_.push_back(terms_.back().get());
   }
+  // Virtual particles (thesis §5.2–5.4), last: a scene without them keeps
+  // its terms and their order.
+  if (std::any_of(scene.obstacles.begin(), scene.obstacles.end(),
+                  [](const ObstacleSpec& o) { return o.virtual_particles; })) {
+    auto term = std::make_unique<VirtualParticles>(nu, nv, springs_, obstacles_,
+                                                   mat.tension_model == TensionModel::kSplit);
+    virtual_ = term.get();
+    terms_.push_back(std::move(term));
+  }
 }
 
 void ParticleSystem::AddExternalForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
@@ -117,6 +126,7 @@ EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) c
     const double stretch = linear ? len : len - s.rest_length;
     e.tension += 0.5 * s.stiffness * stretch * stretch;
   }
+  if (virtual_) e.tension += virtual_->TensionEnergyChange(x);  // the springs split this step
   const int nu = scene_.grid.nu, nv = scene_.grid.nv;
   const double lu = scene_.lu(), lv = scene_.lv();
   auto at = [&](int i, int j) { return Vector3(x.row(scene_.Index(i, j)).transpose()); };

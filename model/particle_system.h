@@ -12,6 +12,7 @@
 #include "model/force_terms.h"
 #include "model/scene.h"
 #include "model/types.h"
+#include "model/virtual_particles.h"
 
 namespace clothbench {
 
@@ -52,6 +53,11 @@ class ParticleSystem {
   bool is_fixed(int p) const { return fixed_mask_[static_cast<std::size_t>(p)] != 0; }
   /// Obstacles of the scene (docs/model.md §7); empty: no detection at all.
   const std::vector<Obstacle>& obstacles() const { return obstacles_; }
+  /// The thesis' virtual particles (model/virtual_particles.h), one of
+  /// terms(), or nullptr if no obstacle asks for them. Their topology is
+  /// per-step state: the run driver calls Update before every step, so
+  /// the pointer is not const although the system is.
+  VirtualParticles* virtual_particles() const { return virtual_; }
   /// The explicit terms in evaluation order.
   const std::vector<std::unique_ptr<ForceTerm>>& terms() const { return terms_; }
   std::vector<std::string> TermNames() const;
@@ -109,6 +115,7 @@ class ParticleSystem {
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   std::vector<const ForceTerm*> external_terms_;  // wind, air (owned by terms_)
   std::vector<Obstacle> obstacles_;
+  VirtualParticles* virtual_ = nullptr;  // owned by terms_
 };
 
 }  // namespace clothbench

@@ -367,6 +367,9 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
       spec.friction = o.Range("friction", spec.friction, 0.0, 1e3, "");
       spec.relaxation = o.Positive("relaxation", spec.relaxation);
       if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
+      spec.virtual_particles = o.Bool("virtual_particles", false);
+      if (spec.virtual_particles && spec.type == ObstacleType::kPlane)
+        o.Fail("virtual_particles", "must be false for a plane (it has no edges to project onto the cloth)");
       switch (spec.type) {
         case ObstacleType::kPlane:
           spec.normal = o.Vec3("normal", spec.normal);

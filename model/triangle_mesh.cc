@@ -108,6 +108,22 @@ TriangleMesh::TriangleMesh(const std::string& path, double scale, const Vector3&
   if (impl_->closed) impl_->inside = std::make_unique<Inside>(*impl_->tree);
 }
 
+TriangleMesh::TriangleMesh(const std::vector<Vector3>& vertices, const std::vector<std::array<int, 3>>& triangles)
+    : impl_(std::make_unique<Impl>()) {
+  std::vector<Mesh::Vertex_index> index;
+  index.reserve(vertices.size());
+  for (const Vector3& v : vertices) index.push_back(impl_->mesh.add_vertex(Point(v.x(), v.y(), v.z())));
+  for (const auto& t : triangles)
+    if (impl_->mesh.add_face(index.at(static_cast<std::size_t>(t[0])), index.at(static_cast<std::size_t>(t[1])),
+                             index.at(static_cast<std::size_t>(t[2]))) == Mesh::null_face())
+      throw std::runtime_error(fmt::format("triangle ({}, {}, {}) cannot be added to the mesh (not manifold)", t[0],
+                                           t[1], t[2]));
+  impl_->tree = std::make_unique<Tree>(faces(impl_->mesh).first, faces(impl_->mesh).second, impl_->mesh);
+  impl_->tree->accelerate_distance_queries();
+  impl_->closed = CGAL::is_closed(impl_->mesh);
+  if (impl_->closed) impl_->inside = std::make_unique<Inside>(*impl_->tree);
+}
+
 TriangleMesh::~TriangleMesh() = default;
 
 double TriangleMesh::SignedDistance(const Vector3& p, Vector3* direction) const {

@@ -6,6 +6,7 @@
 #ifndef CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
 #define CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -36,6 +37,11 @@ class TriangleMesh {
   /// @throws std::runtime_error naming the file if it cannot be read or is
   ///         not a triangle mesh.
   TriangleMesh(const std::string& path, double scale, const Vector3& rotate_deg, const Vector3& translate);
+  /// A mesh from its vertices [m] and counter-clockwise (outward) index
+  /// triangles, e.g. Obstacle::Surface of an analytic obstacle.
+  /// @throws std::runtime_error if a triangle is degenerate or not
+  ///         manifold (CGAL cannot add it)
+  TriangleMesh(const std::vector<Vector3>& vertices, const std::vector<std::array<int, 3>>& triangles);
   ~TriangleMesh();
   TriangleMesh(const TriangleMesh&) = delete;
   TriangleMesh& operator=(const TriangleMesh&) = delete;

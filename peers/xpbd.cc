@@ -73,7 +73,9 @@ Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_
   }
   for (const auto& term : system.terms()) {
     const std::string_view name = term->name();
-    if (name == "tension_nonlinear" || (name == "shear" && shear_constraint())) continue;
+    // The virtual springs correct the model's spring forces, which XPBD
+    // replaces by its distance constraints: they do not act here.
+    if (name == "tension_nonlinear" || name == "virtual_springs" || (name == "shear" && shear_constraint())) continue;
     explicit_.push_back(term.get());
     explicit_names_.emplace_back(name);
   }

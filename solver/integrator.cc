@@ -101,11 +101,29 @@ bool SystemMatrix::Update(double alpha_h) {
   const auto start = std::chrono::steady_clock::now();
   Eigen::Map<Eigen::VectorXd> vals(a_.valuePtr(), a_.nonZeros());
   vals = m_vals_ + (alpha_h * alpha_h) * lk_vals_ + alpha_h * ld_vals_;  // (3.24), (3.31)
+  removed_.clear();  // rebuilt: nothing to restore
   ++rebuilds_;
   const bool ok = analyzed_ && precond_.Factorize(a_);
   setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   alpha_h_ = ok ? alpha_h : -1.0;
   return ok;
+}
+
+void SystemMatrix::RemoveCouplings(const std::vector<RemovedCoupling>& couplings) {
+  double* vals = a_.valuePtr();
+  for (const auto& [pos, old] : removed_) vals[pos] = old;
+  removed_.clear();
+  const int* outer = a_.outerIndexPtr();
+  const int* inner = a_.innerIndexPtr();
+  for (const RemovedCoupling& c : couplings) {
+    const double w = alpha_h_ * alpha_h_ * c.stiffness + alpha_h_ * c.damping;
+    for (const auto& [row, col] : {std::pair{c.a, c.b}, std::pair{c.b, c.a}}) {
+      const int* at = std::lower_bound(inner + outer[col], inner + outer[col + 1], row);
+      const int pos = static_cast<int>(at - inner);
+      removed_.emplace_back(pos, vals[pos]);
+      vals[pos] += w;
+    }
+  }
 }
 
 bool SystemMatrix::AdaptTo(const VelocityFilter& filter) {
@@ -209,6 +227,16 @@ StepStats StepEngine::StepImpl(double h) {
   const double omega = have_history_ ? h / h_prev_ : 1.0;
   const bool multistep_form = m == Method::kSbdf2 || m == Method::kBdf2 || m == Method::kSbdf3;
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kProject) ProjectContactHistory();
+  // SBDF(2)/(3) extrapolate g from its history. With virtual particles g
+  // is this step's force function (model/virtual_particles.h), so the
+  // history is evaluated with it: extrapolating across a change of
+  // topology would double the jump of the virtual springs' forces.
+  if (const VirtualParticles* vp = sys_.virtual_particles();
+      vp && (!vp->particles().empty() || virtual_before_) && have_history_) {
+    if (m == Method::kSbdf2 || m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_, xm1_, vm1_, &gm1_);
+    if (m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_ - h_prev2_, xm2_, vm2_, &gm2_);
+  }
+  if (const VirtualParticles* vp = sys_.virtual_particles()) virtual_before_ = !vp->particles().empty();
   const StageCoefficients c = PrepareStage(m, h, omega, imex);
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kLand) LandContactTargets(h, c.gamma);
 
@@ -216,6 +244,7 @@ StepStats StepEngine::StepImpl(double h) {
     st.status = StepStatus::kPreconditionerFailed;
     return st;
   }
+  if (const VirtualParticles* vp = sys_.virtual_particles()) sysmat_.RemoveCouplings(vp->removed_couplings());
   if (contacts_.active()) {
     st.colliding = colliding;
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
@@ -309,6 +338,16 @@ Method StepEngine::StepMethod(double h, bool* sbdf3_start) const {
   return m;
 }
 
+void StepEngine::EngineExplicitForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const {
+  sys_.ExplicitForces(t, x, v, g);
+  if (const VirtualParticles* vp = sys_.virtual_particles()) vp->AddRemovedCouplings(x, v, g);
+}
+
+void StepEngine::LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) const {
+  out->noalias() = (damping ? sys_.damping_laplacian() : sys_.stiffness_laplacian()) * x;
+  if (const VirtualParticles* vp = sys_.virtual_particles()) vp->AddCouplingProduct(damping, x, out);
+}
+
 StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, double omega, bool imex) {
   const Bdf2Coefficients bdf(omega);
   const double c1 = bdf.c1, c2 = bdf.c2, c3 = bdf.c3;
@@ -321,7 +360,6 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
   bool& midpoint = k.midpoint;
   t_g = t_ + h;
   const Eigen::VectorXd& mass = sys_.masses();
-  const SparseMatrix& lk = sys_.stiffness_laplacian();
   switch (m) {
     case Method::kImexEuler:
     case Method::kImplicitEuler:
@@ -330,7 +368,7 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
       xhat_ = x0_;
       vhat_ = v0_;
       b0_.noalias() = mass.asDiagonal() * v0_;
-      tmp_.noalias() = lk * x0_;
+      LinearProduct(false, x0_, &tmp_);
       b0_ -= h * tmp_;
       if (!imex) xg0_ = x0_;
       t_g = imex ? t_ : t_ + h;
@@ -352,7 +390,7 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
         xhat_ = c1 * x0_ - c2 * xm1_;
         vhat_ = c1 * v0_ - c2 * vm1_;
       }
-      tmp_.noalias() = lk * xhat_;
+      LinearProduct(false, xhat_, &tmp_);
       b0_ = mass.asDiagonal() * vhat_ - (alpha * h) * tmp_;  // one pass (the same roundings as two)
       if (!imex) xg0_ = xhat_;  // g's base point: only the fully implicit updates move it
       t_g = t_ + h;
@@ -369,10 +407,10 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
       vhat_ = v0_;
       xg0_ = x0_ + (0.25 * h) * v0_;
       b0_.noalias() = mass.asDiagonal() * v0_;
-      tmp_.noalias() = lk * xg0_;
+      LinearProduct(false, xg0_, &tmp_);
       b0_ -= h * tmp_;
       if (sys_.has_tension_damping()) {
-        tmp_.noalias() = sys_.damping_laplacian() * v0_;
+        LinearProduct(true, v0_, &tmp_);
         b0_ -= (0.5 * h) * tmp_;
       }
       t_g = t_ + 0.5 * h;
@@ -386,7 +424,7 @@ StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, doubl
 
 void StepEngine::ExplicitTerms(Method m, double omega) {
   if (!have_g0_) {
-    sys_.ExplicitForces(t_, x0_, v0_, &g0_);
+    EngineExplicitForces(t_, x0_, v0_, &g0_);
     have_g0_ = true;
   }
   if (m == Method::kSbdf2)
@@ -412,9 +450,9 @@ bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool im
       xg_ = xg0_ + (gamma_g * h) * v1_;
       if (midpoint) {
         vg_ = 0.5 * (v0_ + v1_);
-        sys_.ExplicitForces(t_g, xg_, vg_, &g_);
+        EngineExplicitForces(t_g, xg_, vg_, &g_);
       } else {
-        sys_.ExplicitForces(t_g, xg_, v1_, &g_);
+        EngineExplicitForces(t_g, xg_, v1_, &g_);
       }
     }
     b_ = b0_ + (beta * h) * g_;
@@ -575,7 +613,7 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
     xg_ = xg0_ + (gamma_g * h) * v1_;
     if (midpoint) vg_ = 0.5 * (v0_ + v1_);
     const MatrixN3& vg = midpoint ? vg_ : v1_;
-    sys_.ExplicitForces(t_g, xg_, vg, &g_);
+    EngineExplicitForces(t_g, xg_, vg, &g_);
     b_ = b0_ + (beta * h) * g_;
     ++st->updates;
     // F(v) = A_α v − b in tmp_, its filtered norm, and the reference ‖S_F b‖.

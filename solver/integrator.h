@@ -118,6 +118,13 @@ class SystemMatrix {
   /// Update; Preconditioner::AdaptTo). Their time counts as setup.
   /// @return false if a factorisation failed
   bool AdaptTo(const VelocityFilter& filter);
+  /// Removes the couplings of the springs that virtual particles split
+  /// this step from A (A(a, b) += α²h² s + αh c, both triangles; after
+  /// Update, whose αh it uses), first restoring those of the last call
+  /// unless Update has rebuilt A since. The preconditioner stays that of
+  /// A without them: a change of rank 2 per split spring, which the PCG
+  /// absorbs in a few iterations.
+  void RemoveCouplings(const std::vector<RemovedCoupling>& couplings);
   const SparseMatrix& matrix() const { return a_; }
   const Preconditioner& preconditioner() const { return precond_; }
   /// The prefiltered AMG's frame rule (Preconditioner::set_amg_frames).
@@ -138,6 +145,7 @@ class SystemMatrix {
  private:
   SparseMatrix a_;
   Eigen::VectorXd m_vals_, lk_vals_, ld_vals_;  // M, L_K, L_D on A's pattern
+  std::vector<std::pair<int, double>> removed_;  // value positions changed by RemoveCouplings, old values
   Preconditioner precond_;
   double alpha_h_ = -1.0;
   int rebuilds_ = 0;
@@ -232,6 +240,12 @@ class StepEngine : public Stepper {
     bool midpoint = false;  ///< implicit midpoint: g at the mean velocity
   };
   StepStats StepImpl(double h);
+  /// g = the explicit terms at (t, x, v) as this engine splits them: with
+  /// the couplings the virtual particles remove added back (their matrix
+  /// has them removed, RemovedCoupling).
+  void EngineExplicitForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const;
+  /// out = L x with L = L_K (or L_D if `damping`) less this step's removed couplings.
+  void LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
   /// The method this step takes: the start steps of the multistep methods.
   /// @param sbdf3_start set if this is SBDF(3)'s midpoint start step
   Method StepMethod(double h, bool* sbdf3_start) const;
@@ -279,6 +293,7 @@ class StepEngine : public Stepper {
   MatrixN3 xm1_, vm1_, gm1_;     // previous state and g there (multistep)
   double h_prev_ = 0.0;
   bool have_history_ = false;
+  bool virtual_before_ = false;  // the last step had virtual particles
   // ContactHistory::kRestart: which particles the obstacles constrained in
   // this step and the previous one (allocated once, multistep methods only).
   std::vector<char> in_contact_, in_contact_prev_;

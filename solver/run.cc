@@ -413,6 +413,8 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   double solver_seconds = 0.0;
 
   engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  VirtualParticles* const virtual_particles = system.virtual_particles();
+  if (virtual_particles) virtual_particles->Clear();
   // Frames, work series and step statistics are allocated before the loop.
   FrameRecorder recorder(system, engine, options, &sum);
   ContactResponse::Work contact0;  // at the start of the step
@@ -449,6 +451,9 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     v_prev = engine.v();
     if (recorder.track_contact()) contact0 = *engine.contact_work();
     const auto t0 = Clock::now();
+    // The thesis' virtual particles of this step, from its initial state
+    // (§5.2–5.4): every force evaluation of the step uses them.
+    if (virtual_particles) virtual_particles->Update(t_start, engine.x());
     StepStats st = engine.Step(step);
     solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
     sum.updates += st.updates;

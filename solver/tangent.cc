@@ -70,8 +70,10 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
   const std::size_t spring_blocks = blocks.size();
   std::vector<std::size_t> term_begin;
   bool velocity = system.has_tension_damping();
-  if (options_.include_explicit_terms)
-    for (const auto& term : system.terms()) {
+  for (const auto& term : system.terms()) {
+    // The virtual springs (model/virtual_particles.h) belong to the
+    // tension: in J_α whatever include_explicit_terms says.
+    if (options_.include_explicit_terms || term->name() == "virtual_springs") {
       if (term->name() == "tension_nonlinear") continue;  // in the spring blocks
       std::vector<BlockPair> tb;
       term->JacobianBlocks(&tb);
@@ -82,6 +84,7 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
       velocity = velocity || term->depends_on_velocity();
       kv_constant_ = kv_constant_ && !term->depends_on_velocity();
     }
+  }
   j_ = BlockPattern(n, blocks);
   const std::vector<int> pos = BlockPositions(j_, blocks);
   spring_pos_.assign(pos.begin(), pos.begin() + static_cast<std::ptrdiff_t>(3 * spring_blocks));

@@ -86,6 +86,9 @@ TEST(BadInput, OutOfRangeSceneValuesAreRefusedBeforeComputing) {
   const std::string sphere = "\n[[obstacle]]\ntype = \"sphere\"\nradius = 0.1\ncenter = ";
   ExpectRefused(Scene("far.toml", kTiny + sphere + "[1e300, 0, 0]\n"), "obstacle[0].center");
   ExpectRefused(Scene("far2.toml", kTiny + sphere + "[1e7, 0, 0]\n"), "obstacle[0].center: must have coordinates");
+  // Virtual particles need edges: a plane has none.
+  ExpectRefused(Scene("vplane.toml", kTiny + "\n[[obstacle]]\ntype = \"plane\"\nvirtual_particles = true\n"),
+                "obstacle[0].virtual_particles: must be false for a plane");
 }
 
 TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {

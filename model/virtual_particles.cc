@@ -1,0 +1,374 @@
+// Virtual particles (thesis §5.2–5.4): projection of the obstacles' edges,
+// the points on the cloth edges, the split rest lengths and the force
+// correction of the virtual springs.
+#include "model/virtual_particles.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <optional>
+
+#include "model/block_scatter.h"
+#include "model/triangle_mesh.h"
+
+namespace clothbench {
+
+// An obstacle whose edges are projected: its edges in the placed frame and
+// the closed surface on the same vertices, for the ray check (Fig. 5.9).
+struct VirtualParticles::Source {
+  int index = 0;
+  const Obstacle* obstacle = nullptr;
+  std::vector<Vector3> placed;            // vertices, placed frame [m]
+  std::vector<Vector3> world;             // at the last update's pose
+  std::vector<std::array<int, 2>> edges;
+  std::unique_ptr<TriangleMesh> surface;  // analytic obstacles; a mesh obstacle casts against its own
+  int side = 0;                           // σ: the cloth's side away from the obstacle (0: not yet voted)
+};
+
+VirtualParticles::VirtualParticles(int grid_nu, int grid_nv, const std::vector<Spring>& springs,
+                                   const std::vector<Obstacle>& obstacles, bool split_tension)
+    : nu_(grid_nu), nv_(grid_nv), springs_(springs), split_(split_tension), cloth_(GridTriangles(grid_nu, grid_nv)) {
+  const int n = nu_ * nv_;
+  u_spring_.assign(static_cast<std::size_t>(n), -1);
+  v_spring_.assign(static_cast<std::size_t>(n), -1);
+  for (std::size_t k = 0; k < springs_.size(); ++k) {
+    const Spring& s = springs_[k];
+    const int lo = std::min(s.a, s.b), hi = std::max(s.a, s.b);
+    (hi - lo == 1 ? u_spring_ : v_spring_)[static_cast<std::size_t>(lo)] = static_cast<int>(k);
+    damped_ = damped_ || s.damping != 0.0;
+  }
+  for (std::size_t k = 0; k < obstacles.size(); ++k) {
+    const Obstacle& o = obstacles[k];
+    if (!o.spec().virtual_particles) continue;
+    auto src = std::make_unique<Source>();
+    src->index = static_cast<int>(k);
+    src->obstacle = &o;
+    o.Edges(ObstaclePose{}, &src->placed, &src->edges);
+    if (o.spec().type != ObstacleType::kMesh) {
+      std::vector<Vector3> vertices;
+      std::vector<std::array<int, 3>> triangles;
+      o.Surface(&vertices, &triangles);
+      src->surface = std::make_unique<TriangleMesh>(vertices, triangles);
+    }
+    sources_.push_back(std::move(src));
+  }
+  spring_side_.assign(2 * springs_.size(), -1);
+  first_side_.assign(static_cast<std::size_t>(n), -1);
+}
+
+VirtualParticles::~VirtualParticles() = default;
+
+void VirtualParticles::Clear() {
+  for (const auto& src : sources_) src->side = 0;
+  ClearTopology();
+}
+
+void VirtualParticles::ClearTopology() {
+  for (const VirtualSpring& side : sides_) {
+    const Spring& s = springs_[static_cast<std::size_t>(side.spring)];
+    spring_side_[2 * static_cast<std::size_t>(side.spring) + (side.p == s.a ? 0 : 1)] = -1;
+    first_side_[static_cast<std::size_t>(side.p)] = -1;
+  }
+  sides_.clear();
+  couplings_.clear();
+  next_side_.clear();
+  particles_.clear();
+}
+
+void VirtualParticles::Update(double t, const MatrixN3& x) {
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  ClearTopology();
+  t_update_ = t;
+  // §5.3: every standing projection of every obstacle's edges.
+  for (const auto& src : sources_) {
+    const Obstacle& o = *src->obstacle;
+    const ObstaclePose pose = o.PoseAt(t);
+    src->world.resize(src->placed.size());
+    for (std::size_t k = 0; k < src->placed.size(); ++k) src->world[k] = pose.ToWorld(src->placed[k]);
+    // The faces' orientation, away from the obstacle: one side of the
+    // sheet for all its faces, n = σ (P2 − P1) × (P3 − P1) in the grid's
+    // order (counter-clockwise about u × v). σ is voted by the faces whose
+    // centroid is outside and whose normal is within 60° of the direction
+    // D from the obstacle, weighted by |⟨n, D⟩|; it changes only on a
+    // clear majority. A single face's D is no guide: beside a box's side,
+    // below its top edge, D is horizontal and ⟨n, D⟩ only round-off, and
+    // neighbours oriented apart make the bisecting plane S_i the face's
+    // own plane.
+    double vote = 0.0, weight = 0.0;
+    Eigen::AlignedBox3d reach;
+    for (const Vector3& w : src->world) reach.extend(w);
+    for (const auto& tri : cloth_.vertices) {
+      const Vector3 a = x.row(tri[0]).transpose(), b = x.row(tri[1]).transpose(), c = x.row(tri[2]).transpose();
+      Eigen::AlignedBox3d box(a);
+      box.extend(b).extend(c);
+      const double grow = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+      box.min().array() -= grow;
+      box.max().array() += grow;
+      if (!box.intersects(reach)) continue;
+      Vector3 d;
+      if (o.SignedDistance(pose, (a + b + c) / 3.0, &d) <= 0.0) continue;
+      const double cosine = (b - a).cross(c - a).normalized().dot(d);
+      if (std::abs(cosine) < 0.5) continue;
+      vote += cosine;
+      weight += std::abs(cosine);
+    }
+    if (src->side == 0 || vote * src->side < -0.5 * weight) src->side = vote < 0.0 ? -1 : 1;
+    const double side = src->side;
+    const auto outward = [&](std::size_t f, const Vector3&) {
+      const auto& tri = cloth_.vertices[f];
+      return Vector3(side * (x.row(tri[1]) - x.row(tri[0])).cross(x.row(tri[2]) - x.row(tri[0])).transpose());
+    };
+    // Fig. 5.9: a ray crosses another face of the obstacle if it runs
+    // through the solid after its first hit. A ray that only grazes a face
+    // (a vertical ray from below a box's top edge runs along its side)
+    // touches the surface without entering: points after the hit are
+    // tested against the polyhedron's signed distance (7 of them, so that
+    // a ray through a thin part of a mesh is seen too).
+    const TriangleMesh& surface = src->surface ? *src->surface : *o.mesh();
+    const auto first_hit = [&](const Vector3& a, const Vector3& b) -> std::optional<double> {
+      const Vector3 pa = pose.ToPlaced(a), pb = pose.ToPlaced(b);
+      const std::optional<SegmentHit> hit = surface.FirstHit(pa, pb);
+      if (!hit) return std::nullopt;
+      const double tol = 1e-9 + 1e-6 * (pb - pa).norm();
+      Vector3 dir;
+      for (int k = 1; k < 8; ++k) {
+        const double s = hit->s + (1.0 - hit->s) * k / 8.0;
+        if (surface.SignedDistance(pa + s * (pb - pa), &dir) < -tol) return hit->s;
+      }
+      return std::nullopt;
+    };
+    ProjectObstacleEdges(x, cloth_, src->world, src->edges, outward, first_hit, &normal_, &hits_);
+    for (const FaceEdgeHit& h : hits_) {
+      const EdgeProjection& pr = h.projection;
+      for (int end = 0; end < 2; ++end) {
+        const int on = end == 0 ? pr.v_edge : pr.w_edge;
+        VirtualParticle vp;
+        vp.x = end == 0 ? pr.v : pr.w;
+        vp.v = pose.Velocity(vp.x);
+        vp.obstacle = src->index;
+        vp.edge = h.edge;
+        vp.face = h.face;
+        if (on >= 0) {
+          int a = h.vertices[static_cast<std::size_t>(on)], b = h.vertices[static_cast<std::size_t>((on + 1) % 3)];
+          if (a > b) std::swap(a, b);
+          vp.a = a;
+          vp.b = b;
+          const Vector3 xa = x.row(a).transpose(), ab = x.row(b).transpose() - xa;
+          const Vector3 bar = end == 0 ? pr.v_bar : pr.w_bar;
+          vp.s = std::clamp((bar - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+        }
+        particles_.push_back(vp);
+      }
+    }
+  }
+  const auto projected = Clock::now();
+  // §5.4: a point on a cloth edge is found from both faces of that edge:
+  // keep one per (cloth edge, obstacle edge). Then order the points of each
+  // cloth edge from a to b.
+  std::sort(particles_.begin(), particles_.end(), [](const VirtualParticle& l, const VirtualParticle& r) {
+    if (l.a != r.a) return l.a < r.a;
+    if (l.b != r.b) return l.b < r.b;
+    if (l.a < 0) {  // inside a face: one per point (an obstacle vertex ends several edges)
+      if (l.face != r.face) return l.face < r.face;
+      return std::lexicographical_compare(l.x.data(), l.x.data() + 3, r.x.data(), r.x.data() + 3);
+    }
+    if (l.obstacle != r.obstacle) return l.obstacle < r.obstacle;
+    if (l.edge != r.edge) return l.edge < r.edge;
+    return l.s < r.s;
+  });
+  particles_.erase(std::unique(particles_.begin(), particles_.end(),
+                               [](const VirtualParticle& l, const VirtualParticle& r) {
+                                 if (l.a != r.a || l.b != r.b) return false;
+                                 if (l.a < 0) return l.face == r.face && l.x == r.x;
+                                 return l.obstacle == r.obstacle && l.edge == r.edge;
+                               }),
+                   particles_.end());
+  // Runs of one cloth edge, ordered by s.
+  std::size_t k = 0;
+  while (k < particles_.size() && particles_[k].a < 0) ++k;
+  while (k < particles_.size()) {
+    std::size_t end = k;
+    while (end < particles_.size() && particles_[end].a == particles_[k].a && particles_[end].b == particles_[k].b)
+      ++end;
+    std::sort(particles_.begin() + static_cast<std::ptrdiff_t>(k), particles_.begin() + static_cast<std::ptrdiff_t>(end),
+              [](const VirtualParticle& l, const VirtualParticle& r) { return l.s < r.s; });
+    const int a = particles_[k].a, b = particles_[k].b;
+    const int spring = b - a == 1 && a % nu_ != nu_ - 1 ? u_spring_[static_cast<std::size_t>(a)]
+                       : b - a == nu_                     ? v_spring_[static_cast<std::size_t>(a)]
+                                                          : -1;
+    if (spring >= 0) {
+      // Current segment lengths l_0 … l_m of P_a V_1 … V_m P_b.
+      const Vector3 xa = x.row(a).transpose(), xb = x.row(b).transpose();
+      double total = (particles_[k].x - xa).norm() + (xb - particles_[end - 1].x).norm();
+      for (std::size_t j = k + 1; j < end; ++j) total += (particles_[j].x - particles_[j - 1].x).norm();
+      const Spring& s = springs_[static_cast<std::size_t>(spring)];
+      if (total > 0.0) {
+        const auto add_side = [&](int p, int q, std::size_t neighbour, double segment) {
+          VirtualSpring side;
+          side.spring = spring;
+          side.p = p;
+          side.q = q;
+          side.neighbour = static_cast<int>(neighbour);
+          side.rest = s.rest_length * segment / total;  // r_j = r l_j / Σ l_i
+          spring_side_[2 * static_cast<std::size_t>(spring) + (p == s.a ? 0 : 1)] = static_cast<int>(sides_.size());
+          next_side_.push_back(first_side_[static_cast<std::size_t>(p)]);
+          first_side_[static_cast<std::size_t>(p)] = static_cast<int>(sides_.size());
+          sides_.push_back(side);
+        };
+        // Particles a and b of the sort are the spring's ends in either order.
+        const std::size_t near_a = k, near_b = end - 1;
+        add_side(a, b, near_a, (particles_[near_a].x - xa).norm());
+        add_side(b, a, near_b, (xb - particles_[near_b].x).norm());
+        couplings_.push_back({spring, a, b, s.stiffness, s.damping});
+      }
+    }
+    k = end;
+  }
+  const auto done = Clock::now();
+  projection_seconds_ += std::chrono::duration<double>(projected - start).count();
+  topology_seconds_ += std::chrono::duration<double>(done - projected).count();
+  ++updates_;
+}
+
+double VirtualParticles::TensionEnergyChange(const MatrixN3& x) const {
+  const auto energy = [&](double stiffness, double length, double rest) {
+    const double stretch = split_ ? length - rest : length;
+    return 0.5 * stiffness * stretch * stretch;
+  };
+  double e = 0.0;
+  for (const VirtualSpring& side : sides_) {
+    const Spring& s = springs_[static_cast<std::size_t>(side.spring)];
+    e += energy(s.stiffness, (particles_[static_cast<std::size_t>(side.neighbour)].x - x.row(side.p).transpose()).norm(),
+                side.rest);
+  }
+  for (const RemovedCoupling& c : couplings_) {
+    const Spring& s = springs_[static_cast<std::size_t>(c.spring)];
+    e -= energy(s.stiffness, (x.row(c.b) - x.row(c.a)).norm(), s.rest_length);
+  }
+  return e;
+}
+
+void VirtualParticles::AddRemovedCouplings(const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const {
+  AddCouplingProduct(false, x, g);
+  if (damped_) AddCouplingProduct(true, v, g);
+}
+
+void VirtualParticles::AddCouplingProduct(bool damping, const MatrixN3& x, MatrixN3* out) const {
+  for (const RemovedCoupling& c : couplings_) {
+    const double w = damping ? c.damping : c.stiffness;
+    if (w == 0.0) continue;
+    out->row(c.a) += w * x.row(c.b);
+    out->row(c.b) += w * x.row(c.a);
+  }
+}
+
+Vector3 VirtualParticles::PositionAt(int k, double t) const {
+  const VirtualParticle& vp = particles_[static_cast<std::size_t>(k)];
+  return vp.x + (t - t_update_) * vp.v;
+}
+
+// On particle p with replaced neighbour q and virtual neighbour V:
+//   Δf = s (x_V − x_q) + c (v_V − v_q) − s (r_j d̂_V − l d̂),
+// d_V = x_V − x_p, d = x_q − x_p (the rest-length part only with F_nl).
+//   ∂Δf/∂x_p = s r_j (I − d̂_V d̂_Vᵀ)/|d_V| − s l (I − d̂ d̂ᵀ)/|d|,
+//   ∂Δf/∂x_q = −s I + s l (I − d̂ d̂ᵀ)/|d|,  ∂Δf/∂v_q = −c I.
+void VirtualParticles::SideTerms(const VirtualSpring& side, double t, const MatrixN3& x, const MatrixN3& v,
+                                 Vector3* f, Matrix3* dp, Matrix3* dq) const {
+  const Spring& s = springs_[static_cast<std::size_t>(side.spring)];
+  const VirtualParticle& vp = particles_[static_cast<std::size_t>(side.neighbour)];
+  const Vector3 xv = PositionAt(side.neighbour, t);
+  const Vector3 xp = x.row(side.p).transpose(), xq = x.row(side.q).transpose();
+  *f = s.stiffness * (xv - xq);
+  if (s.damping != 0.0) *f += s.damping * (vp.v - v.row(side.q).transpose());
+  *dp = Matrix3::Zero();
+  *dq = -s.stiffness * Matrix3::Identity();
+  if (!split_) return;
+  const Vector3 dv = xv - xp, d = xq - xp;
+  const double lv = dv.norm(), l = d.norm();
+  if (lv > 0.0) {
+    const Vector3 u = dv / lv;
+    *f -= (s.stiffness * side.rest) * u;
+    *dp += (s.stiffness * side.rest / lv) * (Matrix3::Identity() - u * u.transpose());
+  }
+  if (l > 0.0) {
+    const Vector3 u = d / l;
+    const Matrix3 k = (s.stiffness * s.rest_length / l) * (Matrix3::Identity() - u * u.transpose());
+    *f += (s.stiffness * s.rest_length) * u;
+    *dp -= k;
+    *dq += k;
+  }
+}
+
+void VirtualParticles::AddForce(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
+  Vector3 fp;
+  Matrix3 dp, dq;
+  for (const VirtualSpring& side : sides_) {
+    SideTerms(side, t, x, v, &fp, &dp, &dq);
+    f->row(side.p) += fp.transpose();
+  }
+}
+
+void VirtualParticles::AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                                   std::vector<Triplet>* dfdv) const {
+  // The pattern of every spring's four blocks, whether split or not (it
+  // may not depend on the state); zeros where no side is.
+  Vector3 fp;
+  for (std::size_t k = 0; k < springs_.size(); ++k) {
+    const Spring& s = springs_[k];
+    for (int end = 0; end < 2; ++end) {
+      const int p = end == 0 ? s.a : s.b, q = end == 0 ? s.b : s.a;
+      Matrix3 dp = Matrix3::Zero(), dq = Matrix3::Zero(), dvq = Matrix3::Zero();
+      if (const int side = spring_side_[2 * k + static_cast<std::size_t>(end)]; side >= 0) {
+        SideTerms(sides_[static_cast<std::size_t>(side)], t, x, v, &fp, &dp, &dq);
+        dvq = -s.damping * Matrix3::Identity();
+      }
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          dfdx->emplace_back(3 * p + r, 3 * p + c, dp(r, c));
+          dfdx->emplace_back(3 * p + r, 3 * q + c, dq(r, c));
+          if (damped_) dfdv->emplace_back(3 * p + r, 3 * q + c, dvq(r, c));
+        }
+    }
+  }
+}
+
+void VirtualParticles::JacobianBlocks(std::vector<BlockPair>* blocks) const {
+  for (const Spring& s : springs_) {
+    blocks->push_back({s.a, s.b});
+    blocks->push_back({s.a, s.a});
+    blocks->push_back({s.b, s.a});
+    blocks->push_back({s.b, s.b});
+  }
+}
+
+void VirtualParticles::AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos,
+                                          double* dfdx, double* dfdv, std::size_t first, std::size_t last) const {
+  if (sides_.empty()) return;
+  Vector3 fp;
+  Matrix3 dp, dq;
+  for (std::size_t k = first; k < last; ++k)
+    for (int end = 0; end < 2; ++end) {
+      const int side = spring_side_[2 * k + static_cast<std::size_t>(end)];
+      if (side < 0) continue;
+      SideTerms(sides_[static_cast<std::size_t>(side)], t, x, v, &fp, &dp, &dq);
+      // Blocks (a, b), (a, a), (b, a), (b, b): row p's off-diagonal and diagonal.
+      const int* p = pos + 12 * k + (end == 0 ? 0 : 6);
+      AddBlock(dq, p, dfdx);
+      AddBlock(dp, p + 3, dfdx);
+      if (damped_) AddBlock(Matrix3(-springs_[k].damping * Matrix3::Identity()), p, dfdv);
+    }
+}
+
+void VirtualParticles::AddParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f,
+                                        Matrix3* dfdx, Matrix3*) const {
+  Vector3 fp;
+  Matrix3 dp, dq;
+  for (int side = first_side_[static_cast<std::size_t>(p)]; side >= 0; side = next_side_[static_cast<std::size_t>(side)]) {
+    SideTerms(sides_[static_cast<std::size_t>(side)], t, x, v, &fp, &dp, &dq);
+    *f += fp;
+    *dfdx += dp;
+  }
+}
+
+}  // namespace clothbench

@@ -1,0 +1,173 @@
+// The thesis' collision-adaptive virtual particles (thesis §5.2–5.4;
+// docs/model.md, "Virtual particles"). Where an obstacle's edges pass
+// through the cloth, points on those edges are inserted into the cloth's
+// triangles for one step. They are not integrated: their positions come
+// from the obstacle, their velocities are the obstacle's. The ones on
+// cloth edges that are tension springs replace a base particle's
+// neighbour in that spring, with the rest length split in proportion to
+// the current segment lengths (§5.4):
+//
+//   an edge P_a P_b with rest length r, split by V_1 … V_k, gives P_a the
+//   neighbour V_1 and P_b the neighbour V_k, with rest lengths
+//   r_j = r l_j / Σ_i l_i, l_0 = |V_1 − P_a|, …, l_k = |P_b − V_k|.
+//
+// No force acts on a virtual particle (its reaction is the rigid
+// obstacle's) and bending and shear keep the base particles, as in the
+// thesis. The spring keeps its constants s_e and c_e, as the thesis
+// replaces only the neighbour's position and velocity and the rest length.
+//
+// The force enters the model as one more explicit term: the virtual
+// spring's force minus the original spring's (its linear part −L_K x −
+// L_D v and its F_nl), so A_α and its factor do not change. That
+// difference, s (x_V − x_q) + c (v_V − v_q) − s (r_j d̂_V − l d̂) on P_p
+// (q the replaced neighbour), does not depend on x_p's linear part, and
+// its stiffness is s_e, that of F_nl, which every IMEX method already
+// takes explicitly.
+#ifndef CLOTHBENCH_MODEL_VIRTUAL_PARTICLES_H_
+#define CLOTHBENCH_MODEL_VIRTUAL_PARTICLES_H_
+
+#include <array>
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include "model/edge_projection.h"
+#include "model/force_terms.h"
+#include "model/obstacle.h"
+#include "model/scene.h"
+#include "model/types.h"
+
+namespace clothbench {
+
+class TriangleMesh;
+
+/// One virtual particle of the current step (§5.2–5.3).
+struct VirtualParticle {
+  Vector3 x = Vector3::Zero();  ///< position on the obstacle edge at the update's time [m]
+  Vector3 v = Vector3::Zero();  ///< the obstacle's velocity there [m/s]
+  int obstacle = 0;             ///< index into ParticleSystem::obstacles()
+  int edge = 0;                 ///< the obstacle edge it lies on (Obstacle::Edges)
+  /// The cloth edge it lies on, particles a < b; −1, −1 if it lies inside
+  /// the triangle `face` (an obstacle vertex through the cloth: shown, no force).
+  int a = -1, b = -1;
+  int face = 0;                 ///< the cloth triangle it was found in (GridTriangles)
+  double s = 0.0;               ///< its projection's place on the cloth edge: (1 − s) x_a + s x_b
+};
+
+/// A base particle's tension spring with a virtual neighbour (§5.4).
+struct VirtualSpring {
+  int spring = 0;             ///< index into ParticleSystem::springs()
+  int p = 0, q = 0;           ///< the base particle and the neighbour that is replaced
+  int neighbour = 0;          ///< index of the virtual particle that replaces q
+  double rest = 0.0;          ///< r_j [m]
+};
+
+/// A spring whose ends both have virtual neighbours (§5.4): the coupling
+/// of a and b that the linear part −L_K x − L_D v holds and the virtual
+/// springs remove. A solver that keeps the linear part implicit removes it
+/// from its matrix (L_K(a, b) += s, L_D(a, b) += c) and adds the same
+/// products back to the explicit terms, in which this term subtracts them
+/// (StepEngine does; the force itself is unchanged).
+struct RemovedCoupling {
+  int spring = 0;  ///< index into ParticleSystem::springs()
+  int a = 0, b = 0;
+  double stiffness = 0.0;  ///< s_e [N/m]
+  double damping = 0.0;    ///< c_e [N s/m]
+};
+
+/// The virtual particles of a cloth grid against the obstacles that ask
+/// for them (ObstacleSpec::virtual_particles), and their force correction
+/// as an explicit term. The topology is per-step state: Update sets it from
+/// the step's initial positions, and every force evaluation until the next
+/// Update uses it (the run driver updates before each step).
+class VirtualParticles : public ForceTerm {
+ public:
+  /// @param grid_nu, grid_nv the cloth grid; @param springs the model's springs
+  /// @param obstacles the model's obstacles (must outlive this); those with
+  ///        spec().virtual_particles are projected
+  /// @param split_tension true if the tension has the split F_nl (rest
+  ///        lengths), false for the linear model (docs/model.md §2.1)
+  VirtualParticles(int grid_nu, int grid_nv, const std::vector<Spring>& springs,
+                   const std::vector<Obstacle>& obstacles, bool split_tension);
+  ~VirtualParticles() override;
+
+  /// Computes the virtual particles and springs at time t [s] from the N×3
+  /// positions x [m] (§5.3, §5.4). Reuses its buffers: no allocation once
+  /// they have grown to the scene's need.
+  void Update(double t, const MatrixN3& x);
+  /// Forgets the topology (no virtual particles, no force) and the faces'
+  /// orientations: the start of a run.
+  void Clear();
+  const std::vector<VirtualParticle>& particles() const { return particles_; }
+  const std::vector<VirtualSpring>& virtual_springs() const { return sides_; }
+  /// The tension energy of the virtual springs minus that of the springs
+  /// they replace, at positions x [m] (virtual particles where the update
+  /// put them) [J]: ½ s (|x_V − x_p| − r_j)² per side against ½ s (|d| − l)²
+  /// per split spring (without the rest lengths for the linear model).
+  double TensionEnergyChange(const MatrixN3& x) const;
+  /// The springs split this step, once each.
+  const std::vector<RemovedCoupling>& removed_couplings() const { return couplings_; }
+  /// g.row(a) += s x.row(b) + c v.row(b) and the same with a and b swapped,
+  /// for every removed coupling: the explicit terms of a solver whose
+  /// implicit matrix has the couplings removed. @param x, v, g N×3
+  void AddRemovedCouplings(const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const;
+  /// out.row(a) += w x.row(b) and the same with a and b swapped, with w = s
+  /// (stiffness) or c (damping): (ΔL x) for the removed couplings, ΔL(a, b) = w.
+  void AddCouplingProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
+  /// The cloth's triangles (GridTriangles) the projection works on.
+  const ClothTriangles& triangles() const { return cloth_; }
+  /// Wall time [s] since construction in the projection (§5.3, Table 5.1's
+  /// "projection") and in building the topology (ordering the points on
+  /// the cloth edges, splitting the rest lengths: "topology"), and the
+  /// number of updates.
+  double projection_seconds() const { return projection_seconds_; }
+  double topology_seconds() const { return topology_seconds_; }
+  long updates() const { return updates_; }
+
+  // ForceTerm: the virtual springs' force minus the original springs'.
+  std::string_view name() const override { return "virtual_springs"; }
+  void AddForce(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const override;
+  void AddJacobian(double t, const MatrixN3& x, const MatrixN3& v, std::vector<Triplet>* dfdx,
+                   std::vector<Triplet>* dfdv) const override;
+  bool depends_on_velocity() const override { return damped_; }
+  void JacobianBlocks(std::vector<BlockPair>* blocks) const override;
+  std::size_t jacobian_items() const override { return springs_.size(); }
+  void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
+                          double* dfdv, std::size_t first, std::size_t last) const override;
+  void PrepareParticleForces(int) const override {}  // the lists are built by Update
+  void AddParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f, Matrix3* dfdx,
+                        Matrix3* dfdv) const override;
+
+ private:
+  struct Source;  // one obstacle that is projected
+  void ClearTopology();
+  /// The virtual particle `k`'s position at time t [m] (it moves with the obstacle).
+  Vector3 PositionAt(int k, double t) const;
+  /// Side `k`'s force correction on its particle p and its blocks
+  /// ∂/∂x_p, ∂/∂x_q (∂/∂v_q is −c I).
+  void SideTerms(const VirtualSpring& side, double t, const MatrixN3& x, const MatrixN3& v, Vector3* f,
+                 Matrix3* dp, Matrix3* dq) const;
+
+  int nu_ = 0, nv_ = 0;
+  std::vector<Spring> springs_;
+  std::vector<int> u_spring_, v_spring_;  // spring index of the u-/v-edge starting at particle p, −1 if none
+  bool split_ = true, damped_ = false;
+  ClothTriangles cloth_;
+  std::vector<std::unique_ptr<Source>> sources_;
+  double t_update_ = 0.0;
+  std::vector<VirtualParticle> particles_;
+  std::vector<VirtualSpring> sides_;
+  std::vector<RemovedCoupling> couplings_;
+  std::vector<int> spring_side_;  // 2 per spring: the side of P_a, of P_b (index into sides_), −1
+  std::vector<int> first_side_, next_side_;  // sides of each particle, a linked list
+  // Scratch of Update.
+  std::vector<Vector3> normal_;
+  std::vector<FaceEdgeHit> hits_;
+  std::vector<std::array<double, 2>> order_;
+  double projection_seconds_ = 0.0, topology_seconds_ = 0.0;
+  long updates_ = 0;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_MODEL_VIRTUAL_PARTICLES_H_
