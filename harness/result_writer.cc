@@ -3,6 +3,7 @@
 #include "harness/result_writer.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -71,6 +72,18 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
   };
   write(traj.positions, every_position, "positions", "m");
   write(traj.velocities, every_velocity, "velocities", "m/s");
+  // The thesis' virtual particles of every frame (model/trajectory.h).
+  const VirtualFrames& v = traj.virtual_particles;
+  if (v.empty()) return;
+  const std::string vg = g + "/virtual_particles";
+  f.CreateGroup(vg);
+  const auto rows = [](const std::vector<int32_t>& values, int cols) { return static_cast<int>(values.size()) / cols; };
+  f.WriteTable(vg + "/offsets", rows(v.offsets, 1), 1, v.offsets);
+  f.WriteTable(vg + "/positions", static_cast<int>(v.x.size() / 3), 3, v.x, "m");
+  f.WriteTable(vg + "/cloth_edge", rows(v.cloth_edge, 2), 2, v.cloth_edge);
+  f.WriteTable(vg + "/obstacle_edge", rows(v.obstacle_edge, 2), 2, v.obstacle_edge);
+  f.WriteTable(vg + "/face_offsets", rows(v.face_offsets, 1), 1, v.face_offsets);
+  f.WriteTable(vg + "/faces", rows(v.faces, 3), 3, v.faces);
 }
 
 // The table's content as plain data (results/run_table.h): what is printed
@@ -192,20 +205,40 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.WriteTable("/scene/faces", (nu - 1) * (nv - 1), 4, faces);
   }
   // Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
-  // motion not applied), for the XDMF file.
-  for (std::size_t k = 0; k < sys.obstacles().size(); ++k)
-    if (const TriangleMesh* mesh = sys.obstacles()[k].mesh()) {
-      const std::string o = fmt::format("/scene/obstacles/{}", k);
-      std::vector<double> vertices;
-      std::vector<int32_t> triangles;
+  // motion not applied), for the XDMF file; and the polyhedron and edges of
+  // every obstacle with virtual particles (Obstacle::Surface, ::Edges at
+  // rest), which their frames' obstacle_edge indices refer to.
+  for (std::size_t k = 0; k < sys.obstacles().size(); ++k) {
+    const Obstacle& obstacle = sys.obstacles()[k];
+    const TriangleMesh* mesh = obstacle.mesh();
+    if (!mesh && !obstacle.spec().virtual_particles) continue;
+    const std::string o = fmt::format("/scene/obstacles/{}", k);
+    std::vector<double> vertices;
+    std::vector<int32_t> triangles;
+    if (mesh) {
       mesh->Export(&vertices, &triangles);
-      f.CreateGroup(o);
-      // Absolute, so that the file names the mesh wherever it is read
-      // (clothbench_inspect's command links it next to the scene file).
-      f.SetAttribute(o, "path", std::filesystem::absolute(sys.obstacles()[k].spec().path).lexically_normal().string());
-      f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
-      f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
+    } else {
+      std::vector<Vector3> points;
+      std::vector<std::array<int, 3>> faces;
+      obstacle.Surface(&points, &faces);
+      for (const Vector3& p : points) vertices.insert(vertices.end(), {p.x(), p.y(), p.z()});
+      for (const auto& t : faces) triangles.insert(triangles.end(), t.begin(), t.end());
     }
+    f.CreateGroup(o);
+    // Absolute, so that the file names the mesh wherever it is read
+    // (clothbench_inspect's command links it next to the scene file).
+    if (mesh) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.spec().path).lexically_normal().string());
+    f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
+    f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
+    if (obstacle.spec().virtual_particles) {
+      std::vector<Vector3> points;
+      std::vector<std::array<int, 2>> edges;
+      obstacle.Edges(ObstaclePose{}, &points, &edges);
+      std::vector<int32_t> flat;
+      for (const auto& e : edges) flat.insert(flat.end(), e.begin(), e.end());
+      f.WriteTable(o + "/edges", static_cast<int>(edges.size()), 2, flat);
+    }
+  }
   if (ref) {
     f.CreateGroup("/reference");
     WriteRunRecord(f, "/reference", *table.reference);

@@ -5,6 +5,7 @@
 #ifndef CLOTHBENCH_HARNESS_RUN_CODEC_H_
 #define CLOTHBENCH_HARNESS_RUN_CODEC_H_
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -117,6 +118,9 @@ inline void PutTrajectory(ByteWriter& w, const Trajectory& t) {
   w.Vec(t.contact_work_holding);
   w.Vec(t.contact_work_pulling);
   w.Vec(t.contact_work_friction);
+  const VirtualFrames& v = t.virtual_particles;
+  for (const auto* ints : {&v.offsets, &v.face_offsets, &v.cloth_edge, &v.obstacle_edge, &v.faces}) w.Vec(*ints);
+  w.Vec(v.x);
 }
 inline Trajectory GetTrajectory(ByteReader& r) {
   Trajectory t;
@@ -127,6 +131,9 @@ inline Trajectory GetTrajectory(ByteReader& r) {
   t.contact_work_holding = r.Vec<double>();
   t.contact_work_pulling = r.Vec<double>();
   t.contact_work_friction = r.Vec<double>();
+  VirtualFrames& v = t.virtual_particles;
+  for (auto* ints : {&v.offsets, &v.face_offsets, &v.cloth_edge, &v.obstacle_edge, &v.faces}) *ints = r.Vec<int32_t>();
+  v.x = r.Vec<double>();
   return t;
 }
 inline void PutSundials(ByteWriter& w, const std::optional<SundialsStats>& s) {
@@ -165,6 +172,21 @@ inline void CheckTrajectory(const Trajectory& t, long n_particles) {
     if (!w->empty() && w->size() != t.times.size()) OutOfRange("a work series not as long as the frame times");
     for (double v : *w) CheckFinite(v, "work");
   }
+  const VirtualFrames& v = t.virtual_particles;
+  if (v.empty()) return;
+  const auto offsets_ok = [&](const std::vector<int32_t>& o, std::size_t rows) {
+    if (o.size() != t.times.size() + 1 || o.front() != 0 || static_cast<std::size_t>(o.back()) != rows) return false;
+    return std::is_sorted(o.begin(), o.end());
+  };
+  const std::size_t k = v.x.size() / 3;
+  if (v.x.size() % 3 != 0 || v.cloth_edge.size() != 2 * k || v.obstacle_edge.size() != 2 * k || v.faces.size() % 3 != 0 ||
+      !offsets_ok(v.offsets, k) || !offsets_ok(v.face_offsets, v.faces.size() / 3))
+    OutOfRange("virtual particle frames of inconsistent sizes");
+  for (double c : v.x) CheckFinite(c, "virtual particle position");
+  for (std::size_t f = 0; f + 1 < v.face_offsets.size(); ++f)
+    for (std::size_t i = 3 * static_cast<std::size_t>(v.face_offsets[f]); i < 3 * static_cast<std::size_t>(v.face_offsets[f + 1]); ++i)
+      if (v.faces[i] < 0 || v.faces[i] >= n_particles + (v.offsets[f + 1] - v.offsets[f]))
+        OutOfRange("a refined face's vertex index");
 }
 inline void CheckStepStatus(int status) {
   if (status < 0 || status > static_cast<int>(StepStatus::kTimeLimit)) OutOfRange(fmt::format("step status {}", status));

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "model/block_scatter.h"
+#include "model/face_triangulation.h"
 #include "model/triangle_mesh.h"
 
 namespace clothbench {
@@ -54,12 +55,20 @@ VirtualParticles::VirtualParticles(int grid_nu, int grid_nv, const std::vector<S
   }
   spring_side_.assign(2 * springs_.size(), -1);
   first_side_.assign(static_cast<std::size_t>(n), -1);
+  for (std::size_t f = 0; f < cloth_.vertices.size(); ++f)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const int a = cloth_.vertices[f][k], b = cloth_.vertices[f][(k + 1) % 3];
+      auto [it, fresh] = edge_faces_.try_emplace(static_cast<long long>(std::min(a, b)) * n + std::max(a, b),
+                                                 std::array<int, 2>{-1, -1});
+      it->second[it->second[0] < 0 ? 0 : 1] = static_cast<int>(f);
+    }
 }
 
 VirtualParticles::~VirtualParticles() = default;
 
 void VirtualParticles::Clear() {
   for (const auto& src : sources_) src->side = 0;
+  current_ = false;
   ClearTopology();
 }
 
@@ -70,16 +79,36 @@ void VirtualParticles::ClearTopology() {
     first_side_[static_cast<std::size_t>(side.p)] = -1;
   }
   sides_.clear();
+  segments_.clear();
   couplings_.clear();
   next_side_.clear();
   particles_.clear();
 }
 
+namespace {
+
+// Two candidates that are one virtual particle: the same obstacle edge
+// through the same cloth edge (found from both its faces), or the same
+// point inside a face (an obstacle vertex that ends several edges; its
+// coordinates from different edges differ by round-off).
+bool SamePoint(const VirtualParticle& l, const VirtualParticle& r) {
+  if (l.a != r.a || l.b != r.b) return false;
+  if (l.a < 0) return l.face == r.face && (l.x - r.x).squaredNorm() <= 1e-24 * (1.0 + l.x.squaredNorm());
+  return l.obstacle == r.obstacle && l.edge == r.edge;
+}
+
+}  // namespace
+
 void VirtualParticles::Update(double t, const MatrixN3& x) {
+  // The same state again (a frame at a step's end, then the next step; a
+  // step retried after a rejection): the topology stands.
+  if (current_ && t == t_update_ && x == x_update_) return;
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   ClearTopology();
   t_update_ = t;
+  x_update_ = x;
+  current_ = true;
   // §5.3: every standing projection of every obstacle's edges.
   for (const auto& src : sources_) {
     const Obstacle& o = *src->obstacle;
@@ -141,6 +170,7 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
     ProjectObstacleEdges(x, cloth_, src->world, src->edges, outward, first_hit, &normal_, &hits_);
     for (const FaceEdgeHit& h : hits_) {
       const EdgeProjection& pr = h.projection;
+      segments_.push_back({h.face, {}});
       for (int end = 0; end < 2; ++end) {
         const int on = end == 0 ? pr.v_edge : pr.w_edge;
         VirtualParticle vp;
@@ -157,8 +187,12 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
           const Vector3 xa = x.row(a).transpose(), ab = x.row(b).transpose() - xa;
           const Vector3 bar = end == 0 ? pr.v_bar : pr.w_bar;
           vp.s = std::clamp((bar - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+          vp.bar = xa + vp.s * ab;
+        } else {
+          vp.bar = end == 0 ? pr.v_bar : pr.w_bar;
         }
         particles_.push_back(vp);
+        segments_.back().ends[static_cast<std::size_t>(end)] = vp;
       }
     }
   }
@@ -177,13 +211,7 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
     if (l.edge != r.edge) return l.edge < r.edge;
     return l.s < r.s;
   });
-  particles_.erase(std::unique(particles_.begin(), particles_.end(),
-                               [](const VirtualParticle& l, const VirtualParticle& r) {
-                                 if (l.a != r.a || l.b != r.b) return false;
-                                 if (l.a < 0) return l.face == r.face && l.x == r.x;
-                                 return l.obstacle == r.obstacle && l.edge == r.edge;
-                               }),
-                   particles_.end());
+  particles_.erase(std::unique(particles_.begin(), particles_.end(), SamePoint), particles_.end());
   // Runs of one cloth edge, ordered by s.
   std::size_t k = 0;
   while (k < particles_.size() && particles_[k].a < 0) ++k;
@@ -229,6 +257,117 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
   projection_seconds_ += std::chrono::duration<double>(projected - start).count();
   topology_seconds_ += std::chrono::duration<double>(done - projected).count();
   ++updates_;
+}
+
+int VirtualParticles::Find(const VirtualParticle& c) const {
+  const auto run = std::equal_range(particles_.begin(), particles_.end(), c, [](const VirtualParticle& l, const VirtualParticle& r) {
+    return l.a != r.a ? l.a < r.a : l.b < r.b;
+  });
+  for (auto it = run.first; it != run.second; ++it)
+    if (SamePoint(*it, c)) return static_cast<int>(it - particles_.begin());
+  return -1;
+}
+
+void VirtualParticles::RefinedMesh(const MatrixN3& x, std::vector<std::array<int, 3>>* triangles) {
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  const int n = nu_ * nv_;
+  const std::size_t nf = cloth_.vertices.size();
+  face_points_.resize(nf);
+  for (std::vector<int>& points : face_points_) points.clear();
+  const auto faces_of = [&](int a, int b) {  // the one or two triangles with edge (a, b)
+    return edge_faces_.at(static_cast<long long>(std::min(a, b)) * n + std::max(a, b));
+  };
+  for (std::size_t k = 0; k < particles_.size(); ++k) {
+    const VirtualParticle& p = particles_[k];
+    if (p.a < 0) {
+      face_points_[static_cast<std::size_t>(p.face)].push_back(static_cast<int>(k));
+      continue;
+    }
+    for (int f : faces_of(p.a, p.b))
+      if (f >= 0) face_points_[static_cast<std::size_t>(f)].push_back(static_cast<int>(k));
+  }
+  triangles->clear();
+  std::vector<Eigen::Vector2d> points;
+  std::vector<std::array<int, 2>> constraints;
+  std::vector<std::array<int, 3>> local;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto& t = cloth_.vertices[f];
+    const std::vector<int>& extra = face_points_[f];
+    if (extra.empty()) {
+      triangles->push_back(t);
+      continue;
+    }
+    // The face's plane: origin P1, axes e1 along P1P2 and e2 = n × e1.
+    const Vector3 o = x.row(t[0]).transpose();
+    const Vector3 e1 = (x.row(t[1]).transpose() - o).normalized();
+    const Vector3 nrm = e1.cross(x.row(t[2]).transpose() - o).normalized();
+    const Vector3 e2 = nrm.cross(e1);
+    const auto flat = [&](const Vector3& p) { return Eigen::Vector2d((p - o).dot(e1), (p - o).dot(e2)); };
+    points.clear();
+    for (int k = 0; k < 3; ++k) points.push_back(flat(x.row(t[static_cast<std::size_t>(k)]).transpose()));
+    for (int k : extra) points.push_back(flat(particles_[static_cast<std::size_t>(k)].bar));
+    // The boundary, corner to corner through the points on each edge.
+    constraints.clear();
+    for (std::size_t e = 0; e < 3; ++e) {
+      const int from = t[e], to = t[(e + 1) % 3];
+      on_edge_.clear();
+      for (std::size_t k = 0; k < extra.size(); ++k) {
+        const VirtualParticle& p = particles_[static_cast<std::size_t>(extra[k])];
+        if (p.a == std::min(from, to) && p.b == std::max(from, to))
+          on_edge_.emplace_back(p.a == from ? p.s : 1.0 - p.s, static_cast<int>(k) + 3);
+      }
+      std::sort(on_edge_.begin(), on_edge_.end());
+      int last = static_cast<int>(e);
+      for (const auto& [u, i] : on_edge_) {
+        constraints.push_back({last, i});
+        last = i;
+      }
+      constraints.push_back({last, static_cast<int>((e + 1) % 3)});
+    }
+    for (const Segment& seg : segments_) {
+      if (seg.face != static_cast<int>(f)) continue;
+      std::array<int, 2> ends{};
+      bool found = true;
+      for (std::size_t e = 0; e < 2; ++e) {
+        const int k = Find(seg.ends[e]);
+        const auto at = std::find(extra.begin(), extra.end(), k);
+        found = found && k >= 0 && at != extra.end();
+        ends[e] = found ? 3 + static_cast<int>(at - extra.begin()) : 0;
+      }
+      if (found) constraints.push_back(ends);
+    }
+    const std::size_t before = points.size();
+    TriangulateFace(&points, constraints, &local);
+    for (std::size_t k = before; k < points.size(); ++k) {  // crossings of two projected edges
+      VirtualParticle c;
+      c.face = static_cast<int>(f);
+      c.obstacle = c.edge = -1;
+      c.x = c.bar = o + points[k].x() * e1 + points[k].y() * e2;
+      face_points_[f].push_back(static_cast<int>(particles_.size()));
+      particles_.push_back(c);
+    }
+    const auto global = [&](int i) {
+      return i < 3 ? t[static_cast<std::size_t>(i)] : n + face_points_[f][static_cast<std::size_t>(i - 3)];
+    };
+    for (const auto& tri : local) triangles->push_back({global(tri[0]), global(tri[1]), global(tri[2])});
+  }
+  topology_seconds_ += std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void VirtualParticles::RecordFrame(const MatrixN3& x, VirtualFrames* frames) {
+  RefinedMesh(x, &record_faces_);
+  if (frames->offsets.empty()) frames->offsets.push_back(0);
+  if (frames->face_offsets.empty()) frames->face_offsets.push_back(0);
+  for (const VirtualParticle& p : particles_) {
+    frames->x.insert(frames->x.end(), {p.x.x(), p.x.y(), p.x.z()});
+    frames->cloth_edge.insert(frames->cloth_edge.end(), {p.a, p.b});
+    const bool crossing = p.a < 0 && p.edge < 0;
+    frames->obstacle_edge.insert(frames->obstacle_edge.end(), {crossing ? -1 : p.obstacle, p.edge});
+  }
+  for (const auto& f : record_faces_) frames->faces.insert(frames->faces.end(), f.begin(), f.end());
+  frames->offsets.push_back(frames->offsets.back() + static_cast<int32_t>(particles_.size()));
+  frames->face_offsets.push_back(frames->face_offsets.back() + static_cast<int32_t>(record_faces_.size()));
 }
 
 double VirtualParticles::TensionEnergyChange(const MatrixN3& x) const {

@@ -29,12 +29,14 @@
 #include <array>
 #include <memory>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "model/edge_projection.h"
 #include "model/force_terms.h"
 #include "model/obstacle.h"
 #include "model/scene.h"
+#include "model/trajectory.h"
 #include "model/types.h"
 
 namespace clothbench {
@@ -46,12 +48,15 @@ struct VirtualParticle {
   Vector3 x = Vector3::Zero();  ///< position on the obstacle edge at the update's time [m]
   Vector3 v = Vector3::Zero();  ///< the obstacle's velocity there [m/s]
   int obstacle = 0;             ///< index into ParticleSystem::obstacles()
-  int edge = 0;                 ///< the obstacle edge it lies on (Obstacle::Edges)
+  int edge = 0;                 ///< the obstacle edge it lies on (Obstacle::Edges); −1 for a crossing RefinedMesh adds
   /// The cloth edge it lies on, particles a < b; −1, −1 if it lies inside
   /// the triangle `face` (an obstacle vertex through the cloth: shown, no force).
   int a = -1, b = -1;
   int face = 0;                 ///< the cloth triangle it was found in (GridTriangles)
   double s = 0.0;               ///< its projection's place on the cloth edge: (1 − s) x_a + s x_b
+  /// Its projection V̄ on the cloth [m]: (1 − s) x_a + s x_b on an edge, the
+  /// projected point inside the face otherwise.
+  Vector3 bar = Vector3::Zero();
 };
 
 /// A base particle's tension spring with a virtual neighbour (§5.4).
@@ -92,8 +97,9 @@ class VirtualParticles : public ForceTerm {
   ~VirtualParticles() override;
 
   /// Computes the virtual particles and springs at time t [s] from the N×3
-  /// positions x [m] (§5.3, §5.4). Reuses its buffers: no allocation once
-  /// they have grown to the scene's need.
+  /// positions x [m] (§5.3, §5.4); nothing if t and x are those of the last
+  /// update. Reuses its buffers: no allocation once they have grown to the
+  /// scene's need.
   void Update(double t, const MatrixN3& x);
   /// Forgets the topology (no virtual particles, no force) and the faces'
   /// orientations: the start of a run.
@@ -114,6 +120,19 @@ class VirtualParticles : public ForceTerm {
   /// out.row(a) += w x.row(b) and the same with a and b swapped, with w = s
   /// (stiffness) or c (damping): (ΔL x) for the removed couplings, ΔL(a, b) = w.
   void AddCouplingProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
+  /// The cloth's sub-mesh at positions x [m] (the update's, for display,
+  /// §5.3): every cloth triangle with virtual particles re-triangulated
+  /// with them by a constrained Delaunay triangulation in its plane, the
+  /// projected obstacle edges as constraints, lifted back to the virtual
+  /// particles on the obstacle; the others as they are. Its time counts as
+  /// topology. @param triangles overwritten: indices < N are base particles,
+  /// N + k virtual particle k (a crossing of two projected edges inside a
+  /// face, where the triangulation adds a point, is appended to
+  /// particles() with no force)
+  void RefinedMesh(const MatrixN3& x, std::vector<std::array<int, 3>>* triangles);
+  /// Appends the current virtual particles and the refined mesh at
+  /// positions x [m] as one more frame of `frames` (model/trajectory.h).
+  void RecordFrame(const MatrixN3& x, VirtualFrames* frames);
   /// The cloth's triangles (GridTriangles) the projection works on.
   const ClothTriangles& triangles() const { return cloth_; }
   /// Wall time [s] since construction in the projection (§5.3, Table 5.1's
@@ -155,9 +174,22 @@ class VirtualParticles : public ForceTerm {
   ClothTriangles cloth_;
   std::vector<std::unique_ptr<Source>> sources_;
   double t_update_ = 0.0;
+  MatrixN3 x_update_;      // the positions of the last update
+  bool current_ = false;   // an update since Clear
   std::vector<VirtualParticle> particles_;
   std::vector<VirtualSpring> sides_;
   std::vector<RemovedCoupling> couplings_;
+  struct Segment {  // a standing projection: its face and its two end points (as found)
+    int face = 0;
+    std::array<VirtualParticle, 2> ends;
+  };
+  std::vector<Segment> segments_;
+  std::unordered_map<long long, std::array<int, 2>> edge_faces_;  // cloth edge a·N + b (a < b) → its triangles
+  std::vector<std::vector<int>> face_points_;                    // RefinedMesh: the virtual particles of each face
+  std::vector<std::pair<double, int>> on_edge_;
+  std::vector<std::array<int, 3>> record_faces_;                  // RefinedMesh: the points on one face edge, in order
+  /// The particle that candidate c (as found in a face) became, −1 if none.
+  int Find(const VirtualParticle& c) const;
   std::vector<int> spring_side_;  // 2 per spring: the side of P_a, of P_b (index into sides_), −1
   std::vector<int> first_side_, next_side_;  // sides of each particle, a linked list
   // Scratch of Update.

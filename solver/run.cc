@@ -256,6 +256,7 @@ class FrameRecorder {
       : frames_(FrameTimes(options.t_end, options.frame_dt)),
         track_work_(system.has_external_work()),
         track_contact_(engine.contact_work() != nullptr),
+        virtual_(system.virtual_particles()),
         sum_(sum) {
     Trajectory& tr = sum->trajectory;
     tr.times.reserve(frames_.size());
@@ -268,6 +269,10 @@ class FrameRecorder {
     tr.times.push_back(0.0);
     tr.positions[0] = engine.x();
     tr.velocities[0] = engine.v();
+    if (virtual_) {
+      virtual_->Update(0.0, engine.x());
+      virtual_->RecordFrame(engine.x(), &tr.virtual_particles);
+    }
   }
   bool track_contact() const { return track_contact_; }
 
@@ -293,6 +298,10 @@ class FrameRecorder {
         tr.contact_work_pulling[next_] = contact0.pulling + sc * (contact1.pulling - contact0.pulling);
         tr.contact_work_friction[next_] = contact0.friction + sc * (contact1.friction - contact0.friction);
       }
+      if (virtual_) {  // the frame's own virtual particles (the next step's, if the frame ends a step)
+        virtual_->Update(frames_[next_], tr.positions[next_]);
+        virtual_->RecordFrame(tr.positions[next_], &tr.virtual_particles);
+      }
       tr.times.push_back(frames_[next_]);
       ++next_;
     }
@@ -312,6 +321,7 @@ class FrameRecorder {
  private:
   std::vector<double> frames_;
   bool track_work_, track_contact_;
+  VirtualParticles* virtual_;
   RunSummary* sum_;
   std::size_t next_ = 1;
 };

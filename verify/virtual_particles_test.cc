@@ -10,7 +10,12 @@
 //    particle stays above the bottom, and the cloth's edges, through their
 //    virtual particles, do not enter the beam (depth ≤ 1e-9 m: the virtual
 //    particles lie on the beam's edges, so the polyline touches the
-//    surface; round-off of the edge's end points is 1e-16 m).
+//    surface; round-off of the edge's end points is 1e-16 m). The faces of
+//    the refined mesh (constrained Delaunay, the projected beam edges as
+//    constraints) do not enter it either (same bound).
+// 4. The triangulation of a face keeps its constraints, covers the face
+//    with counter-clockwise triangles and adds the crossing of two
+//    constraints (exact here: 1e-15).
 // 3. A scene whose obstacle asks for virtual particles but never meets the
 //    cloth runs bit for bit as the same scene without them: the extra
 //    term adds nothing, and the engine's products are unchanged.
@@ -20,6 +25,7 @@
 
 #include <gtest/gtest.h>
 
+#include "model/face_triangulation.h"
 #include "model/particle_system.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -112,7 +118,57 @@ TEST_P(VirtualBox, FallsThroughWithoutAndHangsOverTheBeamWith) {
       for (std::size_t k = 0; k + 1 < line.size(); ++k)
         EXPECT_LE(DeepestPoint(beam, line[k], line[k + 1]), 1e-9) << "spring " << spring.a << "-" << spring.b;
     }
+    // The faces of the refined mesh (the triangulation with the projected
+    // beam edges as constraints), sampled on a barycentric grid of step 1/16.
+    std::vector<std::array<int, 3>> faces;
+    vp->RefinedMesh(x, &faces);
+    EXPECT_GT(faces.size(), 2u);
+    const auto at = [&](int i) {
+      const int n = sys.num_particles();
+      return i < n ? Vector3(x.row(i).transpose()) : vp->particles()[static_cast<std::size_t>(i - n)].x;
+    };
+    double deepest = 0.0;
+    Vector3 d;
+    for (const auto& f : faces)
+      for (int i = 0; i <= 16; ++i)
+        for (int j = 0; i + j <= 16; ++j) {
+          const Vector3 p = at(f[0]) + (at(f[1]) - at(f[0])) * (i / 16.0) + (at(f[2]) - at(f[0])) * (j / 16.0);
+          deepest = std::max(deepest, -beam.SignedDistance(0.0, p, &d));
+        }
+    EXPECT_LE(deepest, 1e-9) << "a face of the refined mesh enters the beam";
   }
+}
+
+TEST(FaceTriangulation, KeepsTheConstraintAndCoversTheTriangle) {
+  // A right triangle with a point on each leg, joined by a constraint that
+  // cuts off the corner at the origin: 3 triangles, area 1/2, one of them
+  // the corner (points 3, 4 and corner 0).
+  std::vector<Eigen::Vector2d> points{{0, 0}, {1, 0}, {0, 1}, {0.5, 0}, {0, 0.5}};
+  std::vector<std::array<int, 3>> triangles;
+  const std::vector<std::array<int, 2>> boundary{{0, 3}, {3, 1}, {1, 2}, {2, 4}, {4, 0}};
+  std::vector<std::array<int, 2>> constraints = boundary;
+  constraints.push_back({3, 4});
+  TriangulateFace(&points, constraints, &triangles);
+  ASSERT_EQ(triangles.size(), 3u);
+  double area = 0.0;
+  bool corner = false;
+  for (const auto& t : triangles) {
+    const Eigen::Vector2d a = points[t[1]] - points[t[0]], b = points[t[2]] - points[t[0]];
+    const double doubled = a.x() * b.y() - a.y() * b.x();
+    EXPECT_GT(doubled, 0.0) << "counter-clockwise";
+    area += 0.5 * doubled;
+    std::array<int, 3> sorted = t;
+    std::sort(sorted.begin(), sorted.end());
+    corner = corner || sorted == std::array<int, 3>{0, 3, 4};
+  }
+  EXPECT_NEAR(area, 0.5, 1e-15);
+  EXPECT_TRUE(corner);
+  // Two crossing constraints add their crossing as a point.
+  std::vector<Eigen::Vector2d> cross{{0, 0}, {1, 0}, {0, 1}, {0.5, 0}, {0, 0.5}, {0.25, 0}, {0.25, 0.75}};
+  TriangulateFace(&cross, {{0, 5}, {5, 3}, {3, 1}, {1, 6}, {6, 2}, {2, 4}, {4, 0}, {3, 4}, {5, 6}}, &triangles);
+  ASSERT_EQ(cross.size(), 8u);
+  EXPECT_NEAR(cross[7].x(), 0.25, 1e-15);
+  EXPECT_NEAR(cross[7].y(), 0.25, 1e-15);
 }
 
 INSTANTIATE_TEST_SUITE_P(ThesisIntegrators, VirtualBox,
