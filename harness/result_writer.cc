@@ -84,6 +84,7 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
   f.WriteTable(vg + "/obstacle_edge", rows(v.obstacle_edge, 2), 2, v.obstacle_edge);
   f.WriteTable(vg + "/face_offsets", rows(v.face_offsets, 1), 1, v.face_offsets);
   f.WriteTable(vg + "/faces", rows(v.faces, 3), 3, v.faces);
+  f.WriteVector(vg + "/tension_energy", v.tension_energy, "J");
 }
 
 // The table's content as plain data (results/run_table.h): what is printed

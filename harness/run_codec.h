@@ -121,6 +121,7 @@ inline void PutTrajectory(ByteWriter& w, const Trajectory& t) {
   const VirtualFrames& v = t.virtual_particles;
   for (const auto* ints : {&v.offsets, &v.face_offsets, &v.cloth_edge, &v.obstacle_edge, &v.faces}) w.Vec(*ints);
   w.Vec(v.x);
+  w.Vec(v.tension_energy);
 }
 inline Trajectory GetTrajectory(ByteReader& r) {
   Trajectory t;
@@ -134,6 +135,7 @@ inline Trajectory GetTrajectory(ByteReader& r) {
   VirtualFrames& v = t.virtual_particles;
   for (auto* ints : {&v.offsets, &v.face_offsets, &v.cloth_edge, &v.obstacle_edge, &v.faces}) *ints = r.Vec<int32_t>();
   v.x = r.Vec<double>();
+  v.tension_energy = r.Vec<double>();
   return t;
 }
 inline void PutSundials(ByteWriter& w, const std::optional<SundialsStats>& s) {
@@ -183,6 +185,8 @@ inline void CheckTrajectory(const Trajectory& t, long n_particles) {
       !offsets_ok(v.offsets, k) || !offsets_ok(v.face_offsets, v.faces.size() / 3))
     OutOfRange("virtual particle frames of inconsistent sizes");
   for (double c : v.x) CheckFinite(c, "virtual particle position");
+  if (v.tension_energy.size() != t.times.size()) OutOfRange("virtual particle frames of inconsistent sizes");
+  for (double e : v.tension_energy) CheckFinite(e, "virtual springs' energy");
   for (std::size_t f = 0; f + 1 < v.face_offsets.size(); ++f)
     for (std::size_t i = 3 * static_cast<std::size_t>(v.face_offsets[f]); i < 3 * static_cast<std::size_t>(v.face_offsets[f + 1]); ++i)
       if (v.faces[i] < 0 || v.faces[i] >= n_particles + (v.offsets[f + 1] - v.offsets[f]))

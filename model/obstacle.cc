@@ -5,6 +5,7 @@
 #include "model/triangle_mesh.h"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -227,6 +228,44 @@ double Obstacle::PlacedSignedDistance(const Vector3& p, Vector3* dir) const {
   return 1e300;
 }
 
+namespace {
+
+// A geodesic sphere: the icosahedron's faces split kIcosphereLevels times
+// into four, the new vertices pushed out to the sphere. Counter-clockwise
+// seen from outside.
+void Icosphere(const Vector3& centre, double radius, std::vector<Vector3>* vertices,
+               std::vector<std::array<int, 3>>* faces) {
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Vector3> unit = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                               {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  for (Vector3& v : unit) v.normalize();
+  std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9},  {5, 11, 4},
+                                       {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4},  {3, 4, 2},   {3, 2, 6},  {3, 6, 8},
+                                       {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  for (int level = 0; level < Obstacle::kIcosphereLevels; ++level) {
+    std::map<std::pair<int, int>, int> middle;
+    const auto mid = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto [it, fresh] = middle.try_emplace(key, static_cast<int>(unit.size()));
+      if (fresh) unit.push_back((unit[static_cast<std::size_t>(a)] + unit[static_cast<std::size_t>(b)]).normalized());
+      return it->second;
+    };
+    std::vector<std::array<int, 3>> next;
+    for (const auto& t : f) {
+      const int ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      next.push_back({t[0], ab, ca});
+      next.push_back({t[1], bc, ab});
+      next.push_back({t[2], ca, bc});
+      next.push_back({ab, bc, ca});
+    }
+    f.swap(next);
+  }
+  for (const Vector3& u : unit) vertices->push_back(centre + radius * u);
+  *faces = f;
+}
+
+}  // namespace
+
 void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
                      std::vector<std::array<int, 2>>* edges) const {
   vertices->clear();
@@ -261,22 +300,13 @@ void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
       break;
     }
     case ObstacleType::kSphere: {
-      const int rings = kCircleSegments / 2 - 1;  // parallels between the poles
-      const int north = 0, south = 1;
-      vertices->push_back(s.center + Vector3(0.0, 0.0, s.radius));
-      vertices->push_back(s.center - Vector3(0.0, 0.0, s.radius));
-      std::vector<int> ring(static_cast<std::size_t>(rings));
-      for (int r = 0; r < rings; ++r) {
-        const double theta = std::numbers::pi * (r + 1) / (rings + 1);
-        ring[static_cast<std::size_t>(r)] =
-            circle(s.center + Vector3(0.0, 0.0, s.radius * std::cos(theta)), s.radius * std::sin(theta));
-      }
-      for (int k = 0; k < kCircleSegments; ++k) {  // meridians
-        edges->push_back({north, ring.front() + k});
-        for (int r = 0; r + 1 < rings; ++r)
-          edges->push_back({ring[static_cast<std::size_t>(r)] + k, ring[static_cast<std::size_t>(r) + 1] + k});
-        edges->push_back({ring.back() + k, south});
-      }
+      std::vector<std::array<int, 3>> faces;
+      Icosphere(s.center, s.radius, vertices, &faces);
+      for (const auto& f : faces)
+        for (std::size_t k = 0; k < 3; ++k)
+          edges->push_back({std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])});
+      std::sort(edges->begin(), edges->end());
+      edges->erase(std::unique(edges->begin(), edges->end()), edges->end());
       break;
     }
     case ObstacleType::kMesh: {
@@ -342,16 +372,9 @@ void Obstacle::Surface(std::vector<Vector3>* vertices, std::vector<std::array<in
       }
       break;
     }
-    case ObstacleType::kSphere: {
-      const int rings = m / 2 - 1, north = 0, south = 1;
-      const auto at = [&](int r, int k) { return 2 + m * r + (k % m); };
-      for (int k = 0; k < m; ++k) {
-        add(north, at(0, k), at(0, k + 1));
-        for (int r = 0; r + 1 < rings; ++r) quad(at(r, k), at(r + 1, k), at(r + 1, k + 1), at(r, k + 1));
-        add(south, at(rings - 1, k), at(rings - 1, k + 1));
-      }
+    case ObstacleType::kSphere:
+      Icosphere(s.center, s.radius, vertices, triangles);
       break;
-    }
     case ObstacleType::kMesh: {
       std::vector<double> xyz;
       std::vector<int32_t> t;

@@ -150,24 +150,29 @@ class Obstacle {
   /// onto the cloth of the thesis' virtual particles (§5.3;
   /// model/edge_projection.h): a mesh's triangle edges, each once; a box's
   /// 12 edges; a cylinder's top and bottom rims as kCircleSegments-gons and
-  /// kCircleSegments vertical edges; a sphere as a latitude–longitude net
-  /// of kCircleSegments meridians and kCircleSegments/2 − 1 parallels; a
-  /// plane has none.
+  /// kCircleSegments vertical edges; a sphere as a geodesic sphere (the
+  /// icosahedron's faces split kIcosphereLevels times into four: 642
+  /// vertices, 1,920 edges); a plane has none.
   /// @param vertices [m], overwritten; @param edges index pairs into them, overwritten
   void Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices, std::vector<std::array<int, 2>>* edges) const;
   /// The closed triangle surface whose edges include Edges(identity pose),
   /// on the same vertices, in the placed (scene) frame: a box's 6 faces as
   /// 12 triangles; a cylinder's rims closed by a fan to each rim's centre
   /// (two extra vertices) and its side as quads between the rims; a
-  /// sphere's net with its quads split and fans at the poles; a mesh's own
+  /// sphere's geodesic triangles; a mesh's own
   /// triangles. Triangles are counter-clockwise seen from outside. A plane
   /// has none. The virtual particles' ray check (Fig. 5.9) casts against it,
   /// so that a ray to a point on a polygonised rim or parallel does not
   /// meet the smooth surface first.
   /// @param vertices [m], overwritten; @param triangles index triples, overwritten
   void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const;
-  /// Segments of a cylinder's rims and of a sphere's parallels.
+  /// Segments of a cylinder's rims.
   static constexpr int kCircleSegments = 64;
+  /// Subdivisions of a sphere's icosahedron: 1,280 triangles, whose
+  /// centres lie at most 0.3 % of the radius inside the sphere (the
+  /// thesis' ball had 1,227 edges). A latitude–longitude net would crowd its meridians
+  /// at the pole, where a cloth dropped onto the ball lands.
+  static constexpr int kIcosphereLevels = 3;
   const ObstacleSpec& spec() const { return spec_; }
   /// The placed triangle mesh of a mesh obstacle (at rest, before any
   /// keyframed motion); nullptr for analytic obstacles.

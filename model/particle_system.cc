@@ -126,7 +126,6 @@ EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) c
     const double stretch = linear ? len : len - s.rest_length;
     e.tension += 0.5 * s.stiffness * stretch * stretch;
   }
-  if (virtual_) e.tension += virtual_->TensionEnergyChange(x);  // the springs split this step
   const int nu = scene_.grid.nu, nv = scene_.grid.nv;
   const double lu = scene_.lu(), lv = scene_.lv();
   auto at = [&](int i, int j) { return Vector3(x.row(scene_.Index(i, j)).transpose()); };

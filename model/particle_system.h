@@ -90,7 +90,11 @@ class ParticleSystem {
   /// are neighbours[offsets[p] … offsets[p + 1]). Built on each call.
   void ParticleGraph(std::vector<int>* offsets, std::vector<int>* neighbours) const;
 
-  /// Energies and momentum of (x, v). Tension, shear and gravity are exact
+  /// Energies and momentum of (x, v). The tension is that of the base
+  /// springs; with virtual particles the springs they split have the
+  /// energy VirtualParticles::TensionEnergyChange adds, for the topology
+  /// of the state it was computed at (the run driver's guard and the
+  /// frames add it; model/trajectory.h). Tension, shear and gravity are exact
   /// potentials of their forces. The bending value is the normal-curvature
   /// energy of (2.25)/(2.26) evaluated with the discrete second differences;
   /// the projected bending forces (Alg. 3/4) are not its exact gradient, so

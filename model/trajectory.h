@@ -25,11 +25,14 @@ namespace clothbench {
 /// edge, Obstacle::Edges; −1, −1 for a point the triangulation adds where
 /// two projected edges cross); the frame's refined cloth mesh is rows
 /// face_offsets[k] … face_offsets[k + 1] − 1 of faces (T×3; an index below N
-/// is a base particle, N + j the frame's virtual particle j). Empty for a
-/// scene without virtual particles.
+/// is a base particle, N + j the frame's virtual particle j);
+/// tension_energy[k] is the virtual springs' tension energy minus that of
+/// the springs they split [J] (VirtualParticles::TensionEnergyChange),
+/// which the frame's energy adds to the base springs'. Empty for a scene
+/// without virtual particles.
 struct VirtualFrames {
   std::vector<int32_t> offsets, face_offsets;
-  std::vector<double> x;
+  std::vector<double> x, tension_energy;
   std::vector<int32_t> cloth_edge, obstacle_edge, faces;
   bool empty() const { return offsets.empty(); }
 };

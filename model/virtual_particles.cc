@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <optional>
 
 #include "model/block_scatter.h"
@@ -69,6 +71,8 @@ VirtualParticles::~VirtualParticles() = default;
 void VirtualParticles::Clear() {
   for (const auto& src : sources_) src->side = 0;
   current_ = false;
+  projection_seconds_ = springs_seconds_ = triangulation_seconds_ = 0.0;
+  updates_ = triangulations_ = 0;
   ClearTopology();
 }
 
@@ -168,6 +172,7 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
       return std::nullopt;
     };
     ProjectObstacleEdges(x, cloth_, src->world, src->edges, outward, first_hit, &normal_, &hits_);
+    if (std::getenv("VP_DEBUG")) std::fprintf(stderr, "t=%.3f side=%d vote=%g weight=%g hits=%zu\n", t, src->side, vote, weight, hits_.size());
     for (const FaceEdgeHit& h : hits_) {
       const EdgeProjection& pr = h.projection;
       segments_.push_back({h.face, {}});
@@ -255,7 +260,7 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
   }
   const auto done = Clock::now();
   projection_seconds_ += std::chrono::duration<double>(projected - start).count();
-  topology_seconds_ += std::chrono::duration<double>(done - projected).count();
+  springs_seconds_ += std::chrono::duration<double>(done - projected).count();
   ++updates_;
 }
 
@@ -352,7 +357,8 @@ void VirtualParticles::RefinedMesh(const MatrixN3& x, std::vector<std::array<int
     };
     for (const auto& tri : local) triangles->push_back({global(tri[0]), global(tri[1]), global(tri[2])});
   }
-  topology_seconds_ += std::chrono::duration<double>(Clock::now() - start).count();
+  triangulation_seconds_ += std::chrono::duration<double>(Clock::now() - start).count();
+  ++triangulations_;
 }
 
 void VirtualParticles::RecordFrame(const MatrixN3& x, VirtualFrames* frames) {
@@ -366,6 +372,7 @@ void VirtualParticles::RecordFrame(const MatrixN3& x, VirtualFrames* frames) {
     frames->obstacle_edge.insert(frames->obstacle_edge.end(), {crossing ? -1 : p.obstacle, p.edge});
   }
   for (const auto& f : record_faces_) frames->faces.insert(frames->faces.end(), f.begin(), f.end());
+  frames->tension_energy.push_back(TensionEnergyChange(x));
   frames->offsets.push_back(frames->offsets.back() + static_cast<int32_t>(particles_.size()));
   frames->face_offsets.push_back(frames->face_offsets.back() + static_cast<int32_t>(record_faces_.size()));
 }

@@ -135,13 +135,16 @@ class VirtualParticles : public ForceTerm {
   void RecordFrame(const MatrixN3& x, VirtualFrames* frames);
   /// The cloth's triangles (GridTriangles) the projection works on.
   const ClothTriangles& triangles() const { return cloth_; }
-  /// Wall time [s] since construction in the projection (§5.3, Table 5.1's
-  /// "projection") and in building the topology (ordering the points on
-  /// the cloth edges, splitting the rest lengths: "topology"), and the
-  /// number of updates.
+  /// Wall time [s] since Clear (the start of a run) in the projection
+  /// (§5.3; Table 5.1's "projection"), in the springs' topology (ordering
+  /// the points on the cloth edges, splitting the rest lengths) and in
+  /// RefinedMesh's triangulations (with the springs, Table 5.1's
+  /// "topology"); the number of updates that computed and of triangulations.
   double projection_seconds() const { return projection_seconds_; }
-  double topology_seconds() const { return topology_seconds_; }
+  double springs_seconds() const { return springs_seconds_; }
+  double triangulation_seconds() const { return triangulation_seconds_; }
   long updates() const { return updates_; }
+  long triangulations() const { return triangulations_; }
 
   // ForceTerm: the virtual springs' force minus the original springs'.
   std::string_view name() const override { return "virtual_springs"; }
@@ -196,8 +199,8 @@ class VirtualParticles : public ForceTerm {
   std::vector<Vector3> normal_;
   std::vector<FaceEdgeHit> hits_;
   std::vector<std::array<double, 2>> order_;
-  double projection_seconds_ = 0.0, topology_seconds_ = 0.0;
-  long updates_ = 0;
+  double projection_seconds_ = 0.0, springs_seconds_ = 0.0, triangulation_seconds_ = 0.0;
+  long updates_ = 0, triangulations_ = 0;
 };
 
 }  // namespace clothbench

@@ -98,7 +98,8 @@ EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& tra
   MatrixN3 fext(system.num_particles(), 3);
   double work = 0.0, power_prev = 0.0;
   for (std::size_t k = 0; k < f; ++k) {
-    const EnergyBreakdown e = system.Energies(traj.positions[k], traj.velocities[k]);
+    EnergyBreakdown e = system.Energies(traj.positions[k], traj.velocities[k]);
+    if (k < traj.virtual_particles.tension_energy.size()) e.tension += traj.virtual_particles.tension_energy[k];
     s.t.push_back(traj.times[k]);
     s.kinetic.push_back(e.kinetic);
     s.tension.push_back(e.tension);

@@ -224,8 +224,9 @@ TEST(EdgeProjection, TheTopEdgesOfABoxThroughAFourParticleCloth) {
 }
 
 // The obstacles' edge sets (Obstacle::Edges): a box's 12 edges of its
-// three lengths, a cylinder's rims on its circles, a sphere's net on the
-// sphere, a mesh's triangle edges once each, all moved by the pose.
+// three lengths, a cylinder's rims on its circles, a geodesic sphere's
+// edges on the sphere (its surface outward), a mesh's triangle edges once
+// each, all moved by the pose.
 TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   std::vector<Vector3> v;
   std::vector<std::array<int, 2>> e;
@@ -266,9 +267,20 @@ TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   moved.translation = Vector3(0.5, 0, 0);
   moved.anchor = sphere.center;
   Obstacle(sphere).Edges(moved, &v, &e);
-  EXPECT_EQ(v.size(), static_cast<std::size_t>(2 + (kN / 2 - 1) * kN));
-  EXPECT_EQ(e.size(), static_cast<std::size_t>((kN / 2 - 1) * kN + (kN / 2) * kN));
+  // The geodesic sphere after 3 subdivisions: V = 10·4³ + 2, E = 30·4³.
+  EXPECT_EQ(v.size(), 642u);
+  EXPECT_EQ(e.size(), 1920u);
   for (const Vector3& p : v) EXPECT_NEAR((p - Vector3(0.5, 0, 1)).norm(), 0.3, kTol);
+  // Its surface: closed (every edge in two triangles), outward.
+  std::vector<Vector3> sv;
+  std::vector<std::array<int, 3>> st;
+  Obstacle(sphere).Surface(&sv, &st);
+  ASSERT_EQ(st.size(), 1280u);
+  for (const auto& t : st) {
+    const Vector3 a = sv[static_cast<std::size_t>(t[0])], b = sv[static_cast<std::size_t>(t[1])],
+                  c = sv[static_cast<std::size_t>(t[2])];
+    EXPECT_GT((b - a).cross(c - a).dot((a + b + c) / 3.0 - sphere.center), 0.0);
+  }
 
   const testing::TempFile cube = UnitCubeOff();
   ObstacleSpec mesh;
