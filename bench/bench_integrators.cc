@@ -30,6 +30,7 @@
 #include "harness/run_request.h"
 #include "harness/sweep.h"
 #include "harness/thesis_tables.h"
+#include "harness/virtual_tables.h"
 #include "model/particle_system.h"
 #include "solver/run.h"
 
@@ -130,7 +131,8 @@ void AddOptions(CLI::App& app, Options& o) {
                  "impact / resting-contact summary (thesis Fig. 4.3)");
   app.add_option("--table", table,
                  "print the thesis' Table 3.1 or 3.2 beside ours with e_rms against a self-convergence reference, "
-                 "once per --cg-tolerances value (and write HDF5)");
+                 "once per --cg-tolerances value; 5.1: the cost of the virtual particles on the thesis' three "
+                 "examples; 5.15: Fig. 5.15's coarse drape with virtual particles against fine drapes (and write HDF5)");
   app.add_option("--out", out, "result file (default: out/<scene>.h5)");
   app.add_option("--repeat", repeat, "timings per run: the least is reported, with the spread (default: 3 for runs "
                  "under 2 s, 1 above, within --time-budget)")->check(CLI::Range(1, 1000));
@@ -365,6 +367,17 @@ int Main(int argc, char** argv) {
                                                      "--cg-tolerances", "--quiet"}.count(option->get_name()))
           ignored += (ignored.empty() ? "" : ", ") + option->get_name();
       if (!ignored.empty()) throw UsageError(fmt::format("--table: cannot be combined with {}", ignored));
+      if (table == "5.1" || table == "5.15") {
+        // Chapter 5 (virtual particles): serial runs of the thesis' scenes.
+        if (app.count("--preconditioner") || app.count("--nonlinear-solver") || app.count("--cg-tolerances"))
+          throw UsageError(fmt::format("--table {}: runs the scenes as they are (no --preconditioner, "
+                                       "--nonlinear-solver or --cg-tolerances)", table));
+        if (out.empty()) out = table == "5.1" ? "out/table_5_1.h5" : "out/fig_5_15.h5";
+        lock.emplace(out, comm);
+        ProbeOnRoot(comm, [&out] { CheckOutputPaths(out); });
+        if (!comm.root()) return 0;
+        return table == "5.1" ? RunTable51(out) : RunFig515(out);
+      }
       if (out.empty()) out = fmt::format("out/table_{}.h5", table == "3.1" ? "3_1" : "3_2");
       if (table == "3.1" || table == "3.2") lock.emplace(out, comm);
       return comm.RootStatus(RunThesisTable(table, out,

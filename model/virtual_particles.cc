@@ -162,7 +162,7 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
     const auto first_hit = [&](const Vector3& a, const Vector3& b) -> std::optional<double> {
       const Vector3 pa = pose.ToPlaced(a), pb = pose.ToPlaced(b);
       const std::optional<SegmentHit> hit = surface.FirstHit(pa, pb);
-      if (!hit) return std::nullopt;
+      if (!hit || hit->s >= 1.0 - 1e-9) return std::nullopt;  // none, or the edge itself
       const double tol = 1e-9 + 1e-6 * (pb - pa).norm();
       Vector3 dir;
       for (int k = 1; k < 8; ++k) {
