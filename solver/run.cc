@@ -424,9 +424,12 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.error_test_failures = spec.step_control == StepControl::kError ? 0 : -1;
   double solver_seconds = 0.0;
 
-  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  // The virtual particles start empty, before Reset evaluates any force
+  // (the error estimate's initial slope): the last run's topology would
+  // leak into this one.
   VirtualParticles* const virtual_particles = system.virtual_particles();
   if (virtual_particles) virtual_particles->Clear();
+  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
   // Frames, work series and step statistics are allocated before the loop.
   FrameRecorder recorder(system, engine, options, &sum);
   ContactResponse::Work contact0;  // at the start of the step

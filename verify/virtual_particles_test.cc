@@ -13,7 +13,8 @@
 //    surface; round-off of the edge's end points is 1e-16 m). The faces of
 //    the refined mesh (constrained Delaunay, the projected beam edges as
 //    constraints) do not enter it either (same bound).
-// 4. The triangulation of a face keeps its constraints, covers the face
+// 4. A second run on the same system repeats the first bit for bit.
+// 5. The triangulation of a face keeps its constraints, covers the face
 //    with counter-clockwise triangles and adds the crossing of two
 //    constraints (exact here: 1e-15).
 // 3. A scene whose obstacle asks for virtual particles but never meets the
@@ -137,6 +138,20 @@ TEST_P(VirtualBox, FallsThroughWithoutAndHangsOverTheBeamWith) {
         }
     EXPECT_LE(deepest, 1e-9) << "a face of the refined mesh enters the beam";
   }
+}
+
+// The virtual particles are per-step state of the model: a second run on
+// the same system starts without the first's (SBDF(2) under error control
+// evaluates the forces at its start for the error estimate's slope).
+TEST(VirtualParticles, ASecondRunOnTheSameSystemRepeatsTheFirstBitForBit) {
+  Scene s = BoxScene(true);
+  s.solver.step_control = StepControl::kError;
+  s.solver.rtol = 1e-3;
+  const ParticleSystem sys(s);
+  const RunSummary a = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
+  const RunSummary b = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
+  EXPECT_EQ(a.steps, b.steps);
+  EXPECT_TRUE(a.trajectory.positions.back() == b.trajectory.positions.back());
 }
 
 TEST(FaceTriangulation, KeepsTheConstraintAndCoversTheTriangle) {
