@@ -125,19 +125,21 @@ struct FaceEdgeHit {
 /// paired only if their boxes, the face's grown by its longest side, meet:
 /// an obstacle edge through the cloth is within about a cloth spacing of
 /// it, as the particles themselves are kept outside. Rays are checked with
-/// RaysReachTheEdge(first_hit).
+/// RaysReachTheEdge(first_hit). `candidates(box, visit)` calls visit(e)
+/// for (at least) every edge e whose box may meet `box`, each once (a
+/// spatial index; the overload without it visits every edge).
 /// @param x N×3 cloth positions [m]
 /// @param vertices obstacle vertices [m]; @param edges pairs of indices into them
 /// @param normal scratch, one per face; @param hits overwritten (their
 ///        capacity is kept: no allocation once it suffices)
-template <class Outward, class FirstHit>
+template <class Outward, class FirstHit, class Candidates>
 void ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth, const std::vector<Vector3>& vertices,
                           const std::vector<std::array<int, 2>>& edges, const Outward& outward,
-                          const FirstHit& first_hit, std::vector<Vector3>* normal, std::vector<FaceEdgeHit>* hits) {
+                          const FirstHit& first_hit, const Candidates& candidates, std::vector<Vector3>* normal,
+                          std::vector<FaceEdgeHit>* hits) {
   const std::size_t nf = cloth.vertices.size();
   normal->resize(nf);
   hits->clear();
-  // The edges' boxes, once.
   Eigen::AlignedBox3d all;
   for (const Vector3& v : vertices) all.extend(v);
   for (std::size_t f = 0; f < nf; ++f) {
@@ -175,16 +177,27 @@ void ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth, const 
     for (std::size_t k = 0; k < 3; ++k)
       if (across[k] >= 0) face.neighbour_normal[k] = (*normal)[static_cast<std::size_t>(across[k])];
     const Eigen::Vector4d centre = CentreOfProjection(face);
-    for (std::size_t e = 0; e < edges.size(); ++e) {
+    candidates(box, [&](std::size_t e) {
       const Vector3& ex = vertices[static_cast<std::size_t>(edges[e][0])];
       const Vector3& ey = vertices[static_cast<std::size_t>(edges[e][1])];
       Eigen::AlignedBox3d edge_box(ex);
       edge_box.extend(ey);
-      if (!box.intersects(edge_box)) continue;
+      if (!box.intersects(edge_box)) return;
       const EdgeProjection pr = ProjectEdgeOntoFace(ex, ey, face, centre);
       if (RaysReachTheEdge(pr, first_hit)) hits->push_back({static_cast<int>(f), static_cast<int>(e), order, pr});
-    }
+    });
   }
+}
+
+/// The same over every edge (no spatial index).
+template <class Outward, class FirstHit>
+void ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth, const std::vector<Vector3>& vertices,
+                          const std::vector<std::array<int, 2>>& edges, const Outward& outward,
+                          const FirstHit& first_hit, std::vector<Vector3>* normal, std::vector<FaceEdgeHit>* hits) {
+  const auto every = [&](const Eigen::AlignedBox3d&, const auto& visit) {
+    for (std::size_t e = 0; e < edges.size(); ++e) visit(e);
+  };
+  ProjectObstacleEdges(x, cloth, vertices, edges, outward, first_hit, every, normal, hits);
 }
 
 /// The same, returning the hits (tests, one-off calls).

@@ -171,6 +171,7 @@ class VirtualParticles : public ForceTerm {
                  Matrix3* dp, Matrix3* dq) const;
 
   int nu_ = 0, nv_ = 0;
+  double cell_ = 0.0;  // the edge grid's cell [m]: twice the longest rest length
   std::vector<Spring> springs_;
   std::vector<int> u_spring_, v_spring_;  // spring index of the u-/v-edge starting at particle p, −1 if none
   bool split_ = true, damped_ = false;
