@@ -53,8 +53,12 @@ Eigen::Vector4d CentreOfProjection(const ProjectionFace& f) {
 
 EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const ProjectionFace& f,
                                    const Eigen::Vector4d& centre) {
+  return ProjectEdgeOntoFace(x, y, f, centre, f.Normal());
+}
+
+EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const ProjectionFace& f,
+                                   const Eigen::Vector4d& centre, const Vector3& n) {
   EdgeProjection out;
-  const Vector3 n = f.Normal();
   const double d = n.dot(f.p[0]);
   const double hx = n.dot(x) - d, hy = n.dot(y) - d;
   if (hx <= 0.0 && hy <= 0.0) return out;  // no part above the face

@@ -75,6 +75,10 @@ struct EdgeProjection {
 /// @param x, y the edge's end points [m]
 EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const ProjectionFace& f,
                                    const Eigen::Vector4d& centre);
+/// The same with the face's normal n = f.Normal() computed once by the
+/// caller (one face against many edges).
+EdgeProjection ProjectEdgeOntoFace(const Vector3& x, const Vector3& y, const ProjectionFace& f,
+                                   const Eigen::Vector4d& centre, const Vector3& n);
 
 /// The rejection of Fig. 5.9: a projection stands only if the rays from
 /// its points V̄, W̄ in the face back to V, W on the obstacle edge meet no
@@ -177,13 +181,14 @@ void ProjectObstacleEdges(const MatrixN3& x, const ClothTriangles& cloth, const 
     for (std::size_t k = 0; k < 3; ++k)
       if (across[k] >= 0) face.neighbour_normal[k] = (*normal)[static_cast<std::size_t>(across[k])];
     const Eigen::Vector4d centre = CentreOfProjection(face);
+    const Vector3 face_normal = face.Normal();
     candidates(box, [&](std::size_t e) {
       const Vector3& ex = vertices[static_cast<std::size_t>(edges[e][0])];
       const Vector3& ey = vertices[static_cast<std::size_t>(edges[e][1])];
       Eigen::AlignedBox3d edge_box(ex);
       edge_box.extend(ey);
       if (!box.intersects(edge_box)) return;
-      const EdgeProjection pr = ProjectEdgeOntoFace(ex, ey, face, centre);
+      const EdgeProjection pr = ProjectEdgeOntoFace(ex, ey, face, centre, face_normal);
       if (RaysReachTheEdge(pr, first_hit)) hits->push_back({static_cast<int>(f), static_cast<int>(e), order, pr});
     });
   }
