@@ -120,6 +120,20 @@ TEST(BenchCli, BadInputGivesOneLineAndNoFile) {
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
 }
 
+// --table 5.1 runs the thesis' three virtual-particle examples and prints
+// each beside the thesis' combined time (76.5, 171.5, 234 ms), with a file;
+// it refuses the options that choose rows.
+TEST(BenchCli, Table51PrintsTheThreeExamplesBesideTheThesis) {
+  const fs::path out = TempDir() / "table_5_1.h5";
+  const Outcome r = RunBench("--table 5.1 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* row : {"round table", "square table", "ball", "76.5", "171.5", "234.0"})
+    EXPECT_NE(r.out.find(row), std::string::npos) << row << " in:\n" << r.out;
+  EXPECT_TRUE(fs::is_regular_file(out));
+  ExpectOneLineError(RunBench("--table 5.1 --preconditioner amg --out " + (TempDir() / "t.h5").string()),
+                     "--table 5.1: runs the scenes as they are");
+}
+
 TEST(BenchCli, CompleteRunWritesLayout) {
   const fs::path out = TempDir() / "tiny.h5";
   fs::remove(out);
