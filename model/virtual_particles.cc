@@ -141,13 +141,49 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
     const ObstaclePose pose = o.PoseAt(t);
     src->world.resize(src->placed.size());
     for (std::size_t k = 0; k < src->placed.size(); ++k) src->world[k] = pose.ToWorld(src->placed[k]);
+    // The edges by grid cell, for the faces' queries (§5.3's acceleration).
+    const bool moved = !src->built || pose.rotation != src->built_pose.rotation ||
+                       pose.translation != src->built_pose.translation;
+    if (moved) {
+      src->cells.clear();
+      src->wide.clear();
+      src->stamp.assign(src->edges.size(), 0);
+      src->cell = cell_;
+      for (std::size_t e = 0; e < src->edges.size(); ++e) {
+        Eigen::AlignedBox3d b(src->world[static_cast<std::size_t>(src->edges[e][0])]);
+        b.extend(src->world[static_cast<std::size_t>(src->edges[e][1])]);
+        const Eigen::Array3d lo = (b.min().array() / cell_).floor(), hi = (b.max().array() / cell_).floor();
+        if ((hi - lo + 1.0).prod() > kMaxEdgeCells || !lo.allFinite() || !hi.allFinite()) {
+          src->wide.push_back(static_cast<int>(e));
+          continue;
+        }
+        for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
+          for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
+            for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k)
+              src->cells[CellKey(i, j, k)].push_back(static_cast<int>(e));
+      }
+      src->built = true;
+      src->built_pose = pose;
+    }
+    // Whether any edge lies in the cells a box meets (a face without one
+    // neither votes nor projects).
+    const auto near_edges = [&](const Eigen::AlignedBox3d& box) {
+      if (!src->wide.empty()) return true;
+      const Eigen::Array3d lo = (box.min().array() / cell_).floor(), hi = (box.max().array() / cell_).floor();
+      if ((hi - lo + 1.0).prod() > kMaxEdgeCells || !lo.allFinite() || !hi.allFinite()) return true;
+      for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
+        for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
+          for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k)
+            if (src->cells.count(CellKey(i, j, k))) return true;
+      return false;
+    };
     // The faces' orientation, away from the obstacle: one side of the
     // sheet for all its faces, n = σ (P2 − P1) × (P3 − P1) in the grid's
     // order (counter-clockwise about u × v). σ is voted by the faces whose
     // centroid is outside and whose normal is within 60° of the direction
-    // D from the obstacle, weighted by |⟨n, D⟩|; it changes only on a
-    // clear majority. A single face's D is no guide: beside a box's side,
-    // below its top edge, D is horizontal and ⟨n, D⟩ only round-off, and
+    // D from the obstacle, weighted by |⟨n, D⟩|, among the faces with
+    // obstacle edges in reach; it changes only on a clear majority. A
+    // single face's D is no guide: beside a box's side, below its top edge, D is horizontal and ⟨n, D⟩ only round-off, and
     // neighbours oriented apart make the bisecting plane S_i the face's
     // own plane.
     double vote = 0.0, weight = 0.0;
@@ -160,7 +196,7 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
       const double grow = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
       box.min().array() -= grow;
       box.max().array() += grow;
-      if (!box.intersects(reach)) continue;
+      if (!box.intersects(reach) || !near_edges(box)) continue;
       Vector3 d;
       if (o.SignedDistance(pose, (a + b + c) / 3.0, &d) <= 0.0) continue;
       const double cosine = (b - a).cross(c - a).normalized().dot(d);
@@ -193,30 +229,6 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
       }
       return std::nullopt;
     };
-    // The edges by grid cell, for the faces' queries (§5.3's acceleration).
-    const bool moved = !src->built || pose.rotation != src->built_pose.rotation ||
-                       pose.translation != src->built_pose.translation;
-    if (moved) {
-      src->cells.clear();
-      src->wide.clear();
-      src->stamp.assign(src->edges.size(), 0);
-      src->cell = cell_;
-      for (std::size_t e = 0; e < src->edges.size(); ++e) {
-        Eigen::AlignedBox3d b(src->world[static_cast<std::size_t>(src->edges[e][0])]);
-        b.extend(src->world[static_cast<std::size_t>(src->edges[e][1])]);
-        const Eigen::Array3d lo = (b.min().array() / cell_).floor(), hi = (b.max().array() / cell_).floor();
-        if ((hi - lo + 1.0).prod() > kMaxEdgeCells || !lo.allFinite() || !hi.allFinite()) {
-          src->wide.push_back(static_cast<int>(e));
-          continue;
-        }
-        for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
-          for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
-            for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k)
-              src->cells[CellKey(i, j, k)].push_back(static_cast<int>(e));
-      }
-      src->built = true;
-      src->built_pose = pose;
-    }
     const auto candidates = [&](const Eigen::AlignedBox3d& box, const auto& visit) {
       const std::uint64_t q = ++src->query;
       const auto offer = [&](int e) {
