@@ -261,7 +261,7 @@ void Icosphere(const Vector3& centre, double radius, std::vector<Vector3>* verti
     f.swap(next);
   }
   for (const Vector3& u : unit) vertices->push_back(centre + radius * u);
-  *faces = f;
+  faces->insert(faces->end(), f.begin(), f.end());
 }
 
 }  // namespace
@@ -299,26 +299,13 @@ void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
       for (int k = 0; k < kCircleSegments; ++k) edges->push_back({top + k, bottom + k});
       break;
     }
-    case ObstacleType::kSphere: {
-      std::vector<std::array<int, 3>> faces;
-      Icosphere(s.center, s.radius, vertices, &faces);
-      for (const auto& f : faces)
+    case ObstacleType::kSphere:
+    case ObstacleType::kMesh: {  // the edges of its triangles, each once
+      std::vector<std::array<int, 3>> triangles;
+      TriangulatedSurface(vertices, &triangles);
+      for (const auto& t : triangles)
         for (std::size_t k = 0; k < 3; ++k)
-          edges->push_back({std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])});
-      std::sort(edges->begin(), edges->end());
-      edges->erase(std::unique(edges->begin(), edges->end()), edges->end());
-      break;
-    }
-    case ObstacleType::kMesh: {
-      std::vector<double> xyz;
-      std::vector<int32_t> triangles;
-      mesh_->Export(&xyz, &triangles);
-      for (std::size_t v = 0; v + 2 < xyz.size(); v += 3) vertices->emplace_back(xyz[v], xyz[v + 1], xyz[v + 2]);
-      for (std::size_t t = 0; t + 2 < triangles.size(); t += 3)
-        for (std::size_t k = 0; k < 3; ++k) {
-          const int a = triangles[t + k], b = triangles[t + (k + 1) % 3];
-          edges->push_back({std::min(a, b), std::max(a, b)});
-        }
+          edges->push_back({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
       std::sort(edges->begin(), edges->end());
       edges->erase(std::unique(edges->begin(), edges->end()), edges->end());
       break;
@@ -328,7 +315,25 @@ void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
     for (Vector3& v : *vertices) v = pose.ToWorld(v);
 }
 
+void Obstacle::TriangulatedSurface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const {
+  vertices->clear();
+  triangles->clear();
+  if (spec_.type == ObstacleType::kSphere) {
+    Icosphere(spec_.center, spec_.radius, vertices, triangles);
+    return;
+  }
+  std::vector<double> xyz;
+  std::vector<int32_t> t;
+  mesh_->Export(&xyz, &t);
+  for (std::size_t k = 0; k + 2 < xyz.size(); k += 3) vertices->emplace_back(xyz[k], xyz[k + 1], xyz[k + 2]);
+  for (std::size_t k = 0; k + 2 < t.size(); k += 3) triangles->push_back({t[k], t[k + 1], t[k + 2]});
+}
+
 void Obstacle::Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const {
+  if (spec_.type == ObstacleType::kSphere || spec_.type == ObstacleType::kMesh) {
+    TriangulatedSurface(vertices, triangles);
+    return;
+  }
   triangles->clear();
   std::vector<std::array<int, 2>> edges;
   Edges(ObstaclePose{}, vertices, &edges);
@@ -373,15 +378,8 @@ void Obstacle::Surface(std::vector<Vector3>* vertices, std::vector<std::array<in
       break;
     }
     case ObstacleType::kSphere:
-      Icosphere(s.center, s.radius, vertices, triangles);
+    case ObstacleType::kMesh:  // TriangulatedSurface above
       break;
-    case ObstacleType::kMesh: {
-      std::vector<double> xyz;
-      std::vector<int32_t> t;
-      mesh_->Export(&xyz, &t);
-      for (std::size_t k = 0; k + 2 < t.size(); k += 3) triangles->push_back({t[k], t[k + 1], t[k + 2]});
-      break;
-    }
   }
 }
 

@@ -180,6 +180,9 @@ class Obstacle {
 
  private:
   double PlacedSignedDistance(const Vector3& p, Vector3* direction) const;
+  /// A sphere's geodesic triangles or a mesh's own, placed frame
+  /// (overwritten); Edges and Surface of the two triangulated types.
+  void TriangulatedSurface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const;
 
   ObstacleSpec spec_;
   Vector3 anchor_ = Vector3::Zero();

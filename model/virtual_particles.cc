@@ -6,8 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <cstdint>
 #include <optional>
 #include <unordered_map>
@@ -34,7 +32,6 @@ struct VirtualParticles::Source {
   std::vector<int> wide;                   // edges over too many cells: in every query
   std::vector<std::uint64_t> stamp;
   std::uint64_t query = 0;
-  double cell = 0.0;
   ObstaclePose built_pose;
   bool built = false;
   int side = 0;                           // σ: the cloth's side away from the obstacle (0: not yet voted)
@@ -70,13 +67,6 @@ VirtualParticles::VirtualParticles(int grid_nu, int grid_nv, const std::vector<S
   }
   spring_side_.assign(2 * springs_.size(), -1);
   first_side_.assign(static_cast<std::size_t>(n), -1);
-  for (std::size_t f = 0; f < cloth_.vertices.size(); ++f)
-    for (std::size_t k = 0; k < 3; ++k) {
-      const int a = cloth_.vertices[f][k], b = cloth_.vertices[f][(k + 1) % 3];
-      auto [it, fresh] = edge_faces_.try_emplace(static_cast<long long>(std::min(a, b)) * n + std::max(a, b),
-                                                 std::array<int, 2>{-1, -1});
-      it->second[it->second[0] < 0 ? 0 : 1] = static_cast<int>(f);
-    }
 }
 
 VirtualParticles::~VirtualParticles() = default;
@@ -111,6 +101,19 @@ constexpr double kMaxEdgeCells = 4096;
 std::uint64_t CellKey(long i, long j, long k) {
   const auto part = [](long v) { return static_cast<std::uint64_t>(v + (1L << 20)) & ((1ULL << 21) - 1); };
   return part(i) | (part(j) << 21) | (part(k) << 42);
+}
+
+// Calls f(key) for every grid cell (side `cell` [m]) that `box` meets;
+// false, without a call, if they are more than kMaxEdgeCells or the box is
+// not finite (a long edge against a fine cloth, a blown-up face).
+template <class F>
+bool ForEachCell(const Eigen::AlignedBox3d& box, double cell, F f) {
+  const Eigen::Array3d lo = (box.min().array() / cell).floor(), hi = (box.max().array() / cell).floor();
+  if (!lo.allFinite() || !hi.allFinite() || (hi - lo + 1.0).prod() > kMaxEdgeCells) return false;
+  for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
+    for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
+      for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k) f(CellKey(i, j, k));
+  return true;
 }
 
 // Two candidates that are one virtual particle: the same obstacle edge
@@ -148,19 +151,11 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
       src->cells.clear();
       src->wide.clear();
       src->stamp.assign(src->edges.size(), 0);
-      src->cell = cell_;
       for (std::size_t e = 0; e < src->edges.size(); ++e) {
         Eigen::AlignedBox3d b(src->world[static_cast<std::size_t>(src->edges[e][0])]);
         b.extend(src->world[static_cast<std::size_t>(src->edges[e][1])]);
-        const Eigen::Array3d lo = (b.min().array() / cell_).floor(), hi = (b.max().array() / cell_).floor();
-        if ((hi - lo + 1.0).prod() > kMaxEdgeCells || !lo.allFinite() || !hi.allFinite()) {
+        if (!ForEachCell(b, cell_, [&](std::uint64_t key) { src->cells[key].push_back(static_cast<int>(e)); }))
           src->wide.push_back(static_cast<int>(e));
-          continue;
-        }
-        for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
-          for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
-            for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k)
-              src->cells[CellKey(i, j, k)].push_back(static_cast<int>(e));
       }
       src->built = true;
       src->built_pose = pose;
@@ -168,14 +163,9 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
     // Whether any edge lies in the cells a box meets (a face without one
     // neither votes nor projects).
     const auto near_edges = [&](const Eigen::AlignedBox3d& box) {
-      if (!src->wide.empty()) return true;
-      const Eigen::Array3d lo = (box.min().array() / cell_).floor(), hi = (box.max().array() / cell_).floor();
-      if ((hi - lo + 1.0).prod() > kMaxEdgeCells || !lo.allFinite() || !hi.allFinite()) return true;
-      for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
-        for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
-          for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k)
-            if (src->cells.count(CellKey(i, j, k))) return true;
-      return false;
+      bool near = !src->wide.empty();
+      if (!ForEachCell(box, cell_, [&](std::uint64_t key) { near = near || src->cells.count(key) > 0; })) near = true;
+      return near;
     };
     // The faces' orientation, away from the obstacle: one side of the
     // sheet for all its faces, n = σ (P2 − P1) × (P3 − P1) in the grid's
@@ -238,19 +228,14 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
         visit(static_cast<std::size_t>(e));
       };
       for (int e : src->wide) offer(e);
-      const Eigen::Array3d lo = (box.min().array() / cell_).floor(), hi = (box.max().array() / cell_).floor();
-      if ((hi - lo + 1.0).prod() > kMaxEdgeCells || !lo.allFinite() || !hi.allFinite()) {  // a blown-up face
+      const bool listed = ForEachCell(box, cell_, [&](std::uint64_t key) {
+        if (const auto it = src->cells.find(key); it != src->cells.end())
+          for (int e : it->second) offer(e);
+      });
+      if (!listed)  // a blown-up face
         for (std::size_t e = 0; e < src->edges.size(); ++e) offer(static_cast<int>(e));
-        return;
-      }
-      for (long i = static_cast<long>(lo.x()); i <= static_cast<long>(hi.x()); ++i)
-        for (long j = static_cast<long>(lo.y()); j <= static_cast<long>(hi.y()); ++j)
-          for (long k = static_cast<long>(lo.z()); k <= static_cast<long>(hi.z()); ++k)
-            if (const auto it = src->cells.find(CellKey(i, j, k)); it != src->cells.end())
-              for (int e : it->second) offer(e);
     };
     ProjectObstacleEdges(x, cloth_, src->world, src->edges, outward, first_hit, candidates, &normal_, &hits_);
-    if (std::getenv("VP_DEBUG")) std::fprintf(stderr, "t=%.3f side=%d vote=%g weight=%g hits=%zu\n", t, src->side, vote, weight, hits_.size());
     for (const FaceEdgeHit& h : hits_) {
       const EdgeProjection& pr = h.projection;
       segments_.push_back({h.face, {}});
@@ -358,17 +343,17 @@ void VirtualParticles::RefinedMesh(const MatrixN3& x, std::vector<std::array<int
   const std::size_t nf = cloth_.vertices.size();
   face_points_.resize(nf);
   for (std::vector<int>& points : face_points_) points.clear();
-  const auto faces_of = [&](int a, int b) {  // the one or two triangles with edge (a, b)
-    return edge_faces_.at(static_cast<long long>(std::min(a, b)) * n + std::max(a, b));
-  };
   for (std::size_t k = 0; k < particles_.size(); ++k) {
     const VirtualParticle& p = particles_[k];
-    if (p.a < 0) {
-      face_points_[static_cast<std::size_t>(p.face)].push_back(static_cast<int>(k));
-      continue;
-    }
-    for (int f : faces_of(p.a, p.b))
-      if (f >= 0) face_points_[static_cast<std::size_t>(f)].push_back(static_cast<int>(k));
+    face_points_[static_cast<std::size_t>(p.face)].push_back(static_cast<int>(k));
+    if (p.a < 0) continue;
+    // A point on a cloth edge belongs to the triangle across it too.
+    const auto& t = cloth_.vertices[static_cast<std::size_t>(p.face)];
+    for (std::size_t e = 0; e < 3; ++e)
+      if (std::min(t[e], t[(e + 1) % 3]) == p.a && std::max(t[e], t[(e + 1) % 3]) == p.b) {
+        if (const int across = cloth_.across[static_cast<std::size_t>(p.face)][e]; across >= 0)
+          face_points_[static_cast<std::size_t>(across)].push_back(static_cast<int>(k));
+      }
   }
   triangles->clear();
   std::vector<Eigen::Vector2d> points;
@@ -446,8 +431,7 @@ void VirtualParticles::RecordFrame(const MatrixN3& x, VirtualFrames* frames) {
   for (const VirtualParticle& p : particles_) {
     frames->x.insert(frames->x.end(), {p.x.x(), p.x.y(), p.x.z()});
     frames->cloth_edge.insert(frames->cloth_edge.end(), {p.a, p.b});
-    const bool crossing = p.a < 0 && p.edge < 0;
-    frames->obstacle_edge.insert(frames->obstacle_edge.end(), {crossing ? -1 : p.obstacle, p.edge});
+    frames->obstacle_edge.insert(frames->obstacle_edge.end(), {p.obstacle, p.edge});  // −1, −1 for a crossing
   }
   for (const auto& f : record_faces_) frames->faces.insert(frames->faces.end(), f.begin(), f.end());
   frames->tension_energy.push_back(TensionEnergyChange(x));

@@ -29,7 +29,6 @@
 #include <array>
 #include <memory>
 #include <string_view>
-#include <unordered_map>
 #include <vector>
 
 #include "model/edge_projection.h"
@@ -163,6 +162,8 @@ class VirtualParticles : public ForceTerm {
  private:
   struct Source;  // one obstacle that is projected
   void ClearTopology();
+  /// The particle that candidate c (as found in a face) became, −1 if none.
+  int Find(const VirtualParticle& c) const;
   /// The virtual particle `k`'s position at time t [m] (it moves with the obstacle).
   Vector3 PositionAt(int k, double t) const;
   /// Side `k`'s force correction on its particle p and its blocks
@@ -188,18 +189,14 @@ class VirtualParticles : public ForceTerm {
     std::array<VirtualParticle, 2> ends;
   };
   std::vector<Segment> segments_;
-  std::unordered_map<long long, std::array<int, 2>> edge_faces_;  // cloth edge a·N + b (a < b) → its triangles
-  std::vector<std::vector<int>> face_points_;                    // RefinedMesh: the virtual particles of each face
-  std::vector<std::pair<double, int>> on_edge_;
-  std::vector<std::array<int, 3>> record_faces_;                  // RefinedMesh: the points on one face edge, in order
-  /// The particle that candidate c (as found in a face) became, −1 if none.
-  int Find(const VirtualParticle& c) const;
+  std::vector<std::vector<int>> face_points_;      // RefinedMesh: the virtual particles of each face
+  std::vector<std::pair<double, int>> on_edge_;    // RefinedMesh: the points on one face edge, in order
+  std::vector<std::array<int, 3>> record_faces_;   // RecordFrame: the refined mesh
   std::vector<int> spring_side_;  // 2 per spring: the side of P_a, of P_b (index into sides_), −1
   std::vector<int> first_side_, next_side_;  // sides of each particle, a linked list
   // Scratch of Update.
   std::vector<Vector3> normal_;
   std::vector<FaceEdgeHit> hits_;
-  std::vector<std::array<double, 2>> order_;
   double projection_seconds_ = 0.0, springs_seconds_ = 0.0, triangulation_seconds_ = 0.0;
   long updates_ = 0, triangulations_ = 0;
 };

@@ -231,12 +231,14 @@ StepStats StepEngine::StepImpl(double h) {
   // is this step's force function (model/virtual_particles.h), so the
   // history is evaluated with it: extrapolating across a change of
   // topology would double the jump of the virtual springs' forces.
-  if (const VirtualParticles* vp = sys_.virtual_particles();
-      vp && (!vp->particles().empty() || virtual_before_) && have_history_) {
-    if (m == Method::kSbdf2 || m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_, xm1_, vm1_, &gm1_);
-    if (m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_ - h_prev2_, xm2_, vm2_, &gm2_);
+  if (const VirtualParticles* vp = sys_.virtual_particles()) {
+    const bool active = !vp->particles().empty();
+    if ((active || virtual_before_) && have_history_) {
+      if (m == Method::kSbdf2 || m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_, xm1_, vm1_, &gm1_);
+      if (m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_ - h_prev2_, xm2_, vm2_, &gm2_);
+    }
+    virtual_before_ = active;
   }
-  if (const VirtualParticles* vp = sys_.virtual_particles()) virtual_before_ = !vp->particles().empty();
   const StageCoefficients c = PrepareStage(m, h, omega, imex);
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kLand) LandContactTargets(h, c.gamma);
 

@@ -275,6 +275,7 @@ TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   std::vector<Vector3> sv;
   std::vector<std::array<int, 3>> st;
   Obstacle(sphere).Surface(&sv, &st);
+  EXPECT_EQ(sv.size(), 642u);  // the edges' vertices, once
   ASSERT_EQ(st.size(), 1280u);
   for (const auto& t : st) {
     const Vector3 a = sv[static_cast<std::size_t>(t[0])], b = sv[static_cast<std::size_t>(t[1])],
