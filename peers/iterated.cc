@@ -13,8 +13,12 @@
 namespace clothbench {
 
 IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view name, int iterations,
-                                 ChebyshevSettings chebyshev, int rho_iterations)
-    : sys_(system), iterations_(iterations), cheb_(chebyshev), rho_iterations_(rho_iterations) {
+                                 ChebyshevSettings chebyshev, int rho_iterations, InitialGuess initial_guess)
+    : sys_(system),
+      iterations_(iterations),
+      cheb_(chebyshev),
+      rho_iterations_(rho_iterations),
+      initial_guess_(initial_guess) {
   if (iterations < 1) throw std::invalid_argument(fmt::format("{}: iterations = {} must be at least 1", name, iterations));
   if (!cheb_.valid())
     throw std::invalid_argument(fmt::format("{}/chebyshev: rho = {} must be in [0, 1), gamma = {} in (0, 1], delay = {} "
@@ -26,7 +30,7 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
   f_ext_.setZero(n, 3);
   for (const auto& term : system.terms())
     if (const MatrixN3* f = term->constant_force()) f_ext_ += *f;
-  for (MatrixN3* m : {&x0_, &v0_, &v_, &x_, &v_start_, &v_prev_}) m->setZero(n, 3);
+  for (MatrixN3* m : {&x0_, &v0_, &v_, &x_, &v_start_, &v_prev_, &v_last_}) m->setZero(n, 3);
   increments_.reserve(static_cast<std::size_t>(std::max(iterations, rho_iterations)));
 }
 
@@ -35,10 +39,19 @@ void IteratedStepper::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   x0_ = x;
   v0_ = v;
   for (int p : sys_.fixed()) v0_.row(p).setZero();
+  h_last_step_ = 0.0;
 }
 
 bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool* timed_out) {
   v_.noalias() = v0_ + h * (w_.asDiagonal() * f_ext_);
+  if (initial_guess_ == InitialGuess::kAdaptive && h_last_step_ > 0.0)
+    for (int p = 0; p < v_.rows(); ++p) {
+      const Vector3 a_ext = w_(p) * f_ext_.row(p).transpose();
+      const double a_ext2 = a_ext.squaredNorm();
+      if (a_ext2 == 0.0) continue;  // fixed, or no constant force
+      const Vector3 a = (v0_.row(p) - v_last_.row(p)).transpose() / h_last_step_;
+      v_.row(p) = v0_.row(p) + h * std::clamp(a.dot(a_ext) / a_ext2, 0.0, 1.0) * a_ext.transpose();
+    }
   v_prev_ = v_;
   BeginIterations(h);
   increments_.clear();
@@ -100,6 +113,8 @@ StepStats IteratedStepper::Step(double h) {
   }
   if (!x_.allFinite() || !v_.allFinite()) return finish(StepStatus::kNonFinite);
   x0_.swap(x_);
+  v_last_ = v0_;
+  h_last_step_ = h;
   v0_.swap(v_);
   t_ = t1;
   return finish(StepStatus::kOk);

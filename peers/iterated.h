@@ -1,7 +1,7 @@
 // The skeleton the iterated peers share (projective dynamics, Vertex Block
 // Descent; docs/model.md §10): implicit Euler in velocities, x = x₀ + h v,
 // approached by a fixed number of plain iterations v ← G(v) per step from
-// the inertial guess v₀ + h M⁻¹ f_ext, with optional Chebyshev acceleration
+// an initial guess (InitialGuess), with optional Chebyshev acceleration
 // (peers/chebyshev.h) at a ρ measured at the first step of each h, then
 // the obstacles on the positions (peers/position_contacts.h) and
 // v₁ = (x₁ − x₀)/h. Fixed particles have v = 0.
@@ -16,6 +16,19 @@
 #include "solver/integrator.h"
 
 namespace clothbench {
+
+/// The first iterate of a step.
+enum class InitialGuess {
+  /// v₀ + h M⁻¹ f_ext: inertia and the constant forces (Liu et al. 2013's y).
+  kInertial,
+  /// Chen et al. 2024 §3.7's adaptive initialisation: v₀ + h ã_p with
+  /// ã_p = clamp(a_p · â_p / |a_p^ext|, 0, 1) a_p^ext, a_p = (v₀ − v₋₁)/h₋₁
+  /// the last step's acceleration and a_p^ext = f_ext,p/m_p (gravity);
+  /// the inertial guess at the first step after a Reset. As Gaia ships it
+  /// (Simulator/Modules/VBD/VBD_BaseMaterial.cpp,
+  /// VBDBaseTetMesh::forwardStep, initializationType 6).
+  kAdaptive,
+};
 
 class IteratedStepper : public Stepper {
  public:
@@ -47,13 +60,14 @@ class IteratedStepper : public Stepper {
   /// @param rho_iterations plain iterations of the measurement of ρ
   /// @throws std::invalid_argument if iterations < 1 or the Chebyshev
   ///   settings are outside their ranges
+  /// @param initial_guess the first iterate of each step
   IteratedStepper(const ParticleSystem& system, std::string_view name, int iterations, ChebyshevSettings chebyshev,
-                  int rho_iterations);
+                  int rho_iterations, InitialGuess initial_guess);
   /// Called when h changes, before ρ is measured (a factorisation); its
   /// status ends the step unless kOk.
   virtual StepStatus Prepare(double /*h*/) { return StepStatus::kOk; }
   /// Called at the start of each step's iterations, after v_ is the
-  /// inertial guess (the constant part of a right-hand side).
+  /// initial guess (the constant part of a right-hand side).
   virtual void BeginIterations(double /*h*/) {}
   /// One plain iteration v_ ← G(v_) at t₁ = t + h, in place; x_ is not
   /// kept (the iteration sets x_ = x₀ + h v_ itself where it reads it).
@@ -75,6 +89,9 @@ class IteratedStepper : public Stepper {
   double rho_seconds_ = 0.0;
   MatrixN3 f_ext_;    // the constant forces (gravity) [N]
   MatrixN3 v_start_, v_prev_;
+  InitialGuess initial_guess_;
+  MatrixN3 v_last_;           // v at the start of the last step (kAdaptive)
+  double h_last_step_ = 0.0;  // its h; 0: no step since the Reset
   std::vector<double> increments_;
   // The k iterations of a step from x0_, v0_ into v_, with ρ = rho_ when
   // accelerated; false if an iterate is not finite, `timed_out` past the

@@ -5,7 +5,7 @@ namespace clothbench {
 
 ProjectiveDynamics::ProjectiveDynamics(const ParticleSystem& system, const SolverSpec& spec, int iterations,
                                        ChebyshevSettings chebyshev)
-    : IteratedStepper(system, "pd", iterations, chebyshev, kRhoIterations),
+    : IteratedStepper(system, "pd", iterations, chebyshev, kRhoIterations, InitialGuess::kInertial),
       sm_(system, PreconditionerType::kCholesky, spec.cholesky_ordering) {
   const int n = system.num_particles();
   for (MatrixN3* m : {&b0_, &b_, &g_, &lkx_}) m->setZero(n, 3);

@@ -20,8 +20,13 @@
 // terms enter the same way, implicitly. The fixed point is implicit
 // Euler's for the whole model, so as the iterations grow VBD converges to
 // implicit_euler/newton at the same h (test VertexBlockDescent.*). The
-// first iterate is the inertial guess v₀ + h M⁻¹ f_ext (the paper's
-// "inertia and acceleration" initialisation). A J_p whose determinant is
+// first iterate is the paper's adaptive initialisation (§3.7,
+// InitialGuess::kAdaptive: the last step's acceleration along gravity,
+// clamped to [0, |g|]); against the inertial guess v₀ + h M⁻¹ f_ext it
+// takes the default scene's difference to implicit_euler/newton after 64
+// sweeps from 7.8e-2 to 5.1e-2 m and turns six of the 400-particle scenes'
+// energy_growth and speed rows ok, breaking none (docs/work-precision.md,
+// "vbd"). A J_p whose determinant is
 // negligible leaves p unchanged in that sweep, as Warp's VBD does
 // (warp/sim/integrator_vbd.py, `if abs(wp.determinant(h)) > 1e-5`).
 //
@@ -69,9 +74,14 @@ class VertexBlockDescent : public IteratedStepper {
   /// Plain sweeps from which ρ is measured (ChebyshevRho, at the first step
   /// of each h when ChebyshevSettings::rho is 0). Gauss–Seidel's slowest
   /// mode dominates only after many sweeps: on the default scene at
-  /// h = 0.01 s, 32 sweeps from rest give ρ = 0.835, under the asymptotic
-  /// 0.98 that 128 give (docs/work-precision.md, "vbd").
-  static constexpr int kRhoIterations = 128;
+  /// h = 0.01 s, 32 / 128 / 256 / 512 / 1024 sweeps from rest give ρ =
+  /// 0.835 / 0.9802 / 0.9828 / 0.9840 / 0.9842, and the accelerated
+  /// iteration is sensitive to it (64 sweeps per step with ρ from 128
+  /// sweeps: 2.6e-4 m from implicit_euler/newton after 0.5 s; from 256:
+  /// 1.1e-4 m; from 512: 6.4e-5 m). 512 sweeps cost 0.11 s at 400
+  /// particles, once per h, counted in the run's time
+  /// (docs/work-precision.md, "vbd").
+  static constexpr int kRhoIterations = 512;
   /// A colour runs on the OpenMP threads from this many particles up: a
   /// particle's local step costs about 0.55 µs (bench_kernels,
   /// BM_ParticleForces), so 256 of them are ~0.14 ms, far above the few µs
