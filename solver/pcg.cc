@@ -825,6 +825,8 @@ void Preconditioner::ApplySystem(const MatrixN3& r, MatrixN3* z) const {
 }
 
 void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
+  // Counted in reads of one factor (the contact policy's unit): one here,
+  // one more per further distinct factor of the contact lanes below.
   ++applications_;
   if (auto_ && system_used_) {
     ApplySystem(r, z);
@@ -854,6 +856,7 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       // lane 1 column 2, on two threads at scale (as CholeskyFactor::Solve).
       const CholeskyFactor* f[3];
       for (std::size_t c = 0; c < 3; ++c) f[c] = axis_used_[c] ? axis_factor_[c].get() : cholesky_.get();
+      applications_ += (f[1] != f[0]) + (f[2] != f[0] && f[2] != f[1]);
       const bool split = r.rows() >= 4096 && omp_get_max_threads() >= 2;
 #pragma omp parallel for num_threads(2) schedule(static, 1) if (split)
       for (int lane = 0; lane < 2; ++lane) {

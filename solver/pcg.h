@@ -272,7 +272,11 @@ class Preconditioner {
   /// A_F serves (exact: one CG iteration). In contact, each AdaptTo chooses
   /// between the factor with contact factors and the prefiltered AMG by the
   /// counted cost of the steps each has served, in units of one CG
-  /// iteration with the factor: a V-cycle iteration costs
+  /// iteration that reads one factor (A_F's factor alone: 1; with contact
+  /// factors or in contact frames each further distinct factor a lane
+  /// reads adds 1, so a step in frames counts 2 per CG iteration: measured
+  /// 13.5 ms against 6.5 ms with A_F's factor alone at 10⁵, sphere and
+  /// avatar drapes on 2 threads): a V-cycle iteration costs
   /// VCycleIterations(N) of them, a hierarchy setup kAutoSetupVCycles
   /// V-cycle iterations, a contact-factor refactorisation
   /// kRefactorIterations and a row change kRefactorIterations /
@@ -285,19 +289,21 @@ class Preconditioner {
   /// kAutoMinStay steps unless its cost exceeds the other's record by
   /// kAutoAbort. ServedBy() tells what served a step. (docs/performance.md,
   /// "The contact policy".)
-  /// A V-cycle iteration of the prefiltered AMG in CG iterations with the
-  /// factor and contact factors (each with the product and vector work of
-  /// a CG iteration), measured on the sphere drape in contact (SBDF(2),
-  /// step time less setup over CG iterations): 3.1 ms against 0.43 ms at
-  /// N = 10⁴ (7.2), 27 ms against 13.5 ms at 10⁵ (2.0); fitted as
-  /// 7.2 (10⁴/N)^0.556, at least 2.
-  static double VCycleIterations(double n) { return std::max(2.0, 7.2 * std::pow(1e4 / n, 0.556)); }
+  /// A V-cycle iteration of the prefiltered AMG in one-factor CG
+  /// iterations (each with the product and vector work of a CG
+  /// iteration), measured on the sphere drape in contact (SBDF(2), step
+  /// time less setup over CG iterations) against CG iterations in contact
+  /// frames, which read two factors: 3.1 ms against 0.43 ms at N = 10⁴
+  /// (7.2 frames iterations, 14.4 units), 27 ms against 13.5 ms at 10⁵ (2.0,
+  /// 4.0 units); fitted as 14.4 (10⁴/N)^0.556, at least 4.
+  static double VCycleIterations(double n) { return std::max(4.0, 14.4 * std::pow(1e4 / n, 0.556)); }
   /// A prefiltered hierarchy's setup in V-cycle iterations (the same runs:
   /// 0.034 s at 10⁴ = 11, 0.17 s at 10⁵ = 6.3).
   static constexpr double kAutoSetupVCycles = 8.0;
-  /// A refactorisation of a contact factor in CG iterations with the factor
-  /// (0.14 s against 13.5 ms at 10⁵: 10; about 25 at 10⁴).
-  static constexpr double kRefactorIterations = 15.0;
+  /// A refactorisation of a contact factor in one-factor CG iterations
+  /// (0.14 s against 13.5 ms for a two-factor iteration at 10⁵: 20; about
+  /// 50 at 10⁴).
+  static constexpr double kRefactorIterations = 30.0;
   static constexpr double kAutoDecay = 0.97;
   /// Weight of the latest step in the current mode's cost (an exponential
   /// mean, so that a cost that grows over the stay is seen within a few
