@@ -321,6 +321,11 @@ class Preconditioner {
     if (cf_frames_) return 3;
     return axis_used_[0] || axis_used_[1] || axis_used_[2] ? 1 : 0;
   }
+  /// Applications so far, each counted in reads of one factor (the contact
+  /// policy's unit: 1 with A_F's factor alone, a V-cycle or any other
+  /// preconditioner; 2 in contact frames or with one contact factor; 3
+  /// with two).
+  long factor_reads() const { return applications_; }
   /// Contact frames: the share of the contacts that, added or released
   /// since the frames were last spread, makes them spread again.
   static constexpr double kRespreadShare = 0.05;

@@ -542,6 +542,31 @@ TEST(CholeskyPreconditioner, ContactFramesAreExactForOneTiltedNormal) {
   EXPECT_EQ(frames.preconditioner().contact_stats().refactorizations, 1);
 }
 
+// The contact policy counts a CG iteration by the factors it reads: in
+// contact frames two (A_F's factor for columns x, y, the contact factor for
+// z), with A_F's factor alone one, whatever the frames do to the result.
+TEST(CholeskyPreconditioner, CountsFactorReadsForTheContactPolicy) {
+  Scene scene = DefaultScene();
+  const ParticleSystem sys(scene);
+  const int n = sys.num_particles();
+  const VelocityFilter half = HalfSheetContacts(scene, sys, Vector3(1, 1, 1).normalized());
+  const MatrixN3 r = MatrixN3::Random(n, 3);
+  MatrixN3 z(n, 3);
+  SystemMatrix frames(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
+  SystemMatrix plain(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/false);
+  ASSERT_TRUE(frames.Update(0.01) && plain.Update(0.01));
+  ASSERT_TRUE(frames.AdaptTo(half) && plain.AdaptTo(half));
+  ASSERT_EQ(frames.preconditioner().ServedBy(), 3);
+  ASSERT_EQ(plain.preconditioner().ServedBy(), 0);
+  const long f0 = frames.preconditioner().factor_reads(), p0 = plain.preconditioner().factor_reads();
+  for (int k = 0; k < 5; ++k) {
+    frames.preconditioner().Apply(r, &z);
+    plain.preconditioner().Apply(r, &z);
+  }
+  EXPECT_EQ(frames.preconditioner().factor_reads() - f0, 10);
+  EXPECT_EQ(plain.preconditioner().factor_reads() - p0, 5);
+}
+
 // Row deletes and adds (CholeskyFactor::DecoupleRow, CoupleRow) must leave
 // the factor a refactorisation with the new decoupled set gives: four
 // particles decoupled, then four others coupled back, on the default
