@@ -518,11 +518,16 @@ TEST(CholeskyPreconditioner, ContactFactorsAreExactForAxisContacts) {
 // normal 54.7° from every axis and need several. The first solve serves in
 // frames, and so does every later one, with the factor kept (the contacts
 // have not changed).
-TEST(CholeskyPreconditioner, ContactFramesAreExactForOneTiltedNormal) {
+// The default sheet with half of its particles constrained along (1, 1, 1)/√3.
+class TiltedHalfSheet : public ::testing::Test {
+ protected:
   Scene scene = DefaultScene();
-  const ParticleSystem sys(scene);
+  const ParticleSystem sys{scene};
   const int n = sys.num_particles();
   const VelocityFilter half = HalfSheetContacts(scene, sys, Vector3(1, 1, 1).normalized());
+};
+
+TEST_F(TiltedHalfSheet, ContactFramesAreExactForOneTiltedNormal) {
   const MatrixN3 b = MatrixN3::Random(n, 3);
   SystemMatrix frames(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
   SystemMatrix axes(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
@@ -545,11 +550,7 @@ TEST(CholeskyPreconditioner, ContactFramesAreExactForOneTiltedNormal) {
 // The contact policy counts a CG iteration by the factors it reads: in
 // contact frames two (A_F's factor for columns x, y, the contact factor for
 // z), with A_F's factor alone one, whatever the frames do to the result.
-TEST(CholeskyPreconditioner, CountsFactorReadsForTheContactPolicy) {
-  Scene scene = DefaultScene();
-  const ParticleSystem sys(scene);
-  const int n = sys.num_particles();
-  const VelocityFilter half = HalfSheetContacts(scene, sys, Vector3(1, 1, 1).normalized());
+TEST_F(TiltedHalfSheet, CountsFactorReadsForTheContactPolicy) {
   const MatrixN3 r = MatrixN3::Random(n, 3);
   MatrixN3 z(n, 3);
   SystemMatrix frames(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/true);
