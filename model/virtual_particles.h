@@ -18,7 +18,9 @@
 //
 // The force enters the model as one more explicit term: the virtual
 // spring's force minus the original spring's (its linear part −L_K x −
-// L_D v and its F_nl), so A_α and its factor do not change. That
+// L_D v and its F_nl), so the model's L_K, L_D and A_α's factor do not
+// change (a solver that keeps the linear part implicit moves the split
+// springs' couplings out of its matrix for the step: RemovedCoupling). That
 // difference, s (x_V − x_q) + c (v_V − v_q) − s (r_j d̂_V − l d̂) on P_p
 // (q the replaced neighbour), does not depend on x_p's linear part, and
 // its stiffness is s_e, that of F_nl, which every IMEX method already

@@ -30,7 +30,8 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
   f_ext_.setZero(n, 3);
   for (const auto& term : system.terms())
     if (const MatrixN3* f = term->constant_force()) f_ext_ += *f;
-  for (MatrixN3* m : {&x0_, &v0_, &v_, &x_, &v_start_, &v_prev_, &v_last_}) m->setZero(n, 3);
+  for (MatrixN3* m : {&x0_, &v0_, &v_, &x_, &v_start_, &v_prev_}) m->setZero(n, 3);
+  if (initial_guess_ == InitialGuess::kAdaptive) v_last_.setZero(n, 3);
   increments_.reserve(static_cast<std::size_t>(std::max(iterations, rho_iterations)));
 }
 
@@ -113,8 +114,10 @@ StepStats IteratedStepper::Step(double h) {
   }
   if (!x_.allFinite() || !v_.allFinite()) return finish(StepStatus::kNonFinite);
   x0_.swap(x_);
-  v_last_ = v0_;
-  h_last_step_ = h;
+  if (initial_guess_ == InitialGuess::kAdaptive) {
+    v_last_ = v0_;
+    h_last_step_ = h;
+  }
   v0_.swap(v_);
   t_ = t1;
   return finish(StepStatus::kOk);

@@ -90,8 +90,8 @@ class IteratedStepper : public Stepper {
   MatrixN3 f_ext_;    // the constant forces (gravity) [N]
   MatrixN3 v_start_, v_prev_;
   InitialGuess initial_guess_;
-  MatrixN3 v_last_;           // v at the start of the last step (kAdaptive)
-  double h_last_step_ = 0.0;  // its h; 0: no step since the Reset
+  MatrixN3 v_last_;           // kAdaptive: v at the start of the last step
+  double h_last_step_ = 0.0;  // kAdaptive: its h; 0: no step since the Reset
   std::vector<double> increments_;
   // The k iterations of a step from x0_, v0_ into v_, with ρ = rho_ when
   // accelerated; false if an iterate is not finite, `timed_out` past the
