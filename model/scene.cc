@@ -376,21 +376,22 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
           if (spec.normal.norm() < 1e-12) o.Fail("normal", "must be a non-zero vector");
           spec.normal.normalize();
           break;
+        // Dimensions from 1e-6 m, as the grid spacing and a mesh's scale:
+        // below it an obstacle's polyhedron (Obstacle::Surface, for virtual
+        // particles) collapses to coinciding vertices.
         case ObstacleType::kSphere:
-          spec.radius = o.Positive("radius", 0.0);
-          if (spec.radius > 1e6) o.Fail("radius", "must be at most 1e6 m");
+          spec.radius = o.Range("radius", 0.0, 1e-6, 1e6, " m");
           break;
         case ObstacleType::kBox: {
           auto size = o.Numbers<3>("size", {0.0, 0.0, 0.0}, true);
-          if (!(size[0] > 0 && size[1] > 0 && size[2] > 0) || std::max({size[0], size[1], size[2]}) > 1e6)
-            o.Fail("size", "must be 3 positive edge lengths of at most 1e6 m");
+          if (!(std::min({size[0], size[1], size[2]}) >= 1e-6) || std::max({size[0], size[1], size[2]}) > 1e6)
+            o.Fail("size", "must be 3 edge lengths in [1e-6, 1e6] m");
           spec.size = Vector3(size[0], size[1], size[2]);
           break;
         }
         case ObstacleType::kCylinder:
-          spec.radius = o.Positive("radius", 0.0);
-          spec.height = o.Positive("height", 0.0);
-          if (spec.radius > 1e6 || spec.height > 1e6) o.Fail(spec.radius > 1e6 ? "radius" : "height", "must be at most 1e6 m");
+          spec.radius = o.Range("radius", 0.0, 1e-6, 1e6, " m");
+          spec.height = o.Range("height", 0.0, 1e-6, 1e6, " m");
           break;
         case ObstacleType::kMesh: {
           // Relative paths are relative to the scene file (for a built-in

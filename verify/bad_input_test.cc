@@ -86,6 +86,12 @@ TEST(BadInput, OutOfRangeSceneValuesAreRefusedBeforeComputing) {
   const std::string sphere = "\n[[obstacle]]\ntype = \"sphere\"\nradius = 0.1\ncenter = ";
   ExpectRefused(Scene("far.toml", kTiny + sphere + "[1e300, 0, 0]\n"), "obstacle[0].center");
   ExpectRefused(Scene("far2.toml", kTiny + sphere + "[1e7, 0, 0]\n"), "obstacle[0].center: must have coordinates");
+  // Dimensions below 1e-6 m (a denormal radius made the polyhedron of
+  // virtual particles collapse).
+  ExpectRefused(Scene("tiny_r.toml", kTiny + "\n[[obstacle]]\ntype = \"cylinder\"\nradius = 9.31e-310\nheight = 0.7\n"),
+                "obstacle[0].radius: must be in [1e-06, 1e+06] m");
+  ExpectRefused(Scene("tiny_box.toml", kTiny + "\n[[obstacle]]\ntype = \"box\"\nsize = [1, 1e-9, 1]\n"),
+                "obstacle[0].size: must be 3 edge lengths in [1e-6, 1e6] m");
   // Virtual particles need edges: a plane has none.
   ExpectRefused(Scene("vplane.toml", kTiny + "\n[[obstacle]]\ntype = \"plane\"\nvirtual_particles = true\n"),
                 "obstacle[0].virtual_particles: must be false for a plane");
