@@ -20,8 +20,9 @@
 // SbdfStep/cholesky_plain, amg_plain: the factor without contact factors
 // and the hierarchy without prefiltering (both of A_F alone; solver key
 // contact_factors = false).
-// StepPart/*: one Cholesky solve, one A·x and one evaluation of the explicit
-// forces at 10⁵ and 10⁶ particles (the parts of a step).
+// StepPart/*: one Cholesky solve, one A·x, one evaluation of the explicit
+// forces, one preconditioner application in contact frames and one
+// refactorisation at 10⁵ and 10⁶ particles (the parts of a step).
 // By default the preconditioners whose step at 10⁶ takes minutes (ic0,
 // jacobi, none) stop at 10⁵; CLOTHBENCH_SCALING_ALL=1 adds them at 10⁶.
 #include <benchmark/benchmark.h>
@@ -113,32 +114,62 @@ void BM_SbdfStep(benchmark::State& state) {
   state.SetComplexityN(sys.num_particles());
 }
 
-// The parts of a step at N particles (no contacts), for the distance to the
-// bandwidth floor: one preconditioner application (three columns), one A·x,
-// and the explicit forces g(t, x, v).
+// The parts of a step at N particles, for the distance to the bandwidth
+// floor: 0 one preconditioner application without contacts (A_F's factor,
+// three columns), 1 one A·x, 2 the explicit forces g(t, x, v), 3 one
+// application in contact frames (a sphere's cap of contacts, every normal
+// tilted: columns x, y with A_F's factor, z with the contact factor, as a
+// CG iteration on a curved obstacle reads them), 4 one numeric
+// refactorisation of A_F (what a contact factor's refactorisation costs).
 void BM_StepParts(benchmark::State& state) {
   const int side = static_cast<int>(state.range(0));
+  const int part = static_cast<int>(state.range(1));
   const Scene scene = ScalingScene(side, 0.0, PreconditionerType::kCholesky);
   const ParticleSystem sys(scene);
-  SystemMatrix sm(sys, PreconditionerType::kCholesky);
-  if (!sm.Update(scene.h * 2.0 / 3.0)) {
+  SystemMatrix sm(sys, PreconditionerType::kCholesky, CholeskyOrdering::kMetis, /*contact_factors=*/part == 3);
+  const double alpha_h = scene.h * 2.0 / 3.0;
+  if (!sm.Update(alpha_h)) {
     state.SkipWithError("factorisation failed");
     return;
   }
   const int n = sys.num_particles();
+  if (part == 3) {
+    // The particles within 0.3 m of the sheet's centre, each constrained
+    // along the normal of a sphere of radius 0.5 m below that centre (28 %
+    // of the sheet, normals up to 37° from the vertical).
+    VelocityFilter filter;
+    filter.Reserve(n);
+    for (int p : sys.fixed()) filter.Fix(p);
+    const MatrixN3& x0 = sys.rest_positions();
+    const Vector3 c = 0.5 * (x0.colwise().minCoeff() + x0.colwise().maxCoeff()).transpose() - Vector3(0, 0, 0.5);
+    for (int p = 0; p < n; ++p) {
+      const Vector3 d = x0.row(p).transpose() - c;
+      if (std::hypot(d.x(), d.y()) < 0.3) filter.Constrain(p, d.normalized(), 0.0);
+    }
+    if (!sm.AdaptTo(filter) || sm.preconditioner().ServedBy() != 3) {
+      state.SkipWithError("contact frames not set up");
+      return;
+    }
+  }
   MatrixN3 r = MatrixN3::Random(n, 3), z(n, 3), g(n, 3);
   const MatrixN3 x = sys.rest_positions();
   const MatrixN3 v = MatrixN3::Random(n, 3);
-  const int part = static_cast<int>(state.range(1));
+  const long reads_before = sm.preconditioner().factor_reads();
+  long k = 0;
   for (auto _ : state) {
-    if (part == 0) sm.preconditioner().Apply(r, &z);
+    if (part == 0 || part == 3) sm.preconditioner().Apply(r, &z);
     if (part == 1) SymmetricProduct(sm.matrix(), r, &z);
     if (part == 2) sys.ExplicitForces(0.0, x, v, &g);
+    if (part == 4 && !sm.Update(alpha_h * (++k % 2 ? 1.0 + 1e-9 : 1.0))) state.SkipWithError("factorisation failed");
     benchmark::DoNotOptimize(z.data());
     benchmark::DoNotOptimize(g.data());
   }
   state.counters["N"] = n;
-  if (part == 0) state.counters["factor_nnz"] = static_cast<double>(sm.preconditioner().factor_nonzeros());
+  if (part == 0 || part == 3) {
+    state.counters["factor_nnz"] = static_cast<double>(sm.preconditioner().factor_nonzeros());
+    state.counters["factor_reads"] = static_cast<double>(sm.preconditioner().factor_reads() - reads_before) /
+                                     static_cast<double>(std::max<benchmark::IterationCount>(state.iterations(), 1));
+  }
 }
 
 }  // namespace
@@ -178,11 +209,13 @@ int main(int argc, char** argv) {
       for (int side : sides) plain->Args({side, static_cast<long>(type), contact, 2});
       plain->Complexity(benchmark::oN);
     }
-  // Parts of a step: 0 = Cholesky solve, 1 = A·x, 2 = explicit forces.
-  for (const char* part : {"CholeskySolve", "Product", "ExplicitForces"}) {
-    auto* b = benchmark::RegisterBenchmark((std::string("StepPart/") + part).c_str(), BM_StepParts);
-    const long index = std::string(part) == "CholeskySolve" ? 0 : std::string(part) == "Product" ? 1 : 2;
-    b->ArgNames({"side", ""})->Args({316, index})->Args({1000, index})->UseRealTime()->Unit(benchmark::kMillisecond);
+  // Parts of a step (BM_StepParts).
+  const std::vector<std::string> parts = {"CholeskySolve", "Product", "ExplicitForces", "ContactFramesApply",
+                                          "Refactorisation"};
+  for (std::size_t index = 0; index < parts.size(); ++index) {
+    auto* b = benchmark::RegisterBenchmark(("StepPart/" + parts[index]).c_str(), BM_StepParts);
+    b->ArgNames({"side", ""})->UseRealTime()->Unit(benchmark::kMillisecond);
+    for (int side : {316, 1000}) b->Args({side, static_cast<long>(index)});
   }
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;
