@@ -19,6 +19,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/cli_rules.h"
 #include "bench/signals.h"
 #include "harness/bench_sweep.h"
 #include "harness/cli_args.h"
@@ -250,6 +251,9 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                 app.count("--baseline") ? EscapeControl(baseline) : ""});
   if (!unused.empty()) throw UsageError(unused);
   const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
+  for (double e : targets)
+    if (e > 1e6)  // the farthest a scene's coordinates reach (model/scene.h): no error can be larger
+      throw UsageError(fmt::format("--targets: {:g} m must be at most 1e6 m", e));
   if (!app.count("--error-metric")) error_metric = std::string(ToString(DefaultErrorMetric(scene)));
   const std::optional<ErrorMetric> metric = ParseErrorMetric(error_metric);
   if (!metric)
@@ -308,7 +312,8 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     CheckMemory(scene, methods, plan.n_params, etas.size(), reference_row, plan.step_records, out);
     if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
       throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
-    if (!series.empty()) CheckWritableFile(series, "--series");  // a probe: created and written, before computing
+    if (!series.empty())  // a probe, before computing: not the result file nor its XDMF
+      CheckWritableFile(series, "--series", {out, std::filesystem::path(out).replace_extension(".xdmf").string()});
   });
 
   BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_row,
@@ -331,6 +336,7 @@ int Main(int argc, char** argv) {
                           substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
   try {
     app.parse(argc, argv);
+    RefuseEmptyValues(app);
   } catch (const CLI::CallForHelp& e) {
     return comm.root() ? app.exit(e) : 0;
   } catch (const CLI::ParseError& e) {
@@ -444,11 +450,12 @@ int Main(int argc, char** argv) {
   } catch (const SweepJournal::Mismatch& e) {
     return refuse(e.what());
   } catch (const Interrupted& e) {
-    std::error_code ec;
+    const bool journal = comm.root() && RecordJournal::KeepIfFinishedWork(out + ".journal");
     if (lock) lock->Release();
     if (comm.root())
       fmt::print(stderr, "bench_integrators: interrupted by {}; no result file written{}\n", SignalName(e.signal),
-                 std::filesystem::is_directory(out + ".journal", ec) ? ", finished runs kept in " + out + ".journal" : "");
+                 journal ? ", finished runs kept in " + EscapeControl(out) + ".journal: the same command resumes from them"
+                         : "");
     comm.Abort(128 + e.signal);
   } catch (const std::bad_alloc&) {
     if (lock) lock->Release();
@@ -456,9 +463,12 @@ int Main(int argc, char** argv) {
                        "written (use --frames ends|none or fewer rows)\n");
     comm.Abort(1);
   } catch (const std::exception& e) {
+    const bool journal = comm.root() && RecordJournal::KeepIfFinishedWork(out + ".journal");
     if (lock) lock->Release();
-    fmt::print(stderr, "bench_integrators: {}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
-               EscapeControl(e.what()));
+    fmt::print(stderr, "bench_integrators: {}{}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
+               EscapeControl(e.what()),
+               journal ? "; finished runs kept in " + EscapeControl(out) + ".journal: the same command resumes from them"
+                       : "");
     comm.Abort(1);
   }
 }

@@ -26,9 +26,11 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "bench/cli_rules.h"
 #include "bench/signals.h"
 #include "harness/reproduce.h"
 #include "results/contained_read.h"
+#include "model/output_file.h"
 #include "model/scene.h"
 #include "results/result_reader.h"
 #include "results/run_records.h"
@@ -194,6 +196,9 @@ int Diff(const RunTable& a, const RunTable& b, const std::string& path_b, double
 }
 
 void Export(const ResultReader& f, const std::string& run, long frame, const std::string& obj, const std::string& ply) {
+  // The project's output rules before anything is read: a regular file or
+  // nothing (never a link, device or FIFO), and not FILE itself.
+  CheckOutputTarget(obj.empty() ? ply : obj, obj.empty() ? "--ply" : "--obj");  // OutputRefused: exit 2
   const std::string g = run == "reference" ? "/reference" : "/runs/" + run;
   if (!f.Exists(g)) {
     std::string runs;
@@ -215,30 +220,23 @@ void Export(const ResultReader& f, const std::string& run, long frame, const std
   const double t = dataset.ends_with("_ends") ? (frame == 0 ? times.front() : times.back())
                                               : times[static_cast<std::size_t>(frame)];
   const std::string path = obj.empty() ? ply : obj;
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw UsageError(fmt::format("export: cannot write \"{}\"", path));
-    if (!obj.empty()) {
-      out << fmt::format("# {} run {} frame {} (t = {:g} s), positions [m]\n", f.path(), run, frame, t);
-      for (Eigen::Index p = 0; p < x.rows(); ++p) out << fmt::format("v {:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
-      for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
-        out << fmt::format("f {} {} {} {}\n", faces[q] + 1, faces[q + 1] + 1, faces[q + 2] + 1, faces[q + 3] + 1);
-    } else {
-      out << fmt::format("ply\nformat ascii 1.0\ncomment {} run {} frame {} (t = {:g} s), positions [m]\n"
-                         "element vertex {}\nproperty double x\nproperty double y\nproperty double z\n"
-                         "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-                         f.path(), run, frame, t, x.rows(), faces.size() / 4);
-      for (Eigen::Index p = 0; p < x.rows(); ++p) out << fmt::format("{:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
-      for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
-        out << fmt::format("4 {} {} {} {}\n", faces[q], faces[q + 1], faces[q + 2], faces[q + 3]);
-    }
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw UsageError(fmt::format("export: cannot write \"{}\"", path));
-    }
+  const std::string option = obj.empty() ? "--ply" : "--obj";
+  std::string text;
+  if (!obj.empty()) {
+    text += fmt::format("# {} run {} frame {} (t = {:g} s), positions [m]\n", f.path(), run, frame, t);
+    for (Eigen::Index p = 0; p < x.rows(); ++p) text += fmt::format("v {:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
+    for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
+      text += fmt::format("f {} {} {} {}\n", faces[q] + 1, faces[q + 1] + 1, faces[q + 2] + 1, faces[q + 3] + 1);
+  } else {
+    text += fmt::format("ply\nformat ascii 1.0\ncomment {} run {} frame {} (t = {:g} s), positions [m]\n"
+                        "element vertex {}\nproperty double x\nproperty double y\nproperty double z\n"
+                        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+                        f.path(), run, frame, t, x.rows(), faces.size() / 4);
+    for (Eigen::Index p = 0; p < x.rows(); ++p) text += fmt::format("{:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
+    for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
+      text += fmt::format("4 {} {} {} {}\n", faces[q], faces[q + 1], faces[q + 2], faces[q + 3]);
   }
-  std::filesystem::rename(tmp, path);
+  WriteFileAtomically(path, text, option);
   fmt::print("{}: run {} frame {} (t = {:g} s), {} vertices, {} quads\n", path, run, frame, t, x.rows(),
              faces.size() / 4);
 }
@@ -399,6 +397,7 @@ int Main(int argc, char** argv) {
   AddSubcommands(app, &a);
   try {
     app.parse(argc, argv);
+    RefuseEmptyValues(app);
     if (a.exp->parsed() && a.obj.empty() && a.ply.empty())
       throw CLI::ValidationError("export: one of --obj or --ply is required");
   } catch (const CLI::CallForHelp& e) {
@@ -420,6 +419,9 @@ int Main(int argc, char** argv) {
     fmt::print(stderr, "clothbench_inspect: interrupted by {}; nothing written\n", SignalName(e.signal));
     return 128 + e.signal;
   } catch (const ResultError& e) {
+    fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
+    return 2;
+  } catch (const SceneError& e) {  // rerun: the stored scene (or its mesh) is refused
     fmt::print(stderr, "clothbench_inspect: {}\n", EscapeControl(e.what()));
     return 2;
   } catch (const std::bad_alloc&) {

@@ -46,6 +46,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/cli_rules.h"
 #include "harness/cli_args.h"
 #include "harness/output_lock.h"
 #include "harness/run_request.h"
@@ -190,7 +191,8 @@ int Fail(const std::string& line) {
 // The command line of both subcommands.
 struct Args {
   std::string scene, integrator = std::string(ToString(Method::kSbdf2)), preconditioner, frames, prefix, state;
-  std::vector<double> at;
+  std::string at_arg;     ///< --at as given: a comma-separated list
+  std::vector<double> at;  ///< --at, parsed (ParsePositiveList: no empty item)
   int steps = 0;
   Preconditioner::AmgDiagnostics diagnostics;
   CLI::App *save = nullptr, *replay = nullptr;
@@ -215,7 +217,7 @@ void AddOptions(CLI::App& app, Args* a) {
                   "diagnostic: build the prefiltered hierarchy for A_alpha without constraints in the contact frames "
                   "(not the system the PCG solves)");
   }
-  a->save->add_option("--at", a->at, "times [s], within (0, t_end]")->required()->delimiter(',');
+  a->save->add_option("--at", a->at_arg, "times [s], within (0, t_end], comma-separated")->required();
   a->save->add_option("--out", a->prefix, "output prefix: PREFIX_<k>.state")->required();
   a->replay->add_option("--state", a->state, "a state file written by save")->required();
   a->replay->add_option("--steps", a->steps, "steps to take")->required()->check(CLI::Range(1, 1000000));
@@ -362,6 +364,7 @@ int main(int argc, char** argv) {
   AddOptions(app, &a);
   try {
     app.parse(argc, argv);
+    RefuseEmptyValues(app);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
@@ -369,6 +372,7 @@ int main(int argc, char** argv) {
   }
   ResolvedRun run;
   try {
+    if (a.save->parsed()) a.at = ParsePositiveList(a.at_arg, "--at");
     run = ResolveRun(a);
   } catch (const SceneError& e) {
     return Fail(e.what());

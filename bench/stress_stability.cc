@@ -39,6 +39,7 @@
 #include "harness/output_lock.h"
 #include "harness/plot.h"
 #include "harness/run_request.h"
+#include "bench/cli_rules.h"
 #include "bench/signals.h"
 #include "harness/sweep.h"
 #include "model/particle_system.h"
@@ -289,6 +290,7 @@ int Main(int argc, char** argv) {
   app.add_option("--plot", plot_dir, "after writing the results, draw the maps into DIR with scripts/plot (PNG, SVG)");
   try {
     app.parse(argc, argv);
+    RefuseEmptyValues(app);
   } catch (const CLI::CallForHelp& e) {
     return comm.root() ? app.exit(e) : 0;
   } catch (const CLI::ParseError& e) {
@@ -329,21 +331,25 @@ int Main(int argc, char** argv) {
   } catch (const SweepJournal::Mismatch& e) {
     return refuse(e.what());
   } catch (const Interrupted& e) {
+    // A journal without a finished cell is removed; one with cells is kept
+    // for the same command to resume from.
+    const bool journal = comm.root() && SweepJournal::KeepIfFinishedWork(out + ".journal");
     if (lock) lock->Release();
     if (comm.root())
-      fmt::print(stderr, "stress_stability: interrupted by {}; no result file written, finished cells kept in {}.journal\n",
-                 SignalName(e.signal), out);
+      fmt::print(stderr, "stress_stability: interrupted by {}; no result file written{}\n", SignalName(e.signal),
+                 journal ? fmt::format(", finished cells kept in {}.journal: the same command resumes from them",
+                                       EscapeControl(out))
+                         : "");
     comm.Abort(128 + e.signal);
   } catch (const std::exception& e) {
-    if (lock) lock->Release();
     // The result file's temporary is gone (ResultFile); the journal keeps
     // the finished cells, so that the same command, once the cause is
     // removed (a full disk), writes the file without computing them again.
-    std::error_code ec;
-    const bool journal = std::filesystem::exists(out + ".journal", ec);
+    const bool journal = comm.root() && SweepJournal::KeepIfFinishedWork(out + ".journal");
+    if (lock) lock->Release();
     fmt::print(stderr, "stress_stability: {}{}{}\n", comm.mpi() ? fmt::format("rank {}: ", comm.rank()) : "",
                EscapeControl(e.what()),
-               journal ? fmt::format("; finished cells kept in {}.journal for a rerun of the same command",
+               journal ? fmt::format("; finished cells kept in {}.journal: the same command resumes from them",
                                      EscapeControl(out))
                        : "");
     comm.Abort(1);

@@ -22,6 +22,7 @@
 
 #include <fmt/format.h>
 
+#include "model/output_file.h"
 #include "model/scene.h"
 #include "peers/arkode.h"
 
@@ -107,15 +108,16 @@ inline void CheckArkodeTable(const std::string& name) {
 
 /// Refuses, before any computing, an --out that cannot be written, with one
 /// line naming --out and the path: a folder (created if missing) that cannot
-/// be created or written; and any of the run's own files that stands as
-/// something else, or whose name the file system refuses (too long, a
-/// symlink loop): <out>, <out>.tmp, <out>.lock, the XDMF file <stem>.xdmf
-/// and its .tmp must be regular files or absent, <out>.journal a folder
-/// (bench_integrators) or a regular file (`journal_folder` false:
-/// stress_stability) or absent. Absent ones are created and removed again
-/// (a probe).
+/// be created or written; <out> and the XDMF file <stem>.xdmf, each with its
+/// temporary, by the project's output rules (CheckOutputTarget: absent or
+/// regular files, never links, devices or FIFOs, and not an input of the
+/// command); <out>.journal a folder (bench_integrators) or a regular file
+/// (`journal_folder` false: stress_stability) or absent, never a link.
+/// Absent files are created and removed again (a probe: the name is
+/// accepted by the file system).
 /// @param option how the caller names the path in messages ("--out";
 ///   the Python module's "path")
+/// @throws UsageError
 inline void CheckOutputPaths(const std::string& out, bool journal_folder = true,
                              const std::string& option = "--out") {
   namespace fs = std::filesystem;
@@ -131,20 +133,21 @@ inline void CheckOutputPaths(const std::string& out, bool journal_folder = true,
                                  ec ? "cannot be created: " + ec.message() : std::string("is not writable")));
   fs::path xdmf = out;
   xdmf.replace_extension(".xdmf");
-  for (const std::string& path : {out, out + ".tmp", out + ".lock", xdmf.string(), xdmf.string() + ".tmp",
-                                  out + ".journal"}) {
-    const bool journal = path.ends_with(".journal");
-    const fs::file_status st = fs::symlink_status(path, ec);
-    if (ec && ec != std::errc::no_such_file_or_directory) throw refuse(path, "cannot be used: " + ec.message());
-    if (fs::exists(st)) {
-      const fs::file_status target = fs::status(path, ec);
-      if (ec) throw refuse(path, "cannot be used: " + ec.message());
-      if (journal && journal_folder ? !fs::is_directory(target) : !fs::is_regular_file(target))
-        throw refuse(path, journal && journal_folder ? "is not a folder (a journal of this output is one)"
-                                                     : "is not a regular file");
-      continue;
-    }
-    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  try {
+    CheckOutputTarget(out, option);
+    CheckOutputTarget(xdmf.string(), option);
+  } catch (const OutputRefused& e) {
+    throw UsageError(e.what());
+  }
+  const std::string journal = out + ".journal";
+  const fs::file_status st = fs::symlink_status(journal, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) throw refuse(journal, "cannot be used: " + ec.message());
+  if (fs::exists(st) && (journal_folder ? !fs::is_directory(st) : !fs::is_regular_file(st)))
+    throw refuse(journal, journal_folder ? "is not a folder (a journal of this output is one; links are not followed)"
+                                         : "is not a regular file (links are not followed)");
+  for (const std::string& path : {out, TemporaryOf(out), xdmf.string(), TemporaryOf(xdmf.string()), journal}) {
+    if (fs::exists(fs::symlink_status(path, ec))) continue;
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
     if (fd < 0) throw refuse(path, fmt::format("cannot be created: {}", std::strerror(errno)));
     ::close(fd);
     ::unlink(path.c_str());
@@ -173,21 +176,33 @@ inline std::vector<double> ParseTolerances(const std::string& s, const std::stri
   return out;
 }
 
-/// Probes an output file before anything is computed: its folder is
-/// created, the file opened for appending (nothing it holds is changed) and
-/// removed again if it did not exist. @throws UsageError naming `option`.
-inline void CheckWritableFile(const std::string& path, const std::string& option) {
+/// Probes an output file before anything is computed: the project's output
+/// rules (CheckOutputTarget: absent or a regular file, never a link, device,
+/// FIFO or folder, not an input of the command nor one of `others`, the
+/// command's other outputs), its folder created, and the name accepted by
+/// the file system (an absent file is created exclusively and removed).
+/// @throws UsageError naming `option`.
+inline void CheckWritableFile(const std::string& path, const std::string& option,
+                              const std::vector<std::string>& others = {}) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (fs::is_directory(path, ec)) throw UsageError(fmt::format("{}: \"{}\" is a folder", option, EscapeControl(path)));
+  try {
+    CheckOutputTarget(path, option, others);
+  } catch (const OutputRefused& e) {
+    throw UsageError(e.what());
+  }
   const fs::path folder = fs::path(path).parent_path();
   if (!folder.empty()) fs::create_directories(folder, ec);
-  const bool existed = fs::exists(fs::symlink_status(path, ec));
-  if (existed && !fs::is_regular_file(path, ec))
-    throw UsageError(fmt::format("{}: \"{}\" is not a regular file", option, EscapeControl(path)));
-  const bool ok = static_cast<bool>(std::ofstream(path, std::ios::app));
-  if (!existed) fs::remove(path, ec);
-  if (!ok) throw UsageError(fmt::format("{}: cannot write \"{}\"", option, EscapeControl(path)));
+  if (fs::exists(fs::symlink_status(path, ec))) {
+    if (::access(path.c_str(), W_OK) != 0)
+      throw UsageError(fmt::format("{}: cannot write \"{}\": {}", option, EscapeControl(path), std::strerror(errno)));
+    return;
+  }
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0)
+    throw UsageError(fmt::format("{}: cannot write \"{}\": {}", option, EscapeControl(path), std::strerror(errno)));
+  ::close(fd);
+  ::unlink(path.c_str());
 }
 
 }  // namespace clothbench

@@ -22,7 +22,7 @@
 
 #include "harness/cli_args.h"
 #include "harness/sweep.h"
-#include "results/write_file.h"
+#include "model/output_file.h"
 
 namespace clothbench {
 
@@ -113,7 +113,7 @@ class OutputLock {
   // "" on success, else the refusal.
   std::string Acquire(const std::string& out) {
     for (int attempt = 0; attempt < 8; ++attempt) {
-      const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+      const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK, 0644);
       if (fd < 0)
         return fmt::format("{}: cannot create the lock file \"{}\": {}", option_, path_, std::strerror(errno));
       struct stat st {};
@@ -140,7 +140,10 @@ class OutputLock {
       }
       const std::string pid = std::to_string(::getpid());
       if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+        const int err = errno;
+        ::unlink(path_.c_str());  // ours (locked): a full disk leaves no empty lock file behind
         ::close(fd);
+        errno = err;
         return fmt::format("{}: cannot write the lock file \"{}\": {}", option_, path_, std::strerror(errno));
       }
       fd_ = fd;

@@ -21,7 +21,7 @@
 #include "results/result_file.h"
 #include "results/result_reader.h"
 #include "results/run_records.h"
-#include "results/write_file.h"
+#include "model/output_file.h"
 #include "results/work_precision.h"
 
 namespace clothbench {

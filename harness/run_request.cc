@@ -1,6 +1,7 @@
 #include "harness/run_request.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -57,6 +58,32 @@ namespace {
 UsageError Fail(const RunRequest& q, std::string_view field, const std::string& rule) {
   return UsageError(fmt::format("{}: {}", q.Field(field), rule));
 }
+
+}  // namespace
+
+void CheckThreadEnvironment() {
+  const char* env = std::getenv("OMP_NUM_THREADS");
+  if (!env) return;
+  // OpenMP's form: a count, or a comma-separated list of counts (one per
+  // nesting level); every count as the request's `threads` rule has it.
+  const std::string text = env;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    const bool digits = !item.empty() && item.size() <= 7 &&
+                        std::all_of(item.begin(), item.end(), [](char c) { return c >= '0' && c <= '9'; });
+    const long n = digits ? std::stol(item) : -1;
+    if (n < 1 || n > kMaxThreads)
+      throw UsageError(fmt::format("OMP_NUM_THREADS: \"{}\" must be a whole number of threads from 1 to {} (or a "
+                                   "comma-separated list of them)",
+                                   EscapeControl(text.substr(0, 40)), kMaxThreads));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+}
+
+namespace {
 
 // t_end (and with it frame_dt and h) and the frames mode.
 void ApplyTimes(const RunRequest& q, Scene* s) {
@@ -209,6 +236,7 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
 void CheckLimits(const RunRequest& q, ResolvedRun* out) {
   if (q.threads < 0 || q.threads > kMaxThreads)
     throw Fail(q, "threads", fmt::format("{} must be 0 (the process' own) or from 1 to {}", q.threads, kMaxThreads));
+  if (q.threads == 0) CheckThreadEnvironment();
   CheckTimes(q);
   out->ctx.limits.time_limit_s = q.time_limit;
   if (q.reference_scene && *q.reference_scene != SceneHash(out->scene))

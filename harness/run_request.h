@@ -42,6 +42,14 @@ namespace clothbench {
 /// The most OpenMP threads a request may ask for.
 inline constexpr long kMaxThreads = 1024;
 
+/// Refuses an OMP_NUM_THREADS the runs would store and their reruns refuse:
+/// each of its comma-separated counts must be a whole number from 1 to
+/// kMaxThreads (OpenMP would read "1025" as 1025 threads and
+/// "99999999999" as an overflowed int). Unset is fine. Called by every
+/// request's validation (threads = 0: the process' own count).
+/// @throws UsageError "OMP_NUM_THREADS: \"…\" must be …"
+void CheckThreadEnvironment();
+
 /// How refusals name a request's fields: Python keywords ("t_end") or
 /// bench_integrators options ("--t-end").
 enum class FieldNames { kKeyword, kOption };

@@ -40,6 +40,8 @@
 
 #include <fmt/format.h>
 
+#include "model/output_file.h"
+
 #include "solver/stability_map.h"
 
 #include "model/scene.h"
@@ -255,14 +257,22 @@ class SweepJournal {
   /// `comm.Barrier()`. @throws Mismatch if the header is not this key.
   SweepJournal(std::string path, std::string key, std::size_t cells, const SweepComm& comm)
       : path_(std::move(path)), header_(fmt::format("clothbench sweep journal 2 cells={} {}", cells, key)) {
-    bool created = true;
-    if (comm.root() && !std::filesystem::exists(path_)) {
-      std::ofstream out(path_);
-      out << header_ << "\n";
-      created = static_cast<bool>(out);
+    std::string create_error;
+    std::error_code ec;
+    if (comm.root() && std::filesystem::is_regular_file(std::filesystem::symlink_status(path_, ec)) &&
+        std::filesystem::file_size(path_, ec) == 0)
+      std::filesystem::remove(path_, ec);  // an empty journal (an older build's, on a full disk) holds no work
+    if (comm.root() && !std::filesystem::exists(std::filesystem::symlink_status(path_, ec))) {
+      try {  // whole or absent: a full disk leaves no empty journal behind
+        WriteFileAtomically(path_, header_ + "\n", "--out");
+      } catch (const std::exception& e) {
+        create_error = e.what();
+      }
     }
-    comm.Barrier();  // every rank reaches it, so that none waits for a rank that failed
-    if (!created) throw Mismatch(fmt::format("{}: cannot be written", path_));
+    std::vector<long> failed{create_error.empty() ? 0L : 1L};
+    comm.Broadcast(&failed);  // every rank reaches it, so that none waits for a rank that failed
+    if (failed[0] != 0)
+      throw std::runtime_error(comm.root() ? create_error : fmt::format("{}: cannot be created on rank 0", path_));
     std::string all, why;
     if (!ReadRegularFile(path_, &all, &why)) throw Mismatch(fmt::format("{}: {}", path_, why));
     const std::size_t first = all.find('\n');
@@ -321,7 +331,18 @@ class SweepJournal {
     std::string line = fmt::format("cell {} {} {} {:a} {:a} {:a}", index, c.outcome, c.steps, c.updates, c.cg, c.excess);
     line += fmt::format(" crc={:08x}\n", JournalChecksum(header_, line));
     if (::write(fd_, line.data(), line.size()) != static_cast<ssize_t>(line.size()))
-      throw std::runtime_error(fmt::format("{}: cannot append a cell", path_));
+      throw std::runtime_error(fmt::format("{}: cannot append a cell: {}", path_, std::strerror(errno)));
+  }
+  /// After a failure: removes the journal at `path` if it holds no finished
+  /// cell (a header alone is no work to resume from). @return whether a
+  /// journal with finished cells is kept there.
+  static bool KeepIfFinishedWork(const std::string& path) {
+    std::string all, why;
+    if (!ReadRegularFile(path, &all, &why)) return false;  // absent, or not ours to remove
+    if (all.find("\ncell ") != std::string::npos) return true;
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+    return false;
   }
   /// Removes the journal (the sweep's file is complete).
   void Remove() {
@@ -361,10 +382,16 @@ class RecordJournal {
         // A new (or empty) folder gets the key; an existing one with
         // entries but no key is not a journal of this command.
         if (problem.empty() && !fs::exists(fs::symlink_status(k, ec))) {
-          if (existed && !fs::is_empty(path_, ec))
+          if (existed && !fs::is_empty(path_, ec)) {
             problem = "has no key file (a damaged journal or another program's folder); delete it to start afresh";
-          else if (!(std::ofstream(k) << key))
-            problem = "cannot be written";
+          } else {
+            try {
+              WriteFileAtomically(k.string(), key, "--out");
+            } catch (const std::exception& e) {
+              problem = fmt::format("cannot be written: {}", e.what());
+              if (!existed) fs::remove(path_, ec);  // the empty folder this call made
+            }
+          }
         }
         std::string found, why;
         if (problem.empty() && !ReadRegularFile(k.string(), &found, &why)) problem = "key file " + why;
@@ -432,19 +459,25 @@ class RecordJournal {
   /// content) and length, then the content, written to a temporary name and
   /// renamed.
   void Store(long index, const std::string& bytes) const {
-    const std::string tmp = Entry(index) + ".part";
-    {
-      std::ofstream out(tmp, std::ios::binary);
-      out << fmt::format("clothbench run crc={:08x} bytes={}\n", JournalChecksum(key_, bytes), bytes.size());
-      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-      if (!out) {
-        out.close();
-        std::error_code ec;
-        std::filesystem::remove(tmp, ec);
-        throw std::runtime_error(fmt::format("{}: cannot store run {}", path_, index));
-      }
+    WriteFileAtomically(Entry(index),
+                        fmt::format("clothbench run crc={:08x} bytes={}\n", JournalChecksum(key_, bytes), bytes.size()) +
+                            bytes,
+                        "--out");
+  }
+  /// After a failure: removes the journal folder at `path` if it holds no
+  /// finished run (only its key and temporaries). @return whether a
+  /// journal with finished runs is kept there.
+  static bool KeepIfFinishedWork(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (!fs::is_directory(fs::symlink_status(path, ec))) return false;
+    for (const auto& e : fs::directory_iterator(path, ec)) {
+      const std::string name = e.path().filename().string();
+      if (e.path().extension() == ".run") return true;
+      if (name != "key" && !name.ends_with(".tmp")) return true;  // not ours: left alone
     }
-    std::filesystem::rename(tmp, Entry(index));
+    fs::remove_all(path, ec);
+    return false;
   }
   void Remove() const { std::filesystem::remove_all(path_); }
 

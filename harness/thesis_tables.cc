@@ -133,7 +133,7 @@ std::vector<Block> ThesisBlocks(const std::string& which, const Scene& base,
             {Method::kSbdf2, 9000, 50, 100, 304, 1.57},         {Method::kBdf2, 9000, 50, 122, 857, 2.57},
             {Method::kImplicitMidpoint, 9000, 50, 494, 813, 4.39}};
   } else {
-    throw UsageError(fmt::format("--table: \"{}\" must be 3.1 or 3.2", which));
+    throw UsageError(fmt::format("--table: \"{}\" must be one of 3.1, 3.2, 5.1, 5.15", which));
   }
   std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
   if (which == "3.2") {

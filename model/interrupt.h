@@ -27,6 +27,10 @@ inline std::atomic<int> g_interrupt_signal{0};  // lock-free: safe to store from
 /// Records signal `sig` (async-signal-safe: one atomic store).
 inline void RequestInterrupt(int sig) { internal::g_interrupt_signal.store(sig, std::memory_order_relaxed); }
 
+/// Whether a signal was recorded (for loops that must clean up before
+/// ThrowIfInterrupted).
+inline bool InterruptRequested() { return internal::g_interrupt_signal.load(std::memory_order_relaxed) != 0; }
+
 /// @throws Interrupted if a signal was recorded.
 inline void ThrowIfInterrupted() {
   if (const int sig = internal::g_interrupt_signal.load(std::memory_order_relaxed)) throw Interrupted(sig);
@@ -63,8 +67,13 @@ inline std::chrono::steady_clock::time_point RunDeadline(std::chrono::steady_clo
                      std::chrono::duration<double>(std::min(limit_s, 1e8)));
 }
 
-/// True once this thread's deadline has passed (false without one).
+/// True once this thread's deadline has passed (false without one), or once
+/// SIGINT/SIGTERM arrived: the loops inside a step (the PCG's iterations,
+/// VBD's, PD's and XPBD's iterations and substeps, the setups) end at
+/// either, and the step loop then throws Interrupted (ThrowIfInterrupted)
+/// instead of recording a time limit.
 inline bool DeadlinePassed() {
+  if (InterruptRequested()) return true;
   return internal::g_deadline != std::chrono::steady_clock::time_point::max() &&
          std::chrono::steady_clock::now() >= internal::g_deadline;
 }

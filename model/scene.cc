@@ -13,6 +13,7 @@
 #include <toml++/toml.h>
 
 #include "model/default_scene.h"
+#include "model/output_file.h"
 #include "model/triangle_mesh.h"
 
 namespace clothbench {
@@ -416,6 +417,7 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
           if (const std::string why = CheckMeshHeader(p.string()); !why.empty())
             o.Fail("path", fmt::format("mesh file \"{}\": {}", p.string(), why));
           spec.path = p.string();
+          NoteInputFile(spec.path);  // an output of this command must not replace it
           spec.scale = o.Range("scale", 1.0, 1e-6, 1e6, "");
           spec.rotate = o.Vec3("rotate", spec.rotate);
           if (spec.rotate.cwiseAbs().maxCoeff() > 3600) o.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
@@ -540,8 +542,11 @@ Scene RefineGrid(const Scene& scene, long n) {
                                    scene.source, EscapeControl(f)));
   // nu·nv ≈ n with (nu − 1)/(nv − 1) = r, the scene's ratio: nu ≈ √(n r), nv ≈ √(n/r).
   const double r = static_cast<double>(scene.grid.nu - 1) / static_cast<double>(scene.grid.nv - 1);
-  const int nu = std::max(2, static_cast<int>(std::lround(std::sqrt(static_cast<double>(n) * r))));
-  const int nv = std::max(2, static_cast<int>(std::lround(static_cast<double>(n) / nu)));
+  int nu = std::max(2, static_cast<int>(std::lround(std::sqrt(static_cast<double>(n) * r))));
+  int nv = std::max(2, static_cast<int>(std::lround(static_cast<double>(n) / nu)));
+  // Rounding may overshoot the limit (n = 10⁷ gives 3163×3162): the grid
+  // stays within it, one row or column less.
+  while (static_cast<double>(nu) * nv > kMaxParticles) (nu >= nv ? nu : nv) -= 1;
   toml::table root;
   try {
     root = toml::parse(scene.toml, scene.source);
@@ -571,6 +576,7 @@ Scene LoadScene(const std::string& path) {
     throw SceneError(fmt::format("{}: not a regular file (a scene is a TOML file)", path));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError(fmt::format("{}: cannot open scene file", path));
+  NoteInputFile(path);  // an output of this command must not replace it
   std::ostringstream ss;
   ss << in.rdbuf();
   return ParseScene(ss.str(), path);

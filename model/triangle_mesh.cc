@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -12,12 +13,15 @@
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/IO/polygon_soup_io.h>
 #include <CGAL/boost/graph/IO/polygon_mesh_io.h>
 #include <CGAL/Polygon_mesh_processing/compute_normal.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 #include <Eigen/Geometry>
 #include <fmt/format.h>
+
+#include "model/scene.h"
 
 namespace clothbench {
 
@@ -84,10 +88,101 @@ std::string CheckMeshHeader(const std::string& path) {
   return "";
 }
 
+namespace {
+
+// For an OFF file that CGAL's reader refused: the first vertex line that is
+// not three finite numbers, or the first face that names a vertex the file
+// does not have ("" if none is found, or the file is not OFF).
+std::string DiagnoseOff(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  const auto next = [&]() -> bool {  // the next line that is neither empty nor a comment
+    while (std::getline(in, line))
+      if (const auto b = line.find_first_not_of(" \t\r"); b != std::string::npos && line[b] != '#') return true;
+    return false;
+  };
+  if (!next() || line.find("OFF") == std::string::npos) return "";
+  std::istringstream head(line.substr(line.find("OFF") + 3));
+  long vertices = -1, faces = -1;
+  if (!(head >> vertices >> faces)) {
+    if (!next()) return "";
+    std::istringstream counts(line);
+    if (!(counts >> vertices >> faces)) return "";
+  }
+  for (long k = 0; k < vertices; ++k) {
+    if (!next()) return fmt::format("ends after {} of its {} vertices", k, vertices);
+    std::istringstream words(line);
+    std::string w[3];
+    words >> w[0] >> w[1] >> w[2];
+    for (const std::string& x : w) {
+      char* end = nullptr;
+      const double v = std::strtod(x.c_str(), &end);
+      if (x.empty() || *end != '\0' || !std::isfinite(v))
+        return fmt::format("vertex {} is not three finite numbers (\"{}\")", k, EscapeControl(line.substr(0, 60)));
+    }
+  }
+  for (long f = 0; f < faces; ++f) {
+    if (!next()) return fmt::format("ends after {} of its {} faces", f, faces);
+    std::istringstream words(line);
+    long count = 0;
+    words >> count;
+    for (long j = 0; j < count; ++j) {
+      long v = -1;
+      if (!(words >> v)) return fmt::format("face {} lists fewer than its {} vertices", f, count);
+      if (v < 0 || v >= vertices)
+        return fmt::format("face {} names vertex {}, but the file has {} vertices", f, v, vertices);
+    }
+  }
+  return "";
+}
+
+// Why CGAL's read_polygon_mesh refused `path`, naming the vertex or face:
+// the file read as a polygon soup (CGAL::IO::read_polygon_soup), then
+// checked for what a polygon mesh cannot hold. Vertices and faces are
+// counted from 0 in the file's order.
+std::string DiagnoseMesh(const std::string& path) {
+  std::vector<Point> points;
+  std::vector<std::vector<std::size_t>> polygons;
+  if (!CGAL::IO::read_polygon_soup(path, points, polygons)) {
+    if (const std::string why = DiagnoseOff(path); !why.empty()) return why;
+    return "cannot be parsed as OFF, OBJ, PLY or STL (a syntax error, or an unknown extension)";
+  }
+  if (polygons.empty()) return "holds no faces";
+  for (std::size_t k = 0; k < points.size(); ++k)
+    if (!std::isfinite(points[k].x()) || !std::isfinite(points[k].y()) || !std::isfinite(points[k].z()))
+      return fmt::format("vertex {} is not finite ({:g}, {:g}, {:g})", k, points[k].x(), points[k].y(), points[k].z());
+  std::map<std::vector<std::size_t>, std::size_t> seen;
+  std::map<std::pair<std::size_t, std::size_t>, std::vector<std::size_t>> edges;  // undirected edge -> faces
+  for (std::size_t f = 0; f < polygons.size(); ++f) {
+    const std::vector<std::size_t>& poly = polygons[f];
+    if (poly.size() < 3) return fmt::format("face {} has {} vertices (at least 3 needed)", f, poly.size());
+    for (std::size_t v : poly)
+      if (v >= points.size()) return fmt::format("face {} names vertex {}, but the file has {} vertices", f, v, points.size());
+    std::vector<std::size_t> sorted = poly;
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+      return fmt::format("face {} is degenerate (it names a vertex twice)", f);
+    if (const auto [it, fresh] = seen.emplace(sorted, f); !fresh)
+      return fmt::format("face {} duplicates face {} (the same vertices)", f, it->second);
+    for (std::size_t k = 0; k < poly.size(); ++k) {
+      const std::size_t a = poly[k], b = poly[(k + 1) % poly.size()];
+      edges[{std::min(a, b), std::max(a, b)}].push_back(f);
+    }
+  }
+  for (const auto& [e, faces] : edges)
+    if (faces.size() > 2)
+      return fmt::format("edge ({}, {}) is shared by {} faces ({}, {}, {}{}): not manifold", e.first, e.second,
+                         faces.size(), faces[0], faces[1], faces[2], faces.size() > 3 ? ", …" : "");
+  return "is not a manifold polygon mesh (a vertex joins separate fans of faces, or the faces cannot be oriented "
+         "consistently)";
+}
+
+}  // namespace
+
 TriangleMesh::TriangleMesh(const std::string& path, double scale, const Vector3& rotate_deg, const Vector3& translate)
     : impl_(std::make_unique<Impl>()) {
   if (!CGAL::IO::read_polygon_mesh(path, impl_->mesh) || impl_->mesh.number_of_faces() == 0)
-    throw std::runtime_error(fmt::format("cannot read a polygon mesh from \"{}\"", path));
+    throw std::runtime_error(fmt::format("\"{}\": {}", path, DiagnoseMesh(path)));
   if (!CGAL::is_triangle_mesh(impl_->mesh))
     throw std::runtime_error(fmt::format("\"{}\" is not a triangle mesh", path));
   const Eigen::Matrix3d rot = RotationFromDegrees(rotate_deg);

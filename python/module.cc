@@ -7,6 +7,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <csignal>
 #include <chrono>
 #include <cstring>
 #include <memory>
@@ -26,6 +27,7 @@
 #include "harness/output_lock.h"
 #include "harness/result_writer.h"
 #include "harness/run_request.h"
+#include "model/interrupt.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "results/contained_read.h"
@@ -41,6 +43,68 @@ namespace py = pybind11;
 namespace clothbench {
 namespace {
 
+// SIGINT/SIGTERM while clothbench computes in Python: Python's own handler
+// only trips a flag that the interpreter checks between bytecodes, which a
+// long step or setup (with the GIL released, or on a worker thread) never
+// reaches. For the call's lifetime this handler records the signal for the
+// C++ loops (model/interrupt.h: the PCG's, VBD's, PD's and XPBD's
+// iterations and the step loops end at it) and then calls Python's, so that
+// the call ends with KeyboardInterrupt. Nested and concurrent calls share one
+// installation (counted); the last one out restores Python's handler and
+// clears the recorded signal.
+class InterruptScope {
+ public:
+  InterruptScope() {
+    const std::lock_guard<std::mutex> guard(Mutex());
+    if (Count()++ > 0) return;
+    for (int k = 0; k < 2; ++k) {
+      const int sig = k == 0 ? SIGINT : SIGTERM;
+      struct sigaction mine {};
+      mine.sa_sigaction = &InterruptScope::Handler;
+      mine.sa_flags = SA_SIGINFO | SA_ONSTACK;
+      sigemptyset(&mine.sa_mask);
+      installed()[k] = ::sigaction(sig, &mine, &previous()[k]) == 0;
+    }
+  }
+  ~InterruptScope() {
+    const std::lock_guard<std::mutex> guard(Mutex());
+    if (--Count() > 0) return;
+    for (int k = 0; k < 2; ++k)
+      if (installed()[k]) ::sigaction(k == 0 ? SIGINT : SIGTERM, &previous()[k], nullptr);
+    internal::g_interrupt_signal.store(0, std::memory_order_relaxed);
+  }
+  InterruptScope(const InterruptScope&) = delete;
+  InterruptScope& operator=(const InterruptScope&) = delete;
+
+ private:
+  static void Handler(int sig, siginfo_t* info, void* context) {
+    RequestInterrupt(sig);
+    const struct sigaction& prev = previous()[sig == SIGINT ? 0 : 1];
+    if (prev.sa_flags & SA_SIGINFO) {
+      if (prev.sa_sigaction) prev.sa_sigaction(sig, info, context);
+    } else if (prev.sa_handler != SIG_DFL && prev.sa_handler != SIG_IGN && prev.sa_handler) {
+      prev.sa_handler(sig);
+    }
+  }
+  static std::mutex& Mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static int& Count() {
+    static int n = 0;
+    return n;
+  }
+  static struct sigaction* previous() {
+    static struct sigaction p[2];
+    return p;
+  }
+  static bool* installed() {
+    static bool b[2] = {false, false};
+    return b;
+  }
+};
+
+
 // Sets the dotted key `path` ("material.density") in `table` to a Python
 // scalar or list of numbers, creating tables on the way.
 void SetKey(toml::table& table, const std::string& path, const py::handle& value) {
@@ -52,16 +116,25 @@ void SetKey(toml::table& table, const std::string& path, const py::handle& value
     t = (*t)[key].as_table();
     if (!t) throw py::key_error("override \"" + path + "\": \"" + key + "\" is not a table");
   }
+  // A Python int beyond 64 bits: ValueError naming the key, not pybind11's cast error.
+  const auto integer = [&path](const py::handle& x) {
+    int overflow = 0;
+    const long long v = PyLong_AsLongLongAndOverflow(x.ptr(), &overflow);
+    if (overflow != 0) throw py::value_error("override \"" + path + "\": an integer beyond 64 bits");
+    return static_cast<int64_t>(v);
+  };
   if (py::isinstance<py::bool_>(value)) t->insert_or_assign(rest, value.cast<bool>());
-  else if (py::isinstance<py::int_>(value)) t->insert_or_assign(rest, value.cast<long>());
+  else if (py::isinstance<py::int_>(value)) t->insert_or_assign(rest, integer(value));
   else if (py::isinstance<py::float_>(value)) t->insert_or_assign(rest, value.cast<double>());
   else if (py::isinstance<py::str>(value)) t->insert_or_assign(rest, value.cast<std::string>());
   else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
     toml::array a;
     for (const py::handle& x : value) {
       if (py::isinstance<py::str>(x)) a.push_back(x.cast<std::string>());
-      else if (py::isinstance<py::int_>(x)) a.push_back(x.cast<long>());
-      else a.push_back(x.cast<double>());
+      else if (py::isinstance<py::bool_>(x)) a.push_back(x.cast<bool>());
+      else if (py::isinstance<py::int_>(x)) a.push_back(integer(x));
+      else if (py::isinstance<py::float_>(x)) a.push_back(x.cast<double>());
+      else throw py::type_error("override \"" + path + "\": a list of numbers or strings is expected");
     }
     t->insert_or_assign(rest, std::move(a));
   } else {
@@ -72,16 +145,27 @@ void SetKey(toml::table& table, const std::string& path, const py::handle& value
 // A built-in name, a file path, or TOML text (if it contains a newline or
 // '='), with dotted-key overrides.
 Scene MakeScene(const std::string& what, const py::dict& overrides, const py::object& particles) {
+  const InterruptScope interrupts;  // Ctrl-C reaches a large grid's setup
   const bool text = what.find('\n') != std::string::npos || what.find('=') != std::string::npos;
   Scene s = text ? ParseScene(what, "<python>") : LoadSceneOrBuiltin(what);
   if (!particles.is_none()) {
     if (!py::isinstance<py::int_>(particles) || py::isinstance<py::bool_>(particles))
       throw py::type_error("particles: an int expected");
-    s = RefineGrid(s, particles.cast<long>());
+    int overflow = 0;
+    const long long n = PyLong_AsLongLongAndOverflow(particles.ptr(), &overflow);
+    if (overflow != 0 || n < 4 || static_cast<double>(n) > kMaxParticles)
+      throw py::value_error(fmt::format("particles: {} must be a whole number of particles from 4 to {:g}",
+                                        py::str(particles).cast<std::string>().substr(0, 40), kMaxParticles));
+    s = RefineGrid(s, static_cast<long>(n));
   }
   if (overrides.empty()) return s;
   toml::table t = toml::parse(s.toml);
-  for (const auto& [k, v] : overrides) SetKey(t, k.cast<std::string>(), v);
+  for (const auto& [k, v] : overrides) {
+    if (!py::isinstance<py::str>(k))
+      throw py::type_error(fmt::format("overrides: key {} must be a dotted key string ('material.density')",
+                                       py::repr(k).cast<std::string>().substr(0, 40)));
+    SetKey(t, k.cast<std::string>(), v);
+  }
   std::ostringstream os;
   os << t;
   return ParseScene(os.str(), s.source + " (with overrides)");
@@ -247,6 +331,64 @@ py::dict RecordDict(const RunRecord& r) {
   return d;
 }
 
+// Argument `name` as a real array of `ndim` dimensions, the last of size 3
+// (N×3 positions, or F×N×3 frames), every value finite, as doubles.
+// @throws TypeError for a non-array or a non-real dtype, ValueError naming
+//   `name` for another shape or a NaN/Inf value
+py::array_t<double, py::array::c_style> RealArrayArg(const py::object& value, const char* name, int ndim) {
+  const py::module_ np = py::module_::import("numpy");
+  const py::array a = np.attr("asarray")(value);
+  const char kind = a.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::type_error(fmt::format("{}: an array of real numbers expected (dtype {})", name,
+                                     py::str(a.dtype()).cast<std::string>()));
+  if (a.ndim() != ndim || a.shape(ndim - 1) != 3)
+    throw py::value_error(fmt::format("{}: an {} array expected (shape {})", name, ndim == 2 ? "N×3" : "F×N×3",
+                                      py::str(py::tuple(a.attr("shape"))).cast<std::string>()));
+  const auto d = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!d) throw py::type_error(fmt::format("{}: cannot be read as doubles", name));
+  const double* v = d.data();
+  for (py::ssize_t k = 0; k < d.size(); ++k)
+    if (!std::isfinite(v[k]))
+      throw py::value_error(fmt::format("{}: element {} is {} (every value must be finite)", name, k, v[k]));
+  return d;
+}
+
+// Argument `name`, an N×3 array (RealArrayArg), as MatrixN3 (copied).
+MatrixN3 MatrixArg(const py::object& value, const char* name) {
+  const auto a = RealArrayArg(value, name, 2);
+  MatrixN3 m(a.shape(0), 3);
+  auto r = a.unchecked<2>();
+  for (py::ssize_t p = 0; p < a.shape(0); ++p)
+    for (int c = 0; c < 3; ++c) m(p, c) = r(p, c);
+  return m;
+}
+
+// run(reference=d): the arrays d holds must be the record's, which run()
+// compares against: finite, of its shape and unchanged since reference()
+// returned them. @throws ValueError naming reference["<key>"]
+void CheckReferenceArrays(const py::dict& d, const RunSummary& ref) {
+  for (const char* key : {"positions", "velocities"}) {
+    if (!d.contains(key)) continue;
+    const std::string name = fmt::format("reference[\"{}\"]", key);
+    const auto a = RealArrayArg(d[key], name.c_str(), 3);
+    const std::vector<MatrixN3>& frames =
+        std::string(key) == "positions" ? ref.trajectory.positions : ref.trajectory.velocities;
+    const py::ssize_t n = frames.empty() ? 0 : static_cast<py::ssize_t>(frames.front().rows());
+    if (a.shape(0) != static_cast<py::ssize_t>(frames.size()) || a.shape(1) != n)
+      throw py::value_error(fmt::format("{}: shape ({}, {}, 3) is not the reference run's ({}, {}, 3)", name,
+                                        a.shape(0), a.shape(1), frames.size(), n));
+    auto r = a.unchecked<3>();
+    for (py::ssize_t f = 0; f < a.shape(0); ++f)
+      for (py::ssize_t p = 0; p < n; ++p)
+        for (int c = 0; c < 3; ++c)
+          if (r(f, p, c) != frames[static_cast<std::size_t>(f)](p, c))
+            throw py::value_error(fmt::format("{}: frame {} differs from the reference run's (run() compares "
+                                              "against the run reference() computed; pass its dict unchanged)",
+                                              name, f));
+  }
+}
+
 // Runs one row. `method` is a command-line row name ("sbdf2",
 // "bdf2/newton", "sbdf2/error", "arkode/ark4", "cvode/klu", "xpbd");
 // `h` [s] for fixed-step and substepped rows, `rtol` for adaptive ones.
@@ -258,6 +400,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
              const py::object& progress, const py::object& reference, const py::object& repeat,
              const py::object& time_budget, const py::object& time_limit, const py::object& arkode_table,
              const py::object& cvode_setting) {
+  const InterruptScope interrupts;  // Ctrl-C reaches the loops inside a step and the setup
   RunRequest q;
   q.scene = SceneArg(scene_arg, overrides);
   const std::optional<std::string> name = Arg<std::string>(method, "method");
@@ -284,6 +427,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
     const py::dict d = reference.cast<py::dict>();
     if (!d.contains("scene_hash")) throw py::type_error("reference: a dict returned by clothbench.reference() expected");
     q.reference_scene = d["scene_hash"].cast<std::string>();
+    CheckReferenceArrays(d, *ref);
   }
   const ResolvedRun run = q.Resolve();  // UsageError: ValueError naming the keyword
   const ParticleSystem sys(run.scene);
@@ -334,22 +478,13 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
 }
 
 
-// An N×3 numpy array as MatrixN3 (copied).
-MatrixN3 ToMatrix(const py::array_t<double, py::array::c_style | py::array::forcecast>& a) {
-  if (a.ndim() != 2 || a.shape(1) != 3) throw py::value_error("an N×3 array is expected");
-  MatrixN3 m(a.shape(0), 3);
-  auto r = a.unchecked<2>();
-  for (py::ssize_t p = 0; p < a.shape(0); ++p)
-    for (int c = 0; c < 3; ++c) m(p, c) = r(p, c);
-  return m;
-}
-
 // The reference run of `method` ("cvode", "cvode/klu", "ida", "ida/klu") at
 // `rtol` [-], as --reference does (RunReference, with its error estimate at
 // rtol/10): validated as the request of that row at that rtol, t_end and
 // scene.
 py::dict Reference(const py::object& scene_arg, const py::object& method, const py::object& rtol,
                    const py::object& t_end, const py::object& overrides) {
+  const InterruptScope interrupts;  // Ctrl-C reaches the loops inside a step and the setup
   RunRequest q;
   q.scene = SceneArg(scene_arg, overrides);
   const std::string name = Arg<std::string>(method, "method").value_or(std::string(kDefaultReference));
@@ -637,14 +772,29 @@ PYBIND11_MODULE(clothbench, m) {
         "velocities, step_stats, and the scene_hash that run() and write_results() compare with their scene's.");
   m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
         "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");
-  m.def("error_rms", [](const py::array_t<double>& x, const py::array_t<double>& ref) {
-    return ErrorRms(ToMatrix(x), ToMatrix(ref));
-  }, py::arg("x"), py::arg("ref"), "e_rms = sqrt((1/N) sum_p |x_p - ref_p|^2) [m] of two N×3 arrays.");
+  m.def("error_rms", [](const py::object& x, const py::object& ref) {
+    const MatrixN3 a = MatrixArg(x, "x"), b = MatrixArg(ref, "ref");
+    if (a.rows() != b.rows())
+      throw py::value_error(fmt::format("ref: {} rows, x has {} (the same particles expected)", b.rows(), a.rows()));
+    if (a.rows() == 0) throw py::value_error("x: no particles (an N×3 array with N ≥ 1 expected)");
+    return ErrorRms(a, b);
+  }, py::arg("x"), py::arg("ref"),
+        "e_rms = sqrt((1/N) sum_p |x_p - ref_p|^2) [m] of two N×3 arrays of the same N. TypeError for a "
+        "non-real array, ValueError (naming x or ref) for another shape, N = 0 or a NaN/Inf value.");
   m.def("equal_accuracy", &EqualAccuracy, py::arg("runs"), py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
         py::arg("baseline") = std::string(kWorkPrecisionBaseline),
         "The equal-accuracy table of runs = [(label, [(solver_time_s, e_rms_m), ...]), ...] (runs in the order "
         "of decreasing h or rtol): cost and ratio per label and target (None where the runs do not bracket it), "
         "and the fastest label per target.");
+  // Ctrl-C noticed inside the C++ (InterruptScope): KeyboardInterrupt, as
+  // Python's own handler would raise it.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Interrupted&) {
+      if (PyErr_CheckSignals() == 0 && !PyErr_Occurred()) PyErr_SetNone(PyExc_KeyboardInterrupt);
+    }
+  });
   py::register_exception<SceneError>(m, "SceneError", PyExc_ValueError);
   py::register_exception<ResultError>(m, "ResultError", PyExc_ValueError);
 }

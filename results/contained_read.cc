@@ -1,6 +1,7 @@
 #include "results/contained_read.h"
 
 #include <poll.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -14,6 +15,7 @@
 
 #include <fmt/format.h>
 
+#include "model/interrupt.h"
 #include "model/scene.h"
 #include "results/run_records.h"
 #include "results/run_table.h"
@@ -61,7 +63,14 @@ void ReadValidatedFile(const ResultReader& f) {
   }
 }
 
+double ContainedReadDeadline(const std::string& path) {
+  struct stat st {};
+  const double bytes = ::stat(path.c_str(), &st) == 0 ? static_cast<double>(st.st_size) : 0.0;
+  return 20.0 + bytes / 10e6;
+}
+
 void CheckReadableInChild(const std::string& path, double timeout_s) {
+  if (!(timeout_s > 0.0)) timeout_s = ContainedReadDeadline(path);
   int fds[2];
   if (::pipe(fds) != 0) throw std::runtime_error(fmt::format("{}: cannot create a pipe: {}", path, std::strerror(errno)));
   std::fflush(nullptr);
@@ -109,6 +118,7 @@ void CheckReadableInChild(const std::string& path, double timeout_s) {
       timed_out = true;
       break;
     }
+    if (InterruptRequested()) break;  // Ctrl-C: the child is killed, Interrupted thrown below
     pollfd p{fds[0], POLLIN, 0};
     const int ready = ::poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 1000)));
     if (ready < 0 && errno == EINTR) continue;
@@ -119,10 +129,12 @@ void CheckReadableInChild(const std::string& path, double timeout_s) {
     message.append(buf, static_cast<std::size_t>(n));
   }
   ::close(fds[0]);
-  if (timed_out) ::kill(pid, SIGKILL);
+  const bool interrupted = InterruptRequested() && !timed_out;
+  if (timed_out || interrupted) ::kill(pid, SIGKILL);
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
+  if (interrupted) ThrowIfInterrupted();
   if (timed_out)
     throw ResultError(EscapeControl(fmt::format("{}: reading it did not end within {:g} s (the HDF5 library looping "
                                                 "on a damaged file?)",

@@ -25,13 +25,19 @@ void ReadWholeFile(const ResultReader& file);
 /// time: validate once per open file.)
 void ReadValidatedFile(const ResultReader& file);
 
+/// The deadline of CheckReadableInChild for `path` [s]: 20 s plus the
+/// file's size at 10 MB/s (ReadWholeFile inflates every frame).
+double ContainedReadDeadline(const std::string& path);
+
 /// Opens `path` and runs ReadWholeFile on it in a child process (fork),
-/// killed after `timeout_s` seconds. Returns if the child read it whole.
+/// killed after `timeout_s` seconds (≤ 0: ContainedReadDeadline), or at
+/// once on SIGINT/SIGTERM (then Interrupted is thrown). Returns if the
+/// child read it whole.
 /// @throws ResultError (one line naming `path`) with the child's refusal,
 ///   or, if the child was killed by a signal (the HDF5 library crashed on
 ///   a damaged file) or did not end in time, a line saying so;
 ///   std::runtime_error if no child process could be started
-void CheckReadableInChild(const std::string& path, double timeout_s = 600.0);
+void CheckReadableInChild(const std::string& path, double timeout_s = 0.0);
 
 }  // namespace clothbench
 

@@ -2,10 +2,16 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+
+#include <fmt/format.h>
 
 namespace clothbench {
 
 double ErrorRms(const MatrixN3& x, const MatrixN3& ref) {
+  if (x.rows() != ref.rows() || x.rows() == 0)  // Eigen checks no sizes in Release: never read past an array
+    throw std::invalid_argument(fmt::format("e_rms of {} against {} particles (the same N ≥ 1 expected)", x.rows(),
+                                            ref.rows()));
   return std::sqrt((x - ref).squaredNorm() / static_cast<double>(x.rows()));
 }
 

@@ -13,7 +13,9 @@
 
 namespace clothbench {
 
-/// e_rms = sqrt((1/N) Σ_p |x_p − x_p^ref|²) [m] (docs/model.md §9).
+/// e_rms = sqrt((1/N) Σ_p |x_p − x_p^ref|²) [m] (docs/model.md §9) of two
+/// N×3 position arrays [m].
+/// @throws std::invalid_argument if their N differ or N = 0
 double ErrorRms(const MatrixN3& x, const MatrixN3& ref);
 /// The thesis' "normalised by the number of nodes" error (1/N) Σ_p |x_p − x_p^ref| [m] (§2.8).
 double ErrorMean(const MatrixN3& x, const MatrixN3& ref);

@@ -1,6 +1,7 @@
 // HDF5 writer (C API).
 #include "results/result_file.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <zlib.h>
@@ -20,6 +21,7 @@
 
 #include "git_commit.h"  // generated at build time
 #include "model/interrupt.h"
+#include "model/output_file.h"
 #include "results/hdf5_util.h"
 #include "results/run_table.h"
 
@@ -68,7 +70,14 @@ ResultFile::ResultFile(const std::string& path) : path_(path), tmp_path_(path + 
   Handle fcpl{H5Pcreate(H5P_FILE_CREATE), H5Pclose};
   H5Pset_userblock(fcpl.id, kSignatureBytes);  // the integrity block, written by Commit
   try {
-    file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_TRUNC, fcpl.id, H5P_DEFAULT), "cannot create file", tmp_path_);
+    // The project's output rules (model/output_file.h): a regular leftover
+    // temporary is removed, anything else there refused, and the file is
+    // created exclusively (O_CREAT|O_EXCL: a link planted at the name makes
+    // it fail, never followed).
+    FreeTemporaryName(path_, "result file");
+    file_ = Check(H5Fcreate(tmp_path_.c_str(), H5F_ACC_EXCL, fcpl.id, H5P_DEFAULT), "cannot create file", tmp_path_);
+  } catch (const OutputRefused& e) {
+    throw ResultError(e.what());
   } catch (...) {
     // No destructor runs for a constructor that throws: the temporary HDF5
     // may have created (empty, on a full disk) is removed here.
@@ -294,9 +303,11 @@ void ResultFile::Commit() {
     if (err < 0) throw ResultError(fmt::format("{}: HDF5 error: cannot close file{}", tmp_path_, SystemReason()));
   }
   SignResultFile(tmp_path_);
-  std::error_code ec;
-  std::filesystem::rename(tmp_path_, path_, ec);
-  if (ec) throw ResultError(fmt::format("{}: cannot rename from {}: {}", path_, tmp_path_, ec.message()));
+  try {
+    CommitTemporary(path_, "result file");  // refuses a target that became a link or a device meanwhile
+  } catch (const std::exception& e) {
+    throw ResultError(e.what());
+  }
   committed_ = true;
 }
 
@@ -321,7 +332,9 @@ using File = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;
 }  // namespace
 
 void SignResultFile(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "r+b");
+  const int fd = ::open(path.c_str(), O_RDWR | O_NOFOLLOW | O_CLOEXEC);
+  std::FILE* f = fd >= 0 ? ::fdopen(fd, "r+b") : nullptr;
+  if (fd >= 0 && !f) ::close(fd);
   if (!f) throw ResultError(fmt::format("{}: cannot open to write its integrity block", path));
   std::size_t size = kSignatureBytes;
   bool ok = std::fseek(f, static_cast<long>(kSignatureBytes), SEEK_SET) == 0;

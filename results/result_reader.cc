@@ -19,6 +19,7 @@
 #include <fmt/format.h>
 #include <hdf5.h>
 
+#include "model/output_file.h"
 #include "results/hdf5_util.h"
 
 namespace clothbench {
@@ -78,6 +79,51 @@ herr_t CollectAttribute(hid_t loc, const char* name, const H5A_info_t*, void* da
   return 0;
 }
 
+// Refuses what a result file never holds and a reader must not follow: a
+// link that is not a hard link (an external link opens another file; a
+// soft link may loop), and a dataset whose data live outside the file (a
+// virtual dataset's sources, external storage): opening those would read,
+// or block on, a file the user did not name (a FIFO). H5Lvisit follows
+// hard links only; a dataset's layout is read from its creation property
+// list without touching its sources.
+struct ForeignReference {
+  std::string what;  // "" while none is found
+};
+
+herr_t CheckLink(hid_t group, const char* name, const H5L_info_t* info, void* data) {
+  auto* found = static_cast<ForeignReference*>(data);
+  if (info->type != H5L_TYPE_HARD) {
+    found->what = fmt::format("\"{}\" is a {} link (a result file holds hard links only; another file is not "
+                              "followed)",
+                              name, info->type == H5L_TYPE_SOFT ? "soft" : "external");
+    return 1;
+  }
+  H5O_info_t object{};
+  if (H5Oget_info_by_name2(group, name, &object, H5O_INFO_BASIC, H5P_DEFAULT) < 0 || object.type != H5O_TYPE_DATASET)
+    return 0;
+  Handle ds{H5Dopen2(group, name, H5P_DEFAULT), H5Dclose};
+  if (ds.id < 0) return 0;
+  Handle dcpl{H5Dget_create_plist(ds.id), H5Pclose};
+  if (dcpl.id < 0) return 0;
+  if (H5Pget_layout(dcpl.id) == H5D_VIRTUAL) {
+    // The frame views (docs/results-schema.md) map datasets of this file
+    // (source file "."); a source in another file is refused.
+    size_t mappings = 0;
+    if (H5Pget_virtual_count(dcpl.id, &mappings) < 0) mappings = 1, found->what = "?";
+    for (size_t k = 0; k < mappings && found->what.empty(); ++k) {
+      char file[8] = {};
+      const ssize_t len = H5Pget_virtual_filename(dcpl.id, k, file, sizeof file);
+      if (len != 1 || std::string(file) != ".")
+        found->what = fmt::format("dataset \"{}\" is a virtual dataset with a source in another file (which is not "
+                                  "read)", name);
+    }
+    if (found->what == "?")
+      found->what = fmt::format("dataset \"{}\" is a virtual dataset whose sources cannot be listed", name);
+  } else if (H5Pget_external_count(dcpl.id) > 0)
+    found->what = fmt::format("dataset \"{}\" keeps its data in external files, which are not read", name);
+  return found->what.empty() ? 0 : 1;
+}
+
 }  // namespace
 
 ResultReader::ResultReader(const std::string& path) : path_(path) {
@@ -103,6 +149,7 @@ ResultReader::ResultReader(const std::string& path) : path_(path) {
     throw ResultError(fmt::format("{}: cannot open: not an HDF5 file or not readable", path));
   file_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file_ < 0) throw ResultError(fmt::format("{}: cannot open the HDF5 file", path));
+  NoteInputFile(path);  // an output of this command must not replace it
   CheckSchema();
 }
 
@@ -120,6 +167,14 @@ ResultReader::ResultReader(const std::string& name, const void* image, std::size
 }
 
 void ResultReader::CheckSchema() {
+  ForeignReference found;
+  if (H5Lvisit(file_, H5_INDEX_NAME, H5_ITER_INC, CheckLink, &found) < 0 && found.what.empty())
+    found.what = "its links cannot be listed (a damaged file)";
+  if (!found.what.empty()) {
+    H5Fclose(file_);
+    file_ = -1;
+    throw ResultError(fmt::format("{}: {}", path_, found.what));
+  }
   const std::optional<std::string> schema = String("/", "schema");
   if (!schema) {
     H5Fclose(file_);

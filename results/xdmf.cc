@@ -9,7 +9,7 @@
 #include <fmt/format.h>
 
 #include "results/result_reader.h"
-#include "results/write_file.h"
+#include "model/output_file.h"
 
 namespace clothbench {
 namespace {

@@ -235,6 +235,7 @@ bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, const Ste
 // seconds. @return true (sum failed with time_limit or step_limit) if past one
 bool PastLimits(const StepStats& st, const RunOptions& options, double t, long attempts, double elapsed,
                 RunSummary* sum) {
+  ThrowIfInterrupted();  // Ctrl-C ends the loops inside a step as a deadline would (model/interrupt.h)
   const auto fail = [&](const char* status, std::string message) {
     sum->status = status;
     sum->message = std::move(message);

@@ -76,6 +76,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     solver_seconds += seconds;
     ++steps;
+    ThrowIfInterrupted();  // Ctrl-C inside the step ends our PCG like a deadline: raised here, not a time_limit
     if (flag < 0 && !DeadlinePassed()) {
       res->status = d.flag_name(flag);
       res->message = error.empty() ? "step failed with " + res->status : error;

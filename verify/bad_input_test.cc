@@ -105,10 +105,27 @@ TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {
                 "obstacle[0].path: ");
   std::ofstream(Dir() / "empty.off").close();
   ExpectRefused(Scene("empty.toml", kTiny + mesh + (Dir() / "empty.off").string() + "\"\n"),
-                "obstacle[0].path: cannot read a polygon mesh");
+                "obstacle[0].path: \"" + (Dir() / "empty.off").string() + "\": cannot be parsed");
   std::ofstream(Dir() / "garbage.off") << "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1\n3 0 1 2\n";  // a coordinate short
   ExpectRefused(Scene("garbage.toml", kTiny + mesh + (Dir() / "garbage.off").string() + "\"\n"),
-                "obstacle[0].path: cannot read a polygon mesh");
+                "obstacle[0].path: \"" + (Dir() / "garbage.off").string() + "\": vertex 2 is not three finite numbers");
+  // A mesh CGAL cannot build is refused naming the face or vertex at fault
+  // (TriangleMesh's diagnosis of the polygon soup).
+  const std::string tri = "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n";
+  const std::vector<std::pair<std::string, std::string>> broken = {
+      {tri + "3 0 1 2\n3 1 3 3\n", "face 1 is degenerate (it names a vertex twice)"},
+      {tri + "3 0 1 2\n3 0 1 2\n", "face 1 duplicates face 0"},
+      {"OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n", "vertex 1 is not three finite numbers"},
+      {tri + "3 0 1 2\n3 1 3 7\n", "face 1 names vertex 7, but the file has 4 vertices"},
+      {"OFF\n5 3 0\n0 0 0\n1 0 0\n0 1 0\n0 -1 0\n0 0 1\n3 0 1 2\n3 1 0 3\n3 0 1 4\n",
+       "edge (0, 1) is shared by 3 faces (0, 1, 2): not manifold"},
+  };
+  for (std::size_t k = 0; k < broken.size(); ++k) {
+    const fs::path off = Dir() / fmt::format("broken{}.off", k);
+    std::ofstream(off) << broken[k].first;
+    ExpectRefused(Scene(fmt::format("broken{}.toml", k), kTiny + mesh + off.string() + "\"\n"),
+                  "obstacle[0].path: \"" + off.string() + "\": " + broken[k].second);
+  }
   ExpectRefused(Scene("nomesh.toml", kTiny + mesh + "/nonexistent.off\"\n"), "obstacle[0].path: mesh file");
 }
 
@@ -273,17 +290,17 @@ TEST(BadInput, OutputPathsRunIdsAndMeshPathsAreCheckedBeforeComputing) {
   };
   fs::remove_all(d);
   fs::create_directories(d / "a.h5.tmp");
-  refused_out(d / "a.h5", "a.h5.tmp\" is not a regular file");
+  refused_out(d / "a.h5", "a.h5.tmp\" (its temporary) is a folder");
   fs::create_directories(d / "b.xdmf");
-  refused_out(d / "b.h5", "b.xdmf\" is not a regular file");
+  refused_out(d / "b.h5", "b.xdmf\" is a folder");
   ASSERT_EQ(mkfifo((d / "c.h5").c_str(), 0600), 0);
-  refused_out(d / "c.h5", "c.h5\" is not a regular file");
+  refused_out(d / "c.h5", "c.h5\" is a FIFO");
   std::ofstream(d / "e.h5.journal") << "not a folder";
   refused_out(d / "e.h5", "e.h5.journal\" is not a folder");
   refused_out(d / (std::string(250, 'x') + ".h5"), "File name too long");
   fs::create_symlink(d / "loop1", d / "loop2");
   fs::create_symlink(d / "loop2", d / "loop1");
-  refused_out(d / "loop1", "Too many levels of symbolic links");
+  refused_out(d / "loop1", "loop1\" is a symbolic link");  // never followed
   // Mesh paths: a folder, a FIFO, a symlink loop, a header announcing 2·10⁹
   // vertices (before: "out of memory although the run fitted the memory
   // estimate", exit 1).

@@ -535,15 +535,17 @@ namespace {
 // A result file whose integrity block matches but whose attribute headers
 // were damaged (found by verify/fuzz/fuzz_result.cc): HDF5 1.10 itself
 // crashes (SIGSEGV) reading it. Every subcommand reads untrusted files
-// whole in a child process first, so the crash is refused with exit 2 and
-// one line naming the file, and nothing is printed on stdout.
+// whole in a child process first, so the file is refused with exit 2 and
+// one line naming the file and saying it is damaged (the child's listing
+// of the file's links fails before any read that would crash), and
+// nothing is printed on stdout.
 TEST(InspectCommand, AFileThatCrashesHdf5IsRefusedWithExit2) {
   const std::string file = std::string(CLOTHBENCH_FUZZ_REGRESSIONS) + "/hdf5_crash_signed.bin";
   for (const char* args : {" summary", " table", " runs --json", " rerun x", " command x"}) {
     const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, file + args);
     EXPECT_EQ(o.exit_code, 2) << args << ": " << o.err;
     EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
-    EXPECT_NE(o.err.find("crashed the HDF5 library"), std::string::npos) << o.err;
+    EXPECT_NE(o.err.find("damaged"), std::string::npos) << o.err;
     EXPECT_TRUE(o.out.empty()) << o.out;
   }
 }
