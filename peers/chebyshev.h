@@ -23,6 +23,18 @@ struct ChebyshevSettings {
   double rho = 0.0;
   double gamma = 1.0;  ///< under-relaxation γ in (0, 1]
   int delay = 1;       ///< plain iterations before ω leaves 1 (Wang's S)
+  /// Adaptive restart (O'Donoghue & Candès 2015, "Adaptive restart for
+  /// accelerated gradient schemes", Found. Comput. Math. 15: the gradient
+  /// scheme): when the plain iteration's increment ‖û − u^k‖ exceeds the one
+  /// at which the acceleration (re)started, the iteration has lost all the
+  /// progress the acceleration made; the step then keeps the plain result û,
+  /// and ω starts again from 1 after `delay` plain iterations. Chebyshev's
+  /// schedule bounds the error only for a spectrum in [−ρ, ρ]; a
+  /// Gauss–Seidel iteration (VBD) has complex eigenvalues, and a ρ near 1
+  /// measured from its increments lets a few modes grow (docs/model.md §10).
+  /// The last iteration of a step keeps its plain result as well: no later
+  /// sweep would show whether its extrapolation lost progress.
+  bool restart = false;
 
   /// True if the settings are in their ranges (or the acceleration is off).
   bool valid() const { return !on || (rho >= 0.0 && rho < 1.0 && gamma > 0.0 && gamma <= 1.0 && delay >= 1); }

@@ -57,6 +57,8 @@ bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool* timed_
   BeginIterations(h);
   increments_.clear();
   double omega = 1.0;
+  int start = 0;           // the iteration the schedule (re)started at (ChebyshevSettings::restart)
+  double start_plain = 0;  // the plain increment ‖v̂ − v^k‖ where ω first left 1 after it
   for (int k = 0; k < k_max; ++k) {
     if (DeadlinePassed()) {
       *timed_out = true;
@@ -65,11 +67,20 @@ bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool* timed_
     v_start_ = v_;
     Iteration(h);
     if (!v_.allFinite()) return false;
-    if (accelerate && k >= cheb_.delay) {
-      omega = cheb_.Omega(k, rho_, omega);
-      // v^{k+1} = ω (γ (v̂ − v^k) + v^k − v^{k−1}) + v^{k−1} with v̂ = v_
-      // after the iteration, v^k = v_start_, v^{k−1} = v_prev_.
-      v_ = omega * (cheb_.gamma * (v_ - v_start_) + v_start_ - v_prev_) + v_prev_;
+    if (accelerate && k >= start + cheb_.delay) {
+      const double plain = cheb_.restart ? (v_ - v_start_).norm() : 0.0;
+      if (k == start + cheb_.delay) start_plain = plain;
+      // With the restart on, the last iteration also keeps its plain result:
+      // no later sweep would show whether its extrapolation lost progress.
+      if (cheb_.restart && ((k > start + cheb_.delay && plain > start_plain) || k + 1 == k_max)) {
+        start = k + 1;  // keep v̂ (v_); ω is 1 again for `delay` iterations
+        omega = 1.0;
+      } else {
+        omega = cheb_.Omega(k - start, rho_, omega);
+        // v^{k+1} = ω (γ (v̂ − v^k) + v^k − v^{k−1}) + v^{k−1} with v̂ = v_
+        // after the iteration, v^k = v_start_, v^{k−1} = v_prev_.
+        v_ = omega * (cheb_.gamma * (v_ - v_start_) + v_start_ - v_prev_) + v_prev_;
+      }
     }
     increments_.push_back((v_ - v_start_).norm());
     v_prev_.swap(v_start_);
