@@ -325,6 +325,59 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   return run;
 }
 
+// --sizes: one target sweep per size, then the verdict; every size planned
+// (and refused) before the first computes. `lock` holds the verdict's
+// output lock to the exit. @throws UsageError
+int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<NonlinearSolver>& solvers,
+                    const std::vector<double>& etas, SweepComm& comm, int argc, char** argv,
+                    std::optional<OutputLock>* lock) {
+  std::vector<long> sizes;
+  for (double n : ParsePositiveList(o.sizes_arg, "--sizes")) {
+    if (n != std::floor(n) || n < 4 || n > kMaxParticles)
+      throw UsageError(fmt::format("--sizes: {:g} must be a whole number of particles from 4 to {:g}", n,
+                                   kMaxParticles));
+    if (!sizes.empty() && n <= static_cast<double>(sizes.back()))
+      throw UsageError(fmt::format("--sizes: {:g} must be larger than the size before it ({})", n, sizes.back()));
+    sizes.push_back(static_cast<long>(n));
+  }
+  for (const char* option : {"--series", "--max-runs"})
+    if (app.count(option)) throw UsageError(fmt::format("{}: cannot be combined with --sizes", option));
+  // Each size is a sweep to the targets: the options it refuses, named as --sizes'.
+  for (const char* option : {"--h", "--rtols", "--substeps", "--iterations"})
+    if (app.count(option))
+      throw UsageError(fmt::format("{}: --sizes sweeps each size to the targets and chooses the runs itself", option));
+  if (o.reference == "none") throw UsageError("--reference none: --sizes needs the reference's errors at each size");
+  o.sweep_to_targets = true;
+  const std::string verdict_out =
+      o.out.empty() ? fmt::format("out/{}_sizes.h5", SceneOfOptions(app, o).name) : o.out;
+  if (std::filesystem::path(verdict_out).extension() != ".h5")
+    throw UsageError(fmt::format("--out: \"{}\" must end in .h5 with --sizes (the sizes' files are named after "
+                                 "it)", EscapeControl(verdict_out)));
+  std::vector<BenchRun> runs;
+  std::set<int> seen;
+  for (long n : sizes) {
+    Options size_options = o;
+    Scene refined = SceneOfOptions(app, o, n);
+    if (!seen.insert(refined.num_particles()).second)
+      throw UsageError(fmt::format("--sizes: {} gives the same {}×{} grid as a size before it", n,
+                                   refined.grid.nu, refined.grid.nv));
+    size_options.out = std::filesystem::path(verdict_out)
+                           .replace_extension(fmt::format("n{}.h5", refined.num_particles()))
+                           .string();
+    size_options.plot_dir.clear();  // the verdict's plot; scripts/plot draws a size's file
+    runs.push_back(PlanBench(app, size_options, solvers, etas, comm, argc, argv, n));
+    runs.back().keep_journal = true;
+  }
+  ProbeOnRoot(comm, [&] {
+    if (!o.plot_dir.empty() && !PlotDirWritable(o.plot_dir))
+      throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(o.plot_dir)));
+  });
+  lock->emplace(verdict_out, comm);
+  std::vector<std::unique_ptr<OutputLock>> size_locks;
+  for (const BenchRun& r : runs) size_locks.push_back(std::make_unique<OutputLock>(r.out, comm));
+  return comm.RootStatus(RunSizes(runs, sizes, verdict_out, o.plot_dir, comm));
+}
+
 int Main(int argc, char** argv) {
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
@@ -391,55 +444,7 @@ int Main(int argc, char** argv) {
                                                           : std::nullopt,
                             solvers, etas, comm));
     }
-    if (app.count("--sizes")) {
-      // One target sweep per size, then the verdict: every size planned
-      // (and refused) before the first computes.
-      std::vector<long> sizes;
-      for (double n : ParsePositiveList(sizes_arg, "--sizes")) {
-        if (n != std::floor(n) || n < 4 || n > kMaxParticles)
-          throw UsageError(fmt::format("--sizes: {:g} must be a whole number of particles from 4 to {:g}", n,
-                                       kMaxParticles));
-        if (!sizes.empty() && n <= static_cast<double>(sizes.back()))
-          throw UsageError(fmt::format("--sizes: {:g} must be larger than the size before it ({})", n, sizes.back()));
-        sizes.push_back(static_cast<long>(n));
-      }
-      for (const char* option : {"--series", "--max-runs"})
-        if (app.count(option)) throw UsageError(fmt::format("{}: cannot be combined with --sizes", option));
-      // Each size is a sweep to the targets: the options it refuses, named as --sizes'.
-      for (const char* option : {"--h", "--rtols", "--substeps", "--iterations"})
-        if (app.count(option))
-          throw UsageError(fmt::format("{}: --sizes sweeps each size to the targets and chooses the runs itself", option));
-      if (reference == "none") throw UsageError("--reference none: --sizes needs the reference's errors at each size");
-      sweep_to_targets = true;
-      const std::string verdict_out =
-          out.empty() ? fmt::format("out/{}_sizes.h5", SceneOfOptions(app, o).name) : out;
-      if (std::filesystem::path(verdict_out).extension() != ".h5")
-        throw UsageError(fmt::format("--out: \"{}\" must end in .h5 with --sizes (the sizes' files are named after "
-                                     "it)", EscapeControl(verdict_out)));
-      std::vector<BenchRun> runs;
-      std::set<int> seen;
-      for (long n : sizes) {
-        Options size_options = o;
-        Scene refined = SceneOfOptions(app, o, n);
-        if (!seen.insert(refined.num_particles()).second)
-          throw UsageError(fmt::format("--sizes: {} gives the same {}×{} grid as a size before it", n,
-                                       refined.grid.nu, refined.grid.nv));
-        size_options.out = std::filesystem::path(verdict_out)
-                               .replace_extension(fmt::format("n{}.h5", refined.num_particles()))
-                               .string();
-        size_options.plot_dir.clear();  // the verdict's plot; scripts/plot draws a size's file
-        runs.push_back(PlanBench(app, size_options, solvers, etas, comm, argc, argv, n));
-        runs.back().keep_journal = true;
-      }
-      ProbeOnRoot(comm, [&] {
-        if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
-          throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
-      });
-      lock.emplace(verdict_out, comm);
-      std::vector<std::unique_ptr<OutputLock>> size_locks;
-      for (const BenchRun& r : runs) size_locks.push_back(std::make_unique<OutputLock>(r.out, comm));
-      return comm.RootStatus(RunSizes(runs, sizes, verdict_out, plot_dir, comm));
-    }
+    if (app.count("--sizes")) return RunSizesCommand(app, o, solvers, etas, comm, argc, argv, &lock);
     const BenchRun run = PlanBench(app, o, solvers, etas, comm, argc, argv);
     lock.emplace(run.out, comm);
     return comm.RootStatus(RunBench(run, comm));

@@ -28,6 +28,7 @@
 
 #include "bench/cli_rules.h"
 #include "bench/signals.h"
+#include "harness/table_notes.h"
 #include "harness/reproduce.h"
 #include "results/contained_read.h"
 #include "model/output_file.h"
@@ -367,7 +368,7 @@ int RunSubcommand(const Args& a) {
     if (t.runs.empty() && !f.Exists("/runs"))
       throw UsageError(fmt::format("table: {} has no /runs (not a bench_integrators run table)", a.file));
     fmt::print("# {}: written {} by commit {}\n", a.file, t.created, t.git_commit);
-    PrintRunTable(stdout, t);
+    PrintRunTable(stdout, t, RegistryTableNotes());
     if (t.work_precision) PrintWorkPrecision(stdout, *t.work_precision);
   } else if (a.runs->parsed()) {
     PrintRuns(f, t, a.json);

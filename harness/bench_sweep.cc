@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include "harness/table_notes.h"
 #include "harness/plot.h"
 #include "harness/progress.h"
 #include "harness/result_writer.h"
@@ -90,7 +91,7 @@ void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optiona
   wp.stop_reasons = stop_reasons;
   const RunTable run_table = MakeRunTable(b.scene, sys, ref, rows, b.frames_mode, ref ? &wp : nullptr,
                                          b.error_metric);
-  if (!b.work_precision_only) PrintRunTable(stdout, run_table);
+  if (!b.work_precision_only) PrintRunTable(stdout, run_table, RegistryTableNotes());
   if (ref) PrintWorkPrecision(stdout, wp);
   try {
     if (!b.series.empty()) WriteSeries(b.series, rows);

@@ -38,8 +38,14 @@ double FreeDiskBytes(const std::string& path) {
 // not fit in memory. Estimate per particle [bytes]: 24 per N×3 matrix, of
 // which the step engine holds ~25 and every kept frame 2 (positions and
 // velocities, held for all rows until the file is written); A_α and the
-// Laplacians ~200; the CHOLMOD factor ~45 entries × 12 bytes (measured:
-// 44.9e6 entries at 10⁶, METIS); the SUNDIALS references a 3N×3N Jacobian
+// Laplacians ~200; the CHOLMOD factor and what its analysis and
+// factorisation hold at their peak (METIS' ordering, the symbolic factor,
+// CHOLMOD's workspace) 2.2 kB: sbdf2 with the cholesky preconditioner
+// peaks at 3.00 GB at 10⁶ particles and 0.297 GB at 316² (`/usr/bin/time
+// -v build/bench/bench_integrators --scene large_sheet --integrators
+// sbdf2 --h 0.01 --reference none --frames none`), 3.0 kB per particle
+// (the earlier 45 entries × 12 bytes counted the factor alone and let a
+// 9·10⁶-particle run start and be killed at 23.7 GB); the SUNDIALS references a 3N×3N Jacobian
 // (~117 entries per particle row triple) and its KLU factor with fill,
 // taken as 4 kB per particle (an upper estimate, not a measurement).
 // Every attempted step keeps a StepStats in the run and a StepRecord in its
@@ -68,7 +74,7 @@ void CheckMemory(const Scene& scene, const std::vector<RowMethod>& methods, cons
   double bytes = n * (25.0 * 24.0 + 200.0) + (rows + 1.0) * frames * 2.0 * 24.0 * n + step_records * 100.0;
   if (scene.solver.preconditioner == PreconditionerType::kCholesky ||
       scene.solver.preconditioner == PreconditionerType::kAuto)
-    bytes += n * 45.0 * 12.0;
+    bytes += n * 2.2e3;
   if (sundials) bytes += n * 4096.0;
   // Newton and Baraff–Witkin rows hold the 3N×3N tangent system J_α with
   // ∂f/∂x, ∂f/∂v, its constant part and transpose positions on its pattern,

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "harness/cli_args.h"
+#include "harness/memory_check.h"
 #include "harness/sweep.h"
 
 namespace clothbench {
@@ -256,6 +257,11 @@ ResolvedRun RunRequest::Resolve() const {
   ApplyOptions(*this, &out);
   CheckLimits(*this, &out);
   out.spec = out.scene.solver;
+  // The one run's memory, before anything is computed, at every door
+  // (bench_integrators checks its whole plan as well): its step records
+  // are one per step of a fixed-step row, unknown (0) for adaptive ones.
+  const double records = out.row.kind() == StepKind::kAdaptive ? 0.0 : out.scene.t_end / out.param;
+  CheckMemory(out.scene, {out.row}, {1}, 1, std::nullopt, records);
   return out;
 }
 
@@ -273,14 +279,5 @@ Scene RunRequest::SweepScene() const {
 
 void RunRequest::Validate() const { (void)Resolve(); }
 
-bool RunRequest::IsValid(std::string* error) const {
-  try {
-    Validate();
-    return true;
-  } catch (const std::invalid_argument& e) {
-    if (error) *error = e.what();
-    return false;
-  }
-}
 
 }  // namespace clothbench

@@ -92,8 +92,6 @@ struct RunRequest {
   /// @throws UsageError (a std::invalid_argument), one line naming the
   ///   field, its value and the rule, for the first field that breaks one
   void Validate() const;
-  /// false with `error` set as Validate() would throw it.
-  bool IsValid(std::string* error) const;
   /// The run this request asks for. @throws UsageError as Validate()
   ResolvedRun Resolve() const;
   /// The scene of a sweep over many rows (bench_integrators): `scene` with

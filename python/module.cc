@@ -743,7 +743,8 @@ PYBIND11_MODULE(clothbench, m) {
         "times [F], positions and velocities [F, N, 3], step_stats (structured array), counts, times, status, "
         "energies, and with reference= (a dict from reference() on the same scene and t_end) error_final_m, "
         "error_l2_m, error_max_m (and _mps for the velocities). progress(t, t_end) is called at most every 0.2 s; "
-        "an exception it raises, or Ctrl-C (checked every 50 ms between steps), stops the run and is raised "
+        "an exception it raises, or Ctrl-C (KeyboardInterrupt: within 0.2 s inside the iterations, as a library call "
+        "returns in a setup), stops the run and is raised "
         "again. The run is timed `repeat` times (None: 3 if the first takes under 2 s, else 1, within "
         "time_budget seconds, default 30), each later timing reproducing the end state bit for bit: solver_time_s "
         "is the least, with solver_time_s_median, solver_time_s_max and repeats. time_limit [s] (default 3600) "
@@ -755,9 +756,11 @@ PYBIND11_MODULE(clothbench, m) {
         "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
         "as the HDF5 result file bench_integrators writes (docs/results-schema.md), under <path>.lock and "
         "through a temporary file renamed at the end. error_metric: final | l2 | max (default: l2 on scenes with "
-        "obstacles, final otherwise, as bench_integrators). ValueError for a path that is not a regular file or is "
-        "being written by another process, and for runs or a reference of another scene; RuntimeError if the "
-        "file cannot be written."),
+        "obstacles, final otherwise, as bench_integrators). ValueError for a path that is not a regular file (a "
+        "link, device, FIFO or folder, or its temporary <path>.tmp is one), is an input read in this process, or "
+        "is being written by another process, and for runs or a reference of another scene; ResultError (a "
+        "ValueError) naming the system's reason, such as 'No space left on device', if the file cannot be "
+        "written."),
   m.def("read_results", &ReadResultFile, py::arg("path"),
         "A result file's records: schema, scene, reference and runs (dicts of their attributes) and the "
         "equal-accuracy table (work_precision); for a bench_integrators --sizes file also scale_verdict (sizes, "

@@ -75,19 +75,6 @@ std::optional<TrajectoryErrors> CompareTrajectories(const Trajectory& run, const
 
 double ObservedOrder(double h1, double e1, double h2, double e2) { return std::log(e1 / e2) / std::log(h1 / h2); }
 
-double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e) {
-  const double n = static_cast<double>(h.size());
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  for (std::size_t k = 0; k < h.size(); ++k) {
-    const double x = std::log(h[k]), y = std::log(e[k]);
-    sx += x;
-    sy += y;
-    sxx += x * x;
-    sxy += x * y;
-  }
-  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
-}
-
 double EnergySeries::Rate() const {
   if (t.size() < 2) return 0.0;
   return (total.back() - total.front() - external_work.back() - ContactWork(t.size() - 1)) / (t.back() - t.front());
@@ -149,14 +136,6 @@ PenetrationSeries ComputePenetration(const ParticleSystem& system, const Traject
     }
   }
   return s;
-}
-
-double PenetrationSeries::MaxDepthAfter(const std::vector<double>& times, double t_from) const {
-  double m = 0.0;
-  for (std::size_t f = 0; f < times.size(); ++f)
-    if (times[f] >= t_from - 1e-12)
-      for (int o = 0; o < obstacles; ++o) m = std::max(m, max_depth[f * static_cast<std::size_t>(obstacles) + o]);
-  return m;
 }
 
 }  // namespace clothbench

@@ -56,9 +56,6 @@ std::optional<TrajectoryErrors> CompareTrajectories(const Trajectory& run, const
 /// Observed order log(e1/e2)/log(h1/h2) between step sizes h1 > h2 (docs/model.md §9).
 double ObservedOrder(double h1, double e1, double h2, double e2);
 
-/// Least-squares slope of log e against log h.
-double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e);
-
 /// Energies [J] and momentum [kg m/s] per frame.
 struct EnergySeries {
   std::vector<double> t, kinetic, tension, shear, bending, gravity, external_work, total;
@@ -95,8 +92,6 @@ struct PenetrationSeries {
   std::vector<double> max_depth;   ///< [F·O] max over particles of max(0, −d) [m]
   std::vector<double> mean_depth;  ///< [F·O] mean of −d over particles with d < 0 (0 if none) [m]
   std::vector<int32_t> close;      ///< [F·O] particles with d < δ/2
-  /// Max of max_depth over frames at or after t_from [s], over all obstacles.
-  double MaxDepthAfter(const std::vector<double>& times, double t_from) const;
 };
 
 /// Signed distances d of every particle to every obstacle at every frame.

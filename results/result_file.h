@@ -31,7 +31,7 @@ class ResultError : public std::runtime_error {
 struct StepRecord {
   double t;            ///< end of the step [s]
   double h;            ///< step size [s]
-  int32_t updates;     ///< fixed-point updates (CVODE: BDF order)
+  int32_t updates;     ///< fixed-point updates (SUNDIALS rows: BDF order)
   int32_t cg_iterations;
   int32_t status;      ///< 0 = accepted; else the StepStatus code of a rejected attempt
   int32_t colliding;   ///< particles constrained by obstacles (−1 for SUNDIALS rows)
@@ -56,7 +56,7 @@ class ResultFile {
   ResultFile(const ResultFile&) = delete;
   ResultFile& operator=(const ResultFile&) = delete;
 
-  /// Creates group `path` (e.g. "/runs/sbdf2_h0.01"), parents included.
+  /// Creates group `path` (e.g. "/runs/<run id>"), parents included.
   void CreateGroup(const std::string& path);
   void SetAttribute(const std::string& object, const std::string& name, const std::string& value);
   void SetAttribute(const std::string& object, const std::string& name, double value);

@@ -75,12 +75,6 @@ namespace {
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 
-// "cvode" -> "CVODE": the SUNDIALS package's own spelling.
-std::string Upper(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
-}
-
 std::string JoinCommaSpace(const std::string& comma_separated) {
   std::string out;
   for (char c : comma_separated) {
@@ -101,7 +95,7 @@ std::string ErrorName(const std::string& metric) {
                            : "e_rms(t_end)";
 }
 
-void PrintRunTable(std::FILE* out, const RunTable& t) {
+void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes) {
   fmt::print(out, "scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, explicit terms: {}\n", t.scene_name,
              t.scene_source, t.n_particles, t.n_fixed, t.t_end, JoinCommaSpace(t.explicit_terms));
   fmt::print(out,
@@ -139,25 +133,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
   for (const auto& [eta, labels] : other_eta)
     fmt::print(out, "cg_tolerance {:g} (each method's best, harness/methods.h) in rows: {}\n", eta,
                fmt::join(labels, ", "));
-  const auto& ref = t.reference;
-  if (ref && IsSelfConvergence(*ref))
-    fmt::print(out,
-               "reference: self-convergence, BDF(2) at h = {:g} s (h_min/32), cg_tolerance 1e-10, fixed-point "
-               "tolerance 1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s; its "
-               "self-convergence: e_l2 against BDF(2) at 2h = {}\n",
-               ref->h, ref->steps, ref->wall_time_s,
-               ref->error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref->error_estimate_m) : "-");
-  else if (ref)
-    fmt::print(out,
-               "reference: {} BDF/Newton, {}, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}; its error "
-               "estimate: {} against rtol/10 = {}\n",
-               Upper(ref->integrator), ref->label.find("/klu") != std::string::npos
-                               ? std::string("KLU on the first-order Jacobian")
-                               : fmt::format("the reduced velocity solve ({} PCG)",
-                                             ref->preconditioner.empty() ? std::string("-") : ref->preconditioner),
-               ref->rtol, ref->steps, ref->wall_time_s,
-               ref->energy_rate_W ? fmt::format("{:.3e} W", *ref->energy_rate_W) : "-", ErrorName(t.error_metric),
-               ref->error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref->error_estimate_m) : "-");
+  if (t.reference && notes.reference) fmt::print(out, "{}\n", notes.reference(*t.reference, ErrorName(t.error_metric)));
   else
     fmt::print(out, "reference: none (error columns empty)\n");
   // The contact power column only where a run has one (scenes with obstacles).
@@ -189,34 +165,20 @@ void PrintRunTable(std::FILE* out, const RunTable& t) {
       fmt::print(out, "{:<24} ({} steps kept an unconverged CG solve at the iteration cap)\n", "", r.cg_unconverged);
     if (!r.ok() && !r.message.empty()) fmt::print(out, "{:<24} ({})\n", "", r.message);
   }
+  if (!notes.legend.empty()) fmt::print(out, "\n{}\n", notes.legend);
   fmt::print(out,
-             "\nh|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
-             "frame step/substeps of substepped rows (xpbd), step x iterations of iterated rows (pd, vbd).\n"
              "order: observed order between consecutive rows, against h (h/substeps); adaptive rows against their "
              "mean step t_end/steps.\n");
   // The first run of an integrator says what its rows' columns mean.
-  const auto note = [&](std::string_view integrator, std::string_view text, std::string_view terms) {
+  for (const RunTableNotes::Row& note : notes.rows)
     for (const RunRecord& r : t.runs)
-      if (r.integrator == integrator) {
-        fmt::print(out, "{}{}", text, r.constraints);
-        if (!terms.empty()) fmt::print(out, "; {}{}", terms, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+      if (r.integrator == note.integrator) {
+        fmt::print(out, "{}{}", note.text, r.constraints);
+        if (!note.terms.empty()) fmt::print(out, "; {}{}", note.terms, r.explicit_terms.empty() ? "none" : r.explicit_terms);
         fmt::print(out, ".\n");
-        return;
+        break;
       }
-  };
-  note("xpbd", "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
-       "explicit forces in the prediction: ");
-  note("pd",
-       "pd rows: updates = iterations (each projects the springs, evaluates the other forces at the iterate and "
-       "solves with A_1's factor, factorised once per h); projected: ",
-       "at the iterate: ");
-  note("vbd",
-       "vbd rows: updates = iterations (each a sweep of one local Newton step per particle, every term implicit, "
-       "the colours of the particle graph in sequence)",
-       "");
-  fmt::print(out,
-             "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, ida, arkode: "
-             "our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the direct KLU solver).\n");
+  if (!notes.after_rows.empty()) fmt::print(out, "{}\n", notes.after_rows);
   fmt::print(out,
              "solver_s: the least of the run's timings; spread: (max - min)/min over them / their number (the first "
              "computes the trajectory, the others reproduce it bit for bit).\n");

@@ -10,6 +10,7 @@
 
 #include <cstdio>
 #include <optional>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <variant>
@@ -56,8 +57,8 @@ struct RecordField {
 const std::vector<RecordField>& RunRecordFields();
 
 /// True if `reference` (RunTable::reference) is a fixed-step
-/// self-convergence run (obstacle scenes: BDF(2) at h_min/32) rather than
-/// CVODE or IDA at an rtol.
+/// self-convergence run (a fixed-step run of one of the thesis' methods at a
+/// fraction of the scene's smallest step) rather than an adaptive run at an rtol.
 inline bool IsSelfConvergence(const RunRecord& reference) { return reference.step_kind == "fixed_step"; }
 
 
@@ -98,10 +99,33 @@ struct RunTable {
   std::optional<EqualAccuracyTable> work_precision;
 };
 
+/// What the lines under a run table say about each kind of row and about
+/// the reference: written by the method registry (harness/table_notes.h),
+/// so that the results layer names no method.
+struct RunTableNotes {
+  /// The legend of the h|rtol column (printed after the runs, if not empty).
+  std::string legend;
+  /// A note printed once, for the first run whose integrator is `integrator`:
+  /// `text` followed by the run's constraints and, if `terms` is not empty,
+  /// "; <terms><the run's explicit terms, or none>".
+  struct Row {
+    std::string integrator, text, terms;
+  };
+  std::vector<Row> rows;
+  /// Lines printed after the rows' notes (the adaptive rows' counts).
+  std::string after_rows;
+  /// The reference line for a reference run and the error metric's name
+  /// (ErrorName); empty function: no reference line.
+  std::function<std::string(const RunRecord& reference, const std::string& error_name)> reference;
+};
+
+/// The name of an error metric ("final", "l2", "max") in the tables' text.
+std::string ErrorName(const std::string& metric);
+
 /// Prints the run table exactly as bench_integrators prints it: the scene,
-/// solver and reference lines, one line per run, the footnotes and the
-/// machine line.
-void PrintRunTable(std::FILE* out, const RunTable& table);
+/// solver and reference lines, one line per run, the footnotes (`notes`)
+/// and the machine line.
+void PrintRunTable(std::FILE* out, const RunTable& table, const RunTableNotes& notes = {});
 
 /// The equal-accuracy table of `runs` (docs/work-precision.md): per row
 /// label, in order of first appearance, the (solver time, error, timing

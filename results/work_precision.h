@@ -83,7 +83,7 @@ void MarkUnresolvedTargets(EqualAccuracyTable* t, double reference_error);
 
 /// @param labels  method labels; points[k] are the runs of labels[k]
 /// @param reference the baseline label the ratios are relative to
-///                  ("cvode"); empty or absent: no ratios
+///                  (a row label); empty or absent: no ratios
 EqualAccuracyTable BuildEqualAccuracyTable(const std::vector<std::string>& labels,
                                            const std::vector<std::vector<WorkPoint>>& points,
                                            const std::vector<double>& targets, const std::string& reference);

@@ -1,6 +1,7 @@
 // CHOLMOD factor of A_F (docs/model.md §5). CHOLMOD is confined to this file.
 #include "solver/cholesky.h"
 
+#include "model/interrupt.h"
 #include "solver/decoupled.h"
 
 #include <cholmod.h>
@@ -324,6 +325,7 @@ bool CholeskyFactor::Analyze(const SparseMatrix& a, const std::vector<int>& fixe
   m.common.postorder = 1;
   m.common.supernodal = CHOLMOD_AUTO;
   m.factor = cholmod_analyze(m.upper, &m.common);
+  ThrowIfInterrupted();  // Ctrl-C during the ordering (METIS has no callback): raised as it returns
   if (!m.factor || m.common.status != CHOLMOD_OK) return false;
   const int* perm = static_cast<const int*>(m.factor->Perm);
   m.iperm.assign(static_cast<std::size_t>(n), 0);
@@ -448,6 +450,7 @@ bool CholeskyFactor::Factorize(const SparseMatrix& a, const std::vector<char>* d
       }
   }
   const int ok = cholmod_factorize(m.upper, m.factor, &m.common);
+  ThrowIfInterrupted();  // Ctrl-C during the factorisation (no callback in CHOLMOD): raised as it returns
   // CHOLMOD_NOT_POSDEF is a warning (status > 0), not an error: check minor.
   if (!ok || m.common.status != CHOLMOD_OK || m.factor->minor < m.factor->n) return false;
   // Solves run on a simplicial LLᵀ copy of the factor. CHOLMOD's supernodal

@@ -1,6 +1,8 @@
 // Step engine (docs/model.md §3, §4, §6; thesis (3.21)–(3.36), Alg. 6).
 #include "solver/integrator.h"
 
+#include "model/interrupt.h"
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -42,10 +44,6 @@ bool IsFullyImplicit(Method m) {
 }
 
 
-int MethodOrder(Method m) {
-  if (m == Method::kSbdf3) return 3;
-  return (m == Method::kImexEuler || m == Method::kImplicitEuler || m == Method::kSymplecticEuler) ? 1 : 2;
-}
 
 std::string_view ToString(StepStatus s) {
   switch (s) {
@@ -92,7 +90,9 @@ SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type
       lk_vals_(pos) = lk.coeff(row, col);
       if (ld.nonZeros() > 0) ld_vals_(pos) = ld.coeff(row, col);
     }
+  ThrowIfInterrupted();  // between the setup's phases: after the assembly,
   analyzed_ = precond_.Analyze(a_, system.fixed());
+  ThrowIfInterrupted();  // and after the ordering
   setup_seconds_ = analysis_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 

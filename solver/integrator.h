@@ -44,8 +44,6 @@ bool IsImex(Method m);
 /// Fully implicit methods (implicit Euler, BDF(2), implicit midpoint) iterate
 /// with a nonlinear solver (fixed point or Newton).
 bool IsFullyImplicit(Method m);
-/// Classical order of convergence (1, 2 or 3).
-int MethodOrder(Method m);
 
 /// Variable-step BDF(2) coefficients for ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)):
 /// x₁ = c1 x₀ − c2 x₋₁ + c3 h ẋ₁ with c1 = (1+ω)²/(1+2ω), c2 = ω²/(1+2ω),

@@ -33,13 +33,6 @@ bool RunOptions::IsValid(std::string* error) const {
   return true;
 }
 
-std::string RunSummary::BriefReport() const {
-  return fmt::format(
-      "{}: {} steps ({} rejected), {} updates, {} CG iterations, solver {:.3f} s (setup {:.3f} s), wall {:.3f} s{}{}",
-      status, steps, rejected, updates, cg_iterations, solver_time_s, setup_time_s,
-      wall_time_s, message.empty() ? "" : ": ", message);
-}
-
 namespace {
 
 // Cubic Hermite interpolation of positions (and its derivative for the
@@ -408,6 +401,20 @@ void ReturnToGrid(double t, double h_nominal, double* h, long* fixed_step_index)
   if (next - t < 1e-9 * h_nominal) ++*fixed_step_index;
 }
 
+// The run's totals after its loop: the solver time (with the virtual
+// particles' projection and springs, part of every step; their
+// triangulation for the frames is display, not counted), the guard's
+// margins, rebuilds, setup and wall time.
+void FinishRun(const Stepper& engine, const BlowUpGuard& guard, const VirtualParticles* virtual_particles,
+               double solver_seconds, std::chrono::steady_clock::time_point wall_start, RunSummary* sum) {
+  if (virtual_particles) solver_seconds += virtual_particles->projection_seconds() + virtual_particles->springs_seconds();
+  guard.StoreMargins(sum);
+  sum->matrix_rebuilds = engine.matrix_rebuilds();
+  sum->solver_time_s = sum->solver_time_s_median = sum->solver_time_s_max = solver_seconds;  // one timing
+  sum->setup_time_s = engine.setup_seconds();
+  sum->wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+}
+
 }  // namespace
 
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
@@ -523,14 +530,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     }
   }
   recorder.Trim();
-  // The virtual particles' projection and springs are part of every step
-  // (their triangulation for the frames is display, not counted).
-  if (virtual_particles) solver_seconds += virtual_particles->projection_seconds() + virtual_particles->springs_seconds();
-  guard.StoreMargins(&sum);
-  sum.matrix_rebuilds = engine.matrix_rebuilds();
-  sum.solver_time_s = sum.solver_time_s_median = sum.solver_time_s_max = solver_seconds;  // one timing
-  sum.setup_time_s = engine.setup_seconds();
-  sum.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  FinishRun(engine, guard, virtual_particles, solver_seconds, wall_start, &sum);
   return sum;
 }
 

@@ -78,8 +78,6 @@ struct RunSummary : RunRecord {
   Trajectory trajectory;
   std::optional<SundialsStats> sundials;  ///< SUNDIALS runs only
 
-  /// One line: status, steps, updates, CG iterations, times.
-  std::string BriefReport() const;
 };
 
 /// W_ext(t), the work of the non-conservative external forces (wind, air

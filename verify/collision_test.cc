@@ -41,6 +41,7 @@
 
 #include <gtest/gtest.h>
 
+#include "verify/test_metrics.h"
 #include "results/metrics.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -86,10 +87,10 @@ TEST_P(PenetrationTest, NoParticleDeeperThanHalfDeltaAfterSettling) {
   if (avatar) s.t_end = 1.5;
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, method, {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << testing::Brief(r);
   const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
   const double delta = s.obstacles[0].collision_distance;
-  const double depth = p.MaxDepthAfter(r.trajectory.times, 0.5);
+  const double depth = testing::MaxDepthAfter(p, r.trajectory.times, 0.5);
   std::printf("[ penetration ] %-12s %-18s max depth after 0.5 s %.2e m (δ/2 = %.1e), colliding at t_end %d\n", name,
               std::string(ToString(method)).c_str(), depth, 0.5 * delta, r.step_stats.back().colliding);
   EXPECT_LT(depth, 0.5 * delta);
@@ -103,7 +104,7 @@ TEST_P(RestingContactTest, CostsOneUpdateAndNoCgOnAPlane) {
   ObstacleSpec& plane = s.obstacles[0];
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, GetParam(), {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << testing::Brief(r);
   int steps = 0, max_updates = 0, cg = 0, min_colliding = 1 << 30;
   for (const StepStats& st : r.step_stats) {
     if (st.t < 0.3 - 1e-12) continue;
@@ -138,7 +139,7 @@ TEST_P(ContactWorkTest, AccountsForTheImpactOnAPlane) {
   s.grid.origin.z() = 0.8;
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, GetParam(), {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << testing::Brief(r);
   const EnergySeries e = ComputeEnergies(sys, r.trajectory);
   ASSERT_EQ(e.contact_work_holding.size(), e.t.size());
   const double w = e.ContactWork(e.t.size() - 1);
@@ -169,7 +170,7 @@ TEST_P(ContactHistoryTest, ProjectAndLandPutAnEnteringSheetOnTheBorder) {
     s.solver.contact_history = mode;
     const ParticleSystem sys(s);
     const RunSummary r = RunIntegrator(sys, GetParam(), {s.h, s.t_end, s.h});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     // The first step with every particle constrained; frame k + 1 is its end.
     std::size_t k = 0;
     while (k < r.step_stats.size() && r.step_stats[k].colliding < sys.num_particles()) ++k;
@@ -201,7 +202,7 @@ TEST(ContactPolicy, KeepsTheFactorAt1e4AndRepeatsBitForBit) {
   s.solver.preconditioner = PreconditionerType::kCholesky;
   const ParticleSystem sys_c(s);
   const RunSummary c = RunIntegrator(sys_c, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(a.ok() && b.ok() && c.ok()) << a.BriefReport();
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok()) << testing::Brief(a);
   int in_contact = 0;
   for (const StepStats& st : a.step_stats) {
     if (st.colliding == 0) {
@@ -223,7 +224,7 @@ TEST(ContactPolicy, FramesOrAmgServeTheSphereAt1e5) {
   const Scene s = SphereDrape("sphere_drape_100k", 0.3);  // 20 steps in contact
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << testing::Brief(r);
   std::vector<int> cg;
   for (const StepStats& st : r.step_stats) {
     std::printf("[ policy ] t %.2f colliding %6d CG %3d served by %d\n", st.t, st.colliding, st.cg_iterations,
@@ -253,7 +254,7 @@ TEST(ContactPolicy, FifteenCgPerContactStepOnEveryObstacleAt1e4) {
     ASSERT_EQ(s.solver.preconditioner, PreconditionerType::kAuto) << name;
     const ParticleSystem sys(s);
     const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << name << ": " << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << name << ": " << testing::Brief(r);
     std::vector<int> cg;
     for (const StepStats& st : r.step_stats)
       if (st.colliding >= sys.num_particles() / 100) cg.push_back(st.cg_iterations);

@@ -14,6 +14,7 @@
 //    the largest kinetic energy. The rates are printed.
 #include <gtest/gtest.h>
 
+#include "verify/test_metrics.h"
 #include "results/metrics.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -61,7 +62,7 @@ TEST(Energy, MidpointConservesAndTheOthersDissipate) {
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     const RunSummary r = RunIntegrator(sys, m, {0.002, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     const EnergySeries e = ComputeEnergies(sys, r.trajectory);
     const double kmax = *std::max_element(e.kinetic.begin(), e.kinetic.end());
     double drift = 0.0;

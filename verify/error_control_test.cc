@@ -27,6 +27,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "verify/test_metrics.h"
 #include "results/metrics.h"
 #include "solver/run.h"
 #include "verify/modal_solution.h"
@@ -109,7 +110,7 @@ TEST(ErrorControl, ErrorFallsWithRtolOverThreeDecades) {
       const Scene s = ErrorControlledMembrane(rtol, 0.0);
       const ParticleSystem sys(s);
       const RunSummary r = RunIntegrator(sys, method, {0.01, s.t_end, s.frame_dt});
-      ASSERT_TRUE(r.ok()) << r.BriefReport();
+      ASSERT_TRUE(r.ok()) << testing::Brief(r);
       ASSERT_GE(r.error_test_failures, 0);
       ASSERT_LE(r.error_test_failures, r.rejected);
       MatrixN3 x, v;

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 
+#include "verify/test_metrics.h"
 #include "results/metrics.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -76,7 +77,7 @@ TEST(StepEngine, InvalidOptionsAreReported) {
   EXPECT_NE(r.message.find("cg_tolerance"), std::string::npos) << r.message;
   const RunSummary r2 = RunIntegrator(ParticleSystem(DefaultScene()), Method::kSbdf2, {-0.01, 0.1, 0.01});
   EXPECT_EQ(r2.status, "invalid_options");
-  EXPECT_NE(r2.BriefReport().find("h = -0.01"), std::string::npos) << r2.BriefReport();
+  EXPECT_NE(testing::Brief(r2).find("h = -0.01"), std::string::npos) << testing::Brief(r2);
 }
 
 // The iteration controller (docs/model.md §6) changes h and still reaches t_end and

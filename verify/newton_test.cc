@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "verify/test_metrics.h"
 #include "peers/baraff_witkin.h"
 #include "results/metrics.h"
 #include "solver/run.h"
@@ -73,7 +74,7 @@ TEST(Newton, DefaultSceneAtTheNominalStep) {
   const ParticleSystem sys(s);
   for (Method m : {Method::kImplicitEuler, Method::kBdf2, Method::kImplicitMidpoint}) {
     const RunSummary r = RunIntegrator(sys, m, {0.01, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << ToString(m) << ": " << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << ToString(m) << ": " << testing::Brief(r);
     const double per_step = double(r.updates) / double(r.steps);
     std::printf("[ newton ] %-18s h = 0.01 s: %.2f updates/step, %.1f CG/step, %ld rejected\n",
                 std::string(ToString(m)).c_str(), per_step, double(r.cg_iterations) / double(r.steps), r.rejected);
@@ -95,18 +96,18 @@ TEST(BaraffWitkin, IsFirstOrder) {
   fine.nonlinear_solver = NonlinearSolver::kNewton;
   StepEngine ref_engine(sys, Method::kBdf2, fine);
   const RunSummary ref = RunStepper(sys, ref_engine, {0.01 / 64, s.t_end, s.frame_dt});
-  ASSERT_TRUE(ref.ok()) << ref.BriefReport();
+  ASSERT_TRUE(ref.ok()) << testing::Brief(ref);
   std::vector<double> hs, es;
   for (double h : {0.01, 0.005, 0.0025}) {
     BaraffWitkin bw(sys, s.solver);
     const RunSummary r = RunStepper(sys, bw, {h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     const auto e = CompareTrajectories(r.trajectory.positions, ref.trajectory.positions);
     ASSERT_TRUE(e);
     hs.push_back(h);
     es.push_back(e->rms_at_end);
   }
-  const double order = LeastSquaresOrder(hs, es);
+  const double order = testing::LeastSquaresOrder(hs, es);
   std::printf("[ baraff_witkin ] e_rms %.3e %.3e %.3e at h = 0.01, 0.005, 0.0025: order %.2f\n", es[0], es[1], es[2],
               order);
   // First order: the reference's own error (BDF(2) at h/64, ~1e-4 of
@@ -123,10 +124,10 @@ TEST_P(BaraffWitkinPenetration, NoParticleDeeperThanHalfDelta) {
   const ParticleSystem sys(s);
   BaraffWitkin bw(sys, s.solver);
   const RunSummary r = RunStepper(sys, bw, {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << testing::Brief(r);
   const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
   const double delta = s.obstacles[0].collision_distance;
-  const double depth = p.MaxDepthAfter(r.trajectory.times, 0.5);
+  const double depth = testing::MaxDepthAfter(p, r.trajectory.times, 0.5);
   std::printf("[ penetration ] %-12s baraff_witkin max depth after 0.5 s %.2e m (δ/2 = %.1e), colliding at t_end %d\n",
               GetParam(), depth, 0.5 * delta, r.step_stats.back().colliding);
   EXPECT_LT(depth, 0.5 * delta);
@@ -144,7 +145,7 @@ TEST(BaraffWitkin, SetupTimeIsPartOfTheStepTime) {
   const ParticleSystem sys(s);
   BaraffWitkin bw(sys, s.solver);
   const RunSummary r = RunStepper(sys, bw, {s.h, s.t_end, s.frame_dt});
-  ASSERT_TRUE(r.ok()) << r.BriefReport();
+  ASSERT_TRUE(r.ok()) << testing::Brief(r);
   int in_contact = 0;
   for (const StepStats& st : r.step_stats) {
     in_contact += st.colliding > 0;

@@ -34,6 +34,7 @@
 
 #include <gtest/gtest.h>
 
+#include "verify/test_metrics.h"
 #include "model/obstacle.h"
 #include "peers/xpbd.h"
 #include "results/metrics.h"
@@ -272,9 +273,9 @@ TEST(ObstacleMotion, RisingPlaneLiftsTheCloth) {
   const ParticleSystem sys(s);
   for (Method m : AllMethods()) {
     const RunSummary r = RunIntegrator(sys, m, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
-    const double depth = p.MaxDepthAfter(r.trajectory.times, 0.0);
+    const double depth = testing::MaxDepthAfter(p, r.trajectory.times, 0.0);
     const double z_err = (r.trajectory.positions.back().col(2).array() - 0.81).abs().maxCoeff();
     std::printf("[ rising ] %-18s max depth %.2e m, |z - 0.81| at t_end %.2e m, colliding %d\n",
                 std::string(ToString(m)).c_str(), depth, z_err, r.step_stats.back().colliding);

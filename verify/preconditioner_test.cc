@@ -24,6 +24,7 @@
 
 #include <fmt/format.h>
 
+#include "verify/test_metrics.h"
 #include "model/particle_system.h"
 #include "solver/cholesky.h"
 #include "solver/integrator.h"
@@ -65,7 +66,7 @@ TEST_P(PreconditionerTrajectoryTest, SameTrajectoryWithinTheCgTolerance) {
     scene.solver.preconditioner = type;
     const ParticleSystem sys(scene);
     const RunSummary r = RunIntegrator(sys, GetParam(), {0.005, scene.t_end, scene.frame_dt});
-    ASSERT_TRUE(r.ok()) << ToString(type) << ": " << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << ToString(type) << ": " << testing::Brief(r);
     runs.push_back(r.trajectory);
   }
   const double bound = 5e-9;  // see the file comment
@@ -95,7 +96,7 @@ TEST(CholeskyPreconditioner, OneIterationPerSolveWithoutContacts) {
     scene.solver.cholesky_ordering = ordering;
     const ParticleSystem sys(scene);
     const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {0.01, scene.t_end, scene.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     EXPECT_EQ(r.cg_iterations, r.steps) << ToString(ordering);
     EXPECT_GT(r.setup_time_s, 0.0);
   }
@@ -121,7 +122,7 @@ TEST(CholeskyPreconditioner, SameTrajectoryWithContacts) {
     scene.solver.contact_factors = runs.size() != 2;
     const ParticleSystem sys(scene);
     const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {0.01, scene.t_end, scene.frame_dt});
-    ASSERT_TRUE(r.ok()) << ToString(type) << ": " << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << ToString(type) << ": " << testing::Brief(r);
     runs.push_back(r.trajectory);
   }
   for (std::size_t k = 1; k < runs.size(); ++k)
@@ -172,7 +173,7 @@ TEST(ContactPreconditioners, GiveTheIc0TrajectoryAt10k) {
     scene.solver.amg_frames = frames;
     const ParticleSystem sys(scene);
     runs.push_back(RunIntegrator(sys, Method::kSbdf2, {0.01, scene.t_end, scene.frame_dt}));
-    ASSERT_TRUE(runs.back().ok()) << ToString(type) << " " << ToString(frames) << ": " << runs.back().BriefReport();
+    ASSERT_TRUE(runs.back().ok()) << ToString(type) << " " << ToString(frames) << ": " << testing::Brief(runs.back());
   }
   for (std::size_t k = 1; k < runs.size(); ++k) {
     EXPECT_LT(RmsDifference(runs[k].trajectory.positions.back(), runs[0].trajectory.positions.back()), 5.2e-9) << k;

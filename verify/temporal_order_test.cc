@@ -26,6 +26,7 @@
 // printed.
 #include <gtest/gtest.h>
 
+#include "verify/test_metrics.h"
 #include "reference/cvode_reference.h"
 #include "results/metrics.h"
 #include "solver/run.h"
@@ -71,10 +72,10 @@ TEST_P(ModalOrderTest, ObservedOrderMatchesClassicalOrder) {
     ASSERT_TRUE(r.ok()) << r.message;
     es.push_back(ErrorRms(r.trajectory.positions.back(), exact));
   }
-  const double slope = LeastSquaresOrder(hs, es);
+  const double slope = testing::LeastSquaresOrder(hs, es);
   std::printf("[ modal order ] %-18s e_rms = %.3e %.3e %.3e %.3e  slope %.3f\n", std::string(ToString(GetParam())).c_str(),
               es[0], es[1], es[2], es[3], slope);
-  EXPECT_NEAR(slope, MethodOrder(GetParam()), 0.3);
+  EXPECT_NEAR(slope, testing::MethodOrder(GetParam()), 0.3);
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, ModalOrderTest, ::testing::ValuesIn(OrderedMethods()),
@@ -113,14 +114,14 @@ TEST_P(CvodeOrderTest, LeastSquaresSlopeMatchesClassicalOrder) {
   std::vector<double> es;
   for (double h : hs) {
     const RunSummary r = RunIntegrator(sys, GetParam(), {h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
-    ASSERT_EQ(r.rejected, 0) << "fixed-point loop did not converge: " << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
+    ASSERT_EQ(r.rejected, 0) << "fixed-point loop did not converge: " << testing::Brief(r);
     es.push_back(ErrorRms(r.trajectory.positions.back(), Reference()));
   }
-  const double slope = LeastSquaresOrder(hs, es);
+  const double slope = testing::LeastSquaresOrder(hs, es);
   std::printf("[ cvode order ] %-18s e_rms = %.3e %.3e %.3e %.3e  slope %.3f\n",
               std::string(ToString(GetParam())).c_str(), es[0], es[1], es[2], es[3], slope);
-  EXPECT_NEAR(slope, MethodOrder(GetParam()), 0.3);
+  EXPECT_NEAR(slope, testing::MethodOrder(GetParam()), 0.3);
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, CvodeOrderTest, ::testing::ValuesIn(OrderedMethods()),

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "verify/test_metrics.h"
 #include "peers/xpbd.h"
 #include "reference/cvode_reference.h"
 #include "results/metrics.h"
@@ -87,7 +88,7 @@ TEST(Xpbd, ErrorFallsWithSubstepsOnTheSwingingSheet) {
   for (int n : {4, 16, 64}) {
     Xpbd xpbd(sys, n);
     const RunSummary r = RunStepper(sys, xpbd, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     const double e = CompareTrajectories(r.trajectory.positions, ref.trajectory.positions)->rms_at_end;
     std::printf("[ xpbd ] swinging_sheet h = %g s, %d substeps: e_rms %.3e m\n", s.h, n, e);
     if (previous > 0.0) {
@@ -104,9 +105,9 @@ TEST(Xpbd, NoParticleDeeperThanHalfDeltaOnTheTablecloth) {
   for (int n : {4, 16}) {
     Xpbd xpbd(sys, n);
     const RunSummary r = RunStepper(sys, xpbd, {s.h, s.t_end, s.frame_dt});
-    ASSERT_TRUE(r.ok()) << r.BriefReport();
+    ASSERT_TRUE(r.ok()) << testing::Brief(r);
     const PenetrationSeries p = ComputePenetration(sys, r.trajectory);
-    const double depth = p.MaxDepthAfter(r.trajectory.times, 0.5);
+    const double depth = testing::MaxDepthAfter(p, r.trajectory.times, 0.5);
     std::printf("[ xpbd ] tablecloth %d substeps: max depth after 0.5 s %.2e m (δ/2 = %.1e), colliding at t_end %d\n",
                 n, depth, 0.5 * delta, r.step_stats.back().colliding);
     EXPECT_LT(depth, 0.5 * delta);

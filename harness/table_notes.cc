@@ -1,0 +1,61 @@
+#include "harness/table_notes.h"
+
+#include <cctype>
+#include <string>
+
+#include <fmt/format.h>
+
+namespace clothbench {
+namespace {
+
+// "cvode" -> "CVODE": the SUNDIALS package's own spelling.
+std::string Upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
+  if (IsSelfConvergence(ref))
+    return fmt::format(
+        "reference: self-convergence, BDF(2) at h = {:g} s (h_min/32), cg_tolerance 1e-10, fixed-point tolerance "
+        "1e-12 m/s (CVODE/IDA have no collision response): {} steps, {:.2f} s; its self-convergence: e_l2 against "
+        "BDF(2) at 2h = {}",
+        ref.h, ref.steps, ref.wall_time_s,
+        ref.error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref.error_estimate_m) : "-");
+  return fmt::format(
+      "reference: {} BDF/Newton, {}, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}; its error estimate: {} "
+      "against rtol/10 = {}",
+      Upper(ref.integrator),
+      ref.label.find("/klu") != std::string::npos
+          ? std::string("KLU on the first-order Jacobian")
+          : fmt::format("the reduced velocity solve ({} PCG)",
+                        ref.preconditioner.empty() ? std::string("-") : ref.preconditioner),
+      ref.rtol, ref.steps, ref.wall_time_s, ref.energy_rate_W ? fmt::format("{:.3e} W", *ref.energy_rate_W) : "-",
+      error_name, ref.error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref.error_estimate_m) : "-");
+}
+
+}  // namespace
+
+const RunTableNotes& RegistryTableNotes() {
+  static const RunTableNotes notes{
+      .legend = "h|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
+                "frame step/substeps of substepped rows (xpbd), step x iterations of iterated rows (pd, vbd).",
+      .rows = {{"xpbd", "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
+                "explicit forces in the prediction: "},
+               {"pd",
+                "pd rows: updates = iterations (each projects the springs, evaluates the other forces at the iterate "
+                "and solves with A_1's factor, factorised once per h); projected: ",
+                "at the iterate: "},
+               {"vbd",
+                "vbd rows: updates = iterations (each a sweep of one local Newton step per particle, every term "
+                "implicit, the colours of the particle graph in sequence)",
+                ""}},
+      .after_rows = "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, "
+                    "ida, arkode: our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the "
+                    "direct KLU solver).",
+      .reference = ReferenceLine,
+  };
+  return notes;
+}
+
+}  // namespace clothbench
