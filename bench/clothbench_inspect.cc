@@ -31,6 +31,7 @@
 #include "harness/table_notes.h"
 #include "harness/reproduce.h"
 #include "results/contained_read.h"
+#include "results/mesh_export.h"
 #include "model/output_file.h"
 #include "model/scene.h"
 #include "results/result_reader.h"
@@ -197,49 +198,10 @@ int Diff(const RunTable& a, const RunTable& b, const std::string& path_b, double
 }
 
 void Export(const ResultReader& f, const std::string& run, long frame, const std::string& obj, const std::string& ply) {
-  // The project's output rules before anything is read: a regular file or
-  // nothing (never a link, device or FIFO), and not FILE itself.
-  CheckOutputTarget(obj.empty() ? ply : obj, obj.empty() ? "--ply" : "--obj");  // OutputRefused: exit 2
-  const std::string g = run == "reference" ? "/reference" : "/runs/" + run;
-  if (!f.Exists(g)) {
-    std::string runs;
-    for (const std::string& id : f.Children("/runs")) runs += (runs.empty() ? "" : ", ") + id;
-    throw UsageError(fmt::format("export: no run \"{}\" in {} (runs: reference, {})", run, f.path(), runs));
-  }
-  const std::string dataset = f.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
-  if (!f.Exists(dataset))
-    throw UsageError(fmt::format("export: run \"{}\" in {} has no stored frames (written with --frames none)", run,
-                                 f.path()));
-  const std::size_t frames = f.Shape(dataset)[0];
-  if (frames == 0) throw UsageError(fmt::format("export: {} in {} holds no frames", dataset, f.path()));
-  if (frame < 0 || static_cast<std::size_t>(frame) >= frames)
-    throw UsageError(fmt::format("--frame: {} is not a stored frame of {} ({} frames, 0 … {}{})", frame, dataset, frames,
-                                 frames - 1, dataset.ends_with("_ends") ? ": t = 0 and t_end" : ""));
-  const MatrixN3 x = f.Frame(dataset, static_cast<std::size_t>(frame));
-  const std::vector<int32_t> faces = f.Ints("/scene/faces");
-  const std::vector<double> times = f.Doubles(g + "/times");
-  const double t = dataset.ends_with("_ends") ? (frame == 0 ? times.front() : times.back())
-                                              : times[static_cast<std::size_t>(frame)];
-  const std::string path = obj.empty() ? ply : obj;
-  const std::string option = obj.empty() ? "--ply" : "--obj";
-  std::string text;
-  if (!obj.empty()) {
-    text += fmt::format("# {} run {} frame {} (t = {:g} s), positions [m]\n", f.path(), run, frame, t);
-    for (Eigen::Index p = 0; p < x.rows(); ++p) text += fmt::format("v {:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
-    for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
-      text += fmt::format("f {} {} {} {}\n", faces[q] + 1, faces[q + 1] + 1, faces[q + 2] + 1, faces[q + 3] + 1);
-  } else {
-    text += fmt::format("ply\nformat ascii 1.0\ncomment {} run {} frame {} (t = {:g} s), positions [m]\n"
-                        "element vertex {}\nproperty double x\nproperty double y\nproperty double z\n"
-                        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-                        f.path(), run, frame, t, x.rows(), faces.size() / 4);
-    for (Eigen::Index p = 0; p < x.rows(); ++p) text += fmt::format("{:.17g} {:.17g} {:.17g}\n", x(p, 0), x(p, 1), x(p, 2));
-    for (std::size_t q = 0; q + 3 < faces.size(); q += 4)
-      text += fmt::format("4 {} {} {} {}\n", faces[q], faces[q + 1], faces[q + 2], faces[q + 3]);
-  }
-  WriteFileAtomically(path, text, option);
-  fmt::print("{}: run {} frame {} (t = {:g} s), {} vertices, {} quads\n", path, run, frame, t, x.rows(),
-             faces.size() / 4);
+  const std::string& path = obj.empty() ? ply : obj;
+  const ExportedFrame e =
+      ExportFrame(f, run, frame, obj.empty() ? MeshFormat::kPly : MeshFormat::kObj, path, obj.empty() ? "--ply" : "--obj");
+  fmt::print("{}: run {} frame {} (t = {:g} s), {} vertices, {} quads\n", path, run, frame, e.t, e.vertices, e.quads);
 }
 
 // `rerun`: recomputes a stored run in-process and says whether its end state

@@ -194,26 +194,13 @@ std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec&
 }
 }  // namespace internal
 
-/// Every method, in table order.
-inline const std::vector<MethodEntry>& Registry() {
-  using internal::MakeEngine;
-  constexpr auto kAdaptive = StepKind::kAdaptive, kSubstepped = StepKind::kSubstepped, kIterated = StepKind::kIterated;
+namespace internal {
+/// The field's other methods' rows (peers/), in table order: Baraff–Witkin
+/// at its best and as Blender ships it, XPBD, projective dynamics, VBD.
+inline std::vector<MethodEntry> PeerEntries() {
+  constexpr auto kSubstepped = StepKind::kSubstepped, kIterated = StepKind::kIterated;
   constexpr auto kBest = kBestPreconditioner;
-  static const std::vector<MethodEntry> r = {
-      {.name = "imex_euler", .layer = "solver", .collisions = true, .pcg = true,
-       .make = MakeEngine<Method::kImexEuler>, .best_preconditioner = kBest},
-      {.name = "implicit_euler", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
-       .make = MakeEngine<Method::kImplicitEuler>, .best_preconditioner = kBest},
-      {.name = "sbdf2", .layer = "solver", .error_control = true, .collisions = true, .pcg = true,
-       .make = MakeEngine<Method::kSbdf2>, .best_preconditioner = kBest},
-      {.name = "bdf2", .layer = "solver", .nonlinear_solver = true, .error_control = true, .collisions = true,
-       .pcg = true, .make = MakeEngine<Method::kBdf2>, .best_preconditioner = kBest,
-       .best_preconditioner_error = kBest},
-      {.name = "implicit_midpoint", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
-       .make = MakeEngine<Method::kImplicitMidpoint>, .best_preconditioner = kBest},
-      {.name = "sbdf3", .layer = "solver", .collisions = true, .pcg = true, .make = MakeEngine<Method::kSbdf3>,
-       .best_preconditioner = kBest},
-      {.name = "symplectic_euler", .layer = "solver", .collisions = true, .make = MakeEngine<Method::kSymplecticEuler>},
+  return {
       // baraff_witkin: also measured at h = 0.01, 0.00125, 0.0003125 s alone
       // (`bench_integrators --integrators baraff_witkin --h
       // 0.01,0.00125,0.0003125 --preconditioner P`): solver time 0.124,
@@ -297,6 +284,34 @@ inline const std::vector<MethodEntry>& Registry() {
          row->chebyshev_rho = vbd.rho();
          row->colours = vbd.colours();
        }},
+  };
+}
+}  // namespace internal
+
+/// Every method, in table order.
+inline const std::vector<MethodEntry>& Registry() {
+  using internal::MakeEngine;
+  constexpr auto kAdaptive = StepKind::kAdaptive;
+  constexpr auto kBest = kBestPreconditioner;
+  static const std::vector<MethodEntry> r = [&] {
+    std::vector<MethodEntry> rows = {
+      {.name = "imex_euler", .layer = "solver", .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kImexEuler>, .best_preconditioner = kBest},
+      {.name = "implicit_euler", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kImplicitEuler>, .best_preconditioner = kBest},
+      {.name = "sbdf2", .layer = "solver", .error_control = true, .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kSbdf2>, .best_preconditioner = kBest},
+      {.name = "bdf2", .layer = "solver", .nonlinear_solver = true, .error_control = true, .collisions = true,
+       .pcg = true, .make = MakeEngine<Method::kBdf2>, .best_preconditioner = kBest,
+       .best_preconditioner_error = kBest},
+      {.name = "implicit_midpoint", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
+       .make = MakeEngine<Method::kImplicitMidpoint>, .best_preconditioner = kBest},
+      {.name = "sbdf3", .layer = "solver", .collisions = true, .pcg = true, .make = MakeEngine<Method::kSbdf3>,
+       .best_preconditioner = kBest},
+      {.name = "symplectic_euler", .layer = "solver", .collisions = true, .make = MakeEngine<Method::kSymplecticEuler>},
+    };
+    for (MethodEntry& e : internal::PeerEntries()) rows.push_back(std::move(e));
+    std::vector<MethodEntry> sundials = {
       {.name = kArkodeName, .kind = kAdaptive, .layer = "peers", .pcg = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                        const RunContext& ctx) { return RunArkode(sys, o, ctx.arkode_table, &spec); },
@@ -318,7 +333,10 @@ inline const std::vector<MethodEntry>& Registry() {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
        },
        .reference = true, .variants = {"klu"}, .best_preconditioner = kBest},
-  };
+    };
+    for (MethodEntry& e : sundials) rows.push_back(std::move(e));
+    return rows;
+  }();
   return r;
 }
 

@@ -11,6 +11,7 @@
 #include <limits>
 #include <numbers>
 #include <Eigen/Geometry>
+#include <fmt/format.h>
 
 namespace clothbench {
 
@@ -381,6 +382,15 @@ void Obstacle::Surface(std::vector<Vector3>* vertices, std::vector<std::array<in
     case ObstacleType::kMesh:  // TriangulatedSurface above
       break;
   }
+}
+
+std::string StartsInside(const Obstacle& o, const MatrixN3& x) {
+  const Penetration pen = o.PenetrationOf(o.PoseAt(0.0), x);
+  if (pen.deepest < 0 || !(pen.max_depth > o.spec().collision_distance)) return "";
+  return fmt::format("({}): particle {} starts {:.3g} m inside it at ({:g}, {:g}, {:g}) m, deeper than its collision "
+                     "distance {:g} m ({} particles start inside); move the grid or the obstacle",
+                     ToString(o.spec().type), pen.deepest, pen.max_depth, x(pen.deepest, 0), x(pen.deepest, 1),
+                     x(pen.deepest, 2), o.spec().collision_distance, pen.inside);
 }
 
 }  // namespace clothbench

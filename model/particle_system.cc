@@ -66,6 +66,10 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
     } catch (const std::runtime_error& e) {  // an unreadable, empty or misplaced mesh
       throw SceneError(fmt::format("{}: obstacle[{}].path: {}", scene.source, k, e.what()));
     }
+    // A cloth that starts inside a solid obstacle is refused before
+    // computing (ParseScene checks the analytic ones already; meshes here).
+    if (const std::string why = StartsInside(obstacles_.back(), rest_); !why.empty())
+      throw SceneError(fmt::format("{}: obstacle[{}] {}", scene.source, k, why));
   }
   fixed_ = scene.fixed;
   fixed_mask_.assign(static_cast<std::size_t>(n_), 0);

@@ -128,143 +128,148 @@ bool SamePoint(const VirtualParticle& l, const VirtualParticle& r) {
 
 }  // namespace
 
-void VirtualParticles::Update(double t, const MatrixN3& x) {
-  // The same state again (a frame at a step's end, then the next step; a
-  // step retried after a rejection): the topology stands.
-  if (current_ && t == t_update_ && x == x_update_) return;
-  using Clock = std::chrono::steady_clock;
-  const auto start = Clock::now();
-  ClearTopology();
-  t_update_ = t;
-  x_update_ = x;
-  current_ = true;
-  // §5.3: every standing projection of every obstacle's edges.
-  for (const auto& src : sources_) {
-    const Obstacle& o = *src->obstacle;
-    const ObstaclePose pose = o.PoseAt(t);
-    src->world.resize(src->placed.size());
-    for (std::size_t k = 0; k < src->placed.size(); ++k) src->world[k] = pose.ToWorld(src->placed[k]);
-    // The edges by grid cell, for the faces' queries (§5.3's acceleration).
-    const bool moved = !src->built || pose.rotation != src->built_pose.rotation ||
-                       pose.translation != src->built_pose.translation;
-    if (moved) {
-      src->cells.clear();
-      src->wide.clear();
-      src->stamp.assign(src->edges.size(), 0);
-      for (std::size_t e = 0; e < src->edges.size(); ++e) {
-        Eigen::AlignedBox3d b(src->world[static_cast<std::size_t>(src->edges[e][0])]);
-        b.extend(src->world[static_cast<std::size_t>(src->edges[e][1])]);
-        if (!ForEachCell(b, cell_, [&](std::uint64_t key) { src->cells[key].push_back(static_cast<int>(e)); }))
-          src->wide.push_back(static_cast<int>(e));
-      }
-      src->built = true;
-      src->built_pose = pose;
+// §5.3: every standing projection of one obstacle's edges at time t onto
+// the cloth at positions x.
+void VirtualParticles::ProjectSource(Source* src, double t, const MatrixN3& x) {
+  const Obstacle& o = *src->obstacle;
+  const ObstaclePose pose = o.PoseAt(t);
+  src->world.resize(src->placed.size());
+  for (std::size_t k = 0; k < src->placed.size(); ++k) src->world[k] = pose.ToWorld(src->placed[k]);
+  IndexEdges(src, pose);
+  // Whether any edge lies in the cells a box meets (a face without one
+  // neither votes nor projects).
+  const auto near_edges = [&](const Eigen::AlignedBox3d& box) {
+    bool near = !src->wide.empty();
+    if (!ForEachCell(box, cell_, [&](std::uint64_t key) { near = near || src->cells.count(key) > 0; })) near = true;
+    return near;
+  };
+  // The faces' orientation, away from the obstacle: one side of the
+  // sheet for all its faces, n = σ (P2 − P1) × (P3 − P1) in the grid's
+  // order (counter-clockwise about u × v). σ is voted by the faces whose
+  // centroid is outside and whose normal is within 60° of the direction
+  // D from the obstacle, weighted by |⟨n, D⟩|, among the faces with
+  // obstacle edges in reach; it changes only on a clear majority. A
+  // single face's D is no guide: beside a box's side, below its top edge, D is horizontal and ⟨n, D⟩ only round-off, and
+  // neighbours oriented apart make the bisecting plane S_i the face's
+  // own plane.
+  double vote = 0.0, weight = 0.0;
+  Eigen::AlignedBox3d reach;
+  for (const Vector3& w : src->world) reach.extend(w);
+  for (const auto& tri : cloth_.vertices) {
+    const Vector3 a = x.row(tri[0]).transpose(), b = x.row(tri[1]).transpose(), c = x.row(tri[2]).transpose();
+    Eigen::AlignedBox3d box(a);
+    box.extend(b).extend(c);
+    const double grow = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    box.min().array() -= grow;
+    box.max().array() += grow;
+    if (!box.intersects(reach) || !near_edges(box)) continue;
+    Vector3 d;
+    if (o.SignedDistance(pose, (a + b + c) / 3.0, &d) <= 0.0) continue;
+    const double cosine = (b - a).cross(c - a).normalized().dot(d);
+    if (std::abs(cosine) < 0.5) continue;
+    vote += cosine;
+    weight += std::abs(cosine);
+  }
+  if (src->side == 0 || vote * src->side < -0.5 * weight) src->side = vote < 0.0 ? -1 : 1;
+  const double side = src->side;
+  const auto outward = [&](std::size_t f, const Vector3&) {
+    const auto& tri = cloth_.vertices[f];
+    return Vector3(side * (x.row(tri[1]) - x.row(tri[0])).cross(x.row(tri[2]) - x.row(tri[0])).transpose());
+  };
+  // Fig. 5.9: a ray crosses another face of the obstacle if it runs
+  // through the solid after its first hit. A ray that only grazes a face
+  // (a vertical ray from below a box's top edge runs along its side)
+  // touches the surface without entering: points after the hit are
+  // tested against the polyhedron's signed distance (7 of them, so that
+  // a ray through a thin part of a mesh is seen too).
+  const TriangleMesh& surface = src->surface ? *src->surface : *o.mesh();
+  const auto first_hit = [&](const Vector3& a, const Vector3& b) -> std::optional<double> {
+    const Vector3 pa = pose.ToPlaced(a), pb = pose.ToPlaced(b);
+    const std::optional<SegmentHit> hit = surface.FirstHit(pa, pb);
+    if (!hit || hit->s >= 1.0 - 1e-9) return std::nullopt;  // none, or the edge itself
+    const double tol = 1e-9 + 1e-6 * (pb - pa).norm();
+    Vector3 dir;
+    for (int k = 1; k < 8; ++k) {
+      const double s = hit->s + (1.0 - hit->s) * k / 8.0;
+      if (surface.SignedDistance(pa + s * (pb - pa), &dir) < -tol) return hit->s;
     }
-    // Whether any edge lies in the cells a box meets (a face without one
-    // neither votes nor projects).
-    const auto near_edges = [&](const Eigen::AlignedBox3d& box) {
-      bool near = !src->wide.empty();
-      if (!ForEachCell(box, cell_, [&](std::uint64_t key) { near = near || src->cells.count(key) > 0; })) near = true;
-      return near;
+    return std::nullopt;
+  };
+  const auto candidates = [&](const Eigen::AlignedBox3d& box, const auto& visit) {
+    const std::uint64_t q = ++src->query;
+    const auto offer = [&](int e) {
+      std::uint64_t& mark = src->stamp[static_cast<std::size_t>(e)];
+      if (mark == q) return;
+      mark = q;
+      visit(static_cast<std::size_t>(e));
     };
-    // The faces' orientation, away from the obstacle: one side of the
-    // sheet for all its faces, n = σ (P2 − P1) × (P3 − P1) in the grid's
-    // order (counter-clockwise about u × v). σ is voted by the faces whose
-    // centroid is outside and whose normal is within 60° of the direction
-    // D from the obstacle, weighted by |⟨n, D⟩|, among the faces with
-    // obstacle edges in reach; it changes only on a clear majority. A
-    // single face's D is no guide: beside a box's side, below its top edge, D is horizontal and ⟨n, D⟩ only round-off, and
-    // neighbours oriented apart make the bisecting plane S_i the face's
-    // own plane.
-    double vote = 0.0, weight = 0.0;
-    Eigen::AlignedBox3d reach;
-    for (const Vector3& w : src->world) reach.extend(w);
-    for (const auto& tri : cloth_.vertices) {
-      const Vector3 a = x.row(tri[0]).transpose(), b = x.row(tri[1]).transpose(), c = x.row(tri[2]).transpose();
-      Eigen::AlignedBox3d box(a);
-      box.extend(b).extend(c);
-      const double grow = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-      box.min().array() -= grow;
-      box.max().array() += grow;
-      if (!box.intersects(reach) || !near_edges(box)) continue;
-      Vector3 d;
-      if (o.SignedDistance(pose, (a + b + c) / 3.0, &d) <= 0.0) continue;
-      const double cosine = (b - a).cross(c - a).normalized().dot(d);
-      if (std::abs(cosine) < 0.5) continue;
-      vote += cosine;
-      weight += std::abs(cosine);
+    for (int e : src->wide) offer(e);
+    const bool listed = ForEachCell(box, cell_, [&](std::uint64_t key) {
+      if (const auto it = src->cells.find(key); it != src->cells.end())
+        for (int e : it->second) offer(e);
+    });
+    if (!listed)  // a blown-up face
+      for (std::size_t e = 0; e < src->edges.size(); ++e) offer(static_cast<int>(e));
+  };
+  ProjectObstacleEdges(x, cloth_, src->world, src->edges, outward, first_hit, candidates, &normal_, &hits_);
+  AddVirtualParticles(src, pose, x);
+}
+
+// The edges of `src` by grid cell at `pose`, for the faces' queries
+// (§5.3's acceleration): rebuilt only when the obstacle moved.
+void VirtualParticles::IndexEdges(Source* src, const ObstaclePose& pose) {
+  const bool moved = !src->built || pose.rotation != src->built_pose.rotation ||
+                     pose.translation != src->built_pose.translation;
+  if (moved) {
+    src->cells.clear();
+    src->wide.clear();
+    src->stamp.assign(src->edges.size(), 0);
+    for (std::size_t e = 0; e < src->edges.size(); ++e) {
+      Eigen::AlignedBox3d b(src->world[static_cast<std::size_t>(src->edges[e][0])]);
+      b.extend(src->world[static_cast<std::size_t>(src->edges[e][1])]);
+      if (!ForEachCell(b, cell_, [&](std::uint64_t key) { src->cells[key].push_back(static_cast<int>(e)); }))
+        src->wide.push_back(static_cast<int>(e));
     }
-    if (src->side == 0 || vote * src->side < -0.5 * weight) src->side = vote < 0.0 ? -1 : 1;
-    const double side = src->side;
-    const auto outward = [&](std::size_t f, const Vector3&) {
-      const auto& tri = cloth_.vertices[f];
-      return Vector3(side * (x.row(tri[1]) - x.row(tri[0])).cross(x.row(tri[2]) - x.row(tri[0])).transpose());
-    };
-    // Fig. 5.9: a ray crosses another face of the obstacle if it runs
-    // through the solid after its first hit. A ray that only grazes a face
-    // (a vertical ray from below a box's top edge runs along its side)
-    // touches the surface without entering: points after the hit are
-    // tested against the polyhedron's signed distance (7 of them, so that
-    // a ray through a thin part of a mesh is seen too).
-    const TriangleMesh& surface = src->surface ? *src->surface : *o.mesh();
-    const auto first_hit = [&](const Vector3& a, const Vector3& b) -> std::optional<double> {
-      const Vector3 pa = pose.ToPlaced(a), pb = pose.ToPlaced(b);
-      const std::optional<SegmentHit> hit = surface.FirstHit(pa, pb);
-      if (!hit || hit->s >= 1.0 - 1e-9) return std::nullopt;  // none, or the edge itself
-      const double tol = 1e-9 + 1e-6 * (pb - pa).norm();
-      Vector3 dir;
-      for (int k = 1; k < 8; ++k) {
-        const double s = hit->s + (1.0 - hit->s) * k / 8.0;
-        if (surface.SignedDistance(pa + s * (pb - pa), &dir) < -tol) return hit->s;
+    src->built = true;
+    src->built_pose = pose;
+  }
+}
+
+// The virtual particles of the faces' hits of one obstacle's edges
+// (hits_, §5.3), each end with its cloth edge or face, and the segments.
+void VirtualParticles::AddVirtualParticles(const Source* src, const ObstaclePose& pose, const MatrixN3& x) {
+  for (const FaceEdgeHit& h : hits_) {
+    const EdgeProjection& pr = h.projection;
+    segments_.push_back({h.face, {}});
+    for (int end = 0; end < 2; ++end) {
+      const int on = end == 0 ? pr.v_edge : pr.w_edge;
+      VirtualParticle vp;
+      vp.x = end == 0 ? pr.v : pr.w;
+      vp.v = pose.Velocity(vp.x);
+      vp.obstacle = src->index;
+      vp.edge = h.edge;
+      vp.face = h.face;
+      if (on >= 0) {
+        int a = h.vertices[static_cast<std::size_t>(on)], b = h.vertices[static_cast<std::size_t>((on + 1) % 3)];
+        if (a > b) std::swap(a, b);
+        vp.a = a;
+        vp.b = b;
+        const Vector3 xa = x.row(a).transpose(), ab = x.row(b).transpose() - xa;
+        const Vector3 bar = end == 0 ? pr.v_bar : pr.w_bar;
+        vp.s = std::clamp((bar - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+        vp.bar = xa + vp.s * ab;
+      } else {
+        vp.bar = end == 0 ? pr.v_bar : pr.w_bar;
       }
-      return std::nullopt;
-    };
-    const auto candidates = [&](const Eigen::AlignedBox3d& box, const auto& visit) {
-      const std::uint64_t q = ++src->query;
-      const auto offer = [&](int e) {
-        std::uint64_t& mark = src->stamp[static_cast<std::size_t>(e)];
-        if (mark == q) return;
-        mark = q;
-        visit(static_cast<std::size_t>(e));
-      };
-      for (int e : src->wide) offer(e);
-      const bool listed = ForEachCell(box, cell_, [&](std::uint64_t key) {
-        if (const auto it = src->cells.find(key); it != src->cells.end())
-          for (int e : it->second) offer(e);
-      });
-      if (!listed)  // a blown-up face
-        for (std::size_t e = 0; e < src->edges.size(); ++e) offer(static_cast<int>(e));
-    };
-    ProjectObstacleEdges(x, cloth_, src->world, src->edges, outward, first_hit, candidates, &normal_, &hits_);
-    for (const FaceEdgeHit& h : hits_) {
-      const EdgeProjection& pr = h.projection;
-      segments_.push_back({h.face, {}});
-      for (int end = 0; end < 2; ++end) {
-        const int on = end == 0 ? pr.v_edge : pr.w_edge;
-        VirtualParticle vp;
-        vp.x = end == 0 ? pr.v : pr.w;
-        vp.v = pose.Velocity(vp.x);
-        vp.obstacle = src->index;
-        vp.edge = h.edge;
-        vp.face = h.face;
-        if (on >= 0) {
-          int a = h.vertices[static_cast<std::size_t>(on)], b = h.vertices[static_cast<std::size_t>((on + 1) % 3)];
-          if (a > b) std::swap(a, b);
-          vp.a = a;
-          vp.b = b;
-          const Vector3 xa = x.row(a).transpose(), ab = x.row(b).transpose() - xa;
-          const Vector3 bar = end == 0 ? pr.v_bar : pr.w_bar;
-          vp.s = std::clamp((bar - xa).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-          vp.bar = xa + vp.s * ab;
-        } else {
-          vp.bar = end == 0 ? pr.v_bar : pr.w_bar;
-        }
-        particles_.push_back(vp);
-        segments_.back().ends[static_cast<std::size_t>(end)] = vp;
-      }
+      particles_.push_back(vp);
+      segments_.back().ends[static_cast<std::size_t>(end)] = vp;
     }
   }
-  const auto projected = Clock::now();
+}
+
+// §5.4: one virtual particle per (cloth edge, obstacle edge), the points of
+// each cloth edge ordered from a to b, and the split springs.
+void VirtualParticles::SplitSprings(const MatrixN3& x) {
   // §5.4: a point on a cloth edge is found from both faces of that edge:
   // keep one per (cloth edge, obstacle edge). Then order the points of each
   // cloth edge from a to b.
@@ -321,6 +326,22 @@ void VirtualParticles::Update(double t, const MatrixN3& x) {
     }
     k = end;
   }
+}
+
+void VirtualParticles::Update(double t, const MatrixN3& x) {
+  // The same state again (a frame at a step's end, then the next step; a
+  // step retried after a rejection): the topology stands.
+  if (current_ && t == t_update_ && x == x_update_) return;
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  ClearTopology();
+  t_update_ = t;
+  x_update_ = x;
+  current_ = true;
+  // §5.3: every standing projection of every obstacle's edges.
+  for (const auto& src : sources_) ProjectSource(src.get(), t, x);
+  const auto projected = Clock::now();
+  SplitSprings(x);
   const auto done = Clock::now();
   projection_seconds_ += std::chrono::duration<double>(projected - start).count();
   springs_seconds_ += std::chrono::duration<double>(done - projected).count();

@@ -164,6 +164,12 @@ class VirtualParticles : public ForceTerm {
  private:
   struct Source;  // one obstacle that is projected
   void ClearTopology();
+  // The parts of Update: one obstacle's projection (with its edge index and
+  // its virtual particles), then the split springs.
+  void ProjectSource(Source* src, double t, const MatrixN3& x);
+  void IndexEdges(Source* src, const ObstaclePose& pose);
+  void AddVirtualParticles(const Source* src, const ObstaclePose& pose, const MatrixN3& x);
+  void SplitSprings(const MatrixN3& x);
   /// The particle that candidate c (as found in a face) became, −1 if none.
   int Find(const VirtualParticle& c) const;
   /// The virtual particle `k`'s position at time t [m] (it moves with the obstacle).

@@ -82,6 +82,47 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
   return colliding;
 }
 
+namespace {
+
+// The old→new cast of the detection's step 2 (ContactResponse::Detect): a
+// particle whose segment x₋₁ → x₀ may cross the obstacle (possible only if
+// d(x₋₁) + d(x₀) ≤ |x₀ − x₋₁|; for a moving obstacle d(x₋₁) is re-measured
+// at the current pose, as the stored `d_old` is at the old pose, where the
+// bound does not hold) and whose first crossing leaves x₀ within δ of the
+// surface has tunnelled: *d and *d_k become that side's distance and
+// normal. A crossing back toward the remembered side (`last_direction` of a
+// contact with the same obstacle, or nullptr) is a return, not a tunnel.
+bool Tunnelled(const Obstacle& o, const ObstaclePose& pose, const Vector3& x_prev, const Vector3& x0, double d_old,
+               double delta, const Vector3* last_direction, double* d, Vector3* d_k) {
+  Vector3 unused;
+  const double d_prev = o.moving() ? o.SignedDistance(pose, x_prev, &unused) : d_old;
+  if (!(d_prev >= 0.0 && (*d < 0.0 || d_prev + *d <= (x0 - x_prev).norm()))) return false;
+  const auto hit = o.FirstHit(pose, x_prev, x0);
+  if (!hit || (last_direction && hit->normal.dot(*last_direction) < 0.0)) return false;
+  const double side = (x0 - hit->point).dot(hit->normal);
+  if (!(side < delta)) return false;
+  *d = side;
+  *d_k = hit->normal;
+  return true;
+}
+
+// Coulomb friction's force [N] on a particle of mass m [kg] in contact
+// along `dir`, from the normal impulse `normal_impulse` = μ J_N [N s] of the
+// last step (docs/model.md §2.5), explicit, against the tangential part of
+// the velocity v_rel relative to the obstacle [m/s]. Its impulse is capped at
+// m|v_t|: friction can stop a sliding particle but never reverse it
+// (uncapped, a round-off v_t of 1e-15 m/s got the full μ|f_N| and set
+// resting cloth sliding at h μ g per step).
+Vector3 CoulombFriction(double normal_impulse, double m, const Vector3& v_rel, const Vector3& dir, double h) {
+  const Vector3 vt = v_rel - v_rel.dot(dir) * dir;
+  const double speed = vt.norm();
+  if (!(speed > 0.0)) return Vector3::Zero();
+  const double impulse = std::min(normal_impulse, m * speed);
+  return (-impulse / (h * speed)) * vt;
+}
+
+}  // namespace
+
 int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                             VelocityFilter* filter) {
   const bool have_history = xm1 != nullptr;
@@ -153,27 +194,10 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
       const double d_old = d_stored;  // at x₋₁ (+inf after Reset)
       d_stored = d;
       if (released) continue;
-      // 2. Old→new cast: possible only if d(x₋₁) + d(x₀) ≤ |x₀ − x₋₁|.
-      // For a moving obstacle d(x₋₁) is re-measured at the current pose (the
-      // stored one is at the old pose, where the bound does not hold).
-      bool tunnelled = false;
-      if (have_history && d_old < 1e300) {
-        const Vector3 x_prev = xm1->row(p).transpose();
-        Vector3 unused;
-        const double d_prev = o.moving() ? o.SignedDistance(pose, x_prev, &unused) : d_old;
-        if (d_prev >= 0.0 && (d < 0.0 || d_prev + d <= (x0 - x_prev).norm())) {
-          const auto hit = o.FirstHit(pose, x_prev, x0);
-          // (A crossing back toward the remembered side is a return, not a tunnel.)
-          if (hit && !(same_contact && hit->normal.dot(last_direction) < 0.0)) {
-            const double side = (x0 - hit->point).dot(hit->normal);
-            if (side < delta) {
-              d = side;
-              d_k = hit->normal;
-              tunnelled = true;
-            }
-          }
-        }
-      }
+      // 2. Old→new cast (Tunnelled).
+      const bool tunnelled = have_history && d_old < 1e300 &&
+                             Tunnelled(o, pose, xm1->row(p).transpose(), x0, d_old, delta,
+                                       same_contact ? &last_direction : nullptr, &d, &d_k);
       // 1. Proximity, with hysteresis: a contact that still pushed
       // (J_hold ≥ 0) is kept while d < 2δ. A multistep method's history
       // carries a resting particle slightly past the border, and dropping it
@@ -201,18 +225,10 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     if (c.obstacle < 0) continue;
     c.direction = dir;
     filter->Constrain(p, dir, target_velocity);  // (4.4)
-    // Coulomb friction from the normal impulse of the last step (docs/model.md §2.5),
-    // explicit, against the tangential velocity relative to the obstacle.
-    // Its impulse is capped at m|v_t|: friction can stop a sliding particle
-    // but never reverse it (uncapped, a round-off v_t of 1e-15 m/s got the
-    // full μ|f_N| and set resting cloth sliding at h μ g per step).
+    // Coulomb friction from the last step's normal impulse (CoulombFriction).
     const double mu = obstacles[static_cast<std::size_t>(c.obstacle)].spec().friction;
-    if (mu > 0.0 && was && last_impulse > 0.0) {
-      const Vector3 vt = best_v_rel - best_v_rel.dot(dir) * dir;
-      const double speed = vt.norm();
-      const double impulse = std::min(mu * last_impulse, sys_.masses()(p) * speed);
-      if (speed > 0.0) friction_.row(p) = (-impulse / (h * speed)) * vt.transpose();
-    }
+    if (mu > 0.0 && was && last_impulse > 0.0)
+      friction_.row(p) = CoulombFriction(mu * last_impulse, sys_.masses()(p), best_v_rel, dir, h).transpose();
     ++count;
   }
   return count;

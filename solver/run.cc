@@ -104,7 +104,7 @@ BlowUpGuard::BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const
   double v_wind = 0.0;
   if (const auto& w = s.forces.wind) v_wind = w->direction.norm() * (std::abs(w->constant) + 1.0);
   const double v0_max = v0.rows() ? v0.rowwise().norm().maxCoeff() : 0.0;
-  v_bound_ = std::sqrt(2.0 * g * drop) + v_floor + v0_max + v_wind + v_obstacle;
+  v_bound_ = std::sqrt(2.0 * g * drop) + v_floor + v0_max + v_wind + std::min(v_obstacle, kMaxObstacleSpeed);
   e0_ = system.Energies(x0, v0).total();
 }
 
