@@ -32,6 +32,8 @@
 #include "harness/reproduce.h"
 #include "results/contained_read.h"
 #include "results/mesh_export.h"
+#include "results/file_summary.h"
+#include "results/run_diff.h"
 #include "model/output_file.h"
 #include "model/scene.h"
 #include "results/result_reader.h"
@@ -67,58 +69,6 @@ std::string Opt(const std::optional<double>& v, const char* format = "{:.3e}") {
   return v ? fmt::format(fmt::runtime(format), *v) : "-";
 }
 
-void PrintSummary(const ResultReader& f, const RunTable& t) {
-  fmt::print("file: {}\n", f.path());
-  fmt::print("schema {}, written {} by commit {} ({} build, {})\n", t.schema, t.created, t.git_commit, t.build_type,
-             t.compiler);
-  fmt::print("machine: {}, {} hardware threads\n", t.host, t.hardware_threads);
-  // stress_stability and --table files: their groups and what each holds.
-  for (const char* top : {"/stress", "/table"}) {
-    if (!f.Exists(top)) continue;
-    const std::vector<std::string> children = f.Children(top);
-    fmt::print("{}: {}\n", top, top == std::string("/stress") ? "stability maps (stress_stability)"
-                                                              : f.String(top, "name").value_or("thesis table"));
-    for (const std::string& c : children) {
-      const std::vector<std::string> sub = f.Children(std::string(top) + "/" + c);
-      std::string list;
-      for (const std::string& s : sub) list += (list.empty() ? "" : ", ") + s;
-      fmt::print("  {}{}\n", c, list.empty() ? "" : ": " + list);
-    }
-  }
-  if (f.Exists("/scale_verdict")) {
-    const ScaleVerdict v = ReadScaleVerdict(f);
-    std::string sizes;
-    for (long n : v.sizes) sizes += (sizes.empty() ? "" : ", ") + std::to_string(n);
-    fmt::print("scale verdict (bench_integrators --sizes): N = {}; {} methods × {} targets; each size's runs in "
-               "{} (clothbench_inspect FILE verdict)\n",
-               sizes, v.labels.size(), v.targets.size(), fmt::join(v.result_files, ", "));
-  }
-  if (!f.Exists("/scene")) return;
-  fmt::print("scene {} ({}): N = {} particles, {} fixed, t_end = {:g} s, frame_dt = {:g} s, frames kept: {}\n",
-             t.scene_name, t.scene_source, t.n_particles, t.n_fixed, t.t_end, t.frame_dt,
-             t.frames.empty() ? "-" : t.frames);
-  if (t.reference)
-    fmt::print("reference: {}{}: {} steps, {:.2f} s\n", t.reference->label,
-               IsSelfConvergence(*t.reference) ? fmt::format(" at h = {:g} s", t.reference->h)
-                                                                   : fmt::format(" rtol {:g}", t.reference->rtol),
-               t.reference->steps, t.reference->wall_time_s);
-  else
-    fmt::print("reference: none\n");
-  std::map<std::string, int> status;
-  for (const RunRecord& r : t.runs) ++status[r.status];
-  std::string counts;
-  for (const auto& [s, n] : status) counts += fmt::format("{}{} {}", counts.empty() ? "" : ", ", n, s);
-  fmt::print("runs: {}{}\n", t.runs.size(), counts.empty() ? "" : " (" + counts + ")");
-  fmt::print("{:<36} {:<10} {:>7} {:>8} {:>9} {:>10} {:>11}\n", "run", "status", "steps", "updates", "cg_iters",
-             "solver_s", "e_rms_m");
-  for (const RunRecord& r : t.runs)
-    fmt::print("{:<36} {:<10} {:>7} {:>8} {:>9} {:>10.3f} {:>11}\n", r.id, r.status, r.steps, r.updates,
-               r.cg_iterations, r.solver_time_s, Opt(r.error_final_m));
-  if (t.work_precision)
-    fmt::print("work_precision: {} methods × {} targets\n", t.work_precision->labels.size(),
-               t.work_precision->targets.size());
-}
-
 void PrintRuns(const ResultReader& f, const RunTable& t, bool json) {
   if (!json) {
     for (const RunRecord& r : t.runs)
@@ -137,64 +87,6 @@ void PrintRuns(const ResultReader& f, const RunTable& t, bool json) {
     fmt::print("}}");
   }
   fmt::print("\n]\n");
-}
-
-// Relative change (b − a)/|a|; 0 if both are 0, infinite if only a is.
-double Relative(double a, double b) {
-  if (a == b) return 0.0;
-  return a == 0.0 ? INFINITY : (b - a) / std::fabs(a);
-}
-
-int Diff(const RunTable& a, const RunTable& b, const std::string& path_b, double rtol, double time_tolerance) {
-  std::map<std::string, const RunRecord*> in_b;
-  for (const RunRecord& r : b.runs) in_b[r.id] = &r;
-  std::set<std::string> in_a;
-  int flagged = 0;
-  fmt::print("comparing {} (commit {}) with {} (commit {}); flags: e_rms relative change > {:g}, any change in "
-             "steps, updates or CG iterations, solver time ratio outside [1/{:g}, {:g}], status changes, runs in one "
-             "file only\n",
-             a.scene_name, a.git_commit, path_b, b.git_commit, rtol, 1.0 + time_tolerance, 1.0 + time_tolerance);
-  fmt::print("{:<36} {:>11} {:>11} {:>10} {:>13} {:>15} {:>17} {:>8}  {}\n", "run", "e_rms A", "e_rms B", "rel",
-             "steps", "updates", "cg_iters", "time B/A", "flags");
-  for (const RunRecord& ra : a.runs) {
-    in_a.insert(ra.id);
-    const auto it = in_b.find(ra.id);
-    if (it == in_b.end()) {
-      fmt::print("{:<36} only in A\n", ra.id);
-      ++flagged;
-      continue;
-    }
-    const RunRecord& rb = *it->second;
-    std::vector<std::string> flags;
-    std::string rel = "-";
-    if (ra.error_final_m && rb.error_final_m) {
-      const double d = Relative(*ra.error_final_m, *rb.error_final_m);
-      rel = fmt::format("{:+.2e}", d);
-      if (!(std::fabs(d) <= rtol)) flags.push_back("e_rms");
-    } else if (ra.error_final_m.has_value() != rb.error_final_m.has_value()) {
-      flags.push_back("e_rms");
-    }
-    if (ra.status != rb.status) flags.push_back(fmt::format("status {}→{}", ra.status, rb.status));
-    if (ra.steps != rb.steps) flags.push_back("steps");
-    if (ra.updates != rb.updates) flags.push_back("updates");
-    if (ra.cg_iterations != rb.cg_iterations) flags.push_back("cg_iters");
-    const double ratio = ra.solver_time_s > 0.0 ? rb.solver_time_s / ra.solver_time_s : 1.0;
-    if (ratio > 1.0 + time_tolerance || ratio < 1.0 / (1.0 + time_tolerance)) flags.push_back("time");
-    std::string joined;
-    for (const std::string& s : flags) joined += (joined.empty() ? "" : ",") + s;
-    fmt::print("{:<36} {:>11} {:>11} {:>10} {:>13} {:>15} {:>17} {:>8.2f}  {}\n", ra.id, Opt(ra.error_final_m),
-               Opt(rb.error_final_m), rel, fmt::format("{}→{}", ra.steps, rb.steps),
-               fmt::format("{}→{}", ra.updates, rb.updates), fmt::format("{}→{}", ra.cg_iterations, rb.cg_iterations),
-               ratio, joined);
-    if (!flags.empty()) ++flagged;
-  }
-  for (const RunRecord& rb : b.runs)
-    if (!in_a.count(rb.id)) {
-      fmt::print("{:<36} only in B\n", rb.id);
-      ++flagged;
-    }
-  fmt::print("{} of {} runs flagged\n", flagged, std::max(a.runs.size(), b.runs.size()));
-  return flagged ? 1 : 0;
 }
 
 void Export(const ResultReader& f, const std::string& run, long frame, const std::string& obj, const std::string& ply) {
@@ -325,7 +217,7 @@ int RunSubcommand(const Args& a) {
   const ResultReader f(a.file);
   const RunTable t = ValidateResultFile(f);
   if (a.summary->parsed()) {
-    PrintSummary(f, t);
+    PrintFileSummary(stdout, f, t);
   } else if (a.table->parsed()) {
     if (t.runs.empty() && !f.Exists("/runs"))
       throw UsageError(fmt::format("table: {} has no /runs (not a bench_integrators run table)", a.file));
@@ -336,7 +228,7 @@ int RunSubcommand(const Args& a) {
     PrintRuns(f, t, a.json);
   } else if (a.diff->parsed()) {
     const ResultReader g(a.other);
-    return Diff(t, ValidateResultFile(g), a.other, a.rtol, a.time_tolerance);
+    return PrintRunDiff(stdout, t, ValidateResultFile(g), a.other, a.rtol, a.time_tolerance) > 0 ? 1 : 0;
   } else if (a.exp->parsed()) {
     Export(f, a.run, a.frame, a.obj, a.ply);
   } else if (a.wp->parsed()) {
