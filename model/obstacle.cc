@@ -384,12 +384,12 @@ void Obstacle::Surface(std::vector<Vector3>* vertices, std::vector<std::array<in
   }
 }
 
-std::string StartsInside(const Obstacle& o, const MatrixN3& x) {
+std::string StartsInside(const Obstacle& o, const MatrixN3& x, long first) {
   const Penetration pen = o.PenetrationOf(o.PoseAt(0.0), x);
   if (pen.deepest < 0 || !(pen.max_depth > o.spec().collision_distance)) return "";
   return fmt::format("({}): particle {} starts {:.3g} m inside it at ({:g}, {:g}, {:g}) m, deeper than its collision "
                      "distance {:g} m ({} particles start inside); move the grid or the obstacle",
-                     ToString(o.spec().type), pen.deepest, pen.max_depth, x(pen.deepest, 0), x(pen.deepest, 1),
+                     ToString(o.spec().type), first + pen.deepest, pen.max_depth, x(pen.deepest, 0), x(pen.deepest, 1),
                      x(pen.deepest, 2), o.spec().collision_distance, pen.inside);
 }
 

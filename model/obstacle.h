@@ -191,13 +191,14 @@ class Obstacle {
   std::shared_ptr<const std::vector<Vector3>> vertices_;  // keyframed kMesh: placed vertices (MotionBound)
 };
 
-/// Whether the cloth at positions x [m, N×3] starts inside `o` at t = 0:
+/// Whether the cloth at positions x [m, N×3; row q is particle first + q]
+/// starts inside `o` at t = 0:
 /// deeper than its collision distance δ (the run guard's penetration rule),
 /// where every method would end `speed` or `penetration` pushing it out.
 /// @return "" if not, else "(<type>): particle <p> starts <depth> m inside
 ///   it at (x, y, z) m, deeper than its collision distance <δ> m (<n>
 ///   particles start inside); move the grid or the obstacle"
-std::string StartsInside(const Obstacle& o, const MatrixN3& x);
+std::string StartsInside(const Obstacle& o, const MatrixN3& x, long first = 0);
 
 }  // namespace clothbench
 

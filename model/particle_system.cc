@@ -67,7 +67,8 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
       throw SceneError(fmt::format("{}: obstacle[{}].path: {}", scene.source, k, e.what()));
     }
     // A cloth that starts inside a solid obstacle is refused before
-    // computing (ParseScene checks the analytic ones already; meshes here).
+    // computing: meshes here, when they load; analytic obstacles again (a
+    // scene built in code has not been through ParseScene).
     if (const std::string why = StartsInside(obstacles_.back(), rest_); !why.empty())
       throw SceneError(fmt::format("{}: obstacle[{}] {}", scene.source, k, why));
   }

@@ -501,10 +501,6 @@ namespace {
 // them). Positions as ParticleSystem places them, in blocks, so that a
 // 10⁷-particle grid is not held at once.
 void CheckStartOutsideObstacles(const Scene& s) {
-  std::vector<const ObstacleSpec*> analytic;
-  for (const ObstacleSpec& o : s.obstacles)
-    if (o.type != ObstacleType::kMesh) analytic.push_back(&o);
-  if (analytic.empty()) return;
   const int nu = s.grid.nu, nv = s.grid.nv;
   const double lu = s.lu(), lv = s.lv();
   for (std::size_t k = 0; k < s.obstacles.size(); ++k) {
@@ -521,14 +517,8 @@ void CheckStartOutsideObstacles(const Scene& s) {
         x.row(q) = (s.grid.origin + static_cast<double>(i) * lu * s.grid.u_axis +
                     static_cast<double>(j) * lv * s.grid.v_axis).transpose();
       }
-      if (std::string why = StartsInside(o, x); !why.empty()) {
-        // The block's particle index is the grid's: first + the block's.
-        const std::size_t at = why.find("particle ") + 9;
-        const std::size_t end = why.find(' ', at);
-        const long in_block = std::stol(why.substr(at, end - at));
-        why.replace(at, end - at, std::to_string(first + in_block));
+      if (const std::string why = StartsInside(o, x, first); !why.empty())
         throw SceneError(fmt::format("{}: obstacle[{}] {}", s.source, k, why));
-      }
     }
   }
 }

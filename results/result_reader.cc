@@ -109,7 +109,8 @@ herr_t CheckLink(hid_t group, const char* name, const H5L_info_t* info, void* da
     // The frame views (docs/results-schema.md) map datasets of this file
     // (source file "."); a source in another file is refused.
     size_t mappings = 0;
-    if (H5Pget_virtual_count(dcpl.id, &mappings) < 0) mappings = 1, found->what = "?";
+    if (H5Pget_virtual_count(dcpl.id, &mappings) < 0)
+      found->what = fmt::format("dataset \"{}\" is a virtual dataset whose sources cannot be listed", name);
     for (size_t k = 0; k < mappings && found->what.empty(); ++k) {
       char file[8] = {};
       const ssize_t len = H5Pget_virtual_filename(dcpl.id, k, file, sizeof file);
@@ -117,8 +118,6 @@ herr_t CheckLink(hid_t group, const char* name, const H5L_info_t* info, void* da
         found->what = fmt::format("dataset \"{}\" is a virtual dataset with a source in another file (which is not "
                                   "read)", name);
     }
-    if (found->what == "?")
-      found->what = fmt::format("dataset \"{}\" is a virtual dataset whose sources cannot be listed", name);
   } else if (H5Pget_external_count(dcpl.id) > 0)
     found->what = fmt::format("dataset \"{}\" keeps its data in external files, which are not read", name);
   return found->what.empty() ? 0 : 1;
