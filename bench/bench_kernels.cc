@@ -295,8 +295,6 @@ void BM_TangentCholmodFactor(benchmark::State& state) {
   state.counters["analysis_s"] = analysis;
 }
 BENCHMARK(BM_TangentCholmodFactor)->ArgName("side")->Arg(100)->Arg(316)->Iterations(1)->Unit(benchmark::kSecond);
-
 }  // namespace
 }  // namespace clothbench
-
 BENCHMARK_MAIN();

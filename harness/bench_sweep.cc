@@ -320,7 +320,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     run(0);
     int lo = 0, hi = 0;
     // A start past --time-limit tries the next cheaper rung once.
-    if (runs[lo].status == "time_limit" && RungExists(m, b, lo - 1)) run(--lo);
+    if (runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);
     while (error.count(lo) && error[lo] <= largest && lo > -kMaxCoarsenings && RungExists(m, b, lo - 1) &&
            static_cast<int>(runs.size()) < kMaxRunsPerMethod)
       run(--lo);
@@ -328,7 +328,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     for (;;) {
       const MethodRun& f = runs[hi];
       const bool any_ok = !error.empty();
-      if (f.status == "time_limit") {
+      if (f.status == RunStatus::kTimeLimit) {
         reason = fmt::format("time_limit at {}", RungName(m, RungOf(m, b.scene, hi)));
         break;
       }

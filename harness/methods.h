@@ -40,16 +40,6 @@
 
 namespace clothbench {
 
-/// How a method's rows are parameterised: a list of step sizes h, a list of
-/// tolerances rtol, frame steps h each split into substeps, or steps h each
-/// with a fixed number of iterations (projective dynamics).
-enum class StepKind { kFixedStep, kAdaptive, kSubstepped, kIterated };
-inline std::string_view ToString(StepKind k) {
-  return k == StepKind::kFixedStep    ? "fixed_step"
-         : k == StepKind::kAdaptive   ? "adaptive"
-         : k == StepKind::kSubstepped ? "substepped"
-                                      : "iterated";
-}
 /// Whether a kind's rows take a count besides h: substeps (substepped
 /// rows) or iterations per step (iterated rows).
 inline bool CountedKind(StepKind k) { return k == StepKind::kSubstepped || k == StepKind::kIterated; }
@@ -382,12 +372,7 @@ struct MethodRun : RunSummary {
   std::optional<TrajectoryErrors> err;
   EnergySeries energy;
 
-  StepKind kind() const {
-    return step_kind == "adaptive"     ? StepKind::kAdaptive
-           : step_kind == "substepped" ? StepKind::kSubstepped
-           : step_kind == "iterated"   ? StepKind::kIterated
-                                       : StepKind::kFixedStep;
-  }
+  StepKind kind() const { return step_kind; }
 };
 
 /// The ARKODE IMEX pair of an arkode row modifier: "ark4" is ARK436L2SA
@@ -504,12 +489,12 @@ struct RowMethod {
       static_cast<RunSummary&>(row) = entry->integrate(
           sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, row_ctx);
       row.step_control = "sundials";
-      if (entry->arkode_table) row.arkode_table = row_ctx.arkode_table;
+      if (entry->arkode_table) row.butcher_table = row_ctx.arkode_table;
     }
     row.label = label();
     row.integrator = name();
     row.layer = std::string(entry->layer);
-    row.step_kind = std::string(ToString(kind()));
+    row.step_kind = kind();
     if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
     row.id = RunId(param, count);
     row.h = row.rtol = row.atol = 0.0;
@@ -541,6 +526,46 @@ struct RowMethod {
   }
 };
 
+/// An option that only some rows read: its request field (RunRequest,
+/// Python keyword), its command-line option, which rows read it and those
+/// rows in words. The one table that both the request's rules (a run of a
+/// row that does not read a given option is refused) and UnusedOption (a
+/// bench option that no row of the invocation reads is refused) consult.
+struct RowOption {
+  const char* field;
+  const char* option;
+  bool (*reads)(const RowMethod&);
+  const char* rows;
+};
+inline const std::vector<RowOption>& RowOptions() {
+  static const std::vector<RowOption> options = {
+      {"rtol", "--rtols", [](const RowMethod& m) { return m.kind() == StepKind::kAdaptive; },
+       "adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error"},
+      {"substeps", "--substeps", [](const RowMethod& m) { return m.kind() == StepKind::kSubstepped; },
+       "substepped rows: xpbd"},
+      {"iterations", "--iterations", [](const RowMethod& m) { return m.kind() == StepKind::kIterated; },
+       "iterated rows: pd, pd/chebyshev, vbd, vbd/chebyshev"},
+      {"cg_tolerance", "--cg-tolerance/--cg-tolerances", [](const RowMethod& m) { return m.uses_pcg(); },
+       "rows that solve with the PCG"},
+      {"preconditioner", "--preconditioner", [](const RowMethod& m) { return m.uses_pcg(); },
+       "rows that solve with the PCG"},
+      {"nonlinear_solver", "--nonlinear-solver", [](const RowMethod& m) { return m.fully_implicit(); },
+       "implicit_euler, bdf2, implicit_midpoint"},
+      {"arkode_table", "--arkode-table", [](const RowMethod& m) { return m.reads_arkode_table(); },
+       "arkode rows without /ark4 or /ark5"},
+      {"cvode_setting", "--cvode-setting", [](const RowMethod& m) { return m.entry->cvode_settings; }, "cvode rows"},
+      {"tangent_terms", "--tangent-terms", [](const RowMethod& m) { return m.builds_tangent(); },
+       "rows that build J_alpha: Newton rows, baraff_witkin, blender, cvode, ida"},
+  };
+  return options;
+}
+/// The RowOptions() entry of request field `field`. @throws std::logic_error for another name.
+inline const RowOption& RowOptionOf(std::string_view field) {
+  for (const RowOption& o : RowOptions())
+    if (field == o.field) return o;
+  throw std::logic_error(fmt::format("no row option {}", field));
+}
+
 /// The command-line options that only some rows read, and whether each was given.
 struct GivenOptions {
   bool rtols = false, substeps = false, iterations = false, cg_tolerance = false, preconditioner = false, nonlinear_solver = false,
@@ -554,32 +579,21 @@ struct GivenOptions {
 /// used. An option nobody reads would otherwise be ignored silently.
 inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions& given) {
   const auto any = [&](auto&& reads) { return std::any_of(rows.begin(), rows.end(), reads); };
-  const struct {
-    bool given, used;
-    const char *option, *rows;
-  } checks[] = {
-      {given.rtols, any([](const RowMethod& m) { return m.kind() == StepKind::kAdaptive; }), "--rtols",
-       "adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error"},
-      {given.substeps, any([](const RowMethod& m) { return m.kind() == StepKind::kSubstepped; }), "--substeps",
-       "substepped rows: xpbd"},
-      {given.iterations, any([](const RowMethod& m) { return m.kind() == StepKind::kIterated; }), "--iterations",
-       "iterated rows: pd, pd/chebyshev, vbd, vbd/chebyshev"},
-      {given.cg_tolerance, any([](const RowMethod& m) { return m.uses_pcg(); }), "--cg-tolerance/--cg-tolerances",
-       "rows that solve with the PCG"},
-      {given.preconditioner, any([](const RowMethod& m) { return m.uses_pcg(); }), "--preconditioner",
-       "rows that solve with the PCG"},
-      {given.nonlinear_solver, any([](const RowMethod& m) { return m.fully_implicit(); }), "--nonlinear-solver",
-       "implicit_euler, bdf2, implicit_midpoint"},
-      {given.arkode_table, any([](const RowMethod& m) { return m.reads_arkode_table(); }),
-       "--arkode-table", "arkode rows without /ark4 or /ark5"},
-      {given.cvode_setting, any([](const RowMethod& m) { return m.entry->cvode_settings; }), "--cvode-setting",
-       "cvode rows"},
-      {given.tangent_terms, any([](const RowMethod& m) { return m.builds_tangent(); }), "--tangent-terms",
-       "rows that build J_alpha: Newton rows, baraff_witkin, blender, cvode, ida"},
+  const std::pair<const char*, bool> checks[] = {
+      {"rtol", given.rtols},
+      {"substeps", given.substeps},
+      {"iterations", given.iterations},
+      {"cg_tolerance", given.cg_tolerance},
+      {"preconditioner", given.preconditioner},
+      {"nonlinear_solver", given.nonlinear_solver},
+      {"arkode_table", given.arkode_table},
+      {"cvode_setting", given.cvode_setting},
+      {"tangent_terms", given.tangent_terms},
   };
-  for (const auto& c : checks)
-    if (c.given && !c.used)
-      return fmt::format("{}: no row of this run uses it (it applies to {})", c.option, c.rows);
+  for (const auto& [field, was_given] : checks) {
+    const RowOption& o = RowOptionOf(field);
+    if (was_given && !any(o.reads)) return fmt::format("{}: no row of this run uses it (it applies to {})", o.option, o.rows);
+  }
   if (!given.baseline.empty() && !any([&](const RowMethod& m) { return m.label() == given.baseline; })) {
     std::string labels;
     for (const RowMethod& m : rows) labels += (labels.empty() ? "" : ", ") + m.label();

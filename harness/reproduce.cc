@@ -138,7 +138,7 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   }
   if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
   if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
-  if (m.reads_arkode_table() && !r.arkode_table.empty()) q.arkode_table = r.arkode_table;
+  if (m.reads_arkode_table() && !r.butcher_table.empty()) q.arkode_table = r.butcher_table;
   if (m.entry->cvode_settings && !r.sundials_settings.empty()) q.cvode_setting = r.sundials_settings;
   q.t_end = table.t_end;
   // The file's frame spacing, so that the frame-based errors (l2, max) are
@@ -158,7 +158,7 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   const std::string id = run.row.RunId(run.param, run.count) +
                          (eta == std::string::npos ? "" : fmt::format("_eta{:g}", run.spec.cg_tolerance));
   const std::string label = run.row.label() + (eta == std::string::npos ? "" : r.label.substr(eta));
-  if (label != r.label || r.integrator != run.row.name() || r.step_kind != ToString(run.row.kind()))
+  if (label != r.label || r.integrator != run.row.name() || r.step_kind != run.row.kind())
     throw UsageError(fmt::format("{}: label: the stored label \"{}\", integrator \"{}\" and step_kind \"{}\" do not "
                                  "agree (the label names {}, {})",
                                  where, r.label, r.integrator, r.step_kind, run.row.name(), ToString(run.row.kind())));

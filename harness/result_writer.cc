@@ -31,18 +31,8 @@ using Row = MethodRun;
 
 void WriteEnergy(ResultFile& f, const std::string& g, const EnergySeries& e) {
   f.CreateGroup(g + "/energy");
-  f.WriteVector(g + "/energy/kinetic", e.kinetic, "J");
-  f.WriteVector(g + "/energy/tension", e.tension, "J");
-  f.WriteVector(g + "/energy/shear", e.shear, "J");
-  f.WriteVector(g + "/energy/bending", e.bending, "J");
-  f.WriteVector(g + "/energy/gravity", e.gravity, "J");
-  f.WriteVector(g + "/energy/external_work", e.external_work, "J");
-  if (!e.contact_work_holding.empty()) {
-    f.WriteVector(g + "/energy/contact_work_holding", e.contact_work_holding, "J");
-    f.WriteVector(g + "/energy/contact_work_pulling", e.contact_work_pulling, "J");
-    f.WriteVector(g + "/energy/contact_work_friction", e.contact_work_friction, "J");
-  }
-  f.WriteVector(g + "/energy/total", e.total, "J");
+  for (const EnergyField& field : EnergySeriesFields())
+    if (field.Stored(e)) f.WriteVector(g + "/energy/" + field.name, e.*field.member, "J");
   f.WriteVectors3(g + "/momentum", e.momentum, "kg m/s");
 }
 

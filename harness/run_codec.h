@@ -253,6 +253,7 @@ inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
   CheckCount(m->repeats, 1, "repeats");
   for (long v : {m->threads, m->substeps, m->iterations, m->steps, m->updates, m->cg_iterations, m->rejected, m->cg_unconverged})
     CheckCount(v, 0, "a count");
+  if (ToString(m->status) == "?" || ToString(m->step_kind) == "?") OutOfRange("a run status or step kind");
   CheckCount(m->error_test_failures, -1, "error_test_failures");
   CheckCount(m->matrix_rebuilds, -1, "matrix_rebuilds");
   CheckTrajectory(m->trajectory, n_particles);

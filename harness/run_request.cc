@@ -13,24 +13,6 @@
 #include "harness/sweep.h"
 
 namespace clothbench {
-namespace {
-
-// The registry's methods with `flag` set, for messages ("cvode, ida").
-std::string RowsThat(bool MethodEntry::*flag) {
-  std::string out;
-  for (const MethodEntry& e : Registry())
-    if (e.*flag) out += (out.empty() ? "" : ", ") + std::string(e.name);
-  return out;
-}
-
-std::string RowsOfKind(StepKind kind) {
-  std::string out;
-  for (const MethodEntry& e : Registry())
-    if (e.kind == kind) out += (out.empty() ? "" : ", ") + std::string(e.name);
-  return out;
-}
-
-}  // namespace
 
 std::string SceneHash(const Scene& scene) {
   return Fnv1a64(fmt::format("{}\nt_end={:.17g} frame_dt={:.17g}", scene.toml, scene.t_end, scene.frame_dt));
@@ -58,6 +40,12 @@ namespace {
 
 UsageError Fail(const RunRequest& q, std::string_view field, const std::string& rule) {
   return UsageError(fmt::format("{}: {}", q.Field(field), rule));
+}
+
+// Refuses option `field` of q if row m does not read it (RowOptions()).
+void RefuseUnread(const RunRequest& q, const RowMethod& m, const char* field) {
+  const RowOption& o = RowOptionOf(field);
+  if (!o.reads(m)) throw Fail(q, field, fmt::format("{} does not read it (it applies to {})", m.label(), o.rows));
 }
 
 }  // namespace
@@ -155,24 +143,20 @@ void ResolveStep(const RunRequest& q, ResolvedRun* out) {
     CheckTolerance(r, q.Field("rtol"));
     out->param = r;
   } else {
-    if (q.rtol) throw Fail(q, "rtol", fmt::format("{} steps with h: it reads h, not rtol", label));
+    if (q.rtol) RefuseUnread(q, m, "rtol");
     if (!q.h) throw Fail(q, "h", fmt::format("{} steps with h: give h [s]", label));
     if (!std::isfinite(*q.h) || !(*q.h > 0.0)) throw Fail(q, "h", fmt::format("{:g} s is not a positive number", *q.h));
     if (*q.h > s.t_end) throw Fail(q, "h", fmt::format("{:g} s is larger than t_end = {:g} s", *q.h, s.t_end));
     out->param = *q.h;
   }
   if (q.substeps) {
-    if (m.kind() != StepKind::kSubstepped)
-      throw Fail(q, "substeps",
-                 fmt::format("{} is not substepped (substepped rows: {})", label, RowsOfKind(StepKind::kSubstepped)));
+    RefuseUnread(q, m, "substeps");
     if (*q.substeps < 1 || *q.substeps > 1000000)
       throw Fail(q, "substeps", fmt::format("{} must be a whole number from 1 to 1e6", *q.substeps));
     out->count = static_cast<int>(*q.substeps);
   }
   if (q.iterations) {
-    if (m.kind() != StepKind::kIterated)
-      throw Fail(q, "iterations",
-                 fmt::format("{} is not iterated (iterated rows: {})", label, RowsOfKind(StepKind::kIterated)));
+    RefuseUnread(q, m, "iterations");
     if (*q.iterations < 1 || *q.iterations > 1000000)
       throw Fail(q, "iterations", fmt::format("{} must be a whole number from 1 to 1e6", *q.iterations));
     out->count = static_cast<int>(*q.iterations);
@@ -190,27 +174,24 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
   SolverSpec& solver = out->scene.solver;
   const std::string label = m.label();
   if (q.cg_tolerance) {
-    if (!m.uses_pcg()) throw Fail(q, "cg_tolerance", fmt::format("{} does not solve with the PCG", label));
+    RefuseUnread(q, m, "cg_tolerance");
     CheckCgTolerance(q);
     solver.cg_tolerance = *q.cg_tolerance;
     out->ctx.cg_tolerance_from_cli = true;
   }
   if (q.preconditioner) {
-    if (!m.uses_pcg()) throw Fail(q, "preconditioner", fmt::format("{} does not solve with the PCG", label));
+    RefuseUnread(q, m, "preconditioner");
     solver.preconditioner = ParsePreconditioner(EscapeControl(*q.preconditioner), q.Field("preconditioner"));
     out->ctx.preconditioner_from_cli = true;
   }
   if (q.tangent_terms) {
-    if (!m.builds_tangent())
-      throw Fail(q, "tangent_terms", fmt::format("{} does not build J_alpha (rows that do: Newton rows, {})", label,
-                                                 RowsThat(&MethodEntry::tangent)));
+    RefuseUnread(q, m, "tangent_terms");
     CheckTangentTerms(q);
     solver.tangent_explicit_terms = *q.tangent_terms == "all";
     out->ctx.tangent_terms_from_cli = true;
   }
   if (q.arkode_table) {
-    if (!m.reads_arkode_table())
-      throw Fail(q, "arkode_table", fmt::format("{} does not read it (arkode rows without a variant do)", label));
+    RefuseUnread(q, m, "arkode_table");
     const auto& tables = ArkodeTableNames();
     if (std::find(tables.begin(), tables.end(), *q.arkode_table) == tables.end()) {
       std::string known;
@@ -220,9 +201,7 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
     out->ctx.arkode_table = *q.arkode_table;
   }
   if (q.cvode_setting) {
-    if (!m.entry->cvode_settings)
-      throw Fail(q, "cvode_setting",
-                 fmt::format("{} does not read it ({} rows do)", label, RowsThat(&MethodEntry::cvode_settings)));
+    RefuseUnread(q, m, "cvode_setting");
     if (!q.cvode_setting->empty())
       for (const std::string& kv : SplitList(*q.cvode_setting, q.Field("cvode_setting"))) {
         const std::size_t eq = kv.find('=');

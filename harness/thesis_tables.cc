@@ -41,7 +41,7 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
   RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
   r.integrator = r.label = "bdf2_self_convergence";
   r.layer = "solver";
-  r.step_kind = std::string(ToString(StepKind::kFixedStep));
+  r.step_kind = StepKind::kFixedStep;
   r.h = h_ref;
   r.cg_tolerance = tight.solver.cg_tolerance;
   return r;
@@ -270,7 +270,7 @@ void WriteThesisTable(const std::string& which, const std::string& out, const Sc
     rec.label = m.label();
     rec.integrator = m.name();
     rec.layer = std::string(m.entry->layer);
-    rec.step_kind = std::string(ToString(m.kind()));
+    rec.step_kind = m.kind();
     if (m.fully_implicit()) rec.nonlinear_solver = std::string(ToString(m.solver));
     rec.h = h;
     rec.cg_tolerance = eta;

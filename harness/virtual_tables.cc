@@ -137,7 +137,7 @@ int RunTable51(std::string out) {
     const std::string g = std::string("/table/") + row.scene;
     f.CreateGroup(g);
     f.SetAttribute(g, "example", std::string(row.example));
-    f.SetAttribute(g, "status", r.status);
+    f.SetAttribute(g, "status", std::string(ToString(r.status)));
     f.SetAttribute(g, "particles", static_cast<long>(sys.num_particles()));
     f.SetAttribute(g, "obstacle_edges", static_cast<long>(e.size()));
     f.SetAttribute(g, "steps", r.steps);
@@ -192,7 +192,7 @@ int RunFig515(std::string out) {
     surfaces.push_back(ClothSurface(sys, r.trajectory.positions.back()));
     solver_s.push_back(r.solver_time_s);
     depth.push_back(DeepestInside(sys, surfaces.back()));
-    status.push_back(r.ok() ? r.status : fmt::format("{}: {}", r.status, r.message));
+    status.push_back(r.ok() ? std::string(ToString(r.status)) : fmt::format("{}: {}", r.status, r.message));
   }
   fmt::print("{:<24} {:>8} {:>9} {:>12} {:>11} {:>13} {:>12} {:>12} {:>10}  {}\n", "cloth", "h_s", "solver_s", "H_2500_mm",
              "rms_2500_mm", "H_10000_mm", "rms_10000_mm", "depth_mm", "triangles", "status");

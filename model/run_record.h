@@ -8,6 +8,8 @@
 #include <string>
 #include <string_view>
 
+#include "model/run_status.h"
+
 namespace clothbench {
 
 /// One run of one row: the attributes of /runs/<id> (docs/results-schema.md),
@@ -22,7 +24,7 @@ struct RunRecord {
   std::string label;         ///< row label ("bdf2/newton", "xpbd", "cvode")
   std::string integrator;    ///< registry name ("bdf2")
   std::string layer;         ///< "solver", "peers", "reference"
-  std::string step_kind;     ///< "fixed_step", "adaptive", "substepped", "iterated"
+  StepKind step_kind = StepKind::kFixedStep;
   std::string nonlinear_solver;  ///< fully implicit thesis methods; else empty
   std::string preconditioner;    ///< rows that use the PCG: the preconditioner they ran with; else empty
   std::string tangent_terms;     ///< rows that build J_α: "all" or "tension" (its terms); else empty
@@ -40,11 +42,12 @@ struct RunRecord {
   /// step_control "fixed" | "iterations" | "error" (our steppers) or
   /// "sundials" (SUNDIALS' own controller); predictor and cg_reference (rows
   /// with the PCG); newton_jacobian "refresh" | "frozen" (Newton rows);
-  /// arkode_table (arkode rows).
-  std::string step_control, predictor, cg_reference, newton_jacobian, arkode_table;
+  /// butcher_table: the IMEX additive Runge–Kutta pair (ARKODE rows, e.g.
+  /// "ARK324L2SA").
+  std::string step_control, predictor, cg_reference, newton_jacobian, butcher_table;
   double atol = 0.0;         ///< adaptive rows: atol (= rtol unless set)
   long threads = 0;          ///< OpenMP threads of the kernels
-  std::string status = "ok"; ///< "ok" or the failure status
+  RunStatus status = RunStatus::kOk;  ///< where the run stopped
   std::string message;       ///< failure message (empty when ok)
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
   long error_test_failures = -1;  ///< adaptive rows; −1: not applicable
@@ -85,7 +88,7 @@ struct RunRecord {
   std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
   std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
 
-  bool ok() const { return status == "ok"; }
+  bool ok() const { return status == RunStatus::kOk; }
 };
 
 }  // namespace clothbench

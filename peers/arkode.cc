@@ -172,13 +172,13 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   RunSummary res;
   internal::NameSundialsRun(kArkodeName, "peers", options, &res);
   if (!system.obstacles().empty()) {
-    res.status = "unsupported_scene";
+    res.status = RunStatus::kUnsupportedScene;
     res.message = "arkode has no collision response: the scene has obstacles";
     return res;
   }
   std::string why;
   if (!spec.IsValid(&why)) {
-    res.status = "invalid_options";
+    res.status = RunStatus::kInvalidOptions;
     res.message = why;
     return res;
   }

@@ -181,18 +181,16 @@ py::array_t<double> Frames(const std::vector<MatrixN3>& frames, int n) {
 }
 
 py::array StepStatsArray(const std::vector<StepRecord>& steps) {
-  py::list names, formats;
-  for (const char* n :
-       {"t", "h", "updates", "cg_iterations", "status", "colliding", "solve_time_s", "setup_time_s", "preconditioner"})
-    names.append(n);
-  for (const char* f : {"f8", "f8", "i4", "i4", "i4", "i4", "f8", "f8", "i4"}) formats.append(f);
+  py::list names, formats, offsets;
+  for (const StepRecordField& c : StepRecordFields()) {
+    names.append(c.name);
+    formats.append(c.is_double ? "f8" : "i4");
+    offsets.append(c.offset);
+  }
   py::dict spec;
   spec["names"] = names;
   spec["formats"] = formats;
-  spec["offsets"] = py::make_tuple(offsetof(StepRecord, t), offsetof(StepRecord, h), offsetof(StepRecord, updates),
-                                   offsetof(StepRecord, cg_iterations), offsetof(StepRecord, status),
-                                   offsetof(StepRecord, colliding), offsetof(StepRecord, solve_time_s),
-                                   offsetof(StepRecord, setup_time_s), offsetof(StepRecord, preconditioner));
+  spec["offsets"] = offsets;
   spec["itemsize"] = sizeof(StepRecord);
   const py::module_ np = py::module_::import("numpy");
   py::array a = np.attr("zeros")(steps.size(), np.attr("dtype")(spec));
@@ -322,8 +320,11 @@ py::dict RecordDict(const RunRecord& r) {
     std::visit(
         [&](auto member) {
           const auto& v = r.*member;
-          if constexpr (std::is_same_v<std::remove_cvref_t<decltype(v)>, std::optional<double>>)
+          using T = std::remove_cvref_t<decltype(v)>;
+          if constexpr (std::is_same_v<T, std::optional<double>>)
             d[field.name] = v ? py::cast(*v) : py::none();
+          else if constexpr (std::is_same_v<T, StepKind> || std::is_same_v<T, RunStatus>)
+            d[field.name] = std::string(ToString(v));
           else
             d[field.name] = v;
         },
@@ -462,15 +463,9 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
   out["positions"] = Frames(r.trajectory.positions, n);
   out["velocities"] = Frames(r.trajectory.velocities, n);
   out["step_stats"] = StepStatsArray(StepRecords(r));
-  py::dict energy;
-  energy["kinetic"] = r.energy.kinetic;
-  energy["total"] = r.energy.total;
-  energy["external_work"] = r.energy.external_work;
-  if (!r.energy.contact_work_holding.empty()) {
-    energy["contact_work_holding"] = r.energy.contact_work_holding;
-    energy["contact_work_pulling"] = r.energy.contact_work_pulling;
-    energy["contact_work_friction"] = r.energy.contact_work_friction;
-  }
+  py::dict energy;  // the series a result file stores under /runs/<id>/energy
+  for (const EnergyField& field : EnergySeriesFields())
+    if (field.Stored(r.energy)) energy[field.name] = r.energy.*field.member;
   out["energy"] = energy;
   out["scene_hash"] = SceneHash(run.scene);
   out["record"] = record;  // for write_results
@@ -662,14 +657,9 @@ py::dict ReadResultFile(const std::string& path) {
   out["schema"] = t.schema;
   out["git_commit"] = t.git_commit;
   out["created"] = t.created;
-  py::dict scene;
-  scene["name"] = t.scene_name;
-  scene["source"] = t.scene_source;
-  scene["n_particles"] = t.n_particles;
-  scene["t_end"] = t.t_end;
-  scene["h"] = t.h;
-  scene["cg_tolerance"] = t.cg_tolerance;
-  scene["preconditioner"] = t.preconditioner;
+  py::dict scene;  // every /scene attribute (SceneRecordFields), solver_* without the prefix
+  for (const SceneField& field : SceneRecordFields())
+    std::visit([&](auto member) { scene[py::str(std::string(field.key()))] = t.*member; }, field.member);
   out["scene"] = scene;
   out["reference"] = t.reference ? py::object(RecordDict(*t.reference)) : py::none();
   py::list runs;

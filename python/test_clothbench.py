@@ -220,6 +220,38 @@ def test_result_file_written_from_python_matches_the_command_line(tmp_path):
         clothbench.write_results(str(tmp_path / "bad.h5"), scene, [{"id": "x"}])
 
 
+def test_python_records_list_the_files_fields(tmp_path):
+    # The scene record, the energy series and the step history each come
+    # from one field list (results/run_table.h SceneRecordFields,
+    # results/metrics.h EnergySeriesFields, results/result_file.h
+    # StepRecordFields): what run() and read_results() show is what the file
+    # stores, key for key and value for value.
+    scene = clothbench.load_scene("round_table", {"t_end": 0.3})
+    r = clothbench.run(scene, "sbdf2", h=0.01, repeat=1)
+    out = tmp_path / "fields.h5"
+    clothbench.write_results(str(out), scene, [r])
+    back = clothbench.read_results(str(out))
+    with h5py.File(out, "r") as f:
+        attrs = {k: f["scene"].attrs[k] for k in f["scene"].attrs}
+        g = f["runs"][r["id"]]
+        energy = {k: g["energy"][k][()] for k in g["energy"]}
+        steps = g["step_stats"][()]
+        stored_status = g.attrs["status"]
+    keys = {k[len("solver_"):] if k.startswith("solver_") else k for k in attrs}
+    assert set(back["scene"]) == keys
+    for k, v in attrs.items():
+        v = v.decode() if isinstance(v, bytes) else v
+        assert back["scene"][k[len("solver_"):] if k.startswith("solver_") else k] == v, k
+    assert set(r["energy"]) == set(energy) and "contact_work_holding" in energy  # sbdf2 tracks its contact work
+    for k, v in energy.items():
+        assert np.array_equal(np.asarray(r["energy"][k]), v), k
+    assert r["step_stats"].dtype.names == steps.dtype.names
+    assert np.array_equal(r["step_stats"], steps.astype(r["step_stats"].dtype))
+    status = stored_status.decode() if isinstance(stored_status, bytes) else stored_status
+    assert r["status"] == back["runs"][0]["status"] == status == "ok"
+    assert r["step_kind"] == back["runs"][0]["step_kind"] == "fixed_step"
+
+
 def test_run_repeats_its_timing():
     # Three timings of one run: the least is solver_time_s, with the median
     # and the largest (each later timing reproduced the end state bit for

@@ -53,7 +53,7 @@ void PrintFileSummary(std::FILE* out, const ResultReader& f, const RunTable& t) 
   else
     fmt::print(out, "reference: none\n");
   std::map<std::string, int> status;
-  for (const RunRecord& r : t.runs) ++status[r.status];
+  for (const RunRecord& r : t.runs) ++status[std::string(ToString(r.status))];
   std::string counts;
   for (const auto& [s, n] : status) counts += fmt::format("{}{} {}", counts.empty() ? "" : ", ", n, s);
   fmt::print(out, "runs: {}{}\n", t.runs.size(), counts.empty() ? "" : " (" + counts + ")");

@@ -34,15 +34,8 @@ struct Handle {
 // H5Tclose.
 inline hid_t StepRecordType() {
   const hid_t t = H5Tcreate(H5T_COMPOUND, sizeof(StepRecord));
-  H5Tinsert(t, "t", HOFFSET(StepRecord, t), H5T_NATIVE_DOUBLE);
-  H5Tinsert(t, "h", HOFFSET(StepRecord, h), H5T_NATIVE_DOUBLE);
-  H5Tinsert(t, "updates", HOFFSET(StepRecord, updates), H5T_NATIVE_INT32);
-  H5Tinsert(t, "cg_iterations", HOFFSET(StepRecord, cg_iterations), H5T_NATIVE_INT32);
-  H5Tinsert(t, "status", HOFFSET(StepRecord, status), H5T_NATIVE_INT32);
-  H5Tinsert(t, "colliding", HOFFSET(StepRecord, colliding), H5T_NATIVE_INT32);
-  H5Tinsert(t, "solve_time_s", HOFFSET(StepRecord, solve_time_s), H5T_NATIVE_DOUBLE);
-  H5Tinsert(t, "setup_time_s", HOFFSET(StepRecord, setup_time_s), H5T_NATIVE_DOUBLE);
-  H5Tinsert(t, "preconditioner", HOFFSET(StepRecord, preconditioner), H5T_NATIVE_INT32);
+  for (const StepRecordField& c : StepRecordFields())
+    H5Tinsert(t, c.name, c.offset, c.is_double ? H5T_NATIVE_DOUBLE : H5T_NATIVE_INT32);
   return t;
 }
 

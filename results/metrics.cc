@@ -85,6 +85,23 @@ double EnergySeries::ContactPower() const {
   return ContactWork(t.size() - 1) / (t.back() - t.front());
 }
 
+const std::vector<EnergyField>& EnergySeriesFields() {
+  using E = EnergySeries;
+  static const std::vector<EnergyField> fields = {
+      {"kinetic", &E::kinetic},
+      {"tension", &E::tension},
+      {"shear", &E::shear},
+      {"bending", &E::bending},
+      {"gravity", &E::gravity},
+      {"external_work", &E::external_work},
+      {"contact_work_holding", &E::contact_work_holding, true},
+      {"contact_work_pulling", &E::contact_work_pulling, true},
+      {"contact_work_friction", &E::contact_work_friction, true},
+      {"total", &E::total},
+  };
+  return fields;
+}
+
 EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& traj) {
   EnergySeries s;
   const std::size_t f = std::min(traj.positions.size(), traj.velocities.size());

@@ -80,6 +80,20 @@ struct EnergySeries {
   double ContactPower() const;
 };
 
+/// One series of an EnergySeries: its dataset name under <run>/energy
+/// (docs/results-schema.md) and its member. Every series is in J, one value
+/// per frame; the contact work series are empty for methods without our
+/// contact response and then not stored.
+struct EnergyField {
+  const char* name;
+  std::vector<double> EnergySeries::*member;
+  bool contact_work = false;  ///< stored only when not empty
+  bool Stored(const EnergySeries& e) const { return !contact_work || !(e.*member).empty(); }
+};
+/// The stored series in file order: the one list the result writer and the
+/// Python module iterate.
+const std::vector<EnergyField>& EnergySeriesFields();
+
 /// Evaluates ParticleSystem::Energies at every frame. External work comes
 /// from the run (trapezoidal rule per step) or, for the SUNDIALS references,
 /// from the trapezoidal rule over frames.

@@ -26,6 +26,21 @@
 #include "results/run_table.h"
 
 namespace clothbench {
+
+const std::vector<StepRecordField>& StepRecordFields() {
+  static const std::vector<StepRecordField> fields = {
+      {"t", offsetof(StepRecord, t), true},
+      {"h", offsetof(StepRecord, h), true},
+      {"updates", offsetof(StepRecord, updates), false},
+      {"cg_iterations", offsetof(StepRecord, cg_iterations), false},
+      {"status", offsetof(StepRecord, status), false},
+      {"colliding", offsetof(StepRecord, colliding), false},
+      {"solve_time_s", offsetof(StepRecord, solve_time_s), true},
+      {"setup_time_s", offsetof(StepRecord, setup_time_s), true},
+      {"preconditioner", offsetof(StepRecord, preconditioner), false},
+  };
+  return fields;
+}
 namespace {
 
 using internal::Handle;

@@ -47,6 +47,19 @@ struct StepRecord {
   int32_t preconditioner;
 };
 
+/// One column of a step_stats table: its name, its byte offset in a
+/// StepRecord and its type (float64 or int32).
+struct StepRecordField {
+  const char* name;
+  std::size_t offset;
+  bool is_double;
+};
+
+/// The columns of a step_stats table in file order: the one list the HDF5
+/// compound type (results/hdf5_util.h) and the Python module's structured
+/// array are made from (docs/results-schema.md, step_stats).
+const std::vector<StepRecordField>& StepRecordFields();
+
 class ResultFile {
  public:
   /// Creates "<path>.tmp" (truncating). @throws ResultError.
@@ -87,7 +100,7 @@ class ResultFile {
   void WriteStrings(const std::string& path, int rows, int cols, const std::vector<std::string>& values);
   /// [F, 3] float64 from F 3-vectors.
   void WriteVectors3(const std::string& path, const std::vector<Vector3>& rows, const std::string& units);
-  /// Compound table (t, h, updates, cg_iterations, status, colliding, solve_time_s, setup_time_s) [S].
+  /// Compound table of StepRecordFields() [S].
   void WriteStepStats(const std::string& path, const std::vector<StepRecord>& rows);
   /// Closes the file, writes its integrity block (SignResultFile) and renames
 /// it to its final path. @throws ResultError.

@@ -12,7 +12,6 @@
 #include <fmt/format.h>
 
 namespace clothbench {
-
 RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::string& id) {
   RunRecord r;
   r.id = id;
@@ -27,6 +26,17 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
             if (auto v = f.Long(g, name)) r.*member = *v;
           } else if constexpr (std::is_same_v<T, double>) {
             if (auto v = f.Double(g, name)) r.*member = *v;
+          } else if constexpr (std::is_same_v<T, StepKind> || std::is_same_v<T, RunStatus>) {
+            const std::optional<std::string> text = f.String(g, name);
+            if (!text) return;
+            std::optional<T> v;
+            if constexpr (std::is_same_v<T, StepKind>) v = ParseStepKind(*text);
+            else v = ParseRunStatus(*text);
+            if (!v)
+              throw ResultError(fmt::format("{}: {} attribute {} = \"{}\" is not one of the schema's values "
+                                            "(docs/results-schema.md)",
+                                            f.path(), g, name, *text));
+            r.*member = *v;
           } else {
             r.*member = f.Double(g, name);
           }
@@ -51,46 +61,26 @@ RunTable ReadRunTable(const ResultReader& f) {
   t.build_type = str("/", "build_type");
   t.hardware_threads = f.Long("/", "hardware_threads").value_or(0);
   t.error_metric = f.String("/", "error_metric").value_or("final");
-  t.scene_name = str("/scene", "name");
-  t.scene_source = str("/scene", "source");
-  t.explicit_terms = str("/scene", "explicit_terms");
-  t.frames = str("/scene", "frames");
-  t.n_particles = f.Long("/scene", "n_particles").value_or(0);
-  t.n_fixed = f.Long("/scene", "n_fixed").value_or(0);
-  t.t_end = f.Double("/scene", "t_end").value_or(0.0);
-  t.frame_dt = f.Double("/scene", "frame_dt").value_or(0.0);
-  t.h = f.Double("/scene", "h").value_or(0.0);
-  t.numerical_stiffness = f.Double("/scene", "numerical_stiffness").value_or(0.0);
-  t.cg_tolerance = f.Double("/scene", "solver_cg_tolerance").value_or(0.0);
-  t.cg_reference = str("/scene", "solver_cg_reference");
-  t.preconditioner = str("/scene", "solver_preconditioner");
-  t.predictor = str("/scene", "solver_predictor");
-  t.amg_frames = str("/scene", "solver_amg_frames");
-  t.max_updates = f.Long("/scene", "solver_max_updates").value_or(0);
-  t.cholesky_ordering = str("/scene", "solver_cholesky_ordering");
-  t.contact_factors = str("/scene", "solver_contact_factors");
-  t.tangent_projection = str("/scene", "solver_tangent_projection");
-  t.newton_jacobian = str("/scene", "solver_newton_jacobian");
-  t.contact_history = str("/scene", "solver_contact_history");
-  t.controller_updates = str("/scene", "solver_controller_updates");
-  t.cg_max_iterations = f.Long("/scene", "solver_cg_max_iterations").value_or(0);
-  t.max_rejections = f.Long("/scene", "solver_max_rejections").value_or(0);
-  t.fixed_point_tolerance = f.Double("/scene", "solver_fixed_point_tolerance").value_or(0.0);
-  t.step_factor = f.Double("/scene", "solver_step_factor").value_or(0.0);
-  t.h_min = f.Double("/scene", "solver_h_min").value_or(0.0);
-  t.h_max = f.Double("/scene", "solver_h_max").value_or(0.0);
+  for (const SceneField& field : SceneRecordFields())
+    std::visit(
+        [&](auto member) {
+          using T = std::remove_reference_t<decltype(t.*member)>;
+          if constexpr (std::is_same_v<T, std::string>) t.*member = str("/scene", field.name);
+          else if constexpr (std::is_same_v<T, long>) t.*member = f.Long("/scene", field.name).value_or(0);
+          else t.*member = f.Double("/scene", field.name).value_or(0.0);
+        },
+        field.member);
   if (f.Exists("/reference")) t.reference = ReadRunRecord(f, "/reference", "reference");
   for (const std::string& id : f.Children("/runs")) t.runs.push_back(ReadRunRecord(f, "/runs/" + id, id));
   if (f.Exists("/work_precision/targets")) {
     EqualAccuracyTable w;
     w.targets = f.Doubles("/work_precision/targets");
-    w.reference = f.String("/work_precision", "baseline").value_or(str("/work_precision", "reference_method"));
+    w.reference = str("/work_precision", "baseline");
     w.metric = f.String("/work_precision", "error_metric").value_or("final");
     std::stringstream labels(str("/work_precision", "labels"));  // comma-separated
     for (std::string label; std::getline(labels, label, ',');) w.labels.push_back(label);
     const std::vector<double> cost = f.Doubles("/work_precision/solver_time");
-    const std::vector<double> ratio =
-        f.Doubles(f.Exists("/work_precision/ratio") ? "/work_precision/ratio" : "/work_precision/ratio_to_cvode");
+    const std::vector<double> ratio = f.Doubles("/work_precision/ratio");
     const std::vector<int32_t> bound =
         f.Exists("/work_precision/upper_bound") ? f.Ints("/work_precision/upper_bound") : std::vector<int32_t>{};
     const std::vector<double> min_error =
@@ -159,17 +149,20 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record
           bool store = true;
           switch (field.stored) {
             case Stored::kAlways: break;
-            case Stored::kAdaptive: store = r.step_kind == "adaptive"; break;
-            case Stored::kStepped: store = r.step_kind != "adaptive"; break;
-            case Stored::kSubstepped: store = r.step_kind == "substepped"; break;
-            case Stored::kIterated: store = r.step_kind == "iterated"; break;
+            case Stored::kAdaptive: store = r.step_kind == StepKind::kAdaptive; break;
+            case Stored::kStepped: store = r.step_kind != StepKind::kAdaptive; break;
+            case Stored::kSubstepped: store = r.step_kind == StepKind::kSubstepped; break;
+            case Stored::kIterated: store = r.step_kind == StepKind::kIterated; break;
             default:
               if constexpr (std::is_same_v<T, std::string>) store = !v.empty();
+              else if constexpr (std::is_same_v<T, StepKind> || std::is_same_v<T, RunStatus>) store = true;
               else if constexpr (std::is_same_v<T, std::optional<double>>) store = v.has_value();
               else store = field.stored == Stored::kPositive ? v > 0 : v >= 0;
           }
           if (!store) return;
           if constexpr (std::is_same_v<T, std::optional<double>>) f.SetAttribute(g, field.name, *v);
+          else if constexpr (std::is_same_v<T, StepKind> || std::is_same_v<T, RunStatus>)
+            f.SetAttribute(g, field.name, std::string(ToString(v)));
           else f.SetAttribute(g, field.name, v);
         },
         field.member);
@@ -177,36 +170,18 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record
 }
 
 void WriteSceneRecord(ResultFile& f, const RunTable& t) {
-  f.SetAttribute("/scene", "name", t.scene_name);
-  f.SetAttribute("/scene", "source", t.scene_source);
-  f.SetAttribute("/scene", "n_particles", t.n_particles);
-  f.SetAttribute("/scene", "n_fixed", t.n_fixed);
-  f.SetAttribute("/scene", "t_end", t.t_end);
-  f.SetAttribute("/scene", "frame_dt", t.frame_dt);
-  f.SetAttribute("/scene", "frames", t.frames);
-  f.SetAttribute("/scene", "explicit_terms", t.explicit_terms);
-  f.SetAttribute("/scene", "h", t.h);
-  f.SetAttribute("/scene", "numerical_stiffness", t.numerical_stiffness);
-  f.SetAttribute("/scene", "solver_cg_tolerance", t.cg_tolerance);
-  f.SetAttribute("/scene", "solver_cg_reference", t.cg_reference);
-  f.SetAttribute("/scene", "solver_preconditioner", t.preconditioner);
-  f.SetAttribute("/scene", "solver_predictor", t.predictor);
-  if (!t.amg_frames.empty()) f.SetAttribute("/scene", "solver_amg_frames", t.amg_frames);
-  f.SetAttribute("/scene", "solver_max_updates", t.max_updates);
-  if (!t.cholesky_ordering.empty()) {
-    f.SetAttribute("/scene", "solver_cholesky_ordering", t.cholesky_ordering);
-    f.SetAttribute("/scene", "solver_contact_factors", t.contact_factors);
-    f.SetAttribute("/scene", "solver_tangent_projection", t.tangent_projection);
-    f.SetAttribute("/scene", "solver_newton_jacobian", t.newton_jacobian);
-    if (!t.contact_history.empty()) f.SetAttribute("/scene", "solver_contact_history", t.contact_history);
-    f.SetAttribute("/scene", "solver_controller_updates", t.controller_updates);
-    f.SetAttribute("/scene", "solver_cg_max_iterations", t.cg_max_iterations);
-    f.SetAttribute("/scene", "solver_max_rejections", t.max_rejections);
-    f.SetAttribute("/scene", "solver_fixed_point_tolerance", t.fixed_point_tolerance);
-    f.SetAttribute("/scene", "solver_step_factor", t.step_factor);
-    f.SetAttribute("/scene", "solver_h_min", t.h_min);
-    f.SetAttribute("/scene", "solver_h_max", t.h_max);
-  }
+  using W = SceneField::When;
+  for (const SceneField& field : SceneRecordFields())
+    std::visit(
+        [&](auto member) {
+          const auto& v = t.*member;
+          const bool engine = field.stored == W::kStepEngine || field.stored == W::kStepEngineNonEmpty;
+          if (engine && t.cholesky_ordering.empty()) return;
+          if constexpr (std::is_same_v<std::remove_cvref_t<decltype(v)>, std::string>)
+            if ((field.stored == W::kNonEmpty || field.stored == W::kStepEngineNonEmpty) && v.empty()) return;
+          f.SetAttribute("/scene", field.name, v);
+        },
+        field.member);
 }
 
 void WriteWorkPrecision(ResultFile& f, const EqualAccuracyTable& t, const std::string& g) {

@@ -11,6 +11,42 @@
 
 namespace clothbench {
 
+const std::vector<SceneField>& SceneRecordFields() {
+  using T = RunTable;
+  using W = SceneField::When;
+  static const std::vector<SceneField> fields = {
+      {"name", &T::scene_name},
+      {"source", &T::scene_source},
+      {"n_particles", &T::n_particles},
+      {"n_fixed", &T::n_fixed},
+      {"t_end", &T::t_end},
+      {"frame_dt", &T::frame_dt},
+      {"frames", &T::frames},
+      {"explicit_terms", &T::explicit_terms},
+      {"h", &T::h},
+      {"numerical_stiffness", &T::numerical_stiffness},
+      {"solver_cg_tolerance", &T::cg_tolerance},
+      {"solver_cg_reference", &T::cg_reference},
+      {"solver_preconditioner", &T::preconditioner},
+      {"solver_predictor", &T::predictor},
+      {"solver_amg_frames", &T::amg_frames, W::kNonEmpty},
+      {"solver_max_updates", &T::max_updates},
+      {"solver_cholesky_ordering", &T::cholesky_ordering, W::kStepEngine},
+      {"solver_contact_factors", &T::contact_factors, W::kStepEngine},
+      {"solver_tangent_projection", &T::tangent_projection, W::kStepEngine},
+      {"solver_newton_jacobian", &T::newton_jacobian, W::kStepEngine},
+      {"solver_contact_history", &T::contact_history, W::kStepEngineNonEmpty},
+      {"solver_controller_updates", &T::controller_updates, W::kStepEngine},
+      {"solver_cg_max_iterations", &T::cg_max_iterations, W::kStepEngine},
+      {"solver_max_rejections", &T::max_rejections, W::kStepEngine},
+      {"solver_fixed_point_tolerance", &T::fixed_point_tolerance, W::kStepEngine},
+      {"solver_step_factor", &T::step_factor, W::kStepEngine},
+      {"solver_h_min", &T::h_min, W::kStepEngine},
+      {"solver_h_max", &T::h_max, W::kStepEngine},
+  };
+  return fields;
+}
+
 const std::vector<RecordField>& RunRecordFields() {
   using R = RunRecord;
   using S = Stored;
@@ -35,7 +71,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"predictor", &R::predictor, S::kNonEmpty},
       {"cg_reference", &R::cg_reference, S::kNonEmpty},
       {"newton_jacobian", &R::newton_jacobian, S::kNonEmpty},
-      {"arkode_table", &R::arkode_table, S::kNonEmpty},
+      {"butcher_table", &R::butcher_table, S::kNonEmpty},
       {"atol", &R::atol, S::kPositive},
       {"threads", &R::threads, S::kPositive},
       {"error_test_failures", &R::error_test_failures, S::kNonNegative},
@@ -146,9 +182,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
   for (const RunRecord& r : t.runs) {
     if (!last.empty() && last != r.label) fmt::print(out, "\n");
     last = r.label;
-    const std::string hcol = r.step_kind == "adaptive"     ? fmt::format("{:g}", r.rtol)
-                             : r.step_kind == "substepped" ? fmt::format("{:g}/{}", r.h, r.substeps)
-                             : r.step_kind == "iterated"   ? fmt::format("{:g}x{}", r.h, r.iterations)
+    const std::string hcol = r.step_kind == StepKind::kAdaptive     ? fmt::format("{:g}", r.rtol)
+                             : r.step_kind == StepKind::kSubstepped ? fmt::format("{:g}/{}", r.h, r.substeps)
+                             : r.step_kind == StepKind::kIterated   ? fmt::format("{:g}x{}", r.h, r.iterations)
                                                            : fmt::format("{:g}", r.h);
     const std::string contact_col =
         !contact ? "" : fmt::format(" {:>11}", r.ok() && r.contact_power_W ? Sci(*r.contact_power_W) : "");

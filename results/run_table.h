@@ -43,7 +43,7 @@ enum class Stored {
 struct RecordField {
   const char* name;
   std::variant<std::string RunRecord::*, double RunRecord::*, long RunRecord::*,
-               std::optional<double> RunRecord::*>
+               std::optional<double> RunRecord::*, StepKind RunRecord::*, RunStatus RunRecord::*>
       member;
   Stored stored = Stored::kAlways;
   /// Derived against a reference on rank 0 (errors, order, energies): not
@@ -59,7 +59,7 @@ const std::vector<RecordField>& RunRecordFields();
 /// True if `reference` (RunTable::reference) is a fixed-step
 /// self-convergence run (a fixed-step run of one of the thesis' methods at a
 /// fraction of the scene's smallest step) rather than an adaptive run at an rtol.
-inline bool IsSelfConvergence(const RunRecord& reference) { return reference.step_kind == "fixed_step"; }
+inline bool IsSelfConvergence(const RunRecord& reference) { return reference.step_kind == StepKind::kFixedStep; }
 
 
 /// Everything the printed table shows.
@@ -98,6 +98,29 @@ struct RunTable {
   std::vector<RunRecord> runs;  ///< in run order
   std::optional<EqualAccuracyTable> work_precision;
 };
+
+/// One attribute of /scene: its name, the RunTable member and when it is
+/// stored. kStepEngine: the step engine's settings, written when
+/// cholesky_ordering is set (files before them hold none); kNonEmpty:
+/// strings only when not empty. Absent attributes read back as the
+/// member's default (empty, 0).
+struct SceneField {
+  enum class When { kAlways, kNonEmpty, kStepEngine, kStepEngineNonEmpty };
+  const char* name;
+  std::variant<std::string RunTable::*, long RunTable::*, double RunTable::*> member;
+  When stored = When::kAlways;
+  /// The key under which the Python module's dicts show it: the name
+  /// without its "solver_" prefix.
+  std::string_view key() const {
+    const std::string_view n(name);
+    return n.rfind("solver_", 0) == 0 ? n.substr(7) : n;
+  }
+};
+
+/// Every /scene attribute in file order: the one list the writer
+/// (WriteSceneRecord), the reader (ReadRunTable) and the Python module's
+/// `read_results()["scene"]` iterate (docs/results-schema.md).
+const std::vector<SceneField>& SceneRecordFields();
 
 /// What the lines under a run table say about each kind of row and about
 /// the reference: written by the method registry (harness/table_notes.h),

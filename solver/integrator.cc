@@ -61,6 +61,22 @@ std::string_view ToString(StepStatus s) {
   return "?";
 }
 
+RunStatus RunStatusOf(StepStatus s) {
+  switch (s) {
+    case StepStatus::kOk: return RunStatus::kOk;
+    case StepStatus::kCgFailed: return RunStatus::kCgFailed;
+    case StepStatus::kNoFixedPointConvergence: return RunStatus::kNoFixedPointConvergence;
+    case StepStatus::kNonFinite: return RunStatus::kNonFinite;
+    case StepStatus::kPreconditionerFailed: return RunStatus::kPreconditionerFailed;
+    case StepStatus::kFixedPointDiverged: return RunStatus::kFixedPointDiverged;
+    case StepStatus::kNoNewtonConvergence: return RunStatus::kNoNewtonConvergence;
+    case StepStatus::kNewtonDiverged: return RunStatus::kNewtonDiverged;
+    case StepStatus::kErrorTestFailed: return RunStatus::kErrorTestFailed;
+    case StepStatus::kTimeLimit: return RunStatus::kTimeLimit;
+  }
+  return RunStatus::kSolverFailed;
+}
+
 // ---------------------------------------------------------------------------
 SystemMatrix::SystemMatrix(const ParticleSystem& system, PreconditionerType type, CholeskyOrdering ordering,
                            bool contact_factors)

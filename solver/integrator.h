@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
+#include "model/run_status.h"
 #include "solver/contact.h"
 #include "solver/pcg.h"
 #include "solver/tangent.h"
@@ -75,6 +76,9 @@ enum class StepStatus {
   kTimeLimit  ///< the run's wall-clock deadline passed inside the step (model/interrupt.h)
 };
 std::string_view ToString(StepStatus s);
+/// The run's status when a step fails with `s` and cannot be retried
+/// (kOk for kOk): the RunStatus of the same name.
+RunStatus RunStatusOf(StepStatus s);
 
 /// Statistics of one attempted step (docs/model.md §6).
 struct StepStats {

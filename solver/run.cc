@@ -128,10 +128,10 @@ void BlowUpGuard::StoreMargins(RunRecord* record) const {
   record->penetration_ratio = depth_ratio_;
 }
 
-bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, std::string* status,
+bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, RunStatus* status,
                              std::string* message) {
   if (!x.allFinite() || !v.allFinite()) {
-    *status = "non_finite";
+    *status = RunStatus::kNonFinite;
     *message = fmt::format("the state became non-finite by t = {:.6g} s", t);
     return false;
   }
@@ -141,7 +141,7 @@ bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, std
     const double delta = o.spec().collision_distance;
     depth_ratio_ = std::max(depth_ratio_, p.max_depth / delta);
     if (p.max_depth > delta) {
-      *status = "penetration";
+      *status = RunStatus::kPenetration;
       *message = fmt::format("particle {} lies {:.3g} m inside obstacle {} ({}) at t = {:.6g} s, deeper than its "
                              "collision distance {:g} m",
                              p.deepest, p.max_depth, k, ToString(o.spec().type), t, delta);
@@ -152,9 +152,9 @@ bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, std
 }
 
 bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double external_work,
-                        std::optional<double> contact_work, std::string* status, std::string* message) {
+                        std::optional<double> contact_work, RunStatus* status, std::string* message) {
   if (!x.allFinite() || !v.allFinite()) {
-    *status = "non_finite";
+    *status = RunStatus::kNonFinite;
     *message = fmt::format("the state became non-finite by t = {:.6g} s", t);
     return false;
   }
@@ -162,7 +162,7 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double e
   // The virtual springs of the step just taken (the topology of its start).
   if (const VirtualParticles* vp = sys_.virtual_particles()) e += vp->TensionEnergyChange(x);
   if (!std::isfinite(e) || !std::isfinite(external_work) || (contact_work && !std::isfinite(*contact_work))) {
-    *status = "non_finite";
+    *status = RunStatus::kNonFinite;
     *message = fmt::format("the energy became non-finite by t = {:.6g} s", t);
     return false;
   }
@@ -170,7 +170,7 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double e
   const double gain = e - e0_ - external_work - contact_work.value_or(0.0);
   if (balance_closed) gain_ratio_ = std::max({gain_ratio_, 0.0, gain / e_scale_});  // the gain at t = 0 is 0
   if (balance_closed && gain > kEnergyGainFactor * e_scale_) {
-    *status = "energy_growth";
+    *status = RunStatus::kEnergyGrowth;
     *message = fmt::format("energy gain E - E(0) - W_ext - W_contact = {:.3e} J at t = {:.6g} s exceeds {:g} E_scale "
                            "= {:.3e} J (the drop's potential energy and the initial kinetic energy)",
                            gain, t, kEnergyGainFactor, kEnergyGainFactor * e_scale_);
@@ -179,12 +179,12 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double e
   return CheckSpeed(t, v, status, message);
 }
 
-bool BlowUpGuard::CheckSpeed(double t, const MatrixN3& v, std::string* status, std::string* message) {
+bool BlowUpGuard::CheckSpeed(double t, const MatrixN3& v, RunStatus* status, std::string* message) {
   int fastest = 0;
   const double speed = v.rows() ? v.rowwise().norm().maxCoeff(&fastest) : 0.0;
   speed_ratio_ = std::max(speed_ratio_, speed / v_bound_);
   if (speed > kSpeedFactor * v_bound_) {
-    *status = "speed";
+    *status = RunStatus::kSpeed;
     *message = fmt::format("particle {} moves at {:.3g} m/s at t = {:.6g} s, above {:g} v_bound = {:.3g} m/s (free "
                            "fall over the scene's drop, initial, wind and obstacle speeds)",
                            fastest, speed, t, kSpeedFactor, kSpeedFactor * v_bound_);
@@ -197,7 +197,7 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
   std::string why;
   if (!options.IsValid(&why) || !system.scene().solver.IsValid(&why)) {
     RunSummary sum;
-    sum.status = "invalid_options";
+    sum.status = RunStatus::kInvalidOptions;
     sum.message = why;
     return sum;
   }
@@ -212,12 +212,12 @@ namespace {
 bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, const Stepper& engine, RunSummary* sum) {
   std::string why;
   if (!options.IsValid(&why) || !spec.IsValid(&why)) {
-    sum->status = "invalid_options";
+    sum->status = RunStatus::kInvalidOptions;
     sum->message = why;
     return true;
   }
   if (spec.step_control == StepControl::kError && !engine.estimates_error()) {
-    sum->status = "invalid_options";
+    sum->status = RunStatus::kInvalidOptions;
     sum->message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
     return true;
   }
@@ -229,16 +229,16 @@ bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, const Ste
 bool PastLimits(const StepStats& st, const RunOptions& options, double t, long attempts, double elapsed,
                 RunSummary* sum) {
   ThrowIfInterrupted();  // Ctrl-C ends the loops inside a step as a deadline would (model/interrupt.h)
-  const auto fail = [&](const char* status, std::string message) {
+  const auto fail = [&](RunStatus status, std::string message) {
     sum->status = status;
     sum->message = std::move(message);
     return true;
   };
   if (st.status == StepStatus::kTimeLimit || (options.limits.time_limit_s > 0.0 && elapsed > options.limits.time_limit_s))
-    return fail("time_limit", fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
+    return fail(RunStatus::kTimeLimit, fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
                                           options.limits.time_limit_s, t, attempts));
   if (attempts >= options.limits.max_steps && t < options.t_end - 1e-12 * options.t_end)
-    return fail("step_limit", fmt::format("{} step attempts reached t = {:.6g} s of t_end = {:g} s (the limit is {})",
+    return fail(RunStatus::kStepLimit, fmt::format("{} step attempts reached t = {:.6g} s of t_end = {:g} s (the limit is {})",
                                           attempts, t, options.t_end, options.limits.max_steps));
   return false;
 }
@@ -358,7 +358,7 @@ bool Retry(const StepStats& st, double step, double t, const SolverSpec& spec, i
     *h = step * std::max(0.2, 0.9 * std::pow(st.error_norm, -1.0 / (st.error_order + 1)));
   }
   if (consecutive_rejections <= spec.max_rejections && *h >= spec.h_min) return true;
-  sum->status = std::string(ToString(st.status));
+  sum->status = RunStatusOf(st.status);
   sum->message = fmt::format("step at t = {:.6g} s failed ({}) after {} retries, last h = {:.3g} s", t,
                              ToString(st.status), consecutive_rejections - 1, step);
   if (st.pcg_status == PcgStatus::kMaxIterations)
@@ -456,9 +456,9 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   double h = h_nominal;
   int consecutive_rejections = 0;
   long fixed_step_index = 0;  // fixed steps land on n·h exactly (no drift)
-  sum.status = "ok";
-  const auto fail = [&](std::string_view status, std::string message) {
-    sum.status = std::string(status);
+  sum.status = RunStatus::kOk;
+  const auto fail = [&](RunStatus status, std::string message) {
+    sum.status = status;
     sum.message = std::move(message);
   };
 
@@ -495,7 +495,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       continue;
     }
     if (!engine.x().allFinite() || !engine.v().allFinite()) {
-      fail("non_finite", fmt::format("the state became non-finite in the step to t = {:.6g} s", engine.t()));
+      fail(RunStatus::kNonFinite, fmt::format("the state became non-finite in the step to t = {:.6g} s", engine.t()));
       break;
     }
     ++sum.steps;

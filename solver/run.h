@@ -69,7 +69,7 @@ struct SundialsStats {
 /// label, parameters) is the caller's (harness MethodRow::Run), the errors
 /// and energies are derived against a reference.
 struct RunSummary : RunRecord {
-  RunSummary() { status = "not_run"; }
+  RunSummary() { status = RunStatus::kNotRun; }
   int matrix_rebuilds = -1;         ///< A_α / preconditioner rebuilds; −1: not counted (SUNDIALS)
   /// Every attempt, rejected ones included. SUNDIALS runs: every accepted
   /// internal step with t, h, solve_time and error_order = the method order
@@ -145,15 +145,15 @@ class BlowUpGuard {
   /// is sound, else false with `status` ("non_finite" | "energy_growth" |
   /// "speed") and a one-line `message` naming t, the quantity and the bound.
   bool Check(double t, const MatrixN3& x, const MatrixN3& v, double external_work, std::optional<double> contact_work,
-             std::string* status, std::string* message);
+             RunStatus* status, std::string* message);
   /// The speed check alone (part of Check), for a caller with its own
   /// energy bound (the stability maps): false with status "speed".
-  bool CheckSpeed(double t, const MatrixN3& v, std::string* status, std::string* message);
+  bool CheckSpeed(double t, const MatrixN3& v, RunStatus* status, std::string* message);
   /// Checks a stored frame at time t [s] with N×3 positions x [m] and
   /// velocities v [m/s]: false with status "non_finite", or "penetration"
   /// against the obstacles and a message naming the particle, its depth,
   /// the obstacle and t.
-  bool CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, std::string* status, std::string* message);
+  bool CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, RunStatus* status, std::string* message);
   /// The margins of the states and frames checked so far into `record`
   /// (RunRecord::energy_gain_ratio, speed_ratio, penetration_ratio).
   void StoreMargins(RunRecord* record) const;

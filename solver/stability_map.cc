@@ -56,7 +56,8 @@ StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h
   // The run's blow-up statuses besides the map's stricter energy bound:
   // speed after every step, penetration at every step's state.
   BlowUpGuard guard(sys, engine.x(), engine.v(), h * steps);
-  std::string guard_status, guard_message;
+  RunStatus guard_status = RunStatus::kOk;
+  std::string guard_message;
   StabilityCell c;
   long updates = 0, cg = 0;
   for (int n = 0; n < steps; ++n) {
@@ -90,7 +91,7 @@ StabilityCell RunStabilityCell(Scene scene, const StepperFactory& make, double h
       break;
     }
     if (!guard.CheckFrame(engine.t(), engine.x(), engine.v(), &guard_status, &guard_message)) {
-      c.outcome = guard_status == "penetration" ? kPenetration : kNonFinite;
+      c.outcome = guard_status == RunStatus::kPenetration ? kPenetration : kNonFinite;
       break;
     }
   }

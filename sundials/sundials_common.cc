@@ -52,6 +52,11 @@ bool CvodeSettings::Set(const std::string& key, const std::string& value, std::s
 }  // namespace clothbench
 
 namespace clothbench::internal {
+namespace {
+// A SUNDIALS return flag's name as the run's status (ParseRunStatus maps
+// error-test, convergence and work-limit failures; the rest is kSolverFailed).
+RunStatus StatusOfFlag(const std::string& name) { return ParseRunStatus(name).value_or(RunStatus::kSolverFailed); }
+}  // namespace
 
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
                const std::string& error, RunSummary* res) {
@@ -78,22 +83,22 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     ++steps;
     ThrowIfInterrupted();  // Ctrl-C inside the step ends our PCG like a deadline: raised here, not a time_limit
     if (flag < 0 && !DeadlinePassed()) {
-      res->status = d.flag_name(flag);
-      res->message = error.empty() ? "step failed with " + res->status : error;
+      res->status = StatusOfFlag(d.flag_name(flag));
+      res->message = error.empty() ? "step failed with " + d.flag_name(flag) : error;
       ok = false;
       break;
     }
     if (flag < 0 || DeadlinePassed() ||  // a failed step past the deadline: our PCG stopped it
         (options.limits.time_limit_s > 0.0 &&
          std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
-      res->status = "time_limit";
+      res->status = RunStatus::kTimeLimit;
       res->message = fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
                                  options.limits.time_limit_s, t, steps);
       ok = false;
       break;
     }
     if (steps >= options.limits.max_steps && t < options.t_end) {
-      res->status = "step_limit";
+      res->status = RunStatus::kStepLimit;
       res->message = fmt::format("{} internal steps reached t = {:.6g} s of t_end = {:g} s (mxstep of the run is {})",
                                  steps, t, options.t_end, options.limits.max_steps);
       ok = false;
@@ -121,8 +126,8 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       if (next + 1 == frames.size() || frames[next] == t) {
         d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly
       } else if (const int f = d.state_at(frames[next], &frame, &frame_v); f < 0) {
-        res->status = d.flag_name(f);
-        res->message = error.empty() ? "dense output failed with " + res->status : error;
+        res->status = StatusOfFlag(d.flag_name(f));
+        res->message = error.empty() ? "dense output failed with " + d.flag_name(f) : error;
         ok = false;
         break;
       }
@@ -138,7 +143,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   }
   guard.StoreMargins(res);
   if (ok) {
-    res->status = "ok";
+    res->status = RunStatus::kOk;
   }
   res->solver_time_s = res->solver_time_s_median = res->solver_time_s_max = solver_seconds;  // one timing
 }
@@ -147,7 +152,7 @@ void NameSundialsRun(const char* integrator, const char* layer, const ReferenceO
   res->integrator = integrator;
   res->label = integrator;
   res->layer = layer;
-  res->step_kind = "adaptive";
+  res->step_kind = StepKind::kAdaptive;
   res->rtol = options.rtol;
   res->atol = options.AbsoluteTolerance();
   res->step_control = "sundials";
@@ -211,8 +216,8 @@ void StoreErrorMessage(int code, const char* module, const char* function, char*
 bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
                RunSummary* res) {
   if (flag < 0 && res->message.empty()) {
-    res->status = flag_name(flag);
-    res->message = error.empty() ? fmt::format("{} failed with {}", call, res->status) : error;
+    res->status = StatusOfFlag(flag_name(flag));
+    res->message = error.empty() ? fmt::format("{} failed with {}", call, flag_name(flag)) : error;
   }
   return flag >= 0;
 }

@@ -117,8 +117,9 @@ class FreeDofMap {
 /// in the std::string passed as its user data.
 void StoreErrorMessage(int code, const char* module, const char* function, char* msg, void* error_string);
 
-/// Records the first failing setup call in `res`: status = the flag's name
-/// (`flag_name`: CVodeGetReturnFlagName, …), message = the error handler's
+/// Records the first failing setup call in `res`: status = the flag's
+/// RunStatus (ParseRunStatus of its name, `flag_name`:
+/// CVodeGetReturnFlagName, …), message = the error handler's
 /// text `error` or "<call> failed with <flag>". Returns flag >= 0.
 bool CheckFlag(int flag, const char* call, char* (*flag_name)(long int), const std::string& error,
                RunSummary* res);

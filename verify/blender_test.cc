@@ -29,7 +29,7 @@ TEST(Blender, KeepsUnconvergedSolvesAndCountsThem) {
   const ParticleSystem sys(s);
   BaraffWitkin blender(sys, s.solver, BaraffWitkinOptions{true});
   const RunSummary r = RunStepper(sys, blender, {0.01, s.t_end, s.frame_dt});
-  ASSERT_EQ(r.status, "ok") << r.message;
+  ASSERT_EQ(r.status, RunStatus::kOk) << r.message;
   EXPECT_EQ(r.rejected, 0);  // nothing is retried, as in Blender
   EXPECT_GT(r.cg_unconverged, 0);
   for (const StepStats& st : r.step_stats) EXPECT_LE(st.cg_iterations, 100);  // Blender's conjgrad_looplimit

@@ -30,7 +30,7 @@ MethodRun RunRow(const Scene& scene, const std::string& label, double param) {
 TEST(BlowUp, Sbdf3AtTheScenesStepFailsOnTheSwingingBox) {
   const Scene scene = BuiltinScene("swinging_box");
   const MethodRun r = RunRow(scene, "sbdf3", 0.01);
-  EXPECT_EQ(r.status, "energy_growth") << r.message;
+  EXPECT_EQ(r.status, RunStatus::kEnergyGrowth) << r.message;
   EXPECT_NE(r.message.find("at t = "), std::string::npos) << r.message;
   EXPECT_NE(r.message.find("E_scale"), std::string::npos) << r.message;
   EXPECT_LT(r.steps, 100) << "the failure is reported where the gain passes the bound, not at t_end";
@@ -67,7 +67,7 @@ TEST(BlowUp, ArkodeAtALooseToleranceFailsOnTheHangingSheet) {
   loose.t_end = sys.scene().t_end;
   loose.frame_dt = sys.scene().frame_dt;
   const RunSummary r = RunArkode(sys, loose);
-  EXPECT_EQ(r.status, "energy_growth") << r.message;
+  EXPECT_EQ(r.status, RunStatus::kEnergyGrowth) << r.message;
   EXPECT_NE(r.message.find("at t = "), std::string::npos) << r.message;
   ReferenceOptions tight = loose;
   tight.rtol = 1e-4;

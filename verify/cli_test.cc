@@ -620,7 +620,7 @@ TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
   ASSERT_EQ(t.runs.size(), 8u);
   for (const RunRecord& r : t.runs) {
     SCOPED_TRACE(r.id);
-    EXPECT_EQ(r.status, "ok");
+    EXPECT_EQ(r.status, RunStatus::kOk);
     EXPECT_GT(r.threads, 0);
     const bool pcg = r.integrator != "xpbd" && r.integrator != "pd";
     EXPECT_EQ(r.preconditioner, pcg ? "jacobi" : "");  // --preconditioner overrides each method's best
@@ -629,17 +629,17 @@ TEST(BenchCli, EveryRunStoresTheSettingsItUsed) {
     const bool tangent = r.label == "bdf2/newton" || r.integrator == "cvode" || r.integrator == "baraff_witkin";
     EXPECT_EQ(r.tangent_terms, tangent ? "all" : "");  // --tangent-terms overrides baraff_witkin's tension
     EXPECT_EQ(r.newton_jacobian, r.label == "bdf2/newton" ? "refresh" : "");
-    EXPECT_EQ(r.arkode_table, r.integrator == "arkode" ? "ARK437L2SA" : "");
+    EXPECT_EQ(r.butcher_table, r.integrator == "arkode" ? "ARK437L2SA" : "");
     const bool sundials = r.integrator == "cvode" || r.integrator == "arkode";
     EXPECT_EQ(r.step_control, sundials ? "sundials" : r.label == "sbdf2/error" ? "error" : "fixed");
-    EXPECT_EQ(r.step_kind, r.integrator == "xpbd"                          ? "substepped"
-                           : r.integrator == "pd"                          ? "iterated"
-                           : sundials || r.label == "sbdf2/error"          ? "adaptive"
-                                                                           : "fixed_step");
-    if (r.step_kind == "adaptive") { EXPECT_TRUE(r.rtol == 1e-3 && r.atol == 1e-3); }
-    if (r.step_kind == "substepped") { EXPECT_EQ(r.substeps, 2); }
-    if (r.step_kind == "iterated") { EXPECT_TRUE(r.iterations == 3 && r.id == "pd_chebyshev_h0.01_k3"); }
-    EXPECT_EQ(r.iterations, r.step_kind == "iterated" ? 3 : 0);
+    EXPECT_EQ(r.step_kind, r.integrator == "xpbd"                 ? StepKind::kSubstepped
+                           : r.integrator == "pd"                 ? StepKind::kIterated
+                           : sundials || r.label == "sbdf2/error" ? StepKind::kAdaptive
+                                                                  : StepKind::kFixedStep);
+    if (r.step_kind == StepKind::kAdaptive) { EXPECT_TRUE(r.rtol == 1e-3 && r.atol == 1e-3); }
+    if (r.step_kind == StepKind::kSubstepped) { EXPECT_EQ(r.substeps, 2); }
+    if (r.step_kind == StepKind::kIterated) { EXPECT_TRUE(r.iterations == 3 && r.id == "pd_chebyshev_h0.01_k3"); }
+    EXPECT_EQ(r.iterations, r.step_kind == StepKind::kIterated ? 3 : 0);
   }
 }
 
@@ -679,7 +679,7 @@ TEST(BenchCli, SceneErrorControlMakesErrorRows) {
   ASSERT_EQ(t.runs.size(), 2u);
   for (const RunRecord& r : t.runs) {
     EXPECT_EQ(r.label, "sbdf2/error") << r.id;
-    EXPECT_EQ(r.step_kind, "adaptive") << r.id;
+    EXPECT_EQ(r.step_kind, StepKind::kAdaptive) << r.id;
     EXPECT_EQ(r.step_control, "error") << r.id;
   }
   EXPECT_EQ(t.runs[0].rtol, 1e-3);
@@ -705,7 +705,7 @@ TEST(BenchCli, SceneErrorControlMakesErrorRows) {
   EXPECT_FALSE(fs::exists(out));
   o = RunBench("--scene " + scene + " --reference none --frames none --repeat 1 --quiet --out " + out.string());
   ASSERT_EQ(o.exit_code, 0) << o.err;
-  for (const RunRecord& r : ReadRunTable(ResultReader(out.string())).runs) EXPECT_EQ(r.status, "ok") << r.id;
+  for (const RunRecord& r : ReadRunTable(ResultReader(out.string())).runs) EXPECT_EQ(r.status, RunStatus::kOk) << r.id;
 }
 
 // contact_replay: a state saved in contact replays from there (the sheet on

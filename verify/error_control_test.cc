@@ -129,7 +129,7 @@ TEST(ErrorControl, RefusedForMethodsWithoutEstimate) {
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, Method::kImplicitEuler, {0.01, s.t_end, s.frame_dt});
   EXPECT_FALSE(r.ok());
-  EXPECT_EQ(r.status, "invalid_options");
+  EXPECT_EQ(r.status, RunStatus::kInvalidOptions);
 }
 
 }  // namespace

@@ -100,7 +100,7 @@ TEST_F(InspectTest, ReaderReadsWhatTheWriterStored) {
   ASSERT_EQ(t.runs.size(), 10u);
   EXPECT_EQ(t.runs.front().id, "sbdf2_h0.01");
   EXPECT_EQ(t.runs.back().id, "cvode_rtol1e-06");
-  EXPECT_EQ(t.runs.back().step_kind, "adaptive");
+  EXPECT_EQ(t.runs.back().step_kind, StepKind::kAdaptive);
   EXPECT_EQ(t.runs[2].nonlinear_solver, "newton");
   ASSERT_TRUE(t.runs[1].error_final_m.has_value());
   ASSERT_TRUE(t.runs[1].observed_order.has_value());
@@ -280,6 +280,9 @@ void ReplaceDataset(hid_t f, const std::string& path, std::vector<hsize_t> dims,
 // attribute, nothing on stdout. Before the integrity block and
 // ValidateResultFile, the empty-times file crashed `export` (SIGSEGV) and a
 // few flipped bits crashed HDF5 itself.
+void CopyWithString(const std::string& from, const std::string& to, const std::string& object,
+                    const std::string& name, const std::string& text);  // below
+
 TEST_F(InspectTest, BrokenFilesGiveExit2NamingTheDataset) {
   ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
   const auto refused = [&](const std::string& file, const std::string& args, const std::string& named) {
@@ -328,6 +331,15 @@ TEST_F(InspectTest, BrokenFilesGiveExit2NamingTheDataset) {
   const std::string nan_attr = (TempDir() / "nan_attr.h5").string();
   CopyWithAttribute(file_, nan_attr, "/runs/sbdf2_h0.01", "solver_time_s", std::nan(""));
   refused(nan_attr, "runs --json", "/runs/sbdf2_h0.01@solver_time_s: nan is not finite");
+  // Status and step kind are enumerations: any other text is refused; a
+  // SUNDIALS flag name (what files stored before) reads as its status.
+  CopyWithString(file_, bad, "/runs/sbdf2_h0.01", "status", "exploded");
+  refused(bad, "summary", "/runs/sbdf2_h0.01 attribute status = \"exploded\"");
+  CopyWithString(file_, bad, "/runs/sbdf2_h0.01", "step_kind", "sometimes");
+  refused(bad, "runs", "attribute step_kind = \"sometimes\"");
+  CopyWithString(file_, bad, "/runs/sbdf2_h0.01", "status", "CV_CONV_FAILURE");
+  const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, bad + " runs");
+  EXPECT_NE(o.out.find("sbdf2_h0.01 label=sbdf2 status=no_newton_convergence"), std::string::npos) << o.out << o.err;
 }
 
 TEST(InspectCommand, RecomputesARunBitForBit) {
@@ -460,7 +472,7 @@ TEST(InspectCommand, StoredStringsNeverRunAsShellCode) {
   } refused[] = {
       {"/runs/sbdf2_h0.01", "preconditioner", "sbdf2_h0.01", "preconditioner"},
       {"/runs/bdf2_newton_h0.01", "tangent_terms", "bdf2_newton_h0.01", "tangent_terms"},
-      {"/runs/arkode_rtol0.0001", "arkode_table", "arkode_rtol0.0001", "arkode_table"},
+      {"/runs/arkode_rtol0.0001", "butcher_table", "arkode_rtol0.0001", "arkode_table"},
       {"/scene", "frames", "sbdf2_h0.01", "frames"},
       {"/runs/sbdf2_h0.01", "label", "sbdf2_h0.01", "label"},
   };
@@ -575,7 +587,7 @@ TEST(InspectCommand, AFileWithABlownUpRowReadsBack) {
   const ResultReader f(file);
   const RunTable t = ReadRunTable(f);
   ASSERT_EQ(t.runs.size(), 1u);
-  EXPECT_NE(t.runs[0].status, "ok");
+  EXPECT_NE(t.runs[0].status, RunStatus::kOk);
   const std::size_t frames = f.Shape("/runs/symplectic_euler_h0.01/times")[0];
   EXPECT_GT(frames, 1u);
   EXPECT_EQ(f.Shape("/runs/symplectic_euler_h0.01/energy/kinetic")[0], frames);

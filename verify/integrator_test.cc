@@ -61,7 +61,7 @@ TEST(StepEngine, FailureIsReportedAsStatus) {
   const ParticleSystem sys(s);
   const RunSummary r = RunIntegrator(sys, Method::kBdf2, {0.01, 0.1, 0.01});
   EXPECT_FALSE(r.ok());
-  EXPECT_EQ(r.status, "cg_failed");
+  EXPECT_EQ(r.status, RunStatus::kCgFailed);
   EXPECT_EQ(r.rejected, 4);
   for (const MatrixN3& x : r.trajectory.positions) EXPECT_TRUE(x.allFinite());
   EXPECT_FALSE(r.message.empty());
@@ -73,10 +73,10 @@ TEST(StepEngine, InvalidOptionsAreReported) {
   s.solver.cg_tolerance = 2.0;
   const RunSummary r = RunIntegrator(ParticleSystem(s), Method::kSbdf2, {0.01, 0.1, 0.01});
   EXPECT_FALSE(r.ok());
-  EXPECT_EQ(r.status, "invalid_options");
+  EXPECT_EQ(r.status, RunStatus::kInvalidOptions);
   EXPECT_NE(r.message.find("cg_tolerance"), std::string::npos) << r.message;
   const RunSummary r2 = RunIntegrator(ParticleSystem(DefaultScene()), Method::kSbdf2, {-0.01, 0.1, 0.01});
-  EXPECT_EQ(r2.status, "invalid_options");
+  EXPECT_EQ(r2.status, RunStatus::kInvalidOptions);
   EXPECT_NE(testing::Brief(r2).find("h = -0.01"), std::string::npos) << testing::Brief(r2);
 }
 

@@ -79,8 +79,8 @@ TEST(StepLoop, BlowUpGuardDoesNotAllocate) {
     MatrixN3 x = sys.rest_positions(), v = MatrixN3::Constant(sys.num_particles(), 3, 0.1);
     BlowUpGuard guard(sys, x, MatrixN3::Zero(sys.num_particles(), 3), sys.scene().t_end);
     ExternalWork external(sys, x, MatrixN3::Zero(sys.num_particles(), 3));
-    std::string status, message;
-    status.reserve(32);
+    RunStatus status = RunStatus::kOk;
+    std::string message;
     message.reserve(256);
     g_allocations = 0;
     g_counting = true;
