@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -13,12 +15,15 @@
 namespace clothbench {
 
 IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view name, int iterations,
-                                 ChebyshevSettings chebyshev, int rho_iterations, InitialGuess initial_guess)
+                                 ChebyshevSettings chebyshev, int rho_iterations, InitialGuess initial_guess,
+                                 ObstacleResponse response)
     : sys_(system),
       iterations_(iterations),
       cheb_(chebyshev),
       rho_iterations_(rho_iterations),
-      initial_guess_(initial_guess) {
+      initial_guess_(initial_guess),
+      response_(response),
+      contacts_(system) {
   if (iterations < 1) throw std::invalid_argument(fmt::format("{}: iterations = {} must be at least 1", name, iterations));
   if (!cheb_.valid())
     throw std::invalid_argument(fmt::format("{}/chebyshev: rho = {} must be in [0, 1), gamma = {} in (0, 1], delay = {} "
@@ -31,7 +36,16 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
   for (const auto& term : system.terms())
     if (const MatrixN3* f = term->constant_force()) f_ext_ += *f;
   for (MatrixN3* m : {&x0_, &v0_, &v_, &x_, &v_start_, &v_prev_}) m->setZero(n, 3);
-  if (initial_guess_ == InitialGuess::kAdaptive) v_last_.setZero(n, 3);
+  if (initial_guess_ != InitialGuess::kInertial) v_last_.setZero(n, 3);
+  const bool filter = response_ == ObstacleResponse::kVelocityFilter && contacts_.active();
+  if (initial_guess_ == InitialGuess::kSafeguardedExtrapolation || filter)
+    for (MatrixN3* m : {&v_guess_, &x_guess_, &f_guess_}) m->setZero(n, 3);
+  if (filter) {
+    filter_.Reserve(n);
+    constraint_.assign(static_cast<std::size_t>(n), -1);
+    constraints_.reserve(static_cast<std::size_t>(n));
+    xm1_.setZero(n, 3);
+  }
   increments_.reserve(static_cast<std::size_t>(std::max(iterations, rho_iterations)));
 }
 
@@ -41,11 +55,117 @@ void IteratedStepper::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   v0_ = v;
   for (int p : sys_.fixed()) v0_.row(p).setZero();
   h_last_step_ = 0.0;
+  have_history_ = false;
+  contacts_.Reset();
 }
 
-bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool* timed_out) {
+int IteratedStepper::SetUpContacts(double h) {
+  const int colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+  std::fill(constraint_.begin(), constraint_.end(), -1);
+  constraints_.clear();
+  filter_.ForEachTarget([&](int p, int count, const Eigen::Matrix3d& dirs, const Vector3& targets) {
+    if (count >= 3) return;  // fixed: never relaxed
+    constraint_[static_cast<std::size_t>(p)] = static_cast<int>(constraints_.size());
+    constraints_.push_back({count, dirs, targets});
+  });
+  return colliding;
+}
+
+bool IteratedStepper::LocalStep(int p, const Matrix3& j, const Vector3& r, Vector3* vp) const {
+  const int k = response_ == ObstacleResponse::kVelocityFilter && !constraint_.empty()
+                    ? constraint_[static_cast<std::size_t>(p)]
+                    : -1;
+  const double scale = j.cwiseAbs().maxCoeff();
+  if (k < 0) {
+    Matrix3 inverse;
+    bool invertible = false;
+    j.computeInverseWithCheck(inverse, invertible, 1e-12 * scale * scale * scale);
+    if (!invertible) return false;
+    *vp -= inverse * r;
+    return true;
+  }
+  // Δ = D δ + T a: the constrained components D δ reach their targets, and
+  // the free ones solve Tᵀ (r + j Δ) = 0 (T an orthonormal complement of D).
+  const LocalConstraint& c = constraints_[static_cast<std::size_t>(k)];
+  Vector3 delta = Vector3::Zero();
+  for (int i = 0; i < c.count; ++i) delta += (c.targets(i) - c.dirs.col(i).dot(*vp)) * c.dirs.col(i);
+  Eigen::Matrix<double, 3, 2> t;
+  int free = 0;
+  if (c.count == 1) {
+    const Vector3 n = c.dirs.col(0);
+    Vector3 axis = Vector3::Zero();
+    int least = 0;
+    n.cwiseAbs().minCoeff(&least);
+    axis(least) = 1.0;
+    t.col(0) = n.cross(axis).normalized();
+    t.col(1) = n.cross(t.col(0));
+    free = 2;
+  } else {
+    t.col(0) = c.dirs.col(0).cross(c.dirs.col(1)).normalized();
+    free = 1;
+  }
+  const Vector3 rhs = -(r + j * delta);
+  if (free == 2) {
+    const Eigen::Matrix2d a = t.transpose() * j * t;
+    const double det = a.determinant();
+    if (!(std::abs(det) > 1e-12 * scale * scale)) return false;
+    *vp += delta + t * (a.inverse() * (t.transpose() * rhs));
+  } else {
+    const double a = t.col(0).dot(j * t.col(0));
+    if (!(std::abs(a) > 1e-12 * scale)) return false;
+    *vp += delta + t.col(0) * (t.col(0).dot(rhs) / a);
+  }
+  return true;
+}
+
+void IteratedStepper::ReadContactImpulses(double h) {
+  // Each particle's row of the implicit Euler equations at the step's end,
+  // r_p = m_p (v₁ − v₀) − h (f(t₁, x₁, v₁) + friction)_p: along a contact's
+  // direction, the constraint impulse; its free components are what the
+  // iterations left, the release tolerance (as η‖S_F b‖ for the PCG).
+  x_guess_.noalias() = x0_ + h * v_;
+  sys_.Forces(t_ + h, x_guess_, v_, &f_guess_);
+  f_guess_ += contacts_.friction();
+  const Eigen::VectorXd& m = sys_.masses();
+  double free2 = 0.0;
+  for (int p = 0; p < v_.rows(); ++p) {
+    if (w_(p) == 0.0) continue;
+    Vector3 r = m(p) * (v_.row(p) - v0_.row(p)).transpose() - h * f_guess_.row(p).transpose();
+    const int k = constraint_[static_cast<std::size_t>(p)];
+    if (k >= 0)
+      for (int i = 0; i < constraints_[static_cast<std::size_t>(k)].count; ++i) {
+        const Vector3 d = constraints_[static_cast<std::size_t>(k)].dirs.col(i);
+        r -= r.dot(d) * d;
+      }
+    free2 += r.squaredNorm();
+  }
+  auto residual_row = [&](int p) {
+    return Vector3(m(p) * (v_.row(p) - v0_.row(p)).transpose() - h * f_guess_.row(p).transpose());
+  };
+  contacts_.ReadImpulses(residual_row, v0_, v_, v0_, std::sqrt(free2));
+}
+
+double IteratedStepper::ResidualNorm2(double h, const MatrixN3& v) {
+  x_guess_.noalias() = x0_ + h * v;
+  sys_.Forces(t_ + h, x_guess_, v, &f_guess_);
+  if (const MatrixN3* friction = contact_forces()) f_guess_ += *friction;
+  double sum = 0.0;
+  for (int p = 0; p < v.rows(); ++p) {
+    if (w_(p) == 0.0) continue;
+    Vector3 r = ((v.row(p) - v0_.row(p)) / w_(p) - h * f_guess_.row(p)).transpose();
+    if (const int k = constraint_.empty() ? -1 : constraint_[static_cast<std::size_t>(p)]; k >= 0)
+      for (int i = 0; i < constraints_[static_cast<std::size_t>(k)].count; ++i) {  // the constraint carries these
+        const Vector3 d = constraints_[static_cast<std::size_t>(k)].dirs.col(i);
+        r -= r.dot(d) * d;
+      }
+    sum += r.squaredNorm() * w_(p);
+  }
+  return sum;
+}
+
+void IteratedStepper::StartIterate(double h, bool rho_start) {
   v_.noalias() = v0_ + h * (w_.asDiagonal() * f_ext_);
-  if (initial_guess_ == InitialGuess::kAdaptive && h_last_step_ > 0.0)
+  if (initial_guess_ != InitialGuess::kInertial && h_last_step_ > 0.0)
     for (int p = 0; p < v_.rows(); ++p) {
       const Vector3 a_ext = w_(p) * f_ext_.row(p).transpose();
       const double a_ext2 = a_ext.squaredNorm();
@@ -53,6 +173,34 @@ bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool* timed_
       const Vector3 a = (v0_.row(p) - v_last_.row(p)).transpose() / h_last_step_;
       v_.row(p) = v0_.row(p) + h * std::clamp(a.dot(a_ext) / a_ext2, 0.0, 1.0) * a_ext.transpose();
     }
+  const bool filter = contact_forces() != nullptr;
+  if (filter) filter_.Impose(&v_);  // contacts' normal velocities at their targets, fixed particles at rest
+  if (initial_guess_ == InitialGuess::kSafeguardedExtrapolation && h_last_step_ > 0.0) {
+    v_guess_.noalias() = v0_ + (h / h_last_step_) * (v0_ - v_last_);
+    for (int p : sys_.fixed()) v_guess_.row(p).setZero();
+    if (filter) filter_.Impose(&v_guess_);
+    if (ResidualNorm2(h, v_guess_) < ResidualNorm2(h, v_)) v_.swap(v_guess_);
+  }
+  if (rho_start) {
+    // ρ is the contraction near the solution: from the guess alone a
+    // sheet in free fall (every particle accelerating alike, no internal
+    // force) converges in one sweep and gives no ρ. A deterministic
+    // perturbation of amplitude 1e-4 of the spacing per step (linear
+    // regime, far above VelocityNoise) excites every mode, as a power
+    // iteration starts from a random vector.
+    const double amplitude = 1e-4 * std::min(sys_.scene().lu(), sys_.scene().lv()) / h;
+    std::uint32_t state = 12345u;  // a linear congruential sequence: the same start on every run and thread count
+    for (int p = 0; p < v_.rows(); ++p)
+      for (int c = 0; c < 3; ++c) {
+        state = state * 1664525u + 1013904223u;
+        if (w_(p) > 0.0) v_(p, c) += amplitude * (static_cast<double>(state >> 8) / 16777216.0 - 0.5);
+      }
+    if (filter) filter_.Impose(&v_);
+  }
+}
+
+bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool rho_start, bool* timed_out) {
+  StartIterate(h, rho_start);
   v_prev_ = v_;
   BeginIterations(h);
   increments_.clear();
@@ -100,6 +248,8 @@ StepStats IteratedStepper::Step(double h) {
     return st;
   };
   bool timed_out = false;
+  const bool filter = response_ == ObstacleResponse::kVelocityFilter && contacts_.active();
+  if (filter) st.colliding = SetUpContacts(h);
   if (h != h_) {
     const auto t0 = std::chrono::steady_clock::now();
     if (const StepStatus s = Prepare(h); s != StepStatus::kOk) return finish(s);
@@ -108,24 +258,30 @@ StepStats IteratedStepper::Step(double h) {
     if (cheb_.on && cheb_.rho == 0.0) {
       // ρ measured on this step's plain iterations (the state is not changed).
       const auto r0 = std::chrono::steady_clock::now();
-      if (!Iterate(h, rho_iterations_, /*accelerate=*/false, &timed_out))
+      if (!Iterate(h, rho_iterations_, /*accelerate=*/false, /*rho_start=*/true, &timed_out))
         return finish(timed_out ? StepStatus::kTimeLimit : StepStatus::kNonFinite);
       rho_ = ChebyshevRho(increments_, VelocityNoise(x0_.norm(), h));
       rho_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
     }
     st.setup_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
-  if (!Iterate(h, iterations_, cheb_.on, &timed_out))
+  if (!Iterate(h, iterations_, cheb_.on, /*rho_start=*/false, &timed_out))
     return finish(timed_out ? StepStatus::kTimeLimit : StepStatus::kNonFinite);  // the state stays x₀, v₀
   const double t1 = t_ + h;
   x_.noalias() = x0_ + h * v_;
-  if (!sys_.obstacles().empty()) {
+  if (filter) {
+    ReadContactImpulses(h);
+  } else if (!sys_.obstacles().empty()) {
     st.colliding = ProjectOntoObstacles(sys_, w_, t1, h, x0_, &x_);
     v_ = (x_ - x0_) / h;
   }
   if (!x_.allFinite() || !v_.allFinite()) return finish(StepStatus::kNonFinite);
+  if (filter) {
+    xm1_ = x0_;
+    have_history_ = true;
+  }
   x0_.swap(x_);
-  if (initial_guess_ == InitialGuess::kAdaptive) {
+  if (initial_guess_ != InitialGuess::kInertial) {
     v_last_ = v0_;
     h_last_step_ = h;
   }

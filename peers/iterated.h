@@ -28,11 +28,39 @@ enum class InitialGuess {
   /// (Simulator/Modules/VBD/VBD_BaseMaterial.cpp,
   /// VBDBaseTetMesh::forwardStep, initializationType 6).
   kAdaptive,
+  /// The better of kAdaptive's guess and the constant-acceleration
+  /// extrapolation v₀ + (h/h₋₁)(v₀ − v₋₁) (the predictor of the thesis'
+  /// multistep methods, docs/model.md §5): the one with the smaller
+  /// implicit Euler residual ‖M^{-1/2}(M(v − v₀) − h f(t₁, x₀ + h v, v))‖
+  /// over the free particles. The extrapolation follows a swinging or
+  /// hanging sheet's internal accelerations, which kAdaptive (gravity only)
+  /// leaves to the iterations; at an impact or after the obstacle
+  /// projection v₋₁ → v₀ jumps and its residual is the larger, so the
+  /// adaptive guess is kept. Two force evaluations per step.
+  kSafeguardedExtrapolation,
+};
+
+/// How a step meets the obstacles.
+enum class ObstacleResponse {
+  /// After the iterations the positions are projected out of the
+  /// obstacles with friction, v = (x₁ − x₀)/h (peers/position_contacts.h).
+  kProjection,
+  /// The implicit methods' response (solver/contact.h; thesis (4.3), (4.4)):
+  /// contacts set up from the step's start, each contact's normal velocity
+  /// prescribed in every iterate (the local steps move only in the free
+  /// directions), explicit Coulomb friction in the forces, release from
+  /// the constraint impulse after the step. The iteration's fixed point is
+  /// then the implicit Euler step with the same filter.
+  kVelocityFilter,
 };
 
 class IteratedStepper : public Stepper {
  public:
   void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
+  /// The contact response's work (kVelocityFilter on a scene with obstacles), else nullptr.
+  const ContactResponse::Work* contact_work() const override {
+    return response_ == ObstacleResponse::kVelocityFilter && contacts_.active() ? &contacts_.work() : nullptr;
+  }
   /// One step of size h [s]: Prepare when h changes (and ρ measured from
   /// rho_iterations plain iterations on a copy of the state, if the
   /// settings ask for it; both count as the step's setup), k iterations,
@@ -61,8 +89,10 @@ class IteratedStepper : public Stepper {
   /// @throws std::invalid_argument if iterations < 1 or the Chebyshev
   ///   settings are outside their ranges
   /// @param initial_guess the first iterate of each step
+  /// @param response how the step meets the obstacles
   IteratedStepper(const ParticleSystem& system, std::string_view name, int iterations, ChebyshevSettings chebyshev,
-                  int rho_iterations, InitialGuess initial_guess);
+                  int rho_iterations, InitialGuess initial_guess,
+                  ObstacleResponse response = ObstacleResponse::kProjection);
   /// Called when h changes, before ρ is measured (a factorisation); its
   /// status ends the step unless kOk.
   virtual StepStatus Prepare(double /*h*/) { return StepStatus::kOk; }
@@ -74,6 +104,18 @@ class IteratedStepper : public Stepper {
   virtual void Iteration(double h) = 0;
   /// Time of the ρ measurements so far [s].
   double rho_seconds() const { return rho_seconds_; }
+  /// The step's explicit contact forces (Coulomb friction) [N], N×3, or
+  /// nullptr where there are none (kProjection, or no obstacle).
+  const MatrixN3* contact_forces() const {
+    return response_ == ObstacleResponse::kVelocityFilter && contacts_.active() ? &contacts_.friction() : nullptr;
+  }
+  /// Particle p's local Newton step from its velocity vp [m/s] with the
+  /// residual r [kg m/s] of its row and that row's Jacobian j [kg]: vp −
+  /// j⁻¹ r, or, where the velocity filter constrains p, the step that sets
+  /// the constrained components to their targets and solves j's row in
+  /// the free directions only. False (vp unchanged) if the solved block is
+  /// singular (below 1e-12 of its scale).
+  bool LocalStep(int p, const Matrix3& j, const Vector3& r, Vector3* vp) const;
 
   const ParticleSystem& sys_;
   double t_ = 0.0;
@@ -90,13 +132,36 @@ class IteratedStepper : public Stepper {
   MatrixN3 f_ext_;    // the constant forces (gravity) [N]
   MatrixN3 v_start_, v_prev_;
   InitialGuess initial_guess_;
-  MatrixN3 v_last_;           // kAdaptive: v at the start of the last step
-  double h_last_step_ = 0.0;  // kAdaptive: its h; 0: no step since the Reset
+  MatrixN3 v_last_;           // kAdaptive, kSafeguardedExtrapolation: v at the start of the last step
+  double h_last_step_ = 0.0;  // its h; 0: no step since the Reset
+  MatrixN3 v_guess_, x_guess_, f_guess_;  // the extrapolation and the residuals' buffers
+  ObstacleResponse response_;
+  ContactResponse contacts_;              // kVelocityFilter
+  VelocityFilter filter_;                 // kVelocityFilter: the step's fixed particles and contacts
+  std::vector<int> constraint_;           // kVelocityFilter: per particle, its contact's index in constraints_ (−1: none)
+  struct LocalConstraint {
+    int count;        // constrained directions (1 or 2)
+    Matrix3 dirs;     // orthonormal, in the first `count` columns
+    Vector3 targets;  // prescribed velocity along each [m/s]
+  };
+  std::vector<LocalConstraint> constraints_;
+  MatrixN3 xm1_;              // kVelocityFilter: positions one step earlier ((4.4)'s history)
+  bool have_history_ = false;
+  // kVelocityFilter: the step's contacts from x0_, v0_ (ContactResponse::SetUp); returns the colliding count.
+  int SetUpContacts(double h);
+  // kVelocityFilter: reads the constraint impulses after the iterations (ContactResponse::ReadImpulses).
+  void ReadContactImpulses(double h);
+  // The first iterate of a step into v_ (InitialGuess); `rho_start`: the
+  // start of ρ's measurement, perturbed so that every mode is excited.
+  void StartIterate(double h, bool rho_start);
+  // ‖M^{-1/2} r(v)‖² of the implicit Euler residual r(v) = M(v − v₀) −
+  // h f(t + h, x₀ + h v, v) over the free particles.
+  double ResidualNorm2(double h, const MatrixN3& v);
   std::vector<double> increments_;
   // The k iterations of a step from x0_, v0_ into v_, with ρ = rho_ when
   // accelerated; false if an iterate is not finite, `timed_out` past the
-  // run's deadline.
-  bool Iterate(double h, int k, bool accelerate, bool* timed_out);
+  // run's deadline. `rho_start`: ρ's measurement (StartIterate).
+  bool Iterate(double h, int k, bool accelerate, bool rho_start, bool* timed_out);
 };
 
 }  // namespace clothbench

@@ -9,7 +9,8 @@
 namespace clothbench {
 
 VertexBlockDescent::VertexBlockDescent(const ParticleSystem& system, int iterations, ChebyshevSettings chebyshev)
-    : IteratedStepper(system, "vbd", iterations, chebyshev, kRhoIterations, InitialGuess::kAdaptive) {
+    : IteratedStepper(system, "vbd", iterations, chebyshev, kRhoIterations, InitialGuess::kSafeguardedExtrapolation,
+                      ObstacleResponse::kVelocityFilter) {
   const auto start = std::chrono::steady_clock::now();
   const int n = system.num_particles();
   system.PrepareParticleForces();
@@ -52,16 +53,12 @@ void VertexBlockDescent::Relax(double t1, double h, int p) {
   Vector3 f;
   Matrix3 dfdx, dfdv;
   sys_.ParticleForce(t1, x_, v_, p, &f, &dfdx, &dfdv);
+  if (const MatrixN3* friction = contact_forces()) f += friction->row(p).transpose();
   const double m = sys_.masses()(p);
-  const Vector3 vp = v_.row(p).transpose();
-  const Vector3 r = m * (vp - v0_.row(p).transpose()) - h * f;
+  Vector3 v1 = v_.row(p).transpose();
+  const Vector3 r = m * (v1 - v0_.row(p).transpose()) - h * f;
   const Matrix3 j = m * Matrix3::Identity() - h * dfdv - (h * h) * dfdx;
-  Matrix3 inverse;
-  bool invertible = false;
-  const double scale = j.cwiseAbs().maxCoeff();
-  j.computeInverseWithCheck(inverse, invertible, 1e-12 * scale * scale * scale);
-  if (!invertible) return;
-  const Vector3 v1 = vp - inverse * r;
+  if (!LocalStep(p, j, r, &v1)) return;
   v_.row(p) = v1.transpose();
   x_.row(p) = x0_.row(p) + h * v1.transpose();
 }

@@ -20,21 +20,27 @@
 // terms enter the same way, implicitly. The fixed point is implicit
 // Euler's for the whole model, so as the iterations grow VBD converges to
 // implicit_euler/newton at the same h (test VertexBlockDescent.*). The
-// first iterate is the paper's adaptive initialisation (§3.7,
-// InitialGuess::kAdaptive: the last step's acceleration along gravity,
-// clamped to [0, |g|]); against the inertial guess v₀ + h M⁻¹ f_ext it
-// takes the default scene's difference to implicit_euler/newton after 64
-// sweeps from 7.8e-2 to 5.1e-2 m and turns six of the 400-particle scenes'
-// energy_growth and speed rows ok, breaking none (docs/work-precision.md,
-// "vbd"). A J_p whose determinant is
+// first iterate is the better, by the implicit Euler residual, of the
+// paper's adaptive initialisation (§3.7: the last step's acceleration
+// along gravity, clamped to [0, |g|]) and the constant-acceleration
+// extrapolation (InitialGuess::kSafeguardedExtrapolation). Against the
+// inertial guess v₀ + h M⁻¹ f_ext the paper's took the default scene's
+// difference to implicit_euler/newton after 64 sweeps from 7.8e-2 to
+// 5.1e-2 m and turned six of the 400-particle scenes' energy_growth and
+// speed rows ok (docs/work-precision.md, "vbd"); the better of the two
+// takes it to 7.9e-4 m (docs/model.md §10). A J_p whose determinant is
 // negligible leaves p unchanged in that sweep, as Warp's VBD does
 // (warp/sim/integrator_vbd.py, `if abs(wp.determinant(h)) > 1e-5`).
 //
-// Contacts: after the iterations, the positions are projected out of the
-// obstacles with friction (peers/position_contacts.h) and v = (x₁ − x₀)/h,
-// as for XPBD and projective dynamics (the paper's own contacts are
+// Contacts: the implicit methods' velocity filter (solver/contact.h,
+// ObstacleResponse::kVelocityFilter): each contact's normal velocity is
+// held at its (4.4) target in every iterate, its particle's local step
+// solves only the tangential directions, friction is explicit, and the
+// constraint impulses after the sweeps decide release. The fixed point is
+// implicit Euler's with the same contacts (the paper's own contacts are
 // penalty energies inside the iterations; this model's contact is the
-// thesis' non-penetration constraint). Fixed particles have v = 0.
+// thesis' non-penetration constraint, docs/model.md §10). Fixed particles
+// have v = 0.
 #ifndef CLOTHBENCH_PEERS_VBD_H_
 #define CLOTHBENCH_PEERS_VBD_H_
 
