@@ -255,6 +255,7 @@ inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
     CheckCount(v, 0, "a count");
   if (ToString(m->status) == "?" || ToString(m->step_kind) == "?") OutOfRange("a run status or step kind");
   CheckCount(m->error_test_failures, -1, "error_test_failures");
+  CheckCount(m->events, -1, "events");
   CheckCount(m->matrix_rebuilds, -1, "matrix_rebuilds");
   CheckTrajectory(m->trajectory, n_particles);
   for (const StepStats& st : m->step_stats) {

@@ -52,6 +52,10 @@ struct RunRecord {
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;
   long error_test_failures = -1;  ///< adaptive rows; −1: not applicable
   long cg_unconverged = 0;        ///< accepted steps that kept an unconverged CG solve (blender)
+  /// Adaptive rows with event location on scenes with obstacles: the
+  /// contact events located (instants at which particles enter or leave
+  /// the δ-surface, sundials/hybrid_contact.h); −1: not applicable.
+  long events = -1;
   /// Solver time [s]: the least over the `repeats` timings of the run (the
   /// first computes the trajectory, the others reproduce it bit for bit).
   double solver_time_s = 0.0, wall_time_s = 0.0;

@@ -14,6 +14,7 @@
 #include <sunmatrix/sunmatrix_sparse.h>
 
 #include "solver/integrator.h"
+#include "sundials/hybrid_contact.h"
 #include "solver/pcg.h"
 #include "solver/tangent.h"
 
@@ -21,13 +22,33 @@ namespace clothbench {
 namespace {
 
 // The ODE on the free DOFs y = [x_free; v_free] (internal::FreeDofMap): the
-// right-hand side and the sparse Jacobian.
+// right-hand side and the sparse Jacobian; on scenes with obstacles the
+// current contact mode's ODE (internal::HybridContact), its root functions
+// and its events.
 class FreeDofOde {
  public:
-  explicit FreeDofOde(const ParticleSystem& sys) : sys_(sys), map_(sys), n_(sys.num_particles()), nf_(map_.num_free()) {
+  /// @param entry_depth the contact events' hysteresis [m] (internal::HybridContact)
+  FreeDofOde(const ParticleSystem& sys, double entry_depth)
+      : sys_(sys), map_(sys), n_(sys.num_particles()), nf_(map_.num_free()), contact_(sys, entry_depth) {
     x_ = sys.rest_positions();
     v_.setZero(n_, 3);
     f_.setZero(n_, 3);
+  }
+  internal::HybridContact& contact() { return contact_; }
+
+  /// The root functions at (t, y): one per particle (HybridContact::Roots).
+  void Roots(double t, const double* y, double* g) {
+    Unpack(y);
+    sys_.Forces(t, x_, v_, &f_);
+    contact_.Roots(t, x_, v_, f_, g);
+  }
+  /// The events at a root t on the state y (changed in place); returns the mode changes.
+  int ApplyEvents(double t, const int* found, double* y) {
+    Unpack(y);
+    const int changes = contact_.ApplyEvents(
+        t, found, &x_, &v_, [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
+    map_.ToY(x_, v_, y);
+    return changes;
   }
   const internal::FreeDofMap& map() const { return map_; }
   int size() const { return map_.size(); }
@@ -41,6 +62,7 @@ class FreeDofOde {
   void Rhs(double t, const double* y, double* ydot) {
     Unpack(y);
     sys_.Forces(t, x_, v_, &f_);
+    if (contact_.active()) contact_.AddContactForces(t, x_, v_, &f_);
     const Eigen::VectorXd& m = sys_.masses();
     for (int k = 0; k < nf_; ++k) {
       const int p = map_.particle(k);
@@ -69,17 +91,43 @@ class FreeDofOde {
     // Explicit zero diagonal: without it SUNMatScaleAddI_Sparse (I − γJ)
     // rebuilds the matrix at every setup (measured: 56% of CVODE's time).
     for (int i = 0; i < 2 * off; ++i) jt_.emplace_back(i, i, 0.0);
+    // A sliding particle's rows: S_p M⁻¹ ∂f/∂(x, v) (S_p = I − n nᵀ: the
+    // constraint force takes the normal component) and its friction's
+    // −rate/m S_p on the velocity block. Its 3×3 blocks are dense, so the
+    // pattern does not change.
+    sliding_.assign(static_cast<std::size_t>(n_), -1);
+    normals_.clear();
+    contact_.ForEachSliding([&](int p, const Vector3& n) {
+      sliding_[static_cast<std::size_t>(p)] = static_cast<int>(normals_.size());
+      normals_.push_back(Matrix3::Identity() - n * n.transpose());
+    });
     auto map = [&](const std::vector<Triplet>& src, int col_off) {
       for (const Triplet& e : src) {
         const int pr = map_.free_index(e.row() / 3);
         const int pc = map_.free_index(e.col() / 3);
         if (pr < 0 || pc < 0) continue;
-        jt_.emplace_back(off + 3 * pr + e.row() % 3, col_off + 3 * pc + e.col() % 3,
-                         e.value() / sys_.masses()(e.row() / 3));
+        const double value = e.value() / sys_.masses()(e.row() / 3);
+        const int s = sliding_[static_cast<std::size_t>(e.row() / 3)];
+        if (s < 0) {
+          jt_.emplace_back(off + 3 * pr + e.row() % 3, col_off + 3 * pc + e.col() % 3, value);
+        } else {
+          const Matrix3& proj = normals_[static_cast<std::size_t>(s)];
+          for (int c = 0; c < 3; ++c)
+            jt_.emplace_back(off + 3 * pr + c, col_off + 3 * pc + e.col() % 3, proj(c, e.row() % 3) * value);
+        }
       }
     };
     map(dfdx_, 0);
     map(dfdv_, off);
+    for (int p = 0; p < n_; ++p) {
+      const int s = sliding_[static_cast<std::size_t>(p)];
+      const int k = map_.free_index(p);
+      if (s < 0 || k < 0) continue;
+      const double rate = contact_.friction_rates()(p) / sys_.masses()(p);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          jt_.emplace_back(off + 3 * k + r, off + 3 * k + c, -rate * normals_[static_cast<std::size_t>(s)](r, c));
+    }
     jac_.resize(size(), size());
     jac_.setFromTriplets(jt_.begin(), jt_.end());
     jac_.makeCompressed();
@@ -94,6 +142,9 @@ class FreeDofOde {
   std::vector<Triplet> dfdx_, dfdv_, jt_;
   SparseMatrix jac_;
   double jacobian_seconds_ = 0.0;
+  internal::HybridContact contact_;
+  std::vector<int> sliding_;        // per particle: index in normals_, −1: free
+  std::vector<Matrix3> normals_;    // sliding particles' tangential projections S_p
 };
 
 // CVODE's user data: the ODE, and the reduced solve of row `cvode`.
@@ -104,6 +155,11 @@ struct CvodeUser {
 
 int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
   static_cast<CvodeUser*>(user)->ode->Rhs(t, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
+  return 0;
+}
+
+int RootFn(realtype t, N_Vector y, realtype* g, void* user) {
+  static_cast<CvodeUser*>(user)->ode->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }
 
@@ -118,11 +174,12 @@ int JacFn(realtype t, N_Vector y, N_Vector, SUNMatrix jac, void* user, N_Vector,
 // system J_α of solver/tangent.h at αh = γ.
 class ReducedNewtonSolve {
  public:
-  ReducedNewtonSolve(const ParticleSystem& sys, const SolverSpec& spec)
-      : sys_(sys), spec_(spec), map_(sys), nf_(map_.num_free()), tangent_(sys, spec) {
+  ReducedNewtonSolve(const ParticleSystem& sys, const SolverSpec& spec, internal::HybridContact* contact)
+      : sys_(sys), spec_(spec), map_(sys), nf_(map_.num_free()), tangent_(sys, spec), contact_(contact) {
     for (MatrixN3* m : {&x_, &v_, &rx_, &rv_, &rhs_}) m->setZero(sys.num_particles(), 3);
     dv_.setZero(sys.num_particles(), 3);
     br_.setZero(sys.num_particles(), 3);
+    if (contact_ && contact_->active()) filter_.Reserve(sys.num_particles());
   }
 
   // CVODE's setup (psetup): the Jacobian at (t, y) unless jok, J_γ, and the
@@ -147,10 +204,20 @@ class ReducedNewtonSolve {
     rhs_.noalias() = sys_.masses().asDiagonal() * rv_;
     tangent_.AddJacobianProducts(gamma, rx_, 0.0, rx_, &rhs_);
     br_ = rhs_;
-    const PcgStatus status = tangent_.Solve(
-        gamma, br_,
-        internal::PcgStopForTolerance(map_, sys_.masses(), w, tol, {spec_.cg_tolerance, spec_.cg_max_iterations}),
-        &dv_);
+    const PcgOptions stop =
+        internal::PcgStopForTolerance(map_, sys_.masses(), w, tol, {spec_.cg_tolerance, spec_.cg_max_iterations});
+    PcgStatus status;
+    if (contact_ && contact_->active()) {
+      // A sliding particle's normal row is δv_n = n·r_v (its acceleration's
+      // normal part is the constraint's, not a function of the unknowns);
+      // its tangential rows carry the friction rate.
+      filter_.Clear();
+      for (int p : sys_.fixed()) filter_.Fix(p);
+      contact_->ForEachSliding([&](int p, const Vector3& n) { filter_.Constrain(p, n, n.dot(rv_.row(p).transpose())); });
+      status = tangent_.Solve(gamma, br_, stop, &dv_, filter_, contact_->friction_rates());
+    } else {
+      status = tangent_.Solve(gamma, br_, stop, &dv_);
+    }
     for (int k = 0; k < nf_; ++k)
       for (int c = 0; c < 3; ++c) {
         const double d = dv_(map_.particle(k), c);
@@ -169,6 +236,8 @@ class ReducedNewtonSolve {
   internal::FreeDofMap map_;
   int nf_;
   internal::ReducedTangent tangent_;
+  internal::HybridContact* contact_;
+  VelocityFilter filter_;  // with contacts: the fixed particles and the sliding ones' normals
   MatrixN3 x_, v_, rx_, rv_, rhs_;
   MatrixN3R dv_, br_;
 };
@@ -185,6 +254,38 @@ int PrecSetup(realtype t, N_Vector y, N_Vector, booleantype jok, booleantype* jc
 int PrecSolve(realtype, N_Vector, N_Vector, N_Vector r, N_Vector z, realtype, realtype, int, void*) {
   N_VScale(1.0, r, z);
   return 0;
+}
+
+// Adds CVODE's counters since its last (re)initialisation to `st` (the
+// counters restart at CVodeReInit, after every contact event).
+void AddCvodeCounters(void* mem, SundialsStats* st) {
+  long v = 0;
+  const auto add = [&](long* total, int (*get)(void*, long*)) {
+    if (get(mem, &v) >= 0) *total = std::max(*total, 0L) + v;
+  };
+  add(&st->nst, CVodeGetNumSteps);
+  add(&st->nfe, CVodeGetNumRhsEvals);
+  add(&st->nni, CVodeGetNumNonlinSolvIters);
+  add(&st->nli, CVodeGetNumLinIters);
+  add(&st->netf, CVodeGetNumErrTestFails);
+  add(&st->ncfn, CVodeGetNumNonlinSolvConvFails);
+  add(&st->nje, CVodeGetNumJacEvals);
+  add(&st->nsetups, CVodeGetNumLinSolvSetups);
+}
+
+// The contact modes at t = 0 and one root function per particle, each
+// caught as it falls through 0 (sundials/hybrid_contact.h); `found` sized
+// for CVodeGetRootInfo.
+template <class Check>
+bool InitContactRoots(void* mem, const ParticleSystem& system, FreeDofOde* ode, const MatrixN3& v0,
+                      std::vector<int>* found, Check check) {
+  ode->contact().Initialize(0.0, system.rest_positions(), v0);
+  const int nr = ode->contact().num_roots();
+  found->assign(static_cast<std::size_t>(nr), 0);
+  std::vector<int> direction(static_cast<std::size_t>(nr), -1);
+  return check(CVodeRootInit(mem, nr, RootFn), "CVodeRootInit") &&
+         check(CVodeSetRootDirection(mem, direction.data()), "CVodeSetRootDirection") &&
+         check(CVodeSetNoInactiveRootWarn(mem), "CVodeSetNoInactiveRootWarn");
 }
 
 // RAII owner of the SUNDIALS objects.
@@ -229,9 +330,9 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   const auto wall_start = Clock::now();
   RunSummary res;
   internal::NameSundialsRun(kCvodeName, "reference", options, &res);
-  FreeDofOde ode(system);
+  FreeDofOde ode(system, 1e-2 * options.AbsoluteTolerance());
   std::unique_ptr<ReducedNewtonSolve> solve;
-  if (reduced) solve = std::make_unique<ReducedNewtonSolve>(system, *reduced);
+  if (reduced) solve = std::make_unique<ReducedNewtonSolve>(system, *reduced, &ode.contact());
   CvodeUser user{&ode, solve.get()};
   CvodeHandles h;
   double klu_seconds = 0.0;  // KLU setups and Jacobian evaluations (cvode/klu)
@@ -277,6 +378,12 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
             check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
             check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&
             check(CVodeSetMaxNumSteps(h.mem, 100000000L), "CVodeSetMaxNumSteps");
+  // Obstacles: the contact modes at t = 0, one root function per particle
+  // (entries as d − δ falls through 0, releases as λ does), and a restart
+  // after every event (sundials/hybrid_contact.h).
+  std::vector<int> roots_found;
+  SundialsStats counters;  // summed over the restarts
+  if (ok && ode.contact().active()) ok = InitContactRoots(h.mem, system, &ode, v0, &roots_found, check);
   if (ok && solve)
     ok = check(CVodeSetPreconditioner(h.mem, PrecSetup, PrecSolve), "CVodeSetPreconditioner");
   else if (ok)
@@ -308,17 +415,20 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
       CVodeGetLastOrder(h.mem, q);
     };
     d.flag_name = [](int f) { return std::string(CVodeGetReturnFlagName(f)); };
+    if (ode.contact().active())
+      d.on_root = [&](double t) {
+        int f = CVodeGetRootInfo(h.mem, roots_found.data());
+        if (f < 0) return f;
+        ode.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y));
+        AddCvodeCounters(h.mem, &counters);
+        f = CVodeReInit(h.mem, t, h.y);
+        return f < 0 ? f : CVodeSetStopTime(h.mem, options.t_end);
+      };
     internal::RunFrames(d, system, options, err, &res);
   }
-  SundialsStats& st = res.sundials.emplace();
-  CVodeGetNumSteps(h.mem, &st.nst);
-  CVodeGetNumRhsEvals(h.mem, &st.nfe);
-  CVodeGetNumNonlinSolvIters(h.mem, &st.nni);
-  CVodeGetNumLinIters(h.mem, &st.nli);
-  CVodeGetNumErrTestFails(h.mem, &st.netf);
-  CVodeGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
-  CVodeGetNumJacEvals(h.mem, &st.nje);
-  CVodeGetNumLinSolvSetups(h.mem, &st.nsetups);
+  SundialsStats& st = res.sundials.emplace(counters);
+  AddCvodeCounters(h.mem, &st);
+  if (ode.contact().active()) res.events = static_cast<long>(ode.contact().event_times().size());
   if (solve) {
     st.nli = solve->tangent().total_iterations();
     st.nje = solve->tangent().jacobian_evaluations();

@@ -82,6 +82,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"cg_iterations", &R::cg_iterations},
       {"rejected_steps", &R::rejected},
       {"cg_unconverged_steps", &R::cg_unconverged, S::kPositive},
+      {"events", &R::events, S::kNonNegative},
       {"solver_time_s", &R::solver_time_s},
       {"repeats", &R::repeats},
       {"solver_time_s_median", &R::solver_time_s_median},

@@ -196,6 +196,11 @@ void TangentSystem::Update(double t, const MatrixN3& x, const MatrixN3& v, doubl
   SetAlphaH(alpha_h);
 }
 
+void TangentSystem::AddToDiagonal(const Eigen::VectorXd& d) {
+  double* vals = j_.valuePtr();
+  for (std::size_t k = 0; k < diag_pos_.size(); ++k) vals[diag_pos_[k]] += d(static_cast<Eigen::Index>(k / 3));
+}
+
 void TangentSystem::SetAlphaH(double alpha_h) {
   const Eigen::Index nnz = j_.nonZeros();
   const double* kx = kx_.data();

@@ -57,6 +57,11 @@ class TangentSystem {
   void SetAlphaH(double alpha_h);
   /// The αh of the current matrix [s].
   double alpha_h() const { return alpha_h_; }
+  /// Adds d_p [kg] to the three diagonal entries of each particle p (a
+  /// term of the Newton matrix that is not a force Jacobian: the hybrid
+  /// contact's friction, sundials/hybrid_contact.h). SetAlphaH and Update
+  /// overwrite it. @param d N values. No allocation.
+  void AddToDiagonal(const Eigen::VectorXd& d);
 
   /// out += cx (∂f/∂x) u + cv (∂f/∂v) w with the force Jacobians of the last
   /// Update (as assembled: clamped if so, not symmetrised).

@@ -140,6 +140,16 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       res->trajectory.velocities.push_back(frame_v);
       ++next;
     }
+    if (ok && flag == 2 && d.on_root) {  // an event: the frames before it are stored; jump and restart
+      const auto e0 = Clock::now();
+      const int f = d.on_root(t);
+      solver_seconds += std::chrono::duration<double>(Clock::now() - e0).count();
+      if (f < 0) {
+        res->status = StatusOfFlag(d.flag_name(f));
+        res->message = error.empty() ? "restart after an event failed with " + d.flag_name(f) : error;
+        ok = false;
+      }
+    }
   }
   guard.StoreMargins(res);
   if (ok) {
@@ -324,6 +334,19 @@ int ReducedTangent::Setup(double t, const MatrixN3& x, const MatrixN3& v, double
   ok = ok && pre_.Factorize(tangent_.matrix());
   setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return ok ? 0 : 1;
+}
+
+PcgStatus ReducedTangent::Solve(double gamma, const MatrixN3R& b, const PcgOptions& options, MatrixN3R* dv,
+                                const VelocityFilter& filter, const Eigen::VectorXd& rate) {
+  tangent_.SetAlphaH(gamma);  // drops the last solve's rates
+  tangent_.AddToDiagonal(gamma * rate);
+  dv->setZero();
+  const PcgSummary s = FilteredPcg(tangent_.matrix(), b, filter, pre_, options, dv, &work_);
+  tangent_.SetAlphaH(gamma);
+  last_iterations_ = s.iterations;
+  total_iterations_ += s.iterations;
+  last_residual_ = s.residual_norm;
+  return s.status;
 }
 
 PcgStatus ReducedTangent::Solve(double gamma, const MatrixN3R& b, const PcgOptions& options, MatrixN3R* dv) {

@@ -74,6 +74,11 @@ struct OneStepDriver {
   std::function<void(MatrixN3* x, MatrixN3* v)> current_state;
   std::function<void(double* h, int* order)> last_step;
   std::function<std::string(int flag)> flag_name;
+  /// Called when `step` returns a root (flag 2: CV_ROOT_RETURN,
+  /// IDA_ROOT_RETURN, ARK_ROOT_RETURN) after the frames up to that time
+  /// are stored: applies the events and restarts the integrator. Returns
+  /// its flag (< 0: the run fails with it). Empty: roots are not used.
+  std::function<int(double t)> on_root;
 };
 
 /// Runs the one-step loop (the Debian build has no monitoring) storing the
@@ -186,6 +191,11 @@ class ReducedTangent {
   /// at `gamma`, the preconditioner of the last setup. @param dv N×3
   /// row-major, overwritten. No allocation.
   PcgStatus Solve(double gamma, const MatrixN3R& b, const PcgOptions& options, MatrixN3R* dv);
+  /// The same with `filter` in place of the fixed particles' (it holds
+  /// them and the contacts' prescribed components) and J_γ + γ diag(rate)
+  /// (`rate` N values [kg/s], the hybrid contact's friction rates).
+  PcgStatus Solve(double gamma, const MatrixN3R& b, const PcgOptions& options, MatrixN3R* dv,
+                  const VelocityFilter& filter, const Eigen::VectorXd& rate);
   /// out += cx ∂f/∂x u + cv ∂f/∂v w (the last Jacobian).
   void AddJacobianProducts(double cx, const MatrixN3& u, double cv, const MatrixN3& w, MatrixN3* out) const {
     tangent_.AddJacobianProducts(cx, u, cv, w, out);

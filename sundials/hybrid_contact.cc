@@ -1,0 +1,114 @@
+// Obstacle contact in continuous time (sundials/hybrid_contact.h).
+#include "sundials/hybrid_contact.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace clothbench::internal {
+
+HybridContact::HybridContact(const ParticleSystem& system, double entry_depth)
+    : sys_(system), entry_depth_(entry_depth) {
+  const int n = system.num_particles();
+  mode_.assign(static_cast<std::size_t>(n), -1);
+  normal_.setZero(n, 3);
+  f_work_.setZero(n, 3);
+  friction_rate_.setZero(n);
+}
+
+double HybridContact::Distance(int k, double t, const Vector3& p, Vector3* n) const {
+  return sys_.obstacles()[static_cast<std::size_t>(k)].SignedDistance(t, p, n);
+}
+
+int HybridContact::Nearest(double t, const Vector3& p, double* gap) const {
+  int best = -1;
+  *gap = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
+    Vector3 n;
+    const double g = Distance(static_cast<int>(k), t, p, &n) - sys_.obstacles()[k].spec().collision_distance;
+    if (g < *gap) {
+      *gap = g;
+      best = static_cast<int>(k);
+    }
+  }
+  return best;
+}
+
+double HybridContact::Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
+                             Vector3* w) const {
+  const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+  Distance(k, t, x, n);
+  const Vector3 u = o.PoseAt(t).Velocity(x);
+  *w = v - u;
+  // Rates along the particle's path by a forward difference: the normal's
+  // (curvature and the obstacle's rotation) and the surface velocity's.
+  const double e = kRateStep;
+  const Vector3 xe = x + e * v;
+  Vector3 ne;
+  Distance(k, t + e, xe, &ne);
+  const Vector3 ue = o.PoseAt(t + e).Velocity(xe);
+  const Vector3 n_rate = (ne - *n) / e, a_u = (ue - u) / e;
+  const double m = sys_.masses()(p);
+  return m * (n->dot(a_u) - n_rate.dot(*w)) - n->dot(f);
+}
+
+void HybridContact::Initialize(double t, const MatrixN3& x, const MatrixN3& v) {
+  event_times_.clear();
+  mode_changes_ = 0;
+  std::fill(mode_.begin(), mode_.end(), -1);
+  friction_rate_.setZero();
+  if (!active()) return;
+  sys_.Forces(t, x, v, &f_work_);
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    if (sys_.is_fixed(p)) continue;
+    double gap = 0.0;
+    const int k = Nearest(t, x.row(p).transpose(), &gap);
+    if (k < 0 || gap > 1e-9) continue;
+    Vector3 n, w;
+    if (Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f_work_.row(p).transpose(), &n, &w) >=
+        -kReleaseAcceleration * sys_.masses()(p)) {
+      mode_[static_cast<std::size_t>(p)] = k;
+      normal_.row(p) = n.transpose();
+    }
+  }
+}
+
+void HybridContact::AddContactForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) {
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    const int k = mode_[static_cast<std::size_t>(p)];
+    if (k < 0) continue;
+    Vector3 n, w;
+    const double lambda = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f->row(p).transpose(), &n, &w);
+    normal_.row(p) = n.transpose();
+    Vector3 force = lambda * n;
+    const double cf = sys_.obstacles()[static_cast<std::size_t>(k)].spec().friction;
+    friction_rate_(p) = 0.0;
+    if (cf > 0.0 && lambda > 0.0) {
+      const Vector3 wt = w - n.dot(w) * n;
+      friction_rate_(p) = cf * lambda / std::max(wt.norm(), kSlipVelocity);
+      force -= friction_rate_(p) * wt;
+    }
+    f->row(p) += force.transpose();
+  }
+}
+
+void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& f, double* g) {
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    if (sys_.is_fixed(p)) {
+      g[p] = 1.0;
+      continue;
+    }
+    const int k = mode_[static_cast<std::size_t>(p)];
+    if (k < 0) {
+      double gap = 0.0;
+      Nearest(t, x.row(p).transpose(), &gap);
+      g[p] = gap + entry_depth_;
+    } else {
+      Vector3 n, w;
+      g[p] = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f.row(p).transpose(), &n, &w) +
+             kReleaseAcceleration * sys_.masses()(p);
+    }
+  }
+}
+
+}  // namespace clothbench::internal
