@@ -172,9 +172,9 @@ void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJour
   }
 }
 
-// The self-convergence reference's step on obstacle scenes (IDA has no
-// collision response; CVODE's event-located contact, docs/collisions.md,
-// is not yet the reference): BDF(2) at h_min/32 (without --h: h/256).
+// The self-convergence reference's step on obstacle scenes (CVODE's and
+// IDA's event-located contact, docs/collisions.md, is not yet the
+// reference): BDF(2) at h_min/32 (without --h: h/256).
 double SelfConvergenceStep(const BenchRun& b) {
   return (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
 }

@@ -308,7 +308,9 @@ inline const std::vector<MethodEntry>& Registry() {
        .variants = {"ark4", "ark5"}, .arkode_table = true, .best_preconditioner = kBest},
       // cvode: the reduced velocity solve with the PCG; cvode/klu:
       // KLU on the 6N×6N first-order Jacobian (the reference's solver).
-      {.name = kCvodeName, .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true,
+      // Both integrate obstacle contact as a hybrid system with event
+      // location (sundials/hybrid_contact.h).
+      {.name = kCvodeName, .kind = kAdaptive, .layer = "reference", .collisions = true, .pcg = true, .tangent = true,
        .sparse_jacobian = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                        const RunContext& ctx) {
@@ -317,7 +319,8 @@ inline const std::vector<MethodEntry>& Registry() {
        .reference = true, .variants = {"klu"}, .cvode_settings = true, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
-      {.name = kIdaName, .kind = kAdaptive, .layer = "reference", .pcg = true, .tangent = true, .sparse_jacobian = true,
+      {.name = kIdaName, .kind = kAdaptive, .layer = "reference", .collisions = true, .pcg = true, .tangent = true,
+       .sparse_jacobian = true,
        .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);

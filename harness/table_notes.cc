@@ -18,7 +18,7 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
   if (IsSelfConvergence(ref))
     return fmt::format(
         "reference: self-convergence, BDF(2) at h = {:g} s (h_min/32), cg_tolerance 1e-10, fixed-point tolerance "
-        "1e-12 m/s (IDA has no collision response; CVODE's event-located contact is not yet the reference): {} steps, "
+        "1e-12 m/s (CVODE's and IDA's event-located contact is not yet the reference): {} steps, "
         "{:.2f} s; its self-convergence: e_l2 against "
         "BDF(2) at 2h = {}",
         ref.h, ref.steps, ref.wall_time_s,

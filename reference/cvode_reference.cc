@@ -256,21 +256,13 @@ int PrecSolve(realtype, N_Vector, N_Vector, N_Vector r, N_Vector z, realtype, re
   return 0;
 }
 
-// Adds CVODE's counters since its last (re)initialisation to `st` (the
-// counters restart at CVodeReInit, after every contact event).
+// Adds CVODE's counters since its last (re)initialisation to `st`.
 void AddCvodeCounters(void* mem, SundialsStats* st) {
-  long v = 0;
-  const auto add = [&](long* total, int (*get)(void*, long*)) {
-    if (get(mem, &v) >= 0) *total = std::max(*total, 0L) + v;
-  };
-  add(&st->nst, CVodeGetNumSteps);
-  add(&st->nfe, CVodeGetNumRhsEvals);
-  add(&st->nni, CVodeGetNumNonlinSolvIters);
-  add(&st->nli, CVodeGetNumLinIters);
-  add(&st->netf, CVodeGetNumErrTestFails);
-  add(&st->ncfn, CVodeGetNumNonlinSolvConvFails);
-  add(&st->nje, CVodeGetNumJacEvals);
-  add(&st->nsetups, CVodeGetNumLinSolvSetups);
+  internal::AddCounters(mem,
+                        {CVodeGetNumSteps, CVodeGetNumRhsEvals, CVodeGetNumNonlinSolvIters, CVodeGetNumLinIters,
+                         CVodeGetNumErrTestFails, CVodeGetNumNonlinSolvConvFails, CVodeGetNumJacEvals,
+                         CVodeGetNumLinSolvSetups},
+                        st);
 }
 
 // The contact modes at t = 0 and one root function per particle, each

@@ -15,19 +15,49 @@
 #include "solver/integrator.h"
 #include "solver/pcg.h"
 #include "solver/tangent.h"
+#include "sundials/hybrid_contact.h"
 
 namespace clothbench {
 namespace {
 
-// y = [x (3N); v (3N)] over all particles, index 3p + c.
+// y = [x (3N); v (3N)] over all particles, index 3p + c. On scenes with
+// obstacles the residual is the current contact mode's
+// (internal::HybridContact, as CVODE's), with its roots and events.
 class ResidualForm {
  public:
-  explicit ResidualForm(const ParticleSystem& sys) : sys_(sys), n_(sys.num_particles()) {
+  /// @param entry_depth the contact events' hysteresis [m]
+  ResidualForm(const ParticleSystem& sys, double entry_depth)
+      : sys_(sys), n_(sys.num_particles()), contact_(sys, entry_depth) {
     x_.setZero(n_, 3);
     v_.setZero(n_, 3);
     f_.setZero(n_, 3);
   }
   int size() const { return 6 * n_; }
+  internal::HybridContact& contact() { return contact_; }
+
+  /// The root functions at (t, y): one per particle (HybridContact::Roots).
+  void Roots(double t, const double* y, double* g) {
+    Unpack(y);
+    sys_.Forces(t, x_, v_, &f_);
+    contact_.Roots(t, x_, v_, f_, g);
+  }
+  /// The events at a root t on y (changed in place), and ẏ consistent with
+  /// the new modes: ẋ = v, M v̇ = f + the contact forces.
+  void ApplyEvents(double t, const int* found, double* y, double* yp) {
+    Unpack(y);
+    contact_.ApplyEvents(t, found, &x_, &v_,
+                         [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
+    sys_.Forces(t, x_, v_, &f_);
+    contact_.AddContactForces(t, x_, v_, &f_);
+    for (int p = 0; p < n_; ++p)
+      for (int c = 0; c < 3; ++c) {
+        const bool fixed = sys_.is_fixed(p);
+        y[3 * p + c] = x_(p, c);
+        y[3 * n_ + 3 * p + c] = v_(p, c);
+        yp[3 * p + c] = fixed ? 0.0 : v_(p, c);
+        yp[3 * n_ + 3 * p + c] = fixed ? 0.0 : f_(p, c) / sys_.masses()(p);
+      }
+  }
 
   void Unpack(const double* y) {
     for (int p = 0; p < n_; ++p)
@@ -69,6 +99,7 @@ class ResidualForm {
   void Residual(double t, const double* y, const double* yp, double* r) {
     Unpack(y);
     sys_.Forces(t, x_, v_, &f_);
+    if (contact_.active()) contact_.AddContactForces(t, x_, v_, &f_);
     const MatrixN3& rest = sys_.rest_positions();
     for (int p = 0; p < n_; ++p) {
       const bool fixed = sys_.is_fixed(p);
@@ -109,10 +140,40 @@ class ResidualForm {
         }
       }
     }
-    for (const Triplet& e : dfdx_)
-      if (!sys_.is_fixed(e.row() / 3)) jt_.emplace_back(off + e.row(), e.col(), -e.value());
-    for (const Triplet& e : dfdv_)
-      if (!sys_.is_fixed(e.row() / 3)) jt_.emplace_back(off + e.row(), off + e.col(), -e.value());
+    // A sliding particle's rows: −S_p ∂f/∂(x, v) (S_p = I − n nᵀ: the
+    // constraint force takes the normal component) and +rate S_p from its
+    // friction on the velocity block; its 3×3 blocks are dense, so the
+    // pattern does not change.
+    projection_.assign(static_cast<std::size_t>(n_), -1);
+    projections_.clear();
+    contact_.ForEachSliding([&](int p, const Vector3& n) {
+      projection_[static_cast<std::size_t>(p)] = static_cast<int>(projections_.size());
+      projections_.push_back(Matrix3::Identity() - n * n.transpose());
+    });
+    auto add = [&](const std::vector<Triplet>& src, int col_off) {
+      for (const Triplet& e : src) {
+        const int p = e.row() / 3;
+        if (sys_.is_fixed(p)) continue;
+        const int s = projection_[static_cast<std::size_t>(p)];
+        if (s < 0) {
+          jt_.emplace_back(off + e.row(), col_off + e.col(), -e.value());
+        } else {
+          for (int c = 0; c < 3; ++c)
+            jt_.emplace_back(off + 3 * p + c, col_off + e.col(),
+                             -projections_[static_cast<std::size_t>(s)](c, e.row() % 3) * e.value());
+        }
+      }
+    };
+    add(dfdx_, 0);
+    add(dfdv_, off);
+    for (int p = 0; p < n_; ++p) {
+      const int s = projection_[static_cast<std::size_t>(p)];
+      if (s < 0) continue;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          jt_.emplace_back(off + 3 * p + r, off + 3 * p + c,
+                           contact_.friction_rates()(p) * projections_[static_cast<std::size_t>(s)](r, c));
+    }
     jac_.resize(size(), size());
     jac_.setFromTriplets(jt_.begin(), jt_.end());
     jac_.makeCompressed();
@@ -126,6 +187,9 @@ class ResidualForm {
   std::vector<Triplet> dfdx_, dfdv_, jt_;
   SparseMatrix jac_;
   double jacobian_seconds_ = 0.0;
+  internal::HybridContact contact_;
+  std::vector<int> projection_;      // per particle: index in projections_, −1: not sliding
+  std::vector<Matrix3> projections_;  // sliding particles' S_p
 
  public:
   /// Wall time of the Jacobian evaluations so far [s].
@@ -136,11 +200,12 @@ class ResidualForm {
 // particles, fixed particles algebraic.
 class IdaReducedSolve {
  public:
-  IdaReducedSolve(const ParticleSystem& sys, const SolverSpec& spec)
-      : sys_(sys), spec_(spec), n_(sys.num_particles()), tangent_(sys, spec) {
-    for (MatrixN3* m : {&x_, &v_, &w_, &u_, &rhs_}) m->setZero(n_, 3);
+  IdaReducedSolve(const ParticleSystem& sys, const SolverSpec& spec, internal::HybridContact* contact)
+      : sys_(sys), spec_(spec), n_(sys.num_particles()), tangent_(sys, spec), contact_(contact) {
+    for (MatrixN3* m : {&x_, &v_, &w_, &u_, &rhs_, &bv_}) m->setZero(n_, 3);
     dv_.setZero(n_, 3);
     br_.setZero(n_, 3);
+    if (contact_ && contact_->active()) filter_.Reserve(n_);
   }
 
   // IDA's setup: the Jacobian at (t, y) (IDA has no jok: every setup is
@@ -167,14 +232,28 @@ class IdaReducedSolve {
         w_(p, c) = fixed ? bx / g : bx;
         u_(p, c) = fixed ? bv : 0.0;
         rhs_(p, c) = fixed ? 0.0 : g * bv;
+        bv_(p, c) = bv;
         if (w && !fixed) wmax = std::max(wmax, w[3 * n_ + 3 * p + c]);
       }
     }
     tangent_.AddJacobianProducts(g * g, w_, g, u_, &rhs_);
     br_ = rhs_;
-    const PcgStatus status = tangent_.Solve(
-        g, br_, internal::PcgStopForTolerance(cj * wmax, w ? tol : 0.0, {spec_.cg_tolerance, spec_.cg_max_iterations}),
-        &dv_);
+    const PcgOptions stop =
+        internal::PcgStopForTolerance(cj * wmax, w ? tol : 0.0, {spec_.cg_tolerance, spec_.cg_max_iterations});
+    PcgStatus status;
+    if (contact_ && contact_->active()) {
+      // A sliding particle's normal row is c_j m δv_n = b_v,n (its
+      // acceleration's normal part is the constraint's); its tangential
+      // rows carry the friction rate.
+      filter_.Clear();
+      for (int p : sys_.fixed()) filter_.Fix(p);
+      contact_->ForEachSliding([&](int p, const Vector3& n) {
+        filter_.Constrain(p, n, g * n.dot(bv_.row(p).transpose()) / sys_.masses()(p));
+      });
+      status = tangent_.Solve(g, br_, stop, &dv_, filter_, contact_->friction_rates());
+    } else {
+      status = tangent_.Solve(g, br_, stop, &dv_);
+    }
     for (int p = 0; p < n_; ++p) {
       const bool fixed = sys_.is_fixed(p);
       for (int c = 0; c < 3; ++c) {
@@ -199,7 +278,9 @@ class IdaReducedSolve {
   const SolverSpec& spec_;
   int n_;
   internal::ReducedTangent tangent_;
-  MatrixN3 x_, v_, w_, u_, rhs_;
+  internal::HybridContact* contact_;
+  VelocityFilter filter_;  // with contacts: the fixed particles and the sliding ones' normals
+  MatrixN3 x_, v_, w_, u_, rhs_, bv_;
   MatrixN3R dv_, br_;
 };
 
@@ -213,6 +294,20 @@ int ResFn(realtype t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
   static_cast<IdaUser*>(user)->form->Residual(t, N_VGetArrayPointer(y), N_VGetArrayPointer(yp),
                                               N_VGetArrayPointer(r));
   return 0;
+}
+
+int RootFn(realtype t, N_Vector y, N_Vector, realtype* g, void* user) {
+  static_cast<IdaUser*>(user)->form->Roots(t, N_VGetArrayPointer(y), g);
+  return 0;
+}
+
+// Adds IDA's counters since its last (re)initialisation to `st`.
+void AddIdaCounters(void* mem, SundialsStats* st) {
+  internal::AddCounters(mem,
+                        {IDAGetNumSteps, IDAGetNumResEvals, IDAGetNumNonlinSolvIters, IDAGetNumLinIters,
+                         IDAGetNumErrTestFails, IDAGetNumNonlinSolvConvFails, IDAGetNumJacEvals,
+                         IDAGetNumLinSolvSetups},
+                        st);
 }
 
 int JacFn(realtype t, realtype cj, N_Vector y, N_Vector, N_Vector, SUNMatrix jac, void* user, N_Vector, N_Vector,
@@ -254,9 +349,9 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
   const auto wall_start = Clock::now();
   RunSummary res;
   internal::NameSundialsRun(kIdaName, "reference", options, &res);
-  ResidualForm form(system);
+  ResidualForm form(system, 1e-2 * options.AbsoluteTolerance());
   std::unique_ptr<IdaReducedSolve> solve;
-  if (reduced) solve = std::make_unique<IdaReducedSolve>(system, *reduced);
+  if (reduced) solve = std::make_unique<IdaReducedSolve>(system, *reduced, &form.contact());
   IdaUser user{&form, solve.get()};
   IdaHandles h;
   double klu_seconds = 0.0;  // KLU setups (ida/klu)
@@ -299,6 +394,19 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
                   check(IDASetMaxOrd(h.mem, options.max_order), "IDASetMaxOrd") &&
                   check(IDASetStopTime(h.mem, options.t_end), "IDASetStopTime") &&
                   check(IDASetMaxNumSteps(h.mem, 100000000L), "IDASetMaxNumSteps");
+  // Obstacles: the contact modes at t = 0 and one root function per
+  // particle, caught as it falls through 0 (sundials/hybrid_contact.h).
+  std::vector<int> roots_found;
+  SundialsStats counters;  // summed over the restarts
+  if (ok && form.contact().active()) {
+    form.contact().Initialize(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+    const int nr = form.contact().num_roots();
+    roots_found.assign(static_cast<std::size_t>(nr), 0);
+    std::vector<int> direction(static_cast<std::size_t>(nr), -1);
+    ok = check(IDARootInit(h.mem, nr, RootFn), "IDARootInit") &&
+         check(IDASetRootDirection(h.mem, direction.data()), "IDASetRootDirection") &&
+         check(IDASetNoInactiveRootWarn(h.mem), "IDASetNoInactiveRootWarn");
+  }
   if (ok && solve)
     ok = check(IDASetPreconditioner(h.mem, PrecSetup, PrecSolve), "IDASetPreconditioner");
   else if (ok)
@@ -317,17 +425,20 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
       IDAGetLastOrder(h.mem, q);
     };
     d.flag_name = [](int f) { return std::string(IDAGetReturnFlagName(f)); };
+    if (form.contact().active())
+      d.on_root = [&](double t) {
+        int f = IDAGetRootInfo(h.mem, roots_found.data());
+        if (f < 0) return f;
+        form.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
+        AddIdaCounters(h.mem, &counters);
+        f = IDAReInit(h.mem, t, h.y, h.yp);
+        return f < 0 ? f : IDASetStopTime(h.mem, options.t_end);
+      };
     internal::RunFrames(d, system, options, err, &res);
   }
-  SundialsStats& st = res.sundials.emplace();
-  IDAGetNumSteps(h.mem, &st.nst);
-  IDAGetNumResEvals(h.mem, &st.nfe);
-  IDAGetNumNonlinSolvIters(h.mem, &st.nni);
-  IDAGetNumLinIters(h.mem, &st.nli);
-  IDAGetNumErrTestFails(h.mem, &st.netf);
-  IDAGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
-  IDAGetNumJacEvals(h.mem, &st.nje);
-  IDAGetNumLinSolvSetups(h.mem, &st.nsetups);
+  SundialsStats& st = res.sundials.emplace(counters);
+  AddIdaCounters(h.mem, &st);
+  if (form.contact().active()) res.events = static_cast<long>(form.contact().event_times().size());
   if (solve) {
     st.nli = solve->tangent().total_iterations();
     st.nje = solve->tangent().jacobian_evaluations();

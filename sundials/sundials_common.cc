@@ -219,6 +219,16 @@ void FreeDofMap::VelocitiesFromY(const double* y, MatrixN3* v) const {
     for (int c = 0; c < 3; ++c) (*v)(particle(k), c) = y[3 * nf + 3 * k + c];
 }
 
+void AddCounters(void* mem, const CounterGetters& get, SundialsStats* st) {
+  const std::pair<long*, CounterGetter> pairs[] = {{&st->nst, get.nst},   {&st->nfe, get.nfe},   {&st->nni, get.nni},
+                                                   {&st->nli, get.nli},   {&st->netf, get.netf}, {&st->ncfn, get.ncfn},
+                                                   {&st->nje, get.nje},   {&st->nsetups, get.nsetups}};
+  for (const auto& [total, getter] : pairs) {
+    long v = 0;
+    if (getter(mem, &v) >= 0) *total = std::max(*total, 0L) + v;
+  }
+}
+
 void StoreErrorMessage(int code, const char* module, const char* function, char* msg, void* error_string) {
   *static_cast<std::string*>(error_string) = fmt::format("{} {} (flag {}): {}", module, function, code, msg);
 }

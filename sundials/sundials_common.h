@@ -53,6 +53,18 @@ struct ReferenceOptions {
 
 namespace internal {
 
+/// A SUNDIALS integrator's counter getters (CVodeGetNumSteps, …; IDA's,
+/// ARKStep's), in SundialsStats' order nst, nfe, nni, nli, netf, ncfn,
+/// nje, nsetups.
+using CounterGetter = int (*)(void*, long*);
+struct CounterGetters {
+  CounterGetter nst, nfe, nni, nli, netf, ncfn, nje, nsetups;
+};
+/// Adds the counters since the integrator's last (re)initialisation to
+/// `st` (they restart at its ReInit, after every contact event); a counter
+/// still −1 in `st` starts from 0.
+void AddCounters(void* mem, const CounterGetters& get, SundialsStats* st);
+
 /// Copies the SUNDIALS counters `res->sundials` into the record's:
 /// steps = nst, updates = nni, cg_iterations = nli, rejected =
 /// error_test_failures = netf.
