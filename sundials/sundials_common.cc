@@ -249,7 +249,7 @@ struct CustomContent {
   void* p_data = nullptr;
   SUNPSetupFn p_setup = nullptr;
   N_Vector weights = nullptr;  // the package's (not owned)
-  N_Vector resid = nullptr;    // owned; zero (IDALS asks for it, never reads it)
+  N_Vector resid = nullptr;    // owned; zero (IDALS asks for it; read only after 0 iterations, which CustomNumIters never reports)
   int last_flag = 0;
 };
 CustomContent* Content(SUNLinearSolver s) { return static_cast<CustomContent*>(s->content); }
@@ -277,7 +277,14 @@ int CustomSolve(SUNLinearSolver s, SUNMatrix, N_Vector x, N_Vector b, realtype t
   return c->last_flag = c->hooks.solve(N_VGetArrayPointer(b), N_VGetArrayPointer(x),
                                        c->weights ? N_VGetArrayPointer(c->weights) : nullptr, tol);
 }
-int CustomNumIters(SUNLinearSolver s) { return Content(s)->hooks.iterations(); }
+// At least 1: IDALS and CVLS take SUNLinSolResid as the solution of an
+// iterative solve that reports 0 iterations (a Krylov solver's zero initial
+// guess), but the reduced solve returns its solution in x whatever the PCG
+// did; its x rows are solved exactly even when the PCG needed none (a cloth
+// in free fall: the reduced right-hand side is 0). With 0 reported, IDA's
+// position corrections were dropped and a cloth without fixed particles
+// never moved. The rows' own counters come from the PCG, not from here.
+int CustomNumIters(SUNLinearSolver s) { return std::max(1, Content(s)->hooks.iterations()); }
 realtype CustomResNorm(SUNLinearSolver s) { return Content(s)->hooks.residual(); }
 sunindextype CustomLastFlag(SUNLinearSolver s) { return Content(s)->last_flag; }
 N_Vector CustomResid(SUNLinearSolver s) { return Content(s)->resid; }
