@@ -30,8 +30,14 @@ const std::vector<std::string>& ArkodeTableNames();
 /// Integrates `system` from rest to options.t_end at rtol/atol of `options`
 /// with the IMEX pair `table`; frames by ARKStepGetDky. Stats: nst, nfe
 /// (explicit f_E evaluations), nfe_i (implicit), nni, nli (our PCG
-/// iterations), netf, ncfn, nsetups. Collisions are not handled: on scenes
-/// with obstacles the run is refused (status "unsupported_scene").
+/// iterations), netf, ncfn, nsetups. On scenes with obstacles it
+/// integrates the hybrid contact problem (sundials/hybrid_contact.h;
+/// docs/collisions.md, "Contact in continuous time"): a sliding particle's
+/// normal part of f_I moves to f_E as the constraint's acceleration
+/// (HybridContact::SplitExplicit, SplitImplicit), its friction stays in
+/// f_I, events are roots (ARKStepRootInit) followed by ARKStepReset, and
+/// the step is at most the frame interval (roots are sought between step
+/// ends only). `events` counts them.
 /// @param solver the PCG's tolerance, limits and preconditioner; nullptr:
 ///               the scene's
 /// @throws std::invalid_argument for an unknown table name.

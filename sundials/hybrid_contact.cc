@@ -92,6 +92,44 @@ void HybridContact::AddContactForces(double t, const MatrixN3& x, const MatrixN3
   }
 }
 
+void HybridContact::SplitExplicit(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* fe) const {
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    const int k = mode_[static_cast<std::size_t>(p)];
+    if (k < 0) continue;
+    Vector3 n, w;
+    // λ with no force is m c, the constraint's normal acceleration times m.
+    const double mc = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), Vector3::Zero(), &n, &w);
+    const Vector3 f = fe->row(p).transpose();
+    fe->row(p) = (f - n.dot(f) * n + mc * n).transpose();
+  }
+}
+
+void HybridContact::SplitImplicit(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& fe,
+                                  MatrixN3* fi) {
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    const int k = mode_[static_cast<std::size_t>(p)];
+    if (k < 0) continue;
+    Vector3 n, w;
+    const Vector3 f = fi->row(p).transpose();
+    const double lambda =
+        Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f + fe.row(p).transpose(), &n, &w);
+    normal_.row(p) = n.transpose();
+    Vector3 force = f - n.dot(f) * n;
+    const double cf = sys_.obstacles()[static_cast<std::size_t>(k)].spec().friction;
+    friction_rate_(p) = 0.0;
+    if (cf > 0.0 && lambda > 0.0) {
+      const Vector3 wt = w - n.dot(w) * n;
+      friction_rate_(p) = cf * lambda / std::max(wt.norm(), kSlipVelocity);
+      force -= friction_rate_(p) * wt;
+    }
+    fi->row(p) = force.transpose();
+  }
+}
+
+bool HybridContact::any_sliding() const {
+  return std::any_of(mode_.begin(), mode_.end(), [](int k) { return k >= 0; });
+}
+
 void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& f, double* g) {
   for (int p = 0; p < sys_.num_particles(); ++p) {
     if (sys_.is_fixed(p)) {

@@ -70,6 +70,21 @@ class HybridContact {
   /// particles' constraint forces λ n and friction, and keeps λ.
   void AddContactForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f);
 
+  /// The IMEX split of the sliding particles' dynamics (ARKODE's rows).
+  /// With the model's forces f = f_I + f_E (implicit and explicit parts),
+  /// a sliding particle obeys m a = S (f_I + f_E) + m c n + F_t, where
+  /// S = I − n nᵀ, c = n·a_u − ṅ·(v − u) is the constraint's normal
+  /// acceleration and F_t the friction from λ = m c − n·f. SplitExplicit
+  /// replaces each sliding particle's row of `fe` (f_E at (t, x, v), N×3
+  /// [N]) by S f_E + m c n; the other rows stay.
+  void SplitExplicit(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* fe) const;
+  /// Replaces each sliding particle's row of `fi` (f_I at (t, x, v), N×3
+  /// [N]) by S f_I + F_t, with λ from fi + fe (`fe` the unsplit explicit
+  /// forces); keeps the normals and friction rates (friction_rates()).
+  void SplitImplicit(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& fe, MatrixN3* fi);
+  /// Whether any particle slides.
+  bool any_sliding() const;
+
   /// The root functions g[p] at (t, x, v) with `f` the model's forces
   /// without contact (AddContactForces not applied): d − δ + entry_depth
   /// (the nearest obstacle) for a free particle, λ + kReleaseAcceleration m
