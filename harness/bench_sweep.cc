@@ -172,11 +172,20 @@ void AssembleRuns(std::vector<std::pair<long, std::string>> received, RecordJour
   }
 }
 
-// The self-convergence reference's step on obstacle scenes (CVODE's and
-// IDA's event-located contact, docs/collisions.md, is not yet the
-// reference): BDF(2) at h_min/32 (without --h: h/256).
+// The self-convergence run's step on obstacle scenes (the reference with
+// virtual particles, the cross-check otherwise): BDF(2) at h_min/32
+// (without --h: h/256).
 double SelfConvergenceStep(const BenchRun& b) {
   return (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
+}
+
+// Whether an obstacle scene's reference is the self-convergence run: with
+// virtual particles, whose edge contacts the hybrid system of the SUNDIALS
+// rows does not have (sundials/hybrid_contact.h). Otherwise the reference
+// row (CVODE's event-located contact) is the reference.
+bool SelfConvergenceIsReference(const ParticleSystem& sys) {
+  return std::any_of(sys.obstacles().begin(), sys.obstacles().end(),
+                     [](const Obstacle& o) { return o.spec().virtual_particles; });
 }
 
 // The rows' context: the command's limits and the settings it named.
@@ -187,28 +196,43 @@ RunContext ContextOf(const BenchRun& b) {
                     b.tangent_terms_from_cli, b.cvode};
 }
 
-// The reference run (task 0): on obstacle scenes the self-convergence run
-// at h_ref with its own error against the same at 2 h_ref, otherwise
-// RunReference (the reference row and its error estimate at rtol/10).
+// The self-convergence run at h_ref with its own error against the same at
+// 2 h_ref (RunRecord::error_estimate_m).
+RunSummary SelfConvergenceRun(const BenchRun& b, double h_ref, const char* role, TerminalProgress& progress) {
+  progress.Start(fmt::format("{} bdf2 h = {:g} s", role, h_ref), b.scene.t_end);
+  RunSummary r = SelfConvergenceReference(b.scene, h_ref);
+  if (r.ok()) {
+    progress.Start(fmt::format("{} bdf2 h = {:g} s (self-convergence)", role, 2.0 * h_ref), b.scene.t_end);
+    SetReferenceErrorEstimate(&r, SelfConvergenceReference(b.scene, 2.0 * h_ref), b.error_metric);
+  }
+  return r;
+}
+
+// The reference run (task 0): RunReference (the reference row and its
+// error estimate at rtol/10). On obstacle scenes the row integrates the
+// contact problem in continuous time with event location, and the
+// self-convergence run at h_ref is its cross-check (their difference and
+// its estimate are stored with the reference); with virtual particles the
+// self-convergence run is the reference.
 RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const RunContext& ctx, double h_ref,
                             TerminalProgress& progress) {
-  RunSummary r;
-  if (!sys.obstacles().empty()) {
-    progress.Start(fmt::format("reference bdf2 h = {:g} s", h_ref), b.scene.t_end);
-    r = SelfConvergenceReference(b.scene, h_ref);
-    if (r.ok()) {  // its own error: against the same run at 2 h_ref
-      progress.Start(fmt::format("reference bdf2 h = {:g} s (self-convergence)", 2.0 * h_ref), b.scene.t_end);
-      SetReferenceErrorEstimate(&r, SelfConvergenceReference(b.scene, 2.0 * h_ref), b.error_metric);
-    }
-  } else {
-    RunContext reference_ctx = ctx;
-    if (b.reference_time_limit > 0.0) reference_ctx.limits.time_limit_s = b.reference_time_limit;
-    r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, reference_ctx, b.error_metric, [&](double rtol) {
-      progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
-                                 rtol < b.ref_rtol ? " (its error estimate)" : ""),
-                     b.scene.t_end);
-    });
-  }
+  if (SelfConvergenceIsReference(sys)) return SelfConvergenceRun(b, h_ref, "reference", progress);
+  RunContext reference_ctx = ctx;
+  if (b.reference_time_limit > 0.0) reference_ctx.limits.time_limit_s = b.reference_time_limit;
+  RunSummary r = RunReference(sys, b.scene, *b.reference, b.ref_rtol, reference_ctx, b.error_metric, [&](double rtol) {
+    progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
+                               rtol < b.ref_rtol ? " (its error estimate)" : ""),
+                   b.scene.t_end);
+  });
+  if (!r.ok() || sys.obstacles().empty()) return r;
+  const RunSummary c = SelfConvergenceRun(b, h_ref, "cross-check", progress);
+  r.cross_check = fmt::format("bdf2 h = {:g} s (self-convergence{})", h_ref,
+                              c.ok() ? "" : fmt::format(": {}", ToString(c.status)));
+  if (!c.ok()) return r;
+  r.cross_check_error_estimate_m = c.error_estimate_m;
+  if (const std::optional<TrajectoryErrors> e = CompareTrajectories(c.trajectory, r.trajectory);
+      e && std::isfinite(e->Of(b.error_metric)))
+    r.cross_check_difference_m = e->Of(b.error_metric);
   return r;
 }
 
@@ -287,7 +311,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   task([&] { return ComputeReference(b, sys, ctx, h_ref, progress); }, &ref);
   if (!ref.ok()) {
     if (journal.Stored().empty()) journal.Remove();
-    ReportReferenceFailure(b, !sys.obstacles().empty(), h_ref, ref);
+    ReportReferenceFailure(b, SelfConvergenceIsReference(sys), h_ref, ref);
     return 1;
   }
   const double largest = *std::max_element(b.targets.begin(), b.targets.end());
@@ -388,7 +412,7 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
 
   TerminalProgress progress(!b.quiet && comm.root());
   double budget = b.time_budget;
-  const bool self_convergence = !sys.obstacles().empty();
+  const bool self_convergence = SelfConvergenceIsReference(sys);
   const double h_ref = SelfConvergenceStep(b);
   const auto reference_failed = [&](const RunSummary& r) {
     if (journal.Stored().empty()) journal.Remove();  // nothing to resume

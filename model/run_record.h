@@ -89,6 +89,13 @@ struct RunRecord {
   /// self-convergence reference, against the same method at twice its step;
   /// −1: not measured.
   double error_estimate_m = -1.0;
+  /// A reference's cross-check on obstacle scenes (docs/collisions.md, "The
+  /// contact reference"): the fixed-step self-convergence run it was
+  /// compared with (empty: none), that run's own error estimate [m] and its
+  /// difference from the reference [m], both in the table's error metric
+  /// (−1: not measured).
+  std::string cross_check;
+  double cross_check_error_estimate_m = -1.0, cross_check_difference_m = -1.0;
   std::optional<double> energy_rate_W;   ///< (E(t_end) − E(0) − W_ext − W_contact)/t_end [W]
   std::optional<double> contact_power_W; ///< W_contact(t_end)/t_end [W], if the method has our contact response
 
