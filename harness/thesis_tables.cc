@@ -29,9 +29,9 @@ std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 
 }  // namespace
 
-// A tight self-convergence reference for obstacle scenes (CVODE's and
-// IDA's event-located contact is not yet the reference): BDF(2) at h_ref with CG tolerance 1e-10,
-// fixed-point tolerance 1e-12 m/s and up to 200 updates per step.
+// A tight self-convergence run for obstacle scenes (thesis_tables.h):
+// BDF(2) at h_ref with CG tolerance 1e-10, fixed-point tolerance 1e-12 m/s
+// and up to 200 updates per step.
 RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
   Scene tight = scene;
   tight.solver.cg_tolerance = 1e-10;

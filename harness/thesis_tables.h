@@ -13,9 +13,11 @@
 
 namespace clothbench {
 
-/// A tight self-convergence reference for obstacle scenes (CVODE's and
-/// IDA's event-located contact is not yet the reference): BDF(2) at `h_ref` [s] with CG tolerance
-/// 1e-10, fixed-point tolerance 1e-12 m/s and up to 200 updates per step.
+/// A tight self-convergence run for obstacle scenes: the reference with
+/// virtual particles and of the thesis' tables, the cross-check of the
+/// event-located reference otherwise (docs/collisions.md, "The contact
+/// reference"). BDF(2) at `h_ref` [s] with CG tolerance 1e-10, fixed-point
+/// tolerance 1e-12 m/s and up to 200 updates per step.
 RunSummary SelfConvergenceReference(const Scene& scene, double h_ref);
 
 /// Runs the thesis' Table 3.1 or 3.2 (`which` = "3.1" | "3.2") once per CG
