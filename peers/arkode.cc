@@ -197,24 +197,6 @@ int RootFn(realtype t, N_Vector y, realtype* g, void* user) {
 int SetLinearity(void* mem, ImexOde& ode) {
   return ode.contact().active() && ode.contact().any_sliding() ? ARKStepSetNonlinear(mem) : ARKStepSetLinear(mem, 0);
 }
-// Adds ARKStep's counters to `st` (ARKStepReset keeps them; nli is the
-// PCG's, counted by the solve).
-void AddArkodeCounters(void* mem, SundialsStats* st) {
-  long fe = 0, fi = 0;
-  if (ARKStepGetNumRhsEvals(mem, &fe, &fi) >= 0) {
-    st->nfe = std::max(st->nfe, 0L) + fe;
-    st->nfe_i = std::max(st->nfe_i, 0L) + fi;
-  }
-  const std::pair<long*, int (*)(void*, long*)> pairs[] = {
-      {&st->nst, ARKStepGetNumSteps},         {&st->nni, ARKStepGetNumNonlinSolvIters},
-      {&st->netf, ARKStepGetNumErrTestFails}, {&st->ncfn, ARKStepGetNumNonlinSolvConvFails},
-      {&st->nsetups, ARKStepGetNumLinSolvSetups}};
-  for (const auto& [total, getter] : pairs) {
-    long v = 0;
-    if (getter(mem, &v) >= 0) *total = std::max(*total, 0L) + v;
-  }
-}
-
 struct ArkodeHandles {
   SUNContext ctx = nullptr;
   N_Vector y = nullptr, dky = nullptr;
@@ -335,9 +317,14 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
       };
     internal::RunFrames(d, system, options, err, &res);
   }
-  SundialsStats& st = res.sundials.emplace();
-  AddArkodeCounters(h.mem, &st);
+  SundialsStats& st = res.sundials.emplace();  // ARKStepReset keeps the counters
+  ARKStepGetNumSteps(h.mem, &st.nst);
+  ARKStepGetNumRhsEvals(h.mem, &st.nfe, &st.nfe_i);
+  ARKStepGetNumNonlinSolvIters(h.mem, &st.nni);
   st.nli = ode.total_iterations();
+  ARKStepGetNumErrTestFails(h.mem, &st.netf);
+  ARKStepGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
+  ARKStepGetNumLinSolvSetups(h.mem, &st.nsetups);
   if (ode.contact().active()) res.events = static_cast<long>(ode.contact().event_times().size());
   res.setup_time_s = ode.setup_seconds();
   internal::SummariseCounters(&res);

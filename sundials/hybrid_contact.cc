@@ -73,6 +73,15 @@ void HybridContact::Initialize(double t, const MatrixN3& x, const MatrixN3& v) {
   }
 }
 
+Vector3 HybridContact::Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w) {
+  const double cf = sys_.obstacles()[static_cast<std::size_t>(k)].spec().friction;
+  friction_rate_(p) = 0.0;
+  if (!(cf > 0.0 && lambda > 0.0)) return Vector3::Zero();
+  const Vector3 wt = w - n.dot(w) * n;
+  friction_rate_(p) = cf * lambda / std::max(wt.norm(), kSlipVelocity);
+  return -friction_rate_(p) * wt;
+}
+
 void HybridContact::AddContactForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) {
   for (int p = 0; p < sys_.num_particles(); ++p) {
     const int k = mode_[static_cast<std::size_t>(p)];
@@ -80,15 +89,7 @@ void HybridContact::AddContactForces(double t, const MatrixN3& x, const MatrixN3
     Vector3 n, w;
     const double lambda = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f->row(p).transpose(), &n, &w);
     normal_.row(p) = n.transpose();
-    Vector3 force = lambda * n;
-    const double cf = sys_.obstacles()[static_cast<std::size_t>(k)].spec().friction;
-    friction_rate_(p) = 0.0;
-    if (cf > 0.0 && lambda > 0.0) {
-      const Vector3 wt = w - n.dot(w) * n;
-      friction_rate_(p) = cf * lambda / std::max(wt.norm(), kSlipVelocity);
-      force -= friction_rate_(p) * wt;
-    }
-    f->row(p) += force.transpose();
+    f->row(p) += (lambda * n + Friction(k, p, lambda, n, w)).transpose();
   }
 }
 
@@ -114,15 +115,7 @@ void HybridContact::SplitImplicit(double t, const MatrixN3& x, const MatrixN3& v
     const double lambda =
         Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f + fe.row(p).transpose(), &n, &w);
     normal_.row(p) = n.transpose();
-    Vector3 force = f - n.dot(f) * n;
-    const double cf = sys_.obstacles()[static_cast<std::size_t>(k)].spec().friction;
-    friction_rate_(p) = 0.0;
-    if (cf > 0.0 && lambda > 0.0) {
-      const Vector3 wt = w - n.dot(w) * n;
-      friction_rate_(p) = cf * lambda / std::max(wt.norm(), kSlipVelocity);
-      force -= friction_rate_(p) * wt;
-    }
-    fi->row(p) = force.transpose();
+    fi->row(p) = (f - n.dot(f) * n + Friction(k, p, lambda, n, w)).transpose();
   }
 }
 

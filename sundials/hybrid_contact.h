@@ -125,6 +125,9 @@ class HybridContact {
   // model's force on it; also its normal n and relative velocity w.
   double Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
                 Vector3* w) const;
+  // The regularised Coulomb force on particle p sliding on obstacle k with
+  // normal force λ, normal n and relative velocity w; keeps its rate.
+  Vector3 Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w);
 
   const ParticleSystem& sys_;
   double entry_depth_;

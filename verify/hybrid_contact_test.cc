@@ -35,11 +35,22 @@
 namespace clothbench {
 namespace {
 
-TEST(HybridContact, CvodeWithEventsIsConsistentAndTheThesisResponseConvergesToIt) {
+// The round table over its first 0.3 s: the landing and the settling.
+Scene RoundTableLanding() {
   Scene scene = BuiltinScene("round_table");
   scene.t_end = 0.3;
+  return scene;
+}
+
+// A SUNDIALS run of `scene` at rtol = atol = `rtol`, BDF order up to 5.
+ReferenceOptions OptionsAt(const Scene& scene, double rtol) {
+  return ReferenceOptions{rtol, rtol, 5, scene.t_end, scene.frame_dt};
+}
+
+TEST(HybridContact, CvodeWithEventsIsConsistentAndTheThesisResponseConvergesToIt) {
+  const Scene scene = RoundTableLanding();
   const ParticleSystem sys(scene);
-  const auto options = [&](double rtol) { return ReferenceOptions{rtol, rtol, 5, scene.t_end, scene.frame_dt}; };
+  const auto options = [&](double rtol) { return OptionsAt(scene, rtol); };
   const RunSummary a = RunCvodeReduced(sys, options(1e-8), scene.solver);
   const RunSummary b = RunCvodeReduced(sys, options(1e-9), scene.solver);
   const RunSummary k = RunCvode(sys, options(1e-8));
@@ -90,7 +101,7 @@ TEST(HybridContact, ReleasesAfterTheJumpsOfAnEventAndTheThesisResponseConvergesO
   Scene scene = BuiltinScene("swinging_box");
   scene.t_end = 0.7;
   const ParticleSystem sys(scene);
-  const RunSummary c = RunCvodeReduced(sys, ReferenceOptions{1e-8, 1e-8, 5, scene.t_end, scene.frame_dt}, scene.solver);
+  const RunSummary c = RunCvodeReduced(sys, OptionsAt(scene, 1e-8), scene.solver);
   ASSERT_TRUE(c.ok()) << c.message;
   std::vector<double> distance;
   for (double h : {5e-4, 2.5e-4}) {
@@ -117,10 +128,9 @@ TEST(HybridContact, ReleasesAfterTheJumpsOfAnEventAndTheThesisResponseConvergesO
 // wrong split leaves centimetres (the cloth through the table, or resting
 // δ off it).
 TEST(HybridContact, ArkodeWithEventsAgreesWithCvode) {
-  Scene scene = BuiltinScene("round_table");
-  scene.t_end = 0.3;
+  const Scene scene = RoundTableLanding();
   const ParticleSystem sys(scene);
-  const auto options = [&](double rtol) { return ReferenceOptions{rtol, rtol, 5, scene.t_end, scene.frame_dt}; };
+  const auto options = [&](double rtol) { return OptionsAt(scene, rtol); };
   const RunSummary c = RunCvodeReduced(sys, options(1e-9), scene.solver);
   ASSERT_TRUE(c.ok()) << c.message;
   for (const char* table : {"ARK324L2SA", "ARK548L2SA"}) {
