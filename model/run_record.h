@@ -54,7 +54,9 @@ struct RunRecord {
   long cg_unconverged = 0;        ///< accepted steps that kept an unconverged CG solve (blender)
   /// Adaptive rows with event location on scenes with obstacles: the
   /// contact events located (instants at which particles enter or leave
-  /// the δ-surface, sundials/hybrid_contact.h); −1: not applicable.
+  /// the δ-surface: SUNDIALS' roots, sundials/hybrid_contact.h; for
+  /// sbdf2/error and bdf2/error the accepted steps that began with a
+  /// changed contact set); −1: not applicable.
   long events = -1;
   /// Solver time [s]: the least over the `repeats` timings of the run (the
   /// first computes the trajectory, the others reproduce it bit for bit).

@@ -127,7 +127,10 @@ struct SolverSpec {
   double atol = 0.0;
   double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
   double step_factor = 2.0;          ///< controller grow/shrink factor (> 1)
-  double h_min = 1e-6;               ///< [s] smallest step before a run fails
+  /// [s] smallest step before a run fails (fixed steps and the iteration
+  /// controller; under step_control = "error" only round-off bounds h, as
+  /// CVODE's hmin = 0, and max_rejections ends a step that cannot pass).
+  double h_min = 1e-6;
   double h_max = 0.0;                ///< [s] largest step of a controller; 0: scene h (iterations), t_end (error)
   int max_rejections = 10;           ///< successive rejected attempts before a run fails
 

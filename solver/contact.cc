@@ -34,6 +34,8 @@ void ContactResponse::Reset() {
   std::fill(cull_distance_.begin(), cull_distance_.end(), -kInf);
   queries_ = culled_ = 0;
   seconds_ = 0.0;
+  h_ = h_read_ = 0.0;
+  accepted_ = true;
   release_tolerance_ = 0.0;
   work_ = Work{};
 }
@@ -77,6 +79,15 @@ void ContactResponse::Reset() {
 int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                            VelocityFilter* filter) {
   const auto start = std::chrono::steady_clock::now();
+  // Copies into storage of the same size: no allocation after the first.
+  if (accepted_) {
+    contacts_backup_.assign(contacts_.begin(), contacts_.end());
+    distance_backup_.assign(last_distance_.begin(), last_distance_.end());
+  } else {
+    std::copy(contacts_backup_.begin(), contacts_backup_.end(), contacts_.begin());
+    std::copy(distance_backup_.begin(), distance_backup_.end(), last_distance_.begin());
+  }
+  accepted_ = false;
   const int colliding = Detect(t0, h, x_start, v_start, xm1, filter);
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return colliding;
@@ -113,9 +124,13 @@ bool Tunnelled(const Obstacle& o, const ObstaclePose& pose, const Vector3& x_pre
 // m|v_t|: friction can stop a sliding particle but never reverse it
 // (uncapped, a round-off v_t of 1e-15 m/s got the full μ|f_N| and set
 // resting cloth sliding at h μ g per step).
-Vector3 CoulombFriction(double normal_impulse, double m, const Vector3& v_rel, const Vector3& dir, double h) {
+// *sticks: whether the cap holds (the particle's tangential velocity
+// relative to the obstacle is stopped in the step).
+Vector3 CoulombFriction(double normal_impulse, double m, const Vector3& v_rel, const Vector3& dir, double h,
+                        bool* sticks) {
   const Vector3 vt = v_rel - v_rel.dot(dir) * dir;
   const double speed = vt.norm();
+  *sticks = !(m * speed > normal_impulse);
   if (!(speed > 0.0)) return Vector3::Zero();
   const double impulse = std::min(normal_impulse, m * speed);
   return (-impulse / (h * speed)) * vt;
@@ -126,6 +141,8 @@ Vector3 CoulombFriction(double normal_impulse, double m, const Vector3& v_rel, c
 int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                             VelocityFilter* filter) {
   const bool have_history = xm1 != nullptr;
+  // The impulses read last are over the last accepted step, h_read_.
+  const double impulse_scale = h_read_ > 0.0 && h_read_ != h ? h / h_read_ : 1.0;
   h_ = h;
   filter->Clear();
   for (int p : sys_.fixed()) filter->Fix(p);
@@ -152,7 +169,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     const int last_obstacle = c.obstacle;
     const Vector3 last_direction = c.direction;
     c.obstacle = -1;
-    c.impulse = 0.0;
+    c.sticks = false;
     const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
     double best = 1e300, target_velocity = 0.0;
     Vector3 dir = Vector3::Zero(), best_v_rel = Vector3::Zero();
@@ -214,12 +231,17 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
           entering = true;
         }
       }
+      // Event location: an entry further than ε is an event of the step
+      // (Crossing), not a constraint of it.
+      if (event_tolerance_ > 0.0 && !inside && d - delta > event_tolerance_) entering = false;
       if ((inside || entering) && d < best) {
         best = d;
         dir = d_k;
         best_v_rel = v_rel;
         c.obstacle = static_cast<int>(k);
-        target_velocity = v_obs.dot(d_k) + (inside ? o.spec().relaxation * (delta - d) : delta - d) / h;
+        // Event location: no (4.4) correction, whose velocity grows as 1/h (ApplyJumps instead).
+        const double correction = event_tolerance_ > 0.0 ? 0.0 : delta - d;
+        target_velocity = v_obs.dot(d_k) + (inside ? o.spec().relaxation * correction : correction) / h;
       }
     }
     if (c.obstacle < 0) continue;
@@ -227,11 +249,132 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     filter->Constrain(p, dir, target_velocity);  // (4.4)
     // Coulomb friction from the last step's normal impulse (CoulombFriction).
     const double mu = obstacles[static_cast<std::size_t>(c.obstacle)].spec().friction;
+    // The last step's normal force J_hold/h₋₁ over this step: J_hold h/h₋₁.
+    const double normal_impulse = impulse_scale == 1.0 ? last_impulse : last_impulse * impulse_scale;
     if (mu > 0.0 && was && last_impulse > 0.0)
-      friction_.row(p) = CoulombFriction(mu * last_impulse, sys_.masses()(p), best_v_rel, dir, h).transpose();
+      friction_.row(p) =
+          CoulombFriction(mu * normal_impulse, sys_.masses()(p), best_v_rel, dir, h, &c.sticks).transpose();
     ++count;
   }
   return count;
+}
+
+namespace {
+
+// Position at θ ∈ [0, 1] of the cubic Hermite interpolant of one particle's
+// step over h from (x0, v0) to (x1, v1).
+Vector3 HermitePosition(const Vector3& x0, const Vector3& v0, const Vector3& x1, const Vector3& v1, double h,
+                        double s) {
+  const double s2 = s * s, s3 = s2 * s;
+  return (2 * s3 - 3 * s2 + 1) * x0 + ((s3 - 2 * s2 + s) * h) * v0 + (-2 * s3 + 3 * s2) * x1 + ((s3 - s2) * h) * v1;
+}
+
+}  // namespace
+
+int ContactResponse::NearestObstacle(double t, const Vector3& x, double* gap, Vector3* normal) const {
+  int best = -1;
+  *gap = kInf;
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
+    const Obstacle& o = sys_.obstacles()[k];
+    Vector3 n;
+    const double g = o.SignedDistance(t, x, &n) - o.spec().collision_distance;
+    if (g < *gap) {
+      *gap = g;
+      *normal = n;
+      best = static_cast<int>(k);
+    }
+  }
+  return best;
+}
+
+// The lower bound of the gap d − δ of particle p at x1 from the setup's
+// distances at x0 (static obstacles: d is 1-Lipschitz); −∞ where an
+// obstacle moves.
+double ContactResponse::GapBound(int p, const Vector3& x0, const Vector3& x1) const {
+  const std::size_t n_obs = sys_.obstacles().size();
+  const double moved = (x1 - x0).norm();
+  double bound = kInf;
+  for (std::size_t k = 0; k < n_obs; ++k) {
+    const Obstacle& o = sys_.obstacles()[k];
+    if (o.moving()) return -kInf;
+    const double d = last_distance_[static_cast<std::size_t>(p) * n_obs + k];
+    bound = std::min(bound, d - moved - o.spec().collision_distance);
+  }
+  return bound;
+}
+
+double ContactResponse::Crossing(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3& x1,
+                                 const MatrixN3& v1) const {
+  double theta = 1.0;
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    if (sys_.is_fixed(p) || contacts_[static_cast<std::size_t>(p)].obstacle >= 0) continue;
+    const Vector3 a = x0.row(p).transpose(), b = x1.row(p).transpose();
+    if (GapBound(p, a, b) >= -event_tolerance_) continue;
+    double gap1 = 0.0, gap0 = 0.0;
+    Vector3 n;
+    if (NearestObstacle(t0 + h, b, &gap1, &n) < 0 || gap1 >= -event_tolerance_) continue;
+    NearestObstacle(t0, a, &gap0, &n);
+    if (!(gap0 > 0.0)) continue;  // started inside (released): not an entry
+    const Vector3 va = v0.row(p).transpose(), vb = v1.row(p).transpose();
+    double lo = 0.0, hi = 1.0;  // gap(lo) > 0 ≥ gap(hi)
+    while (hi - lo > 1e-12) {
+      const double mid = 0.5 * (lo + hi);
+      double g = 0.0;
+      NearestObstacle(t0 + mid * h, HermitePosition(a, va, b, vb, h, mid), &g, &n);
+      (g > 0.0 ? lo : hi) = mid;
+    }
+    theta = std::min(theta, hi);
+  }
+  return theta;
+}
+
+int ContactResponse::ApplyJumps(double t, MatrixN3* x, MatrixN3* v) {
+  const std::size_t n_obs = sys_.obstacles().size();
+  int jumps = 0;
+  double work = 0.0;
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    Contact& c = contacts_[static_cast<std::size_t>(p)];
+    if (sys_.is_fixed(p)) continue;
+    const Vector3 x1 = x->row(p).transpose();
+    if (c.obstacle >= 0) {
+      // A contact drifted off the δ-surface by more than ε: back onto it.
+      const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(c.obstacle)];
+      Vector3 n;
+      const double gap = o.SignedDistance(t, x1, &n) - o.spec().collision_distance;
+      if (std::abs(gap) > event_tolerance_ && n.dot(c.direction) > 0.0) {
+        x->row(p) -= gap * n.transpose();
+        ++jumps;
+      }
+      continue;
+    }
+    // Started outside: d at x₀ (or its lower bound) − δ > 0 against every obstacle.
+    bool outside = true;
+    for (std::size_t k = 0; k < n_obs; ++k)
+      outside = outside && last_distance_[static_cast<std::size_t>(p) * n_obs + k] >
+                               sys_.obstacles()[k].spec().collision_distance;
+    if (!outside) continue;
+    double gap = 0.0;
+    Vector3 n;
+    const int k = NearestObstacle(t, x1, &gap, &n);
+    if (k < 0 || gap >= event_tolerance_) continue;
+    const ObstaclePose pose = sys_.obstacles()[static_cast<std::size_t>(k)].PoseAt(t);
+    const Vector3 u = sys_.obstacles()[static_cast<std::size_t>(k)].moving() ? pose.Velocity(x1) : Vector3::Zero();
+    const double wn = n.dot(v->row(p).transpose() - u);
+    if (gap >= 0.0 && wn >= 0.0) continue;  // near, but leaving
+    x->row(p) -= gap * n.transpose();  // onto the δ-surface
+    if (wn < 0.0) {
+      // The impulse −m wₙ n over the mean velocity: −m wₙ (wₙ/2 + ⟨u, n⟩).
+      const double m = sys_.masses()(p);
+      work += -m * wn * (0.5 * wn + u.dot(n));
+      v->row(p) -= wn * n.transpose();
+    }
+    c.obstacle = k;
+    c.direction = n;
+    c.impulse = 0.0;
+    ++jumps;
+  }
+  work_.holding += work;
+  return jumps;
 }
 
 }  // namespace clothbench

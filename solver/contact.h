@@ -32,6 +32,39 @@ class ContactResponse {
   /// @return the number of colliding particles (Fig. 4.3). No allocation.
   int SetUp(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3* xm1, VelocityFilter* filter);
 
+  /// Event location (docs/collisions.md, "Error control through contact
+  /// events"), for the error-controlled methods: with a tolerance ε > 0
+  /// [m], SetUp constrains no particle for a predicted entry more than ε
+  /// away; the step runs free, Crossing finds where it crossed into the
+  /// collision area, the step is set up again up to there, and
+  /// ApplyJumps applies the entries' jumps. 0 (the default) turns it off.
+  void set_event_tolerance(double tolerance) { event_tolerance_ = tolerance; }
+  /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
+  /// which a particle free in it (the last SetUp constrained it not, and it
+  /// started outside the collision area) reaches d = δ, among those ending
+  /// deeper than δ − ε: by bisection on d − δ along the cubic Hermite
+  /// interpolant of (x0, v0) → (x1, v1) (N×3 [m], [m/s]), to a relative
+  /// 1e-12 of h. 1 when none crossed.
+  double Crossing(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3& x1,
+                  const MatrixN3& v1) const;
+  /// The jumps at the end t [s] of an accepted step under event location:
+  /// - entries: every particle free in the step that started outside the
+  ///   collision area and ends within ε of it (approaching) or inside it
+  ///   is put onto the δ-surface of its nearest obstacle, its normal
+  ///   velocity relative to the obstacle is removed if it approaches (an
+  ///   inelastic impact, the h → 0 limit of (4.4)), and it is in contact
+  ///   from the next step on; the impact's work is added to work().holding;
+  /// - drift: a contact more than ε off its δ-surface is put back onto it
+  ///   (in place of (4.4)'s relaxation velocity ω_r (δ − d)/h, which grows
+  ///   as h shrinks).
+  /// x, v: N×3 state at t [m], [m/s], changed in place. @return the number of jumps
+  int ApplyJumps(double t, MatrixN3* x, MatrixN3* v);
+
+  /// Whether particle p's friction in this step is capped: it stops the
+  /// particle's tangential velocity relative to the obstacle (stick), a
+  /// jump of the response like an impact's.
+  bool sticks(int p) const { return active() && contacts_[static_cast<std::size_t>(p)].sticks; }
+
   /// Coulomb friction forces of the step [N], N×3 (explicit; docs/model.md §2.5).
   const MatrixN3& friction() const { return friction_; }
 
@@ -58,14 +91,23 @@ class ContactResponse {
   /// pulling (< 0: the constraint drags a particle toward the obstacle in
   /// the step before its release). The friction impulse is h f_friction.
   /// @param v0 N×3 velocities at the start of the step [m/s]
+  ///
+  /// Called once per accepted step: the next SetUp starts from this
+  /// state; a SetUp not preceded by it (a rejected or shortened attempt)
+  /// starts again from the state the last one started from.
   template <class RowResidual>
   void ReadImpulses(RowResidual&& residual_row, const MatrixN3& v0, const MatrixN3& v1, const MatrixN3& vhat,
                     double release_tolerance) {
     const Eigen::VectorXd& mass = sys_.masses();
     double holding = 0.0, pulling = 0.0, friction = 0.0;
+    accepted_ = true;
+    h_read_ = h_;
     for (int p = 0; p < sys_.num_particles(); ++p) {
       Contact& c = contacts_[static_cast<std::size_t>(p)];
-      if (c.obstacle < 0) continue;
+      if (c.obstacle < 0) {
+        c.impulse = 0.0;
+        continue;
+      }
       const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
       const double full = residual_row(p).dot(c.direction);
       c.impulse = full - inertia.dot(c.direction);
@@ -107,6 +149,7 @@ class ContactResponse {
     int obstacle = -1;            // obstacle index, −1: none
     Vector3 direction = Vector3::Zero();
     double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadImpulses)
+    bool sticks = false;          // this step's friction stops its tangential velocity (CoulombFriction's cap)
   };
   const ParticleSystem& sys_;
   std::vector<Contact> contacts_;
@@ -126,6 +169,18 @@ class ContactResponse {
   std::vector<ObstaclePose> last_pose_;
   long queries_ = 0, culled_ = 0;
   double seconds_ = 0.0;                   // SetUp's wall time since Reset [s]
+  // Event location: its tolerance [m] (0: off).
+  double event_tolerance_ = 0.0;
+  // The state the last SetUp started from, and whether a step was
+  // accepted since (ReadImpulses): an attempt after a rejected one starts
+  // from it again. h_read_: the step whose impulses were read [s].
+  bool accepted_ = true;
+  double h_read_ = 0.0;
+  std::vector<Contact> contacts_backup_;
+  std::vector<double> distance_backup_;
+  // The nearest obstacle to x at t: its index (−1: none), d − δ, normal.
+  int NearestObstacle(double t, const Vector3& x, double* gap, Vector3* normal) const;
+  double GapBound(int p, const Vector3& x0, const Vector3& x1) const;  // Crossing's cull
   int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
              VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit

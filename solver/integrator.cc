@@ -162,7 +162,18 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
   const bool multistep = method == Method::kSbdf2 || method == Method::kBdf2 || method == Method::kSbdf3;
-  if (multistep && contacts_.active() && solver.contact_history == ContactHistory::kRestart) {
+  error_control_ =
+      solver.step_control == StepControl::kError && (method == Method::kSbdf2 || method == Method::kBdf2);
+  // Under error control the contact events are located and restart the
+  // method (docs/collisions.md, "Error control through contact events"):
+  // entries within a hundredth of the absolute tolerance happen now.
+  event_location_ = error_control_ && contacts_.active();
+  if (event_location_) {
+    contacts_.set_event_tolerance(kEventToleranceFraction * solver.AbsoluteTolerance());
+    x_left_.setZero(n, 3);
+    v_left_.setZero(n, 3);
+  }
+  if (multistep && contacts_.active() && (solver.contact_history == ContactHistory::kRestart || event_location_)) {
     in_contact_.assign(static_cast<std::size_t>(n), 0);
     in_contact_prev_.assign(static_cast<std::size_t>(n), 0);
   }
@@ -183,8 +194,6 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &vm1_, &gm1_, &g0_, &g_, &b0_, &b_, &xhat_, &vhat_, &xg0_, &vg_, &xg_, &v1_, &x1_,
                       &tmp_, &vprev_})
     m->setZero(n, 3);
-  error_control_ =
-      solver.step_control == StepControl::kError && (method == Method::kSbdf2 || method == Method::kBdf2);
   if (error_control_)
     for (MatrixN3* m : {&xm2_, &vm2_, &a_init_}) m->setZero(n, 3);
   if (method == Method::kSbdf3)
@@ -201,6 +210,10 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   h_prev_ = h_prev2_ = 0.0;
   history_ = 0;
   sbdf3_history_ = 0;
+  slope_stale_ = false;
+  jumped_ = false;
+  set_changed_ = false;
+  events_ = 0;
   contacts_.Reset();
   std::fill(in_contact_prev_.begin(), in_contact_prev_.end(), 0);
   if (error_control_) {
@@ -209,6 +222,16 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
     a_init_ = sys_.masses().cwiseInverse().asDiagonal() * a_init_;
     filter_.Impose(&a_init_);
   }
+}
+
+// The start slope after a contact event: v̇ = M⁻¹(f + F_friction) at the
+// state, less the directions the contacts prescribe (their velocity is
+// the response's, not integrated; ErrorNorm leaves them out).
+void StepEngine::StartSlope() {
+  sys_.Forces(t_, x0_, v0_, &a_init_);
+  a_init_ += contacts_.friction();
+  a_init_ = sys_.masses().cwiseInverse().asDiagonal() * a_init_;
+  filter_.Project(&a_init_);
 }
 
 StepStats StepEngine::Step(double h) {
@@ -221,20 +244,66 @@ StepStats StepEngine::Step(double h) {
 }
 
 StepStats StepEngine::StepImpl(double h) {
+  if (method_ == Method::kSymplecticEuler) {
+    StepStats st;
+    st.t = t_ + h;
+    st.h = h;
+    return ExplicitStep(h, st);
+  }
+  if (!event_location_) {
+    StepStats st = Solve(h);
+    return st.status == StepStatus::kOk ? FinishStep(h, st) : st;
+  }
+  // Event location (docs/collisions.md, "Error control through contact
+  // events"): a step in which a free particle crossed into the collision
+  // area is redone up to the earliest crossing, whose entries then jump.
+  int updates = 0, cg_iterations = 0;
+  StepStats st;
+  jumped_ = false;
+  for (int pass = 0;; ++pass) {
+    st = Solve(h);
+    updates += st.updates;
+    cg_iterations += st.cg_iterations;
+    if (st.status != StepStatus::kOk) break;
+    const double theta = pass + 1 < kLocationPasses ? contacts_.Crossing(t_, h, x0_, v0_, x1_, v1_) : 1.0;
+    if (theta >= 1.0) {
+      st = FinishStep(h, st);
+      if (st.status == StepStatus::kOk) {
+        if (set_changed_) ++events_;
+        set_changed_ = false;
+        x_left_ = x0_;  // into allocated storage
+        v_left_ = v0_;
+        jumped_ = contacts_.ApplyJumps(t_, &x0_, &v0_) > 0;
+      }
+      break;
+    }
+    h *= theta;
+  }
+  st.updates = updates;
+  st.cg_iterations = cg_iterations;
+  return st;
+}
+
+StepStats StepEngine::Solve(double h) {
   StepStats st;
   st.t = t_ + h;
   st.h = h;
-  if (method_ == Method::kSymplecticEuler) return ExplicitStep(h, st);
-  // The contacts first: under ContactHistory::kRestart a multistep method
-  // whose contact set changed restarts with its one-step start.
+  // The contacts first: under ContactHistory::kRestart, and under event
+  // location, a multistep method whose contact set changed restarts with
+  // its one-step start.
   int colliding = 0;
   if (contacts_.active()) {
-    colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
-    if (!in_contact_.empty() && ContactSetChanged() && have_history_) {
+    const MatrixN3* xm1 = have_history_ ? &xm1_ : nullptr;
+    colliding = contacts_.SetUp(t_, h, x0_, v0_, xm1, &filter_);
+    const bool changed = !in_contact_.empty() && ContactSetChanged();
+    if (event_location_ && changed) set_changed_ = true;  // kept over a retry (ContactSetChanged compares attempts)
+    if (changed && (have_history_ || event_location_)) {
       have_history_ = false;
       history_ = 0;
       sbdf3_history_ = 0;
+      slope_stale_ = event_location_;
     }
+    if (slope_stale_) StartSlope();  // with this step's filter and friction
   }
   bool sbdf3_start = false;
   const Method m = StepMethod(h, &sbdf3_start);
@@ -289,7 +358,11 @@ StepStats StepEngine::StepImpl(double h) {
   } else if (!FixedPointIterate(h, c, imex, sbdf3_start, fixed_only_norm, pcg_opts, &st)) {
     return st;
   }
-  return FinishStep(h, c.gamma, st);
+  x1_ = xhat_ + (c.gamma * h) * v1_;
+  // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
+  // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
+  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
+  return st;
 }
 
 bool StepEngine::ContactSetChanged() {
@@ -505,11 +578,7 @@ bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool im
   return true;
 }
 
-StepStats StepEngine::FinishStep(double h, double gamma, StepStats st) {
-  x1_ = xhat_ + (gamma * h) * v1_;
-  // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
-  // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
-  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
+StepStats StepEngine::FinishStep(double h, StepStats st) {
   if (error_control_) {
     st.error_norm = ErrorNorm(h, &st.error_order);
     if (!std::isfinite(st.error_norm)) {
@@ -553,7 +622,7 @@ StepStats StepEngine::FinishStep(double h, double gamma, StepStats st) {
 // SBDF(2) uses the same estimate: the extrapolation error of ĝ is not in it.
 // The norm is CVODE's weighted RMS over the free particles' x and v
 // components, w = 1/(rtol |z₀| + atol).
-double StepEngine::ErrorNorm(double h, int* order) const {
+double StepEngine::ErrorNorm(double h, int* order) {
   const double rtol = opts_.rtol, atol = opts_.AbsoluteTolerance();
   const int n = sys_.num_particles();
   double k = 0.5;  // LTE = k (z₁ − P)
@@ -581,8 +650,7 @@ double StepEngine::ErrorNorm(double h, int* order) const {
     const double d2 = (d1 - d0) / (hh + h2);
     return z0 + d1 * h + d2 * h * (h + hh);
   };
-  double sum = 0.0;
-  long count = 0;
+  // The local errors k (z₁ − P) of x and v in tmp_ and vprev_ (scratch).
   for (int p = 0; p < n; ++p) {
     if (sys_.is_fixed(p)) continue;
     for (int c = 0; c < 3; ++c) {
@@ -597,8 +665,31 @@ double StepEngine::ErrorNorm(double h, int* order) const {
         px = predict(xm2_(p, c), xm1_(p, c), x0_(p, c), 0);
         pv = predict(vm2_(p, c), vm1_(p, c), v0_(p, c), 0);
       }
-      const double wx = k * (x1_(p, c) - px) / (rtol * std::abs(x0_(p, c)) + atol);
-      const double wv = k * (v1_(p, c) - pv) / (rtol * std::abs(v0_(p, c)) + atol);
+      tmp_(p, c) = k * (x1_(p, c) - px);
+      vprev_(p, c) = k * (v1_(p, c) - pv);
+    }
+  }
+  // A contact's normal direction is prescribed by the response ((4.4): an
+  // impact's jump, the relaxation toward the δ-surface), not integrated:
+  // its error is not the method's, and is left out.
+  // Nor is the tangential one of a particle whose friction sticks it in
+  // the step (the cap of Coulomb's law stops it: a jump, not the method's).
+  if (contacts_.active()) {
+    filter_.Project(&tmp_);
+    filter_.Project(&vprev_);
+    for (int p = 0; p < n; ++p)
+      if (contacts_.sticks(p)) {
+        tmp_.row(p).setZero();
+        vprev_.row(p).setZero();
+      }
+  }
+  double sum = 0.0;
+  long count = 0;
+  for (int p = 0; p < n; ++p) {
+    if (sys_.is_fixed(p)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double wx = tmp_(p, c) / (rtol * std::abs(x0_(p, c)) + atol);
+      const double wv = vprev_(p, c) / (rtol * std::abs(v0_(p, c)) + atol);
       sum += wx * wx + wv * wv;
     }
     count += 6;
@@ -728,6 +819,7 @@ bool StepEngine::Commit(double h) {
   have_g0_ = false;
   h_prev_ = h;
   have_history_ = true;
+  slope_stale_ = false;
   t_ += h;
   return true;
 }

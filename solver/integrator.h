@@ -189,6 +189,19 @@ class Stepper {
   /// Work of the contact response since Reset [J] (ContactResponse::work),
   /// or nullptr if the stepper has no contact response of ours.
   virtual const ContactResponse::Work* contact_work() const { return nullptr; }
+  /// If the last step ended at a located contact event whose jumps changed
+  /// the state: the state just before them (the trajectory's left limit at
+  /// the step's end, N×3 [m], [m/s]), which the frames inside the step
+  /// interpolate to. Else false.
+  /// Contact events located since Reset (instants at which the contact
+  /// set changed under event location), or −1 if the stepper does not
+  /// locate them.
+  virtual long events() const { return -1; }
+  virtual bool LeftLimit(const MatrixN3** x, const MatrixN3** v) const {
+    (void)x;
+    (void)v;
+    return false;
+  }
 };
 
 /// Advances the state of a particle system step by step with one method.
@@ -221,6 +234,13 @@ class StepEngine : public Stepper {
     return contacts_.active() ? &contacts_.work() : nullptr;
   }
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
+  long events() const override { return event_location_ ? events_ : -1; }
+  bool LeftLimit(const MatrixN3** x, const MatrixN3** v) const override {
+    if (!jumped_) return false;
+    *x = &x_left_;
+    *v = &v_left_;
+    return true;
+  }
   Method method() const { return method_; }
   const SystemMatrix& system_matrix() const { return sysmat_; }
   /// Wall time of the collision detection since Reset [s] (ContactResponse::setup_seconds).
@@ -261,9 +281,12 @@ class StepEngine : public Stepper {
   /// converged; on failure st->status says why.
   bool FixedPointIterate(double h, const StageCoefficients& c, bool imex, bool sbdf3_start, bool fixed_only_norm,
                          PcgOptions pcg_opts, StepStats* st);
-  /// x₁ from the converged v₁, the error test, the contact impulses and the
-  /// commit. @return st with its status
-  StepStats FinishStep(double h, double gamma, StepStats st);
+  /// One attempt at a step of size h: the contacts, the stage and its
+  /// solve, x₁. Commits nothing. @return the step's statistics with its status
+  StepStats Solve(double h);
+  /// The error test, the contact impulses and the commit of the solved
+  /// step (x1_, v1_). @return st with its status
+  StepStats FinishStep(double h, StepStats st);
   /// Newton's method for v₁ (docs/model.md §10): F(v) = A_α v − b₀ − βh g(t_g, x_g(v), v_g(v)),
   /// J_α δ = −F on the free directions. Returns true when converged; on
   /// failure st->status says why.
@@ -275,7 +298,7 @@ class StepEngine : public Stepper {
   /// Local error estimate of the step just solved (x1_, v1_), weighted RMS
   /// norm against rtol/atol (docs/work-precision.md); `order` gets the
   /// estimate's order q (local error O(h^{q+1})).
-  double ErrorNorm(double h, int* order) const;
+  double ErrorNorm(double h, int* order);
   const ParticleSystem& sys_;
   Method method_;
   SolverSpec opts_;
@@ -304,6 +327,19 @@ class StepEngine : public Stepper {
   void LandContactTargets(double h, double gamma);  // ContactHistory::kLand
   bool have_g0_ = false;         // g0_ holds g(t0, x0, v0)
   bool error_control_ = false;   // SBDF(2)/BDF(2) with step_control = "error"
+  bool event_location_ = false;  // error control on a scene with obstacles
+  /// Entries closer than this fraction of the absolute tolerance happen in
+  /// the step instead of ending it (as HybridContact's entry depth).
+  static constexpr double kEventToleranceFraction = 1e-2;
+  /// Solves per step with event location, the last one accepting the
+  /// crossings left (within the interpolant's error of the step's end).
+  static constexpr int kLocationPasses = 4;
+  void StartSlope();             // a_init_ after a contact event
+  bool slope_stale_ = false;     // a restart at a contact event awaits its StartSlope
+  bool jumped_ = false;          // the last step ended with entries (LeftLimit)
+  long events_ = 0;              // accepted steps that began with a changed contact set
+  bool set_changed_ = false;     // this step's contact set differs from the last accepted one
+  MatrixN3 x_left_, v_left_;     // its state before them
   // Error control only: (x₋₂, v₋₂), v̇ = M⁻¹f at the last Reset, the step
   // before h_prev_, and the accepted steps since Reset (capped at 2).
   MatrixN3 xm2_, vm2_, a_init_;

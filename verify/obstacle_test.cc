@@ -377,5 +377,37 @@ TEST(DistanceCull, SameContactsAsExactQueries) {
   }
 }
 
+// A retried or shortened step sets its contacts up again from the state
+// of the last accepted step (ContactResponse::SetUp): the tablecloth lies
+// inside the collision area of a plane, sliding at 0.1 m/s, with the
+// holding impulses of its weight read after a step of h = 0.01 s. The
+// friction is the last step's normal force times μ: the same force for a
+// retry at h/2 (μ J h/h₋₁ over h; the relative 1e-12 is the round-off of
+// that product), and bit for bit the same contacts and forces when h comes
+// back. Before, a retry found every impulse zeroed by the failed attempt
+// (no friction, no release), and a step of another size applied μ J over it.
+TEST(ObstacleContacts, RetriedStepStartsFromTheLastAcceptedContacts) {
+  const Scene s = testing::TableclothOnPlane(0.1);
+  const ParticleSystem sys(s);
+  const int n = sys.num_particles();
+  ContactResponse contacts(sys);
+  VelocityFilter filter;
+  filter.Reserve(n);
+  const MatrixN3 x = sys.rest_positions();
+  MatrixN3 v = MatrixN3::Zero(n, 3);
+  v.col(0).setConstant(0.1);
+  const double h = 0.01;
+  ASSERT_GT(contacts.SetUp(0.0, h, x, v, nullptr, &filter), n / 2);
+  const auto residual = [&](int p) { return Vector3(0.0, 0.0, 9.81 * h * sys.masses()(p)); };
+  contacts.ReadImpulses(residual, v, v, v, 0.0);
+  const int count = contacts.SetUp(h, h, x, v, &x, &filter);
+  const MatrixN3 first = contacts.friction();
+  ASSERT_GT(first.norm(), 0.0);
+  EXPECT_EQ(contacts.SetUp(h, 0.5 * h, x, v, &x, &filter), count);
+  EXPECT_LT((contacts.friction() - first).norm(), 1e-12 * first.norm());
+  EXPECT_EQ(contacts.SetUp(h, h, x, v, &x, &filter), count);
+  EXPECT_TRUE(contacts.friction() == first);
+}
+
 }  // namespace
 }  // namespace clothbench
