@@ -331,6 +331,8 @@ class StepEngine : public Stepper {
   /// Entries closer than this fraction of the absolute tolerance happen in
   /// the step instead of ending it (as HybridContact's entry depth).
   static constexpr double kEventToleranceFraction = 1e-2;
+  /// Under event location the PCG tolerance is at most this fraction of rtol.
+  static constexpr double kCgToleranceFraction = 1e-3;
   /// Solves per step with event location, the last one accepting the
   /// crossings left (within the interpolant's error of the step's end).
   static constexpr int kLocationPasses = 4;

@@ -150,10 +150,10 @@ TEST(HybridContact, ArkodeWithEventsAgreesWithCvode) {
 // 1e-5), against CVODE with events at rtol 1e-9: every run ends ok with
 // its events counted (before event location none passed the landing), no
 // particle ends deeper than δ (the run's guard), and the distance at t_end
-// falls at least 3× between the two rtol (measured 3.5–9.4×). Bounds at
-// the tighter rtol: 1e-6 m on the round table (measured 4.0e-7 m sbdf2,
+// falls at least 3× between the two rtol (measured 3.4–9.9×). Bounds at
+// the tighter rtol: 1e-6 m on the round table (measured 4.1e-7 m sbdf2,
 // 1.4e-7 m bdf2; the two responses' limits differ by about 3e-7 m there),
-// 5e-4 m on the swinging box (measured 3.6e-4 m sbdf2, 3.8e-5 m bdf2; the
+// 5e-4 m on the swinging box (measured 3.6e-4 m sbdf2, 5.1e-5 m bdf2; the
 // thesis' friction and the hybrid system's regularised Coulomb law differ
 // by about 1.1e-4 m at 0.7 s, "The contact reference").
 TEST(HybridContact, ErrorControlledRowsLocateTheEntriesAndConverge) {
