@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "solver/hermite.h"
+
 namespace clothbench {
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -259,18 +261,6 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
   return count;
 }
 
-namespace {
-
-// Position at θ ∈ [0, 1] of the cubic Hermite interpolant of one particle's
-// step over h from (x0, v0) to (x1, v1).
-Vector3 HermitePosition(const Vector3& x0, const Vector3& v0, const Vector3& x1, const Vector3& v1, double h,
-                        double s) {
-  const double s2 = s * s, s3 = s2 * s;
-  return (2 * s3 - 3 * s2 + 1) * x0 + ((s3 - 2 * s2 + s) * h) * v0 + (-2 * s3 + 3 * s2) * x1 + ((s3 - s2) * h) * v1;
-}
-
-}  // namespace
-
 int ContactResponse::NearestObstacle(double t, const Vector3& x, double* gap, Vector3* normal) const {
   int best = -1;
   *gap = kInf;
@@ -320,7 +310,8 @@ double ContactResponse::Crossing(double t0, double h, const MatrixN3& x0, const 
     while (hi - lo > 1e-12) {
       const double mid = 0.5 * (lo + hi);
       double g = 0.0;
-      NearestObstacle(t0 + mid * h, HermitePosition(a, va, b, vb, h, mid), &g, &n);
+      const HermiteWeights w = HermitePositionWeights(mid, h);
+      NearestObstacle(t0 + mid * h, w.x0 * a + w.v0 * va + w.x1 * b + w.v1 * vb, &g, &n);
       (g > 0.0 ? lo : hi) = mid;
     }
     theta = std::min(theta, hi);

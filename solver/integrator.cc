@@ -215,9 +215,8 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   h_prev_ = h_prev2_ = 0.0;
   history_ = 0;
   sbdf3_history_ = 0;
-  slope_stale_ = false;
+  event_step_ = false;
   jumped_ = false;
-  set_changed_ = false;
   events_ = 0;
   contacts_.Reset();
   std::fill(in_contact_prev_.begin(), in_contact_prev_.end(), 0);
@@ -274,8 +273,6 @@ StepStats StepEngine::StepImpl(double h) {
     if (theta >= 1.0) {
       st = FinishStep(h, st);
       if (st.status == StepStatus::kOk) {
-        if (set_changed_) ++events_;
-        set_changed_ = false;
         x_left_ = x0_;  // into allocated storage
         v_left_ = v0_;
         jumped_ = contacts_.ApplyJumps(t_, &x0_, &v0_) > 0;
@@ -300,15 +297,15 @@ StepStats StepEngine::Solve(double h) {
   if (contacts_.active()) {
     const MatrixN3* xm1 = have_history_ ? &xm1_ : nullptr;
     colliding = contacts_.SetUp(t_, h, x0_, v0_, xm1, &filter_);
-    const bool changed = !in_contact_.empty() && ContactSetChanged();
-    if (event_location_ && changed) set_changed_ = true;  // kept over a retry (ContactSetChanged compares attempts)
-    if (changed && (have_history_ || event_location_)) {
+    // event_step_ stays set over a retry or a redo (ContactSetChanged
+    // compares with the last attempt) until the step is accepted.
+    if (!in_contact_.empty() && ContactSetChanged() && (have_history_ || event_location_)) {
       have_history_ = false;
       history_ = 0;
       sbdf3_history_ = 0;
-      slope_stale_ = event_location_;
+      event_step_ = event_location_;
     }
-    if (slope_stale_) StartSlope();  // with this step's filter and friction
+    if (event_step_) StartSlope();  // with this attempt's filter and friction
   }
   bool sbdf3_start = false;
   const Method m = StepMethod(h, &sbdf3_start);
@@ -824,7 +821,8 @@ bool StepEngine::Commit(double h) {
   have_g0_ = false;
   h_prev_ = h;
   have_history_ = true;
-  slope_stale_ = false;
+  if (event_step_) ++events_;
+  event_step_ = false;
   t_ += h;
   return true;
 }

@@ -337,10 +337,9 @@ class StepEngine : public Stepper {
   /// crossings left (within the interpolant's error of the step's end).
   static constexpr int kLocationPasses = 4;
   void StartSlope();             // a_init_ after a contact event
-  bool slope_stale_ = false;     // a restart at a contact event awaits its StartSlope
+  bool event_step_ = false;      // this step restarted at a contact event (StartSlope; counted at Commit)
   bool jumped_ = false;          // the last step ended with entries (LeftLimit)
   long events_ = 0;              // accepted steps that began with a changed contact set
-  bool set_changed_ = false;     // this step's contact set differs from the last accepted one
   MatrixN3 x_left_, v_left_;     // its state before them
   // Error control only: (x₋₂, v₋₂), v̇ = M⁻¹f at the last Reset, the step
   // before h_prev_, and the accepted steps since Reset (capped at 2).

@@ -10,6 +10,7 @@
 #include <omp.h>
 
 #include "model/interrupt.h"
+#include "solver/hermite.h"
 #include "solver/progress.h"
 
 namespace clothbench {
@@ -46,9 +47,9 @@ void Hermite(const MatrixN3& x0, const MatrixN3& v0, const MatrixN3& x1, const M
     *v = v1;
     return;
   }
-  const double s2 = s * s, s3 = s2 * s;
-  const double h00 = 2 * s3 - 3 * s2 + 1, h10 = s3 - 2 * s2 + s, h01 = -2 * s3 + 3 * s2, h11 = s3 - s2;
-  *x = h00 * x0 + (h10 * h) * v0 + h01 * x1 + (h11 * h) * v1;
+  const HermiteWeights w = HermitePositionWeights(s, h);
+  *x = w.x0 * x0 + w.v0 * v0 + w.x1 * x1 + w.v1 * v1;
+  const double s2 = s * s;
   const double d00 = 6 * s2 - 6 * s, d10 = 3 * s2 - 4 * s + 1, d11 = 3 * s2 - 2 * s;
   *v = (d00 / h) * x0 + d10 * v0 - (d00 / h) * x1 + d11 * v1;
 }
