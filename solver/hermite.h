@@ -1,4 +1,4 @@
-// Cubic Hermite interpolation inside a step (docs/model.md, "Frames"): the
+// Cubic Hermite interpolation inside a step (docs/model.md, "Fixed steps"): the
 // run driver's frames and the contact event location use the same
 // weights.
 #ifndef CLOTHBENCH_SOLVER_HERMITE_H_
