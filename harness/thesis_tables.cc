@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -44,6 +45,33 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
   r.step_kind = StepKind::kFixedStep;
   r.h = h_ref;
   r.cg_tolerance = tight.solver.cg_tolerance;
+  return r;
+}
+
+RunSummary ContactCrossCheck(const Scene& scene, double h_ref, ErrorMetric metric, double* order,
+                             const std::function<void(double h)>& started) {
+  Scene regularised = scene;
+  regularised.solver.friction_law = FrictionLaw::kRegularised;
+  *order = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Trajectory> coarse;
+  RunSummary r;
+  for (const double h : {h_ref, 2.0 * h_ref, 4.0 * h_ref}) {
+    if (started) started(h);
+    RunSummary run = SelfConvergenceReference(regularised, h);
+    if (!run.ok()) return h == h_ref ? run : r;
+    if (h == h_ref)
+      r = std::move(run);
+    else
+      coarse.push_back(std::move(run.trajectory));
+  }
+  const std::optional<TrajectoryErrors> e1 = CompareTrajectories(coarse[0], r.trajectory);
+  const std::optional<TrajectoryErrors> e2 = CompareTrajectories(coarse[1], coarse[0]);
+  if (!e1 || !e2) return r;
+  const double d1 = e1->Of(metric), d2 = e2->Of(metric);
+  if (std::isfinite(d1) && std::isfinite(d2) && d2 > d1) {
+    *order = std::log2(d2 / d1);
+    r.error_estimate_m = d1 * d1 / (d2 - d1);
+  }
   return r;
 }
 

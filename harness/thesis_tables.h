@@ -3,12 +3,14 @@
 #ifndef CLOTHBENCH_HARNESS_THESIS_TABLES_H_
 #define CLOTHBENCH_HARNESS_THESIS_TABLES_H_
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "harness/sweep.h"
 #include "model/scene.h"
+#include "results/metrics.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -19,6 +21,21 @@ namespace clothbench {
 /// reference"). BDF(2) at `h_ref` [s] with CG tolerance 1e-10, fixed-point
 /// tolerance 1e-12 m/s and up to 200 updates per step.
 RunSummary SelfConvergenceReference(const Scene& scene, double h_ref);
+
+/// The cross-check of an event-located contact reference (docs/collisions.md,
+/// "The contact reference"): SelfConvergenceReference at h_ref [s] with the
+/// friction law of the contact problem in continuous time
+/// (FrictionLaw::kRegularised; the thesis' explicit law converges to another
+/// one), and its error estimate (RunSummary::error_estimate_m [m]) by
+/// Richardson extrapolation with the observed order: with d₁ = E(x_h, x_2h)
+/// and d₂ = E(x_2h, x_4h) in `metric`, the order is p = log2(d₂/d₁) and the
+/// error of x_h about d₁/(2^p − 1) = d₁²/(d₂ − d₁) (Roache, *Verification
+/// and Validation in Computational Science and Engineering*, 1998, §5.4).
+/// With d₂ ≤ d₁ the runs are not in their asymptotic range: the estimate
+/// stays −1 and *order NaN; otherwise *order = p.
+/// @param started called with each run's h before it (progress), or empty
+RunSummary ContactCrossCheck(const Scene& scene, double h_ref, ErrorMetric metric, double* order,
+                             const std::function<void(double h)>& started = {});
 
 /// Runs the thesis' Table 3.1 or 3.2 (`which` = "3.1" | "3.2") once per CG
 /// tolerance in `etas`, prints it beside the thesis' numbers and writes

@@ -39,6 +39,14 @@ std::string_view ToString(ContactHistory c) {
   return "keep";
 }
 
+std::string_view ToString(FrictionLaw f) {
+  switch (f) {
+    case FrictionLaw::kExplicit: return "explicit";
+    case FrictionLaw::kRegularised: return "regularised";
+  }
+  return "?";
+}
+
 std::string_view ToString(NewtonJacobian j) {
   return j == NewtonJacobian::kRefresh ? "refresh" : "frozen";
 }

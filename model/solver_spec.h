@@ -72,6 +72,24 @@ enum class TangentProjection { kClamp, kNone };
 ///    h·target (4.4) with the history kept: an entering particle lands on δ.
 enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 
+/// Coulomb friction at the obstacles (docs/collisions.md, "Friction laws"):
+///  - "explicit": the thesis' impulse μ J_hold from the last step, against
+///    the tangential velocity v_t at the step's start and capped at m|v_t|
+///    (docs/model.md §2.5). A particle it stops is set moving again by the
+///    step's tangential forces, at h F_t/m: static friction is a viscous
+///    one whose slip velocity shrinks with h;
+///  - "regularised": the same impulse scaled by min(1, |v_t|/v_s), the
+///    regularised Coulomb law of the contact problem in continuous time
+///    (kSlipVelocity; docs/collisions.md, "Contact in continuous time") that
+///    the SUNDIALS rows integrate, so that a fixed-step method converges to
+///    the same problem as they do (the contact reference's cross-check).
+enum class FrictionLaw { kExplicit, kRegularised };
+
+/// The slip velocity v_s [m/s] below which the continuous contact problem's
+/// Coulomb friction is regularised, F_t = −μ λ w_t / max(|w_t|, v_s)
+/// (docs/collisions.md, "Contact in continuous time").
+inline constexpr double kSlipVelocity = 1e-3;
+
 std::string_view ToString(PreconditionerType p);
 std::string_view ToString(CholeskyOrdering o);
 std::string_view ToString(AmgFrames f);
@@ -82,6 +100,7 @@ std::string_view ToString(NonlinearSolver s);
 std::string_view ToString(NewtonJacobian j);
 std::string_view ToString(TangentProjection p);
 std::string_view ToString(ContactHistory c);
+std::string_view ToString(FrictionLaw f);
 
 /// Settings of the step engine (docs/model.md §5, §6).
 struct SolverSpec {
@@ -115,6 +134,9 @@ struct SolverSpec {
   /// Multistep methods on scenes with obstacles: keep or restart the
   /// history when the contact set changes.
   ContactHistory contact_history = ContactHistory::kKeep;
+  /// Scenes with obstacles and friction: the thesis' explicit capped impulse
+  /// or the continuous contact problem's regularised law (FrictionLaw).
+  FrictionLaw friction_law = FrictionLaw::kExplicit;
   /// Newton and Baraff–Witkin: the explicit terms' Jacobians (shear, bending,
   /// transverse, air) enter J_α; false: tension and mass only.
   bool tangent_explicit_terms = true;

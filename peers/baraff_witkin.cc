@@ -42,6 +42,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
       precond_(opts_.preconditioner),
       contacts_(system) {
   const auto start = std::chrono::steady_clock::now();
+  contacts_.set_friction_law(opts_.friction_law);
   const int n = system.num_particles();
   if (UsesAlphaPreconditioner(opts_.preconditioner))
     laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering,

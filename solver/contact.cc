@@ -126,12 +126,15 @@ bool Tunnelled(const Obstacle& o, const ObstaclePose& pose, const Vector3& x_pre
 // m|v_t|: friction can stop a sliding particle but never reverse it
 // (uncapped, a round-off v_t of 1e-15 m/s got the full μ|f_N| and set
 // resting cloth sliding at h μ g per step).
+// With a slip velocity v_s > 0 [m/s] (FrictionLaw::kRegularised) the
+// impulse is scaled by min(1, |v_t|/v_s), the regularised Coulomb law.
 // *sticks: whether the cap holds (the particle's tangential velocity
 // relative to the obstacle is stopped in the step).
 Vector3 CoulombFriction(double normal_impulse, double m, const Vector3& v_rel, const Vector3& dir, double h,
-                        bool* sticks) {
+                        double slip_velocity, bool* sticks) {
   const Vector3 vt = v_rel - v_rel.dot(dir) * dir;
   const double speed = vt.norm();
+  if (speed < slip_velocity) normal_impulse *= speed / slip_velocity;
   *sticks = !(m * speed > normal_impulse);
   if (!(speed > 0.0)) return Vector3::Zero();
   const double impulse = std::min(normal_impulse, m * speed);
@@ -254,8 +257,9 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     // The last step's normal force J_hold/h₋₁ over this step: J_hold h/h₋₁.
     const double normal_impulse = impulse_scale == 1.0 ? last_impulse : last_impulse * impulse_scale;
     if (mu > 0.0 && was && last_impulse > 0.0)
-      friction_.row(p) =
-          CoulombFriction(mu * normal_impulse, sys_.masses()(p), best_v_rel, dir, h, &c.sticks).transpose();
+      friction_.row(p) = CoulombFriction(mu * normal_impulse, sys_.masses()(p), best_v_rel, dir, h,
+                                         friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0, &c.sticks)
+                             .transpose();
     ++count;
   }
   return count;

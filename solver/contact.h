@@ -39,6 +39,9 @@ class ContactResponse {
   /// collision area, the step is set up again up to there, and
   /// ApplyJumps applies the entries' jumps. 0 (the default) turns it off.
   void set_event_tolerance(double tolerance) { event_tolerance_ = tolerance; }
+  /// The friction law (model/solver_spec.h, FrictionLaw): the thesis'
+  /// explicit capped impulse (the default) or the regularised Coulomb law.
+  void set_friction_law(FrictionLaw law) { friction_law_ = law; }
   /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
   /// which a particle free in it (the last SetUp constrained it not, and it
   /// started outside the collision area) reaches d = δ, among those ending
@@ -171,6 +174,7 @@ class ContactResponse {
   double seconds_ = 0.0;                   // SetUp's wall time since Reset [s]
   // Event location: its tolerance [m] (0: off).
   double event_tolerance_ = 0.0;
+  FrictionLaw friction_law_ = FrictionLaw::kExplicit;
   // The state the last SetUp started from, and whether a step was
   // accepted since (ReadImpulses): an attempt after a rejected one starts
   // from it again. h_read_: the step whose impulses were read [s].

@@ -157,6 +157,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
       sysmat_(system, solver.preconditioner, solver.cholesky_ordering, solver.contact_factors),
       contacts_(system) {
   sysmat_.set_amg_frames(solver.amg_frames);
+  contacts_.set_friction_law(solver.friction_law);
   const int n = system.num_particles();
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
