@@ -220,6 +220,10 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
         break;
       }
   if (!notes.after_rows.empty()) fmt::print(out, "{}\n", notes.after_rows);
+  for (const RunTableNotes::StatusNote& note : notes.statuses)
+    if (std::any_of(t.runs.begin(), t.runs.end(),
+                    [&](const RunRecord& r) { return r.label == note.integrator && ToString(r.status) == note.status; }))
+      fmt::print(out, "{}\n", note.text);
   fmt::print(out,
              "solver_s: the least of the run's timings; spread: (max - min)/min over them / their number (the first "
              "computes the trajectory, the others reproduce it bit for bit).\n");

@@ -141,6 +141,12 @@ struct RunTableNotes {
   /// The reference line for a reference run and the error metric's name
   /// (ErrorName); empty function: no reference line.
   std::function<std::string(const RunRecord& reference, const std::string& error_name)> reference;
+  /// A note printed once, if some run of `integrator` ended with `status`
+  /// (RunStatus name): why that status belongs to the method.
+  struct StatusNote {
+    std::string integrator, status, text;
+  };
+  std::vector<StatusNote> statuses;
 };
 
 /// The name of an error metric ("final", "l2", "max") in the tables' text.
