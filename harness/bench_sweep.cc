@@ -232,10 +232,11 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
   const RunSummary c = ContactCrossCheck(b.scene, h_ref, wanted, b.error_metric, &order, [&](double h) {
     progress.Start(fmt::format("cross-check bdf2 h = {:g} s", h), b.scene.t_end);
   });
-  r.cross_check = fmt::format("bdf2 h = {:g} s, friction_law = regularised (self-convergence against 2h and 4h{})", c.h,
+  r.cross_check = fmt::format("bdf2 h = {:g} s, friction_law = regularised (self-convergence against 2h and 4h{}{})", c.h,
                               !c.ok()              ? fmt::format(": {}", ToString(c.status))
                               : std::isnan(order) ? ": not in its asymptotic range"
-                                                  : fmt::format(", observed order {:.2f}", order));
+                                                  : fmt::format(", observed order {:.2f}", order),
+                              c.ok() && !c.message.empty() ? "; " + c.message : std::string());
   if (!c.ok()) return r;
   r.cross_check_error_estimate_m = c.error_estimate_m;
   if (const std::optional<TrajectoryErrors> e = CompareTrajectories(c.trajectory, r.trajectory);

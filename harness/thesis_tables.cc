@@ -59,7 +59,12 @@ RunSummary ContactCrossCheck(const Scene& scene, double h_floor, double wanted, 
     const double h = std::ldexp(h_floor, kRefinements - j);
     if (started) started(h);
     RunSummary run = SelfConvergenceReference(regularised, h);
-    if (!run.ok()) return j < 1 ? run : std::move(runs[2]);
+    if (!run.ok()) {
+      if (j < 1) return run;
+      // The last ok run stands, with what stopped the refinement.
+      runs[2].message = fmt::format("the run at h = {:g} s ended {}", h, ToString(run.status));
+      return std::move(runs[2]);
+    }
     runs[0] = std::move(runs[1]);
     runs[1] = std::move(runs[2]);
     runs[2] = std::move(run);

@@ -39,7 +39,8 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref);
 /// estimate is at most `wanted` [m], or at h_floor [s]; the returned run is
 /// the last, with its estimate (−1 if unknown) and *order = p (NaN if
 /// unknown). Each run costs half the next, so the refinement costs at most
-/// twice the last run.
+/// twice the last run. A finer run that fails ends the refinement: the
+/// last ok run is returned, its `message` naming the failed h and status.
 /// @param started called with each run's h before it (progress), or empty
 RunSummary ContactCrossCheck(const Scene& scene, double h_floor, double wanted, ErrorMetric metric, double* order,
                              const std::function<void(double h)>& started = {});

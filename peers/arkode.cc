@@ -49,6 +49,7 @@ class ImexOde {
         nf_(map_.num_free()),
         sysmat_(sys, spec.preconditioner, spec.cholesky_ordering),
         contact_(sys, entry_depth) {
+    internal::StartVirtualParticles(sys);
     for (MatrixN3* m : {&x_, &v_, &f_, &fe_, &rx_, &rv_, &rhs_, &dv_, &tmp_}) m->setZero(n_, 3);
     x_ = sys.rest_positions();
     filter_.Reserve(n_);

@@ -30,6 +30,7 @@ class FreeDofOde {
   /// @param entry_depth the contact events' hysteresis [m] (internal::HybridContact)
   FreeDofOde(const ParticleSystem& sys, double entry_depth)
       : sys_(sys), map_(sys), n_(sys.num_particles()), nf_(map_.num_free()), contact_(sys, entry_depth) {
+    internal::StartVirtualParticles(sys);
     x_ = sys.rest_positions();
     v_.setZero(n_, 3);
     f_.setZero(n_, 3);

@@ -28,6 +28,7 @@ class ResidualForm {
   /// @param entry_depth the contact events' hysteresis [m]
   ResidualForm(const ParticleSystem& sys, double entry_depth)
       : sys_(sys), n_(sys.num_particles()), contact_(sys, entry_depth) {
+    internal::StartVirtualParticles(sys);
     x_.setZero(n_, 3);
     v_.setZero(n_, 3);
     f_.setZero(n_, 3);

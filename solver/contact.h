@@ -153,6 +153,7 @@ class ContactResponse {
     Vector3 direction = Vector3::Zero();
     double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadImpulses)
     bool sticks = false;          // this step's friction stops its tangential velocity (CoulombFriction's cap)
+    bool entry = false;           // set by a predicted entry (test 3), not by the area: never released
   };
   const ParticleSystem& sys_;
   std::vector<Contact> contacts_;

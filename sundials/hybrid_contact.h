@@ -35,8 +35,6 @@ namespace clothbench::internal {
 
 class HybridContact {
  public:
-  /// Slip velocity of the regularised Coulomb law [m/s].
-  static constexpr double kSlipVelocity = clothbench::kSlipVelocity;  // model/solver_spec.h
   /// Time step of the forward differences of u and n along the path [s].
   static constexpr double kRateStep = 1e-7;
   /// Hysteresis of the events: a free particle enters at d − δ =

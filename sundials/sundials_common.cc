@@ -65,6 +65,12 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   res->trajectory.times.assign(1, 0.0);
   res->trajectory.positions.assign(1, system.rest_positions());
   res->trajectory.velocities.assign(1, MatrixN3::Zero(system.num_particles(), 3));
+  // The virtual particles of each frame, as the fixed-step driver records them.
+  VirtualParticles* const virtual_particles = system.virtual_particles();
+  if (virtual_particles) {
+    virtual_particles->Update(0.0, res->trajectory.positions[0]);
+    virtual_particles->RecordFrame(res->trajectory.positions[0], &res->trajectory.virtual_particles);
+  }
   std::size_t next = 1;
   double solver_seconds = 0.0, t = 0.0;
   MatrixN3 frame, frame_v;
@@ -118,6 +124,9 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     d.current_state(&frame, &frame_v);  // every internal step's state against the guard (no contact response)
     const double work = external.Advance(t - t_checked, t, frame, frame_v);
     t_checked = t;
+    // The next step's virtual particles, from this state (the energy the
+    // guard checks includes their springs').
+    if (virtual_particles) virtual_particles->Update(t, frame);
     if (!guard.Check(t, frame, frame_v, work, 0.0, &res->status, &res->message)) {
       ok = false;
       break;
@@ -138,7 +147,15 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       res->trajectory.times.push_back(frames[next]);
       res->trajectory.positions.push_back(frame);
       res->trajectory.velocities.push_back(frame_v);
+      if (virtual_particles) {
+        virtual_particles->Update(frames[next], frame);
+        virtual_particles->RecordFrame(frame, &res->trajectory.virtual_particles);
+      }
       ++next;
+    }
+    if (virtual_particles) {  // back to the step's end: the next step's topology
+      d.current_state(&frame, &frame_v);
+      virtual_particles->Update(t, frame);
     }
     if (ok && flag == 2 && d.on_root) {  // an event: the frames before it are stored; jump and restart
       const auto e0 = Clock::now();

@@ -76,6 +76,23 @@ void SummariseCounters(RunSummary* res);
 /// control "sundials". A row that runs it names itself over these.
 void NameSundialsRun(const char* integrator, const char* layer, const ReferenceOptions& options, RunSummary* res);
 
+/// The thesis' virtual particles (model/virtual_particles.h) under a
+/// SUNDIALS integrator, as the thesis' methods have them: the topology of
+/// each internal step's initial state, held through the step's stages,
+/// Newton iterations and root functions. A topology change is a jump of
+/// the force between steps, which the next steps' error test sees
+/// (docs/collisions.md, "Virtual particles under SUNDIALS").
+/// StartVirtualParticles forgets the last run's topology and sets that of
+/// the rest state at t = 0 (call it before the integrator's first
+/// evaluation); RunFrames updates it after every step. Nothing without
+/// virtual particles.
+inline void StartVirtualParticles(const ParticleSystem& sys) {
+  if (VirtualParticles* vp = sys.virtual_particles()) {
+    vp->Clear();
+    vp->Update(0.0, sys.rest_positions());
+  }
+}
+
 /// Calls of one SUNDIALS integrator used by the shared frame loop.
 struct OneStepDriver {
   /// Takes one internal step towards t_end; returns the flag, sets t.
