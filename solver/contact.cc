@@ -173,20 +173,16 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (sys_.is_fixed(p)) continue;
     const bool was = c.obstacle >= 0;
-    // Release below −η‖S_F b‖ only: a holding impulse within the PCG's own
-    // residual is round-off (a contact with no load, J_hold = 0 exactly, was
-    // otherwise released at random).
-    // Not after a predicted entry (SetUp's comment).
+    // Release below −η‖S_F b‖ only (within the PCG's residual a holding
+    // impulse is round-off), and not after a predicted entry (SetUp).
     const bool released = was && !c.entry && c.impulse < -release_tolerance_;
     const double last_impulse = c.impulse;
     const int last_obstacle = c.obstacle;
     const Vector3 last_direction = c.direction;
     c.obstacle = -1;
-    c.sticks = false;
-    c.entry = false;
+    c.sticks = c.entry = false;
     const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
     double best = 1e300, target_velocity = 0.0;
-    bool best_inside = false;
     Vector3 dir = Vector3::Zero(), best_v_rel = Vector3::Zero();
     for (std::size_t k = 0; k < n_obs; ++k) {
       const Obstacle& o = obstacles[k];
@@ -251,7 +247,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
       if (event_tolerance_ > 0.0 && !inside && d - delta > event_tolerance_) entering = false;
       if ((inside || entering) && d < best) {
         best = d;
-        best_inside = inside;
+        c.entry = !inside;
         dir = d_k;
         best_v_rel = v_rel;
         c.obstacle = static_cast<int>(k);
@@ -262,7 +258,6 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     }
     if (c.obstacle < 0) continue;
     c.direction = dir;
-    c.entry = !best_inside;
     filter->Constrain(p, dir, target_velocity);  // (4.4)
     // Coulomb friction from the last step's normal impulse (CoulombFriction).
     const double mu = obstacles[static_cast<std::size_t>(c.obstacle)].spec().friction;
