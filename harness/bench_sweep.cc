@@ -294,6 +294,13 @@ std::string RungName(const RowMethod& m, const Rung& r) {
   }
 }
 
+double PredictedWallTime(StepKind kind, double last_s, double before_s) {
+  if (!(last_s > 0.0)) return 0.0;
+  if (kind != StepKind::kAdaptive) return 2.0 * last_s;
+  if (!(before_s > 0.0)) return 0.0;
+  return last_s * std::max(1.0, last_s / before_s);
+}
+
 int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
@@ -381,6 +388,17 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
       }
       if (!RungExists(m, b, hi + 1) || static_cast<int>(runs.size()) >= kMaxRunsPerMethod) {
         reason = fmt::format("the ladder ends at {}", RungName(m, RungOf(m, b.scene, hi)));
+        break;
+      }
+      const auto before = runs.find(hi - 1);
+      const double predicted =
+          f.ok() ? PredictedWallTime(m.kind(), f.wall_time_s,
+                                     before != runs.end() && before->second.ok() ? before->second.wall_time_s : 0.0)
+                 : 0.0;
+      if (b.time_limit > 0.0 && predicted > b.time_limit) {
+        reason = fmt::format("{} predicted past --time-limit {:g} s (about {:.0f} s from {:.1f} s at {})",
+                             RungName(m, RungOf(m, b.scene, hi + 1)), b.time_limit, predicted, f.wall_time_s,
+                             RungName(m, RungOf(m, b.scene, hi)));
         break;
       }
       run(++hi);

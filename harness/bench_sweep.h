@@ -72,6 +72,16 @@ void RepeatTimings(MethodRun* r, int repeat, double* budget, const std::function
 /// @param wp if given, set to the equal-accuracy table written (rank 0)
 int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp = nullptr);
 
+/// The wall time [s] a --sweep-to-targets refinement will take, from the
+/// last run's `last_s` [s] and, for an adaptive row, the run's before it
+/// `before_s` [s] (≤ 0: none or not ok): twice `last_s` where the
+/// refinement doubles the steps, substeps or iterations; for an adaptive row
+/// (rtol / 10) `last_s` times the last refinement's growth (at least 1).
+/// 0 (no prediction) without the runs it needs. The sweep does not start a
+/// run predicted past --time-limit, which would cost the whole limit and
+/// end time_limit (docs/work-precision.md, "Sweeps driven by the targets").
+double PredictedWallTime(StepKind kind, double last_s, double before_s);
+
 /// --sizes (docs/work-precision.md, "The size axis"): RunBench for each of
 /// `runs` (one per size, increasing, each on its refined scene with its own
 /// result file and journal), then the verdict file `out`: per size

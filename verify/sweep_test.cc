@@ -19,6 +19,7 @@
 
 #include <fmt/format.h>
 
+#include "harness/bench_sweep.h"
 #include "harness/run_codec.h"
 #include "harness/sweep.h"
 #include "results/result_reader.h"
@@ -134,6 +135,19 @@ std::size_t RunFiles(const fs::path& journal) {
   if (fs::is_directory(journal))
     for (const auto& e : fs::directory_iterator(journal)) n += e.path().extension() == ".run";
   return n;
+}
+
+// --sweep-to-targets does not start a refinement predicted past
+// --time-limit: h / 2 (and twice the substeps or iterations) costs twice
+// the last run; rtol / 10 the last refinement's growth, never less than the
+// last run; no prediction without the runs it needs. Exact arithmetic.
+TEST(Sweep, ARefinementsWallTimeIsPredictedFromTheLastRuns) {
+  EXPECT_EQ(PredictedWallTime(StepKind::kFixedStep, 12.0, 0.0), 24.0);
+  EXPECT_EQ(PredictedWallTime(StepKind::kIterated, 3.0, 1.0), 6.0);
+  EXPECT_EQ(PredictedWallTime(StepKind::kAdaptive, 6.0, 2.0), 18.0);
+  EXPECT_EQ(PredictedWallTime(StepKind::kAdaptive, 6.0, 8.0), 6.0);
+  EXPECT_EQ(PredictedWallTime(StepKind::kAdaptive, 6.0, 0.0), 0.0);
+  EXPECT_EQ(PredictedWallTime(StepKind::kFixedStep, 0.0, 0.0), 0.0);
 }
 
 TEST(Sweep, BenchIntegratorsOnTwoRanksWritesTheSerialFile) {
