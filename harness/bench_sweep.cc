@@ -235,7 +235,9 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
   r.cross_check = fmt::format("bdf2 h = {:g} s, friction_law = regularised (self-convergence against 2h and 4h{}{})", c.h,
                               !c.ok()              ? fmt::format(": {}", ToString(c.status))
                               : std::isnan(order) ? ": not in its asymptotic range"
-                                                  : fmt::format(", observed order {:.2f}", order),
+                              : c.error_estimate_m < 0.0
+                                  ? fmt::format(", observed order {:.2f}: not in its asymptotic range", order)
+                                  : fmt::format(", observed order {:.2f}", order),
                               c.ok() && !c.message.empty() ? "; " + c.message : std::string());
   if (!c.ok()) return r;
   r.cross_check_error_estimate_m = c.error_estimate_m;

@@ -29,12 +29,14 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref);
 /// estimate (RunSummary::error_estimate_m [m]) by Richardson extrapolation
 /// with the observed order: with d₁ = E(x_h, x_2h) and d₂ = E(x_2h, x_4h) in
 /// `metric`, the observed order is p = log2(d₂/d₁) and the error of x_h
-/// about d₁/(2^q − 1) with q = min(p, 1) (Roache, *Verification and
+/// at most F_s d₁/(2^q − 1) with q = min(p, 1) and F_s = 1.25, the Grid
+/// Convergence Index of a three-grid study (Roache, *Verification and
 /// Validation in Computational Science and Engineering*, 1998, §5.4, with
 /// the order capped at the contact response's first, docs/collisions.md
 /// "Orders with contacts": on the round table an accidental p = 4.4 at
-/// h/32 estimated a tenth of the error). With d₂ ≤ d₁ the runs are not in
-/// their asymptotic range and the estimate is unknown.
+/// h/32 estimated a tenth of the error). With d₂ ≤ d₁, or p > 3 (BDF(2)'s
+/// formal order plus one), the runs are not in their asymptotic range and
+/// the estimate is unknown.
 /// It runs at 32 h_floor, 16 h_floor, … and stops at the first h whose
 /// estimate is at most `wanted` [m], or at h_floor [s]; the returned run is
 /// the last, with its estimate (−1 if unknown) and *order = p (NaN if
