@@ -389,7 +389,9 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
         break;
       }
       if (!RungExists(m, b, hi + 1) || static_cast<int>(runs.size()) >= kMaxRunsPerMethod) {
-        reason = fmt::format("the ladder ends at {}", RungName(m, RungOf(m, b.scene, hi)));
+        reason = any_ok ? fmt::format("the ladder ends at {}", RungName(m, RungOf(m, b.scene, hi)))
+                        : fmt::format("no run ended ok, down to {} ({} there)", RungName(m, RungOf(m, b.scene, hi)),
+                                      f.status);
         break;
       }
       const auto before = runs.find(hi - 1);
