@@ -7,9 +7,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
 #include <csignal>
 #include <chrono>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <type_traits>
@@ -28,6 +30,7 @@
 #include "harness/result_writer.h"
 #include "harness/run_request.h"
 #include "model/interrupt.h"
+#include "model/obstacle.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "results/contained_read.h"
@@ -363,6 +366,49 @@ MatrixN3 MatrixArg(const py::object& value, const char* name) {
   for (py::ssize_t p = 0; p < a.shape(0); ++p)
     for (int c = 0; c < 3; ++c) m(p, c) = r(p, c);
   return m;
+}
+
+// obstacle_distances(scene, times, positions): per frame and particle the
+// signed distance [m] to the nearest obstacle of the scene at that time
+// (Obstacle::SignedDistance, negative inside), its unit direction and the
+// obstacle's index. @throws TypeError/ValueError naming times or positions
+py::dict ObstacleDistances(const Scene& scene, const py::object& times_arg, const py::object& positions_arg) {
+  const auto x = RealArrayArg(positions_arg, "positions", 3);
+  const py::module_ np = py::module_::import("numpy");
+  const auto times = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(np.attr("asarray")(times_arg));
+  if (!times || times.ndim() != 1 || times.shape(0) != x.shape(0))
+    throw py::value_error(fmt::format("times: a 1-D array of one time per frame expected ({} frames)", x.shape(0)));
+  for (py::ssize_t k = 0; k < times.shape(0); ++k)
+    if (!std::isfinite(times.at(k))) throw py::value_error(fmt::format("times: element {} is not finite", k));
+  if (scene.obstacles.empty()) throw py::value_error("scene: it has no obstacle");
+  std::vector<Obstacle> obstacles;
+  for (const ObstacleSpec& spec : scene.obstacles) obstacles.emplace_back(spec);
+  const py::ssize_t frames = x.shape(0), n = x.shape(1);
+  py::array_t<double> distance({frames, n}), direction({frames, n, py::ssize_t{3}});
+  py::array_t<int> nearest({frames, n});
+  auto xr = x.unchecked<3>();
+  auto dr = distance.mutable_unchecked<2>();
+  auto nr = direction.mutable_unchecked<3>();
+  auto kr = nearest.mutable_unchecked<2>();
+  for (py::ssize_t f = 0; f < frames; ++f)
+    for (py::ssize_t p = 0; p < n; ++p) {
+      const Vector3 point(xr(f, p, 0), xr(f, p, 1), xr(f, p, 2));
+      dr(f, p) = std::numeric_limits<double>::infinity();
+      kr(f, p) = -1;
+      for (std::size_t k = 0; k < obstacles.size(); ++k) {
+        Vector3 d = Vector3::Zero();
+        const double value = obstacles[k].SignedDistance(times.at(f), point, &d);
+        if (value >= dr(f, p)) continue;
+        dr(f, p) = value;
+        kr(f, p) = static_cast<int>(k);
+        for (int c = 0; c < 3; ++c) nr(f, p, c) = d(c);
+      }
+    }
+  py::dict out;
+  out["distance"] = distance;
+  out["direction"] = direction;
+  out["obstacle"] = nearest;
+  return out;
 }
 
 // run(reference=d): the arrays d holds must be the record's, which run()
@@ -763,6 +809,11 @@ PYBIND11_MODULE(clothbench, m) {
         "result file stores for /reference (the same record keys as run()'s dict: status, steps, rtol, atol, ...), "
         "times, positions, "
         "velocities, step_stats, and the scene_hash that run() and write_results() compare with their scene's.");
+  m.def("obstacle_distances", &ObstacleDistances, py::arg("scene"), py::arg("times"), py::arg("positions"),
+        "Per frame and particle the signed distance [m] to the scene's nearest obstacle at that frame's time "
+        "(negative inside; the model's own query, meshes included), its unit direction and the obstacle's index: "
+        "a dict of distance [F, N], direction [F, N, 3] and obstacle [F, N]. times [F] and positions [F, N, 3] as "
+        "run() returns them. TypeError/ValueError naming the argument; ValueError for a scene without obstacles.");
   m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
         "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");
   m.def("error_rms", [](const py::object& x, const py::object& ref) {

@@ -432,3 +432,24 @@ def test_write_results_defaults_to_the_metric_bench_integrators_uses(tmp_path):
         with h5py.File(out) as f, h5py.File(named) as g:
             assert f.attrs["error_metric"] in (expected, expected.encode())
             assert g.attrs["error_metric"] in ("max", b"max")
+
+
+def test_obstacle_distances_are_the_models_queries():
+    # scenes/sphere_drape.toml: a sphere of radius 0.25 m about (0, 0, 0.5).
+    # A point 1 m above the centre lies 0.75 m outside, one 0.1 m above it
+    # 0.15 m inside, both along +z (exact but for round-off: 1e-12).
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    scene = clothbench.load_scene(os.path.join(root, "scenes", "sphere_drape.toml"))
+    x = np.zeros((1, 2, 3))
+    x[0, 0] = [0.0, 0.0, 1.5]
+    x[0, 1] = [0.0, 0.0, 0.6]
+    near = clothbench.obstacle_distances(scene, [0.0], x)
+    assert near["distance"][0] == pytest.approx([0.75, -0.15], abs=1e-12)
+    assert near["direction"][0, :, 2] == pytest.approx([1.0, 1.0], abs=1e-12)
+    assert list(near["obstacle"][0]) == [0, 0]
+    with pytest.raises(ValueError, match="times"):
+        clothbench.obstacle_distances(scene, [0.0, 1.0], x)
+    with pytest.raises(ValueError, match="positions"):
+        clothbench.obstacle_distances(scene, [0.0], np.zeros((1, 2, 2)))
+    with pytest.raises(ValueError, match="no obstacle"):
+        clothbench.obstacle_distances(clothbench.load_scene("swinging_sheet"), [0.0], x)

@@ -131,6 +131,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       ok = false;
       break;
     }
+    const std::size_t first_frame = next;
     while (next < frames.size() && frames[next] <= t + 1e-12) {
       if (next + 1 == frames.size() || frames[next] == t) {
         d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly
@@ -153,7 +154,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       }
       ++next;
     }
-    if (virtual_particles) {  // back to the step's end: the next step's topology
+    if (virtual_particles && next != first_frame) {  // back to the step's end: the next step's topology
       d.current_state(&frame, &frame_v);
       virtual_particles->Update(t, frame);
     }
