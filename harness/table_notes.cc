@@ -38,14 +38,17 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
         ref.h, ref.steps, ref.wall_time_s,
         ref.error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref.error_estimate_m) : "-");
   return fmt::format(
-      "reference: {} BDF/Newton, {}, rtol = atol = {:g}: {} steps, {:.2f} s, dE/dt = {}; its error estimate: {} "
+      "reference: {} BDF/Newton, {}, rtol = atol = {:g}: {} steps, {:.2f} s{}, dE/dt = {}; its error estimate: {} "
       "against rtol/10 = {}",
       Upper(ref.integrator),
       ref.label.find("/klu") != std::string::npos
           ? std::string("KLU on the first-order Jacobian")
           : fmt::format("the reduced velocity solve ({} PCG)",
                         ref.preconditioner.empty() ? std::string("-") : ref.preconditioner),
-      ref.rtol, ref.steps, ref.wall_time_s, ref.energy_rate_W ? fmt::format("{:.3e} W", *ref.energy_rate_W) : "-",
+      ref.rtol, ref.steps, ref.wall_time_s,
+      ref.cross_check.empty() ? std::string()
+                              : fmt::format(" (beside its checks, {} kernel thread{})", ref.threads, ref.threads == 1 ? "" : "s"),
+      ref.energy_rate_W ? fmt::format("{:.3e} W", *ref.energy_rate_W) : "-",
       error_name, ref.error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref.error_estimate_m) : "-") +
          CrossCheckLine(ref, error_name);
 }

@@ -18,6 +18,7 @@
 #include "harness/methods.h"
 #include "harness/output_lock.h"
 #include "harness/run_codec.h"
+#include "harness/side_by_side.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
 #include "results/run_records.h"
@@ -31,12 +32,12 @@ std::string Sci(double v) { return fmt::format("{:.3e}", v); }
 }  // namespace
 
 // A tight self-convergence run for obstacle scenes (thesis_tables.h):
-// BDF(2) at h_ref with CG tolerance 1e-10, fixed-point tolerance 1e-12 m/s
+// BDF(2) at h_ref with CG tolerance 1e-10, the given fixed-point tolerance
 // and up to 200 updates per step.
-RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
+RunSummary SelfConvergenceReference(const Scene& scene, double h_ref, double fixed_point_tolerance) {
   Scene tight = scene;
   tight.solver.cg_tolerance = 1e-10;
-  tight.solver.fixed_point_tolerance = 1e-12;
+  tight.solver.fixed_point_tolerance = fixed_point_tolerance;
   tight.solver.max_updates = 200;
   const ParticleSystem tight_sys(tight);
   RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
@@ -49,17 +50,45 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref) {
 }
 
 RunSummary ContactCrossCheck(const Scene& scene, double h_floor, double wanted, ErrorMetric metric, double* order,
-                             const std::function<void(double h)>& started) {
+                             const std::function<void(double h)>& started, SideBySide* side,
+                             const std::function<void()>& queued) {
   Scene regularised = scene;
   regularised.solver.friction_law = FrictionLaw::kRegularised;
+  regularised.solver.predictor = Predictor::kExtrapolate;
   *order = std::numeric_limits<double>::quiet_NaN();
   constexpr int kRefinements = 5;  // from 32 h_floor
   constexpr double kMaxObservedOrder = 3.0, kSafetyFactor = 1.25;
+  const auto h_of = [&](int j) { return std::ldexp(h_floor, kRefinements - j); };
+  // Every refinement is queued at once: with workers, the next runs while
+  // this one is judged, and what is not needed is cancelled.
+  SideBySide here(0);
+  SideBySide& pool = side ? *side : here;
+  std::size_t first = 0;
+  for (int j = 0; j <= kRefinements; ++j) {
+    const std::size_t i = pool.Submit(
+        [&regularised, h = h_of(j)] { return SelfConvergenceReference(regularised, h, kCrossCheckFixedPointTolerance); });
+    if (j == 0) first = i;
+  }
+  if (queued) queued();
+  // On every way out (an exception too) the runs not needed are cancelled
+  // and waited for: they read `regularised`.
+  struct Drain {
+    SideBySide& pool;
+    std::size_t from, end;
+    ~Drain() {
+      pool.Cancel(from, end);
+      for (std::size_t k = from; k < end; ++k) try {
+          (void)pool.Take(k);
+        } catch (...) {  // the first exception is already on its way
+        }
+    }
+  } drain{pool, first, first + kRefinements + 1};
   RunSummary runs[3];              // x_4h, x_2h, x_h of the last three
   for (int j = 0; j <= kRefinements; ++j) {
-    const double h = std::ldexp(h_floor, kRefinements - j);
+    const double h = h_of(j);
     if (started) started(h);
-    RunSummary run = SelfConvergenceReference(regularised, h);
+    RunSummary run = pool.Take(first + static_cast<std::size_t>(j));
+    drain.from = first + static_cast<std::size_t>(j) + 1;
     if (!run.ok()) {
       if (j < 1) return run;
       // The last ok run stands, with what stopped the refinement.
@@ -89,7 +118,6 @@ RunSummary ContactCrossCheck(const Scene& scene, double h_floor, double wanted, 
   }
   return std::move(runs[2]);
 }
-
 
 namespace {
 

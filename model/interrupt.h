@@ -67,13 +67,39 @@ inline std::chrono::steady_clock::time_point RunDeadline(std::chrono::steady_clo
                      std::chrono::duration<double>(std::min(limit_s, 1e8)));
 }
 
-/// True once this thread's deadline has passed (false without one), or once
-/// SIGINT/SIGTERM arrived: the loops inside a step (the PCG's iterations,
-/// VBD's, PD's and XPBD's iterations and substeps, the setups) end at
-/// either, and the step loop then throws Interrupted (ThrowIfInterrupted)
-/// instead of recording a time limit.
+// A flag that ends the runs of this thread as a passed deadline does: set
+// by another thread when the run is no longer needed (a speculative run of
+// harness/side_by_side.h).
+namespace internal {
+inline thread_local const std::atomic<bool>* g_cancel = nullptr;
+}  // namespace internal
+
+/// Makes `cancel` end this thread's runs (a deadline that another thread
+/// sets) for the object's lifetime.
+class ScopedCancel {
+ public:
+  explicit ScopedCancel(const std::atomic<bool>* cancel) : saved_(internal::g_cancel) { internal::g_cancel = cancel; }
+  ~ScopedCancel() { internal::g_cancel = saved_; }
+  ScopedCancel(const ScopedCancel&) = delete;
+  ScopedCancel& operator=(const ScopedCancel&) = delete;
+
+ private:
+  const std::atomic<bool>* saved_;
+};
+
+/// Whether this thread's runs were cancelled (ScopedCancel).
+inline bool CancelRequested() {
+  const std::atomic<bool>* c = internal::g_cancel;
+  return c != nullptr && c->load(std::memory_order_relaxed);
+}
+
+/// True once this thread's deadline has passed (false without one), once
+/// its runs were cancelled, or once SIGINT/SIGTERM arrived: the loops inside
+/// a step (the PCG's iterations, VBD's, PD's and XPBD's iterations and
+/// substeps, the setups) end at any, and the step loop then throws
+/// Interrupted (ThrowIfInterrupted) instead of recording a time limit.
 inline bool DeadlinePassed() {
-  if (InterruptRequested()) return true;
+  if (InterruptRequested() || CancelRequested()) return true;
   return internal::g_deadline != std::chrono::steady_clock::time_point::max() &&
          std::chrono::steady_clock::now() >= internal::g_deadline;
 }

@@ -125,40 +125,63 @@ EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) c
   e.kinetic = 0.5 * v.rowwise().squaredNorm().cwiseProduct(mass_).sum();
   e.momentum = v.transpose() * mass_;
   e.gravity = -(x.col(0) * g.x() + x.col(1) * g.y() + x.col(2) * g.z()).cwiseProduct(mass_).sum();
+  // Each spring's and each particle's term is computed in parallel into a
+  // buffer of this thread (sized at the first call, before any step loop),
+  // then summed in the serial order: the sums are those of one thread,
+  // bit for bit, for any thread count.
+  thread_local std::vector<double> spring_terms, shear_terms, bend_terms;
   const bool linear = mat.tension_model == TensionModel::kLinear;
-  for (const Spring& s : springs_) {
+  const auto n_springs = static_cast<std::ptrdiff_t>(springs_.size());
+  spring_terms.resize(springs_.size());
+  double* st = spring_terms.data();
+#pragma omp parallel for schedule(static) if (n_springs >= kParallelMinimum)
+  for (std::ptrdiff_t k = 0; k < n_springs; ++k) {
+    const Spring& s = springs_[static_cast<std::size_t>(k)];
     const double len = (x.row(s.b) - x.row(s.a)).norm();
     const double stretch = linear ? len : len - s.rest_length;
-    e.tension += 0.5 * s.stiffness * stretch * stretch;
+    st[k] = 0.5 * s.stiffness * stretch * stretch;
   }
+  for (std::ptrdiff_t k = 0; k < n_springs; ++k) e.tension += st[k];
   const int nu = scene_.grid.nu, nv = scene_.grid.nv;
   const double lu = scene_.lu(), lv = scene_.lv();
-  auto at = [&](int i, int j) { return Vector3(x.row(scene_.Index(i, j)).transpose()); };
+  const bool shear = mat.shear != 0.0;
   const bool bend = mat.bend_model != BendModel::kNone && (mat.bend[0] != 0.0 || mat.bend[1] != 0.0);
-  for (int j = 0; j < nv; ++j)
-    for (int i = 0; i < nu; ++i) {
+  if (!shear && !bend) return e;
+  const std::ptrdiff_t n_grid = static_cast<std::ptrdiff_t>(nu) * nv;
+  shear_terms.resize(static_cast<std::size_t>(n_grid));
+  bend_terms.resize(static_cast<std::size_t>(n_grid));
+  double* sh = shear_terms.data();
+  double* be = bend_terms.data();
+#pragma omp parallel for schedule(static) if (n_grid >= kParallelMinimum / 2)
+  for (std::ptrdiff_t k = 0; k < n_grid; ++k) {
+    const int j = static_cast<int>(k / nu), i = static_cast<int>(k % nu);
+    auto at = [&](int a, int b) { return Vector3(x.row(scene_.Index(a, b)).transpose()); };
+    if (shear) {
       // Shear strain γ with one-sided differences on the border (docs/model.md §2.2).
-      if (mat.shear != 0.0) {
-        const int r = std::min(i + 1, nu - 1), l = std::max(i - 1, 0), u = std::min(j + 1, nv - 1), d = std::max(j - 1, 0);
-        const Vector3 a = (at(r, j) - at(l, j)) / ((r - l) * lu), b = (at(i, u) - at(i, d)) / ((u - d) * lv);
-        const double gamma = a.dot(b);
-        e.shear += 0.5 * mat.shear * gamma * gamma * lu * lv;
-      }
-      if (bend) {
-        // Vertex normal: mean of the unit normals of the adjacent quads.
-        Vector3 n = Vector3::Zero();
-        for (int s : {1, -1})
-          for (int t : {1, -1}) {
-            if (i + s < 0 || i + s >= nu || j + t < 0 || j + t >= nv) continue;
-            const Vector3 nf = (at(i + s, j + t) - at(i, j)).cross(at(i, j + t) - at(i + s, j)) * (s * t);
-            n += nf.normalized();
-          }
-        n.normalize();
-        const double kuu = (i > 0 && i < nu - 1) ? (at(i + 1, j) - 2 * at(i, j) + at(i - 1, j)).dot(n) / (lu * lu) : 0.0;
-        const double kvv = (j > 0 && j < nv - 1) ? (at(i, j + 1) - 2 * at(i, j) + at(i, j - 1)).dot(n) / (lv * lv) : 0.0;
-        e.bending += 0.5 * lu * lv * (mat.bend[0] * kuu * kuu + mat.bend[1] * kvv * kvv);
-      }
+      const int r = std::min(i + 1, nu - 1), l = std::max(i - 1, 0), u = std::min(j + 1, nv - 1), d = std::max(j - 1, 0);
+      const Vector3 a = (at(r, j) - at(l, j)) / ((r - l) * lu), b = (at(i, u) - at(i, d)) / ((u - d) * lv);
+      const double gamma = a.dot(b);
+      sh[k] = 0.5 * mat.shear * gamma * gamma * lu * lv;
     }
+    if (bend) {
+      // Vertex normal: mean of the unit normals of the adjacent quads.
+      Vector3 n = Vector3::Zero();
+      for (int s : {1, -1})
+        for (int t : {1, -1}) {
+          if (i + s < 0 || i + s >= nu || j + t < 0 || j + t >= nv) continue;
+          const Vector3 nf = (at(i + s, j + t) - at(i, j)).cross(at(i, j + t) - at(i + s, j)) * (s * t);
+          n += nf.normalized();
+        }
+      n.normalize();
+      const double kuu = (i > 0 && i < nu - 1) ? (at(i + 1, j) - 2 * at(i, j) + at(i - 1, j)).dot(n) / (lu * lu) : 0.0;
+      const double kvv = (j > 0 && j < nv - 1) ? (at(i, j + 1) - 2 * at(i, j) + at(i, j - 1)).dot(n) / (lv * lv) : 0.0;
+      be[k] = 0.5 * lu * lv * (mat.bend[0] * kuu * kuu + mat.bend[1] * kvv * kvv);
+    }
+  }
+  for (std::ptrdiff_t k = 0; k < n_grid; ++k) {
+    if (shear) e.shear += sh[k];
+    if (bend) e.bending += be[k];
+  }
   return e;
 }
 

@@ -22,6 +22,23 @@ namespace internal {
 inline std::atomic<ProgressSink*> g_progress_sink{nullptr};
 }  // namespace internal
 
+namespace internal {
+inline thread_local bool g_progress_muted = false;
+}  // namespace internal
+
+/// Keeps this thread's steps from the sink for the object's lifetime: the
+/// display follows one run, that of the main thread.
+class ScopedProgressMute {
+ public:
+  ScopedProgressMute() : saved_(internal::g_progress_muted) { internal::g_progress_muted = true; }
+  ~ScopedProgressMute() { internal::g_progress_muted = saved_; }
+  ScopedProgressMute(const ScopedProgressMute&) = delete;
+  ScopedProgressMute& operator=(const ScopedProgressMute&) = delete;
+
+ private:
+  bool saved_;
+};
+
 /// Installs `sink` for the process (nullptr: none). Not owned.
 inline void SetProgressSink(ProgressSink* sink) { internal::g_progress_sink.store(sink, std::memory_order_relaxed); }
 
@@ -30,6 +47,7 @@ inline void SetProgressSink(ProgressSink* sink) { internal::g_progress_sink.stor
 /// run stops after the current step.
 inline void ReportProgress(double t) {
   ThrowIfInterrupted();
+  if (internal::g_progress_muted) return;
   if (ProgressSink* s = internal::g_progress_sink.load(std::memory_order_relaxed)) s->Update(t);
 }
 

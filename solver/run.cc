@@ -236,7 +236,8 @@ bool PastLimits(const StepStats& st, const RunOptions& options, double t, long a
     sum->message = std::move(message);
     return true;
   };
-  if (st.status == StepStatus::kTimeLimit || (options.limits.time_limit_s > 0.0 && elapsed > options.limits.time_limit_s))
+  if (st.status == StepStatus::kTimeLimit || CancelRequested() ||
+      (options.limits.time_limit_s > 0.0 && elapsed > options.limits.time_limit_s))
     return fail(RunStatus::kTimeLimit, fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
                                           options.limits.time_limit_s, t, attempts));
   if (attempts >= options.limits.max_steps && t < options.t_end - 1e-12 * options.t_end)

@@ -7,12 +7,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <stdexcept>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <sys/stat.h>
@@ -21,7 +24,9 @@
 
 #include "harness/bench_sweep.h"
 #include "harness/run_codec.h"
+#include "harness/side_by_side.h"
 #include "harness/sweep.h"
+#include "model/particle_system.h"
 #include "results/result_reader.h"
 #include "verify/cli_helpers.h"
 #include "verify/hdf5_scan.h"
@@ -148,6 +153,66 @@ TEST(Sweep, ARefinementsWallTimeIsPredictedFromTheLastRuns) {
   EXPECT_EQ(PredictedWallTime(StepKind::kAdaptive, 6.0, 8.0), 6.0);
   EXPECT_EQ(PredictedWallTime(StepKind::kAdaptive, 6.0, 0.0), 0.0);
   EXPECT_EQ(PredictedWallTime(StepKind::kFixedStep, 0.0, 0.0), 0.0);
+}
+
+// The reference's checks run side by side (harness/side_by_side.h): runs
+// are taken in submission order, each on one kernel thread; a cancelled
+// run in flight ends as at a deadline (an SBDF(2) run of 10⁷ steps ends
+// time_limit within its next step), and a cancelled queued run never starts.
+TEST(SideBySide, RunsInOrderOnOneKernelThreadAndCancelsWhatIsNotNeeded) {
+  Scene scene = BuiltinScene("swinging_sheet");
+  const ParticleSystem sys(scene);
+  std::atomic<bool> third_started{false};
+  SideBySide pool(1);
+  const std::size_t a = pool.Submit([] {
+    RunSummary r;
+    r.steps = KernelThreads();
+    return r;
+  });
+  std::atomic<bool> second_started{false};
+  const std::size_t b = pool.Submit([&] {
+    second_started = true;
+    return RunIntegrator(sys, Method::kSbdf2, {0.01, 1e5, 1e5});
+  });
+  const std::size_t c = pool.Submit([&] {
+    third_started = true;
+    return RunSummary{};
+  });
+  EXPECT_EQ(pool.Take(a).steps, 1);
+  while (!second_started) std::this_thread::yield();
+  pool.Cancel(b);
+  const RunSummary stopped = pool.Take(b);
+  EXPECT_EQ(stopped.status, RunStatus::kTimeLimit) << stopped.message;
+  EXPECT_NE(stopped.message, "cancelled before it started");
+  EXPECT_LT(stopped.steps, 10000000);
+  const RunSummary never = pool.Take(c);
+  EXPECT_EQ(never.status, RunStatus::kTimeLimit);
+  EXPECT_EQ(never.message, "cancelled before it started");
+  EXPECT_FALSE(third_started);
+}
+
+// Without workers a run is computed when taken, on this thread, and what
+// it throws reaches the caller.
+TEST(SideBySide, WithoutWorkersComputesWhenTakenAndPassesExceptionsOn) {
+  int computed = 0;
+  SideBySide pool(0);
+  const std::size_t a = pool.Submit([&] {
+    RunSummary r;
+    r.steps = ++computed;
+    return r;
+  });
+  const std::size_t b = pool.Submit([]() -> RunSummary { throw std::runtime_error("thrown in a run"); });
+  const std::size_t c = pool.Submit([&] {
+    ++computed;
+    return RunSummary{};
+  });
+  EXPECT_EQ(computed, 0);
+  EXPECT_EQ(pool.Take(a).steps, 1);
+  EXPECT_EQ(computed, 1);
+  EXPECT_THROW((void)pool.Take(b), std::runtime_error);
+  pool.Cancel(c, c + 1);
+  EXPECT_EQ(pool.Take(c).message, "cancelled before it started");
+  EXPECT_EQ(computed, 1);
 }
 
 TEST(Sweep, BenchIntegratorsOnTwoRanksWritesTheSerialFile) {
