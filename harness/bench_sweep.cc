@@ -214,10 +214,11 @@ RunSummary SelfConvergenceRun(const BenchRun& b, double h_ref, const char* role,
 // contact problem in continuous time with event location, and the
 // self-convergence run at h_ref is its cross-check (their difference and
 // its estimate are stored with the reference); with virtual particles the
-// self-convergence run is the reference. The estimate run and the
-// cross-check's refinements run side by side on kCheckWorkers threads of one
-// kernel thread each: on scenes/round_table_10k.toml the reference's
-// checks then take about 4 min instead of 5 (docs/collisions.md).
+// self-convergence run is the reference. With obstacles the reference,
+// its estimate run and the cross-check's refinements run side by side on
+// kCheckWorkers threads of one kernel thread each: on
+// scenes/round_table_10k.toml they took 5 min 20 s, against 7 min 30 s one
+// after the other on two kernel threads (docs/collisions.md).
 constexpr int kCheckWorkers = 2;
 
 RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const RunContext& ctx, double h_ref,
