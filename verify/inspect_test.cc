@@ -283,6 +283,22 @@ void ReplaceDataset(hid_t f, const std::string& path, std::vector<hsize_t> dims,
 void CopyWithString(const std::string& from, const std::string& to, const std::string& object,
                     const std::string& name, const std::string& text);  // below
 
+// `self-intersections`: one line per stored frame of the run (the tiny
+// sheet hangs without folding: no crossing pair, exit 0); an unknown run is
+// one line and exit 2. The counting itself: SelfIntersection.* tests.
+TEST_F(InspectTest, SelfIntersectionsCountsEveryStoredFrame) {
+  ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
+  const Outcome o = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " self-intersections sbdf2_h0.01");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const ResultReader f(file_);
+  const std::vector<std::string> lines = Lines(o.out);
+  ASSERT_EQ(lines.size(), f.Shape("/runs/sbdf2_h0.01/positions")[0]);
+  EXPECT_EQ(lines.front(), "frame 0 t = 0 s: 0 crossing triangle pairs");
+  const Outcome bad = RunCommand(CLOTHBENCH_INSPECT_BINARY, file_ + " self-intersections no_such_run");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("no run \"no_such_run\""), std::string::npos) << bad.err;
+}
+
 TEST_F(InspectTest, BrokenFilesGiveExit2NamingTheDataset) {
   ASSERT_EQ(printed_->exit_code, 0) << printed_->err;
   const auto refused = [&](const std::string& file, const std::string& args, const std::string& named) {
