@@ -14,7 +14,6 @@
 // Exit codes: 0; 1 for `diff` when a change is flagged and for `rerun` when
 // the recomputed end state differs from the stored one; 2 for bad input (an
 // unreadable file, another schema, an unknown run or frame), one line.
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -29,7 +28,7 @@
 
 #include "bench/cli_rules.h"
 #include "bench/signals.h"
-#include "collision/self_intersection.h"
+#include "harness/crossings.h"
 #include "harness/table_notes.h"
 #include "harness/reproduce.h"
 #include "results/contained_read.h"
@@ -96,39 +95,6 @@ void Export(const ResultReader& f, const std::string& run, long frame, const std
   const ExportedFrame e =
       ExportFrame(f, run, frame, obj.empty() ? MeshFormat::kPly : MeshFormat::kObj, path, obj.empty() ? "--ply" : "--obj");
   fmt::print("{}: run {} frame {} (t = {:g} s), {} vertices, {} quads\n", path, run, frame, e.t, e.vertices, e.quads);
-}
-
-// `self-intersections`: per stored frame of a run, the pairs of the cloth's
-// triangles (each stored quad a, b, c, d split as a b c and a c d, the
-// model's GridTriangles) that cross (collision/self_intersection.h).
-// @return 1 if any frame has a crossing pair, else 0
-int PrintSelfIntersections(const ResultReader& f, const std::string& run) {
-  const std::string g = run == "reference" ? "/reference" : "/runs/" + run;
-  if (!f.Exists(g)) throw UsageError(fmt::format("self-intersections: no run \"{}\" in {}", run, f.path()));
-  const std::string dataset = f.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
-  if (!f.Exists(dataset))
-    throw UsageError(fmt::format("self-intersections: run \"{}\" in {} has no stored frames", run, f.path()));
-  const std::vector<int32_t> faces = f.Ints("/scene/faces");
-  std::vector<std::array<int, 3>> triangles;
-  triangles.reserve(faces.size() / 2);
-  for (std::size_t q = 0; q + 3 < faces.size(); q += 4) {
-    triangles.push_back({faces[q], faces[q + 1], faces[q + 2]});
-    triangles.push_back({faces[q], faces[q + 2], faces[q + 3]});
-  }
-  const std::vector<double> times = f.Doubles(g + "/times");
-  const std::size_t frames = f.Shape(dataset)[0];
-  const bool ends = dataset.ends_with("_ends");
-  bool any = false;
-  for (std::size_t k = 0; k < frames; ++k) {
-    ThrowIfInterrupted();
-    const double t = ends ? (k == 0 ? times.front() : times.back()) : times.at(k);
-    const std::vector<std::pair<int, int>> pairs = SelfIntersections(f.Frame(dataset, k), triangles);
-    any = any || !pairs.empty();
-    fmt::print("frame {} t = {:g} s: {} crossing triangle pairs{}\n", k, t, pairs.size(),
-               pairs.empty() ? std::string()
-                             : fmt::format(" (first: triangles {} and {})", pairs.front().first, pairs.front().second));
-  }
-  return any ? 1 : 0;
 }
 
 // `rerun`: recomputes a stored run in-process and says whether its end state
@@ -201,9 +167,7 @@ void AddSubcommands(CLI::App& app, Args* a) {
   a->command->add_option("--dir", a->reproduce.dir, "folder for the scene file and the result (default rerun-RUN)");
   a->command->add_option("--bench", a->reproduce.bench,
                          "bench_integrators to call (default: the one next to this executable)");
-  a->crossings = app.add_subcommand("self-intersections",
-                                     "per stored frame of RUN, the cloth's crossing triangle pairs (CGAL); exit 1 if "
-                                     "any frame has one");
+  a->crossings = app.add_subcommand("self-intersections", "per stored frame of RUN, the cloth's crossing triangle pairs (exit 1 if any)");
   a->crossings->add_option("run", a->crossing_run, "run id (clothbench_inspect FILE runs) or \"reference\"")->required();
   a->rerun_app = app.add_subcommand(
       "rerun", "recompute RUN in-process from the file's scene text and stored settings (validated as a run request), "
@@ -283,7 +247,7 @@ int RunSubcommand(const Args& a) {
     PrintCommand(f, t, a);
   } else if (a.crossings->parsed()) {
     InstallInterruptHandlers();
-    return PrintSelfIntersections(f, a.crossing_run);
+    return PrintSelfIntersections(stdout, f, a.crossing_run) > 0 ? 1 : 0;
   }
   return 0;
 }
