@@ -15,7 +15,7 @@ namespace clothbench {
 /// its time [s] and the number of crossing pairs of the cloth's triangles
 /// (each stored quad a, b, c, d split as a b c and a c d, the model's
 /// GridTriangles), with the first pair. @return the frames with a pair
-/// @throws std::invalid_argument if the file has no such run or no stored frames
+/// @throws ResultError if the file has no such run or no stored frames (StoredFramesOf)
 /// @throws Interrupted on SIGINT/SIGTERM between frames
 long PrintSelfIntersections(std::FILE* out, const ResultReader& f, const std::string& run);
 

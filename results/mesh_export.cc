@@ -7,29 +7,36 @@
 
 namespace clothbench {
 
-ExportedFrame ExportFrame(const ResultReader& f, const std::string& run, long frame, MeshFormat format,
-                          const std::string& path, const std::string& option) {
-  CheckOutputTarget(path, option);
+StoredFrames StoredFramesOf(const ResultReader& f, const std::string& run, const std::string& command) {
   const std::string g = run == "reference" ? "/reference" : "/runs/" + run;
   if (!f.Exists(g)) {
     std::string runs;
     for (const std::string& id : f.Children("/runs")) runs += (runs.empty() ? "" : ", ") + id;
-    throw ResultError(fmt::format("export: no run \"{}\" in {} (runs: reference, {})", run, f.path(), runs));
+    throw ResultError(fmt::format("{}: no run \"{}\" in {} (runs: reference, {})", command, run, f.path(), runs));
   }
-  const std::string dataset = f.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
-  if (!f.Exists(dataset))
-    throw ResultError(fmt::format("export: run \"{}\" in {} has no stored frames (written with --frames none)", run,
-                                  f.path()));
-  const std::size_t frames = f.Shape(dataset)[0];
-  if (frames == 0) throw ResultError(fmt::format("export: {} in {} holds no frames", dataset, f.path()));
+  StoredFrames s;
+  s.dataset = f.Exists(g + "/positions") ? g + "/positions" : g + "/positions_ends";
+  if (!f.Exists(s.dataset))
+    throw ResultError(fmt::format("{}: run \"{}\" in {} has no stored frames (written with --frames none)", command,
+                                  run, f.path()));
+  s.count = f.Shape(s.dataset)[0];
+  if (s.count == 0) throw ResultError(fmt::format("{}: {} in {} holds no frames", command, s.dataset, f.path()));
+  s.times = f.Doubles(g + "/times");
+  return s;
+}
+
+ExportedFrame ExportFrame(const ResultReader& f, const std::string& run, long frame, MeshFormat format,
+                          const std::string& path, const std::string& option) {
+  CheckOutputTarget(path, option);
+  const StoredFrames stored = StoredFramesOf(f, run, "export");
+  const std::string& dataset = stored.dataset;
+  const std::size_t frames = stored.count;
   if (frame < 0 || static_cast<std::size_t>(frame) >= frames)
     throw ResultError(fmt::format("--frame: {} is not a stored frame of {} ({} frames, 0 … {}{})", frame, dataset,
                                   frames, frames - 1, dataset.ends_with("_ends") ? ": t = 0 and t_end" : ""));
   const MatrixN3 x = f.Frame(dataset, static_cast<std::size_t>(frame));
   const std::vector<int32_t> faces = f.Ints("/scene/faces");
-  const std::vector<double> times = f.Doubles(g + "/times");
-  const double t = dataset.ends_with("_ends") ? (frame == 0 ? times.front() : times.back())
-                                              : times[static_cast<std::size_t>(frame)];
+  const double t = stored.TimeOf(static_cast<std::size_t>(frame));
   std::string text;
   if (format == MeshFormat::kObj) {
     text += fmt::format("# {} run {} frame {} (t = {:g} s), positions [m]\n", f.path(), run, frame, t);

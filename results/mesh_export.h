@@ -3,11 +3,31 @@
 #ifndef CLOTHBENCH_RESULTS_MESH_EXPORT_H_
 #define CLOTHBENCH_RESULTS_MESH_EXPORT_H_
 
+#include <cstddef>
 #include <string>
+#include <vector>
 
 #include "results/result_reader.h"
 
 namespace clothbench {
+
+/// The stored position frames of one run: every frame_dt ("positions") or
+/// t = 0 and t_end only ("positions_ends").
+struct StoredFrames {
+  std::string dataset;        ///< the positions dataset [frames, N, 3]
+  std::size_t count = 0;      ///< its frames (≥ 1)
+  std::vector<double> times;  ///< the run's frame times [s]
+  /// The time of frame k [s].
+  double TimeOf(std::size_t k) const {
+    return dataset.ends_with("_ends") ? (k == 0 ? times.front() : times.back()) : times.at(k);
+  }
+};
+
+/// The stored frames of run `run` ("reference" for the reference) of `file`.
+/// @param command names the command in the messages ("export", "self-intersections")
+/// @throws ResultError (one line) for a run that is not in the file or one
+///   without stored frames
+StoredFrames StoredFramesOf(const ResultReader& file, const std::string& run, const std::string& command);
 
 /// The mesh formats a frame is exported to.
 enum class MeshFormat { kObj, kPly };

@@ -20,9 +20,6 @@ class ProgressSink {
 
 namespace internal {
 inline std::atomic<ProgressSink*> g_progress_sink{nullptr};
-}  // namespace internal
-
-namespace internal {
 inline thread_local bool g_progress_muted = false;
 }  // namespace internal
 
