@@ -180,12 +180,15 @@ double SelfConvergenceStep(const BenchRun& b) {
   return (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
 }
 
-// Whether an obstacle scene's reference is the self-convergence run: with
-// virtual particles, whose edge contacts the hybrid system of the SUNDIALS
-// rows does not have (sundials/hybrid_contact.h). Otherwise the reference
-// row (CVODE's event-located contact) is the reference.
+// Whether a scene's reference is the self-convergence run: with virtual
+// particles, whose edge contacts the hybrid system of the SUNDIALS rows
+// does not have (sundials/hybrid_contact.h), and with self-contact, which
+// it has not either. Otherwise the reference row (CVODE's event-located
+// contact) is the reference.
 bool SelfConvergenceIsReference(const ParticleSystem& sys) {
-  return std::any_of(sys.obstacles().begin(), sys.obstacles().end(),
+  const auto& collision = sys.scene().collision;
+  return (collision && collision->self) ||
+         std::any_of(sys.obstacles().begin(), sys.obstacles().end(),
                      [](const Obstacle& o) { return o.spec().virtual_particles; });
 }
 

@@ -488,6 +488,12 @@ struct RowMethod {
           RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
       row.step_control = std::string(ToString(s.step_control));
       if (entry->describe) entry->describe(*stepper, sys, &row);
+    } else if (scene.collision && scene.collision->self) {
+      // SUNDIALS integrates the smooth system between events; self-contact
+      // events (a root function per candidate pair) are not built.
+      row.status = RunStatus::kUnsupportedScene;
+      row.message = "collision.self = true: the SUNDIALS rows have no self-contact events (docs/collisions.md, "
+                    "\"Self-contact\")";
     } else {
       static_cast<RunSummary&>(row) = entry->integrate(
           sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, row_ctx);

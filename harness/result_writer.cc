@@ -43,6 +43,25 @@ void WriteSundialsStats(ResultFile& f, const std::string& g, const SundialsStats
     if (v >= 0) f.SetAttribute(g, name, v);
 }
 
+// A run's self-contact data under group g (docs/results-schema.md): the
+// crossing triangle pairs of every frame, where counted, and the response's
+// counters and times as attributes of g/self_contact.
+void WriteSelfContact(ResultFile& f, const std::string& g, const RunSummary& r) {
+  const std::vector<int32_t>& crossings = r.trajectory.crossing_pairs;
+  if (!crossings.empty()) f.WriteTable(g + "/crossing_pairs", static_cast<int>(crossings.size()), 1, crossings);
+  if (!r.self_contact) return;
+  const SelfContactStats& s = *r.self_contact;
+  const std::string sc = g + "/self_contact";
+  f.CreateGroup(sc);
+  for (auto [name, v] : {std::pair{"steps", s.steps}, {"candidates", s.candidates}, {"broad_phases", s.broad_phases},
+                         {"repulsions", s.repulsions}, {"collisions", s.collisions}, {"zone_passes", s.zone_passes},
+                         {"unresolved_steps", s.unresolved_steps}})
+    f.SetAttribute(sc, name, v);
+  f.SetAttribute(sc, "detection_s", s.detection_seconds);
+  f.SetAttribute(sc, "response_s", s.response_seconds);
+  f.SetAttribute(sc, "work_J", s.work);
+}
+
 // Writes a trajectory's frames under group g: "positions" / "velocities"
 // [F, N, 3] at every frame (aligned with g/times) when `every_*` is set,
 // else "positions_ends" / "velocities_ends" [2, N, 3] at t = 0 and t_end;
@@ -261,6 +280,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
                                 (frames_mode == "default" && first_of_label),
                             frames_mode == "all" || frames_mode == "ends");
     WriteEnergy(f, g, r.energy);
+    WriteSelfContact(f, g, r);
     if (!sys.obstacles().empty()) {
       const PenetrationSeries pen = ComputePenetration(sys, r.trajectory);
       const int frames = static_cast<int>(r.trajectory.times.size());

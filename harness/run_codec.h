@@ -118,6 +118,8 @@ inline void PutTrajectory(ByteWriter& w, const Trajectory& t) {
   w.Vec(t.contact_work_holding);
   w.Vec(t.contact_work_pulling);
   w.Vec(t.contact_work_friction);
+  w.Vec(t.crossing_pairs);
+  w.Vec(t.contact_work_self);
   const VirtualFrames& v = t.virtual_particles;
   for (const auto* ints : {&v.offsets, &v.face_offsets, &v.cloth_edge, &v.obstacle_edge, &v.faces}) w.Vec(*ints);
   w.Vec(v.x);
@@ -132,6 +134,8 @@ inline Trajectory GetTrajectory(ByteReader& r) {
   t.contact_work_holding = r.Vec<double>();
   t.contact_work_pulling = r.Vec<double>();
   t.contact_work_friction = r.Vec<double>();
+  t.crossing_pairs = r.Vec<int32_t>();
+  t.contact_work_self = r.Vec<double>();
   VirtualFrames& v = t.virtual_particles;
   for (auto* ints : {&v.offsets, &v.face_offsets, &v.cloth_edge, &v.obstacle_edge, &v.faces}) *ints = r.Vec<int32_t>();
   v.x = r.Vec<double>();
@@ -170,7 +174,12 @@ inline void CheckTrajectory(const Trajectory& t, long n_particles) {
     for (const MatrixN3& f : *frames)
       if (f.rows() != n_particles || !f.allFinite()) OutOfRange("a frame that is not a finite N×3 matrix");
   }
-  for (const auto* w : {&t.external_work, &t.contact_work_holding, &t.contact_work_pulling, &t.contact_work_friction}) {
+  if (!t.crossing_pairs.empty() && t.crossing_pairs.size() != t.times.size())
+    OutOfRange("a crossing count series not as long as the frame times");
+  for (int32_t c : t.crossing_pairs)
+    if (c < 0) OutOfRange("a negative crossing count");
+  for (const auto* w : {&t.external_work, &t.contact_work_holding, &t.contact_work_pulling, &t.contact_work_friction,
+                        &t.contact_work_self}) {
     if (!w->empty() && w->size() != t.times.size()) OutOfRange("a work series not as long as the frame times");
     for (double v : *w) CheckFinite(v, "work");
   }

@@ -52,6 +52,7 @@ enum class RunStatus {
   kPenetration,
   kTimeLimit,
   kStepLimit,
+  kSelfIntersection,  ///< a stored frame of a run with self-contact has crossing triangle pairs (last: journals store the number)
 };
 
 /// The stored text: "ok", "cg_failed", "energy_growth", … (snake case of the name).

@@ -345,6 +345,22 @@ void ParseSolver(TableReader& top, const std::string& source, Scene& s) {
   if (std::string why; !so.IsValid(&why)) throw SceneError(fmt::format("{}: solver: {}", source, why));
 }
 
+// [collision]: self-contact.
+void ParseCollision(TableReader& top, const std::string& source, Scene& s) {
+  const toml::table* table = top.SubTable("collision");
+  if (!table) return;
+  TableReader c(table, top.Child("collision"), source);
+  SelfCollisionSpec spec;
+  spec.self = c.Bool("self", spec.self);
+  spec.thickness = c.Positive("thickness", spec.thickness);
+  const double lu = s.lu(), lv = s.lv(), closest = lu * lv / std::hypot(lu, lv);
+  if (spec.thickness >= closest)
+    c.Fail("thickness", fmt::format("must be below the rest distance of the grid's closest non-adjacent elements, "
+                                    "lu·lv/sqrt(lu² + lv²) = {:.4g} m", closest));
+  c.RejectUnknown();
+  s.collision = spec;
+}
+
 // [[obstacle]] tables.
 void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
   if (const toml::node* obs = top.Get("obstacle")) {
@@ -558,6 +574,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   ParseConstraints(top, source, s);
   ParseSolver(top, source, s);
   ParseObstacles(top, source, s);
+  ParseCollision(top, source, s);
   top.RejectUnknown();
   if (s.h > s.t_end) top.Fail("h", "must be <= t_end");
   CheckRunLength(s, source);

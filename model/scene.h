@@ -99,6 +99,18 @@ struct ForcesSpec {
   double air = 0.0;                            ///< c_air [kg/(m² s)], (2.37); 0: no term
 };
 
+/// `[collision]`: the cloth against itself (docs/collisions.md, "Self-contact").
+/// Present, every run's stored frames are checked for crossing triangle
+/// pairs; `self` turns the self-contact response on.
+struct SelfCollisionSpec {
+  bool self = false;       ///< respond to self-contact (Bridson et al. 2002)
+  /// [m] the cloth's thickness: pairs closer than it repel. Below the
+  /// flat grid's closest non-adjacent elements, lu·lv/√(lu² + lv²) (a
+  /// vertex to the diagonal of the next quad), so that the rest state is
+  /// free of contact.
+  double thickness = 1e-3;
+};
+
 /// One scene: everything needed to build the particle system and run it.
 struct Scene {
   std::string name = "unnamed";
@@ -112,6 +124,7 @@ struct Scene {
   std::vector<int> fixed;                ///< resolved flat particle indices, sorted, unique
   SolverSpec solver;
   std::vector<ObstacleSpec> obstacles;   ///< `[[obstacle]]` (docs/model.md §7); empty: no detection, no filter
+  std::optional<SelfCollisionSpec> collision;  ///< `[collision]`; absent: no self-contact, frames not checked
   std::string source = "<memory>";       ///< file path or "<embedded>"
   std::string toml;                      ///< the scene's TOML text
 

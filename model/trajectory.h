@@ -43,6 +43,11 @@ struct Trajectory {
   std::vector<MatrixN3> velocities;
   std::vector<double> external_work;
   std::vector<double> contact_work_holding, contact_work_pulling, contact_work_friction;
+  /// With `[collision]` in the scene: per frame the cloth's crossing
+  /// triangle pairs (collision/self_intersection.h), and with `self =
+  /// true` the self-contact response's work since t = 0 [J]; empty otherwise.
+  std::vector<int32_t> crossing_pairs;
+  std::vector<double> contact_work_self;
   VirtualFrames virtual_particles;  ///< per frame, if the scene has them
 };
 

@@ -84,6 +84,11 @@ class BaraffWitkin : public Stepper {
   const ContactResponse::Work* contact_work() const override {
     return contacts_.active() ? &contacts_.work() : nullptr;
   }
+  bool corrects_state() const override { return true; }
+  void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
+    x0_ = x;
+    v0_ = v;
+  }
 
  private:
   const ParticleSystem& sys_;

@@ -81,7 +81,8 @@ double EnergySeries::Rate() const {
 }
 
 double EnergySeries::ContactPower() const {
-  if (t.size() < 2 || contact_work_holding.size() != t.size()) return std::numeric_limits<double>::quiet_NaN();
+  if (t.size() < 2 || (contact_work_holding.size() != t.size() && contact_work_self.size() != t.size()))
+    return std::numeric_limits<double>::quiet_NaN();
   return ContactWork(t.size() - 1) / (t.back() - t.front());
 }
 
@@ -97,6 +98,7 @@ const std::vector<EnergyField>& EnergySeriesFields() {
       {"contact_work_holding", &E::contact_work_holding, true},
       {"contact_work_pulling", &E::contact_work_pulling, true},
       {"contact_work_friction", &E::contact_work_friction, true},
+      {"contact_work_self", &E::contact_work_self, true},
       {"total", &E::total},
   };
   return fields;
@@ -136,6 +138,8 @@ EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& tra
     s.contact_work_pulling = first(traj.contact_work_pulling);
     s.contact_work_friction = first(traj.contact_work_friction);
   }
+  if (f > 0 && traj.contact_work_self.size() >= f)
+    s.contact_work_self.assign(traj.contact_work_self.begin(), traj.contact_work_self.begin() + static_cast<long>(f));
   return s;
 }
 

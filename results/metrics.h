@@ -63,11 +63,15 @@ struct EnergySeries {
   /// holding and pulling constraint impulses and of friction; empty when the
   /// method has none.
   std::vector<double> contact_work_holding, contact_work_pulling, contact_work_friction;
-  /// W_contact at frame k [J] (0 when not tracked).
+  /// Work of the self-contact response since t = 0 [J]; empty without it.
+  std::vector<double> contact_work_self;
+  /// W_contact at frame k [J]: the obstacles' and the self-contact's, each
+  /// where tracked (0 when neither is).
   double ContactWork(std::size_t k) const {
-    return k < contact_work_holding.size()
-               ? contact_work_holding[k] + contact_work_pulling[k] + contact_work_friction[k]
-               : 0.0;
+    return (k < contact_work_holding.size()
+                ? contact_work_holding[k] + contact_work_pulling[k] + contact_work_friction[k]
+                : 0.0) +
+           (k < contact_work_self.size() ? contact_work_self[k] : 0.0);
   }
   std::vector<Vector3> momentum;
   /// (E(t_end) − E(0) − W_ext(t_end) − W_contact(t_end)) / t_end [W]: the
@@ -76,7 +80,7 @@ struct EnergySeries {
   /// the integrator's own drift. Physical damping contributes; the
   /// reference run shows how much.
   double Rate() const;
-  /// W_contact(t_end)/t_end [W], NaN when the contact work is not tracked.
+  /// W_contact(t_end)/t_end [W], NaN when no contact work is tracked.
   double ContactPower() const;
 };
 

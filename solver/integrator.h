@@ -197,6 +197,18 @@ class Stepper {
   /// set changed under event location), or −1 if the stepper does not
   /// locate them.
   virtual long events() const { return -1; }
+  /// Whether CorrectState can replace the state after a step (the
+  /// self-contact response, collision/self_contact_response.h, corrects a
+  /// step's end). A stepper without it is refused on a scene with
+  /// `[collision] self = true` (status unsupported_scene).
+  virtual bool corrects_state() const { return false; }
+  /// Replaces the state at t() after an accepted step by (x, v) (N×3 [m],
+  /// [m/s]), keeping the history the next step uses (a multistep method's
+  /// x₋₁, v₋₁). Only where corrects_state().
+  virtual void CorrectState(const MatrixN3& x, const MatrixN3& v) {
+    (void)x;
+    (void)v;
+  }
   virtual bool LeftLimit(const MatrixN3** x, const MatrixN3** v) const {
     (void)x;
     (void)v;
@@ -235,6 +247,13 @@ class StepEngine : public Stepper {
   }
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   long events() const override { return event_location_ ? events_ : -1; }
+  bool corrects_state() const override { return true; }
+  /// The explicit terms at the old end state are recomputed (g₀).
+  void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
+    x0_ = x;
+    v0_ = v;
+    have_g0_ = false;
+  }
   bool LeftLimit(const MatrixN3** x, const MatrixN3** v) const override {
     if (!jumped_) return false;
     *x = &x_left_;

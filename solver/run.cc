@@ -5,10 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <fmt/format.h>
 #include <omp.h>
 
+#include "collision/self_intersection.h"
+#include "model/edge_projection.h"
 #include "model/interrupt.h"
 #include "solver/hermite.h"
 #include "solver/progress.h"
@@ -251,12 +254,15 @@ bool PastLimits(const StepStats& st, const RunOptions& options, double t, long a
 // to the frames reached.
 class FrameRecorder {
  public:
-  FrameRecorder(const ParticleSystem& system, const Stepper& engine, const RunOptions& options, RunSummary* sum)
+  FrameRecorder(const ParticleSystem& system, const Stepper& engine, const RunOptions& options,
+                const SelfContactResponse* self_contact, RunSummary* sum)
       : frames_(FrameTimes(options.t_end, options.frame_dt)),
         track_work_(system.has_external_work()),
         track_contact_(engine.contact_work() != nullptr),
         virtual_(system.virtual_particles()),
+        self_contact_(self_contact),
         sum_(sum) {
+    if (system.scene().collision) triangles_ = GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices;
     Trajectory& tr = sum->trajectory;
     tr.times.reserve(frames_.size());
     tr.positions.assign(frames_.size(), MatrixN3(system.num_particles(), 3));
@@ -265,22 +271,30 @@ class FrameRecorder {
     if (track_contact_)
       for (auto* w : {&tr.contact_work_holding, &tr.contact_work_pulling, &tr.contact_work_friction})
         w->assign(frames_.size(), 0.0);
+    if (!triangles_.empty()) tr.crossing_pairs.reserve(frames_.size());
+    if (self_contact_) tr.contact_work_self.assign(frames_.size(), 0.0);
     tr.times.push_back(0.0);
     tr.positions[0] = engine.x();
     tr.velocities[0] = engine.v();
+    if (!triangles_.empty()) tr.crossing_pairs.push_back(static_cast<int32_t>(SelfIntersections(engine.x(), triangles_).size()));
     if (virtual_) {
       virtual_->Update(0.0, engine.x());
       virtual_->RecordFrame(engine.x(), &tr.virtual_particles);
     }
   }
-  bool track_contact() const { return track_contact_; }
 
   /// Keeps the frames inside (t_start, t_start + step] of the step from
   /// (x0, v0) to the engine's state, with the external work (work0 → work1)
-  /// and the contact work (contact0 → the engine's) at their instants.
+  /// and the contact work (from StartStep's to the engine's) at their instants.
   /// @return false (sum's status and message set) if a frame fails `guard`
+  /// Notes the contact work series' values at the start of a step.
+  void StartStep(const Stepper& engine) {
+    if (track_contact_) contact0_ = *engine.contact_work();
+    if (self_contact_) self_work0_ = self_contact_->stats().work;
+  }
+
   bool Keep(const Stepper& engine, const MatrixN3& x0, const MatrixN3& v0, double t_start, double step, double work0,
-            double work1, const ContactResponse::Work& contact0, BlowUpGuard& guard) {
+            double work1, BlowUpGuard& guard) {
     Trajectory& tr = sum_->trajectory;
     // Inside a step that ended at a contact event, the frames interpolate
     // to the state before its jumps.
@@ -300,18 +314,34 @@ class FrameRecorder {
       if (track_work_) tr.external_work[next_] = work0 + sc * (work1 - work0);
       if (track_contact_) {
         const ContactResponse::Work& contact1 = *engine.contact_work();  // at its end
-        tr.contact_work_holding[next_] = contact0.holding + sc * (contact1.holding - contact0.holding);
-        tr.contact_work_pulling[next_] = contact0.pulling + sc * (contact1.pulling - contact0.pulling);
-        tr.contact_work_friction[next_] = contact0.friction + sc * (contact1.friction - contact0.friction);
+        tr.contact_work_holding[next_] = contact0_.holding + sc * (contact1.holding - contact0_.holding);
+        tr.contact_work_pulling[next_] = contact0_.pulling + sc * (contact1.pulling - contact0_.pulling);
+        tr.contact_work_friction[next_] = contact0_.friction + sc * (contact1.friction - contact0_.friction);
       }
+      if (self_contact_)
+        tr.contact_work_self[next_] = self_work0_ + sc * (self_contact_->stats().work - self_work0_);
       if (virtual_) {  // the frame's own virtual particles (the next step's, if the frame ends a step)
         virtual_->Update(frames_[next_], tr.positions[next_]);
         virtual_->RecordFrame(tr.positions[next_], &tr.virtual_particles);
       }
       tr.times.push_back(frames_[next_]);
       ++next_;
+      if (!triangles_.empty() && !CountCrossings(tr.positions[next_ - 1], frames_[next_ - 1])) return false;
     }
     return true;
+  }
+
+  /// The frame's crossing triangle pairs into the trajectory; with the
+  /// self-contact response on, a crossing ends the run (the frame is kept).
+  bool CountCrossings(const MatrixN3& x, double t) {
+    const std::vector<std::pair<int, int>> pairs = SelfIntersections(x, triangles_);
+    sum_->trajectory.crossing_pairs.push_back(static_cast<int32_t>(pairs.size()));
+    if (!self_contact_ || pairs.empty()) return true;
+    sum_->status = RunStatus::kSelfIntersection;
+    sum_->message = fmt::format("the cloth crosses itself at t = {:.6g} s: {} crossing triangle pair{} (first: triangles "
+                                "{} and {}) despite the self-contact response",
+                                t, pairs.size(), pairs.size() > 1 ? "s" : "", pairs[0].first, pairs[0].second);
+    return false;
   }
 
   /// A failed run keeps the frames it reached.
@@ -322,14 +352,64 @@ class FrameRecorder {
     if (track_work_) tr.external_work.resize(next_);
     if (track_contact_)
       for (auto* w : {&tr.contact_work_holding, &tr.contact_work_pulling, &tr.contact_work_friction}) w->resize(next_);
+    if (self_contact_) tr.contact_work_self.resize(next_);
   }
 
  private:
   std::vector<double> frames_;
   bool track_work_, track_contact_;
   VirtualParticles* virtual_;
+  const SelfContactResponse* self_contact_;
+  ContactResponse::Work contact0_;  // at the start of the step
+  double self_work0_ = 0.0;
+  std::vector<std::array<int, 3>> triangles_;  // the cloth's, if its frames are checked for crossings
   RunSummary* sum_;
   std::size_t next_ = 1;
+};
+
+// The self-contact response (collision/self_contact_response.h) of a run
+// on a scene with `[collision] self = true`: it corrects every accepted
+// step's end state, for the steppers that take a correction.
+class SelfContactStage {
+ public:
+  explicit SelfContactStage(const ParticleSystem& system) : sys_(system) {
+    if (const auto& collision = system.scene().collision; collision && collision->self)
+      response_.emplace(system, collision->thickness);
+  }
+  /// True (sum's status and message set) if the scene has self-contact and
+  /// the stepper takes no correction.
+  bool Refuses(const Stepper& engine, RunSummary* sum) const {
+    if (!response_ || engine.corrects_state()) return false;
+    sum->status = RunStatus::kUnsupportedScene;
+    sum->message = "collision.self = true: this method has no self-contact response (docs/collisions.md, "
+                   "\"Self-contact\")";
+    return true;
+  }
+  const SelfContactResponse* response() const { return response_ ? &*response_ : nullptr; }
+  double work() const { return response_ ? response_->stats().work : 0.0; }
+  /// Corrects the step of size h from x_prev to the engine's state; its wall time [s].
+  double Correct(double h, const MatrixN3& x_prev, Stepper& engine) {
+    if (!response_) return 0.0;
+    const auto start = std::chrono::steady_clock::now();
+    x_ = engine.x();
+    v_ = engine.v();
+    response_->Respond(h, x_prev, &x_, &v_);
+    engine.CorrectState(x_, v_);
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  /// W_contact for the blow-up guard: the engine's contact work, plus the
+  /// self-contact's where the obstacles' is counted or there are none.
+  std::optional<double> ContactWork(const Stepper& engine) const {
+    const ContactResponse::Work* contact = engine.contact_work();
+    std::optional<double> total = contact ? std::optional(contact->total()) : std::nullopt;
+    if (response_ && (contact || sys_.obstacles().empty())) total = total.value_or(0.0) + work();
+    return total;
+  }
+
+ private:
+  const ParticleSystem& sys_;
+  std::optional<SelfContactResponse> response_;
+  MatrixN3 x_, v_;  // the corrected state (allocated at the first step)
 };
 
 // The next step's end and size. Fixed steps (docs/model.md, "Fixed
@@ -442,6 +522,16 @@ void FinishRun(const Stepper& engine, const BlowUpGuard& guard, const VirtualPar
   sum->wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 }
 
+// Puts the engine at rest at t = 0; the scene's virtual particles, if any.
+// They start empty, before Reset evaluates any force (the error estimate's
+// initial slope): the last run's topology would leak into this one.
+VirtualParticles* ResetToRest(const ParticleSystem& system, Stepper& engine) {
+  VirtualParticles* const virtual_particles = system.virtual_particles();
+  if (virtual_particles) virtual_particles->Clear();
+  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  return virtual_particles;
+}
+
 }  // namespace
 
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
@@ -458,15 +548,11 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.error_test_failures = spec.step_control == StepControl::kError ? 0 : -1;
   double solver_seconds = 0.0;
 
-  // The virtual particles start empty, before Reset evaluates any force
-  // (the error estimate's initial slope): the last run's topology would
-  // leak into this one.
-  VirtualParticles* const virtual_particles = system.virtual_particles();
-  if (virtual_particles) virtual_particles->Clear();
-  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  VirtualParticles* const virtual_particles = ResetToRest(system, engine);
+  SelfContactStage self_contact(system);
+  if (self_contact.Refuses(engine, &sum)) return sum;
   // Frames, work series and step statistics are allocated before the loop.
-  FrameRecorder recorder(system, engine, options, &sum);
-  ContactResponse::Work contact0;  // at the start of the step
+  FrameRecorder recorder(system, engine, options, self_contact.response(), &sum);
   ExternalWork external(system, engine.x(), engine.v());
   sum.step_stats.reserve(static_cast<std::size_t>(
       std::min(std::ceil(options.t_end / options.h), static_cast<double>(options.limits.max_steps))) + 64);
@@ -499,7 +585,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
 
     x_prev = engine.x();
     v_prev = engine.v();
-    if (recorder.track_contact()) contact0 = *engine.contact_work();
+    recorder.StartStep(engine);
     // The thesis' virtual particles of this step, from its initial state
     // (§5.2–5.4): every force evaluation of the step uses them. A frame at
     // the last step's end has computed them already; their time is added
@@ -528,6 +614,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       fail(RunStatus::kNonFinite, fmt::format("the state became non-finite in the step to t = {:.6g} s", engine.t()));
       break;
     }
+    solver_seconds += self_contact.Correct(step, x_prev, engine);
     ++sum.steps;
     if (st.pcg_status != PcgStatus::kConverged) ++sum.cg_unconverged;  // kept by the stepper
     if (on_grid) {
@@ -542,10 +629,9 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     const double work0 = external.work();
     const double work = external.Advance(step, engine.t(), engine.x(), engine.v());
     // Every accepted step's state against the guard, then its frames.
-    const ContactResponse::Work* contact = engine.contact_work();
-    if (!guard.Check(engine.t(), engine.x(), engine.v(), work,
-                     contact ? std::optional(contact->total()) : std::nullopt, &sum.status, &sum.message) ||
-        !recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, contact0, guard))
+    if (!guard.Check(engine.t(), engine.x(), engine.v(), work, self_contact.ContactWork(engine), &sum.status,
+                     &sum.message) ||
+        !recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, guard))
       break;
 
     // Step-size selection, one rule per step control.
@@ -562,6 +648,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   }
   recorder.Trim();
   FinishRun(engine, guard, virtual_particles, solver_seconds, wall_start, &sum);
+  if (self_contact.response()) sum.self_contact = self_contact.response()->stats();
   return sum;
 }
 

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "collision/self_contact_response.h"
 #include "model/particle_system.h"
 #include "model/run_record.h"
 #include "model/trajectory.h"
@@ -77,6 +78,8 @@ struct RunSummary : RunRecord {
   std::vector<StepStats> step_stats;
   Trajectory trajectory;
   std::optional<SundialsStats> sundials;  ///< SUNDIALS runs only
+  /// Runs with `[collision] self = true`: what the self-contact response did.
+  std::optional<SelfContactStats> self_contact;
 
 };
 

@@ -1,0 +1,91 @@
+// Self-contact of the cloth (docs/collisions.md, "Self-contact"): the
+// point–triangle and edge–edge pairs of its grid triangles that come within
+// a thickness of each other or cross during a step, and the response of
+// Bridson, Fedkiw & Anderson 2002 (§6–7): repulsion within the thickness,
+// inelastic impulses at the instants the continuous collision detection
+// (CCD) finds, and rigid impact zones (§7.4, after Provot 1997) where
+// impulses alone leave a collision. The broad phase is CGAL's
+// box_intersection_d on boxes swept over the step.
+#ifndef CLOTHBENCH_COLLISION_SELF_CONTACT_H_
+#define CLOTHBENCH_COLLISION_SELF_CONTACT_H_
+
+#include <array>
+#include <vector>
+
+#include "model/types.h"
+
+namespace clothbench {
+
+/// One pair of cloth elements that share no particle. kPointTriangle:
+/// p = {point, a, b, c}; kEdgeEdge: p = {a, b, c, d}, the edges a–b and c–d.
+struct SelfContactPair {
+  enum Kind : int { kPointTriangle = 0, kEdgeEdge = 1 };
+  Kind kind = kPointTriangle;
+  std::array<int, 4> p{};
+  friend bool operator<(const SelfContactPair& l, const SelfContactPair& r) {
+    return l.kind != r.kind ? l.kind < r.kind : l.p < r.p;
+  }
+  friend bool operator==(const SelfContactPair& l, const SelfContactPair& r) { return l.kind == r.kind && l.p == r.p; }
+};
+
+/// Where a pair is closest, or where it touched: the weights w of its four
+/// particles (relative position Σ w_k x_k: point minus triangle point, or
+/// the first edge's point minus the second's), the unit normal n along
+/// which that relative position is measured, and the distance [m].
+struct PairGeometry {
+  std::array<double, 4> w{};
+  Vector3 n = Vector3::UnitZ();
+  double distance = 0.0;
+};
+
+/// The closest points of `pair` at positions x (N×3 [m]): the weights, the
+/// distance and the unit normal from the second element to the first (at
+/// zero distance: the triangle's normal, or the edges' cross product).
+/// Ericson, Real-Time Collision Detection (2005), §5.1.5 and §5.1.9.
+PairGeometry Closest(const SelfContactPair& pair, const MatrixN3& x);
+
+/// The first instant θ ∈ [0, 1] at which `pair`, its particles moving on
+/// straight lines from x0 to x1 (N×3 [m]), is coplanar (the cubic of
+/// Provot 1997 and Bridson et al. 2002, §6.3) with a distance of at most
+/// `tolerance` [m]; the geometry there in *at (its normal turned against
+/// the pair's relative motion over the step). false if none.
+bool FirstCoplanarContact(const SelfContactPair& pair, const MatrixN3& x0, const MatrixN3& x1, double tolerance,
+                          double* theta, PairGeometry* at);
+
+/// The candidate pairs of a cloth's triangles over a step: the broad phase.
+class SelfContactDetector {
+ public:
+  /// @param triangles the cloth's triangles (GridTriangles(nu, nv).vertices,
+  ///        model/edge_projection.h), indices into N particles
+  /// @param num_particles N
+  /// @throws std::invalid_argument if a triangle names a particle outside [0, N)
+  SelfContactDetector(const std::vector<std::array<int, 3>>& triangles, int num_particles);
+
+  /// Every point–triangle and edge–edge pair that shares no particle and
+  /// whose boxes, each the bounding box of its element at x0 and at x1
+  /// (N×3 [m]) grown by `margin` [m], overlap: a superset of the pairs
+  /// within `margin` at x0 and of those that touch while moving linearly
+  /// from x0 to x1. CGAL's box_self_intersection_d boxes the triangles
+  /// only; each element pair comes from the pair of triangles that own its
+  /// elements, once, in CGAL's order of report (the same for the same
+  /// input; the response sorts the pairs it acts on); `out` is reused.
+  void Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin, std::vector<SelfContactPair>* out);
+
+  const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
+  const std::vector<std::array<int, 2>>& edges() const { return edges_; }
+
+ private:
+  std::vector<std::array<int, 3>> triangles_;
+  std::vector<std::array<int, 2>> edges_;  // unique, sorted, a < b
+  int num_particles_;
+  // Per triangle the particles and edges (indices into edges_) it owns, the
+  // first triangle to hold them; −1 elsewhere. The broad phase boxes only
+  // triangles and takes each element pair from its owners' pair.
+  std::vector<std::array<int, 3>> owned_points_, owned_edges_;
+  // Boxes of one call (allocated once): particles, edges, triangles.
+  std::vector<Vector3> point_lo_, point_hi_, edge_lo_, edge_hi_, tri_lo_, tri_hi_;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_COLLISION_SELF_CONTACT_H_

@@ -1,0 +1,104 @@
+// The cloth's response to contact with itself (docs/collisions.md,
+// "Self-contact"), after Bridson, Fedkiw & Anderson 2002, "Robust
+// treatment of collisions, contact and friction for cloth animation", §7:
+// a step's end state is corrected through its mean velocity ν = (x₁ − x₀)/h
+//   1. repulsion (§7.2): every pair closer than the thickness at x₀ has its
+//      relative normal velocity raised to at least 0.1 (thickness − d)/h,
+//      which also stops an approaching pair (the inelastic impulse);
+//   2. collision impulses (§7.3): every pair that the CCD finds touching
+//      along x₀ → x₀ + hν has its relative normal velocity set to zero, by
+//      Gauss–Seidel passes in the pairs' sorted order, until none is found
+//      or kImpulsePasses are spent;
+//   3. rigid impact zones (§7.4, Provot 1997): the particles of the pairs
+//      still colliding are merged into zones that move rigidly (their
+//      linear and angular momentum kept; a zone holding a fixed particle
+//      stops), until no pair collides or kZonePasses are spent.
+// Impulses are weighted by inverse mass (fixed particles: none) and so keep
+// the linear momentum. The state becomes x₁ + hΔν, v₁ + Δν.
+#ifndef CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_
+#define CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_
+
+#include <vector>
+
+#include "collision/self_contact.h"
+#include "model/particle_system.h"
+
+namespace clothbench {
+
+/// What the response did since Reset.
+struct SelfContactStats {
+  long steps = 0;                ///< steps responded to
+  long candidates = 0;           ///< broad-phase pairs examined, summed over the passes
+  long broad_phases = 0;         ///< broad-phase passes (CGAL box_intersection_d)
+  long repulsions = 0;           ///< repulsion impulses (stage 1)
+  long collisions = 0;           ///< collision impulses (stage 2)
+  long zone_passes = 0;          ///< impact-zone passes (stage 3)
+  long unresolved_steps = 0;     ///< steps that ended with a collision left
+  double detection_seconds = 0;  ///< broad phase, closest points and CCD [s]
+  double response_seconds = 0;   ///< impulses, zones and the work's energies [s]
+  double work = 0.0;             ///< W_self: the energy the corrections added (< 0: removed) [J]
+};
+
+class SelfContactResponse {
+ public:
+  static constexpr double kRepulsion = 0.1;  ///< Bridson et al. 2002, §7.2: 0.1 d/Δt
+  static constexpr int kImpulsePasses = 8;
+  static constexpr int kZonePasses = 100;
+  /// A coplanar instant is a collision when the pair is within this
+  /// fraction of the thickness: the bisection finds it to round-off, so
+  /// this only widens a crossing through an element's border.
+  static constexpr double kCcdToleranceFraction = 1e-3;
+
+  /// @param system the cloth (masses, fixed particles, grid; must outlive this)
+  /// @param thickness [m], > 0
+  SelfContactResponse(const ParticleSystem& system, double thickness);
+
+  void Reset() { stats_ = SelfContactStats{}; }
+  /// Corrects the step of size h [s] from x0 to (x1, v1) (N×3 [m], [m/s],
+  /// changed in place) as above.
+  /// @return the pairs still colliding along x₀ → x₁ after it (0 unless
+  ///         the impact zones ran out of passes)
+  int Respond(double h, const MatrixN3& x0, MatrixN3* x1, MatrixN3* v1);
+  const SelfContactStats& stats() const { return stats_; }
+  double thickness() const { return thickness_; }
+
+ private:
+  // Sets the pair's relative velocity along g.n to at least `target` [m/s]
+  // by an impulse weighted by inverse mass; updates x_end's rows. true if applied.
+  bool Push(const SelfContactPair& pair, const PairGeometry& g, double target, double h, const MatrixN3& x0);
+  // Broad phase for the path x₀ → x_end_, unless the last one still covers it.
+  void RefreshCandidates(const MatrixN3& x0);
+  // Broad phase for x₀ → x_end_, boxes grown by 2·thickness; x_box_ = x_end_.
+  void BroadPhase(const MatrixN3& x0);
+  // The pairs colliding along x₀ → x_end_ (stage 2 applies impulses as it goes).
+  int CollisionPass(double h, const MatrixN3& x0, bool apply, std::vector<int>* colliding);
+  void RigidZones(const MatrixN3& x0, const std::vector<int>& colliding);
+  int Find(int p);
+
+  const ParticleSystem& sys_;
+  double thickness_;
+  SelfContactDetector detector_;
+  Eigen::VectorXd inverse_mass_;
+  SelfContactStats stats_;
+  double h_ = 0.0;  // of the step being corrected [s]
+  // Scratch of one step.
+  MatrixN3 nu_, nu_start_, x_end_, x_box_;
+  std::vector<SelfContactPair> candidates_;
+  std::vector<double> distance0_;  // each candidate's distance at x₀ [m]
+  std::vector<char> touching_;     // a pass's test of each candidate
+  // The candidates a stage acts on, in the pairs' order (SortActing): the
+  // impulses do not depend on the order of CGAL's report.
+  std::vector<std::size_t> acting_;
+  void SortActing();
+  static constexpr long kParallelPairs = 4096;  // fewer pairs: one thread
+  std::vector<int> parent_;   // impact zones (union–find over particles)
+  // Particles whose x_end changed since the last pass tested them; whether
+  // the next pass tests every candidate (after a broad phase).
+  std::vector<char> moved_, moved_before_;
+  bool test_all_ = true;
+  std::vector<char> in_zone_;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_

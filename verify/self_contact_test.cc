@@ -1,0 +1,247 @@
+// Self-contact detection and response (collision/self_contact.h,
+// self_contact_response.h) on configurations whose answer is known: closest
+// points and coplanarity instants in closed form, the broad phase against a
+// brute-force check of every pair, and the response on two layers that
+// cross each other in one step without it.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "collision/self_contact_response.h"
+#include "collision/self_intersection.h"
+#include "model/edge_projection.h"
+#include "model/particle_system.h"
+
+namespace clothbench {
+namespace {
+
+MatrixN3 Points(std::initializer_list<Vector3> rows) {
+  MatrixN3 x(static_cast<Eigen::Index>(rows.size()), 3);
+  Eigen::Index k = 0;
+  for (const Vector3& r : rows) x.row(k++) = r.transpose();
+  return x;
+}
+
+// The relative position Σ w_k x_k of a pair's weights.
+Vector3 Relative(const SelfContactPair& pair, const PairGeometry& g, const MatrixN3& x) {
+  Vector3 r = Vector3::Zero();
+  for (std::size_t k = 0; k < 4; ++k) r += g.w[k] * x.row(pair.p[k]).transpose();
+  return r;
+}
+
+TEST(SelfContact, ClosestPointsOfAPointAndATriangleAndOfTwoEdges) {
+  // Triangle in z = 0; a point 0.3 above its interior point (0.25, 0.25).
+  const MatrixN3 x = Points({{0.25, 0.25, 0.3}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+  const SelfContactPair pt{SelfContactPair::kPointTriangle, {0, 1, 2, 3}};
+  const PairGeometry g = Closest(pt, x);
+  // Exact up to round-off of a few operations on numbers of order 1.
+  EXPECT_NEAR(g.distance, 0.3, 1e-15);
+  EXPECT_NEAR(g.n.z(), 1.0, 1e-15);
+  EXPECT_NEAR(g.w[1], -0.5, 1e-15);  // −(1 − 0.25 − 0.25)
+  EXPECT_NEAR(g.w[2], -0.25, 1e-15);
+  EXPECT_NEAR(g.w[3], -0.25, 1e-15);
+  // Beyond the edge from (1,0,0) to (0,1,0): the closest point is on it.
+  const MatrixN3 y = Points({{1, 1, 0}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+  EXPECT_NEAR(Closest(pt, y).distance, std::sqrt(0.5), 1e-15);
+  // Two skew edges: x-axis segment at z = 0, y-direction segment at z = 0.2
+  // through (0.4, ·): closest at s = 0.4, t = 0.5, distance 0.2.
+  const MatrixN3 e = Points({{0, 0, 0}, {1, 0, 0}, {0.4, -1, 0.2}, {0.4, 1, 0.2}});
+  const SelfContactPair ee{SelfContactPair::kEdgeEdge, {0, 1, 2, 3}};
+  const PairGeometry h = Closest(ee, e);
+  EXPECT_NEAR(h.distance, 0.2, 1e-15);
+  EXPECT_NEAR(h.w[1], 0.4, 1e-15);
+  EXPECT_NEAR(h.w[3], -0.5, 1e-15);
+  EXPECT_NEAR(h.n.z(), -1.0, 1e-15);  // from the second edge to the first
+  EXPECT_NEAR((Relative(ee, h, e) - h.distance * h.n).norm(), 0.0, 1e-15);
+}
+
+TEST(SelfContact, CoplanarInstantOfAPointThroughATriangleAndOfCrossingEdges) {
+  const SelfContactPair pt{SelfContactPair::kPointTriangle, {0, 1, 2, 3}};
+  const MatrixN3 x0 = Points({{0.2, 0.2, 0.3}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+  MatrixN3 x1 = x0;
+  x1(0, 2) = -0.1;  // through the plane at θ = 0.3/0.4 = 0.75
+  double theta = 0.0;
+  PairGeometry g;
+  ASSERT_TRUE(FirstCoplanarContact(pt, x0, x1, 1e-9, &theta, &g));
+  // Bisection to 1e-15 of the step.
+  EXPECT_NEAR(theta, 0.75, 1e-14);
+  EXPECT_NEAR(g.n.z(), 1.0, 1e-15);  // against the relative motion (−z)
+  // The same motion beside the triangle (x = y = 0.8, outside it): none.
+  MatrixN3 b0 = x0, b1 = x1;
+  b0.row(0) << 0.8, 0.8, 0.3;
+  b1.row(0) << 0.8, 0.8, -0.1;
+  EXPECT_FALSE(FirstCoplanarContact(pt, b0, b1, 1e-9, &theta, &g));
+  // A tilting triangle: its plane z = c_z y turns about the x-axis as c_z
+  // runs from −0.5 to 0.5 and meets the point at rest at c_z = 0.2.
+  const SelfContactPair tilt{SelfContactPair::kPointTriangle, {0, 1, 2, 3}};
+  const MatrixN3 r0 = Points({{0.1, 0.5, 0.1}, {0, 0, 0}, {1, 0, 0}, {0, 1, -0.5}});
+  MatrixN3 r1 = r0;
+  r1.row(3) << 0, 1, 0.5;  // c_z = −0.5 + θ = 0.2: θ = 0.7
+  ASSERT_TRUE(FirstCoplanarContact(tilt, r0, r1, 1e-9, &theta, &g));
+  EXPECT_NEAR(theta, 0.7, 1e-14);
+  // Edges crossing: a y-edge at z = 0.1 drops to z = −0.1 through the x-edge.
+  const SelfContactPair ee{SelfContactPair::kEdgeEdge, {0, 1, 2, 3}};
+  const MatrixN3 e0 = Points({{0, 0, 0}, {1, 0, 0}, {0.5, -1, 0.1}, {0.5, 1, 0.1}});
+  MatrixN3 e1 = e0;
+  e1(2, 2) = e1(3, 2) = -0.1;
+  ASSERT_TRUE(FirstCoplanarContact(ee, e0, e1, 1e-9, &theta, &g));
+  EXPECT_NEAR(theta, 0.5, 1e-14);
+  EXPECT_NEAR(g.w[1], 0.5, 1e-12);
+  // Moved along x past the first edge's end (x = 1.5): parallel planes meet, no contact.
+  MatrixN3 f0 = e0, f1 = e1;
+  for (MatrixN3* m : {&f0, &f1}) (*m)(2, 0) = (*m)(3, 0) = 1.5;
+  EXPECT_FALSE(FirstCoplanarContact(ee, f0, f1, 1e-9, &theta, &g));
+}
+
+// A sheet of side × side particles (spacing l = 0.6/(side − 1)) folded into a
+// hairpin along v: two layers `gap` apart that move toward each other over
+// the step, by `move` at their free ends and less toward the fold, in
+// proportion to the depth: they end crossing each other along a line.
+Scene HairpinScene(int side, double thickness) {
+  Scene s = DefaultScene();
+  s.grid.nu = s.grid.nv = side;
+  s.grid.size = {0.6, 0.6};
+  s.fixed.clear();
+  s.fixed_specs.clear();
+  s.collision = SelfCollisionSpec{true, thickness};
+  return s;
+}
+void Hairpin(const ParticleSystem& sys, double gap, double move, MatrixN3* x0, MatrixN3* x1) {
+  const Scene& s = sys.scene();
+  const double radius = 0.5 * gap, arc = std::numbers::pi * radius, leg = 0.5 * (0.6 - arc);
+  x0->resize(sys.num_particles(), 3);
+  for (int j = 0; j < s.grid.nv; ++j) {
+    const double along = 0.6 * j / (s.grid.nv - 1);
+    double y = 0.0, z = 0.0;
+    if (along < leg) {
+      y = -radius, z = -(leg - along);
+    } else if (along < leg + arc) {
+      y = -radius * std::cos((along - leg) / radius), z = radius * std::sin((along - leg) / radius);
+    } else {
+      y = radius, z = -(along - leg - arc);
+    }
+    for (int i = 0; i < s.grid.nu; ++i) x0->row(s.Index(i, j)) << 0.6 * i / (s.grid.nu - 1), y, z;
+  }
+  *x1 = *x0;
+  for (int p = 0; p < sys.num_particles(); ++p)
+    if (std::abs((*x0)(p, 1)) >= radius * (1.0 - 1e-12))
+      (*x1)(p, 1) -= std::copysign(move * -(*x0)(p, 2) / leg, (*x0)(p, 1));
+}
+
+// Every pair of elements that share no particle, checked directly.
+std::vector<SelfContactPair> AllPairs(const SelfContactDetector& d) {
+  std::vector<SelfContactPair> all;
+  const int n = [&] {
+    int m = 0;
+    for (const auto& t : d.triangles()) m = std::max({m, t[0], t[1], t[2]});
+    return m + 1;
+  }();
+  for (int p = 0; p < n; ++p)
+    for (const auto& t : d.triangles())
+      if (p != t[0] && p != t[1] && p != t[2]) all.push_back({SelfContactPair::kPointTriangle, {p, t[0], t[1], t[2]}});
+  for (std::size_t a = 0; a < d.edges().size(); ++a)
+    for (std::size_t b = a + 1; b < d.edges().size(); ++b) {
+      const auto &e = d.edges()[a], &f = d.edges()[b];
+      if (e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1])
+        all.push_back({SelfContactPair::kEdgeEdge, {e[0], e[1], f[0], f[1]}});
+    }
+  return all;
+}
+
+TEST(SelfContact, BroadPhaseHoldsEveryPairThatTouchesOrComesWithinTheMargin) {
+  const int side = 10;
+  const double l = 0.6 / (side - 1), thickness = 0.1 * l;
+  const ParticleSystem sys(HairpinScene(side, thickness));
+  MatrixN3 x0, x1;
+  Hairpin(sys, 0.3 * l, 0.4 * l, &x0, &x1);
+  SelfContactDetector detector(GridTriangles(side, side).vertices, sys.num_particles());
+  std::vector<SelfContactPair> candidates;
+  detector.Candidates(x0, x1, thickness, &candidates);
+  std::sort(candidates.begin(), candidates.end());
+  EXPECT_EQ(std::adjacent_find(candidates.begin(), candidates.end()), candidates.end());  // each pair once
+  // 3 edges per quad less the shared ones: 3·9·9 + 9 + 9 = 261 edges.
+  EXPECT_EQ(detector.edges().size(), 261u);
+  long near = 0, touching = 0;
+  for (const SelfContactPair& pair : AllPairs(detector)) {
+    double theta = 0.0;
+    PairGeometry g;
+    const bool close = Closest(pair, x0).distance < thickness;
+    const bool touches = FirstCoplanarContact(pair, x0, x1, 1e-3 * thickness, &theta, &g);
+    if (!close && !touches) continue;
+    near += close;
+    touching += touches;
+    EXPECT_TRUE(std::binary_search(candidates.begin(), candidates.end(), pair))
+        << "pair kind " << pair.kind << " {" << pair.p[0] << ", " << pair.p[1] << ", " << pair.p[2] << ", " << pair.p[3] << "}";
+  }
+  // The layers, 0.3 l apart, close by up to 0.8 l: the facing pairs deeper
+  // than 0.375 of the legs touch.
+  EXPECT_GT(touching, 100);
+  EXPECT_EQ(near, 0);  // 0.3 l > thickness at x0, and in-plane pairs are ≥ l/√2 apart
+}
+
+// The 12×12 hairpin's step of 5 ms: layers 0.3 l apart, closing by 0.4 l
+// at the free ends, thickness 0.1 l.
+struct HairpinStep {
+  static constexpr int kSide = 12;
+  static constexpr double kL = 0.6 / (kSide - 1), kThickness = 0.1 * kL, kH = 0.005;
+  ParticleSystem sys{HairpinScene(kSide, kThickness)};
+  MatrixN3 x0, x1;
+  HairpinStep() { Hairpin(sys, 0.3 * kL, 0.4 * kL, &x0, &x1); }
+};
+
+TEST(SelfContact, ResponseStopsTwoLayersFromCrossingAndKeepsMomentum) {
+  const HairpinStep step;
+  const ParticleSystem& sys = step.sys;
+  const MatrixN3 &x0 = step.x0, &x1 = step.x1;
+  const int side = HairpinStep::kSide;
+  const double thickness = HairpinStep::kThickness, h = HairpinStep::kH;
+  const std::vector<std::array<int, 3>> triangles = GridTriangles(side, side).vertices;
+  // Without a response the layers pass through each other.
+  ASSERT_FALSE(SelfIntersections(x1, triangles).empty());
+  MatrixN3 x = x1, v = (x1 - x0) / h;
+  const MatrixN3 v_before = v;
+  SelfContactResponse response(sys, thickness);
+  EXPECT_EQ(response.Respond(h, x0, &x, &v), 0);
+  EXPECT_TRUE(SelfIntersections(x, triangles).empty());
+  // x = x0 + h v̄ still (the mean velocity's correction moves both).
+  EXPECT_LT((x - x0 - h * v).cwiseAbs().maxCoeff(), 1e-15);
+  // No pair touches along the corrected path.
+  SelfContactDetector detector(triangles, sys.num_particles());
+  for (const SelfContactPair& pair : AllPairs(detector)) {
+    double theta = 0.0;
+    PairGeometry g;
+    EXPECT_FALSE(FirstCoplanarContact(pair, x0, x, 1e-3 * thickness, &theta, &g));
+  }
+  // Impulses in pairs of equal and opposite momentum, no fixed particle:
+  // Σ m Δv = 0 to round-off (|m v| ~ 1e-3 kg m/s, 1e-16 relative per impulse).
+  const Vector3 dp = (v - v_before).transpose() * sys.masses();
+  EXPECT_LT(dp.norm(), 1e-15);
+  const SelfContactStats& st = response.stats();
+  EXPECT_GT(st.collisions, 0);
+  EXPECT_EQ(st.unresolved_steps, 0);
+  // The layers' closing kinetic energy is removed (inelastic): W_self < 0.
+  EXPECT_LT(st.work, 0.0);
+}
+
+TEST(SelfContact, TheCandidatesAreTheSameWhateverTheTrianglesOrder) {
+  // The same set of pairs from two detectors, one of them given its
+  // triangles in reverse order (other owners, another order of report).
+  const HairpinStep step;
+  const ParticleSystem& sys = step.sys;
+  const MatrixN3 &x0 = step.x0, &x1 = step.x1;
+  const double thickness = HairpinStep::kThickness;
+  std::vector<std::array<int, 3>> triangles = GridTriangles(HairpinStep::kSide, HairpinStep::kSide).vertices,
+                                  reversed = triangles;
+  std::reverse(reversed.begin(), reversed.end());
+  std::vector<SelfContactPair> a, b;
+  SelfContactDetector(triangles, sys.num_particles()).Candidates(x0, x1, thickness, &a);
+  SelfContactDetector(reversed, sys.num_particles()).Candidates(x0, x1, thickness, &b);
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  EXPECT_EQ(a, b);
+}
+
+}  // namespace
+}  // namespace clothbench
