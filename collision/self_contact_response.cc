@@ -19,13 +19,21 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
-// The largest displacement of the pair's particles on either side (the
-// point or first edge, the triangle or second edge) between x0 and x1:
-// their distance changes by at most the sum over the step.
+// The largest displacement of a particle of the pair's first element (the
+// point, the first edge) relative to one of its second (the triangle, the
+// second edge) between x0 and x1: with d_k = x1_k − x0_k, the distance of
+// the elements' hulls changes by at most max_{i,j} |d_i − d_j| over the
+// step (the difference of two convex combinations of the d_k is a convex
+// combination of the d_i − d_j). A pair moving together is not tested.
 double MotionBound(const SelfContactPair& pair, const MatrixN3& x0, const MatrixN3& x1) {
-  const auto move = [&](int k) { return (x1.row(pair.p[static_cast<std::size_t>(k)]) - x0.row(pair.p[static_cast<std::size_t>(k)])).norm(); };
-  if (pair.kind == SelfContactPair::kPointTriangle) return move(0) + std::max({move(1), move(2), move(3)});
-  return std::max(move(0), move(1)) + std::max(move(2), move(3));
+  const auto move = [&](std::size_t k) {
+    return Vector3((x1.row(pair.p[k]) - x0.row(pair.p[k])).transpose());
+  };
+  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
+  double bound = 0.0;
+  for (std::size_t i = 0; i < first; ++i)
+    for (std::size_t j = first; j < 4; ++j) bound = std::max(bound, (move(i) - move(j)).norm());
+  return bound;
 }
 
 }  // namespace
@@ -35,13 +43,16 @@ SelfContactResponse::SelfContactResponse(const ParticleSystem& system, double th
       thickness_(thickness),
       detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles()) {
   if (!(thickness > 0.0)) throw std::invalid_argument("SelfContactResponse: thickness must be > 0");
+  const Scene& scene = system.scene();
+  skin_ = kSkinFraction * std::min(scene.lu(), scene.lv());
   const int n = system.num_particles();
   inverse_mass_.resize(n);
   for (int p = 0; p < n; ++p) inverse_mass_(p) = system.is_fixed(p) ? 0.0 : 1.0 / system.masses()(p);
   nu_.resize(n, 3);
   nu_start_.resize(n, 3);
   x_end_.resize(n, 3);
-  x_box_.resize(n, 3);
+  x_ref_.resize(n, 3);
+  x_shifted_.resize(n, 3);
   parent_.resize(static_cast<std::size_t>(n));
   moved_.assign(static_cast<std::size_t>(n), 0);
   moved_before_.assign(static_cast<std::size_t>(n), 0);
@@ -68,21 +79,43 @@ bool SelfContactResponse::Push(const SelfContactPair& pair, const PairGeometry& 
   return true;
 }
 
+bool SelfContactResponse::ListCovers(const MatrixN3& x0) {
+  if (!have_list_) return false;
+  // A translation T of the whole cloth, and one growing as θc over the
+  // step, change no pair's relative motion: the list built at x_ref holds
+  // every pair that can touch while x₀ − T and x_end − c − T lie within the
+  // skin of x_ref, T = mean(x₀ − x_ref), c = mean(x_end − x₀).
+  const Vector3 shift = (x0 - x_ref_).colwise().mean().transpose();
+  const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
+  const double start = ((x0 - x_ref_).rowwise() - shift.transpose()).cwiseAbs().maxCoeff();
+  const double end = ((x_end_ - x_ref_).rowwise() - (shift + c).transpose()).cwiseAbs().maxCoeff();
+  return std::max(start, end) <= skin_;
+}
+
 void SelfContactResponse::RefreshCandidates(const MatrixN3& x0) {
-  // The boxes were grown by 2·thickness around x₀ → x_box: they hold the
-  // path x₀ → x_end grown by the CCD tolerance while no coordinate of
-  // x_end has left x_box by more than the thickness.
-  if ((x_end_ - x_box_).cwiseAbs().maxCoeff() <= thickness_) return;
-  BroadPhase(x0);
+  if (!ListCovers(x0)) BroadPhase(x0);
 }
 
 void SelfContactResponse::BroadPhase(const MatrixN3& x0) {
-  x_box_ = x_end_;
-  detector_.Candidates(x0, x_box_, 2.0 * thickness_, &candidates_);
+  // The boxes over x₀ → x_end − c, c = mean(x_end − x₀) (the cloth's mean
+  // displacement, which changes no pair's relative motion: a sheet that
+  // falls or slides as a whole meets its neighbours only), grown by the
+  // thickness (the pairs within it at x₀; the CCD's tolerance is less) and
+  // the skin.
+  x_ref_ = x0;
+  const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
+  x_shifted_ = x_end_.rowwise() - c.transpose();
+  detector_.Candidates(x0, x_shifted_, thickness_ + skin_, &candidates_);
+  have_list_ = true;
   ++stats_.broad_phases;
   stats_.candidates += static_cast<long>(candidates_.size());
+  Distances(x0);
+}
+
+void SelfContactResponse::Distances(const MatrixN3& x0) {
+  // The pairs' distances at x₀, which no pass changes; every pair is tested
+  // in the next pass.
   test_all_ = true;
-  // The pairs' distances at x₀, which no pass changes.
   const long n = static_cast<long>(candidates_.size());
   distance0_.resize(candidates_.size());
 #pragma omp parallel for schedule(static) if (n > kParallelPairs)
@@ -218,7 +251,10 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
   const long pushed_before = stats_.repulsions + stats_.collisions + stats_.zone_passes;
   // 1. Repulsion from the pairs within the thickness at x₀.
   auto t = Clock::now();
-  BroadPhase(x0);
+  if (ListCovers(x0))
+    Distances(x0);
+  else
+    BroadPhase(x0);
   detection += Since(t);
   acting_.clear();
   for (std::size_t k = 0; k < candidates_.size(); ++k)

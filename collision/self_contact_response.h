@@ -48,12 +48,19 @@ class SelfContactResponse {
   /// fraction of the thickness: the bisection finds it to round-off, so
   /// this only widens a crossing through an element's border.
   static constexpr double kCcdToleranceFraction = 1e-3;
+  /// The candidate list is kept over steps while the cloth, less its mean
+  /// motion, stays within a skin of this fraction of the grid spacing of
+  /// where it was built (a Verlet list): the broad phase runs only then.
+  static constexpr double kSkinFraction = 0.25;
 
   /// @param system the cloth (masses, fixed particles, grid; must outlive this)
   /// @param thickness [m], > 0
   SelfContactResponse(const ParticleSystem& system, double thickness);
 
-  void Reset() { stats_ = SelfContactStats{}; }
+  void Reset() {
+    stats_ = SelfContactStats{};
+    have_list_ = false;
+  }
   /// Corrects the step of size h [s] from x0 to (x1, v1) (N×3 [m], [m/s],
   /// changed in place) as above.
   /// @return the pairs still colliding along x₀ → x₁ after it (0 unless
@@ -66,10 +73,15 @@ class SelfContactResponse {
   // Sets the pair's relative velocity along g.n to at least `target` [m/s]
   // by an impulse weighted by inverse mass; updates x_end's rows. true if applied.
   bool Push(const SelfContactPair& pair, const PairGeometry& g, double target, double h, const MatrixN3& x0);
-  // Broad phase for the path x₀ → x_end_, unless the last one still covers it.
+  // Broad phase for the path x₀ → x_end_, unless the list still covers it.
   void RefreshCandidates(const MatrixN3& x0);
-  // Broad phase for x₀ → x_end_, boxes grown by 2·thickness; x_box_ = x_end_.
+  // Whether the candidate list built at x_ref_ holds every pair that can
+  // touch along x₀ → x_end_ or is within the thickness at x₀.
+  bool ListCovers(const MatrixN3& x0);
+  // Broad phase at x₀ → x_end_ (x_ref_ = x₀), boxes grown by thickness + skin.
   void BroadPhase(const MatrixN3& x0);
+  // distance0_ at x₀.
+  void Distances(const MatrixN3& x0);
   // The pairs colliding along x₀ → x_end_ (stage 2 applies impulses as it goes).
   int CollisionPass(double h, const MatrixN3& x0, bool apply, std::vector<int>* colliding);
   void RigidZones(const MatrixN3& x0, const std::vector<int>& colliding);
@@ -82,7 +94,7 @@ class SelfContactResponse {
   SelfContactStats stats_;
   double h_ = 0.0;  // of the step being corrected [s]
   // Scratch of one step.
-  MatrixN3 nu_, nu_start_, x_end_, x_box_;
+  MatrixN3 nu_, nu_start_, x_end_, x_ref_, x_shifted_;
   std::vector<SelfContactPair> candidates_;
   std::vector<double> distance0_;  // each candidate's distance at x₀ [m]
   std::vector<char> touching_;     // a pass's test of each candidate
@@ -96,6 +108,8 @@ class SelfContactResponse {
   // the next pass tests every candidate (after a broad phase).
   std::vector<char> moved_, moved_before_;
   bool test_all_ = true;
+  bool have_list_ = false;  // candidates_ was built at x_ref_ with the skin
+  double skin_ = 0.0;       // [m]
   std::vector<char> in_zone_;
 };
 

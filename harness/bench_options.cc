@@ -44,7 +44,7 @@ void AddOptions(CLI::App& app, Options& o) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -131,6 +131,10 @@ void AddOptions(CLI::App& app, Options& o) {
                "choose each method's h, substeps or rtol run by run from its errors against the reference until its "
                "runs bracket every --targets value, it fails, reaches --time-limit or stalls (instead of the fixed "
                "lists; docs/work-precision.md)");
+  app.add_option("--self-contact", self_contact_arg,
+                 "on | off: override the scene's collision.self (on: with its [collision] thickness, or 1e-3 m on a "
+                 "scene without the table; off: no response, the crossing pairs still counted at every stored frame; "
+                 "docs/collisions.md, \"Self-contact\")");
   app.add_option("--sizes", sizes_arg,
                  "comma-separated particle counts, increasing: the scene's grid refined to about N particles each "
                  "(sheet size, material per unit length and area, forces, constraints and t_end kept; "
@@ -160,6 +164,7 @@ Scene SceneOfOptions(const CLI::App& app, const Options& o, std::optional<long> 
   if (app.count("--cg-tolerance")) q.cg_tolerance = o.cg_tolerance;
   if (app.count("--preconditioner")) q.preconditioner = o.preconditioner;
   if (app.count("--tangent-terms")) q.tangent_terms = o.tangent_terms;
+  if (app.count("--self-contact")) q.self_contact = o.self_contact;
   q.time_limit = o.time_limit;
   if (o.repeat > 0) q.repeat = o.repeat;
   q.time_budget = o.time_budget;
@@ -178,7 +183,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg] = o;
   if (sweep_to_targets && !app.count("--time-limit")) time_limit = kSweepTimeLimit;
   Scene scene = SceneOfOptions(app, o, size);
   if (app.count("--integrators") && integrators_arg.empty())

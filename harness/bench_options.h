@@ -31,6 +31,7 @@ struct Options {
   std::string cvode_setting_arg;
   bool sweep_to_targets = false;
   std::string sizes_arg;
+  std::string self_contact;  ///< --self-contact on | off (RunRequest::self_contact)
 };
 
 /// Registers every option of bench_integrators on `app`, into `o`.

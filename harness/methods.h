@@ -529,6 +529,7 @@ struct RowMethod {
       row.cg_reference = std::string(ToString(row_spec.cg_reference));
     }
     if (builds_tangent()) row.tangent_terms = row_spec.tangent_explicit_terms ? "all" : "tension";
+    if (scene.collision) row.collision_self = scene.collision->self ? "on" : "off";
     if (solver == NonlinearSolver::kNewton) row.newton_jacobian = std::string(ToString(row_spec.newton_jacobian));
     row.threads = KernelThreads();
     return row;

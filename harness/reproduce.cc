@@ -140,6 +140,7 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
   if (m.reads_arkode_table() && !r.butcher_table.empty()) q.arkode_table = r.butcher_table;
   if (m.entry->cvode_settings && !r.sundials_settings.empty()) q.cvode_setting = r.sundials_settings;
+  if (!r.collision_self.empty()) q.self_contact = r.collision_self;
   q.t_end = table.t_end;
   // The file's frame spacing, so that the frame-based errors (l2, max) are
   // taken at the same instants; none becomes ends, which has the same
@@ -235,6 +236,7 @@ std::string ReproduceScript(const ResultReader& file, const RunTable& table, con
   if (q.tangent_terms) cmd += fmt::format(" --tangent-terms {}", ShellQuote(*q.tangent_terms));
   if (q.arkode_table) cmd += fmt::format(" --arkode-table {}", ShellQuote(*q.arkode_table));
   if (q.cvode_setting) cmd += fmt::format(" --cvode-setting {}", ShellQuote(*q.cvode_setting));
+  if (q.self_contact) cmd += fmt::format(" --self-contact {}", ShellQuote(*q.self_contact));
   cmd += fmt::format(" --t-end {} --frames {} --reference none --repeat 1 --quiet --out {}", number(*q.t_end),
                      ShellQuote(q.frames), ShellQuote(out));
   return s + cmd + "\n";

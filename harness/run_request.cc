@@ -30,7 +30,8 @@ std::string RunRequest::Field(std::string_view field) const {
       {"cvode_setting", "--cvode-setting"}, {"t_end", "--t-end"},
       {"frames", "--frames"},            {"threads", "OMP_NUM_THREADS"},
       {"time_limit", "--time-limit"},    {"repeat", "--repeat"},
-      {"time_budget", "--time-budget"},  {"reference", "--reference"}};
+      {"time_budget", "--time-budget"},  {"reference", "--reference"},
+      {"self_contact", "--self-contact"}};
   for (const auto& [k, o] : kOptions)
     if (k == field) return std::string(o);
   return std::string(field);
@@ -75,6 +76,20 @@ void CheckThreadEnvironment() {
 namespace {
 
 // t_end (and with it frame_dt and h) and the frames mode.
+// self_contact: "on" or "off" over the scene's [collision] (RunRequest).
+void ApplySelfContact(const RunRequest& q, Scene* s) {
+  if (!q.self_contact) return;
+  if (*q.self_contact != "on" && *q.self_contact != "off")
+    throw Fail(q, "self_contact", fmt::format("\"{}\" must be on or off", EscapeControl(*q.self_contact)));
+  SelfCollisionSpec spec = s->collision.value_or(SelfCollisionSpec{});
+  spec.self = *q.self_contact == "on";
+  if (spec.self)
+    if (const std::string why = SelfContactThicknessRule(*s, spec.thickness); !why.empty())
+      throw Fail(q, "self_contact", fmt::format("on: the thickness {:g} m {} (set [collision] thickness in the scene)",
+                                                spec.thickness, why));
+  s->collision = spec;
+}
+
 void ApplyTimes(const RunRequest& q, Scene* s) {
   if (q.t_end) {
     if (!std::isfinite(*q.t_end) || !(*q.t_end > 0.0) || *q.t_end > 1e6)
@@ -231,6 +246,7 @@ ResolvedRun RunRequest::Resolve() const {
   ResolvedRun out;
   out.scene = scene;
   ApplyTimes(*this, &out.scene);
+  ApplySelfContact(*this, &out.scene);
   out.row = ResolveRow(*this, out.scene);
   ResolveStep(*this, &out);
   ApplyOptions(*this, &out);
@@ -247,6 +263,7 @@ ResolvedRun RunRequest::Resolve() const {
 Scene RunRequest::SweepScene() const {
   Scene s = scene;
   ApplyTimes(*this, &s);
+  ApplySelfContact(*this, &s);
   CheckCgTolerance(*this);
   CheckTangentTerms(*this);
   CheckTimes(*this);

@@ -77,6 +77,10 @@ struct RunRequest {
   std::optional<long> substeps, iterations;
   std::optional<double> cg_tolerance;
   std::optional<std::string> preconditioner, tangent_terms, arkode_table, cvode_setting;
+  /// "on" | "off": overrides the scene's collision.self ("on" on a scene
+  /// without [collision] adds it with the default thickness, checked
+  /// against the grid as the scene's own; "off" keeps the crossing count).
+  std::optional<std::string> self_contact;
   std::optional<double> t_end;  ///< overrides the scene's t_end [s]
   std::string frames = "default";
   long threads = 0;

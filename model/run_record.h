@@ -28,6 +28,7 @@ struct RunRecord {
   std::string nonlinear_solver;  ///< fully implicit thesis methods; else empty
   std::string preconditioner;    ///< rows that use the PCG: the preconditioner they ran with; else empty
   std::string tangent_terms;     ///< rows that build J_α: "all" or "tension" (its terms); else empty
+  std::string collision_self;    ///< scenes with [collision]: "on" or "off" (collision.self as run); else empty
   double h = 0.0;            ///< fixed-step and iterated: the step [s]; substepped: the frame step [s]
   double rtol = 0.0;         ///< adaptive rows: rtol = atol
   long substeps = 0;         ///< substepped rows: substeps per frame step

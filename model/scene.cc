@@ -345,6 +345,17 @@ void ParseSolver(TableReader& top, const std::string& source, Scene& s) {
   if (std::string why; !so.IsValid(&why)) throw SceneError(fmt::format("{}: solver: {}", source, why));
 }
 
+}  // namespace
+
+std::string SelfContactThicknessRule(const Scene& scene, double thickness) {
+  const double lu = scene.lu(), lv = scene.lv(), closest = lu * lv / std::hypot(lu, lv);
+  if (thickness < closest) return "";
+  return fmt::format("must be below the rest distance of the grid's closest non-adjacent elements, "
+                     "lu·lv/sqrt(lu² + lv²) = {:.4g} m", closest);
+}
+
+namespace {
+
 // [collision]: self-contact.
 void ParseCollision(TableReader& top, const std::string& source, Scene& s) {
   const toml::table* table = top.SubTable("collision");
@@ -353,10 +364,7 @@ void ParseCollision(TableReader& top, const std::string& source, Scene& s) {
   SelfCollisionSpec spec;
   spec.self = c.Bool("self", spec.self);
   spec.thickness = c.Positive("thickness", spec.thickness);
-  const double lu = s.lu(), lv = s.lv(), closest = lu * lv / std::hypot(lu, lv);
-  if (spec.thickness >= closest)
-    c.Fail("thickness", fmt::format("must be below the rest distance of the grid's closest non-adjacent elements, "
-                                    "lu·lv/sqrt(lu² + lv²) = {:.4g} m", closest));
+  if (const std::string why = SelfContactThicknessRule(s, spec.thickness); !why.empty()) c.Fail("thickness", why);
   c.RejectUnknown();
   s.collision = spec;
 }

@@ -111,6 +111,10 @@ struct SelfCollisionSpec {
   double thickness = 1e-3;
 };
 
+/// Why `thickness` [m] does not suit the grid of `scene` (SelfCollisionSpec:
+/// below lu·lv/√(lu² + lv²)), or empty if it does.
+std::string SelfContactThicknessRule(const Scene& scene, double thickness);
+
 /// One scene: everything needed to build the particle system and run it.
 struct Scene {
   std::string name = "unnamed";

@@ -446,7 +446,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
              const py::object& tangent_terms, const py::object& t_end, const py::object& overrides,
              const py::object& progress, const py::object& reference, const py::object& repeat,
              const py::object& time_budget, const py::object& time_limit, const py::object& arkode_table,
-             const py::object& cvode_setting) {
+             const py::object& cvode_setting, const py::object& self_contact) {
   const InterruptScope interrupts;  // Ctrl-C reaches the loops inside a step and the setup
   RunRequest q;
   q.scene = SceneArg(scene_arg, overrides);
@@ -462,6 +462,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
   q.tangent_terms = Arg<std::string>(tangent_terms, "tangent_terms");
   q.arkode_table = Arg<std::string>(arkode_table, "arkode_table");
   q.cvode_setting = Arg<std::string>(cvode_setting, "cvode_setting");
+  q.self_contact = Arg<std::string>(self_contact, "self_contact");
   q.t_end = Arg<double>(t_end, "t_end");
   q.repeat = Arg<long>(repeat, "repeat");
   q.time_budget = Arg<double>(time_budget, "time_budget").value_or(30.0);
@@ -513,6 +514,23 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
   for (const EnergyField& field : EnergySeriesFields())
     if (field.Stored(r.energy)) energy[field.name] = r.energy.*field.member;
   out["energy"] = energy;
+  // Scenes with [collision]: each frame's crossing triangle pairs and, with
+  // the response on, its counters (as /runs/<id>/crossing_pairs and self_contact).
+  if (!r.trajectory.crossing_pairs.empty())
+    out["crossing_pairs"] = py::array_t<int32_t>(static_cast<py::ssize_t>(r.trajectory.crossing_pairs.size()),
+                                                 r.trajectory.crossing_pairs.data());
+  if (r.self_contact) {
+    const SelfContactStats& st = *r.self_contact;
+    py::dict sc;
+    for (auto [name, v] : {std::pair{"steps", st.steps}, {"candidates", st.candidates}, {"broad_phases", st.broad_phases},
+                           {"repulsions", st.repulsions}, {"collisions", st.collisions}, {"zone_passes", st.zone_passes},
+                           {"unresolved_steps", st.unresolved_steps}})
+      sc[name] = v;
+    sc["detection_s"] = st.detection_seconds;
+    sc["response_s"] = st.response_seconds;
+    sc["work_J"] = st.work;
+    out["self_contact"] = sc;
+  }
   out["scene_hash"] = SceneHash(run.scene);
   out["record"] = record;  // for write_results
   return out;
@@ -772,7 +790,7 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         py::arg("progress") = py::none(), py::arg("reference") = py::none(), py::arg("repeat") = py::none(),
         py::arg("time_budget") = py::none(), py::arg("time_limit") = py::none(), py::arg("arkode_table") = py::none(),
-        py::arg("cvode_setting") = py::none(),
+        py::arg("cvode_setting") = py::none(), py::arg("self_contact") = py::none(),
         "Runs one row as bench_integrators does (the GIL released). Every argument is checked first, by the rules "
         "of the command line (harness/run_request.h): ValueError or TypeError naming the keyword. An option the row "
         "does not read (rtol of a fixed-step row, substeps of any row but xpbd, ...) is refused. Returns a dict: "

@@ -453,3 +453,21 @@ def test_obstacle_distances_are_the_models_queries():
         clothbench.obstacle_distances(scene, [0.0], np.zeros((1, 2, 2)))
     with pytest.raises(ValueError, match="no obstacle"):
         clothbench.obstacle_distances(clothbench.load_scene("swinging_sheet"), [0.0], x)
+
+
+def test_self_contact_switch_counts_and_removes_the_crossings():
+    # fold_over_rod to t = 0.6 s: its halves swing through each other at
+    # about 0.45 s without self-contact (230 crossing pairs at 0.5 s).
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    scene = os.path.join(root, "scenes", "fold_over_rod.toml")
+    off = clothbench.run(scene, "sbdf2", h=0.005, t_end=0.6, self_contact="off")
+    on = clothbench.run(scene, "sbdf2", h=0.005, t_end=0.6)
+    assert off["collision_self"] == "off" and on["collision_self"] == "on"
+    assert off["status"] == "ok" and max(off["crossing_pairs"]) > 50 and "self_contact" not in off
+    assert on["status"] == "ok" and max(on["crossing_pairs"]) == 0
+    assert len(on["crossing_pairs"]) == len(on["times"])
+    assert on["self_contact"]["collisions"] + on["self_contact"]["repulsions"] > 0
+    with pytest.raises(ValueError, match="self_contact"):
+        clothbench.run(scene, "sbdf2", h=0.005, t_end=0.1, self_contact="maybe")
+    # A row without a response is refused before its first step.
+    assert clothbench.run(scene, "xpbd", h=0.005, substeps=4, t_end=0.1)["status"] == "unsupported_scene"

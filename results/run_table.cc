@@ -66,6 +66,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"constraints", &R::constraints, S::kNonEmpty},
       {"explicit_terms", &R::explicit_terms, S::kNonEmpty},
       {"tangent_terms", &R::tangent_terms, S::kNonEmpty},
+      {"collision_self", &R::collision_self, S::kNonEmpty},
       {"preconditioner", &R::preconditioner, S::kNonEmpty},
       {"sundials_settings", &R::sundials_settings, S::kNonEmpty},
       {"step_control", &R::step_control, S::kNonEmpty},
