@@ -254,7 +254,7 @@ class TriangleBox : public CGAL::Box_intersection_d::Box_d<double, 3, CGAL::Box_
 }  // namespace
 
 void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin,
-                                     std::vector<SelfContactPair>* out) {
+                                     std::vector<SelfContactPair>* out, double slack) {
   out->clear();
   // The boxes of the particles (x0 and x1 grown by the margin), then of the
   // edges and triangles as the hulls of their particles' boxes.
@@ -276,6 +276,10 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
   boxes.reserve(triangles_.size());
   tri_lo_.resize(triangles_.size());
   tri_hi_.resize(triangles_.size());
+  tri0_lo_.resize(triangles_.size());
+  tri0_hi_.resize(triangles_.size());
+  move_centre_.resize(triangles_.size());
+  move_radius_.resize(triangles_.size());
   for (std::size_t k = 0; k < triangles_.size(); ++k) {
     const auto& t = triangles_[k];
     Vector3 lo = point_lo_[static_cast<std::size_t>(t[0])], hi = point_hi_[static_cast<std::size_t>(t[0])];
@@ -287,6 +291,22 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     tri_hi_[k] = hi;
     double l[3] = {lo.x(), lo.y(), lo.z()}, h[3] = {hi.x(), hi.y(), hi.z()};
     boxes.emplace_back(l, h, k);
+    // The triangle's box at x0 alone, and its particles' displacements
+    // x1 − x0 as a centre (their mean) and a radius about it.
+    Vector3 lo0 = x0.row(t[0]).transpose(), hi0 = lo0, mean = Vector3::Zero();
+    std::array<Vector3, 3> d;
+    for (std::size_t c = 0; c < 3; ++c) {
+      const Vector3 a = x0.row(t[c]).transpose();
+      lo0 = lo0.cwiseMin(a);
+      hi0 = hi0.cwiseMax(a);
+      d[c] = x1.row(t[c]).transpose() - a;
+      mean += d[c];
+    }
+    mean /= 3.0;
+    tri0_lo_[k] = lo0;
+    tri0_hi_[k] = hi0;
+    move_centre_[k] = mean;
+    move_radius_[k] = std::max({(d[0] - mean).norm(), (d[1] - mean).norm(), (d[2] - mean).norm()});
   }
   const auto overlap = [](const Vector3& alo, const Vector3& ahi, const Vector3& blo, const Vector3& bhi) {
     return (alo.array() <= bhi.array()).all() && (blo.array() <= ahi.array()).all();
@@ -296,6 +316,15 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
   // overlap whenever the elements' do): every pair exactly once.
   const auto report = [&](const TriangleBox& first, const TriangleBox& second) {
     const std::size_t ta = first.id(), tb = second.id();
+    // The triangles' distance at x0 is at least their boxes' there; over
+    // the step it shrinks by at most the largest displacement of a particle
+    // of one relative to one of the other, |c_a − c_b| + r_a + r_b. Pairs
+    // that stay further apart than the margin (and the slack) have no
+    // element pair to test: a sheet that slides along itself is left out.
+    const Vector3 gap = (tri0_lo_[tb] - tri0_hi_[ta]).cwiseMax(tri0_lo_[ta] - tri0_hi_[tb]).cwiseMax(0.0);
+    const double reach =
+        margin + slack + (move_centre_[ta] - move_centre_[tb]).norm() + move_radius_[ta] + move_radius_[tb];
+    if (gap.squaredNorm() > reach * reach) return;
     for (int flip = 0; flip < 2; ++flip) {
       const std::size_t a = flip ? tb : ta, b = flip ? ta : tb;
       const auto& tri = triangles_[b];

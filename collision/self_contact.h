@@ -69,7 +69,14 @@ class SelfContactDetector {
   /// only; each element pair comes from the pair of triangles that own its
   /// elements, once, in CGAL's order of report (the same for the same
   /// input; the response sorts the pairs it acts on); `out` is reused.
-  void Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin, std::vector<SelfContactPair>* out);
+  /// Left out: the pairs of triangles whose distance at x0 exceeds
+  /// `margin` + `slack` [m] + the largest displacement of a particle of
+  /// one relative to one of the other over x0 → x1 (they can neither touch
+  /// nor come within the margin); `slack` covers later changes of x1 that
+  /// move each particle's displacement by at most slack/2.
+  /// (Ericson 2005, §5.1.3's box distance bounds the triangles' distance.)
+  void Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin, std::vector<SelfContactPair>* out,
+                  double slack = 0.0);
 
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
   const std::vector<std::array<int, 2>>& edges() const { return edges_; }
@@ -84,6 +91,9 @@ class SelfContactDetector {
   std::vector<std::array<int, 3>> owned_points_, owned_edges_;
   // Boxes of one call (allocated once): particles, edges, triangles.
   std::vector<Vector3> point_lo_, point_hi_, edge_lo_, edge_hi_, tri_lo_, tri_hi_;
+  // Per triangle: its box at x0, and its displacements' mean and radius.
+  std::vector<Vector3> tri0_lo_, tri0_hi_, move_centre_;
+  std::vector<double> move_radius_;
 };
 
 }  // namespace clothbench

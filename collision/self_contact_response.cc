@@ -51,7 +51,6 @@ SelfContactResponse::SelfContactResponse(const ParticleSystem& system, double th
   nu_.resize(n, 3);
   nu_start_.resize(n, 3);
   x_end_.resize(n, 3);
-  x_ref_.resize(n, 3);
   x_shifted_.resize(n, 3);
   parent_.resize(static_cast<std::size_t>(n));
   moved_.assign(static_cast<std::size_t>(n), 0);
@@ -80,16 +79,14 @@ bool SelfContactResponse::Push(const SelfContactPair& pair, const PairGeometry& 
 }
 
 bool SelfContactResponse::ListCovers(const MatrixN3& x0) {
+  (void)x0;
   if (!have_list_) return false;
-  // A translation T of the whole cloth, and one growing as θc over the
-  // step, change no pair's relative motion: the list built at x_ref holds
-  // every pair that can touch while x₀ − T and x_end − c − T lie within the
-  // skin of x_ref, T = mean(x₀ − x_ref), c = mean(x_end − x₀).
-  const Vector3 shift = (x0 - x_ref_).colwise().mean().transpose();
+  // The list of this step holds every pair that can touch while each
+  // particle's x_end − c stays within the skin (per coordinate) of where it
+  // was built: its boxes were grown by the skin, and its displacements
+  // change by at most √3·skin each (Candidates' slack).
   const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
-  const double start = ((x0 - x_ref_).rowwise() - shift.transpose()).cwiseAbs().maxCoeff();
-  const double end = ((x_end_ - x_ref_).rowwise() - (shift + c).transpose()).cwiseAbs().maxCoeff();
-  return std::max(start, end) <= skin_;
+  return ((x_end_.rowwise() - c.transpose()) - x_shifted_).cwiseAbs().maxCoeff() <= skin_;
 }
 
 void SelfContactResponse::RefreshCandidates(const MatrixN3& x0) {
@@ -102,10 +99,9 @@ void SelfContactResponse::BroadPhase(const MatrixN3& x0) {
   // falls or slides as a whole meets its neighbours only), grown by the
   // thickness (the pairs within it at x₀; the CCD's tolerance is less) and
   // the skin.
-  x_ref_ = x0;
   const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
   x_shifted_ = x_end_.rowwise() - c.transpose();
-  detector_.Candidates(x0, x_shifted_, thickness_ + skin_, &candidates_);
+  detector_.Candidates(x0, x_shifted_, thickness_ + skin_, &candidates_, 2.0 * std::sqrt(3.0) * skin_);
   have_list_ = true;
   ++stats_.broad_phases;
   stats_.candidates += static_cast<long>(candidates_.size());
@@ -251,10 +247,7 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
   const long pushed_before = stats_.repulsions + stats_.collisions + stats_.zone_passes;
   // 1. Repulsion from the pairs within the thickness at x₀.
   auto t = Clock::now();
-  if (ListCovers(x0))
-    Distances(x0);
-  else
-    BroadPhase(x0);
+  BroadPhase(x0);  // each step's own: its pruning depends on the step's motion
   detection += Since(t);
   acting_.clear();
   for (std::size_t k = 0; k < candidates_.size(); ++k)
