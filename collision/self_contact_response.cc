@@ -79,7 +79,6 @@ bool SelfContactResponse::Push(const SelfContactPair& pair, const PairGeometry& 
 }
 
 bool SelfContactResponse::ListCovers(const MatrixN3& x0) {
-  (void)x0;
   if (!have_list_) return false;
   // The list of this step holds every pair that can touch while each
   // particle's x_end − c stays within the skin (per coordinate) of where it
