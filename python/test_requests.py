@@ -41,6 +41,7 @@ BAD = {
     "time_budget": [NAN, -1.0, 2e6],
     "arkode_table": ["ARK999", ""],
     "cvode_setting": ["foo=1", "lsetup_frequency", "lsetup_frequency=x"],
+    "self_contact": ["maybe", "", "ON"],
 }
 # The row whose request reads the field, and its step (or rtol).
 ROW = {"rtol": ("cvode", {}), "arkode_table": ("arkode", {"rtol": 1e-3}), "cvode_setting": ("cvode", {"rtol": 1e-3}),
@@ -49,7 +50,7 @@ ROW = {"rtol": ("cvode", {}), "arkode_table": ("arkode", {"rtol": 1e-3}), "cvode
 OPTION = {"method": "--integrators", "h": "--h", "rtol": "--rtols", "t_end": "--t-end",
           "preconditioner": "--preconditioner", "cg_tolerance": "--cg-tolerance", "tangent_terms": "--tangent-terms",
           "substeps": "--substeps", "iterations": "--iterations", "time_limit": "--time-limit", "repeat": "--repeat", "time_budget": "--time-budget",
-          "arkode_table": "--arkode-table", "cvode_setting": "--cvode-setting"}
+          "arkode_table": "--arkode-table", "cvode_setting": "--cvode-setting", "self_contact": "--self-contact"}
 
 
 def cases():
