@@ -33,9 +33,12 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
   if (IsSelfConvergence(ref))
     return fmt::format(
         "reference: self-convergence, BDF(2) at h = {:g} s (h_min/32), cg_tolerance 1e-10, fixed-point tolerance "
-        "1e-12 m/s (the scene has virtual particles, whose edge contacts the event-located SUNDIALS rows do not "
-        "have): {} steps, {:.2f} s; its self-convergence: e_l2 against BDF(2) at 2h = {}",
-        ref.h, ref.steps, ref.wall_time_s,
+        "1e-12 m/s ({}): {} steps, {:.2f} s; its self-convergence: e_l2 against BDF(2) at 2h = {}",
+        ref.h,
+        ref.collision_self == "on"
+            ? "the scene has self-contact, which the SUNDIALS rows do not have"
+            : "the scene has virtual particles, whose edge contacts the event-located SUNDIALS rows do not have",
+        ref.steps, ref.wall_time_s,
         ref.error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref.error_estimate_m) : "-");
   return fmt::format(
       "reference: {} BDF/Newton, {}, rtol = atol = {:g}: {} steps, {:.2f} s{}, dE/dt = {}; its error estimate: {} "

@@ -42,6 +42,7 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref, double fix
   const ParticleSystem tight_sys(tight);
   RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
   r.integrator = r.label = "bdf2_self_convergence";
+  if (scene.collision) r.collision_self = scene.collision->self ? "on" : "off";
   r.layer = "solver";
   r.step_kind = StepKind::kFixedStep;
   r.h = h_ref;
