@@ -15,6 +15,7 @@
 #include "model/scene.h"
 #include "peers/baraff_witkin.h"
 #include "peers/xpbd.h"
+#include "solver/integrator.h"
 #include "solver/run.h"
 
 namespace clothbench {
@@ -111,6 +112,32 @@ TEST(SelfContactScene, RepeatsBitForBitOnOneAndTwoThreads) {
     EXPECT_EQ(other->self_contact->collisions, a.self_contact->collisions);
     EXPECT_EQ(other->self_contact->repulsions, a.self_contact->repulsions);
   }
+}
+
+// A stepper that says it takes corrections and drops them: its steps
+// cross as without a response, and the first crossing frame ends the run.
+class DropsCorrections : public StepEngine {
+ public:
+  using StepEngine::StepEngine;
+  void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
+    (void)x;
+    (void)v;
+  }
+};
+
+TEST(SelfContactScene, ACrossingFrameEndsTheRunWithSelfIntersection) {
+  const Scene s = Fold(true);
+  const ParticleSystem sys(s);
+  DropsCorrections engine(sys, Method::kSbdf2, s.solver);
+  const RunSummary r = RunStepper(sys, engine, {s.h, s.t_end, s.frame_dt});
+  EXPECT_EQ(r.status, RunStatus::kSelfIntersection);
+  EXPECT_NE(r.message.find("crosses itself at t = "), std::string::npos) << r.message;
+  const auto& c = r.trajectory.crossing_pairs;
+  ASSERT_EQ(c.size(), r.trajectory.times.size());
+  // The crossing frame is kept, and it is the only one that crosses.
+  EXPECT_GT(c.back(), 0);
+  EXPECT_EQ(std::count_if(c.begin(), c.end(), [](int32_t n) { return n > 0; }), 1);
+  EXPECT_LT(r.trajectory.times.back(), s.t_end);
 }
 
 TEST(SelfContactScene, AMethodWithoutAResponseIsRefused) {
