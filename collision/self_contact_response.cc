@@ -78,8 +78,7 @@ bool SelfContactResponse::Push(const SelfContactPair& pair, const PairGeometry& 
   return true;
 }
 
-bool SelfContactResponse::ListCovers(const MatrixN3& x0) {
-  if (!have_list_) return false;
+bool SelfContactResponse::ListCovers(const MatrixN3& x0) const {
   // The list of this step holds every pair that can touch while each
   // particle's x_end − c stays within the skin (per coordinate) of where it
   // was built: its boxes were grown by the skin, and its displacements
@@ -101,7 +100,6 @@ void SelfContactResponse::BroadPhase(const MatrixN3& x0) {
   const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
   x_shifted_ = x_end_.rowwise() - c.transpose();
   detector_.Candidates(x0, x_shifted_, thickness_ + skin_, &candidates_, 2.0 * std::sqrt(3.0) * skin_);
-  have_list_ = true;
   ++stats_.broad_phases;
   stats_.candidates += static_cast<long>(candidates_.size());
   Distances(x0);
@@ -179,7 +177,7 @@ int SelfContactResponse::Find(int p) {
   return p;
 }
 
-void SelfContactResponse::RigidZones(const MatrixN3& x0, const std::vector<int>& colliding) {
+void SelfContactResponse::RigidZones(double h, const MatrixN3& x0, const std::vector<int>& colliding) {
   for (std::size_t k = 0; k < colliding.size(); k += 4) {
     for (std::size_t j = 0; j < 4; ++j) in_zone_[static_cast<std::size_t>(colliding[k + j])] = 1;
     const int root = Find(colliding[k]);
@@ -228,7 +226,7 @@ void SelfContactResponse::RigidZones(const MatrixN3& x0, const std::vector<int>&
       const Vector3 r = x0.row(p).transpose() - centre;
       const Vector3 velocity = fixed ? Vector3::Zero() : Vector3(v_centre + omega.cross(r));
       nu_.row(p) = velocity.transpose();
-      x_end_.row(p) = x0.row(p) + h_ * nu_.row(p);
+      x_end_.row(p) = x0.row(p) + h * nu_.row(p);
       moved_[static_cast<std::size_t>(p)] = 1;
     }
     begin = end;
@@ -239,7 +237,6 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
   const auto start = Clock::now();
   double detection = 0.0;
   ++stats_.steps;
-  h_ = h;
   nu_ = (*x1 - x0) / h;
   nu_start_ = nu_;
   x_end_ = *x1;
@@ -268,15 +265,14 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
   if (left != 0) {
     std::iota(parent_.begin(), parent_.end(), 0);
     std::fill(in_zone_.begin(), in_zone_.end(), 0);
-    std::vector<int> colliding;
     for (int pass = 0; pass <= kZonePasses; ++pass) {
       t = Clock::now();
       RefreshCandidates(x0);
-      colliding.clear();
-      left = CollisionPass(h, x0, false, &colliding);
+      colliding_.clear();
+      left = CollisionPass(h, x0, false, &colliding_);
       detection += Since(t);
       if (left == 0 || pass == kZonePasses) break;
-      RigidZones(x0, colliding);
+      RigidZones(h, x0, colliding_);
       ++stats_.zone_passes;
     }
   }

@@ -18,6 +18,8 @@
 #ifndef CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_
 #define CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_
 
+#include <array>
+#include <utility>
 #include <vector>
 
 #include "collision/self_contact.h"
@@ -37,6 +39,12 @@ struct SelfContactStats {
   double detection_seconds = 0;  ///< broad phase, closest points and CCD [s]
   double response_seconds = 0;   ///< impulses, zones and the work's energies [s]
   double work = 0.0;             ///< W_self: the energy the corrections added (< 0: removed) [J]
+  /// The counts by the names a result file and the Python door give them
+  /// (docs/results-schema.md, /runs/<id>/self_contact).
+  std::array<std::pair<const char*, long>, 7> Counts() const {
+    return {{{"steps", steps}, {"candidates", candidates}, {"broad_phases", broad_phases}, {"repulsions", repulsions},
+             {"collisions", collisions}, {"zone_passes", zone_passes}, {"unresolved_steps", unresolved_steps}}};
+  }
 };
 
 class SelfContactResponse {
@@ -59,10 +67,7 @@ class SelfContactResponse {
   /// @param thickness [m], > 0
   SelfContactResponse(const ParticleSystem& system, double thickness);
 
-  void Reset() {
-    stats_ = SelfContactStats{};
-    have_list_ = false;
-  }
+  void Reset() { stats_ = SelfContactStats{}; }
   /// Corrects the step of size h [s] from x0 to (x1, v1) (N×3 [m], [m/s],
   /// changed in place) as above.
   /// @return the pairs still colliding along x₀ → x₁ after it (0 unless
@@ -79,14 +84,14 @@ class SelfContactResponse {
   void RefreshCandidates(const MatrixN3& x0);
   // Whether this step's candidate list still holds every pair that can
   // touch along x₀ → x_end_ or is within the thickness at x₀.
-  bool ListCovers(const MatrixN3& x0);
+  bool ListCovers(const MatrixN3& x0) const;
   // Broad phase over x₀ → x_end_ − c, boxes grown by thickness + skin.
   void BroadPhase(const MatrixN3& x0);
   // distance0_ at x₀.
   void Distances(const MatrixN3& x0);
   // The pairs colliding along x₀ → x_end_ (stage 2 applies impulses as it goes).
   int CollisionPass(double h, const MatrixN3& x0, bool apply, std::vector<int>* colliding);
-  void RigidZones(const MatrixN3& x0, const std::vector<int>& colliding);
+  void RigidZones(double h, const MatrixN3& x0, const std::vector<int>& colliding);
   int Find(int p);
 
   const ParticleSystem& sys_;
@@ -94,7 +99,6 @@ class SelfContactResponse {
   SelfContactDetector detector_;
   Eigen::VectorXd inverse_mass_;
   SelfContactStats stats_;
-  double h_ = 0.0;  // of the step being corrected [s]
   // Scratch of one step.
   MatrixN3 nu_, nu_start_, x_end_, x_shifted_;
   std::vector<SelfContactPair> candidates_;
@@ -106,11 +110,11 @@ class SelfContactResponse {
   void SortActing();
   static constexpr long kParallelPairs = 4096;  // fewer pairs: one thread
   std::vector<int> parent_;   // impact zones (union–find over particles)
+  std::vector<int> colliding_;  // a zone pass's colliding pairs, four particles each
   // Particles whose x_end changed since the last pass tested them; whether
   // the next pass tests every candidate (after a broad phase).
   std::vector<char> moved_, moved_before_;
   bool test_all_ = true;
-  bool have_list_ = false;  // candidates_ was built in this step (x_shifted_)
   double skin_ = 0.0;       // [m]
   std::vector<char> in_zone_;
 };

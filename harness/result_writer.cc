@@ -53,10 +53,7 @@ void WriteSelfContact(ResultFile& f, const std::string& g, const RunSummary& r) 
   const SelfContactStats& s = *r.self_contact;
   const std::string sc = g + "/self_contact";
   f.CreateGroup(sc);
-  for (auto [name, v] : {std::pair{"steps", s.steps}, {"candidates", s.candidates}, {"broad_phases", s.broad_phases},
-                         {"repulsions", s.repulsions}, {"collisions", s.collisions}, {"zone_passes", s.zone_passes},
-                         {"unresolved_steps", s.unresolved_steps}})
-    f.SetAttribute(sc, name, v);
+  for (const auto& [name, v] : s.Counts()) f.SetAttribute(sc, name, v);
   f.SetAttribute(sc, "detection_s", s.detection_seconds);
   f.SetAttribute(sc, "response_s", s.response_seconds);
   f.SetAttribute(sc, "work_J", s.work);

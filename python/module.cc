@@ -522,10 +522,7 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
   if (r.self_contact) {
     const SelfContactStats& st = *r.self_contact;
     py::dict sc;
-    for (auto [name, v] : {std::pair{"steps", st.steps}, {"candidates", st.candidates}, {"broad_phases", st.broad_phases},
-                           {"repulsions", st.repulsions}, {"collisions", st.collisions}, {"zone_passes", st.zone_passes},
-                           {"unresolved_steps", st.unresolved_steps}})
-      sc[name] = v;
+    for (const auto& [name, v] : st.Counts()) sc[name] = v;
     sc["detection_s"] = st.detection_seconds;
     sc["response_s"] = st.response_seconds;
     sc["work_J"] = st.work;
