@@ -239,9 +239,11 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
   // With obstacles the reference, its run at rtol/10 and the cross-check's
   // refinement run side by side (harness/side_by_side.h), each on one
   // kernel thread: no table times them, and none needs another's result.
-  // Each has its own copy of the model (its terms keep scratch).
-  SideBySide checks(kCheckWorkers);
+  // Each has its own copy of the model (its terms keep scratch), made
+  // before the workers: it outlives them (their destructor cancels and
+  // joins a run still going when the reference fails).
   const ParticleSystem estimate_sys(b.scene);
+  SideBySide checks(kCheckWorkers);
   // In the order reference, cross-check refinements, estimate: the
   // refinements are the longest chain (the last alone about twice the
   // reference at 10⁴ particles), the estimate is needed only at the end.
