@@ -36,14 +36,16 @@ struct SelfContactStats {
   long collisions = 0;           ///< collision impulses (stage 2)
   long zone_passes = 0;          ///< impact-zone passes (stage 3)
   long unresolved_steps = 0;     ///< steps that ended with a collision left
+  long projections = 0;          ///< position projections (a position-based peer's own constraints)
   double detection_seconds = 0;  ///< broad phase, closest points and CCD [s]
   double response_seconds = 0;   ///< impulses, zones and the work's energies [s]
   double work = 0.0;             ///< W_self: the energy the corrections added (< 0: removed) [J]
   /// The counts by the names a result file and the Python door give them
   /// (docs/results-schema.md, /runs/<id>/self_contact).
-  std::array<std::pair<const char*, long>, 7> Counts() const {
+  std::array<std::pair<const char*, long>, 8> Counts() const {
     return {{{"steps", steps}, {"candidates", candidates}, {"broad_phases", broad_phases}, {"repulsions", repulsions},
-             {"collisions", collisions}, {"zone_passes", zone_passes}, {"unresolved_steps", unresolved_steps}}};
+             {"collisions", collisions}, {"zone_passes", zone_passes}, {"unresolved_steps", unresolved_steps},
+             {"projections", projections}}};
   }
 };
 

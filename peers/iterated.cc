@@ -230,6 +230,7 @@ bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool rho_sta
         v_ = omega * (cheb_.gamma * (v_ - v_start_) + v_start_ - v_prev_) + v_prev_;
       }
     }
+    AfterIteration(h);
     increments_.push_back((v_ - v_start_).norm());
     v_prev_.swap(v_start_);
   }

@@ -102,6 +102,9 @@ class IteratedStepper : public Stepper {
   /// One plain iteration v_ ← G(v_) at t₁ = t + h, in place; x_ is not
   /// kept (the iteration sets x_ = x₀ + h v_ itself where it reads it).
   virtual void Iteration(double h) = 0;
+  /// Called after each iteration, after the Chebyshev update of v_ (a
+  /// stepper's own self-contact bounds the iterate here).
+  virtual void AfterIteration(double /*h*/) {}
   /// Time of the ρ measurements so far [s].
   double rho_seconds() const { return rho_seconds_; }
   /// The step's explicit contact forces (Coulomb friction) [N], N×3, or

@@ -1,6 +1,12 @@
 // Obstacle contacts on positions (Macklin et al. 2014, Eq. 24–25; docs/model.md §10).
 #include "peers/position_contacts.h"
 
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#include "model/edge_projection.h"
+
 namespace clothbench {
 
 int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, double t_end, double dt,
@@ -32,6 +38,239 @@ int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, do
     }
   }
   return colliding;
+}
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+}  // namespace
+
+PositionSelfContact::PositionSelfContact(const ParticleSystem& system, double thickness, const Eigen::VectorXd& w)
+    : thickness_(thickness),
+      skin_(kSkinFraction * std::min(system.scene().lu(), system.scene().lv())),
+      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles()),
+      w_(w) {
+  if (!(thickness > 0.0)) throw std::invalid_argument("PositionSelfContact: thickness must be > 0");
+  const int n = system.num_particles();
+  for (MatrixN3* m : {&x_det_, &x_end_, &x_shifted_, &path_}) m->setZero(n, 3);
+  moved_.assign(static_cast<std::size_t>(n), 0);
+  reach_.assign(static_cast<std::size_t>(n), 0.0);
+  step_motion_.assign(static_cast<std::size_t>(n), 0.0);
+}
+
+double PositionSelfContact::PairMotion(const SelfContactPair& pair) const {
+  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
+  double a = 0.0, b = 0.0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const double m = step_motion_[static_cast<std::size_t>(pair.p[k])];
+    if (k < first)
+      a = std::max(a, m);
+    else
+      b = std::max(b, m);
+  }
+  return a + b;
+}
+
+double PositionSelfContact::BoxGap(const SelfContactPair& pair, const MatrixN3& p) {
+  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
+  Vector3 lo_a = p.row(pair.p[0]).transpose(), hi_a = lo_a;
+  Vector3 lo_b = p.row(pair.p[first]).transpose(), hi_b = lo_b;
+  for (std::size_t k = 1; k < 4; ++k) {
+    if (k == first) continue;
+    const Vector3 q = p.row(pair.p[k]).transpose();
+    Vector3& lo = k < first ? lo_a : lo_b;
+    Vector3& hi = k < first ? hi_a : hi_b;
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  return (lo_b - hi_a).cwiseMax(lo_a - hi_b).cwiseMax(0.0).norm();
+}
+
+void PositionSelfContact::Detect(const MatrixN3& x_det, const MatrixN3& x_end, double tau) {
+  const auto start = Clock::now();
+  x_det_ = x_det;
+  x_end_ = x_end;
+  tau_det_ = tau;
+  std::fill(reach_.begin(), reach_.end(), 0.0);
+  // The boxes over x_det → x_end − c, c the mean motion (no pair's relative
+  // motion changes), grown by the thickness and the skin; the slack covers
+  // a path that each particle leaves by at most the skin per coordinate.
+  const Vector3 c = (x_end_ - x_det_).colwise().mean().transpose();
+  x_shifted_ = x_end_.rowwise() - c.transpose();
+  detector_.Candidates(x_det_, x_shifted_, thickness_ + skin_, &candidates_, 2.0 * std::sqrt(3.0) * skin_);
+  by_distance_.resize(candidates_.size());
+  for (std::size_t i = 0; i < candidates_.size(); ++i)
+    by_distance_[i] = {Closest(candidates_[i], x_det_).distance, candidates_[i]};
+  std::sort(by_distance_.begin(), by_distance_.end());
+  ++stats_.broad_phases;
+  stats_.candidates += static_cast<long>(candidates_.size());
+  stats_.detection_seconds += Since(start);
+}
+
+void PositionSelfContact::BeginStep(double h, const MatrixN3& x0, const MatrixN3& v0) {
+  ++stats_.steps;
+  path_.noalias() = x0 + h * v0;
+  Detect(x0, path_, 0.0);
+}
+
+int PositionSelfContact::Project(const MatrixN3& x, double tau0, double tau1, MatrixN3* p) {
+  // Where the detection's straight path is at tau1; a particle further
+  // than the skin from it (per coordinate) may meet a pair the list lacks:
+  // the broad phase again, from the substep's start along its motion.
+  path_ = x_det_ + ((tau1 - tau_det_) / (1.0 - tau_det_)) * (x_end_ - x_det_);
+  if ((*p - path_).cwiseAbs().maxCoeff() > skin_) {
+    path_ = x + ((1.0 - tau0) / (tau1 - tau0)) * (*p - x);
+    Detect(x, path_, tau0);
+  }
+  const auto start = Clock::now();
+  // Each particle's largest displacement since the detection, less the
+  // mean, over the substeps so far: a pair's distance has fallen by at most
+  // the largest of its first element's plus the largest of its second's.
+  path_ = *p - x_det_;
+  const Vector3 c = path_.colwise().mean().transpose();
+  const int n = static_cast<int>(reach_.size());
+  double most = 0.0;
+  for (int q = 0; q < n; ++q) {
+    reach_[static_cast<std::size_t>(q)] =
+        std::max(reach_[static_cast<std::size_t>(q)], (path_.row(q) - c.transpose()).norm());
+    most = std::max(most, reach_[static_cast<std::size_t>(q)]);
+  }
+  const double limit = thickness_ + 2.0 * most;
+  // Each particle's motion in the substep.
+  for (int q = 0; q < n; ++q) step_motion_[static_cast<std::size_t>(q)] = (p->row(q) - x.row(q)).norm();
+  // The pairs in reach, each with its normal at the substep's start: a pair
+  // that crossed in the substep is pushed back to it. A later pass tests
+  // only the pairs with a particle that the pass before or this one moved.
+  std::size_t active = 0;
+  while (active < by_distance_.size() && by_distance_[active].first < limit) ++active;
+  start_normal_.resize(active);
+  in_reach_.resize(active);
+  int projected = 0;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    for (int q : moved_list_) moved_[static_cast<std::size_t>(q)] = 2;  // moved in the pass before
+    int this_pass = 0;
+    for (std::size_t i = 0; i < active; ++i) {
+      const SelfContactPair& pair = by_distance_[i].second;
+      if (pass == 0) {
+        const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
+        double a = 0.0, b = 0.0;
+        for (std::size_t k = 0; k < 4; ++k) (k < first ? a : b) = std::max(k < first ? a : b, reach_[static_cast<std::size_t>(pair.p[k])]);
+        in_reach_[i] = by_distance_[i].first - (a + b) < thickness_;
+        if (!in_reach_[i]) continue;
+        start_normal_[i].setZero();  // computed where first needed
+      } else if (!in_reach_[i] || !std::any_of(pair.p.begin(), pair.p.end(), [&](int q) {
+                   return moved_[static_cast<std::size_t>(q)] != 0;
+                 })) {
+        continue;
+      }
+      // Apart by more than the thickness, and by more than the pair's
+      // relative motion in the substep (so it did not cross): no projection.
+      // The boxes' distance bounds the elements' (Ericson 2005, §5.1.3).
+      if (BoxGap(pair, *p) >= std::max(thickness_, PairMotion(pair))) continue;
+      const PairGeometry g = Closest(pair, *p);
+      if (start_normal_[i].isZero(0.0)) start_normal_[i] = Closest(pair, x).n;
+      const double side = g.n.dot(start_normal_[i]) >= 0.0 ? 1.0 : -1.0;
+      if (side * g.distance >= (pass == 0 ? 1.0 : kSlop) * thickness_) continue;
+      double denom = 0.0;
+      for (std::size_t k = 0; k < 4; ++k) denom += g.w[k] * g.w[k] * w_(pair.p[k]);
+      if (!(denom > 0.0)) continue;
+      const double lambda = (thickness_ - side * g.distance) / denom;  // −C / Σ w_k² m_k⁻¹
+      const Vector3 n = side * g.n;
+      for (std::size_t k = 0; k < 4; ++k) {
+        const int q = pair.p[k];
+        if (w_(q) == 0.0) continue;
+        p->row(q) += (lambda * g.w[k] * w_(q)) * n.transpose();
+        if (moved_[static_cast<std::size_t>(q)] != 1) {
+          if (moved_[static_cast<std::size_t>(q)] == 0) moved_list_.push_back(q);
+          moved_[static_cast<std::size_t>(q)] = 1;
+        }
+      }
+      ++this_pass;
+    }
+    // The particles moved in this pass become the next pass' "moved before".
+    std::size_t keep = 0;
+    for (int q : moved_list_) {
+      if (moved_[static_cast<std::size_t>(q)] == 1) {
+        moved_list_[keep++] = q;
+      } else {
+        moved_[static_cast<std::size_t>(q)] = 0;
+      }
+    }
+    moved_list_.resize(keep);
+    projected += this_pass;
+    if (this_pass == 0) break;
+  }
+  for (int q : moved_list_) moved_[static_cast<std::size_t>(q)] = 0;
+  moved_list_.clear();
+  stats_.projections += projected;
+  stats_.response_seconds += Since(start);
+  return projected;
+}
+
+VbdSelfContact::VbdSelfContact(const ParticleSystem& system, double thickness)
+    : sys_(system),
+      thickness_(thickness),
+      query_(kQueryFactor * thickness),
+      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles()) {
+  if (!(thickness > 0.0)) throw std::invalid_argument("VbdSelfContact: thickness must be > 0");
+  constexpr double kG0 = 9.81;  // m/s², the weight's scale
+  stiffness_ = kStiffness * system.masses().mean() * kG0 / thickness;
+  const int n = system.num_particles();
+  x_det_.setZero(n, 3);
+  bound_.assign(static_cast<std::size_t>(n), 0.0);
+  offsets_.assign(static_cast<std::size_t>(n) + 1, 0);
+}
+
+void VbdSelfContact::Detect(const MatrixN3& x) {
+  const auto start = Clock::now();
+  x_det_ = x;
+  detector_.Candidates(x, x, query_, &candidates_);
+  ++stats_.broad_phases;
+  stats_.candidates += static_cast<long>(candidates_.size());
+  // The pairs within Q in the pairs' order (deterministic), with their
+  // distances in the bounds.
+  std::sort(candidates_.begin(), candidates_.end());
+  pairs_.clear();
+  std::fill(bound_.begin(), bound_.end(), query_);
+  for (const SelfContactPair& pair : candidates_) {
+    const double d = Closest(pair, x).distance;
+    if (!(d < query_)) continue;
+    pairs_.push_back(pair);
+    for (int q : pair.p) bound_[static_cast<std::size_t>(q)] = std::min(bound_[static_cast<std::size_t>(q)], d);
+  }
+  for (double& b : bound_) b *= kRelaxation;
+  // Each particle's pairs (CSR).
+  std::fill(offsets_.begin(), offsets_.end(), 0);
+  for (const SelfContactPair& pair : pairs_)
+    for (int q : pair.p) ++offsets_[static_cast<std::size_t>(q) + 1];
+  for (std::size_t q = 0; q + 1 < offsets_.size(); ++q) offsets_[q + 1] += offsets_[q];
+  incident_.resize(static_cast<std::size_t>(offsets_.back()));
+  std::vector<int>& fill = fill_;
+  fill.assign(offsets_.begin(), offsets_.end() - 1);
+  for (std::size_t i = 0; i < pairs_.size(); ++i)
+    for (std::size_t k = 0; k < 4; ++k)
+      incident_[static_cast<std::size_t>(fill[static_cast<std::size_t>(pairs_[i].p[k])]++)] = static_cast<int>(4 * i + k);
+  stats_.detection_seconds += Since(start);
+}
+
+void VbdSelfContact::AddForce(int p, const MatrixN3& x, Vector3* f, Matrix3* k) const {
+  for (int e = offsets_[static_cast<std::size_t>(p)]; e < offsets_[static_cast<std::size_t>(p) + 1]; ++e) {
+    const int item = incident_[static_cast<std::size_t>(e)];
+    const SelfContactPair& pair = pairs_[static_cast<std::size_t>(item / 4)];
+    const PairGeometry g = Closest(pair, x);
+    if (!(g.distance < thickness_)) continue;
+    const double w = g.w[static_cast<std::size_t>(item % 4)];
+    *f += (stiffness_ * (thickness_ - g.distance) * w) * g.n;
+    *k += (stiffness_ * w * w) * (g.n * g.n.transpose());
+  }
+}
+
+bool VbdSelfContact::Truncate(int p, Vector3* xp) const {
+  const Vector3 d = *xp - x_det_.row(p).transpose();
+  const double len = d.norm(), b = bound_[static_cast<std::size_t>(p)];
+  if (!(len > b)) return false;
+  *xp = x_det_.row(p).transpose() + (b / len) * d;
+  return true;
 }
 
 }  // namespace clothbench

@@ -47,6 +47,49 @@ VertexBlockDescent::VertexBlockDescent(const ParticleSystem& system, int iterati
       order_[static_cast<std::size_t>(fill[static_cast<std::size_t>(colour[static_cast<std::size_t>(p)])]++)] = p;
 
   colouring_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (const auto& collision = system.scene().collision; collision && collision->self) {
+    self_.emplace(system, collision->thickness);
+    x_colour_.setZero(n, 3);
+    truncated_.assign(static_cast<std::size_t>(n), 0);
+  }
+}
+
+void VertexBlockDescent::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
+  IteratedStepper::Reset(t, x, v);
+  if (self_) self_->Reset();
+}
+
+bool VertexBlockDescent::Bound(double h, int p, Vector3* vp) {
+  Vector3 xp = x0_.row(p).transpose() + h * *vp;
+  if (!self_->Truncate(p, &xp)) return false;
+  *vp = (xp - x0_.row(p).transpose()) / h;
+  truncated_[static_cast<std::size_t>(p)] = 1;
+  return true;
+}
+
+void VertexBlockDescent::BeginIterations(double h) {
+  if (!self_) return;
+  ++self_->stats().steps;
+  self_->Detect(x0_);
+  AfterIteration(h);  // the first iterate within the bounds
+}
+
+void VertexBlockDescent::AfterIteration(double h) {
+  if (!self_) return;
+  long truncated = 0;
+  for (int p : order_) {
+    Vector3 vp = v_.row(p).transpose();
+    if (Bound(h, p, &vp)) v_.row(p) = vp.transpose();
+  }
+  for (char& c : truncated_) {
+    truncated += c;
+    c = 0;
+  }
+  self_->stats().projections += truncated;
+  if (truncated == 0) return;
+  // A particle at its bound: the detection again, from where the iterate is.
+  x_colour_.noalias() = x0_ + h * v_;
+  self_->Detect(x_colour_);
 }
 
 void VertexBlockDescent::Relax(double t1, double h, int p) {
@@ -54,11 +97,17 @@ void VertexBlockDescent::Relax(double t1, double h, int p) {
   Matrix3 dfdx, dfdv;
   sys_.ParticleForce(t1, x_, v_, p, &f, &dfdx, &dfdv);
   if (const MatrixN3* friction = contact_forces()) f += friction->row(p).transpose();
+  if (self_) {  // the penalty at the colour's start positions (the same for any thread count)
+    Matrix3 k = Matrix3::Zero();
+    self_->AddForce(p, x_colour_, &f, &k);
+    dfdx -= k;
+  }
   const double m = sys_.masses()(p);
   Vector3 v1 = v_.row(p).transpose();
   const Vector3 r = m * (v1 - v0_.row(p).transpose()) - h * f;
   const Matrix3 j = m * Matrix3::Identity() - h * dfdv - (h * h) * dfdx;
   if (!LocalStep(p, j, r, &v1)) return;
+  if (self_) Bound(h, p, &v1);
   v_.row(p) = v1.transpose();
   x_.row(p) = x0_.row(p) + h * v1.transpose();
 }
@@ -69,6 +118,7 @@ void VertexBlockDescent::Iteration(double h) {
   x_.noalias() = x0_ + h * v_;
   for (std::size_t c = 0; c + 1 < colour_start_.size(); ++c) {
     const std::ptrdiff_t first = colour_start_[c], last = colour_start_[c + 1];
+    if (self_) x_colour_ = x_;
 #pragma omp parallel for schedule(static) if (last - first >= kParallelColour)
     for (std::ptrdiff_t i = first; i < last; ++i) Relax(t1, h, order_[static_cast<std::size_t>(i)]);
   }

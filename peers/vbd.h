@@ -41,14 +41,24 @@
 // penalty energies inside the iterations; this model's contact is the
 // thesis' non-penetration constraint, docs/model.md §10). Fixed particles
 // have v = 0.
+//
+// Self-contact (`[collision] self = true`): the paper's penalty energy on
+// point–triangle and edge–edge pairs inside the local steps, each
+// particle's iterate truncated to the conservative bound around where the
+// pairs were last detected, and a new detection after a sweep that
+// truncated one (peers/position_contacts.h, VbdSelfContact). The penalty
+// reads the positions at its colour's start, so a sweep is the same for
+// any thread count.
 #ifndef CLOTHBENCH_PEERS_VBD_H_
 #define CLOTHBENCH_PEERS_VBD_H_
 
+#include <optional>
 #include <string_view>
 #include <vector>
 
 #include "model/particle_system.h"
 #include "peers/iterated.h"
+#include "peers/position_contacts.h"
 #include "solver/integrator.h"
 
 namespace clothbench {
@@ -73,6 +83,8 @@ class VertexBlockDescent : public IteratedStepper {
   VertexBlockDescent(const ParticleSystem& system, int iterations, ChebyshevSettings chebyshev = {});
 
   int matrix_rebuilds() const override { return 0; }
+  void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
+  const SelfContactStats* own_self_contact() const override { return self_ ? &self_->stats() : nullptr; }
   /// The colouring and the ρ measurements [s].
   double setup_seconds() const override { return colouring_seconds_ + rho_seconds(); }
   /// The number of colours of the particle graph (free particles only).
@@ -96,11 +108,20 @@ class VertexBlockDescent : public IteratedStepper {
 
  private:
   void Iteration(double h) override;
+  /// Self-contact: the detection at the step's start and the first iterate's bound.
+  void BeginIterations(double h) override;
+  /// Self-contact: every particle within its bound; a new detection if one was not.
+  void AfterIteration(double h) override;
   // One local Newton step of particle p at t₁ (reads x_, v_; writes row p).
   void Relax(double t1, double h, int p);
   double colouring_seconds_ = 0.0;
   // Free particles by colour: colour c is order_[colour_start_[c] … colour_start_[c + 1]).
   std::vector<int> order_, colour_start_;
+  std::optional<VbdSelfContact> self_;  // `[collision] self = true`
+  MatrixN3 x_colour_;                   // self-contact: the positions at a colour's start (its contacts read them)
+  std::vector<char> truncated_;         // self-contact: per particle, truncated in this iteration
+  // Moves particle p's iterate v_p back within its bound; true if it did.
+  bool Bound(double h, int p, Vector3* vp);
 };
 
 }  // namespace clothbench

@@ -80,6 +80,8 @@ Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_
     explicit_names_.emplace_back(name);
   }
   for (MatrixN3* m : {&x0_, &v0_, &x_, &v_, &p_, &f_}) m->setZero(n, 3);
+  if (const auto& collision = scene.collision; collision && collision->self)
+    self_.emplace(system, collision->thickness, w_);
 }
 
 void Xpbd::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -87,6 +89,7 @@ void Xpbd::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   x0_ = x;
   v0_ = v;
   for (int p : sys_.fixed()) v0_.row(p).setZero();
+  if (self_) self_->Reset();
 }
 
 void Xpbd::PredictionForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
@@ -139,6 +142,7 @@ StepStats Xpbd::Step(double h) {
   x_ = x0_;
   v_ = v0_;
   bool blown_up = false;
+  if (self_) self_->BeginStep(h, x0_, v0_);
   for (int k = 0; k < substeps_; ++k) {
     if (DeadlinePassed()) {  // the run's --time-limit (model/interrupt.h); the state stays x₀, v₀
       st.status = StepStatus::kTimeLimit;
@@ -171,14 +175,17 @@ StepStats Xpbd::Step(double h) {
       p_.row(c.b) = pb.transpose();
     }
     if (!shear_.empty()) ProjectShear(dt);
-    if (!sys_.obstacles().empty()) {
-      // A non-finite prediction ends the step here, before the obstacle
+    if (self_ || !sys_.obstacles().empty()) {
+      // A non-finite prediction ends the step here, before the contact
       // queries (CGAL) see it; the state stays x₀, v₀.
       if (!p_.allFinite()) {
         blown_up = true;
         break;
       }
-      st.colliding = ProjectOntoObstacles(sys_, w_, t + dt, dt, x_, &p_);
+      // The obstacles first: a layer that they lift must not be lifted
+      // through the one above it.
+      if (!sys_.obstacles().empty()) st.colliding = ProjectOntoObstacles(sys_, w_, t + dt, dt, x_, &p_);
+      if (self_) self_->Project(x_, static_cast<double>(k) / substeps_, static_cast<double>(k + 1) / substeps_, &p_);
     }
     // 5. v ← (p − x)/Δt, x ← p.
     v_ = (p_ - x_) / dt;

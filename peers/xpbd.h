@@ -19,16 +19,21 @@
 //  - obstacles: the inequality C = d(x) − δ ≥ 0 on the signed distance d,
 //    with zero compliance, and Coulomb friction on the tangential
 //    displacement (peers/position_contacts.h);
+//  - self-contact (`[collision] self = true`): point–triangle and edge–edge
+//    inequality constraints with zero compliance in every substep
+//    (peers/position_contacts.h, PositionSelfContact);
 //  - fixed particles have inverse mass 0.
 #ifndef CLOTHBENCH_PEERS_XPBD_H_
 #define CLOTHBENCH_PEERS_XPBD_H_
 
 #include <array>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "model/particle_system.h"
+#include "peers/position_contacts.h"
 #include "solver/integrator.h"
 
 namespace clothbench {
@@ -57,6 +62,7 @@ class Xpbd : public Stepper {
   bool single_update() const override { return true; }
   int matrix_rebuilds() const override { return 0; }
   double setup_seconds() const override { return 0.0; }
+  const SelfContactStats* own_self_contact() const override { return self_ ? &self_->stats() : nullptr; }
 
   int substeps() const { return substeps_; }
   /// The scene's force terms applied explicitly in the prediction (all but
@@ -113,6 +119,7 @@ class Xpbd : public Stepper {
   std::vector<const ForceTerm*> explicit_;
   std::vector<std::string> explicit_names_;
   MatrixN3 x0_, v0_, x_, v_, p_, f_;
+  std::optional<PositionSelfContact> self_;  // `[collision] self = true`
 };
 
 }  // namespace clothbench

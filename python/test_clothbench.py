@@ -469,5 +469,12 @@ def test_self_contact_switch_counts_and_removes_the_crossings():
     assert on["self_contact"]["collisions"] + on["self_contact"]["repulsions"] > 0
     with pytest.raises(ValueError, match="self_contact"):
         clothbench.run(scene, "sbdf2", h=0.005, t_end=0.1, self_contact="maybe")
-    # A row without a response is refused before its first step.
-    assert clothbench.run(scene, "xpbd", h=0.005, substeps=4, t_end=0.1)["status"] == "unsupported_scene"
+    # XPBD and VBD have their own (constraints in the substeps, a penalty
+    # within bounds); a row without self-contact is refused before its
+    # first step.
+    xpbd = clothbench.run(scene, "xpbd", h=0.005, substeps=16, t_end=0.6)
+    assert xpbd["status"] == "ok" and max(xpbd["crossing_pairs"]) == 0
+    assert xpbd["self_contact"]["projections"] > 0
+    vbd = clothbench.run(scene, "vbd", h=0.005, iterations=1, t_end=0.6)
+    assert vbd["status"] == "ok" and max(vbd["crossing_pairs"]) == 0
+    assert clothbench.run(scene, "pd", h=0.005, iterations=4, t_end=0.1)["status"] == "unsupported_scene"

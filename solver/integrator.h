@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "collision/self_contact_response.h"
 #include "model/particle_system.h"
 #include "model/run_status.h"
 #include "solver/contact.h"
@@ -202,6 +203,12 @@ class Stepper {
   /// step's end). A stepper without it is refused on a scene with
   /// `[collision] self = true` (status unsupported_scene).
   virtual bool corrects_state() const { return false; }
+  /// The counters of the stepper's own self-contact on a scene with
+  /// `[collision] self = true` (a position-based peer's constraints inside
+  /// its step, peers/position_contacts.h), since Reset; nullptr where it
+  /// has none (the run's response corrects the step instead, where
+  /// corrects_state()).
+  virtual const SelfContactStats* own_self_contact() const { return nullptr; }
   /// Replaces the state at t() after an accepted step by (x, v) (N×3 [m],
   /// [m/s]), keeping the history the next step uses (a multistep method's
   /// x₋₁, v₋₁). Only where corrects_state().

@@ -171,7 +171,7 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double e
     *message = fmt::format("the energy became non-finite by t = {:.6g} s", t);
     return false;
   }
-  const bool balance_closed = contact_work || sys_.obstacles().empty();
+  const bool balance_closed = !open_balance_ && (contact_work || sys_.obstacles().empty());
   const double gain = e - e0_ - external_work - contact_work.value_or(0.0);
   if (balance_closed) gain_ratio_ = std::max({gain_ratio_, 0.0, gain / e_scale_});  // the gain at t = 0 is 0
   if (balance_closed && gain > kEnergyGainFactor * e_scale_) {
@@ -254,13 +254,17 @@ bool PastLimits(const StepStats& st, const RunOptions& options, double t, long a
 // to the frames reached.
 class FrameRecorder {
  public:
-  FrameRecorder(const ParticleSystem& system, const Stepper& engine, const RunOptions& options,
-                const SelfContactResponse* self_contact, RunSummary* sum)
+  /// @param self_contact whether the scene asks for self-contact (a
+  ///        crossing frame then ends the run)
+  /// @param response the self-contact response whose work is recorded, or nullptr
+  FrameRecorder(const ParticleSystem& system, const Stepper& engine, const RunOptions& options, bool self_contact,
+                const SelfContactResponse* response, RunSummary* sum)
       : frames_(FrameTimes(options.t_end, options.frame_dt)),
         track_work_(system.has_external_work()),
         track_contact_(engine.contact_work() != nullptr),
         virtual_(system.virtual_particles()),
         self_contact_(self_contact),
+        response_(response),
         sum_(sum) {
     if (system.scene().collision) triangles_ = GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices;
     Trajectory& tr = sum->trajectory;
@@ -272,7 +276,7 @@ class FrameRecorder {
       for (auto* w : {&tr.contact_work_holding, &tr.contact_work_pulling, &tr.contact_work_friction})
         w->assign(frames_.size(), 0.0);
     if (!triangles_.empty()) tr.crossing_pairs.reserve(frames_.size());
-    if (self_contact_) tr.contact_work_self.assign(frames_.size(), 0.0);
+    if (response_) tr.contact_work_self.assign(frames_.size(), 0.0);
     tr.times.push_back(0.0);
     tr.positions[0] = engine.x();
     tr.velocities[0] = engine.v();
@@ -290,7 +294,7 @@ class FrameRecorder {
   /// Notes the contact work series' values at the start of a step.
   void StartStep(const Stepper& engine) {
     if (track_contact_) contact0_ = *engine.contact_work();
-    if (self_contact_) self_work0_ = self_contact_->stats().work;
+    if (response_) self_work0_ = response_->stats().work;
   }
 
   bool Keep(const Stepper& engine, const MatrixN3& x0, const MatrixN3& v0, double t_start, double step, double work0,
@@ -318,8 +322,7 @@ class FrameRecorder {
         tr.contact_work_pulling[next_] = contact0_.pulling + sc * (contact1.pulling - contact0_.pulling);
         tr.contact_work_friction[next_] = contact0_.friction + sc * (contact1.friction - contact0_.friction);
       }
-      if (self_contact_)
-        tr.contact_work_self[next_] = self_work0_ + sc * (self_contact_->stats().work - self_work0_);
+      if (response_) tr.contact_work_self[next_] = self_work0_ + sc * (response_->stats().work - self_work0_);
       if (virtual_) {  // the frame's own virtual particles (the next step's, if the frame ends a step)
         virtual_->Update(frames_[next_], tr.positions[next_]);
         virtual_->RecordFrame(tr.positions[next_], &tr.virtual_particles);
@@ -339,7 +342,7 @@ class FrameRecorder {
     if (!self_contact_ || pairs.empty()) return true;
     sum_->status = RunStatus::kSelfIntersection;
     sum_->message = fmt::format("the cloth crosses itself at t = {:.6g} s: {} crossing triangle pair{} (first: triangles "
-                                "{} and {}) despite the self-contact response",
+                                "{} and {}) despite self-contact",
                                 t, pairs.size(), pairs.size() > 1 ? "s" : "", pairs[0].first, pairs[0].second);
     return false;
   }
@@ -352,14 +355,15 @@ class FrameRecorder {
     if (track_work_) tr.external_work.resize(next_);
     if (track_contact_)
       for (auto* w : {&tr.contact_work_holding, &tr.contact_work_pulling, &tr.contact_work_friction}) w->resize(next_);
-    if (self_contact_) tr.contact_work_self.resize(next_);
+    if (response_) tr.contact_work_self.resize(next_);
   }
 
  private:
   std::vector<double> frames_;
   bool track_work_, track_contact_;
   VirtualParticles* virtual_;
-  const SelfContactResponse* self_contact_;
+  bool self_contact_;
+  const SelfContactResponse* response_;
   ContactResponse::Work contact0_;  // at the start of the step
   double self_work0_ = 0.0;
   std::vector<std::array<int, 3>> triangles_;  // the cloth's, if its frames are checked for crossings
@@ -367,25 +371,36 @@ class FrameRecorder {
   std::size_t next_ = 1;
 };
 
-// The self-contact response (collision/self_contact_response.h) of a run
-// on a scene with `[collision] self = true`: it corrects every accepted
-// step's end state, for the steppers that take a correction.
+// Self-contact on a scene with `[collision] self = true`: the stepper's
+// own (Stepper::own_self_contact, the position-based peers), or else the
+// response (collision/self_contact_response.h) that corrects every
+// accepted step's end state, for the steppers that take a correction.
 class SelfContactStage {
  public:
-  explicit SelfContactStage(const ParticleSystem& system) : sys_(system) {
-    if (const auto& collision = system.scene().collision; collision && collision->self)
+  SelfContactStage(const ParticleSystem& system, const Stepper& engine) : sys_(system), engine_(engine) {
+    const auto& collision = system.scene().collision;
+    active_ = collision && collision->self;
+    if (active_ && !engine.own_self_contact() && engine.corrects_state())
       response_.emplace(system, collision->thickness);
   }
+  /// Whether the scene asks for self-contact.
+  bool active() const { return active_; }
   /// True (sum's status and message set) if the scene has self-contact and
-  /// the stepper takes no correction.
-  bool Refuses(const Stepper& engine, RunSummary* sum) const {
-    if (!response_ || engine.corrects_state()) return false;
+  /// the stepper neither has its own nor takes a correction.
+  bool Refuses(RunSummary* sum) const {
+    if (!active_ || response_ || engine_.own_self_contact()) return false;
     sum->status = RunStatus::kUnsupportedScene;
     sum->message = "collision.self = true: this method has no self-contact response (docs/collisions.md, "
                    "\"Self-contact\")";
     return true;
   }
   const SelfContactResponse* response() const { return response_ ? &*response_ : nullptr; }
+  /// The counters of whichever self-contact acted, or nothing.
+  std::optional<SelfContactStats> stats() const {
+    if (response_) return response_->stats();
+    if (const SelfContactStats* own = engine_.own_self_contact()) return *own;
+    return std::nullopt;
+  }
   double work() const { return response_ ? response_->stats().work : 0.0; }
   /// Corrects the step of size h from x_prev to the engine's state; its wall time [s].
   double Correct(double h, const MatrixN3& x_prev, Stepper& engine) {
@@ -399,15 +414,20 @@ class SelfContactStage {
   }
   /// W_contact for the blow-up guard: the engine's contact work, plus the
   /// self-contact's where the obstacles' is counted or there are none.
+  /// Nothing where a stepper's own self-contact does uncounted work.
   std::optional<double> ContactWork(const Stepper& engine) const {
     const ContactResponse::Work* contact = engine.contact_work();
     std::optional<double> total = contact ? std::optional(contact->total()) : std::nullopt;
     if (response_ && (contact || sys_.obstacles().empty())) total = total.value_or(0.0) + work();
     return total;
   }
+  /// Whether the energy balance misses work the stepper does not count.
+  bool uncounted_work() const { return active_ && !response_; }
 
  private:
   const ParticleSystem& sys_;
+  const Stepper& engine_;
+  bool active_ = false;
   std::optional<SelfContactResponse> response_;
   MatrixN3 x_, v_;  // the corrected state (allocated at the first step)
 };
@@ -549,14 +569,15 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   double solver_seconds = 0.0;
 
   VirtualParticles* const virtual_particles = ResetToRest(system, engine);
-  SelfContactStage self_contact(system);
-  if (self_contact.Refuses(engine, &sum)) return sum;
+  SelfContactStage self_contact(system, engine);
+  if (self_contact.Refuses(&sum)) return sum;
   // Frames, work series and step statistics are allocated before the loop.
-  FrameRecorder recorder(system, engine, options, self_contact.response(), &sum);
+  FrameRecorder recorder(system, engine, options, self_contact.active(), self_contact.response(), &sum);
   ExternalWork external(system, engine.x(), engine.v());
   sum.step_stats.reserve(static_cast<std::size_t>(
       std::min(std::ceil(options.t_end / options.h), static_cast<double>(options.limits.max_steps))) + 64);
   BlowUpGuard guard(system, engine.x(), engine.v(), options.t_end);
+  if (self_contact.uncounted_work()) guard.OpenBalance();
   long attempts = 0;
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();
@@ -648,7 +669,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   }
   recorder.Trim();
   FinishRun(engine, guard, virtual_particles, solver_seconds, wall_start, &sum);
-  if (self_contact.response()) sum.self_contact = self_contact.response()->stats();
+  if (const auto stats = self_contact.stats()) sum.self_contact = *stats;
   return sum;
 }
 

@@ -152,6 +152,10 @@ class BlowUpGuard {
   /// The speed check alone (part of Check), for a caller with its own
   /// energy bound (the stability maps): false with status "speed".
   bool CheckSpeed(double t, const MatrixN3& v, RunStatus* status, std::string* message);
+  /// Leaves the energy balance unchecked also on a scene without obstacles:
+  /// the stepper's contact with itself does work it does not count (a
+  /// position-based peer's self-contact projections).
+  void OpenBalance() { open_balance_ = true; }
   /// Checks a stored frame at time t [s] with N×3 positions x [m] and
   /// velocities v [m/s]: false with status "non_finite", or "penetration"
   /// against the obstacles and a message naming the particle, its depth,
@@ -164,6 +168,7 @@ class BlowUpGuard {
  private:
   const ParticleSystem& sys_;
   double e_scale_ = 0.0, v_bound_ = 0.0, e0_ = 0.0;
+  bool open_balance_ = false;
   double gain_ratio_ = -1.0, speed_ratio_ = -1.0, depth_ratio_ = -1.0;  // largest so far; −1: not measured
 };
 
