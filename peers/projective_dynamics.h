@@ -61,6 +61,16 @@ class ProjectiveDynamics : public IteratedStepper {
   /// ChebyshevRho of them, from a copy of the state at the first step of
   /// each h.
   static constexpr int kRhoIterations = kChebyshevRhoIterations;
+  /// Self-contact (`[collision] self = true`): no constraint of its own
+  /// here; the run's response of Bridson et al. 2002 corrects each step's
+  /// end (collision/self_contact_response.h), as for Baraff–Witkin. The
+  /// next step starts from the corrected state (the inertial guess keeps
+  /// no history).
+  bool corrects_state() const override { return true; }
+  void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
+    x0_ = x;
+    v0_ = v;
+  }
 
  private:
   StepStatus Prepare(double h) override;

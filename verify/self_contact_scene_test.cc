@@ -150,9 +150,9 @@ TEST(SelfContactScene, ACrossingFrameEndsTheRunWithSelfIntersection) {
 // (Δt = 1.25 ms) suffice at h; one substep of 5 ms is not asserted: the
 // pile crosses there (docs/collisions.md, "Self-contact"). VBD: the
 // penalty in its local steps within the conservative bounds, at one and
-// four sweeps per step, h and h/4.
+// four sweeps per step, h and h/4. PD: the run's response after its step.
 struct PeerCase {
-  bool vbd;         // else XPBD
+  enum Peer { kXpbd, kVbd, kPd } peer;
   bool pile;        // else the fold
   int updates;      // XPBD's substeps, VBD's sweeps per step
   double fraction;  // of the scene's h
@@ -161,31 +161,42 @@ struct PeerCase {
 class SelfContactPeers : public ::testing::TestWithParam<PeerCase> {};
 
 TEST_P(SelfContactPeers, NoFrameCrosses) {
-  const auto [vbd, pile, updates, fraction] = GetParam();
+  const auto [peer, pile, updates, fraction] = GetParam();
   const Scene s = pile ? Pile(true) : Fold(true);
   const ParticleSystem sys(s);
   std::unique_ptr<Stepper> stepper;
-  if (vbd)
+  if (peer == PeerCase::kVbd)
     stepper = std::make_unique<VertexBlockDescent>(sys, updates);
+  else if (peer == PeerCase::kPd)
+    stepper = std::make_unique<ProjectiveDynamics>(sys, s.solver, updates);
   else
     stepper = std::make_unique<Xpbd>(sys, updates);
   const RunSummary r = RunStepper(sys, *stepper, {fraction * s.h, s.t_end, s.frame_dt});
   ASSERT_EQ(r.status, RunStatus::kOk) << r.message;
   EXPECT_EQ(MostCrossings(r), 0);
   ASSERT_TRUE(r.self_contact.has_value());
-  EXPECT_GE(r.self_contact->broad_phases, r.self_contact->steps);         // at least once per step
-  if (!vbd) EXPECT_GT(r.self_contact->projections, 0);                     // the constraints acted
-  EXPECT_EQ(r.self_contact->repulsions + r.self_contact->collisions, 0);  // not the response's impulses
-  EXPECT_TRUE(r.trajectory.contact_work_self.empty());                    // its work is not counted
+  EXPECT_GE(r.self_contact->broad_phases, r.self_contact->steps);  // at least once per step
+  if (peer == PeerCase::kPd) {  // the response's impulses, and their work
+    EXPECT_GT(r.self_contact->repulsions + r.self_contact->collisions, 0);
+    EXPECT_EQ(r.trajectory.contact_work_self.size(), r.trajectory.times.size());
+    return;
+  }
+  if (peer == PeerCase::kXpbd) EXPECT_GT(r.self_contact->projections, 0);  // the constraints acted
+  EXPECT_EQ(r.self_contact->repulsions + r.self_contact->collisions, 0);   // not the response's impulses
+  EXPECT_TRUE(r.trajectory.contact_work_self.empty());                     // its work is not counted
 }
 
 INSTANTIATE_TEST_SUITE_P(
     Premises, SelfContactPeers,
-    ::testing::Values(PeerCase{false, false, 16, 1.0}, PeerCase{false, false, 16, 0.25}, PeerCase{false, true, 4, 1.0},
-                      PeerCase{true, false, 1, 1.0}, PeerCase{true, false, 4, 0.25}, PeerCase{true, true, 1, 1.0},
-                      PeerCase{true, true, 4, 1.0}, PeerCase{true, true, 1, 0.25}),
+    ::testing::Values(PeerCase{PeerCase::kXpbd, false, 16, 1.0}, PeerCase{PeerCase::kXpbd, false, 16, 0.25},
+                      PeerCase{PeerCase::kXpbd, true, 4, 1.0}, PeerCase{PeerCase::kVbd, false, 1, 1.0},
+                      PeerCase{PeerCase::kVbd, false, 4, 0.25}, PeerCase{PeerCase::kVbd, true, 1, 1.0},
+                      PeerCase{PeerCase::kVbd, true, 4, 1.0}, PeerCase{PeerCase::kVbd, true, 1, 0.25},
+                      PeerCase{PeerCase::kPd, false, 4, 1.0}, PeerCase{PeerCase::kPd, false, 4, 0.25},
+                      PeerCase{PeerCase::kPd, true, 16, 1.0}, PeerCase{PeerCase::kPd, true, 4, 0.25}),
     [](const ::testing::TestParamInfo<PeerCase>& c) {
-      return std::string(c.param.vbd ? "vbd_" : "xpbd_") + (c.param.pile ? "pile_" : "fold_") +
+      const char* name = c.param.peer == PeerCase::kXpbd ? "xpbd_" : c.param.peer == PeerCase::kVbd ? "vbd_" : "pd_";
+      return std::string(name) + (c.param.pile ? "pile_" : "fold_") +
              std::to_string(c.param.updates) + (c.param.fraction == 1.0 ? "_h" : "_quarter_h");
     });
 
@@ -207,11 +218,18 @@ TEST(SelfContactScene, XpbdRepeatsBitForBitOnOneAndTwoThreads) {
   EXPECT_EQ(r[1].self_contact->projections, r[0].self_contact->projections);
 }
 
+// A stepper that neither corrects its state nor has self-contact of its own.
+class NoSelfContact : public StepEngine {
+ public:
+  using StepEngine::StepEngine;
+  bool corrects_state() const override { return false; }
+};
+
 TEST(SelfContactScene, AMethodWithoutSelfContactIsRefused) {
   const Scene s = Fold(true);
   const ParticleSystem sys(s);
-  ProjectiveDynamics pd(sys, s.solver, 4);
-  const RunSummary r = RunStepper(sys, pd, {s.h, s.t_end, s.frame_dt});
+  NoSelfContact engine(sys, Method::kSbdf2, s.solver);
+  const RunSummary r = RunStepper(sys, engine, {s.h, s.t_end, s.frame_dt});
   EXPECT_EQ(r.status, RunStatus::kUnsupportedScene);
   EXPECT_NE(r.message.find("collision.self"), std::string::npos) << r.message;
   EXPECT_EQ(r.steps, 0);
