@@ -197,8 +197,44 @@ bool FirstCoplanarContact(const SelfContactPair& pair, const MatrixN3& x0, const
   return false;
 }
 
-SelfContactDetector::SelfContactDetector(const std::vector<std::array<int, 3>>& triangles, int num_particles)
+std::vector<int> GridPatches(int nu, int nv, int cells) {
+  if (nu < 2 || nv < 2 || cells < 1) throw std::invalid_argument("GridPatches: needs nu, nv ≥ 2 and cells ≥ 1");
+  const int across = (nu - 1 + cells - 1) / cells;
+  std::vector<int> out;
+  out.reserve(static_cast<std::size_t>(2 * (nu - 1) * (nv - 1)));
+  for (int j = 0; j < nv - 1; ++j)
+    for (int i = 0; i < nu - 1; ++i) {
+      const int patch = i / cells + across * (j / cells);
+      out.push_back(patch);  // the quad's lower and upper triangles
+      out.push_back(patch);
+    }
+  return out;
+}
+
+SelfContactDetector::SelfContactDetector(const std::vector<std::array<int, 3>>& triangles, int num_particles,
+                                         const std::vector<int>& clusters)
     : triangles_(triangles), num_particles_(num_particles) {
+  if (!clusters.empty() && clusters.size() != triangles.size())
+    throw std::invalid_argument("SelfContactDetector: " + std::to_string(clusters.size()) + " clusters for " +
+                                std::to_string(triangles.size()) + " triangles");
+  // Clusters (CSR), each triangle its own without them.
+  const int n_clusters =
+      clusters.empty() ? static_cast<int>(triangles.size()) : *std::max_element(clusters.begin(), clusters.end()) + 1;
+  cluster_start_.assign(static_cast<std::size_t>(n_clusters) + 1, 0);
+  const auto cluster = [&](std::size_t k) { return clusters.empty() ? static_cast<int>(k) : clusters[k]; };
+  for (std::size_t k = 0; k < triangles.size(); ++k) {
+    if (cluster(k) < 0) throw std::invalid_argument("SelfContactDetector: a negative cluster");
+    ++cluster_start_[static_cast<std::size_t>(cluster(k)) + 1];
+  }
+  for (std::size_t c = 0; c + 1 < cluster_start_.size(); ++c) cluster_start_[c + 1] += cluster_start_[c];
+  cluster_triangles_.resize(triangles.size());
+  std::vector<int> fill(cluster_start_.begin(), cluster_start_.end() - 1);
+  for (std::size_t k = 0; k < triangles.size(); ++k)
+    cluster_triangles_[static_cast<std::size_t>(fill[static_cast<std::size_t>(cluster(k))]++)] = static_cast<int>(k);
+  for (std::size_t c = 0; c + 1 < cluster_start_.size(); ++c)
+    for (int a = cluster_start_[c]; a < cluster_start_[c + 1]; ++a)
+      for (int b = a + 1; b < cluster_start_[c + 1]; ++b)
+        same_cluster_.push_back({cluster_triangles_[static_cast<std::size_t>(a)], cluster_triangles_[static_cast<std::size_t>(b)]});
   for (std::size_t k = 0; k < triangles.size(); ++k)
     for (int p : triangles[k])
       if (p < 0 || p >= num_particles)
@@ -238,7 +274,7 @@ SelfContactDetector::SelfContactDetector(const std::vector<std::array<int, 3>>& 
 
 namespace {
 
-// A box with the triangle's index as its id (CGAL breaks ties between equal
+// A box with its cluster's index as its id (CGAL breaks ties between equal
 // coordinates by id: by index, its report order is the same on every run).
 class TriangleBox : public CGAL::Box_intersection_d::Box_d<double, 3, CGAL::Box_intersection_d::ID_NONE> {
  public:
@@ -251,7 +287,49 @@ class TriangleBox : public CGAL::Box_intersection_d::Box_d<double, 3, CGAL::Box_
   std::size_t index_;
 };
 
+// Whether two closed boxes overlap.
+bool Overlap(const Vector3& alo, const Vector3& ahi, const Vector3& blo, const Vector3& bhi) {
+  return (alo.array() <= bhi.array()).all() && (blo.array() <= ahi.array()).all();
+}
+
 }  // namespace
+
+void SelfContactDetector::TrianglePair(std::size_t ta, std::size_t tb, double reach_base,
+                                       std::vector<SelfContactPair>* out) const {
+  // The triangles' distance at x0 is at least their boxes' there; over
+  // the step it shrinks by at most the largest displacement of a particle
+  // of one relative to one of the other, |c_a − c_b| + r_a + r_b. Pairs
+  // that stay further apart than the margin (and the slack, reach_base in
+  // all) have no element pair to test: a sheet that slides along itself is
+  // left out.
+  const Vector3 gap = (tri0_lo_[tb] - tri0_hi_[ta]).cwiseMax(tri0_lo_[ta] - tri0_hi_[tb]).cwiseMax(0.0);
+  const double reach = reach_base + (move_centre_[ta] - move_centre_[tb]).norm() + move_radius_[ta] + move_radius_[tb];
+  if (gap.squaredNorm() > reach * reach) return;
+  for (int flip = 0; flip < 2; ++flip) {
+    const std::size_t a = flip ? tb : ta, b = flip ? ta : tb;
+    const auto& tri = triangles_[b];
+    for (int p : owned_points_[a]) {
+      if (p < 0 || p == tri[0] || p == tri[1] || p == tri[2]) continue;
+      const std::size_t q = static_cast<std::size_t>(p);
+      if (Overlap(point_lo_[q], point_hi_[q], tri_lo_[b], tri_hi_[b]))
+        out->push_back({SelfContactPair::kPointTriangle, {p, tri[0], tri[1], tri[2]}});
+    }
+  }
+  for (int e : owned_edges_[ta]) {
+    if (e < 0) continue;
+    const auto& ea = edges_[static_cast<std::size_t>(e)];
+    for (int f : owned_edges_[tb]) {
+      if (f < 0) continue;
+      const auto& fb = edges_[static_cast<std::size_t>(f)];
+      if (ea[0] == fb[0] || ea[0] == fb[1] || ea[1] == fb[0] || ea[1] == fb[1]) continue;
+      if (!Overlap(edge_lo_[static_cast<std::size_t>(e)], edge_hi_[static_cast<std::size_t>(e)],
+                   edge_lo_[static_cast<std::size_t>(f)], edge_hi_[static_cast<std::size_t>(f)]))
+        continue;
+      out->push_back(ea < fb ? SelfContactPair{SelfContactPair::kEdgeEdge, {ea[0], ea[1], fb[0], fb[1]}}
+                             : SelfContactPair{SelfContactPair::kEdgeEdge, {fb[0], fb[1], ea[0], ea[1]}});
+    }
+  }
+}
 
 void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin,
                                      std::vector<SelfContactPair>* out, double slack) {
@@ -272,8 +350,6 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     edge_lo_[k] = point_lo_[static_cast<std::size_t>(a)].cwiseMin(point_lo_[static_cast<std::size_t>(b)]);
     edge_hi_[k] = point_hi_[static_cast<std::size_t>(a)].cwiseMax(point_hi_[static_cast<std::size_t>(b)]);
   }
-  std::vector<TriangleBox> boxes;
-  boxes.reserve(triangles_.size());
   tri_lo_.resize(triangles_.size());
   tri_hi_.resize(triangles_.size());
   tri0_lo_.resize(triangles_.size());
@@ -289,8 +365,6 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     }
     tri_lo_[k] = lo;
     tri_hi_[k] = hi;
-    double l[3] = {lo.x(), lo.y(), lo.z()}, h[3] = {hi.x(), hi.y(), hi.z()};
-    boxes.emplace_back(l, h, k);
     // The triangle's box at x0 alone, and its particles' displacements
     // x1 − x0 as a centre (their mean) and a radius about it.
     Vector3 lo0 = x0.row(t[0]).transpose(), hi0 = lo0, mean = Vector3::Zero();
@@ -308,45 +382,36 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     move_centre_[k] = mean;
     move_radius_[k] = std::max({(d[0] - mean).norm(), (d[1] - mean).norm(), (d[2] - mean).norm()});
   }
-  const auto overlap = [](const Vector3& alo, const Vector3& ahi, const Vector3& blo, const Vector3& bhi) {
-    return (alo.array() <= bhi.array()).all() && (blo.array() <= ahi.array()).all();
-  };
   // Each pair of elements from the pair of triangles that own them (a
   // particle's or edge's box lies in its owner's, so the owners' boxes
-  // overlap whenever the elements' do): every pair exactly once.
-  const auto report = [&](const TriangleBox& first, const TriangleBox& second) {
-    const std::size_t ta = first.id(), tb = second.id();
-    // The triangles' distance at x0 is at least their boxes' there; over
-    // the step it shrinks by at most the largest displacement of a particle
-    // of one relative to one of the other, |c_a − c_b| + r_a + r_b. Pairs
-    // that stay further apart than the margin (and the slack) have no
-    // element pair to test: a sheet that slides along itself is left out.
-    const Vector3 gap = (tri0_lo_[tb] - tri0_hi_[ta]).cwiseMax(tri0_lo_[ta] - tri0_hi_[tb]).cwiseMax(0.0);
-    const double reach =
-        margin + slack + (move_centre_[ta] - move_centre_[tb]).norm() + move_radius_[ta] + move_radius_[tb];
-    if (gap.squaredNorm() > reach * reach) return;
-    for (int flip = 0; flip < 2; ++flip) {
-      const std::size_t a = flip ? tb : ta, b = flip ? ta : tb;
-      const auto& tri = triangles_[b];
-      for (int p : owned_points_[a]) {
-        if (p < 0 || p == tri[0] || p == tri[1] || p == tri[2]) continue;
-        const std::size_t q = static_cast<std::size_t>(p);
-        if (overlap(point_lo_[q], point_hi_[q], tri_lo_[b], tri_hi_[b]))
-          out->push_back({SelfContactPair::kPointTriangle, {p, tri[0], tri[1], tri[2]}});
-      }
+  // overlap whenever the elements' do): every pair exactly once. The
+  // triangle pairs come from within each cluster and from the cluster
+  // pairs whose boxes CGAL reports.
+  for (const auto& [ta, tb] : same_cluster_)
+    if (Overlap(tri_lo_[static_cast<std::size_t>(ta)], tri_hi_[static_cast<std::size_t>(ta)],
+                tri_lo_[static_cast<std::size_t>(tb)], tri_hi_[static_cast<std::size_t>(tb)]))
+      TrianglePair(static_cast<std::size_t>(ta), static_cast<std::size_t>(tb), margin + slack, out);
+  const std::size_t n_clusters = cluster_start_.size() - 1;
+  std::vector<TriangleBox> boxes;
+  boxes.reserve(n_clusters);
+  for (std::size_t c = 0; c < n_clusters; ++c) {
+    const std::size_t first = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(cluster_start_[c])]);
+    Vector3 lo = tri_lo_[first], hi = tri_hi_[first];
+    for (int k = cluster_start_[c] + 1; k < cluster_start_[c + 1]; ++k) {
+      const std::size_t t = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(k)]);
+      lo = lo.cwiseMin(tri_lo_[t]);
+      hi = hi.cwiseMax(tri_hi_[t]);
     }
-    for (int e : owned_edges_[ta]) {
-      if (e < 0) continue;
-      const auto& ea = edges_[static_cast<std::size_t>(e)];
-      for (int f : owned_edges_[tb]) {
-        if (f < 0) continue;
-        const auto& fb = edges_[static_cast<std::size_t>(f)];
-        if (ea[0] == fb[0] || ea[0] == fb[1] || ea[1] == fb[0] || ea[1] == fb[1]) continue;
-        if (!overlap(edge_lo_[static_cast<std::size_t>(e)], edge_hi_[static_cast<std::size_t>(e)],
-                     edge_lo_[static_cast<std::size_t>(f)], edge_hi_[static_cast<std::size_t>(f)]))
-          continue;
-        out->push_back(ea < fb ? SelfContactPair{SelfContactPair::kEdgeEdge, {ea[0], ea[1], fb[0], fb[1]}}
-                               : SelfContactPair{SelfContactPair::kEdgeEdge, {fb[0], fb[1], ea[0], ea[1]}});
+    double l[3] = {lo.x(), lo.y(), lo.z()}, h[3] = {hi.x(), hi.y(), hi.z()};
+    boxes.emplace_back(l, h, c);
+  }
+  const auto report = [&](const TriangleBox& first, const TriangleBox& second) {
+    const std::size_t ca = first.id(), cb = second.id();
+    for (int i = cluster_start_[ca]; i < cluster_start_[ca + 1]; ++i) {
+      const std::size_t ta = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(i)]);
+      for (int j = cluster_start_[cb]; j < cluster_start_[cb + 1]; ++j) {
+        const std::size_t tb = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(j)]);
+        if (Overlap(tri_lo_[ta], tri_hi_[ta], tri_lo_[tb], tri_hi_[tb])) TrianglePair(ta, tb, margin + slack, out);
       }
     }
   };

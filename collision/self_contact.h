@@ -52,22 +52,34 @@ PairGeometry Closest(const SelfContactPair& pair, const MatrixN3& x);
 bool FirstCoplanarContact(const SelfContactPair& pair, const MatrixN3& x0, const MatrixN3& x1, double tolerance,
                           double* theta, PairGeometry* at);
 
+/// The clusters of the grid's triangles (GridTriangles(nu, nv) order) for
+/// SelfContactDetector: square patches of `cells` × `cells` quads.
+/// @throws std::invalid_argument if nu or nv is below 2 or cells below 1
+std::vector<int> GridPatches(int nu, int nv, int cells);
+
 /// The candidate pairs of a cloth's triangles over a step: the broad phase.
 class SelfContactDetector {
  public:
   /// @param triangles the cloth's triangles (GridTriangles(nu, nv).vertices,
   ///        model/edge_projection.h), indices into N particles
   /// @param num_particles N
-  /// @throws std::invalid_argument if a triangle names a particle outside [0, N)
-  SelfContactDetector(const std::vector<std::array<int, 3>>& triangles, int num_particles);
+  /// @param clusters per triangle its cluster, 0 … C − 1 (GridPatches):
+  ///        CGAL boxes the clusters, and the triangle pairs are taken
+  ///        from the reported cluster pairs and from within each cluster;
+  ///        empty: every triangle its own cluster
+  /// @throws std::invalid_argument if a triangle names a particle outside
+  ///         [0, N), or `clusters` is neither empty nor one per triangle
+  SelfContactDetector(const std::vector<std::array<int, 3>>& triangles, int num_particles,
+                      const std::vector<int>& clusters = {});
 
   /// Every point–triangle and edge–edge pair that shares no particle and
   /// whose boxes, each the bounding box of its element at x0 and at x1
   /// (N×3 [m]) grown by `margin` [m], overlap: a superset of the pairs
   /// within `margin` at x0 and of those that touch while moving linearly
-  /// from x0 to x1. CGAL's box_self_intersection_d boxes the triangles
+  /// from x0 to x1. CGAL's box_self_intersection_d boxes the clusters
   /// only; each element pair comes from the pair of triangles that own its
-  /// elements, once, in CGAL's order of report (the same for the same
+  /// elements (within a cluster, or from a reported pair of clusters),
+  /// once, in CGAL's order of report (the same for the same
   /// input; the response sorts the pairs it acts on); `out` is reused.
   /// Left out: the pairs of triangles whose distance at x0 exceeds
   /// `margin` + `slack` [m] + the largest displacement of a particle of
@@ -89,6 +101,12 @@ class SelfContactDetector {
   // first triangle to hold them; −1 elsewhere. The broad phase boxes only
   // triangles and takes each element pair from its owners' pair.
   std::vector<std::array<int, 3>> owned_points_, owned_edges_;
+  // The triangles of each cluster (CSR), and the pairs of triangles that
+  // share a cluster.
+  std::vector<int> cluster_start_, cluster_triangles_;
+  std::vector<std::array<int, 2>> same_cluster_;
+  // The element pairs of triangles ta and tb (either order) into out.
+  void TrianglePair(std::size_t ta, std::size_t tb, double reach_base, std::vector<SelfContactPair>* out) const;
   // Boxes of one call (allocated once): particles, edges, triangles.
   std::vector<Vector3> point_lo_, point_hi_, edge_lo_, edge_hi_, tri_lo_, tri_hi_;
   // Per triangle: its box at x0, and its displacements' mean and radius.

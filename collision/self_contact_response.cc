@@ -41,7 +41,8 @@ double MotionBound(const SelfContactPair& pair, const MatrixN3& x0, const Matrix
 SelfContactResponse::SelfContactResponse(const ParticleSystem& system, double thickness)
     : sys_(system),
       thickness_(thickness),
-      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles()) {
+      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
+                GridPatches(system.scene().grid.nu, system.scene().grid.nv, kPatchCells)) {
   if (!(thickness > 0.0)) throw std::invalid_argument("SelfContactResponse: thickness must be > 0");
   const Scene& scene = system.scene();
   skin_ = kSkinFraction * std::min(scene.lu(), scene.lv());

@@ -64,6 +64,9 @@ class SelfContactResponse {
   /// on scenes/fold_over_rod_10k.toml (docs/collisions.md): 0.25 gave
   /// 1.7·10⁵ candidates a step, 0.05 gave 8.7·10⁴ and 18 % less solver time.
   static constexpr double kSkinFraction = 0.05;
+  /// The broad phase boxes patches of kPatchCells × kPatchCells grid quads
+  /// (GridPatches), not single triangles.
+  static constexpr int kPatchCells = 2;
 
   /// @param system the cloth (masses, fixed particles, grid; must outlive this)
   /// @param thickness [m], > 0

@@ -171,12 +171,18 @@ void ExpectCoverage(const SelfContactDetector& detector, std::vector<SelfContact
   }
 }
 
-TEST(SelfContact, BroadPhaseHoldsEveryPairThatTouchesOrComesWithinTheMargin) {
-  const int side = 10;
+// A 10 × 10 hairpin whose layers, 0.3 l apart, close by up to 0.8 l over
+// the step x0 → x1, with a thickness of 0.1 l.
+class SelfContactHairpin : public ::testing::Test {
+ protected:
+  static constexpr int side = 10;
   const double l = 0.6 / (side - 1), thickness = 0.1 * l;
-  const ParticleSystem sys(HairpinScene(side, thickness));
+  const ParticleSystem sys{HairpinScene(side, thickness)};
   MatrixN3 x0, x1;
-  Hairpin(sys, 0.3 * l, 0.4 * l, &x0, &x1);
+  void SetUp() override { Hairpin(sys, 0.3 * l, 0.4 * l, &x0, &x1); }
+};
+
+TEST_F(SelfContactHairpin, BroadPhaseHoldsEveryPairThatTouchesOrComesWithinTheMargin) {
   std::vector<std::array<int, 3>> triangles = GridTriangles(side, side).vertices, reversed = triangles;
   std::reverse(reversed.begin(), reversed.end());
   // In either order of the triangles (other owners, another report order).
@@ -201,6 +207,26 @@ TEST(SelfContact, BroadPhaseHoldsEveryPairThatTouchesOrComesWithinTheMargin) {
     ExpectCoverage(detector, candidates, x0, sheared, thickness, &near, &sheared_touching);
     EXPECT_GT(sheared_touching, 100);
   }
+}
+
+// Patches of grid quads as CGAL's boxes (GridPatches) give the same
+// candidate pairs as one box per triangle: the triangle pairs come from
+// within each patch and from the reported patch pairs.
+TEST_F(SelfContactHairpin, PatchesGiveTheSameCandidatesAsTriangles) {
+  const std::vector<std::array<int, 3>> triangles = GridTriangles(side, side).vertices;
+  SelfContactDetector single(triangles, sys.num_particles());
+  std::vector<SelfContactPair> expected;
+  single.Candidates(x0, x1, thickness, &expected);
+  std::sort(expected.begin(), expected.end());
+  ASSERT_GT(expected.size(), 100u);
+  for (int cells : {1, 2, 3, 9}) {  // 3 leaves partial patches at the border (9 quads a side)
+    SelfContactDetector patched(triangles, sys.num_particles(), GridPatches(side, side, cells));
+    std::vector<SelfContactPair> got;
+    patched.Candidates(x0, x1, thickness, &got);
+    std::sort(got.begin(), got.end());
+    EXPECT_EQ(got, expected) << cells << " × " << cells << " patches";
+  }
+  EXPECT_THROW(SelfContactDetector(triangles, sys.num_particles(), std::vector<int>(3, 0)), std::invalid_argument);
 }
 
 TEST(SelfContact, BroadPhaseLeavesOutASheetThatSlidesAsAWhole) {
