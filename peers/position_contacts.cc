@@ -247,11 +247,10 @@ void VbdSelfContact::Detect(const MatrixN3& x) {
     for (int q : pair.p) ++offsets_[static_cast<std::size_t>(q) + 1];
   for (std::size_t q = 0; q + 1 < offsets_.size(); ++q) offsets_[q + 1] += offsets_[q];
   incident_.resize(static_cast<std::size_t>(offsets_.back()));
-  std::vector<int>& fill = fill_;
-  fill.assign(offsets_.begin(), offsets_.end() - 1);
+  fill_.assign(offsets_.begin(), offsets_.end() - 1);
   for (std::size_t i = 0; i < pairs_.size(); ++i)
     for (std::size_t k = 0; k < 4; ++k)
-      incident_[static_cast<std::size_t>(fill[static_cast<std::size_t>(pairs_[i].p[k])]++)] = static_cast<int>(4 * i + k);
+      incident_[static_cast<std::size_t>(fill_[static_cast<std::size_t>(pairs_[i].p[k])]++)] = static_cast<int>(4 * i + k);
   stats_.detection_seconds += Since(start);
 }
 

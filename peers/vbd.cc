@@ -54,6 +54,11 @@ VertexBlockDescent::VertexBlockDescent(const ParticleSystem& system, int iterati
   }
 }
 
+StepStats VertexBlockDescent::Step(double h) {
+  if (self_) ++self_->stats().steps;  // once, also where ρ's measurement iterates first
+  return IteratedStepper::Step(h);
+}
+
 void VertexBlockDescent::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   IteratedStepper::Reset(t, x, v);
   if (self_) self_->Reset();
@@ -69,7 +74,6 @@ bool VertexBlockDescent::Bound(double h, int p, Vector3* vp) {
 
 void VertexBlockDescent::BeginIterations(double h) {
   if (!self_) return;
-  ++self_->stats().steps;
   self_->Detect(x0_);
   AfterIteration(h);  // the first iterate within the bounds
 }

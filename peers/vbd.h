@@ -84,6 +84,8 @@ class VertexBlockDescent : public IteratedStepper {
 
   int matrix_rebuilds() const override { return 0; }
   void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
+  /// IteratedStepper::Step, counting the step for its self-contact.
+  StepStats Step(double h) override;
   const SelfContactStats* own_self_contact() const override { return self_ ? &self_->stats() : nullptr; }
   /// The colouring and the ρ measurements [s].
   double setup_seconds() const override { return colouring_seconds_ + rho_seconds(); }

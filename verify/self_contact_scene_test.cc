@@ -45,6 +45,13 @@ int MostCrossings(const RunSummary& r) {
   return c.empty() ? -1 : *std::max_element(c.begin(), c.end());
 }
 
+// Every stored frame of b equals a's, bit for bit.
+void ExpectSameFrames(const RunSummary& a, const RunSummary& b) {
+  ASSERT_EQ(b.trajectory.positions.size(), a.trajectory.positions.size());
+  for (std::size_t k = 0; k < a.trajectory.positions.size(); ++k)
+    EXPECT_TRUE(b.trajectory.positions[k] == a.trajectory.positions[k]) << "frame " << k;
+}
+
 TEST(SelfContactScene, WithoutSelfContactTheClothPassesThroughItself) {
   for (const Scene& s : {Fold(false), Pile(false)}) {
     const ParticleSystem sys(s);
@@ -110,9 +117,7 @@ TEST(SelfContactScene, RepeatsBitForBitOnOneAndTwoThreads) {
   omp_set_num_threads(threads);
   ASSERT_EQ(a.status, RunStatus::kOk) << a.message;
   for (const RunSummary* other : {&b, &c}) {
-    ASSERT_EQ(other->trajectory.positions.size(), a.trajectory.positions.size());
-    for (std::size_t k = 0; k < a.trajectory.positions.size(); ++k)
-      EXPECT_TRUE(other->trajectory.positions[k] == a.trajectory.positions[k]) << "frame " << k;
+    ExpectSameFrames(a, *other);
     EXPECT_EQ(other->self_contact->collisions, a.self_contact->collisions);
     EXPECT_EQ(other->self_contact->repulsions, a.self_contact->repulsions);
   }
@@ -212,9 +217,7 @@ TEST(SelfContactScene, XpbdRepeatsBitForBitOnOneAndTwoThreads) {
   }
   omp_set_num_threads(threads);
   ASSERT_EQ(r[0].status, RunStatus::kOk) << r[0].message;
-  ASSERT_EQ(r[1].trajectory.positions.size(), r[0].trajectory.positions.size());
-  for (std::size_t k = 0; k < r[0].trajectory.positions.size(); ++k)
-    EXPECT_TRUE(r[1].trajectory.positions[k] == r[0].trajectory.positions[k]) << "frame " << k;
+  ExpectSameFrames(r[0], r[1]);
   EXPECT_EQ(r[1].self_contact->projections, r[0].self_contact->projections);
 }
 
