@@ -126,7 +126,7 @@ void BM_StepObstacles(benchmark::State& state) {
   Scene scene = SquareScene(20);
   if (state.range(0) == 1) {
     ObstacleSpec plane;
-    plane.center = Vector3(0.0, 0.0, -100.0);
+    plane.shape = ShapeFromValues("plane", {{"center", Vector3(0.0, 0.0, -100.0)}});
     scene.obstacles.push_back(plane);
   }
   const ParticleSystem sys(scene);

@@ -50,11 +50,12 @@ Scene ScalingScene(int side, double contact_fraction, PreconditionerType precond
   s.solver.cg_max_iterations = 100000;  // report the iterations needed, not a failure
   if (contact_fraction > 0.0) {
     ObstacleSpec table;
-    table.type = ObstacleType::kCylinder;
     table.collision_distance = 0.005;
-    table.radius = std::sqrt(contact_fraction * s.grid.size[0] * s.grid.size[1] / M_PI);
-    table.center = Vector3(0.5 * s.grid.size[0], 0.5 * s.grid.size[1], s.grid.origin.z() - 0.5 * table.collision_distance);
-    table.height = 0.5;
+    table.shape = ShapeFromValues(
+        "cylinder", {{"radius", std::sqrt(contact_fraction * s.grid.size[0] * s.grid.size[1] / M_PI)},
+                     {"center", Vector3(0.5 * s.grid.size[0], 0.5 * s.grid.size[1],
+                                        s.grid.origin.z() - 0.5 * table.collision_distance)},
+                     {"height", 0.5}});
     table.friction = 0.3;
     s.obstacles.push_back(table);
   }

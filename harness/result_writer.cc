@@ -16,7 +16,7 @@
 
 #include <fmt/format.h>
 
-#include "model/triangle_mesh.h"
+#include "collision/shapes/triangle_mesh.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
 #include "results/result_reader.h"
@@ -235,7 +235,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
     f.CreateGroup(o);
     // Absolute, so that the file names the mesh wherever it is read
     // (clothbench_inspect's command links it next to the scene file).
-    if (mesh) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.spec().path).lexically_normal().string());
+    if (mesh) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.shape().file()).lexically_normal().string());
     f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
     f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
     if (obstacle.spec().virtual_particles) {

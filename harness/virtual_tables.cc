@@ -10,7 +10,7 @@
 #include <fmt/format.h>
 
 #include "model/particle_system.h"
-#include "model/triangle_mesh.h"
+#include "collision/shapes/triangle_mesh.h"
 #include "results/result_file.h"
 #include "solver/run.h"
 

@@ -1,10 +1,10 @@
-// Obstacles for collision response (docs/model.md §7, thesis ch. 4): analytic plane,
-// sphere, box and cylinder (a round table is a cylinder with a top) and CGAL
-// triangle meshes. Each gives the signed distance of a point, the collision
+// Obstacles for collision response (docs/model.md §7, thesis ch. 4): a shape
+// (collision/shapes/: plane, sphere, box, cylinder — a round table is a
+// cylinder with a top — and CGAL triangle meshes) with its contact
+// parameters, placed by a keyframed rigid motion (thesis §6.2, class
+// Environment). Each gives the signed distance of a point, the collision
 // direction D (outward normal of the closest surface point) and the first
-// point where a segment enters it (the old→new ray cast of §5.1). An
-// obstacle is static or moves as a keyframed rigid transform (thesis §6.2,
-// class Environment).
+// point where a segment enters it (the old→new ray cast of §5.1).
 #ifndef CLOTHBENCH_MODEL_OBSTACLE_H_
 #define CLOTHBENCH_MODEL_OBSTACLE_H_
 
@@ -16,17 +16,10 @@
 
 #include <Eigen/Geometry>
 
+#include "collision/shapes/obstacle_shape.h"
 #include "model/types.h"
 
 namespace clothbench {
-
-enum class ObstacleType { kPlane, kSphere, kBox, kCylinder, kMesh };
-
-class TriangleMesh;
-
-/// Rotation R = R_z(c) R_y(b) R_x(a) from angles (a, b, c) in degrees: about x,
-/// then y, then z (the convention of the scene keys `rotate`).
-Eigen::Matrix3d RotationFromDegrees(const Vector3& degrees);
 
 /// One keyframe of a moving obstacle: at time t [s] the obstacle, as placed
 /// by its other keys, is rotated by `rotate` (degrees about x, then y, then
@@ -64,13 +57,6 @@ struct ObstaclePose {
   }
 };
 
-/// Where a segment a → b first enters an obstacle.
-struct SegmentHit {
-  double s = 0.0;                      ///< fraction along the segment, in [0, 1]
-  Vector3 point = Vector3::Zero();     ///< a + s (b − a) [m]
-  Vector3 normal = Vector3::Zero();    ///< unit surface normal at the hit, facing a's side
-};
-
 /// How N particles lie against an obstacle at one pose (Obstacle::Penetration).
 struct Penetration {
   double max_depth = 0.0;  ///< largest depth inside, max(0, −d) [m]
@@ -80,31 +66,25 @@ struct Penetration {
   int close = 0;           ///< particles with d < δ/2
 };
 
-/// An obstacle as written in a scene (`[[obstacle]]`).
+/// An obstacle as written in a scene (`[[obstacle]]`): its shape and the
+/// contact parameters every shape shares.
 struct ObstacleSpec {
-  ObstacleType type = ObstacleType::kPlane;
-  Vector3 center = Vector3::Zero();          ///< plane: a point on it; sphere/box: centre; cylinder: centre of the top
-  Vector3 normal = Vector3::UnitZ();         ///< plane normal (unit)
-  double radius = 0.0;                       ///< sphere, cylinder [m]
-  Vector3 size = Vector3::Zero();            ///< box edge lengths [m] (axis-aligned)
-  double height = 0.0;                       ///< cylinder height below its top [m] (axis z)
+  /// The shape at rest (collision/shapes/registry.cc picks it by `type`);
+  /// required.
+  std::shared_ptr<const ObstacleShape> shape;
   double collision_distance = 0.01;          ///< δ, thickness of the collision area [m]
   double friction = 0.0;                     ///< Coulomb coefficient c_f (docs/model.md §2.5)
   double relaxation = 0.5;                   ///< ω_r in (4.4), 0 < ω_r ≤ 1
   /// Insert the thesis' virtual particles where this obstacle's edges pass
-  /// through the cloth (§5.2–5.4; model/virtual_particles.h). Not for a plane.
+  /// through the cloth (§5.2–5.4; model/virtual_particles.h). Only for a
+  /// shape with edges (not a plane).
   bool virtual_particles = false;
-  // Triangle meshes (OFF/OBJ/PLY through CGAL): x ↦ R(scale·x) + translate.
-  std::string path;                          ///< resolved mesh file
-  double scale = 1.0;
-  Vector3 rotate = Vector3::Zero();          ///< degrees about x, then y, then z
-  Vector3 translate = Vector3::Zero();       ///< [m]
-  /// Rigid motion (any type); empty: static. Times strictly increasing;
+  /// Rigid motion (any shape); empty: static. Times strictly increasing;
   /// before the first and after the last keyframe the pose is held.
   std::vector<ObstacleKeyframe> keyframes;
-};
 
-std::string_view ToString(ObstacleType t);
+  std::string_view type() const { return shape ? shape->type() : std::string_view("none"); }
+};
 
 /// Positions beyond this [m] are a blown-up state (scenes place everything
 /// within 1e6 m, docs/scenes.md "Limits"): obstacle queries skip them.
@@ -112,8 +92,9 @@ inline constexpr double kMaxQueryMagnitude = 1e9;
 
 class Obstacle {
  public:
-  /// Loads the mesh of a mesh obstacle. @throws std::runtime_error for an
-  /// unreadable mesh file.
+  /// Loads the shape (ObstacleShape::Load: a mesh reads its file).
+  /// @throws std::runtime_error for an unreadable mesh file;
+  ///         std::invalid_argument if the spec has no shape
   explicit Obstacle(const ObstacleSpec& spec);
   /// Signed distance [m] of the world point p to the surface at `pose`
   /// (negative inside a solid; unsigned for an open mesh) and the unit
@@ -127,10 +108,8 @@ class Obstacle {
   }
   /// The first point where the segment a → b [m, world] enters the obstacle
   /// at `pose` (docs/model.md §7, thesis §5.1's ray cast), or nothing if it does not
-  /// or a is already inside. Analytic obstacles are convex, so the signed
-  /// distance along the segment is convex: its minimum is bracketed by
-  /// golden-section search and the entry by bisection (to 1e-12 of the
-  /// segment). Meshes: the first intersection of CGAL's AABB tree.
+  /// or a is already inside (the shape's ObstacleShape::FirstHit in the
+  /// placed frame).
   std::optional<SegmentHit> FirstHit(const ObstaclePose& pose, const Vector3& a, const Vector3& b) const;
   /// The signed distances d of the N×3 positions x [m] at `pose`, summed up:
   /// the deepest particle inside, the depths and the particles within δ/2.
@@ -148,47 +127,28 @@ class Obstacle {
   bool moving() const { return !spec_.keyframes.empty(); }
   /// The obstacle's edges at `pose` (world coordinates), for the projection
   /// onto the cloth of the thesis' virtual particles (§5.3;
-  /// model/edge_projection.h): a mesh's triangle edges, each once; a box's
-  /// 12 edges; a cylinder's top and bottom rims as kCircleSegments-gons and
-  /// kCircleSegments vertical edges; a sphere as a geodesic sphere (the
-  /// icosahedron's faces split kIcosphereLevels times into four: 642
-  /// vertices, 1,920 edges); a plane has none.
+  /// model/edge_projection.h): ObstacleShape::Edges moved to `pose`.
   /// @param vertices [m], overwritten; @param edges index pairs into them, overwritten
   void Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices, std::vector<std::array<int, 2>>* edges) const;
-  /// The closed triangle surface whose edges include Edges(identity pose),
-  /// on the same vertices, in the placed (scene) frame: a box's 6 faces as
-  /// 12 triangles; a cylinder's rims closed by a fan to each rim's centre
-  /// (two extra vertices) and its side as quads between the rims; a
-  /// sphere's geodesic triangles; a mesh's own
-  /// triangles. Triangles are counter-clockwise seen from outside. A plane
-  /// has none. The virtual particles' ray check (Fig. 5.9) casts against it,
-  /// so that a ray to a point on a polygonised rim or parallel does not
-  /// meet the smooth surface first.
+  /// The closed triangle surface at rest whose edges include
+  /// Edges(identity pose), on the same vertices (ObstacleShape::Surface).
   /// @param vertices [m], overwritten; @param triangles index triples, overwritten
-  void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const;
-  /// Segments of a cylinder's rims.
-  static constexpr int kCircleSegments = 64;
-  /// Subdivisions of a sphere's icosahedron: 1,280 triangles, whose
-  /// centres lie at most 0.3 % of the radius inside the sphere (the
-  /// thesis' ball had 1,227 edges). A latitude–longitude net would crowd its meridians
-  /// at the pole, where a cloth dropped onto the ball lands.
-  static constexpr int kIcosphereLevels = 3;
+  void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const {
+    shape_->Surface(vertices, triangles);
+  }
   const ObstacleSpec& spec() const { return spec_; }
+  /// The loaded shape.
+  const ObstacleShape& shape() const { return *shape_; }
   /// The placed triangle mesh of a mesh obstacle (at rest, before any
   /// keyframed motion); nullptr for analytic obstacles.
-  const TriangleMesh* mesh() const { return mesh_.get(); }
+  const TriangleMesh* mesh() const { return shape_->mesh(); }
 
  private:
-  double PlacedSignedDistance(const Vector3& p, Vector3* direction) const;
-  /// A sphere's geodesic triangles or a mesh's own, placed frame
-  /// (overwritten); Edges and Surface of the two triangulated types.
-  void TriangulatedSurface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const;
-
   ObstacleSpec spec_;
+  std::shared_ptr<const ObstacleShape> shape_;  // loaded (shared by copies)
   Vector3 anchor_ = Vector3::Zero();
   std::vector<Eigen::Quaterniond> key_rotations_;  // one per keyframe
-  std::shared_ptr<const TriangleMesh> mesh_;  // kMesh only (shared by copies)
-  std::shared_ptr<const std::vector<Vector3>> vertices_;  // keyframed kMesh: placed vertices (MotionBound)
+  std::shared_ptr<const std::vector<Vector3>> vertices_;  // keyframed mesh: placed vertices (MotionBound)
 };
 
 /// Whether the cloth at positions x [m, N×3; row q is particle first + q]

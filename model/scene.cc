@@ -15,7 +15,7 @@
 #include "model/default_scene.h"
 #include "model/obstacle.h"
 #include "model/output_file.h"
-#include "model/triangle_mesh.h"
+#include "collision/shapes/triangle_mesh.h"
 
 namespace clothbench {
 
@@ -39,28 +39,6 @@ double Scene::NumericalStiffness(double step) const {
   return step * step * std::max(su, sv) / material.density;
 }
 
-
-std::string EscapeControl(std::string_view text) {
-  std::string out;
-  out.reserve(text.size());
-  for (std::size_t k = 0; k < text.size(); ++k) {
-    const char c = text[k];
-    const auto u = static_cast<unsigned char>(c);
-    const auto next = [&](std::size_t j) { return k + j < text.size() ? static_cast<unsigned char>(text[k + j]) : 0; };
-    if (c == '\n') out += "\\n";
-    else if (c == '\t') out += "\\t";
-    else if (c == '\r') out += "\\r";
-    else if (u < 0x20 || u == 0x7f) out += fmt::format("\\x{:02x}", u);
-    // UTF-8 C1 controls U+0080…U+009F (NEL U+0085 among them) and the line
-    // and paragraph separators U+2028, U+2029: terminals and log readers
-    // break lines at them.
-    else if (u == 0xc2 && next(1) >= 0x80 && next(1) <= 0x9f) out += fmt::format("\\u{:04x}", next(1)), ++k;
-    else if (u == 0xe2 && next(1) == 0x80 && (next(2) == 0xa8 || next(2) == 0xa9))
-      out += fmt::format("\\u{:04x}", 0x2000 + next(2) - 0x80), k += 2;
-    else out += c;
-  }
-  return out;
-}
 
 void CheckRunLength(const Scene& s, const std::string& source) {
   if (s.t_end / s.frame_dt > kMaxFramesPerRun)
@@ -369,6 +347,37 @@ void ParseCollision(TableReader& top, const std::string& source, Scene& s) {
   s.collision = spec;
 }
 
+// A shape's keys (collision/shapes/obstacle_shape.h) read from its
+// [[obstacle]] table.
+class SceneShapeKeys final : public ShapeKeys {
+ public:
+  SceneShapeKeys(TableReader& table, const std::string& source) : table_(table), source_(source) {}
+  [[noreturn]] void Fail(std::string_view key, std::string_view rule) const override { table_.Fail(key, rule); }
+  double Range(std::string_view key, double fallback, double lo, double hi, std::string_view units) override {
+    return table_.Range(key, fallback, lo, hi, units);
+  }
+  std::array<double, 3> Numbers3(std::string_view key, std::array<double, 3> fallback, bool non_negative) override {
+    return table_.Numbers<3>(key, fallback, non_negative);
+  }
+  std::string String(std::string_view key, std::string fallback) override { return table_.String(key, fallback); }
+  // Relative paths are relative to the scene file (for a built-in scene,
+  // the file it was embedded from: the source tree's scenes/).
+  std::string ResolvePath(const std::string& path) const override {
+    std::filesystem::path p(path);
+    if (p.is_relative()) {
+      const bool embedded = source_.rfind("<embedded", 0) == 0;
+      p = (embedded ? std::filesystem::path(CLOTHBENCH_SOURCE_DIR) / "scenes"
+                    : std::filesystem::path(source_).parent_path()) / p;
+    }
+    return p.string();
+  }
+  void NoteInputFile(const std::string& path) const override { clothbench::NoteInputFile(path); }
+
+ private:
+  TableReader& table_;
+  const std::string& source_;
+};
+
 // [[obstacle]] tables.
 void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
   if (const toml::node* obs = top.Get("obstacle")) {
@@ -380,79 +389,17 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
       if (!t) throw SceneError(fmt::format("{}: obstacle[{}]: must be a table", source, k));
       TableReader o(t, prefix, source);
       ObstacleSpec spec;
-      const std::string type = o.String("type", "");
-      if (type == "plane") spec.type = ObstacleType::kPlane;
-      else if (type == "sphere") spec.type = ObstacleType::kSphere;
-      else if (type == "box") spec.type = ObstacleType::kBox;
-      else if (type == "cylinder") spec.type = ObstacleType::kCylinder;
-      else if (type == "mesh") spec.type = ObstacleType::kMesh;
-      else o.Fail("type", fmt::format("must be \"plane\", \"sphere\", \"box\", \"cylinder\" or \"mesh\" (got \"{}\")", type));
-      if (spec.type != ObstacleType::kMesh) spec.center = o.Vec3("center", spec.center);
-      if (spec.center.cwiseAbs().maxCoeff() > 1e6) o.Fail("center", "must have coordinates of magnitude at most 1e6 m");
+      SceneShapeKeys shape_keys(o, source);
+      spec.shape = ParseObstacleShape(o.String("type", ""), shape_keys);
       spec.collision_distance = o.Positive("collision_distance", spec.collision_distance);
       if (spec.collision_distance > 1e3) o.Fail("collision_distance", "must be at most 1e3 m");
       spec.friction = o.Range("friction", spec.friction, 0.0, 1e3, "");
       spec.relaxation = o.Positive("relaxation", spec.relaxation);
       if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
       spec.virtual_particles = o.Bool("virtual_particles", false);
-      if (spec.virtual_particles && spec.type == ObstacleType::kPlane)
-        o.Fail("virtual_particles", "must be false for a plane (it has no edges to project onto the cloth)");
-      switch (spec.type) {
-        case ObstacleType::kPlane:
-          spec.normal = o.Vec3("normal", spec.normal);
-          if (spec.normal.norm() < 1e-12) o.Fail("normal", "must be a non-zero vector");
-          spec.normal.normalize();
-          break;
-        // Dimensions from 1e-6 m, as the grid spacing and a mesh's scale:
-        // below it an obstacle's polyhedron (Obstacle::Surface, for virtual
-        // particles) collapses to coinciding vertices.
-        case ObstacleType::kSphere:
-          spec.radius = o.Range("radius", 0.0, 1e-6, 1e6, " m");
-          break;
-        case ObstacleType::kBox: {
-          auto size = o.Numbers<3>("size", {0.0, 0.0, 0.0}, true);
-          if (!(std::min({size[0], size[1], size[2]}) >= 1e-6) || std::max({size[0], size[1], size[2]}) > 1e6)
-            o.Fail("size", "must be 3 edge lengths in [1e-6, 1e6] m");
-          spec.size = Vector3(size[0], size[1], size[2]);
-          break;
-        }
-        case ObstacleType::kCylinder:
-          spec.radius = o.Range("radius", 0.0, 1e-6, 1e6, " m");
-          spec.height = o.Range("height", 0.0, 1e-6, 1e6, " m");
-          break;
-        case ObstacleType::kMesh: {
-          // Relative paths are relative to the scene file (for a built-in
-          // scene, the file it was embedded from: the source tree's scenes/).
-          const std::string rel = o.String("path", "");
-          if (rel.empty()) o.Fail("path", "must name a mesh file (OFF, OBJ or PLY)");
-          std::filesystem::path p(rel);
-          if (p.is_relative()) {
-            const bool embedded = source.rfind("<embedded", 0) == 0;
-            p = (embedded ? std::filesystem::path(CLOTHBENCH_SOURCE_DIR) / "scenes"
-                          : std::filesystem::path(source).parent_path()) / p;
-          }
-          std::error_code ec;
-          const auto status = std::filesystem::status(p, ec);
-          if (ec && ec != std::errc::no_such_file_or_directory)
-            o.Fail("path", fmt::format("mesh file \"{}\" cannot be used: {}", p.string(), ec.message()));
-          if (!std::filesystem::exists(status))
-            o.Fail("path", fmt::format("mesh file \"{}\" not found (scripts/setup extracts CGAL's data into data/)",
-                                       p.string()));
-          if (!std::filesystem::is_regular_file(status))
-            o.Fail("path", fmt::format("mesh file \"{}\" is not a regular file", p.string()));
-          if (const std::string why = CheckMeshHeader(p.string()); !why.empty())
-            o.Fail("path", fmt::format("mesh file \"{}\": {}", p.string(), why));
-          spec.path = p.string();
-          NoteInputFile(spec.path);  // an output of this command must not replace it
-          spec.scale = o.Range("scale", 1.0, 1e-6, 1e6, "");
-          spec.rotate = o.Vec3("rotate", spec.rotate);
-          if (spec.rotate.cwiseAbs().maxCoeff() > 3600) o.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
-          spec.translate = o.Vec3("translate", spec.translate);
-          if (spec.translate.cwiseAbs().maxCoeff() > 1e6)
-            o.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
-          break;
-        }
-      }
+      if (spec.virtual_particles && !spec.shape->has_edges())
+        o.Fail("virtual_particles", fmt::format("must be false for a {} (it has no edges to project onto the cloth)",
+                                                spec.type()));
       // Keyframed rigid motion (thesis §6.2): keyframes = [{ t, translate, rotate }, ...].
       if (const toml::node* kf = o.Get("keyframes")) {
         const toml::array* keys = kf->as_array();
@@ -529,7 +476,7 @@ void CheckStartOutsideObstacles(const Scene& s) {
   const int nu = s.grid.nu, nv = s.grid.nv;
   const double lu = s.lu(), lv = s.lv();
   for (std::size_t k = 0; k < s.obstacles.size(); ++k) {
-    if (s.obstacles[k].type == ObstacleType::kMesh) continue;
+    if (s.obstacles[k].shape->loads_file()) continue;
     const Obstacle o(s.obstacles[k]);
     constexpr int kBlock = 1 << 16;
     MatrixN3 x;

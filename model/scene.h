@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "collision/shapes/escape_control.h"
 #include "model/obstacle.h"
 #include "model/solver_spec.h"
 #include "model/types.h"
@@ -39,12 +40,6 @@ inline constexpr double kMaxMagnitude = 1e12;
 /// The longest scene `name` [bytes]: it is stored as an HDF5 attribute
 /// (compact attributes hold at most 64 KiB together) and names output files.
 inline constexpr std::size_t kMaxSceneNameBytes = 1024;
-
-/// `text` for a one-line message: control characters (and DEL) become
-/// escapes (\n, \t, \r, \xNN), the UTF-8 C1 controls and the line and
-/// paragraph separators U+2028 and U+2029 become \uNNNN; printable text and
-/// other UTF-8 are kept.
-std::string EscapeControl(std::string_view text);
 
 /// Checks t_end, frame_dt and h of `scene` against kMaxFramesPerRun and
 /// kMaxStepsPerRun. @throws SceneError "<source>: <key>: <rule>".

@@ -12,7 +12,7 @@
 
 #include "model/block_scatter.h"
 #include "model/face_triangulation.h"
-#include "model/triangle_mesh.h"
+#include "collision/shapes/triangle_mesh.h"
 
 namespace clothbench {
 
@@ -57,7 +57,7 @@ VirtualParticles::VirtualParticles(int grid_nu, int grid_nv, const std::vector<S
     src->index = static_cast<int>(k);
     src->obstacle = &o;
     o.Edges(ObstaclePose{}, &src->placed, &src->edges);
-    if (o.spec().type != ObstacleType::kMesh) {
+    if (!o.mesh()) {
       std::vector<Vector3> vertices;
       std::vector<std::array<int, 3>> triangles;
       o.Surface(&vertices, &triangles);

@@ -149,7 +149,7 @@ bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, Run
       *status = RunStatus::kPenetration;
       *message = fmt::format("particle {} lies {:.3g} m inside obstacle {} ({}) at t = {:.6g} s, deeper than its "
                              "collision distance {:g} m",
-                             p.deepest, p.max_depth, k, ToString(o.spec().type), t, delta);
+                             p.deepest, p.max_depth, k, o.shape().type(), t, delta);
       return false;
     }
   }

@@ -52,27 +52,20 @@ namespace {
 TEST(Obstacles, SignedDistances) {
   Vector3 d;
   ObstacleSpec plane;
-  plane.center = Vector3(0, 0, 1);
-  plane.normal = Vector3(0, 0, 1);
+  plane.shape = ShapeFromValues("plane", {{"center", Vector3(0, 0, 1)}, {"normal", Vector3(0, 0, 1)}});
   EXPECT_NEAR(Obstacle(plane).SignedDistance(0.0, Vector3(3, 4, 1.5), &d), 0.5, 1e-12);
   ObstacleSpec sphere;
-  sphere.type = ObstacleType::kSphere;
-  sphere.center = Vector3(1, 0, 0);
-  sphere.radius = 0.5;
+  sphere.shape = ShapeFromValues("sphere", {{"center", Vector3(1, 0, 0)}, {"radius", 0.5}});
   EXPECT_NEAR(Obstacle(sphere).SignedDistance(0.0, Vector3(1, 2, 0), &d), 1.5, 1e-12);
   EXPECT_NEAR((d - Vector3(0, 1, 0)).norm(), 0.0, 1e-12);
   ObstacleSpec box;
-  box.type = ObstacleType::kBox;
-  box.size = Vector3(2, 2, 2);
+  box.shape = ShapeFromValues("box", {{"size", Vector3(2, 2, 2)}});
   EXPECT_NEAR(Obstacle(box).SignedDistance(0.0, Vector3(0, 0, 1.25), &d), 0.25, 1e-12);   // above the top face
   EXPECT_NEAR(Obstacle(box).SignedDistance(0.0, Vector3(2, 2, 0), &d), std::sqrt(2.0), 1e-12);  // off an edge
   EXPECT_NEAR(Obstacle(box).SignedDistance(0.0, Vector3(0.9, 0, 0), &d), -0.1, 1e-12);   // inside, near +x
   EXPECT_NEAR((d - Vector3(1, 0, 0)).norm(), 0.0, 1e-12);
   ObstacleSpec cyl;
-  cyl.type = ObstacleType::kCylinder;
-  cyl.center = Vector3(0, 0, 0.7);
-  cyl.radius = 0.3;
-  cyl.height = 0.7;
+  cyl.shape = ShapeFromValues("cylinder", {{"center", Vector3(0, 0, 0.7)}, {"radius", 0.3}, {"height", 0.7}});
   EXPECT_NEAR(Obstacle(cyl).SignedDistance(0.0, Vector3(0.1, 0, 0.75), &d), 0.05, 1e-12);  // above the top
   EXPECT_NEAR(Obstacle(cyl).SignedDistance(0.0, Vector3(0.5, 0, 0.3), &d), 0.2, 1e-12);    // beside the mantle
   EXPECT_NEAR(Obstacle(cyl).SignedDistance(0.0, Vector3(0.6, 0, 1.1), &d), 0.5, 1e-12);    // off the rim: 3-4-5

@@ -15,7 +15,7 @@
 
 #include "model/edge_projection.h"
 #include "model/obstacle.h"
-#include "model/triangle_mesh.h"
+#include "collision/shapes/triangle_mesh.h"
 #include "verify/temp_file.h"
 
 namespace clothbench {
@@ -231,26 +231,22 @@ TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   std::vector<Vector3> v;
   std::vector<std::array<int, 2>> e;
   ObstacleSpec box;
-  box.type = ObstacleType::kBox;
-  box.center = Vector3(1, 2, 3);
-  box.size = Vector3(0.2, 0.4, 0.8);
+  const Vector3 box_size(0.2, 0.4, 0.8);
+  box.shape = ShapeFromValues("box", {{"center", Vector3(1, 2, 3)}, {"size", box_size}});
   Obstacle(box).Edges(ObstaclePose{}, &v, &e);
   ASSERT_EQ(v.size(), 8u);
   ASSERT_EQ(e.size(), 12u);
   std::array<int, 3> lengths{};
   for (const auto& [a, b] : e) {
     const double len = (v[static_cast<std::size_t>(a)] - v[static_cast<std::size_t>(b)]).norm();
-    for (int k = 0; k < 3; ++k) lengths[static_cast<std::size_t>(k)] += std::abs(len - box.size(k)) < kTol;
+    for (int k = 0; k < 3; ++k) lengths[static_cast<std::size_t>(k)] += std::abs(len - box_size(k)) < kTol;
   }
   EXPECT_EQ(lengths, (std::array<int, 3>{4, 4, 4}));
 
   ObstacleSpec cylinder;
-  cylinder.type = ObstacleType::kCylinder;
-  cylinder.center = Vector3(0, 0, 0.7);
-  cylinder.radius = 0.5;
-  cylinder.height = 0.7;
+  cylinder.shape = ShapeFromValues("cylinder", {{"center", Vector3(0, 0, 0.7)}, {"radius", 0.5}, {"height", 0.7}});
   Obstacle(cylinder).Edges(ObstaclePose{}, &v, &e);
-  constexpr int kN = Obstacle::kCircleSegments;
+  constexpr int kN = 64;  // the rims' segments (collision/shapes/cylinder.cc)
   ASSERT_EQ(v.size(), static_cast<std::size_t>(2 * kN));
   EXPECT_EQ(e.size(), static_cast<std::size_t>(3 * kN));
   for (const Vector3& p : v) {
@@ -259,13 +255,12 @@ TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   }
 
   ObstacleSpec sphere;
-  sphere.type = ObstacleType::kSphere;
-  sphere.center = Vector3(0, 0, 1);
-  sphere.radius = 0.3;
+  const Vector3 sphere_centre(0, 0, 1);
+  sphere.shape = ShapeFromValues("sphere", {{"center", sphere_centre}, {"radius", 0.3}});
   ObstaclePose moved;  // 0.5 m along x
   moved.identity = false;
   moved.translation = Vector3(0.5, 0, 0);
-  moved.anchor = sphere.center;
+  moved.anchor = sphere_centre;
   Obstacle(sphere).Edges(moved, &v, &e);
   // The geodesic sphere after 3 subdivisions: V = 10·4³ + 2, E = 30·4³.
   EXPECT_EQ(v.size(), 642u);
@@ -280,13 +275,12 @@ TEST(ObstacleEdges, EveryTypeGivesItsEdgesAtItsPose) {
   for (const auto& t : st) {
     const Vector3 a = sv[static_cast<std::size_t>(t[0])], b = sv[static_cast<std::size_t>(t[1])],
                   c = sv[static_cast<std::size_t>(t[2])];
-    EXPECT_GT((b - a).cross(c - a).dot((a + b + c) / 3.0 - sphere.center), 0.0);
+    EXPECT_GT((b - a).cross(c - a).dot((a + b + c) / 3.0 - sphere_centre), 0.0);
   }
 
   const testing::TempFile cube = UnitCubeOff();
   ObstacleSpec mesh;
-  mesh.type = ObstacleType::kMesh;
-  mesh.path = cube.path();
+  mesh.shape = ShapeFromValues("mesh", {{"path", cube.path()}});
   Obstacle(mesh).Edges(ObstaclePose{}, &v, &e);
   EXPECT_EQ(v.size(), 8u);
   EXPECT_EQ(e.size(), 18u);  // 12 sides and 6 diagonals, 12 triangles' 36 half-edges

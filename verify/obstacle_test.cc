@@ -30,6 +30,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -46,15 +47,58 @@
 namespace clothbench {
 namespace {
 
+const Vector3 kMovingBoxCentre(0.2, 0.1, 0.3);
+
 ObstacleSpec MovingBoxSpec() {
   ObstacleSpec box;
-  box.type = ObstacleType::kBox;
-  box.center = Vector3(0.2, 0.1, 0.3);
-  box.size = Vector3(1.0, 1.0, 1.0);
+  box.shape = ShapeFromValues("box", {{"center", kMovingBoxCentre}, {"size", Vector3(1.0, 1.0, 1.0)}});
   box.keyframes = {{0.5, Vector3::Zero(), Vector3::Zero()},
                    {1.5, Vector3(0.4, -0.2, 0.1), Vector3(10.0, -20.0, 60.0)},
                    {2.0, Vector3(0.4, 0.3, 0.0), Vector3(0.0, 0.0, 90.0)}};
   return box;
+}
+
+// The registry (collision/shapes/registry.cc) is the only place that knows
+// the shapes: a scene names every registered type in its refusal of an
+// unknown one, each registered type parses from its own keys, a shape
+// reads only its own keys, and the same rules hold for shapes built in code.
+TEST(ObstacleShapes, TheRegistryNamesAndParsesEveryShape) {
+  const std::vector<std::string_view> types = ObstacleShapeTypes();
+  ASSERT_EQ(types.size(), 5u);
+  const std::string grid = "[grid]\nnu = 3\nnv = 3\nsize = [0.1, 0.1]\norigin = [0.0, 0.0, 1.0]\n";
+  try {
+    ParseScene(grid + "[[obstacle]]\ntype = \"cone\"\n", "cone.toml");
+    ADD_FAILURE() << "an unknown type was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), "cone.toml: obstacle[0].type: must be \"plane\", \"sphere\", \"box\", "
+                                     "\"cylinder\" or \"mesh\" (got \"cone\")");
+  }
+  const std::string cube = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
+  const std::map<std::string_view, std::string> keys = {
+      {"plane", "center = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 2.0]"},
+      {"sphere", "center = [0.0, 0.0, 0.0]\nradius = 0.2"},
+      {"box", "center = [0.0, 0.0, 0.0]\nsize = [0.2, 0.2, 0.2]"},
+      {"cylinder", "center = [0.0, 0.0, 0.0]\nradius = 0.2\nheight = 0.1"},
+      {"mesh", "path = \"" + cube + "\"\nscale = 0.1"}};
+  for (std::string_view type : types) {
+    ASSERT_TRUE(keys.count(type)) << type;
+    const Scene s = ParseScene(grid + "[[obstacle]]\ntype = \"" + std::string(type) + "\"\n" + keys.at(type) + "\n",
+                               "shapes.toml");
+    ASSERT_EQ(s.obstacles.size(), 1u);
+    EXPECT_EQ(s.obstacles[0].type(), type);
+    // Every shape is below the cloth (z = 1 m), and says so in its distance.
+    const Obstacle o(s.obstacles[0]);
+    Vector3 d;
+    EXPECT_GT(o.SignedDistance(0.0, Vector3(0.0, 0.0, 1.0), &d), 0.5) << type;
+    EXPECT_NEAR(d.z(), 1.0, 1e-12) << type;
+  }
+  // A key of another shape is unknown to this one.
+  EXPECT_THROW(ParseScene(grid + "[[obstacle]]\ntype = \"sphere\"\nradius = 0.2\nheight = 0.1\n", "s.toml"),
+               SceneError);
+  EXPECT_THROW(ShapeFromValues("sphere", {{"radius", 0.2}, {"height", 0.1}}), std::invalid_argument);
+  EXPECT_THROW(ShapeFromValues("sphere", {{"radius", -0.2}}), std::invalid_argument);
+  EXPECT_THROW(ShapeFromValues("plane", {{"normal", Vector3::Zero()}}), std::invalid_argument);
+  EXPECT_EQ(ShapeFromValues("box", {{"size", Vector3(1.0, 2.0, 3.0)}})->type(), "box");
 }
 
 TEST(ObstacleMotion, KeyframedPoseAndVelocity) {
@@ -90,16 +134,13 @@ TEST(ObstacleMotion, MovingMeshCubeMatchesAnalyticBox) {
   ASSERT_TRUE(std::filesystem::exists(cube)) << cube << " missing: run scripts/setup";
   const ObstacleSpec box_spec = MovingBoxSpec();
   ObstacleSpec mesh_spec = box_spec;
-  mesh_spec.type = ObstacleType::kMesh;
-  mesh_spec.path = cube;
-  mesh_spec.scale = 0.5;
-  mesh_spec.translate = box_spec.center;
+  mesh_spec.shape = ShapeFromValues("mesh", {{"path", cube}, {"scale", 0.5}, {"translate", kMovingBoxCentre}});
   const Obstacle box(box_spec), mesh(mesh_spec);
   std::srand(7);
   int compared = 0;
   for (double t : {0.0, 0.8, 1.5, 1.8, 2.5}) {
     for (int i = 0; i < 200; ++i) {
-      const Vector3 p = box_spec.center + 1.2 * Vector3::Random();
+      const Vector3 p = kMovingBoxCentre + 1.2 * Vector3::Random();
       Vector3 db, dm;
       const double sb = box.SignedDistance(t, p, &db);
       const double sm = mesh.SignedDistance(t, p, &dm);
@@ -107,7 +148,7 @@ TEST(ObstacleMotion, MovingMeshCubeMatchesAnalyticBox) {
       // Directions agree where the closest point is unique (away from the
       // box's medial surfaces inside and its edges outside).
       if (sb > 1e-3 || sb < -1e-3) {
-        const Vector3 q = box.PoseAt(t).ToPlaced(p) - box_spec.center;
+        const Vector3 q = box.PoseAt(t).ToPlaced(p) - kMovingBoxCentre;
         Vector3 sorted = q.cwiseAbs();
         std::sort(sorted.data(), sorted.data() + 3);
         if (sb > 0.0 || sorted(2) - sorted(1) > 1e-3) {
@@ -136,8 +177,7 @@ testing::TempFile WriteQuadsOff(const std::string& name, const std::vector<std::
 TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
   const ObstaclePose rest;
   ObstacleSpec box_spec;
-  box_spec.type = ObstacleType::kBox;
-  box_spec.size = Vector3(2, 2, 2);
+  box_spec.shape = ShapeFromValues("box", {{"size", Vector3(2, 2, 2)}});
   const Obstacle box(box_spec);
   auto hit = box.FirstHit(rest, Vector3(0.2, 0.1, 3.0), Vector3(0.2, 0.1, -3.0));
   ASSERT_TRUE(hit);
@@ -152,17 +192,14 @@ TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
   EXPECT_FALSE(box.FirstHit(rest, Vector3(0.0, 0.0, 0.5), Vector3(0.0, 0.0, 3.0)));  // starts inside
 
   ObstacleSpec sphere_spec;
-  sphere_spec.type = ObstacleType::kSphere;
-  sphere_spec.center = Vector3(1, 1, 1);
-  sphere_spec.radius = 0.5;
+  sphere_spec.shape = ShapeFromValues("sphere", {{"center", Vector3(1, 1, 1)}, {"radius", 0.5}});
   hit = Obstacle(sphere_spec).FirstHit(rest, Vector3(1, 1, 1) + Vector3(-2, 0.3, 0), Vector3(1, 1, 1) + Vector3(2, 0.3, 0));
   ASSERT_TRUE(hit);
   EXPECT_NEAR((hit->point - Vector3(1, 1, 1) - Vector3(-0.4, 0.3, 0)).norm(), 0.0, 1e-9);
   EXPECT_NEAR((hit->normal - Vector3(-0.8, 0.6, 0)).norm(), 0.0, 1e-9);
 
   ObstacleSpec cube_spec;
-  cube_spec.type = ObstacleType::kMesh;
-  cube_spec.path = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
+  cube_spec.shape = ShapeFromValues("mesh", {{"path", std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off"}});
   const Obstacle cube(cube_spec);
   hit = cube.FirstHit(rest, Vector3(1.3, 0.5, 0.0), Vector3(0.5, 1.3, 0.0));
   ASSERT_TRUE(hit);
@@ -171,9 +208,8 @@ TEST(ObstacleCast, FirstHitAnalyticAndMesh) {
   EXPECT_FALSE(cube.FirstHit(rest, Vector3(1.3, 0.5, 0.0), Vector3(1.1, 0.7, 0.0)));  // stops short
 
   ObstacleSpec sheet_spec;  // open: unsigned distance, normal faces the start
-  sheet_spec.type = ObstacleType::kMesh;
   const auto sheet_off = WriteQuadsOff("clothbench_sheet.off", {{-1.0, 1.0}});
-  sheet_spec.path = sheet_off.path();
+  sheet_spec.shape = ShapeFromValues("mesh", {{"path", sheet_off.path()}});
   const Obstacle sheet(sheet_spec);
   hit = sheet.FirstHit(rest, Vector3(0.2, 0.3, -0.5), Vector3(0.2, 0.3, 0.5));
   ASSERT_TRUE(hit);
@@ -191,8 +227,7 @@ Scene PointScene(const std::string& mesh_path) {
   s.material.tension = {1e-3, 1e-3};  // numerical stiffness h²k/(ρl²) = 0.1 at h = 0.01 s
   s.forces.gravity = Vector3::Zero();
   ObstacleSpec o;
-  o.type = ObstacleType::kMesh;
-  o.path = mesh_path;
+  o.shape = ShapeFromValues("mesh", {{"path", mesh_path}});
   o.collision_distance = 0.01;
   o.relaxation = 0.5;
   s.obstacles.push_back(o);
@@ -293,8 +328,7 @@ TEST(ObstacleMotion, RisingPlaneLiftsTheCloth) {
 TEST(ObstacleGuard, NonFiniteStateNeverReachesTheMeshObstacle) {
   Scene s = BuiltinScene("swinging_sheet");
   ObstacleSpec o;
-  o.type = ObstacleType::kMesh;
-  o.path = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
+  o.shape = ShapeFromValues("mesh", {{"path", std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off"}});
   o.collision_distance = 0.01;
   s.obstacles.push_back(o);
   const ParticleSystem sys(s);

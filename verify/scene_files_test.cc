@@ -31,8 +31,8 @@ TEST(SceneFiles, BuiltinScenesEqualTheirFiles) {
     EXPECT_EQ(file.grid.nu, builtin.grid.nu) << name;
     ASSERT_EQ(file.obstacles.size(), builtin.obstacles.size()) << name;
     for (std::size_t k = 0; k < file.obstacles.size(); ++k)
-      EXPECT_EQ(fs::canonical(file.obstacles[k].path.empty() ? "." : file.obstacles[k].path),
-                fs::canonical(builtin.obstacles[k].path.empty() ? "." : builtin.obstacles[k].path))
+      EXPECT_EQ(fs::canonical(file.obstacles[k].shape->file().empty() ? "." : file.obstacles[k].shape->file()),
+                fs::canonical(builtin.obstacles[k].shape->file().empty() ? "." : builtin.obstacles[k].shape->file()))
           << name;
   }
 }

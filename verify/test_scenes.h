@@ -101,9 +101,7 @@ inline Scene TableclothOnPlane(double t_end) {
   Scene s = BuiltinScene("tablecloth");
   s.grid.origin.z() = 0.705;
   ObstacleSpec& plane = s.obstacles[0];
-  plane.type = ObstacleType::kPlane;
-  plane.center = Vector3(0.0, 0.0, 0.7);
-  plane.normal = Vector3::UnitZ();
+  plane.shape = ShapeFromValues("plane", {{"center", Vector3(0.0, 0.0, 0.7)}, {"normal", Vector3::UnitZ()}});
   s.t_end = t_end;
   return s;
 }

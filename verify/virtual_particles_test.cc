@@ -200,7 +200,7 @@ TEST(VirtualParticles, TheRefinedMeshStaysOutsideTheRoundTable) {
                                                                  (at(f[2]) - at(f[0])) * (j / 16.0), &d));
     return depth;
   };
-  const double sagitta = 0.3 * (1.0 - std::cos(std::numbers::pi / Obstacle::kCircleSegments));
+  const double sagitta = 0.3 * (1.0 - std::cos(std::numbers::pi / 64  /* collision/shapes/cylinder.cc */));
   const double refined_depth = deepest(refined), base_depth = deepest(vp->triangles().vertices);
   std::printf("deepest point inside the table: base mesh %.3g m, refined %.3g m\n", base_depth, refined_depth);
   EXPECT_GT(vp->particles().size(), 0u);
@@ -261,7 +261,8 @@ INSTANTIATE_TEST_SUITE_P(ThesisIntegrators, VirtualBox,
 
 TEST(VirtualParticles, AnObstacleThatNeverMeetsTheClothChangesNothing) {
   Scene off = BoxScene(false);
-  off.obstacles[0].center = Vector3(0.0, 0.0, -10.0);  // 10 m below the cloth
+  // virtual_box.toml's beam, 10 m below the cloth.
+  off.obstacles[0].shape = ShapeFromValues("box", {{"center", Vector3(0.0, 0.0, -10.0)}, {"size", Vector3(2.0, 0.3, 0.4)}});
   off.t_end = 0.5;                                     // 1.2 m of fall: never near it
   Scene on = off;
   on.obstacles[0].virtual_particles = true;

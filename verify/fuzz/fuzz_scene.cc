@@ -39,7 +39,7 @@ void CheckScene(const clothbench::Scene& s) {
 
 bool HasMesh(const clothbench::Scene& s) {
   for (const auto& o : s.obstacles)
-    if (o.type == clothbench::ObstacleType::kMesh) return true;
+    if (o.shape->loads_file()) return true;
   return false;
 }
 

@@ -1,5 +1,5 @@
 // CGAL-backed triangle-mesh distance queries.
-#include "model/triangle_mesh.h"
+#include "collision/shapes/triangle_mesh.h"
 
 #include <algorithm>
 #include <cmath>
@@ -21,7 +21,8 @@
 #include <Eigen/Geometry>
 #include <fmt/format.h>
 
-#include "model/scene.h"
+#include "collision/shapes/escape_control.h"
+#include "collision/shapes/obstacle_shape.h"
 
 namespace clothbench {
 

@@ -3,8 +3,8 @@
 // translation), closest-point queries on CGAL's AABB tree, and the inside
 // test of CGAL::Side_of_triangle_mesh for the sign of the distance. All CGAL
 // code stays in triangle_mesh.cc.
-#ifndef CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
-#define CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
+#ifndef CLOTHBENCH_COLLISION_SHAPES_TRIANGLE_MESH_H_
+#define CLOTHBENCH_COLLISION_SHAPES_TRIANGLE_MESH_H_
 
 #include <array>
 #include <cstdint>
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "model/obstacle.h"
+#include "collision/shapes/obstacle_shape.h"
 #include "model/types.h"
 
 namespace clothbench {
@@ -67,4 +67,4 @@ class TriangleMesh {
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_MODEL_TRIANGLE_MESH_H_
+#endif  // CLOTHBENCH_COLLISION_SHAPES_TRIANGLE_MESH_H_
