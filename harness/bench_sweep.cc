@@ -182,12 +182,13 @@ double SelfConvergenceStep(const BenchRun& b) {
 
 // Whether a scene's reference is the self-convergence run: with virtual
 // particles, whose edge contacts the hybrid system of the SUNDIALS rows
-// does not have (sundials/hybrid_contact.h), and with self-contact, which
-// it has not either. Otherwise the reference row (CVODE's event-located
+// does not have (sundials/hybrid_contact.h), with self-contact, which
+// it has not either, and with moving fixed particles, which its right-hand
+// side holds at rest. Otherwise the reference row (CVODE's event-located
 // contact) is the reference.
 bool SelfConvergenceIsReference(const ParticleSystem& sys) {
   const auto& collision = sys.scene().collision;
-  return (collision && collision->self) ||
+  return (collision && collision->self) || sys.has_prescribed_motion() ||
          std::any_of(sys.obstacles().begin(), sys.obstacles().end(),
                      [](const Obstacle& o) { return o.spec().virtual_particles; });
 }

@@ -26,9 +26,13 @@ Obstacle::Obstacle(const ObstacleSpec& spec) : spec_(spec) {
     for (std::size_t i = 0; i < vertices->size(); ++i) (*vertices)[i] = Vector3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
     vertices_ = std::move(vertices);
   }
-  anchor_ = shape_->anchor();
-  for (const ObstacleKeyframe& k : spec.keyframes)
-    key_rotations_.emplace_back(Eigen::Quaterniond(RotationFromDegrees(k.rotate)).normalized());
+  motion_ = KeyframedMotion(spec.keyframes, shape_->anchor());
+}
+
+KeyframedMotion::KeyframedMotion(std::vector<ObstacleKeyframe> keys, const Vector3& anchor)
+    : keys_(std::move(keys)), anchor_(anchor) {
+  for (const ObstacleKeyframe& k : keys_)
+    rotations_.emplace_back(Eigen::Quaterniond(RotationFromDegrees(k.rotate)).normalized());
 }
 
 double Obstacle::MotionBound(const ObstaclePose& a, const ObstaclePose& b) const {
@@ -54,27 +58,27 @@ Penetration Obstacle::PenetrationOf(const ObstaclePose& pose, const MatrixN3& x)
   return r;
 }
 
-ObstaclePose Obstacle::PoseAt(double t) const {
+ObstaclePose KeyframedMotion::PoseAt(double t) const {
   ObstaclePose pose;
   pose.anchor = anchor_;
-  const auto& keys = spec_.keyframes;
+  const auto& keys = keys_;
   if (keys.empty()) return pose;
   pose.identity = false;
   std::size_t k = 0;  // segment [k, k+1] containing t, or a held end pose
   while (k + 1 < keys.size() && keys[k + 1].t <= t) ++k;
   if (t <= keys.front().t || k + 1 == keys.size()) {
     const std::size_t held = t <= keys.front().t ? 0 : keys.size() - 1;
-    pose.rotation = key_rotations_[held].toRotationMatrix();
+    pose.rotation = rotations_[held].toRotationMatrix();
     pose.translation = keys[held].translate;
     return pose;
   }
   // Linear translation and constant-rate rotation (the shortest arc from
   // R_k to R_k+1) over the segment: R(t) = exp(s θ [a]) R_k.
   const double dt = keys[k + 1].t - keys[k].t, s = (t - keys[k].t) / dt;
-  Eigen::Quaterniond dq = key_rotations_[k + 1] * key_rotations_[k].inverse();
+  Eigen::Quaterniond dq = rotations_[k + 1] * rotations_[k].inverse();
   if (dq.w() < 0.0) dq.coeffs() *= -1.0;
   const Eigen::AngleAxisd arc(dq);
-  pose.rotation = Eigen::AngleAxisd(s * arc.angle(), arc.axis()) * key_rotations_[k].toRotationMatrix();
+  pose.rotation = Eigen::AngleAxisd(s * arc.angle(), arc.axis()) * rotations_[k].toRotationMatrix();
   pose.translation = (1.0 - s) * keys[k].translate + s * keys[k + 1].translate;
   pose.linear_velocity = (keys[k + 1].translate - keys[k].translate) / dt;
   pose.angular_velocity = (arc.angle() / dt) * arc.axis();

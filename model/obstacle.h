@@ -57,6 +57,28 @@ struct ObstaclePose {
   }
 };
 
+/// A keyframed rigid motion (thesis §6.2, class Environment): of an
+/// obstacle, or of fixed particles (`[[constraints.motion]]`). Between
+/// keyframes the translation is linear and the rotation turns at a constant
+/// rate along the shortest arc from one keyframe's rotation to the next's
+/// (so keyframes less than 180° apart give any turn); before the first and
+/// after the last keyframe the pose is held.
+class KeyframedMotion {
+ public:
+  KeyframedMotion() = default;
+  /// @param keys times strictly increasing (the scene parser checks)
+  /// @param anchor [m] the rotation centre as placed
+  KeyframedMotion(std::vector<ObstacleKeyframe> keys, const Vector3& anchor);
+  /// The rigid placement at time t [s] (identity without keyframes).
+  ObstaclePose PoseAt(double t) const;
+  bool moving() const { return !keys_.empty(); }
+
+ private:
+  std::vector<ObstacleKeyframe> keys_;
+  Vector3 anchor_ = Vector3::Zero();
+  std::vector<Eigen::Quaterniond> rotations_;  // one per keyframe
+};
+
 /// How N particles lie against an obstacle at one pose (Obstacle::Penetration).
 struct Penetration {
   double max_depth = 0.0;  ///< largest depth inside, max(0, −d) [m]
@@ -115,7 +137,7 @@ class Obstacle {
   /// the deepest particle inside, the depths and the particles within δ/2.
   Penetration PenetrationOf(const ObstaclePose& pose, const MatrixN3& x) const;
   /// The rigid placement at time t [s] from the keyframes (identity if none).
-  ObstaclePose PoseAt(double t) const;
+  ObstaclePose PoseAt(double t) const { return motion_.PoseAt(t); }
   /// An upper bound [m] on how far any point of a mesh obstacle's solid
   /// moves from pose a to pose b: the largest displacement of its vertices
   /// (the displacement of a rigid motion is affine in the point, so its norm
@@ -146,8 +168,7 @@ class Obstacle {
  private:
   ObstacleSpec spec_;
   std::shared_ptr<const ObstacleShape> shape_;  // loaded (shared by copies)
-  Vector3 anchor_ = Vector3::Zero();
-  std::vector<Eigen::Quaterniond> key_rotations_;  // one per keyframe
+  KeyframedMotion motion_;
   std::shared_ptr<const std::vector<Vector3>> vertices_;  // keyframed mesh: placed vertices (MotionBound)
 };
 

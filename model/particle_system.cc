@@ -72,6 +72,16 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
     if (const std::string why = StartsInside(obstacles_.back(), rest_); !why.empty())
       throw SceneError(fmt::format("{}: obstacle[{}] {}", scene.source, k, why));
   }
+  for (const FixedMotionSpec& m : scene.motions) {
+    Vector3 anchor = Vector3::Zero();
+    if (m.anchor) {
+      anchor = *m.anchor;
+    } else {
+      for (int p : m.particles) anchor += rest_.row(p).transpose();
+      anchor /= static_cast<double>(std::max<std::size_t>(1, m.particles.size()));
+    }
+    prescribed_.push_back({m.particles, KeyframedMotion(m.keyframes, anchor)});
+  }
   fixed_ = scene.fixed;
   fixed_mask_.assign(static_cast<std::size_t>(n_), 0);
   for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;

@@ -51,6 +51,29 @@ class ParticleSystem {
   /// Sorted flat indices of fixed particles; is_fixed(p) for lookup.
   const std::vector<int>& fixed() const { return fixed_; }
   bool is_fixed(int p) const { return fixed_mask_[static_cast<std::size_t>(p)] != 0; }
+  /// Whether fixed particles move (`[[constraints.motion]]`, Scene::motions).
+  bool has_prescribed_motion() const { return !prescribed_.empty(); }
+  /// Calls f(p, x, v) for every moving fixed particle p with its prescribed
+  /// position x [m] and velocity v [m/s] at time t [s]: its rest position
+  /// moved by its motion's pose (KeyframedMotion). No allocation.
+  template <class F>
+  void ForEachPrescribed(double t, F&& f) const {
+    for (const Prescribed& g : prescribed_) {
+      const ObstaclePose pose = g.motion.PoseAt(t);
+      for (int p : g.particles) {
+        const Vector3 x = pose.ToWorld(rest_.row(p).transpose());
+        f(p, x, pose.Velocity(x));
+      }
+    }
+  }
+  /// Sets the rows of the moving fixed particles of x [m] and v [m/s] (N×3)
+  /// to their prescribed state at t [s] (ForEachPrescribed).
+  void Prescribe(double t, MatrixN3* x, MatrixN3* v) const {
+    ForEachPrescribed(t, [&](int p, const Vector3& xp, const Vector3& vp) {
+      x->row(p) = xp.transpose();
+      v->row(p) = vp.transpose();
+    });
+  }
   /// Obstacles of the scene (docs/model.md §7); empty: no detection at all.
   const std::vector<Obstacle>& obstacles() const { return obstacles_; }
   /// The thesis' virtual particles (model/virtual_particles.h), one of
@@ -119,6 +142,11 @@ class ParticleSystem {
   std::vector<std::unique_ptr<ForceTerm>> terms_;
   std::vector<const ForceTerm*> external_terms_;  // wind, air (owned by terms_)
   std::vector<Obstacle> obstacles_;
+  struct Prescribed {
+    std::vector<int> particles;
+    KeyframedMotion motion;
+  };
+  std::vector<Prescribed> prescribed_;  // Scene::motions
   VirtualParticles* virtual_ = nullptr;  // owned by terms_
 };
 

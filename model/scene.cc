@@ -252,6 +252,40 @@ void ParseForces(TableReader& top, const std::string& source, Scene& s) {
   f.RejectUnknown();
 }
 
+// Keyframed rigid motion (thesis §6.2): keyframes = [{ t, translate, rotate }, ...]
+// of an obstacle or of fixed particles (`required`: the key must be there).
+std::vector<ObstacleKeyframe> ParseKeyframes(TableReader& o, const std::string& prefix, const std::string& source,
+                                             bool required) {
+  std::vector<ObstacleKeyframe> keyframes;
+  const toml::node* kf = o.Get("keyframes");
+  if (!kf && required) o.Fail("keyframes", "is required: [{ t = s, translate = [x, y, z], rotate = [a, b, c] }, ...]");
+  if (kf) {
+    const toml::array* keys = kf->as_array();
+    if (!keys || keys->empty())
+      o.Fail("keyframes", "must be a non-empty array of tables { t = s, translate = [x, y, z], rotate = [a, b, c] }");
+    for (std::size_t j = 0; j < keys->size(); ++j) {
+      const toml::table* kt = (*keys)[j].as_table();
+      const std::string kprefix = fmt::format("{}keyframes[{}].", prefix, j);
+      if (!kt) throw SceneError(fmt::format("{}: {}: must be a table {{ t, translate, rotate }}", source,
+                                            kprefix.substr(0, kprefix.size() - 1)));
+      TableReader kr(kt, kprefix, source);
+      ObstacleKeyframe key;
+      if (!kt->contains("t")) kr.Fail("t", "is required (keyframe time [s])");
+      key.t = kr.NonNegative("t", key.t);
+      if (!keyframes.empty() && !(key.t > keyframes.back().t))
+        kr.Fail("t", fmt::format("must be greater than the previous keyframe's t = {}", keyframes.back().t));
+      key.translate = kr.Vec3("translate", key.translate);
+      if (key.translate.cwiseAbs().maxCoeff() > 1e6)
+        kr.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
+      key.rotate = kr.Vec3("rotate", key.rotate);
+      if (key.rotate.cwiseAbs().maxCoeff() > 3600) kr.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
+      kr.RejectUnknown();
+      keyframes.push_back(key);
+    }
+  }
+  return keyframes;
+}
+
 // [constraints]: fixed particles.
 void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
   TableReader c(top.SubTable("constraints"), top.Child("constraints"), source);
@@ -270,6 +304,41 @@ void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
     // A sheet with every particle fixed has no unknowns: nothing to integrate.
     if (static_cast<long>(s.fixed.size()) >= static_cast<long>(s.grid.nu) * s.grid.nv)
       c.Fail("fixed", fmt::format("fixes all {} particles; at least one must be free", s.fixed.size()));
+  }
+  // [[constraints.motion]]: fixed particles on a keyframed rigid motion.
+  if (const toml::node* n = c.Get("motion")) {
+    const toml::array* a = n->as_array();
+    if (!a) c.Fail("motion", "must be an array of tables ([[constraints.motion]])");
+    std::set<int> moving;
+    for (std::size_t k = 0; k < a->size(); ++k) {
+      const std::string prefix = fmt::format("constraints.motion[{}].", k);
+      const toml::table* t = (*a)[k].as_table();
+      if (!t) throw SceneError(fmt::format("{}: constraints.motion[{}]: must be a table", source, k));
+      TableReader m(t, prefix, source);
+      FixedMotionSpec motion;
+      motion.particles_spec = m.String("particles", "");
+      if (motion.particles_spec.empty()) m.Fail("particles", "must name fixed particles, e.g. \"edge:u1\"");
+      std::set<int> ps;
+      for (int p : ResolveFixed(motion.particles_spec, s.grid.nu, s.grid.nv, fmt::format("{}: {}particles: ", source, prefix)))
+        ps.insert(p);
+      for (int p : ps) {
+        if (!std::binary_search(s.fixed.begin(), s.fixed.end(), p))
+          m.Fail("particles", fmt::format("\"{}\" names particle {}, which constraints.fixed does not fix",
+                                          motion.particles_spec, p));
+        if (!moving.insert(p).second)
+          m.Fail("particles", fmt::format("\"{}\" names particle {}, which an earlier motion moves already",
+                                          motion.particles_spec, p));
+      }
+      motion.particles.assign(ps.begin(), ps.end());
+      if (m.Get("anchor")) {
+        const Vector3 anchor = m.Vec3("anchor", Vector3::Zero());
+        if (anchor.cwiseAbs().maxCoeff() > 1e6) m.Fail("anchor", "must have coordinates of magnitude at most 1e6 m");
+        motion.anchor = anchor;
+      }
+      motion.keyframes = ParseKeyframes(m, prefix, source, true);
+      m.RejectUnknown();
+      s.motions.push_back(std::move(motion));
+    }
   }
   c.RejectUnknown();
 }
@@ -400,31 +469,7 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
       if (spec.virtual_particles && !spec.shape->has_edges())
         o.Fail("virtual_particles", fmt::format("must be false for a {} (it has no edges to project onto the cloth)",
                                                 spec.type()));
-      // Keyframed rigid motion (thesis §6.2): keyframes = [{ t, translate, rotate }, ...].
-      if (const toml::node* kf = o.Get("keyframes")) {
-        const toml::array* keys = kf->as_array();
-        if (!keys || keys->empty())
-          o.Fail("keyframes", "must be a non-empty array of tables { t = s, translate = [x, y, z], rotate = [a, b, c] }");
-        for (std::size_t j = 0; j < keys->size(); ++j) {
-          const toml::table* kt = (*keys)[j].as_table();
-          const std::string kprefix = fmt::format("{}keyframes[{}].", prefix, j);
-          if (!kt) throw SceneError(fmt::format("{}: {}: must be a table {{ t, translate, rotate }}", source,
-                                                kprefix.substr(0, kprefix.size() - 1)));
-          TableReader kr(kt, kprefix, source);
-          ObstacleKeyframe key;
-          if (!kt->contains("t")) kr.Fail("t", "is required (keyframe time [s])");
-          key.t = kr.NonNegative("t", key.t);
-          if (!spec.keyframes.empty() && !(key.t > spec.keyframes.back().t))
-            kr.Fail("t", fmt::format("must be greater than the previous keyframe's t = {}", spec.keyframes.back().t));
-          key.translate = kr.Vec3("translate", key.translate);
-          if (key.translate.cwiseAbs().maxCoeff() > 1e6)
-            kr.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
-          key.rotate = kr.Vec3("rotate", key.rotate);
-          if (key.rotate.cwiseAbs().maxCoeff() > 3600) kr.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
-          kr.RejectUnknown();
-          spec.keyframes.push_back(key);
-        }
-      }
+      spec.keyframes = ParseKeyframes(o, prefix, source, false);
       o.RejectUnknown();
       s.obstacles.push_back(spec);
     }

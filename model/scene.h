@@ -110,6 +110,19 @@ struct SelfCollisionSpec {
 /// below lu·lv/√(lu² + lv²)), or empty if it does.
 std::string SelfContactThicknessRule(const Scene& scene, double thickness);
 
+/// Fixed particles that follow a keyframed rigid motion
+/// (`[[constraints.motion]]`; docs/scenes.md): their rest positions moved
+/// by KeyframedMotion (model/obstacle.h) about `anchor`. Every method that
+/// integrates such a scene sets their positions and velocities to the
+/// motion's at each step's end and holds them there through the step's
+/// solve (ParticleSystem::ForEachPrescribed).
+struct FixedMotionSpec {
+  std::string particles_spec;                ///< as written ("edge:u1", "corner:u0v0", …)
+  std::vector<int> particles;                ///< resolved, sorted, unique; all fixed
+  std::optional<Vector3> anchor;             ///< rotation centre [m]; absent: the particles' rest centroid
+  std::vector<ObstacleKeyframe> keyframes;   ///< non-empty, times strictly increasing
+};
+
 /// One scene: everything needed to build the particle system and run it.
 struct Scene {
   std::string name = "unnamed";
@@ -121,6 +134,7 @@ struct Scene {
   ForcesSpec forces;
   std::vector<std::string> fixed_specs;  ///< as written in the scene
   std::vector<int> fixed;                ///< resolved flat particle indices, sorted, unique
+  std::vector<FixedMotionSpec> motions;  ///< `[[constraints.motion]]`; empty: every fixed particle at rest
   SolverSpec solver;
   std::vector<ObstacleSpec> obstacles;   ///< `[[obstacle]]` (docs/model.md §7); empty: no detection, no filter
   std::optional<SelfCollisionSpec> collision;  ///< `[collision]`; absent: no self-contact, frames not checked

@@ -85,6 +85,7 @@ StepStats BaraffWitkin::Step(double h) {
     return st;
   };
   if (contacts_.active()) st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+  PrescribeFixedTargets(sys_, t_ + h, &filter_);  // moving fixed particles: their velocity at the step's end
 
   // J = M − h ∂f/∂v − h² ∂f/∂x at (t₀, x₀, v₀) and its preconditioner.
   {
@@ -136,7 +137,7 @@ StepStats BaraffWitkin::Step(double h) {
   }
   v1_ = vr_;
   x1_ = x0_ + h * v1_;
-  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
+  HoldFixed(sys_, t_ + h, x0_, &x1_, &v1_);
   if (!x1_.allFinite() || !v1_.allFinite()) {
     st.status = StepStatus::kNonFinite;
     return finish();

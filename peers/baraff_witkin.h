@@ -85,6 +85,7 @@ class BaraffWitkin : public Stepper {
     return contacts_.active() ? &contacts_.work() : nullptr;
   }
   bool corrects_state() const override { return true; }
+  bool follows_prescribed_motion() const override { return true; }
   void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
     x0_ = x;
     v0_ = v;

@@ -54,6 +54,7 @@ void IteratedStepper::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   x0_ = x;
   v0_ = v;
   for (int p : sys_.fixed()) v0_.row(p).setZero();
+  sys_.Prescribe(t, &x0_, &v0_);  // moving fixed particles (`[[constraints.motion]]`)
   h_last_step_ = 0.0;
   have_history_ = false;
   contacts_.Reset();
@@ -61,6 +62,9 @@ void IteratedStepper::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
 
 int IteratedStepper::SetUpContacts(double h) {
   const int colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+  sys_.ForEachPrescribed(t_ + h, [&](int p, const Vector3& x, const Vector3&) {
+    filter_.SetFixedTarget(p, (x - x0_.row(p).transpose()) / h);
+  });
   std::fill(constraint_.begin(), constraint_.end(), -1);
   constraints_.clear();
   filter_.ForEachTarget([&](int p, int count, const Eigen::Matrix3d& dirs, const Vector3& targets) {
@@ -197,6 +201,11 @@ void IteratedStepper::StartIterate(double h, bool rho_start) {
       }
     if (filter) filter_.Impose(&v_);
   }
+  // A moving fixed particle (w = 0, never updated) goes exactly to its
+  // prescribed position at the step's end: x₀ + h v = x_p(t + h).
+  sys_.ForEachPrescribed(t_ + h, [&](int p, const Vector3& x, const Vector3&) {
+    v_.row(p) = (x - x0_.row(p).transpose()).transpose() / h;
+  });
 }
 
 bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool rho_start, bool* timed_out) {
@@ -276,6 +285,7 @@ StepStats IteratedStepper::Step(double h) {
     st.colliding = ProjectOntoObstacles(sys_, w_, t1, h, x0_, &x_);
     v_ = (x_ - x0_) / h;
   }
+  sys_.Prescribe(t1, &x_, &v_);  // moving fixed particles end at their prescribed state
   if (!x_.allFinite() || !v_.allFinite()) return finish(StepStatus::kNonFinite);
   if (filter) {
     xm1_ = x0_;

@@ -70,6 +70,10 @@ class IteratedStepper : public Stepper {
   /// deadline, Prepare's status if it fails.
   StepStats Step(double h) override;
   double t() const override { return t_; }
+  /// A moving fixed particle (w = 0) takes the velocity that ends the step
+  /// at its prescribed position; PD moves it to the global step's
+  /// right-hand side (a Dirichlet condition).
+  bool follows_prescribed_motion() const override { return true; }
   void SetTime(double t) override { t_ = t; }
   const MatrixN3& x() const override { return x0_; }
   const MatrixN3& v() const override { return v0_; }

@@ -78,6 +78,7 @@ class ProjectiveDynamics : public IteratedStepper {
   void Iteration(double h) override;
   SystemMatrix sm_;
   MatrixN3 b0_, b_, g_, lkx_;
+  MatrixN3 moving_v_, coupling_;  // moving fixed particles: their step velocity V and A V
 };
 
 }  // namespace clothbench

@@ -90,7 +90,15 @@ void VertexBlockDescent::AfterIteration(double h) {
     c = 0;
   }
   self_->stats().projections += truncated;
-  if (truncated == 0) return;
+  // A moving fixed particle (`[[constraints.motion]]`) is not truncated: it
+  // goes where its motion takes it. Past its bound, its pairs are detected
+  // again from there, as after a truncation.
+  bool moved_past = false;
+  sys_.ForEachPrescribed(t_ + h, [&](int p, const Vector3& x, const Vector3&) {
+    Vector3 xp = x;
+    moved_past = moved_past || self_->Truncate(p, &xp);
+  });
+  if (truncated == 0 && !moved_past) return;
   // A particle at its bound: the detection again, from where the iterate is.
   x_colour_.noalias() = x0_ + h * v_;
   self_->Detect(x_colour_);

@@ -89,6 +89,7 @@ void Xpbd::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   x0_ = x;
   v0_ = v;
   for (int p : sys_.fixed()) v0_.row(p).setZero();
+  sys_.Prescribe(t, &x0_, &v0_);  // moving fixed particles (`[[constraints.motion]]`)
   if (self_) self_->Reset();
 }
 
@@ -154,6 +155,9 @@ StepStats Xpbd::Step(double h) {
     PredictionForces(t, x_, v_, &f_);
     v_ += dt * (w_.asDiagonal() * f_);
     p_ = x_ + dt * v_;
+    // A moving fixed particle (w = 0) is kinematic: at its prescribed
+    // position at the substep's end.
+    sys_.ForEachPrescribed(t + dt, [&](int p, const Vector3& x, const Vector3&) { p_.row(p) = x.transpose(); });
     // 3.–4. One sweep: λ = 0, Δλ by Eq. 26, in a fixed order (deterministic).
     //    The dampers go first: after a distance projection they would see its
     //    correction as relative motion and undo most of it (β Δt w ≈ 6 on
@@ -191,6 +195,7 @@ StepStats Xpbd::Step(double h) {
     v_ = (p_ - x_) / dt;
     x_.swap(p_);
   }
+  if (!blown_up) sys_.Prescribe(t_ + h, &x_, &v_);
   if (blown_up || !x_.allFinite() || !v_.allFinite()) {
     st.status = StepStatus::kNonFinite;
   } else {

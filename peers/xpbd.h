@@ -63,6 +63,9 @@ class Xpbd : public Stepper {
   int matrix_rebuilds() const override { return 0; }
   double setup_seconds() const override { return 0.0; }
   const SelfContactStats* own_self_contact() const override { return self_ ? &self_->stats() : nullptr; }
+  /// Moving fixed particles are kinematic: at their prescribed position at
+  /// every substep's end.
+  bool follows_prescribed_motion() const override { return true; }
 
   int substeps() const { return substeps_; }
   /// The scene's force terms applied explicitly in the prediction (all but

@@ -480,3 +480,24 @@ def test_self_contact_switch_counts_and_removes_the_crossings():
     pd = clothbench.run(scene, "pd", h=0.005, iterations=4, t_end=0.6)
     assert pd["status"] == "ok" and max(pd["crossing_pairs"]) == 0
     assert clothbench.run(scene, "cvode", rtol=1e-4, t_end=0.1)["status"] == "unsupported_scene"
+
+
+def test_twisted_sheet_moves_its_edge_and_refuses_the_sundials_rows():
+    # twisted_sheet to t = 1 s (one whole turn of its u1 edge): without
+    # self-contact SBDF(2)'s strip crosses itself from t = 0.68 s (348
+    # pairs at most to 2 s); with it no frame crosses. The moving edge's
+    # first particle, (0.3, -0.075, 0.5) m at rest, is at the motion's pose:
+    # a quarter turn about x through (0.3, 0, 0.5) and 0.025 m along -x at
+    # t = 0.25 s (round-off of the pose, 1e-12 m).
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    scene = os.path.join(root, "scenes", "twisted_sheet.toml")
+    off = clothbench.run(scene, "sbdf2", h=0.005, t_end=1.0, self_contact="off")
+    on = clothbench.run(scene, "sbdf2", h=0.005, t_end=1.0)
+    assert off["status"] == "ok" and max(off["crossing_pairs"]) > 50
+    assert on["status"] == "ok" and max(on["crossing_pairs"]) == 0
+    times = list(on["times"])
+    k = min(range(len(times)), key=lambda i: abs(times[i] - 0.25))
+    corner = on["positions"][k][39]  # particle (nu - 1, 0)
+    assert abs(times[k] - 0.25) < 1e-12
+    assert max(abs(a - b) for a, b in zip(corner, (0.275, 0.0, 0.425))) < 1e-12
+    assert clothbench.run(scene, "cvode", rtol=1e-4, t_end=0.1)["status"] == "unsupported_scene"

@@ -308,6 +308,7 @@ StepStats StepEngine::Solve(double h) {
     }
     if (event_step_) StartSlope();  // with this attempt's filter and friction
   }
+  PrescribeFixedTargets(sys_, t_ + h, &filter_);  // moving fixed particles: their velocity at the step's end
   bool sbdf3_start = false;
   const Method m = StepMethod(h, &sbdf3_start);
   const bool imex = IsImex(m);
@@ -362,9 +363,10 @@ StepStats StepEngine::Solve(double h) {
     return st;
   }
   x1_ = xhat_ + (c.gamma * h) * v1_;
-  // Fixed particles have v = 0; c1 x₀ − c2 x₋₁ would let them drift by
-  // round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
-  for (int p : sys_.fixed()) x1_.row(p) = x0_.row(p);
+  // Fixed particles at rest have v = 0; c1 x₀ − c2 x₋₁ would let them drift
+  // by round-off (c1 − c2 = 1 only in exact arithmetic), so keep x₀ exactly.
+  // Moving ones end at their prescribed state.
+  HoldFixed(sys_, t_ + h, x0_, &x1_, &v1_);
   return st;
 }
 
@@ -836,6 +838,7 @@ StepStats StepEngine::ExplicitStep(double h, StepStats st) {
   v1_ = v0_ + h * (sys_.masses().cwiseInverse().asDiagonal() * g_);
   filter_.Impose(&v1_);
   x1_ = x0_ + h * v1_;
+  if (sys_.has_prescribed_motion()) HoldFixed(sys_, t_ + h, x0_, &x1_, &v1_);
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;
 }

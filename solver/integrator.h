@@ -203,6 +203,10 @@ class Stepper {
   /// step's end). A stepper without it is refused on a scene with
   /// `[collision] self = true` (status unsupported_scene).
   virtual bool corrects_state() const { return false; }
+  /// Whether Step moves the fixed particles of `[[constraints.motion]]`
+  /// along their prescribed motion (ParticleSystem::ForEachPrescribed). A
+  /// stepper without it is refused on such a scene (unsupported_scene).
+  virtual bool follows_prescribed_motion() const { return false; }
   /// The counters of the stepper's own self-contact on a scene with
   /// `[collision] self = true` (a position-based peer's constraints inside
   /// its step, peers/position_contacts.h), since Reset; nullptr where it
@@ -255,6 +259,7 @@ class StepEngine : public Stepper {
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
   long events() const override { return event_location_ ? events_ : -1; }
   bool corrects_state() const override { return true; }
+  bool follows_prescribed_motion() const override { return true; }
   /// The explicit terms at the old end state are recomputed (g₀).
   void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
     x0_ = x;

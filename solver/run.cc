@@ -542,13 +542,25 @@ void FinishRun(const Stepper& engine, const BlowUpGuard& guard, const VirtualPar
   sum->wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 }
 
+// True (sum's status and message set) if the scene moves fixed particles
+// (`[[constraints.motion]]`) and the stepper does not follow the motion.
+bool RefusesMotion(const ParticleSystem& system, const Stepper& engine, RunSummary* sum) {
+  if (!system.has_prescribed_motion() || engine.follows_prescribed_motion()) return false;
+  sum->status = RunStatus::kUnsupportedScene;
+  sum->message = "constraints.motion: this method does not move fixed particles along a prescribed motion "
+                 "(docs/scenes.md, \"Moving fixed particles\")";
+  return true;
+}
+
 // Puts the engine at rest at t = 0; the scene's virtual particles, if any.
 // They start empty, before Reset evaluates any force (the error estimate's
 // initial slope): the last run's topology would leak into this one.
 VirtualParticles* ResetToRest(const ParticleSystem& system, Stepper& engine) {
   VirtualParticles* const virtual_particles = system.virtual_particles();
   if (virtual_particles) virtual_particles->Clear();
-  engine.Reset(0.0, system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3));
+  MatrixN3 x = system.rest_positions(), v = MatrixN3::Zero(system.num_particles(), 3);
+  system.Prescribe(0.0, &x, &v);  // moving fixed particles start on their motion
+  engine.Reset(0.0, x, v);
   return virtual_particles;
 }
 
@@ -568,6 +580,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.error_test_failures = spec.step_control == StepControl::kError ? 0 : -1;
   double solver_seconds = 0.0;
 
+  if (RefusesMotion(system, engine, &sum)) return sum;
   VirtualParticles* const virtual_particles = ResetToRest(system, engine);
   SelfContactStage self_contact(system, engine);
   if (self_contact.Refuses(&sum)) return sum;
@@ -577,7 +590,8 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   sum.step_stats.reserve(static_cast<std::size_t>(
       std::min(std::ceil(options.t_end / options.h), static_cast<double>(options.limits.max_steps))) + 64);
   BlowUpGuard guard(system, engine.x(), engine.v(), options.t_end);
-  if (self_contact.uncounted_work()) guard.OpenBalance();
+  // The response's work, or a prescribed motion's, is not in the balance.
+  if (self_contact.uncounted_work() || system.has_prescribed_motion()) guard.OpenBalance();
   long attempts = 0;
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();

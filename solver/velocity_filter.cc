@@ -2,6 +2,7 @@
 #include "solver/velocity_filter.h"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace clothbench {
 
@@ -16,6 +17,22 @@ VelocityFilter::Entry* VelocityFilter::Find(int p) {
 void VelocityFilter::Fix(int p, const Vector3& target) {
   if (static_cast<std::size_t>(p) < slot_.size()) slot_[static_cast<std::size_t>(p)] = size();
   entries_.push_back({p, 3, Eigen::Matrix3d::Identity(), target});
+}
+
+void VelocityFilter::SetFixedTarget(int p, const Vector3& target) {
+  Entry* e = Find(p);
+  if (!e || e->count != 3) throw std::logic_error("VelocityFilter::SetFixedTarget: particle is not fixed");
+  e->targets = target;
+}
+
+void PrescribeFixedTargets(const ParticleSystem& system, double t, VelocityFilter* filter) {
+  if (!system.has_prescribed_motion()) return;
+  system.ForEachPrescribed(t, [&](int p, const Vector3&, const Vector3& v) { filter->SetFixedTarget(p, v); });
+}
+
+void HoldFixed(const ParticleSystem& system, double t1, const MatrixN3& x0, MatrixN3* x1, MatrixN3* v1) {
+  for (int p : system.fixed()) x1->row(p) = x0.row(p);
+  system.Prescribe(t1, x1, v1);
 }
 
 // A particle's entry is found through slot_ in O(1). A linear search made

@@ -8,6 +8,7 @@
 #include <array>
 #include <vector>
 
+#include "model/particle_system.h"
 #include "model/types.h"
 
 namespace clothbench {
@@ -23,6 +24,9 @@ class VelocityFilter {
   /// Constrains particle p along unit direction `dir` to ⟨v,dir⟩ = target [m/s].
   /// Directions of one particle are orthonormalised.
   void Constrain(int p, const Vector3& dir, double target);
+  /// Sets the target velocity [m/s] of particle p, fixed by Fix. @throws
+  /// std::logic_error if p has no fixed entry.
+  void SetFixedTarget(int p, const Vector3& target);
   void Clear() {
     for (const Entry& e : entries_)
       if (static_cast<std::size_t>(e.particle) < slot_.size()) slot_[static_cast<std::size_t>(e.particle)] = -1;
@@ -72,6 +76,17 @@ class VelocityFilter {
   std::vector<int> slot_;  // entry index of each particle, −1: none (after Reserve)
   Entry* Find(int p);
 };
+
+/// Sets the targets of the moving fixed particles of `system`
+/// (`[[constraints.motion]]`) in `filter` to their prescribed velocities at
+/// t [s]: the velocity the step's solve holds them at. Their entries must
+/// have been made by Fix. No allocation.
+void PrescribeFixedTargets(const ParticleSystem& system, double t, VelocityFilter* filter);
+
+/// A step's end for the fixed particles: at rest, x₁ = x₀ exactly (a
+/// multistep formula would let them drift by round-off); moving, x₁ and v₁
+/// their prescribed position and velocity at t₁ [s]. N×3 [m], [m/s].
+void HoldFixed(const ParticleSystem& system, double t1, const MatrixN3& x0, MatrixN3* x1, MatrixN3* v1);
 
 }  // namespace clothbench
 

@@ -48,6 +48,10 @@ void CheckModel(const clothbench::Scene& s) {
   const ParticleSystem sys(s);
   if (!sys.masses().allFinite() || !(sys.masses().minCoeff() > 0.0)) Finding("non-positive or non-finite mass", "");
   if (!sys.rest_positions().allFinite()) Finding("non-finite rest positions", "");
+  for (double t : {0.0, 0.5 * s.t_end, s.t_end})  // moving fixed particles: a finite prescribed state
+    sys.ForEachPrescribed(t, [&](int p, const Vector3& x, const Vector3& v) {
+      if (!x.allFinite() || !v.allFinite()) Finding("non-finite prescribed state", std::to_string(p));
+    });
   const int n = sys.num_particles();
   MatrixN3 v = MatrixN3::Zero(n, 3), f(n, 3);
   // At rest, and displaced by 1 % of the spacing with 1 m/s velocities:
