@@ -140,6 +140,8 @@ class VbdSelfContact {
   /// Moves *xp [m], particle p's new position, back onto its bound around
   /// x_det if beyond it. @return whether it did
   bool Truncate(int p, Vector3* xp) const;
+  /// b_p [m]: how far particle p may move from x_det (after Detect).
+  double bound(int p) const { return bound_[static_cast<std::size_t>(p)]; }
   SelfContactStats& stats() { return stats_; }
   const SelfContactStats& stats() const { return stats_; }
 

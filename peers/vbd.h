@@ -122,6 +122,12 @@ class VertexBlockDescent : public IteratedStepper {
   std::optional<VbdSelfContact> self_;  // `[collision] self = true`
   MatrixN3 x_colour_;                   // self-contact: the positions at a colour's start (its contacts read them)
   std::vector<char> truncated_;         // self-contact: per particle, truncated in this iteration
+  MatrixN3 x_split_, v_split_;          // self-contact with moving fixed particles: the state before a split step
+  /// The pieces a step of h [s] takes so that no moving fixed particle
+  /// (`[[constraints.motion]]`) moves beyond its bound in one piece: 1, 2,
+  /// 4, … up to kMaxSplit (detects the pairs at x₀).
+  int KinematicSplit(double h);
+  static constexpr int kMaxSplit = 64;
   // Moves particle p's iterate v_p back within its bound; true if it did.
   bool Bound(double h, int p, Vector3* vp);
 };
