@@ -21,6 +21,7 @@
 #include "peers/xpbd.h"
 #include "solver/integrator.h"
 #include "solver/run.h"
+#include "verify/test_scenes.h"
 
 namespace clothbench {
 namespace {
@@ -120,6 +121,28 @@ INSTANTIATE_TEST_SUITE_P(Methods, TwistedSheetMethods,
                          [](const ::testing::TestParamInfo<TwistCase>& info) {
                            return std::string(info.param.method) + (info.param.fraction == 1.0 ? "_h" : "_quarter_h");
                          });
+
+// With the motion and self-contact, a run repeats bit for bit on one thread
+// and on two (SBDF(2) with the response, XPBD with its own constraints).
+TEST(TwistedSheet, RepeatsBitForBitOnOneAndTwoThreads) {
+  const Scene s = Twisted(1.0, true);
+  const ParticleSystem sys(s);
+  for (const std::string name : {"sbdf2", "xpbd"}) {
+    RunSummary one, two;
+    testing::WithThreads(1, [&] {
+      std::unique_ptr<Stepper> stepper = Make(sys, name);
+      one = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
+    });
+    testing::WithThreads(2, [&] {
+      std::unique_ptr<Stepper> stepper = Make(sys, name);
+      two = RunStepper(sys, *stepper, {s.h, s.t_end, s.frame_dt});
+    });
+    ASSERT_EQ(one.status, RunStatus::kOk) << name << ": " << one.message;
+    ASSERT_EQ(two.trajectory.positions.size(), one.trajectory.positions.size()) << name;
+    for (std::size_t k = 0; k < one.trajectory.positions.size(); ++k)
+      ASSERT_TRUE(two.trajectory.positions[k] == one.trajectory.positions[k]) << name << " frame " << k;
+  }
+}
 
 // A stepper that does not move fixed particles is refused before it
 // computes (the SUNDIALS rows are refused by the harness, harness/methods.h).
