@@ -488,11 +488,6 @@ struct RowMethod {
           RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
       row.step_control = std::string(ToString(s.step_control));
       if (entry->describe) entry->describe(*stepper, sys, &row);
-    } else if (!scene.motions.empty()) {
-      // The SUNDIALS right-hand sides hold fixed particles at rest.
-      row.status = RunStatus::kUnsupportedScene;
-      row.message = "constraints.motion: the SUNDIALS rows hold fixed particles at rest (docs/scenes.md, "
-                    "\"Moving fixed particles\")";
     } else if (scene.collision && scene.collision->self) {
       // SUNDIALS integrates the smooth system between events; self-contact
       // events (a root function per candidate pair) are not built.

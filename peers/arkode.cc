@@ -238,6 +238,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   const auto wall_start = Clock::now();
   RunSummary res;
   internal::NameSundialsRun(kArkodeName, "peers", options, &res);
+  if (internal::RefusesPrescribedMotion(system, &res)) return res;
   std::string why;
   if (!spec.IsValid(&why)) {
     res.status = RunStatus::kInvalidOptions;

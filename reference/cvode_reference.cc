@@ -323,6 +323,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   const auto wall_start = Clock::now();
   RunSummary res;
   internal::NameSundialsRun(kCvodeName, "reference", options, &res);
+  if (internal::RefusesPrescribedMotion(system, &res)) return res;
   FreeDofOde ode(system, 1e-2 * options.AbsoluteTolerance());
   std::unique_ptr<ReducedNewtonSolve> solve;
   if (reduced) solve = std::make_unique<ReducedNewtonSolve>(system, *reduced, &ode.contact());

@@ -350,6 +350,7 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
   const auto wall_start = Clock::now();
   RunSummary res;
   internal::NameSundialsRun(kIdaName, "reference", options, &res);
+  if (internal::RefusesPrescribedMotion(system, &res)) return res;
   ResidualForm form(system, 1e-2 * options.AbsoluteTolerance());
   std::unique_ptr<IdaReducedSolve> solve;
   if (reduced) solve = std::make_unique<IdaReducedSolve>(system, *reduced, &form.contact());

@@ -176,6 +176,14 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   res->solver_time_s = res->solver_time_s_median = res->solver_time_s_max = solver_seconds;  // one timing
 }
 
+bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res) {
+  if (!system.has_prescribed_motion()) return false;
+  res->status = RunStatus::kUnsupportedScene;
+  res->message = "constraints.motion: the SUNDIALS rows hold fixed particles at rest (docs/scenes.md, "
+                 "\"Moving fixed particles\")";
+  return true;
+}
+
 void NameSundialsRun(const char* integrator, const char* layer, const ReferenceOptions& options, RunSummary* res) {
   res->integrator = integrator;
   res->label = integrator;

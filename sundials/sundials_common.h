@@ -76,6 +76,12 @@ void SummariseCounters(RunSummary* res);
 /// control "sundials". A row that runs it names itself over these.
 void NameSundialsRun(const char* integrator, const char* layer, const ReferenceOptions& options, RunSummary* res);
 
+/// True (res's status unsupported_scene and its message set) if the scene
+/// moves fixed particles (`[[constraints.motion]]`): the SUNDIALS
+/// right-hand sides hold fixed particles at rest, so their trajectory would
+/// be another problem's. Checked by every SUNDIALS entry before it computes.
+bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res);
+
 /// The thesis' virtual particles (model/virtual_particles.h) under a
 /// SUNDIALS integrator, as the thesis' methods have them: the topology of
 /// each internal step's initial state, held through the step's stages,

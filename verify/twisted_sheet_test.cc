@@ -15,10 +15,13 @@
 
 #include "model/particle_system.h"
 #include "model/scene.h"
+#include "peers/arkode.h"
 #include "peers/baraff_witkin.h"
 #include "peers/projective_dynamics.h"
 #include "peers/vbd.h"
 #include "peers/xpbd.h"
+#include "reference/cvode_reference.h"
+#include "reference/ida_reference.h"
 #include "solver/integrator.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -159,6 +162,21 @@ TEST(TwistedSheet, AStepperWithoutTheMotionIsRefused) {
   EXPECT_EQ(r.status, RunStatus::kUnsupportedScene);
   EXPECT_NE(r.message.find("constraints.motion"), std::string::npos) << r.message;
   EXPECT_EQ(r.steps, 0);
+}
+
+// The SUNDIALS right-hand sides hold fixed particles at rest: every SUNDIALS
+// entry refuses the scene before it computes, also without self-contact.
+TEST(TwistedSheet, TheSundialsEntriesRefuseIt) {
+  const Scene s = Twisted(0.1, false);
+  const ParticleSystem sys(s);
+  ReferenceOptions o;
+  o.rtol = 1e-4;
+  o.t_end = s.t_end;
+  for (const RunSummary& r : {RunCvode(sys, o), RunIda(sys, o), RunArkode(sys, o, "ARK324L2SA", nullptr)}) {
+    EXPECT_EQ(r.status, RunStatus::kUnsupportedScene) << r.integrator;
+    EXPECT_NE(r.message.find("constraints.motion"), std::string::npos) << r.message;
+    EXPECT_EQ(r.steps, 0) << r.integrator;
+  }
 }
 
 TEST(TwistedSheet, TheMotionsRulesAreChecked) {
