@@ -261,8 +261,24 @@ void VbdSelfContact::AddForce(int p, const MatrixN3& x, Vector3* f, Matrix3* k) 
     const PairGeometry g = Closest(pair, x);
     if (!(g.distance < thickness_)) continue;
     const double w = g.w[static_cast<std::size_t>(item % 4)];
-    *f += (stiffness_ * (thickness_ - g.distance) * w) * g.n;
-    *k += (stiffness_ * w * w) * (g.n * g.n.transpose());
+    // OGC's two-stage activation (Chen et al. 2025, eq. 18): quadratic down
+    // to τ = δ/2, then −k_c' log d with k_c' = k_c τ (δ − τ) (C¹ at τ), whose
+    // force k_c'/d grows without bound: a quadratic's force stops at k_c δ,
+    // and pressed harder the pair's distance only shrinks geometrically
+    // under the bounds, down to round-off (measured on the twisted strip).
+    const double tau = 0.5 * thickness_;
+    double magnitude, curvature;
+    if (g.distance >= tau) {
+      magnitude = stiffness_ * (thickness_ - g.distance);
+      curvature = stiffness_;
+    } else {
+      const double barrier = stiffness_ * tau * (thickness_ - tau);
+      const double d = std::max(g.distance, 1e-12 * thickness_);
+      magnitude = barrier / d;
+      curvature = barrier / (d * d);
+    }
+    *f += (magnitude * w) * g.n;
+    *k += (curvature * w * w) * (g.n * g.n.transpose());
   }
 }
 

@@ -114,9 +114,12 @@ class PositionSelfContact {
 ///    pair it belongs to at x_det), γ = kRelaxation < 1/2: while every
 ///    particle stays within b_p of x_det, no pair's distance falls below
 ///    (1 − 2γ) of what it was, so no pair crosses;
-///  - the energy ½ k_c (δ − d)² of each listed pair closer than δ, its
-///    force k_c (δ − d) w_k n on particle k and stiffness k_c w_k² n nᵀ in
-///    that particle's local Newton step, with k_c = kStiffness m̄ g₀/δ
+///  - the energy of each listed pair closer than δ, OGC's two-stage
+///    activation (Chen et al. 2025, eq. 18): ½ k_c (δ − d)² down to
+///    τ = δ/2, below it −k_c' log d with k_c' = k_c τ (δ − τ); its force
+///    on particle k is k_c (δ − d) w_k n (then k_c'/d w_k n) and its
+///    stiffness k_c w_k² n nᵀ (then k_c'/d² w_k² n nᵀ) in that particle's
+///    local Newton step, with k_c = kStiffness m̄ g₀/δ
 ///    (m̄ the mean particle mass, g₀ = 9.81 m/s²: the penalty holds
 ///    kStiffness layers' weight within the thickness).
 /// A local step that would take particle p beyond b_p is truncated to it.
