@@ -90,6 +90,7 @@ StepStats VertexBlockDescent::Step(double h) {
 
 int VertexBlockDescent::KinematicSplit(double h) {
   self_->Detect(x0_);
+  start_detected_ = true;  // the first (or only) piece's iterations start from these pairs
   double ratio = 0.0;  // the largest motion over its bound
   sys_.ForEachPrescribed(t_ + h, [&](int p, const Vector3& x, const Vector3&) {
     ratio = std::max(ratio, (x - x0_.row(p).transpose()).norm() / self_->bound(p));
@@ -114,7 +115,8 @@ bool VertexBlockDescent::Bound(double h, int p, Vector3* vp) {
 
 void VertexBlockDescent::BeginIterations(double h) {
   if (!self_) return;
-  self_->Detect(x0_);
+  if (!start_detected_) self_->Detect(x0_);  // KinematicSplit detected at x₀ already
+  start_detected_ = false;
   AfterIteration(h);  // the first iterate within the bounds
 }
 

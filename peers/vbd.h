@@ -127,6 +127,7 @@ class VertexBlockDescent : public IteratedStepper {
   /// (`[[constraints.motion]]`) moves beyond its bound in one piece: 1, 2,
   /// 4, … up to kMaxSplit (detects the pairs at x₀).
   int KinematicSplit(double h);
+  bool start_detected_ = false;  // KinematicSplit's detection at x₀ serves the next BeginIterations
   static constexpr int kMaxSplit = 64;
   // Moves particle p's iterate v_p back within its bound; true if it did.
   bool Bound(double h, int p, Vector3* vp);
