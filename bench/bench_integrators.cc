@@ -85,11 +85,18 @@ int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<Nonlinear
   ProbeOnRoot(comm, [&] {
     if (!o.plot_dir.empty() && !PlotDirWritable(o.plot_dir))
       throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(o.plot_dir)));
+    if (o.report) {
+      try {
+        CheckReportTarget(verdict_out);
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(e.what());
+      }
+    }
   });
   lock->emplace(verdict_out, comm);
   std::vector<std::unique_ptr<OutputLock>> size_locks;
   for (const BenchRun& r : runs) size_locks.push_back(std::make_unique<OutputLock>(r.out, comm));
-  return comm.RootStatus(RunSizes(runs, sizes, verdict_out, o.plot_dir, comm));
+  return comm.RootStatus(RunSizes(runs, sizes, verdict_out, o.plot_dir, comm, o.report));
 }
 
 int Main(int argc, char** argv) {
@@ -100,7 +107,7 @@ int Main(int argc, char** argv) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report] = o;
   try {
     app.parse(argc, argv);
     RefuseEmptyValues(app);

@@ -32,6 +32,7 @@ struct Options {
   bool sweep_to_targets = false;
   std::string sizes_arg;
   std::string self_contact;  ///< --self-contact on | off (RunRequest::self_contact)
+  bool report = false;       ///< --report: the result file's HTML page (scripts/report)
 };
 
 /// Registers every option of bench_integrators on `app`, into `o`.

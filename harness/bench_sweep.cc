@@ -463,6 +463,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   }
   WriteBench(b, sys, ref, rows, comm, journal, reasons, wp);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
+  if (b.report) Report("bench_integrators", b.out);
   return 0;
 }
 
@@ -575,11 +576,12 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   if (ref && !ref->ok()) return reference_failed(*ref);
   WriteBench(b, sys, ref, rows, comm, journal, {}, wp);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
+  if (b.report) Report("bench_integrators", b.out);
   return 0;
 }
 
 int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, const std::string& out,
-             const std::string& plot_dir, SweepComm& comm) {
+             const std::string& plot_dir, SweepComm& comm, bool report) {
   std::vector<EqualAccuracyTable> tables;
   std::vector<std::string> files;
   for (std::size_t s = 0; s < runs.size(); ++s) {
@@ -628,6 +630,7 @@ int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, 
   }
   fmt::print("scale verdict: {}\n", out);
   if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
+  if (report) Report("bench_integrators", out);
   return 0;
 }
 

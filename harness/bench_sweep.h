@@ -49,6 +49,9 @@ struct BenchRun {
   /// Keep <out>.journal after the file is written (--sizes: removed once
   /// the verdict is written, so that a rerun finds every finished size).
   bool keep_journal = false;
+  /// --report: the result file's HTML page beside it (<stem>.html,
+  /// scripts/report) once the file is written.
+  bool report = false;
   /// The reference's wall-time budget [s]: --time-limit if the command gave
   /// one, else RunLimits' default (the 30 s a sweep's runs default to is
   /// not the reference's: at 10⁵ particles it needs minutes).
@@ -90,8 +93,9 @@ double PredictedWallTime(StepKind kind, double last_s, double before_s);
 /// drawn. @return 0, or the first size's non-zero RunBench status (no
 /// verdict then; the finished sizes' journals are kept for a rerun)
 /// @throws as RunBench, and std::runtime_error if `out` cannot be written
+/// With `report`, the verdict's page too (each size's page: BenchRun::report).
 int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, const std::string& out,
-             const std::string& plot_dir, SweepComm& comm);
+             const std::string& plot_dir, SweepComm& comm, bool report = false);
 
 /// bench_integrators' journal key: the scene's text and the command's arguments, except
 /// those that change no result (--max-runs, --plot, --quiet), so that a rerun

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -29,11 +30,14 @@ inline void CheckPlotDir(const std::string& dir) {
     throw std::invalid_argument(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(dir)));
 }
 
-/// Runs scripts/plot on `file` into `dir` and prints where the plots are.
-/// Without Debian's python3 (/usr/bin/python3, which carries h5py and
-/// matplotlib) it says so on stderr and writes nothing; the result file is
-/// unaffected. @returns true if the plots were written.
-inline bool Plot(const std::string& program, const std::string& file, const std::string& dir) {
+/// Runs Debian's python3 (/usr/bin/python3, which carries h5py and
+/// matplotlib) on `script` with `file` and `--out out`, each single-quoted
+/// (no stored string reaches the shell unquoted), its stdout discarded.
+/// Without that python3 it says so on stderr, naming `option`, and runs
+/// nothing; if the script fails it says so. The result file is unaffected.
+/// @returns true if the script ran and exited 0
+inline bool RunPythonScript(const std::string& program, const std::string& option, const char* script,
+                            const std::string& file, const std::string& out, const char* nothing) {
   const char* python = "/usr/bin/python3";
   const auto quote = [](const std::string& s) {
     std::string q = "'";
@@ -42,18 +46,63 @@ inline bool Plot(const std::string& program, const std::string& file, const std:
   };
   if (::access(python, X_OK) != 0 ||
       std::system(fmt::format("{} -c 'import h5py, matplotlib' 2> /dev/null", python).c_str()) != 0) {
-    fmt::print(stderr, "{}: --plot: {} with h5py and matplotlib not found (scripts/setup installs them); no plots\n",
-               program, python);
+    fmt::print(stderr, "{}: {}: {} with h5py and matplotlib not found (scripts/setup installs them); {}\n", program,
+               option, python, nothing);
     return false;
   }
   std::fflush(stdout);
-  const std::string cmd = fmt::format("{} {} {} --out {} > /dev/null", python, quote(CLOTHBENCH_PLOT_SCRIPT),
-                                      quote(file), quote(dir));
+  const std::string cmd =
+      fmt::format("{} {} {} --out {} > /dev/null", python, quote(script), quote(file), quote(out));
   if (std::system(cmd.c_str()) != 0) {
-    fmt::print(stderr, "{}: --plot: {} failed; the result file is complete\n", program, CLOTHBENCH_PLOT_SCRIPT);
+    fmt::print(stderr, "{}: {}: {} failed; the result file is complete\n", program, option, script);
     return false;
   }
+  return true;
+}
+
+/// Runs scripts/plot on `file` into `dir` and prints where the plots are
+/// (RunPythonScript). @returns true if the plots were written.
+inline bool Plot(const std::string& program, const std::string& file, const std::string& dir) {
+  if (!RunPythonScript(program, "--plot", CLOTHBENCH_PLOT_SCRIPT, file, dir, "no plots")) return false;
   fmt::print("plots: {}/{}_*.png and .svg\n", dir, std::filesystem::path(file).stem().string());
+  return true;
+}
+
+/// The page scripts/report writes for `result_file`: its stem + ".html" beside it.
+inline std::string ReportPageOf(const std::string& result_file) {
+  return std::filesystem::path(result_file).replace_extension(".html").string();
+}
+
+/// The first line of every page scripts/report writes: the mark of a page it may replace.
+inline constexpr std::string_view kReportMark = "<!-- clothbench report -->";
+
+/// Refuses, before any computing, a --report page that scripts/report would
+/// refuse after it: something other than a regular file at the page's path
+/// (a link is never followed), or a file there that is not a page of
+/// scripts/report (it is never replaced).
+/// @throws std::invalid_argument "--report: \"<page>\" <rule>"
+inline void CheckReportTarget(const std::string& result_file) {
+  const std::string page = ReportPageOf(result_file);
+  const std::filesystem::file_status st = std::filesystem::symlink_status(page);
+  if (!std::filesystem::exists(st)) return;
+  if (!std::filesystem::is_regular_file(st))
+    throw std::invalid_argument(fmt::format("--report: \"{}\" is not a regular file (a link, folder or device is never "
+                                            "replaced)", EscapeControl(page)));
+  std::FILE* f = std::fopen(page.c_str(), "rb");
+  std::string head(kReportMark.size(), '\0');
+  const bool mark = f && std::fread(head.data(), 1, head.size(), f) == head.size() && head == kReportMark;
+  if (f) std::fclose(f);
+  if (!mark)
+    throw std::invalid_argument(fmt::format("--report: \"{}\" exists and is not a clothbench report (not replaced)",
+                                            EscapeControl(page)));
+}
+
+/// Runs scripts/report on `file` (the page beside it, ReportPageOf) and
+/// prints the page's path (RunPythonScript). @returns true if the page was written.
+inline bool Report(const std::string& program, const std::string& file) {
+  const std::string page = ReportPageOf(file);
+  if (!RunPythonScript(program, "--report", CLOTHBENCH_REPORT_SCRIPT, file, page, "no page")) return false;
+  fmt::print("report: {}\n", page);
   return true;
 }
 
