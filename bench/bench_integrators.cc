@@ -96,6 +96,8 @@ int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<Nonlinear
   lock->emplace(verdict_out, comm);
   std::vector<std::unique_ptr<OutputLock>> size_locks;
   for (const BenchRun& r : runs) size_locks.push_back(std::make_unique<OutputLock>(r.out, comm));
+  SetWatchdogNote(fmt::format("the finished runs stay in the sizes' journals ({}.journal, …): the same command "
+                              "resumes from them", EscapeControl(runs.front().out)));
   return comm.RootStatus(RunSizes(runs, sizes, verdict_out, o.plot_dir, comm, o.report));
 }
 
@@ -118,6 +120,7 @@ int Main(int argc, char** argv) {
     return 2;
   }
   InstallInterruptHandlers();
+  StartInterruptWatchdog("bench_integrators");
   // Every rank refuses the same input; rank 0 says so.
   const auto refuse = [&comm](const std::string& what) {
     if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(what));
@@ -168,6 +171,8 @@ int Main(int argc, char** argv) {
     if (app.count("--sizes")) return RunSizesCommand(app, o, solvers, etas, comm, argc, argv, &lock);
     const BenchRun run = PlanBench(app, o, solvers, etas, comm, argc, argv);
     lock.emplace(run.out, comm);
+    SetWatchdogNote(fmt::format("the finished runs stay in {}.journal: the same command resumes from them",
+                                EscapeControl(run.out)));
     return comm.RootStatus(RunBench(run, comm));
   } catch (const UsageError& e) {
     return refuse(e.what());
@@ -176,6 +181,7 @@ int Main(int argc, char** argv) {
   } catch (const SweepJournal::Mismatch& e) {
     return refuse(e.what());
   } catch (const Interrupted& e) {
+    InterruptHandled();
     const bool journal = comm.root() && RecordJournal::KeepIfFinishedWork(out + ".journal");
     if (lock) lock->Release();
     if (comm.root())

@@ -5,7 +5,17 @@
 #ifndef CLOTHBENCH_BENCH_SIGNALS_H_
 #define CLOTHBENCH_BENCH_SIGNALS_H_
 
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
 #include <csignal>
+#include <cstdio>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <fmt/format.h>
 
 #include "model/interrupt.h"
 
@@ -31,6 +41,59 @@ inline void InstallInterruptHandlers() {
 }
 
 inline const char* SignalName(int sig) { return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal"; }
+
+namespace internal {
+inline std::atomic<bool> g_interrupt_handled{false};
+inline std::mutex g_watchdog_mutex;
+inline std::string g_watchdog_note;  // what the watchdog's line says of the journal
+}  // namespace internal
+
+/// Main's handler of Interrupted calls this first: the watchdog stands down
+/// while Main cleans up and exits.
+inline void InterruptHandled() { internal::g_interrupt_handled.store(true); }
+
+/// What the watchdog's line adds, e.g. where the finished runs are kept.
+inline void SetWatchdogNote(std::string note) {
+  const std::lock_guard<std::mutex> lock(internal::g_watchdog_mutex);
+  internal::g_watchdog_note = std::move(note);
+}
+
+/// Starts a detached thread that ends the process when SIGINT or SIGTERM
+/// is not noticed within `grace`: the run is then inside one library call
+/// that checks no flag and has no callback to stop it (a KLU or CHOLMOD
+/// factorisation, a BoomerAMG setup), which can take minutes at 10⁵
+/// particles. It prints one line, "<program>: interrupted by <signal>
+/// inside a library call ...; <note>", and calls _exit(128 + signal): the
+/// run in progress is lost, as it is when a step notices the signal; every
+/// finished run is in its journal already, written as it ended, and a
+/// journal entry being written is a ".tmp" that readers ignore. A result
+/// file is never being written then: its writer checks the flag between
+/// frames.
+inline void StartInterruptWatchdog(std::string program,
+                                   std::chrono::milliseconds grace = std::chrono::milliseconds(1000)) {
+  std::thread([program = std::move(program), grace] {
+    while (!InterruptRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const auto noticed_by = std::chrono::steady_clock::now() + grace;
+    while (std::chrono::steady_clock::now() < noticed_by) {
+      if (internal::g_interrupt_handled.load()) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    if (internal::g_interrupt_handled.load()) return;
+    const int sig = internal::g_interrupt_signal.load();
+    std::string note;
+    {
+      const std::lock_guard<std::mutex> lock(internal::g_watchdog_mutex);
+      note = internal::g_watchdog_note;
+    }
+    std::fflush(stdout);
+    fmt::print(stderr, "{}: interrupted by {} inside a library call that cannot notice it (no step ended within "
+                       "{} ms); the run in progress is lost, no result file written{}\n",
+               program, SignalName(sig), grace.count(), note.empty() ? "" : "; " + note);
+    std::fflush(stderr);
+    ::_exit(128 + sig);
+  }).detach();
+}
+
 
 }  // namespace clothbench
 
