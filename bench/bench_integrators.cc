@@ -69,6 +69,7 @@ int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<Nonlinear
                                  "it)", EscapeControl(verdict_out)));
   std::vector<BenchRun> runs;
   std::set<int> seen;
+  const auto history = std::make_shared<SizeHistory>();
   for (long n : sizes) {
     Options size_options = o;
     Scene refined = SceneOfOptions(app, o, n);
@@ -81,6 +82,7 @@ int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<Nonlinear
     size_options.plot_dir.clear();  // the verdict's plot; scripts/plot draws a size's file
     runs.push_back(PlanBench(app, size_options, solvers, etas, comm, argc, argv, n));
     runs.back().keep_journal = true;
+    runs.back().size_history = history;
   }
   ProbeOnRoot(comm, [&] {
     if (!o.plot_dir.empty() && !PlotDirWritable(o.plot_dir))

@@ -345,6 +345,41 @@ double PredictedWallTime(StepKind kind, double last_s, double before_s) {
   return last_s * std::max(1.0, last_s / before_s);
 }
 
+// A method's runs keep in memory only the frames the result file keeps
+// (docs/results-schema.md, "Which frames are kept"), once each run's errors
+// and energies against the reference are computed: with --frames default
+// or positions the velocities at t = 0 and t_end, with --frames default
+// also the positions at the ends, but for the method's first (coarsest)
+// run, whose positions the file keeps at every frame. On scenes with
+// obstacles every position stays: the file's penetration series is
+// computed from them when it is written. A --sizes sweep then holds one
+// run's frames per method and the reference's, not every run's.
+void KeepOnlyStoredFrames(std::map<int, MethodRun>* runs, const std::string& frames_mode, bool keep_positions) {
+  const auto ends = [](std::vector<MatrixN3>* frames) {
+    if (frames->size() <= 2) return;
+    std::vector<MatrixN3> kept{std::move(frames->front()), std::move(frames->back())};
+    frames->swap(kept);  // the other frames' memory is freed with `kept`
+  };
+  for (auto& [index, r] : *runs) {
+    if (!r.ok() || !r.err) continue;  // not compared (failed, or no reference)
+    if (frames_mode == "default" || frames_mode == "positions") ends(&r.trajectory.velocities);
+    if (frames_mode == "default" && !keep_positions && index != runs->begin()->first) ends(&r.trajectory.positions);
+  }
+}
+
+double PredictedStartTime(const std::vector<SizeHistory::Start>& starts, long particles) {
+  if (starts.empty() || !(starts.back().wall_time_s > 0.0)) return 0.0;
+  const SizeHistory::Start& last = starts.back();
+  double p = 1.0;
+  if (starts.size() >= 2) {
+    const SizeHistory::Start& before = starts[starts.size() - 2];
+    if (before.wall_time_s > 0.0 && last.particles > before.particles)
+      p = std::max(1.0, std::log(last.wall_time_s / before.wall_time_s) /
+                            std::log(static_cast<double>(last.particles) / static_cast<double>(before.particles)));
+  }
+  return last.wall_time_s * std::pow(static_cast<double>(particles) / static_cast<double>(last.particles), p);
+}
+
 int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
@@ -401,8 +436,31 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
       out = std::move(one[0]);
       if (const std::optional<double> e = out.Error(ToString(b.error_metric)); e && std::isfinite(*e))
         error[index] = *e;
+      KeepOnlyStoredFrames(&runs, b.frames_mode, !sys.obstacles().empty());
     };
+    // --sizes: a start predicted past --time-limit from the method's starts
+    // at the smaller sizes is not run (it would cost the whole limit, and
+    // inside one library call, a KLU factorisation at 10⁵ particles, the
+    // limit is noticed only when the call returns). The prediction follows
+    // from the smaller sizes' stored runs, so a resumed sweep decides the same.
+    std::vector<SizeHistory::Start>* starts = b.size_history ? &b.size_history->starts[m.label()] : nullptr;
+    const long particles = sys.num_particles();
+    const double predicted_start = starts ? PredictedStartTime(*starts, particles) : 0.0;
+    if (b.time_limit > 0.0 && predicted_start > b.time_limit) {
+      const SizeHistory::Start& last = starts->back();
+      reasons.push_back(fmt::format("{}: not started: its start ({}) predicted past --time-limit {:g} s (about {:.3g} s "
+                                    "from {:.1f} s{} at {} particles)",
+                                    m.label(), RungName(m, RungOf(m, b.scene, 0)), b.time_limit, predicted_start,
+                                    last.wall_time_s, last.ok ? "" : ", its time limit", last.particles));
+      starts->push_back({particles, predicted_start, false});
+      continue;
+    }
     run(0);
+    if (starts)
+      starts->push_back({particles,
+                         runs[0].status == RunStatus::kTimeLimit ? std::max(runs[0].wall_time_s, b.time_limit)
+                                                                 : runs[0].wall_time_s,
+                         runs[0].ok()});
     int lo = 0, hi = 0;
     // A start past --time-limit tries the next cheaper rung once.
     if (runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);

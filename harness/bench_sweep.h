@@ -5,6 +5,8 @@
 #define CLOTHBENCH_HARNESS_BENCH_SWEEP_H_
 
 #include <functional>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,25 @@
 #include "results/work_precision.h"
 
 namespace clothbench {
+
+/// --sizes: each method's first run (its ladder's start) at the sizes swept
+/// so far, for predicting its start at the next size (RunTargetSweep).
+struct SizeHistory {
+  struct Start {
+    long particles;      ///< the size's particle count
+    double wall_time_s;  ///< the start's wall time [s] (its time limit where it ended time_limit)
+    bool ok;             ///< whether it ended ok
+  };
+  std::map<std::string, std::vector<Start>> starts;  ///< per row label, in size order
+};
+
+/// The wall time [s] of a method's start at `particles`, predicted from its
+/// starts at smaller sizes: the last start's wall time scaled by
+/// (particles / its particles)^p, p the exponent between the last two
+/// starts (at least 1: no method's start costs less than linearly in N), 1
+/// with only one. A start that ended time_limit counts with its limit, a
+/// lower bound of its cost. 0 (no prediction) without any start.
+double PredictedStartTime(const std::vector<SizeHistory::Start>& starts, long particles);
 
 /// Everything a bench_integrators run needs, validated by the caller.
 struct BenchRun {
@@ -52,6 +73,9 @@ struct BenchRun {
   /// --report: the result file's HTML page beside it (<stem>.html,
   /// scripts/report) once the file is written.
   bool report = false;
+  /// --sizes: the starts at the smaller sizes, shared by the sizes' runs
+  /// (nullptr: a single size).
+  std::shared_ptr<SizeHistory> size_history;
   /// The reference's wall-time budget [s]: --time-limit if the command gave
   /// one, else RunLimits' default (the 30 s a sweep's runs default to is
   /// not the reference's: at 10⁵ particles it needs minutes).

@@ -70,7 +70,8 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
   const auto write = [&](const std::vector<MatrixN3>& frames, bool every, const std::string& name,
                          const std::string& units) {
     if (frames.empty()) return;
-    const bool all = every || frames.size() <= 2;
+    // A trajectory cut to its ends (KeepOnlyStoredFrames) holds 2 frames for more times.
+    const bool all = frames.size() == traj.times.size() && (every || frames.size() <= 2);
     const std::string path = g + "/" + name + (all ? "" : "_ends");
     if (all) f.WriteFrames(path, frames, units);
     else f.WriteFrames(path, {frames.front(), frames.back()}, units);
@@ -103,16 +104,22 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
   };
   for (std::size_t i = 0; i < rows->size(); ++i) {
     MethodRun& r = (*rows)[i];
+    // A run whose frames were cut to what the file keeps (KeepOnlyStoredFrames)
+    // was compared before: its energies and errors stand.
+    const Trajectory& tr = r.trajectory;
+    const bool compared = tr.positions.size() != tr.times.size() || tr.velocities.size() != tr.times.size();
     // The energies of every frame a run kept, a failed run's too (its frames
     // passed the blow-up guard, so they are finite): the file's energy
     // series is as long as its times. dE/dt and the contact power are an ok
     // run's only.
-    r.energy = ComputeEnergies(sys, r.trajectory);
-    if (r.ok()) {
+    if (!compared) {
+      r.energy = ComputeEnergies(sys, r.trajectory);
+      if (r.ok()) {
       if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
-      if (std::isfinite(r.energy.ContactPower())) r.contact_power_W = r.energy.ContactPower();
+        if (std::isfinite(r.energy.ContactPower())) r.contact_power_W = r.energy.ContactPower();
+      }
     }
-    if (ref && r.ok()) r.err = CompareTrajectories(r.trajectory, ref->trajectory);
+    if (ref && r.ok() && !compared) r.err = CompareTrajectories(r.trajectory, ref->trajectory);
     if (r.err) {  // only where they exist: no NaN is ever written
       r.error_final_m = r.err->rms_at_end;
       r.error_l2_m = r.err->rms_l2;

@@ -155,6 +155,21 @@ TEST(Sweep, ARefinementsWallTimeIsPredictedFromTheLastRuns) {
   EXPECT_EQ(PredictedWallTime(StepKind::kFixedStep, 0.0, 0.0), 0.0);
 }
 
+// --sizes does not start a method predicted past --time-limit from its
+// starts at the smaller sizes: the last start scaled by (N/N_last)^p, p
+// measured between the last two starts, at least 1 (linear: a lower bound
+// of any method's cost in N); 1 with one start; none without. The
+// tolerance is round-off of pow and log (1e-12 relative).
+TEST(Sweep, AStartsWallTimeIsPredictedFromTheSmallerSizes) {
+  using S = SizeHistory::Start;
+  EXPECT_EQ(PredictedStartTime({}, 1000), 0.0);
+  EXPECT_NEAR(PredictedStartTime({S{100, 2.0, true}}, 400), 8.0, 1e-12);       // p = 1
+  EXPECT_NEAR(PredictedStartTime({S{100, 1.0, true}, S{400, 8.0, true}}, 1600), 64.0, 1e-11);  // p = 1.5
+  EXPECT_NEAR(PredictedStartTime({S{100, 4.0, true}, S{400, 2.0, true}}, 800), 4.0, 1e-12);   // p clamped to 1
+  EXPECT_NEAR(PredictedStartTime({S{100, 1.0, true}, S{400, 30.0, false}}, 1600),
+              30.0 * std::pow(4.0, std::log(30.0) / std::log(4.0)), 1e-9);  // a time_limit start: its limit
+}
+
 // The reference's checks run side by side (harness/side_by_side.h): runs
 // are taken in submission order, each on one kernel thread; a cancelled
 // run in flight ends as at a deadline (an SBDF(2) run of 10⁷ steps ends
