@@ -438,32 +438,50 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
         error[index] = *e;
       KeepOnlyStoredFrames(&runs, b.frames_mode, !sys.obstacles().empty());
     };
-    // --sizes: a start predicted past --time-limit from the method's starts
-    // at the smaller sizes is not run (it would cost the whole limit, and
-    // inside one library call, a KLU factorisation at 10⁵ particles, the
-    // limit is noticed only when the call returns). The prediction follows
-    // from the smaller sizes' stored runs, so a resumed sweep decides the same.
-    std::vector<SizeHistory::Start>* starts = b.size_history ? &b.size_history->starts[m.label()] : nullptr;
+    // --sizes: a start predicted past --time-limit from the method's runs
+    // of that rung at the smaller sizes is not run (it would cost the whole
+    // limit, and inside one library call, a KLU factorisation at 10⁵
+    // particles, the limit is noticed only when the call returns). As a start
+    // that reached the limit does (below), the method then starts once from
+    // the next cheaper rung, unless that too is predicted past the limit.
+    // The predictions follow from the smaller sizes' stored runs, so a
+    // resumed sweep decides the same.
     const long particles = sys.num_particles();
-    const double predicted_start = starts ? PredictedStartTime(*starts, particles) : 0.0;
-    if (b.time_limit > 0.0 && predicted_start > b.time_limit) {
-      const SizeHistory::Start& last = starts->back();
-      reasons.push_back(fmt::format("{}: not started: its start ({}) predicted past --time-limit {:g} s (about {:.3g} s "
-                                    "from {:.1f} s{} at {} particles)",
-                                    m.label(), RungName(m, RungOf(m, b.scene, 0)), b.time_limit, predicted_start,
-                                    last.wall_time_s, last.ok ? "" : ", its time limit", last.particles));
-      starts->push_back({particles, predicted_start, false});
-      continue;
+    const auto history = [&](int rung) -> std::vector<SizeHistory::Start>* {
+      return b.size_history ? &b.size_history->runs[fmt::format("{}@{}", m.label(), rung)] : nullptr;
+    };
+    const auto predicted = [&](int rung) {
+      const std::vector<SizeHistory::Start>* h = history(rung);
+      return h ? PredictedStartTime(*h, particles) : 0.0;
+    };
+    const auto past_limit = [&](int rung) { return b.time_limit > 0.0 && predicted(rung) > b.time_limit; };
+    const auto why = [&](int rung) {
+      const SizeHistory::Start& last = history(rung)->back();
+      return fmt::format("{} predicted past --time-limit {:g} s (about {:.3g} s from {:.1f} s{} at {} particles)",
+                         RungName(m, RungOf(m, b.scene, rung)), b.time_limit, predicted(rung), last.wall_time_s,
+                         last.predicted   ? ", itself predicted"
+                         : last.timed_out ? ", its time limit"
+                         : last.ok        ? ""
+                                          : ", a failed run",
+                         last.particles);
+    };
+    int start = 0;
+    if (past_limit(0)) {
+      const bool cheaper = RungExists(m, b, -1);
+      if (!cheaper || past_limit(-1)) {
+        reasons.push_back(fmt::format("{}: not started: {}{}", m.label(), why(0),
+                                      cheaper ? "; " + why(-1) : std::string()));
+        history(0)->push_back({particles, predicted(0), false, true});
+        if (cheaper) history(-1)->push_back({particles, predicted(-1), false, true});
+        continue;
+      }
+      history(0)->push_back({particles, predicted(0), false, true});
+      start = -1;
     }
-    run(0);
-    if (starts)
-      starts->push_back({particles,
-                         runs[0].status == RunStatus::kTimeLimit ? std::max(runs[0].wall_time_s, b.time_limit)
-                                                                 : runs[0].wall_time_s,
-                         runs[0].ok()});
-    int lo = 0, hi = 0;
+    run(start);
+    int lo = start, hi = start;
     // A start past --time-limit tries the next cheaper rung once.
-    if (runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);
+    if (start == 0 && runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);
     // A coarsening that cost more than the run it coarsened (rejected
     // attempts, more updates per step) ends the coarsening: the cheapest ok
     // run already meets the largest target ('≤' in the table).
@@ -517,6 +535,14 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     }
     progress.Finish();
     reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), reason, runs.size()));
+    for (const auto& [index, r] : runs)
+      if (std::vector<SizeHistory::Start>* h = history(index)) {
+        const bool timed_out = r.status == RunStatus::kTimeLimit;
+        const SizeHistory::Start ran{particles, timed_out ? std::max(r.wall_time_s, b.time_limit) : r.wall_time_s,
+                                     r.ok(), false, timed_out};
+        if (!h->empty() && h->back().particles == particles) h->back() = ran;  // it replaces its prediction
+        else h->push_back(ran);
+      }
     for (auto& [index, r] : runs) rows.push_back(std::move(r));
   }
   WriteBench(b, sys, ref, rows, comm, journal, reasons, wp);

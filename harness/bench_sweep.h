@@ -20,23 +20,28 @@
 
 namespace clothbench {
 
-/// --sizes: each method's first run (its ladder's start) at the sizes swept
-/// so far, for predicting its start at the next size (RunTargetSweep).
+/// --sizes: each method's runs at the sizes swept so far, per rung of its
+/// ladder, for predicting its start at the next size (RunTargetSweep).
 struct SizeHistory {
   struct Start {
     long particles;      ///< the size's particle count
     double wall_time_s;  ///< the start's wall time [s] (its time limit where it ended time_limit)
     bool ok;             ///< whether it ended ok
+    bool predicted = false;  ///< not run: wall_time_s is its prediction
+    bool timed_out = false;  ///< ended time_limit: wall_time_s is at least its limit
   };
-  std::map<std::string, std::vector<Start>> starts;  ///< per row label, in size order
+  /// per "<row label>@<rung>" (0 the ladder's start, −1 the next cheaper), in size order
+  std::map<std::string, std::vector<Start>> runs;
 };
 
-/// The wall time [s] of a method's start at `particles`, predicted from its
-/// starts at smaller sizes: the last start's wall time scaled by
+/// The wall time [s] of a method's run at `particles`, predicted from its
+/// runs of the same rung at smaller sizes (`starts`): the last one's wall time scaled by
 /// (particles / its particles)^p, p the exponent between the last two
 /// starts (at least 1: no method's start costs less than linearly in N), 1
 /// with only one. A start that ended time_limit counts with its limit, a
-/// lower bound of its cost. 0 (no prediction) without any start.
+/// lower bound of its cost; one that failed sooner (a blow-up) with the
+/// time it ran, which underestimates and so never stops a method wrongly.
+/// 0 (no prediction) without any start.
 double PredictedStartTime(const std::vector<SizeHistory::Start>& starts, long particles);
 
 /// Everything a bench_integrators run needs, validated by the caller.
