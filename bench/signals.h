@@ -86,8 +86,8 @@ inline void StartInterruptWatchdog(std::string program,
       note = internal::g_watchdog_note;
     }
     std::fflush(stdout);
-    fmt::print(stderr, "{}: interrupted by {} inside a library call that cannot notice it (no step ended within "
-                       "{} ms); the run in progress is lost, no result file written{}\n",
+    fmt::print(stderr, "{}: interrupted by {}, which no step noticed within {} ms (a library call such as a "
+                       "factorisation cannot); the run in progress is lost, no result file written{}\n",
                program, SignalName(sig), grace.count(), note.empty() ? "" : "; " + note);
     std::fflush(stderr);
     ::_exit(128 + sig);

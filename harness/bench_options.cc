@@ -119,7 +119,7 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--repeat", repeat, "timings per run: the least is reported, with the spread (default: 3 for runs "
                  "under 2 s, 1 above, within --time-budget)")->check(CLI::Range(1, 1000));
   app.add_option("--time-budget", time_budget, "wall time [s] all repetitions after a run's first may take together "
-                 "(default 30; ignored with --repeat)")->check(CLI::Range(0.0, 1e6));
+                 "(default 15; ignored with --repeat)")->check(CLI::Range(0.0, 1e6));
   app.add_option("--max-runs", max_runs,
                  "compute at most N runs (the reference counts as one) not yet in <out>.journal/, then stop with exit "
                  "status 75 and keep the journal; rerun the same command to continue")

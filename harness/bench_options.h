@@ -20,7 +20,7 @@ namespace clothbench {
 /// The command line's values, as given (validated by PlanBench).
 struct Options {
   std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
-  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 30.0;
+  double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 15.0;
   int repeat = 0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline), error_metric = "final";

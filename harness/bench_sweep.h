@@ -56,7 +56,7 @@ struct BenchRun {
   /// Timings per run (--repeat); 0: 3 for runs whose first timing is under
   /// 2 s, 1 above (DiffEqDevTools' rule).
   int repeat = 0;
-  double time_budget = 30.0;  ///< wall time [s] all repetitions after the first may take (--time-budget)
+  double time_budget = 15.0;  ///< wall time [s] all repetitions after the first may take (--time-budget)
   std::vector<double> hs;          ///< --h (empty: defaults); sets the self-convergence reference's h
   std::optional<RowMethod> reference;  ///< the reference row (ParseReference; none: --reference none)
   double ref_rtol = 1e-10;
