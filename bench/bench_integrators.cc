@@ -87,13 +87,7 @@ int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<Nonlinear
   ProbeOnRoot(comm, [&] {
     if (!o.plot_dir.empty() && !PlotDirWritable(o.plot_dir))
       throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(o.plot_dir)));
-    if (o.report) {
-      try {
-        CheckReportTarget(verdict_out);
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(e.what());
-      }
-    }
+    if (o.report) CheckReportTarget(verdict_out);
   });
   lock->emplace(verdict_out, comm);
   std::vector<std::unique_ptr<OutputLock>> size_locks;

@@ -94,7 +94,6 @@ inline void StartInterruptWatchdog(std::string program,
   }).detach();
 }
 
-
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_BENCH_SIGNALS_H_

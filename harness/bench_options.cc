@@ -288,13 +288,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     CheckMemory(scene, methods, plan.n_params, etas.size(), reference_row, plan.step_records, out);
     if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
       throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
-    if (report) {
-      try {
-        CheckReportTarget(out);
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(e.what());
-      }
-    }
+    if (report) CheckReportTarget(out);
     if (!series.empty())  // a probe, before computing: not the result file nor its XDMF
       CheckWritableFile(series, "--series", {out, std::filesystem::path(out).replace_extension(".xdmf").string()});
   });

@@ -380,6 +380,63 @@ double PredictedStartTime(const std::vector<SizeHistory::Start>& starts, long pa
   return last.wall_time_s * std::pow(static_cast<double>(particles) / static_cast<double>(last.particles), p);
 }
 
+// --sizes: method m's runs of ladder rung `rung` at the smaller sizes
+// (nullptr for a single size).
+std::vector<SizeHistory::Start>* HistoryOf(const BenchRun& b, const RowMethod& m, int rung) {
+  return b.size_history ? &b.size_history->runs[fmt::format("{}@{}", m.label(), rung)] : nullptr;
+}
+
+// --sizes: a start predicted past --time-limit from the method's runs of
+// that rung at the smaller sizes is not run (it would cost the whole limit,
+// and inside one library call, a KLU factorisation at 10⁵ particles, the
+// limit is noticed only when the call returns). As a start that reached the
+// limit does, the method then starts once from the next cheaper rung,
+// unless that too is predicted past the limit. The predictions follow from
+// the smaller sizes' stored runs, so a resumed sweep decides the same.
+// @return the rung to start from (0, or −1), or nullopt: not started, the
+//   reason appended to *reasons and the predictions to the history
+std::optional<int> StartRung(const BenchRun& b, const RowMethod& m, long particles, std::vector<std::string>* reasons) {
+  const auto predicted = [&](int rung) {
+    const std::vector<SizeHistory::Start>* h = HistoryOf(b, m, rung);
+    return h ? PredictedStartTime(*h, particles) : 0.0;
+  };
+  const auto past_limit = [&](int rung) { return b.time_limit > 0.0 && predicted(rung) > b.time_limit; };
+  const auto why = [&](int rung) {
+    const SizeHistory::Start& last = HistoryOf(b, m, rung)->back();
+    return fmt::format("{} predicted past --time-limit {:g} s (about {:.3g} s from {:.1f} s{} at {} particles)",
+                       RungName(m, RungOf(m, b.scene, rung)), b.time_limit, predicted(rung), last.wall_time_s,
+                       last.predicted   ? ", itself predicted"
+                       : last.timed_out ? ", its time limit"
+                       : last.ok        ? ""
+                                        : ", a failed run",
+                       last.particles);
+  };
+  if (!past_limit(0)) return 0;
+  const bool cheaper = RungExists(m, b, -1);
+  if (cheaper && !past_limit(-1)) {
+    HistoryOf(b, m, 0)->push_back({particles, predicted(0), false, true});
+    return -1;
+  }
+  reasons->push_back(
+      fmt::format("{}: not started: {}{}", m.label(), why(0), cheaper ? "; " + why(-1) : std::string()));
+  for (int rung = 0; rung >= (cheaper ? -1 : 0); --rung)
+    HistoryOf(b, m, rung)->push_back({particles, predicted(rung), false, true});
+  return std::nullopt;
+}
+
+// --sizes: the method's runs at this size join its history, each in place
+// of its rung's prediction at this size, if any.
+void RecordSizeHistory(const BenchRun& b, const RowMethod& m, long particles, const std::map<int, MethodRun>& runs) {
+  for (const auto& [index, r] : runs)
+    if (std::vector<SizeHistory::Start>* h = HistoryOf(b, m, index)) {
+      const bool timed_out = r.status == RunStatus::kTimeLimit;
+      const SizeHistory::Start ran{particles, timed_out ? std::max(r.wall_time_s, b.time_limit) : r.wall_time_s,
+                                   r.ok(), false, timed_out};
+      if (!h->empty() && h->back().particles == particles) h->back() = ran;
+      else h->push_back(ran);
+    }
+}
+
 int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
@@ -411,6 +468,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   }
   const double largest = *std::max_element(b.targets.begin(), b.targets.end());
   const double smallest = *std::min_element(b.targets.begin(), b.targets.end());
+  const long particles = sys.num_particles();
   std::vector<MethodRun> rows;
   std::vector<std::string> reasons;
   for (const RowMethod& m : b.methods) {
@@ -438,50 +496,12 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
         error[index] = *e;
       KeepOnlyStoredFrames(&runs, b.frames_mode, !sys.obstacles().empty());
     };
-    // --sizes: a start predicted past --time-limit from the method's runs
-    // of that rung at the smaller sizes is not run (it would cost the whole
-    // limit, and inside one library call, a KLU factorisation at 10⁵
-    // particles, the limit is noticed only when the call returns). As a start
-    // that reached the limit does (below), the method then starts once from
-    // the next cheaper rung, unless that too is predicted past the limit.
-    // The predictions follow from the smaller sizes' stored runs, so a
-    // resumed sweep decides the same.
-    const long particles = sys.num_particles();
-    const auto history = [&](int rung) -> std::vector<SizeHistory::Start>* {
-      return b.size_history ? &b.size_history->runs[fmt::format("{}@{}", m.label(), rung)] : nullptr;
-    };
-    const auto predicted = [&](int rung) {
-      const std::vector<SizeHistory::Start>* h = history(rung);
-      return h ? PredictedStartTime(*h, particles) : 0.0;
-    };
-    const auto past_limit = [&](int rung) { return b.time_limit > 0.0 && predicted(rung) > b.time_limit; };
-    const auto why = [&](int rung) {
-      const SizeHistory::Start& last = history(rung)->back();
-      return fmt::format("{} predicted past --time-limit {:g} s (about {:.3g} s from {:.1f} s{} at {} particles)",
-                         RungName(m, RungOf(m, b.scene, rung)), b.time_limit, predicted(rung), last.wall_time_s,
-                         last.predicted   ? ", itself predicted"
-                         : last.timed_out ? ", its time limit"
-                         : last.ok        ? ""
-                                          : ", a failed run",
-                         last.particles);
-    };
-    int start = 0;
-    if (past_limit(0)) {
-      const bool cheaper = RungExists(m, b, -1);
-      if (!cheaper || past_limit(-1)) {
-        reasons.push_back(fmt::format("{}: not started: {}{}", m.label(), why(0),
-                                      cheaper ? "; " + why(-1) : std::string()));
-        history(0)->push_back({particles, predicted(0), false, true});
-        if (cheaper) history(-1)->push_back({particles, predicted(-1), false, true});
-        continue;
-      }
-      history(0)->push_back({particles, predicted(0), false, true});
-      start = -1;
-    }
-    run(start);
-    int lo = start, hi = start;
+    const std::optional<int> start = StartRung(b, m, particles, &reasons);
+    if (!start) continue;
+    run(*start);
+    int lo = *start, hi = *start;
     // A start past --time-limit tries the next cheaper rung once.
-    if (start == 0 && runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);
+    if (*start == 0 && runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);
     // A coarsening that cost more than the run it coarsened (rejected
     // attempts, more updates per step) ends the coarsening: the cheapest ok
     // run already meets the largest target ('≤' in the table).
@@ -535,14 +555,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     }
     progress.Finish();
     reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), reason, runs.size()));
-    for (const auto& [index, r] : runs)
-      if (std::vector<SizeHistory::Start>* h = history(index)) {
-        const bool timed_out = r.status == RunStatus::kTimeLimit;
-        const SizeHistory::Start ran{particles, timed_out ? std::max(r.wall_time_s, b.time_limit) : r.wall_time_s,
-                                     r.ok(), false, timed_out};
-        if (!h->empty() && h->back().particles == particles) h->back() = ran;  // it replaces its prediction
-        else h->push_back(ran);
-      }
+    RecordSizeHistory(b, m, particles, runs);
     for (auto& [index, r] : runs) rows.push_back(std::move(r));
   }
   WriteBench(b, sys, ref, rows, comm, journal, reasons, wp);

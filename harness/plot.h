@@ -14,6 +14,8 @@
 
 #include <fmt/format.h>
 
+#include "harness/cli_args.h"
+#include "model/output_file.h"
 #include "model/scene.h"
 
 namespace clothbench {
@@ -77,24 +79,26 @@ inline std::string ReportPageOf(const std::string& result_file) {
 inline constexpr std::string_view kReportMark = "<!-- clothbench report -->";
 
 /// Refuses, before any computing, a --report page that scripts/report would
-/// refuse after it: something other than a regular file at the page's path
-/// (a link is never followed), or a file there that is not a page of
-/// scripts/report (it is never replaced).
-/// @throws std::invalid_argument "--report: \"<page>\" <rule>"
+/// refuse after it: what CheckOutputTarget refuses at the page's path (a
+/// link, folder or device; an input of the command or `result_file`
+/// itself), or a file there that is not a page of scripts/report (it is
+/// never replaced).
+/// @throws UsageError "--report: \"<page>\" <rule>"
 inline void CheckReportTarget(const std::string& result_file) {
   const std::string page = ReportPageOf(result_file);
-  const std::filesystem::file_status st = std::filesystem::symlink_status(page);
-  if (!std::filesystem::exists(st)) return;
-  if (!std::filesystem::is_regular_file(st))
-    throw std::invalid_argument(fmt::format("--report: \"{}\" is not a regular file (a link, folder or device is never "
-                                            "replaced)", EscapeControl(page)));
+  try {
+    CheckOutputTarget(page, "--report", {result_file});
+  } catch (const OutputRefused& e) {
+    throw UsageError(e.what());
+  }
+  if (!std::filesystem::exists(std::filesystem::symlink_status(page))) return;
   std::FILE* f = std::fopen(page.c_str(), "rb");
   std::string head(kReportMark.size(), '\0');
   const bool mark = f && std::fread(head.data(), 1, head.size(), f) == head.size() && head == kReportMark;
   if (f) std::fclose(f);
   if (!mark)
-    throw std::invalid_argument(fmt::format("--report: \"{}\" exists and is not a clothbench report (not replaced)",
-                                            EscapeControl(page)));
+    throw UsageError(fmt::format("--report: \"{}\" exists and is not a clothbench report (not replaced)",
+                                 EscapeControl(page)));
 }
 
 /// Runs scripts/report on `file` (the page beside it, ReportPageOf) and

@@ -115,7 +115,7 @@ void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double
     if (!compared) {
       r.energy = ComputeEnergies(sys, r.trajectory);
       if (r.ok()) {
-      if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
+        if (r.energy.t.size() >= 2 && std::isfinite(r.energy.Rate())) r.energy_rate_W = r.energy.Rate();
         if (std::isfinite(r.energy.ContactPower())) r.contact_power_W = r.energy.ContactPower();
       }
     }
