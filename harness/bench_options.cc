@@ -297,9 +297,9 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
                quiet, app.count("--preconditioner") > 0,
                app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
-               time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets};
+               time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets, /*keep_journal=*/false,
+               report, /*size_history=*/nullptr};
   run.reference_time_limit = app.count("--time-limit") ? time_limit : RunLimits().time_limit_s;
-  run.report = report;
   return run;
 }
 

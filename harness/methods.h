@@ -254,6 +254,7 @@ inline std::vector<MethodEntry> PeerEntries() {
          // The springs are projected (F_nl); every other explicit term
          // enters the global step's right-hand side at the iterate.
          row->chebyshev_rho = static_cast<const ProjectiveDynamics&>(stepper).rho();  // this entry builds one
+         row->chebyshev_rho_sweeps = static_cast<const ProjectiveDynamics&>(stepper).rho_sweeps();
          row->constraints = "tension";
          for (const std::string& t : sys.TermNames())
            if (t != "tension_nonlinear") row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
@@ -272,6 +273,7 @@ inline std::vector<MethodEntry> PeerEntries() {
        .describe = [](const Stepper& stepper, const ParticleSystem&, RunRecord* row) {
          const auto& vbd = static_cast<const VertexBlockDescent&>(stepper);  // this entry builds one
          row->chebyshev_rho = vbd.rho();
+         row->chebyshev_rho_sweeps = vbd.rho_sweeps();
          row->colours = vbd.colours();
        }},
   };

@@ -34,6 +34,7 @@ struct RunRecord {
   long substeps = 0;         ///< substepped rows: substeps per frame step
   long iterations = 0;       ///< iterated rows (pd, vbd): iterations per step
   double chebyshev_rho = 0.0;  ///< pd/chebyshev, vbd/chebyshev: the ρ measured at the first step and used (0: none)
+  long chebyshev_rho_sweeps = 0;  ///< the plain iterations behind chebyshev_rho, over every h (0: not measured)
   long colours = 0;          ///< vbd: colours of the particle graph (its sweeps' sequential stages)
   double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
   std::string constraints;   ///< xpbd, pd: the terms solved as constraints or projections ("tension,shear,obstacles")

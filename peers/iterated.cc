@@ -16,11 +16,12 @@ namespace clothbench {
 
 IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view name, int iterations,
                                  ChebyshevSettings chebyshev, int rho_iterations, InitialGuess initial_guess,
-                                 ObstacleResponse response)
+                                 ObstacleResponse response, RhoEstimate rho_estimate)
     : sys_(system),
       iterations_(iterations),
       cheb_(chebyshev),
       rho_iterations_(rho_iterations),
+      rho_estimate_(rho_estimate),
       initial_guess_(initial_guess),
       response_(response),
       contacts_(system) {
@@ -47,6 +48,24 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
     xm1_.setZero(n, 3);
   }
   increments_.reserve(static_cast<std::size_t>(std::max(iterations, rho_iterations)));
+  if (cheb_.on && cheb_.rho == 0.0 && rho_estimate_ == RhoEstimate::kKrylov) {
+    std::vector<Eigen::Index> free;  // column-major N×3: coordinate c of particle p at c·N + p
+    for (int c = 0; c < 3; ++c)
+      for (int p = 0; p < n; ++p)
+        if (w_(p) > 0.0) free.push_back(static_cast<Eigen::Index>(c) * n + p);
+    const std::size_t stride = std::max<std::size_t>(1, (free.size() + kKrylovRhoRows - 1) / kKrylovRhoRows);
+    for (std::size_t i = 0; i < free.size(); i += stride) sketch_index_.push_back(free[i]);
+  }
+}
+
+void IteratedStepper::PlanRun(double t_end, double h) {
+  planned_sweeps_ = h > 0.0 && t_end > 0.0 ? static_cast<long>(std::ceil(t_end / h - 1e-9)) * iterations_ : 0;
+}
+
+int IteratedStepper::RhoSweeps() const {
+  if (rho_estimate_ != RhoEstimate::kKrylov || planned_sweeps_ <= 0) return rho_iterations_;
+  return static_cast<int>(
+      std::clamp<long>(planned_sweeps_ / 10, std::min(kKrylovRhoMin, rho_iterations_), rho_iterations_));
 }
 
 void IteratedStepper::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -241,8 +260,28 @@ bool IteratedStepper::Iterate(double h, int k_max, bool accelerate, bool rho_sta
     }
     AfterIteration(h);
     increments_.push_back((v_ - v_start_).norm());
+    if (rho_start && MeasureRhoAfter(k, h)) return true;
     v_prev_.swap(v_start_);
   }
+  return true;
+}
+
+bool IteratedStepper::MeasureRhoAfter(int k, double h) {
+  ++rho_sweeps_;
+  if (rho_estimate_ != RhoEstimate::kKrylov) return false;  // ChebyshevRho after all rho_iterations_
+  // An increment at round-off: the plain iteration converges within the
+  // measurement and gives no usable ρ (as ChebyshevRho).
+  if (increments_.back() <= VelocityNoise(x0_.norm(), h)) {
+    rho_ = 0.0;
+    return true;
+  }
+  for (Eigen::Index i = 0; i < sketch_.rows(); ++i) {
+    const Eigen::Index c = sketch_index_[static_cast<std::size_t>(i)];
+    sketch_(i, k) = v_.data()[c] - v_start_.data()[c];
+  }
+  const int m = k + 1;
+  if (m < rho_measure_ && m < sketch_.rows()) return false;
+  rho_ = KrylovRho(sketch_, m);
   return true;
 }
 
@@ -265,12 +304,15 @@ StepStats IteratedStepper::Step(double h) {
     if (const StepStatus s = Prepare(h); s != StepStatus::kOk) return finish(s);
     h_ = h;
     rho_ = cheb_.rho;
-    if (cheb_.on && cheb_.rho == 0.0) {
+    if (cheb_.on && cheb_.rho == 0.0 && cheb_.ExtrapolatedIterations(iterations_) > 0) {
       // ρ measured on this step's plain iterations (the state is not changed).
       const auto r0 = std::chrono::steady_clock::now();
-      if (!Iterate(h, rho_iterations_, /*accelerate=*/false, /*rho_start=*/true, &timed_out))
+      rho_measure_ = RhoSweeps();
+      if (rho_estimate_ == RhoEstimate::kKrylov && sketch_.cols() < rho_measure_)
+        sketch_.setZero(static_cast<Eigen::Index>(sketch_index_.size()), rho_measure_);  // setup, once per size
+      if (!Iterate(h, rho_measure_, /*accelerate=*/false, /*rho_start=*/true, &timed_out))
         return finish(timed_out ? StepStatus::kTimeLimit : StepStatus::kNonFinite);
-      rho_ = ChebyshevRho(increments_, VelocityNoise(x0_.norm(), h));
+      if (rho_estimate_ == RhoEstimate::kIncrementRatio) rho_ = ChebyshevRho(increments_, VelocityNoise(x0_.norm(), h));
       rho_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
     }
     st.setup_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

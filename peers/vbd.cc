@@ -10,7 +10,7 @@ namespace clothbench {
 
 VertexBlockDescent::VertexBlockDescent(const ParticleSystem& system, int iterations, ChebyshevSettings chebyshev)
     : IteratedStepper(system, "vbd", iterations, chebyshev, kRhoIterations, InitialGuess::kSafeguardedExtrapolation,
-                      ObstacleResponse::kVelocityFilter) {
+                      ObstacleResponse::kVelocityFilter, RhoEstimate::kKrylov) {
   const auto start = std::chrono::steady_clock::now();
   const int n = system.num_particles();
   system.PrepareParticleForces();

@@ -91,17 +91,21 @@ class VertexBlockDescent : public IteratedStepper {
   double setup_seconds() const override { return colouring_seconds_ + rho_seconds(); }
   /// The number of colours of the particle graph (free particles only).
   int colours() const { return static_cast<int>(colour_start_.size()) - 1; }
-  /// Plain sweeps from which ρ is measured (ChebyshevRho, at the first step
-  /// of each h when ChebyshevSettings::rho is 0). Gauss–Seidel's slowest
-  /// mode dominates only after many sweeps: on the default scene at
-  /// h = 0.01 s, 32 / 128 / 256 / 512 / 1024 sweeps from rest give ρ =
-  /// 0.835 / 0.9802 / 0.9828 / 0.9840 / 0.9842, and the accelerated
-  /// iteration is sensitive to it (64 sweeps per step with ρ from 128
-  /// sweeps: 2.6e-4 m from implicit_euler/newton after 0.5 s; from 256:
-  /// 1.1e-4 m; from 512: 6.4e-5 m). 512 sweeps cost 0.11 s at 400
-  /// particles, once per h, counted in the run's time
-  /// (docs/work-precision.md, "vbd").
-  static constexpr int kRhoIterations = 512;
+  /// The most plain sweeps from which ρ is measured (KrylovRho over
+  /// RhoSweeps sweeps, a tenth of the run's, at the first step of each h
+  /// when ChebyshevSettings::rho is 0 and a step extrapolates at all).
+  /// Gauss–Seidel's slowest mode dominates the increments' ratio only
+  /// after many sweeps (on the default scene at h = 0.01 s, 32 / 128 / 512
+  /// / 1024 sweeps from rest give 0.838 / 0.9784 / 0.9840 / 0.9842); the
+  /// Krylov estimate gives 0.9762 / 0.9842 / 0.9841 at 32 / 128 / 512. At
+  /// 10⁴ particles the slowest modes lie within 1e-4 of 1 and neither
+  /// settles in an affordable count (increment ratio at 512: 0.9983;
+  /// Krylov at 96 / 256 / 512: 0.9981 / 0.9994 / 0.9997). The accelerated
+  /// iteration is sensitive to ρ (default scene, 64 sweeps per step, ρ =
+  /// 0.9802: 2.6e-4 m from implicit_euler/newton after 0.5 s; 0.9828:
+  /// 1.1e-4 m; 0.9840: 6.4e-5 m), so a run with more sweeps gets a longer
+  /// measurement (docs/work-precision.md, "vbd").
+  static constexpr int kRhoIterations = 128;
   /// A colour runs on the OpenMP threads from this many particles up: a
   /// particle's local step costs about 0.55 µs (bench_kernels,
   /// BM_ParticleForces), so 256 of them are ~0.14 ms, far above the few µs

@@ -62,6 +62,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"substeps", &R::substeps, S::kSubstepped},
       {"iterations", &R::iterations, S::kIterated},
       {"chebyshev_rho", &R::chebyshev_rho, S::kPositive},
+      {"chebyshev_rho_sweeps", &R::chebyshev_rho_sweeps, S::kPositive},
       {"colours", &R::colours, S::kPositive},
       {"constraints", &R::constraints, S::kNonEmpty},
       {"explicit_terms", &R::explicit_terms, S::kNonEmpty},

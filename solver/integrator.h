@@ -225,6 +225,13 @@ class Stepper {
     (void)v;
     return false;
   }
+  /// The run ahead: steps of h [s] to t_end [s] from the next Reset (the
+  /// run driver says so before it; an iterated peer sizes its ρ
+  /// measurement by it). Default: ignored.
+  virtual void PlanRun(double t_end, double h) {
+    (void)t_end;
+    (void)h;
+  }
 };
 
 /// Advances the state of a particle system step by step with one method.

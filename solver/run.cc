@@ -581,6 +581,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   double solver_seconds = 0.0;
 
   if (RefusesMotion(system, engine, &sum)) return sum;
+  engine.PlanRun(options.t_end, options.h);
   VirtualParticles* const virtual_particles = ResetToRest(system, engine);
   SelfContactStage self_contact(system, engine);
   if (self_contact.Refuses(&sum)) return sum;
