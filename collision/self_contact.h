@@ -12,21 +12,10 @@
 #include <array>
 #include <vector>
 
+#include "collision/contact_list.h"
 #include "model/types.h"
 
 namespace clothbench {
-
-/// One pair of cloth elements that share no particle. kPointTriangle:
-/// p = {point, a, b, c}; kEdgeEdge: p = {a, b, c, d}, the edges a–b and c–d.
-struct SelfContactPair {
-  enum Kind : int { kPointTriangle = 0, kEdgeEdge = 1 };
-  Kind kind = kPointTriangle;
-  std::array<int, 4> p{};
-  friend bool operator<(const SelfContactPair& l, const SelfContactPair& r) {
-    return l.kind != r.kind ? l.kind < r.kind : l.p < r.p;
-  }
-  friend bool operator==(const SelfContactPair& l, const SelfContactPair& r) { return l.kind == r.kind && l.p == r.p; }
-};
 
 /// Where a pair is closest, or where it touched: the weights w of its four
 /// particles (relative position Σ w_k x_k: point minus triangle point, or

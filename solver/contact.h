@@ -9,6 +9,8 @@
 
 #include <vector>
 
+#include "collision/contact_list.h"
+#include "collision/obstacle_contacts.h"
 #include "model/particle_system.h"
 #include "solver/pcg.h"
 
@@ -136,13 +138,13 @@ class ContactResponse {
   /// Exact signed-distance queries SetUp made and skipped since Reset (the
   /// distance cull of mesh obstacles: a query is skipped where a lower bound
   /// of the distance rules out every contact test).
-  long distance_queries() const { return queries_; }
+  long distance_queries() const { return detection_.queries(); }
   /// Turns the distance cull off (every query exact; for the test that the
   /// cull changes no contact).
-  void set_distance_cull(bool on) {
-    for (std::size_t k = 0; k < cullable_.size(); ++k) cullable_[k] = on && sys_.obstacles()[k].mesh() != nullptr;
-  }
-  long culled_queries() const { return culled_; }
+  void set_distance_cull(bool on) { detection_.set_distance_cull(on); }
+  long culled_queries() const { return detection_.culled(); }
+  /// The obstacle part of this step's contact list (the last SetUp's), in particle order.
+  const ContactList& contacts() const { return list_; }
   /// Wall time of SetUp since Reset [s]: the collision detection (distance
   /// queries, the cull) and the filter's constraints.
   double setup_seconds() const { return seconds_; }
@@ -160,18 +162,8 @@ class ContactResponse {
   double release_tolerance_ = 0.0;         // of the last solve [kg m/s]
   double h_ = 0.0;                         // step of the last SetUp [s]
   Work work_;                              // since Reset
-  std::vector<ObstaclePose> poses_;        // of each obstacle at t₀ (per step)
-  std::vector<double> last_distance_;      // N×O: signed distance at x₀ of the last setup (x₋₁ now), or a lower bound
-  // The distance cull (mesh obstacles): per particle and obstacle the point
-  // of the last exact query, its distance (−∞: none) and the obstacle's
-  // accumulated motion bound then; per obstacle whether it is culled, the
-  // motion bound accumulated over the setups and the pose of the last.
-  std::vector<Vector3> cull_anchor_;
-  std::vector<double> cull_distance_, cull_motion_;
-  std::vector<char> cullable_;
-  std::vector<double> motion_;
-  std::vector<ObstaclePose> last_pose_;
-  long queries_ = 0, culled_ = 0;
+  ObstacleDetection detection_;            // the contacts of each SetUp (tests 1–3)
+  ContactList list_;                       // their list (obstacle part; reserved for N)
   double seconds_ = 0.0;                   // SetUp's wall time since Reset [s]
   // Event location: its tolerance [m] (0: off).
   double event_tolerance_ = 0.0;
@@ -182,10 +174,6 @@ class ContactResponse {
   bool accepted_ = true;
   double h_read_ = 0.0;
   std::vector<Contact> contacts_backup_;
-  std::vector<double> distance_backup_;
-  // The nearest obstacle to x at t: its index (−1: none), d − δ, normal.
-  int NearestObstacle(double t, const Vector3& x, double* gap, Vector3* normal) const;
-  double GapBound(int p, const Vector3& x0, const Vector3& x1) const;  // Crossing's cull
   int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
              VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit
