@@ -21,7 +21,10 @@ printf 'not hdf5' > "$work/text.h5"
 expect not_signed "no integrity block" -- "$report" "$work/text.h5"
 cp "$good" "$work/cut.h5" && truncate -s -100 "$work/cut.h5"
 expect cut_short "cut short" -- "$report" "$work/cut.h5"
-cp "$good" "$work/flip.h5" && printf '\377' | dd of="$work/flip.h5" bs=1 seek=4096 conv=notrunc 2> /dev/null
+# One byte inverted (not set: a byte that already held the value would not change).
+byte=$(od -An -tu1 -j4096 -N1 "$good" | tr -d ' ')
+cp "$good" "$work/flip.h5" && printf "\\$(printf '%03o' $((255 - byte)))" |
+  dd of="$work/flip.h5" bs=1 seek=4096 conv=notrunc 2> /dev/null
 expect damaged "CRC-32" -- "$report" "$work/flip.h5"
 # A planted link at the page's path is neither followed nor replaced.
 echo precious > "$work/victim.txt"
