@@ -1,13 +1,12 @@
-// The contact list of a step (docs/collisions.md): what the detections of
-// collision/ produce and the responses read. Obstacle contacts come from
-// ObstacleDetection (collision/obstacle_contacts.h), one per particle in
-// contact; self-contact pairs from SelfContactDetector
+// The entries of a step's contact list (docs/collisions.md): what the
+// detections of collision/ produce and the responses read. Obstacle
+// contacts come from ObstacleDetection (collision/obstacle_contacts.h), one
+// per particle in contact; self-contact pairs from SelfContactDetector
 // (collision/self_contact.h).
 #ifndef CLOTHBENCH_COLLISION_CONTACT_LIST_H_
 #define CLOTHBENCH_COLLISION_CONTACT_LIST_H_
 
 #include <array>
-#include <vector>
 
 #include "model/types.h"
 
@@ -37,17 +36,6 @@ struct SelfContactPair {
     return l.kind != r.kind ? l.kind < r.kind : l.p < r.p;
   }
   friend bool operator==(const SelfContactPair& l, const SelfContactPair& r) { return l.kind == r.kind && l.p == r.p; }
-};
-
-/// A step's contacts: obstacle contacts in particle order, self-contact
-/// pairs in the detector's order (sorted: the same for any thread count).
-struct ContactList {
-  std::vector<ObstacleContact> obstacle;
-  std::vector<SelfContactPair> self;
-  void Clear() {
-    obstacle.clear();
-    self.clear();
-  }
 };
 
 }  // namespace clothbench

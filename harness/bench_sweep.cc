@@ -437,6 +437,38 @@ void RecordSizeHistory(const BenchRun& b, const RowMethod& m, long particles, co
     }
 }
 
+// --sweep-to-targets: why method m's refinement stops at rung `hi` (its
+// runs so far and the errors of the ok ones), or nullopt to run rung hi + 1:
+// a run past --time-limit, a failure after an ok coarser run, every target
+// met, two refinements that gained less than 20 % each, the ladder's end
+// (or kMaxRunsPerMethod), or the next rung predicted past --time-limit.
+std::optional<std::string> RefineStop(const BenchRun& b, const RowMethod& m, const std::map<int, MethodRun>& runs,
+                                      const std::map<int, double>& error, int hi) {
+  const double smallest = *std::min_element(b.targets.begin(), b.targets.end());
+  const MethodRun& f = runs.at(hi);
+  const auto rung = [&](int i) { return RungName(m, RungOf(m, b.scene, i)); };
+  const auto err = [&](int i) { return error.at(i); };
+  const bool any_ok = !error.empty();
+  if (f.status == RunStatus::kTimeLimit) return fmt::format("time_limit at {}", rung(hi));
+  if (!f.ok() && any_ok && error.begin()->first < hi) return fmt::format("failed ({}) at {}", f.status, rung(hi));
+  if (f.ok() && error.count(hi) && err(hi) <= smallest) return std::string("targets met");
+  if (error.count(hi) && error.count(hi - 1) && error.count(hi - 2) && err(hi) > 0.8 * err(hi - 1) &&
+      err(hi - 1) > 0.8 * err(hi - 2))
+    return fmt::format("stalled at {:.1e} m (two refinements gained less than 20 % each)", err(hi));
+  if (!RungExists(m, b, hi + 1) || static_cast<int>(runs.size()) >= kMaxRunsPerMethod)
+    return any_ok ? fmt::format("the ladder ends at {}", rung(hi))
+                  : fmt::format("no run ended ok, down to {} ({} there)", rung(hi), f.status);
+  const auto before = runs.find(hi - 1);
+  const double predicted =
+      f.ok() ? PredictedWallTime(m.kind(), f.wall_time_s,
+                                 before != runs.end() && before->second.ok() ? before->second.wall_time_s : 0.0)
+             : 0.0;
+  if (b.time_limit > 0.0 && predicted > b.time_limit)
+    return fmt::format("{} predicted past --time-limit {:g} s (about {:.0f} s from {:.1f} s at {})", rung(hi + 1),
+                       b.time_limit, predicted, f.wall_time_s, rung(hi));
+  return std::nullopt;
+}
+
 int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
@@ -467,7 +499,6 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     return 1;
   }
   const double largest = *std::max_element(b.targets.begin(), b.targets.end());
-  const double smallest = *std::min_element(b.targets.begin(), b.targets.end());
   const long particles = sys.num_particles();
   std::vector<MethodRun> rows;
   std::vector<std::string> reasons;
@@ -513,48 +544,10 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     while (error.count(lo) && error[lo] <= largest && coarsening_paid() && lo > -kMaxCoarsenings &&
            RungExists(m, b, lo - 1) && static_cast<int>(runs.size()) < kMaxRunsPerMethod)
       run(--lo);
-    std::string reason;
-    for (;;) {
-      const MethodRun& f = runs[hi];
-      const bool any_ok = !error.empty();
-      if (f.status == RunStatus::kTimeLimit) {
-        reason = fmt::format("time_limit at {}", RungName(m, RungOf(m, b.scene, hi)));
-        break;
-      }
-      if (!f.ok() && any_ok && error.begin()->first < hi) {
-        reason = fmt::format("failed ({}) at {}", f.status, RungName(m, RungOf(m, b.scene, hi)));
-        break;
-      }
-      if (f.ok() && error.count(hi) && error[hi] <= smallest) {
-        reason = "targets met";
-        break;
-      }
-      if (error.count(hi) && error.count(hi - 1) && error.count(hi - 2) && error[hi] > 0.8 * error[hi - 1] &&
-          error[hi - 1] > 0.8 * error[hi - 2]) {
-        reason = fmt::format("stalled at {:.1e} m (two refinements gained less than 20 % each)", error[hi]);
-        break;
-      }
-      if (!RungExists(m, b, hi + 1) || static_cast<int>(runs.size()) >= kMaxRunsPerMethod) {
-        reason = any_ok ? fmt::format("the ladder ends at {}", RungName(m, RungOf(m, b.scene, hi)))
-                        : fmt::format("no run ended ok, down to {} ({} there)", RungName(m, RungOf(m, b.scene, hi)),
-                                      f.status);
-        break;
-      }
-      const auto before = runs.find(hi - 1);
-      const double predicted =
-          f.ok() ? PredictedWallTime(m.kind(), f.wall_time_s,
-                                     before != runs.end() && before->second.ok() ? before->second.wall_time_s : 0.0)
-                 : 0.0;
-      if (b.time_limit > 0.0 && predicted > b.time_limit) {
-        reason = fmt::format("{} predicted past --time-limit {:g} s (about {:.0f} s from {:.1f} s at {})",
-                             RungName(m, RungOf(m, b.scene, hi + 1)), b.time_limit, predicted, f.wall_time_s,
-                             RungName(m, RungOf(m, b.scene, hi)));
-        break;
-      }
-      run(++hi);
-    }
+    std::optional<std::string> reason;
+    while (!(reason = RefineStop(b, m, runs, error, hi))) run(++hi);
     progress.Finish();
-    reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), reason, runs.size()));
+    reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), *reason, runs.size()));
     RecordSizeHistory(b, m, particles, runs);
     for (auto& [index, r] : runs) rows.push_back(std::move(r));
   }

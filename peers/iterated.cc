@@ -60,6 +60,8 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
 
 void IteratedStepper::PlanRun(double t_end, double h) {
   planned_sweeps_ = h > 0.0 && t_end > 0.0 ? static_cast<long>(std::ceil(t_end / h - 1e-9)) * iterations_ : 0;
+  if (!sketch_index_.empty() && sketch_.cols() < RhoSweeps())
+    sketch_.setZero(static_cast<Eigen::Index>(sketch_index_.size()), RhoSweeps());
 }
 
 int IteratedStepper::RhoSweeps() const {
@@ -281,7 +283,7 @@ bool IteratedStepper::MeasureRhoAfter(int k, double h) {
   }
   const int m = k + 1;
   if (m < rho_measure_ && m < sketch_.rows()) return false;
-  rho_ = KrylovRho(sketch_, m);
+  rho_ = m >= 3 ? KrylovRho(sketch_, m) : 0.0;  // fewer than 3 free coordinates: no Krylov space to speak of
   return true;
 }
 
@@ -308,8 +310,8 @@ StepStats IteratedStepper::Step(double h) {
       // ρ measured on this step's plain iterations (the state is not changed).
       const auto r0 = std::chrono::steady_clock::now();
       rho_measure_ = RhoSweeps();
-      if (rho_estimate_ == RhoEstimate::kKrylov && sketch_.cols() < rho_measure_)
-        sketch_.setZero(static_cast<Eigen::Index>(sketch_index_.size()), rho_measure_);  // setup, once per size
+      if (rho_estimate_ == RhoEstimate::kKrylov && sketch_.cols() < rho_measure_)  // no PlanRun before
+        sketch_.setZero(static_cast<Eigen::Index>(sketch_index_.size()), rho_measure_);
       if (!Iterate(h, rho_measure_, /*accelerate=*/false, /*rho_start=*/true, &timed_out))
         return finish(timed_out ? StepStatus::kTimeLimit : StepStatus::kNonFinite);
       if (rho_estimate_ == RhoEstimate::kIncrementRatio) rho_ = ChebyshevRho(increments_, VelocityNoise(x0_.norm(), h));

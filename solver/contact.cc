@@ -12,14 +12,12 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system), d
   const int n = system.num_particles();
   if (system.obstacles().empty()) return;
   contacts_.assign(static_cast<std::size_t>(n), Contact{});
-  list_.obstacle.reserve(static_cast<std::size_t>(n));
   friction_.setZero(n, 3);
 }
 
 void ContactResponse::Reset() {
   for (Contact& c : contacts_) c = Contact{};
   detection_.Reset();
-  list_.Clear();
   seconds_ = 0.0;
   h_ = h_read_ = 0.0;
   accepted_ = true;
@@ -101,7 +99,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
   filter->Clear();
   for (int p : sys_.fixed()) filter->Fix(p);
   friction_.setZero();
-  list_.obstacle.clear();
+  int count = 0;
   const auto& obstacles = sys_.obstacles();
   detection_.BeginStep(t0);
   for (int p = 0; p < sys_.num_particles(); ++p) {
@@ -119,7 +117,6 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     if (xm1) x_prev = xm1->row(p).transpose();
     ObstacleContact contact;
     if (!detection_.Detect(p, h, x0, v0, xm1 ? &x_prev : nullptr, prior, event_tolerance_, &contact)) continue;
-    list_.obstacle.push_back(contact);
     const Obstacle& o = obstacles[static_cast<std::size_t>(contact.obstacle)];
     const Vector3& dir = contact.normal;
     c.obstacle = contact.obstacle;
@@ -131,6 +128,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     const double target_velocity =
         contact.v_obstacle.dot(dir) + (contact.inside ? o.spec().relaxation * correction : correction) / h;
     filter->Constrain(p, dir, target_velocity);  // (4.4)
+    ++count;
     // Coulomb friction from the last step's normal impulse (CoulombFriction).
     const double mu = o.spec().friction;
     // The last step's normal force J_hold/h₋₁ over this step: J_hold h/h₋₁.
@@ -140,7 +138,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
                                          friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0, &c.sticks)
                              .transpose();
   }
-  return static_cast<int>(list_.obstacle.size());
+  return count;
 }
 
 double ContactResponse::Crossing(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3& x1,

@@ -9,7 +9,6 @@
 
 #include <vector>
 
-#include "collision/contact_list.h"
 #include "collision/obstacle_contacts.h"
 #include "model/particle_system.h"
 #include "solver/pcg.h"
@@ -143,8 +142,6 @@ class ContactResponse {
   /// cull changes no contact).
   void set_distance_cull(bool on) { detection_.set_distance_cull(on); }
   long culled_queries() const { return detection_.culled(); }
-  /// The obstacle part of this step's contact list (the last SetUp's), in particle order.
-  const ContactList& contacts() const { return list_; }
   /// Wall time of SetUp since Reset [s]: the collision detection (distance
   /// queries, the cull) and the filter's constraints.
   double setup_seconds() const { return seconds_; }
@@ -163,7 +160,6 @@ class ContactResponse {
   double h_ = 0.0;                         // step of the last SetUp [s]
   Work work_;                              // since Reset
   ObstacleDetection detection_;            // the contacts of each SetUp (tests 1–3)
-  ContactList list_;                       // their list (obstacle part; reserved for N)
   double seconds_ = 0.0;                   // SetUp's wall time since Reset [s]
   // Event location: its tolerance [m] (0: off).
   double event_tolerance_ = 0.0;
