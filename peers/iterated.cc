@@ -189,7 +189,7 @@ double IteratedStepper::ResidualNorm2(double h, const MatrixN3& v) {
 }
 
 void IteratedStepper::StartIterate(double h, bool rho_start) {
-  v_.noalias() = v0_ + h * (w_.asDiagonal() * f_ext_);
+  InertialVelocity(h, &v_);
   if (initial_guess_ != InitialGuess::kInertial && h_last_step_ > 0.0)
     for (int p = 0; p < v_.rows(); ++p) {
       const Vector3 a_ext = w_(p) * f_ext_.row(p).transpose();
@@ -301,6 +301,7 @@ StepStats IteratedStepper::Step(double h) {
   bool timed_out = false;
   const bool filter = response_ == ObstacleResponse::kVelocityFilter && contacts_.active();
   if (filter) st.colliding = SetUpContacts(h);
+  if (response_ == ObstacleResponse::kOwn) st.colliding = BeginContacts(h);
   if (h != h_) {
     const auto t0 = std::chrono::steady_clock::now();
     if (const StepStatus s = Prepare(h); s != StepStatus::kOk) return finish(s);
@@ -325,6 +326,8 @@ StepStats IteratedStepper::Step(double h) {
   x_.noalias() = x0_ + h * v_;
   if (filter) {
     ReadContactImpulses(h);
+  } else if (response_ == ObstacleResponse::kOwn) {
+    st.colliding = EndContacts(h);
   } else if (!sys_.obstacles().empty()) {
     st.colliding = ProjectOntoObstacles(sys_, w_, t1, h, x0_, &x_);
     v_ = (x_ - x0_) / h;

@@ -52,6 +52,10 @@ enum class ObstacleResponse {
   /// the constraint impulse after the step. The iteration's fixed point is
   /// then the implicit Euler step with the same filter.
   kVelocityFilter,
+  /// The stepper's own contact inside its iterations (projective dynamics'
+  /// impulses, peers/contact_impulses.h): BeginContacts before the step's
+  /// iterations, EndContacts after them.
+  kOwn,
 };
 
 class IteratedStepper : public Stepper {
@@ -133,6 +137,14 @@ class IteratedStepper : public Stepper {
   /// Called after each iteration, after the Chebyshev update of v_ (a
   /// stepper's own self-contact bounds the iterate here).
   virtual void AfterIteration(double /*h*/) {}
+  /// kOwn: the step's contact list, before ρ's measurement and the
+  /// iterations of a step of h [s]. @return the listed contacts
+  virtual int BeginContacts(double /*h*/) { return 0; }
+  /// kOwn: after the iterations, with x_ = x₀ + h v_ (both may be
+  /// corrected: a fail-safe). @return the contacts that acted
+  virtual int EndContacts(double /*h*/) { return 0; }
+  /// The first iterate of InitialGuess::kInertial, v₀ + h M⁻¹ f_ext, into *v (N×3 [m/s]).
+  void InertialVelocity(double h, MatrixN3* v) const { v->noalias() = v0_ + h * (w_.asDiagonal() * f_ext_); }
   /// Time of the ρ measurements so far [s].
   double rho_seconds() const { return rho_seconds_; }
 

@@ -10,7 +10,7 @@
 namespace clothbench {
 
 int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, double t_end, double dt,
-                         const MatrixN3& x, MatrixN3* p) {
+                         const MatrixN3& x, MatrixN3* p, const std::vector<char>* held) {
   int colliding = 0;
   const int n = sys.num_particles();
   for (const Obstacle& o : sys.obstacles()) {
@@ -20,7 +20,7 @@ int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, do
       if (w(i) == 0.0) continue;
       Vector3 q = p->row(i).transpose(), dir;
       const double d = o.SignedDistance(pose, q, &dir);
-      if (!(d < delta)) continue;
+      if (!(d < (held && (*held)[static_cast<std::size_t>(i)] ? 0.0 : delta))) continue;
       ++colliding;
       const double depth = delta - d;
       q += depth * dir;

@@ -24,9 +24,11 @@ namespace clothbench {
 /// @param dt time since `x` [s] (the obstacle's own motion over it is not friction)
 /// @param x N×3 positions at the start of the (sub)step [m]
 /// @param p N×3 positions at its end [m], updated
+/// @param held per particle, nonzero where another response holds it (a
+///   contact impulse): projected only from inside the obstacle (d < 0), or nullptr
 /// @return the particles found in an obstacle's collision area
 int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, double t_end, double dt,
-                         const MatrixN3& x, MatrixN3* p);
+                         const MatrixN3& x, MatrixN3* p, const std::vector<char>* held = nullptr);
 
 /// The cloth's contact with itself on positions, for the peers that move
 /// particles by position inside a step (XPBD): the inequality constraints

@@ -1,16 +1,65 @@
 // Projective dynamics (Liu et al. 2013; Chebyshev: Wang 2015; docs/model.md §10).
 #include "peers/projective_dynamics.h"
 
+#include "peers/position_contacts.h"
+
 namespace clothbench {
 
+namespace {
+bool HasContact(const ParticleSystem& system) {
+  const auto& collision = system.scene().collision;
+  return !system.obstacles().empty() || (collision && collision->self);
+}
+}  // namespace
+
 ProjectiveDynamics::ProjectiveDynamics(const ParticleSystem& system, const SolverSpec& spec, int iterations,
-                                       ChebyshevSettings chebyshev)
-    : IteratedStepper(system, "pd", iterations, chebyshev, kRhoIterations, InitialGuess::kInertial),
+                                       ChebyshevSettings chebyshev, ContactModel contact)
+    : IteratedStepper(system, "pd", iterations, chebyshev, kRhoIterations, InitialGuess::kInertial,
+                      contact == ContactModel::kImpulses && HasContact(system) ? ObstacleResponse::kOwn
+                                                                                  : ObstacleResponse::kProjection),
       sm_(system, PreconditionerType::kCholesky, spec.cholesky_ordering) {
   const int n = system.num_particles();
   for (MatrixN3* m : {&b0_, &b_, &g_, &lkx_}) m->setZero(n, 3);
   if (system.has_prescribed_motion())
     for (MatrixN3* m : {&moving_v_, &coupling_}) m->setZero(n, 3);
+  if (contact == ContactModel::kImpulses && HasContact(system)) {
+    impulses_.emplace(system, w_);
+    for (MatrixN3* m : {&guess_, &xm1_}) m->setZero(n, 3);
+  }
+}
+
+void ProjectiveDynamics::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
+  IteratedStepper::Reset(t, x, v);
+  if (impulses_) impulses_->Reset();
+  have_history_ = false;
+}
+
+int ProjectiveDynamics::BeginContacts(double h) {
+  InertialVelocity(h, &guess_);
+  return impulses_->BeginStep(t_, h, x0_, guess_, have_history_ ? &xm1_ : nullptr);
+}
+
+// The impulses' work and the holding contacts; then the fail-safe: a
+// particle the list missed, or a listed one that ends inside an obstacle,
+// is projected out of the obstacles, its velocity
+// (x₁ − x₀)/h, and the impulse of that change counts as contact work.
+int ProjectiveDynamics::EndContacts(double h) {
+  int acting = impulses_->EndStep(v0_, v_);
+  if (!sys_.obstacles().empty()) {
+    guess_ = x_;  // the positions before the projection
+    acting += ProjectOntoObstacles(sys_, w_, t_ + h, h, x0_, &x_, &impulses_->listed());
+    double work = 0.0;
+    for (int p = 0; p < x_.rows(); ++p) {
+      if (x_.row(p) == guess_.row(p)) continue;
+      const Vector3 v1 = (x_.row(p) - x0_.row(p)).transpose() / h;
+      work += 0.5 * (v1.squaredNorm() - v_.row(p).squaredNorm()) / w_(p);
+      v_.row(p) = v1.transpose();
+    }
+    impulses_->AddFailSafeWork(work);
+  }
+  xm1_ = x0_;
+  have_history_ = true;
+  return acting;
 }
 
 StepStatus ProjectiveDynamics::Prepare(double h) {
@@ -19,6 +68,7 @@ StepStatus ProjectiveDynamics::Prepare(double h) {
 
 // The constant part of the right-hand side, M v₀ − h L_K x₀.
 void ProjectiveDynamics::BeginIterations(double h) {
+  if (impulses_) impulses_->BeginIterations();
   SymmetricProduct(sys_.stiffness_laplacian(), x0_, &lkx_);
   b0_.noalias() = sys_.masses().asDiagonal() * v0_;
   b0_ -= h * lkx_;
@@ -42,6 +92,7 @@ void ProjectiveDynamics::Iteration(double h) {
   sys_.ExplicitForces(t_ + h, x_, v_, &g_);
   b_.noalias() = b0_ + h * g_;
   for (int p : sys_.fixed()) b_.row(p).setZero();
+  if (impulses_) impulses_->Refine(v_, &b_);
   sm_.preconditioner().Apply(b_, &v_);
   if (sys_.has_prescribed_motion())
     sys_.ForEachPrescribed(t_ + h, [&](int p, const Vector3&, const Vector3&) { v_.row(p) = moving_v_.row(p); });

@@ -22,15 +22,26 @@
 // fixed iteration count and no convergence test. It starts from the
 // inertial guess v⁰ = v₀ + h M⁻¹ f_ext (gravity), as Liu et al. start from y.
 //
-// Contacts: after the iterations, the positions x₀ + h v are projected out
-// of the obstacles with friction (peers/position_contacts.h) and the
-// velocity is (x₁ − x₀)/h, as XPBD's. Fixed particles have v = 0.
+// Contacts (ContactModel::kImpulses, the default): impulses in the
+// global step's right-hand side, refined in every local step (Ly, Jouve,
+// Bertails-Descoubes 2020; peers/contact_impulses.h) against the obstacles
+// with Coulomb friction and, with `[collision] self = true`, between the
+// cloth's point–triangle and edge–edge pairs; A₁ and its factor stay.
+// The particles the step's list missed, and listed ones that end inside an
+// obstacle (the impulses unconverged), are projected out of the obstacles
+// after the iterations, and the run's self-contact response corrects the
+// step's end: the fail-safes. kProjection: after the iterations, the
+// positions x₀ + h v are projected out of the obstacles with friction
+// (peers/position_contacts.h) and the velocity is (x₁ − x₀)/h, as XPBD's.
+// Fixed particles have v = 0.
 #ifndef CLOTHBENCH_PEERS_PROJECTIVE_DYNAMICS_H_
 #define CLOTHBENCH_PEERS_PROJECTIVE_DYNAMICS_H_
 
+#include <optional>
 #include <string_view>
 
 #include "model/particle_system.h"
+#include "peers/contact_impulses.h"
 #include "peers/iterated.h"
 #include "solver/integrator.h"
 
@@ -43,14 +54,24 @@ inline constexpr std::string_view kProjectiveDynamicsName = "pd";
 /// (peers/iterated.h: the step, Chebyshev and the obstacles).
 class ProjectiveDynamics : public IteratedStepper {
  public:
+  /// How a step meets obstacles and, with `[collision] self = true`, itself.
+  enum class ContactModel {
+    /// Ly et al. 2020's impulses in the global step (peers/contact_impulses.h),
+    /// with the fail-safes after the step.
+    kImpulses,
+    /// The positions projected out of the obstacles after the iterations
+    /// (peers/position_contacts.h), and the run's self-contact response.
+    kProjection,
+  };
   /// @param system the model (must outlive the stepper)
   /// @param spec its solver settings (the CHOLMOD ordering of A₁'s factor)
   /// @param iterations k ≥ 1 per step
   /// @param chebyshev acceleration (off: plain PD)
+  /// @param contact the contact response
   /// @throws std::invalid_argument if iterations < 1 or the Chebyshev
   ///   settings are outside their ranges
   ProjectiveDynamics(const ParticleSystem& system, const SolverSpec& spec, int iterations,
-                     ChebyshevSettings chebyshev = {});
+                     ChebyshevSettings chebyshev = {}, ContactModel contact = ContactModel::kImpulses);
 
   /// A₁ is refactorised only when h changes (status
   /// kPreconditionerFailed if it cannot be); the solves are direct. No
@@ -61,9 +82,10 @@ class ProjectiveDynamics : public IteratedStepper {
   /// ChebyshevRho of them, from a copy of the state at the first step of
   /// each h.
   static constexpr int kRhoIterations = kChebyshevRhoIterations;
-  /// Self-contact (`[collision] self = true`): no constraint of its own
-  /// here; the run's response of Bridson et al. 2002 corrects each step's
-  /// end (collision/self_contact_response.h), as for Baraff–Witkin. The
+  /// Self-contact (`[collision] self = true`): kImpulses' pairs inside the
+  /// iterations; the run's response of Bridson et al. 2002 then corrects
+  /// each step's end (collision/self_contact_response.h), as for
+  /// Baraff–Witkin: kImpulses' fail-safe, kProjection's only response. The
   /// next step starts from the corrected state (the inertial guess keeps
   /// no history).
   bool corrects_state() const override { return true; }
@@ -71,12 +93,24 @@ class ProjectiveDynamics : public IteratedStepper {
     x0_ = x;
     v0_ = v;
   }
+  void Reset(double t, const MatrixN3& x, const MatrixN3& v) override;
+  /// kImpulses: the work of the impulses and of the fail-safe projection.
+  const ContactResponse::Work* contact_work() const override {
+    return impulses_ ? &impulses_->work() : nullptr;
+  }
+  /// kImpulses: the self-contact pairs listed over the steps since Reset (0 without).
+  long self_contact_pairs() const { return impulses_ ? impulses_->self_pairs() : 0; }
 
  private:
   StepStatus Prepare(double h) override;
   void BeginIterations(double h) override;
   void Iteration(double h) override;
+  int BeginContacts(double h) override;
+  int EndContacts(double h) override;
   SystemMatrix sm_;
+  std::optional<ContactImpulses> impulses_;  // kImpulses on a scene with obstacles or self-contact
+  MatrixN3 guess_, xm1_;                      // kImpulses: the first iterate; the positions one step earlier
+  bool have_history_ = false;
   MatrixN3 b0_, b_, g_, lkx_;
   MatrixN3 moving_v_, coupling_;  // moving fixed particles: their step velocity V and A V
 };

@@ -1,0 +1,170 @@
+// Projective dynamics' contact impulses (Ly et al. 2020; peers/contact_impulses.h).
+#include "peers/contact_impulses.h"
+
+#include <algorithm>
+
+#include "collision/self_contact_response.h"
+#include "model/edge_projection.h"
+
+namespace clothbench {
+
+ContactImpulses::ContactImpulses(const ParticleSystem& system, const Eigen::VectorXd& w) : sys_(system), w_(w) {
+  const int n = system.num_particles();
+  obstacles_ = !system.obstacles().empty();
+  const auto& collision = system.scene().collision;
+  self_ = collision && collision->self;
+  if (!active()) return;
+  if (obstacles_) {
+    detection_.emplace(system);
+    prior_.assign(static_cast<std::size_t>(n), ObstacleDetection::Prior{});
+    nodes_.reserve(static_cast<std::size_t>(n));
+  }
+  if (self_) {
+    const auto& grid = system.scene().grid;
+    thickness_ = collision->thickness;
+    skin_ = kSkinFraction * std::min(system.scene().lu(), system.scene().lv());
+    detector_.emplace(GridTriangles(grid.nu, grid.nv).vertices, n,
+                      GridPatches(grid.nu, grid.nv, SelfContactResponse::kPatchCells));
+    pair_count_.assign(static_cast<std::size_t>(n), 0);
+    x_end_.setZero(n, 3);
+  }
+  listed_.assign(static_cast<std::size_t>(n), 0);
+  slot_.assign(static_cast<std::size_t>(n), -1);
+  impulse_.setZero(n, 3);
+}
+
+void ContactImpulses::Reset() {
+  if (detection_) detection_->Reset();
+  std::fill(prior_.begin(), prior_.end(), ObstacleDetection::Prior{});
+  nodes_.clear();
+  pairs_.clear();
+  work_ = ContactResponse::Work{};
+  self_pairs_ = 0;
+}
+
+int ContactImpulses::BeginStep(double t0, double h, const MatrixN3& x0, const MatrixN3& v_guess,
+                               const MatrixN3* x_prev) {
+  for (int p : touched_) {
+    slot_[static_cast<std::size_t>(p)] = -1;
+    listed_[static_cast<std::size_t>(p)] = 0;
+    if (self_) pair_count_[static_cast<std::size_t>(p)] = 0;
+  }
+  touched_.clear();
+  nodes_.clear();
+  pairs_.clear();
+  const auto touch = [&](int p) {
+    if (slot_[static_cast<std::size_t>(p)] >= 0) return;
+    slot_[static_cast<std::size_t>(p)] = static_cast<int>(touched_.size());
+    touched_.push_back(p);
+  };
+  if (obstacles_) {
+    // The detection's test 3 (predicted entry) looks along the first
+    // iterate's velocity: a sheet at rest above a floor enters within the
+    // step under gravity alone.
+    detection_->BeginStep(t0);
+    const auto& obstacles = sys_.obstacles();
+    for (int p = 0; p < sys_.num_particles(); ++p) {
+      if (w_(p) == 0.0) continue;
+      const Vector3 x = x0.row(p).transpose(), v = v_guess.row(p).transpose();
+      Vector3 xp;
+      if (x_prev) xp = x_prev->row(p).transpose();
+      ObstacleContact c;
+      const ObstacleDetection::Prior prior = prior_[static_cast<std::size_t>(p)];
+      prior_[static_cast<std::size_t>(p)] = ObstacleDetection::Prior{};
+      if (!detection_->Detect(p, h, x, v, x_prev ? &xp : nullptr, prior, 0.0, &c)) continue;
+      const ObstacleSpec& spec = obstacles[static_cast<std::size_t>(c.obstacle)].spec();
+      nodes_.push_back({p, c.obstacle, c.normal, (spec.collision_distance - c.distance) / h, c.v_obstacle,
+                        spec.friction, Vector3::Zero()});
+      listed_[static_cast<std::size_t>(p)] = 1;
+      touch(p);
+    }
+  }
+  if (self_) {
+    x_end_.noalias() = x0 + h * v_guess;
+    detector_->Candidates(x0, x_end_, thickness_ + skin_, &candidates_);
+    std::sort(candidates_.begin(), candidates_.end());  // the broad phase's order is CGAL's; the sweep's is ours
+    for (const SelfContactPair& pair : candidates_) {
+      const PairGeometry g = Closest(pair, x0);
+      if (!(g.distance > 0.0)) continue;  // touching or crossed: no side to keep (the run's response)
+      PairContact c{pair.p, g.w, g.n, (thickness_ - g.distance) / h, 0.0, 0.0};
+      bool free = false;
+      for (std::size_t k = 0; k < 4; ++k) free = free || (w_(c.p[k]) > 0.0 && c.w[k] != 0.0);
+      if (!free) continue;
+      for (int p : c.p) ++pair_count_[static_cast<std::size_t>(p)];
+      pairs_.push_back(c);
+    }
+    for (PairContact& c : pairs_) {
+      for (std::size_t k = 0; k < 4; ++k) {
+        const int p = c.p[k];
+        c.compliance += c.w[k] * c.w[k] * pair_count_[static_cast<std::size_t>(p)] * w_(p);
+        touch(p);
+      }
+    }
+    self_pairs_ += static_cast<long>(pairs_.size());
+  }
+  std::sort(touched_.begin(), touched_.end());
+  for (std::size_t i = 0; i < touched_.size(); ++i) slot_[static_cast<std::size_t>(touched_[i])] = static_cast<int>(i);
+  predicted_.resize(touched_.size());
+  return static_cast<int>(nodes_.size());
+}
+
+void ContactImpulses::BeginIterations() {
+  for (NodeContact& c : nodes_) c.r.setZero();
+  for (PairContact& c : pairs_) c.r = 0.0;
+  for (int p : touched_) impulse_.row(p).setZero();
+}
+
+void ContactImpulses::Refine(const MatrixN3& v, MatrixN3* b) {
+  if (touched_.empty()) return;
+  for (std::size_t i = 0; i < touched_.size(); ++i) predicted_[i] = v.row(touched_[i]).transpose();
+  // Every contact from the same iterate (a Jacobi sweep): the order of the
+  // lists does not enter.
+  for (NodeContact& c : nodes_) {
+    const double m = 1.0 / w_(c.particle);
+    const Vector3 rel = predicted_[static_cast<std::size_t>(slot_[static_cast<std::size_t>(c.particle)])] - c.v_obstacle;
+    const double rel_n = rel.dot(c.normal);
+    const double r_n = std::max(0.0, c.r.dot(c.normal) + m * (c.target_n - rel_n));
+    Vector3 r_t = c.r - c.r.dot(c.normal) * c.normal - m * (rel - rel_n * c.normal);
+    const double len = r_t.norm(), cap = c.mu * r_n;
+    if (len > cap) r_t *= cap / len;  // sliding: on the disc's border, against the predicted slip
+    c.r = r_n * c.normal + r_t;
+  }
+  for (PairContact& c : pairs_) {
+    double u = 0.0;
+    for (std::size_t k = 0; k < 4; ++k)
+      u += c.w[k] * c.n.dot(predicted_[static_cast<std::size_t>(slot_[static_cast<std::size_t>(c.p[k])])]);
+    c.r = std::max(0.0, c.r + (c.target - u) / c.compliance);
+  }
+  for (int p : touched_) impulse_.row(p).setZero();
+  for (const NodeContact& c : nodes_) impulse_.row(c.particle) += c.r.transpose();
+  for (const PairContact& c : pairs_)
+    for (std::size_t k = 0; k < 4; ++k)
+      if (w_(c.p[k]) > 0.0) impulse_.row(c.p[k]) += (c.w[k] * c.r) * c.n.transpose();
+  for (int p : touched_) b->row(p) += impulse_.row(p);
+}
+
+int ContactImpulses::EndStep(const MatrixN3& v0, const MatrixN3& v1) {
+  int acting = 0;
+  double holding = 0.0, friction = 0.0;
+  const auto mean = [&](int p) { return Vector3(0.5 * (v0.row(p) + v1.row(p)).transpose()); };
+  for (const NodeContact& c : nodes_) {
+    const double r_n = c.r.dot(c.normal);
+    if (c.r.isZero(0.0)) continue;
+    ++acting;
+    const Vector3 vm = mean(c.particle);
+    holding += r_n * c.normal.dot(vm);
+    friction += (c.r - r_n * c.normal).dot(vm);
+    if (r_n > 0.0) prior_[static_cast<std::size_t>(c.particle)] = {c.obstacle, c.normal, false};
+  }
+  for (const PairContact& c : pairs_) {
+    if (c.r == 0.0) continue;
+    ++acting;
+    for (std::size_t k = 0; k < 4; ++k)
+      if (w_(c.p[k]) > 0.0) holding += c.w[k] * c.r * c.n.dot(mean(c.p[k]));
+  }
+  work_.holding += holding;
+  work_.friction += friction;
+  return acting;
+}
+
+}  // namespace clothbench
