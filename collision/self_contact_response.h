@@ -18,6 +18,7 @@
 #ifndef CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_
 #define CLOTHBENCH_COLLISION_SELF_CONTACT_RESPONSE_H_
 
+#include <algorithm>
 #include <array>
 #include <utility>
 #include <vector>
@@ -37,15 +38,33 @@ struct SelfContactStats {
   long zone_passes = 0;          ///< impact-zone passes (stage 3)
   long unresolved_steps = 0;     ///< steps that ended with a collision left
   long projections = 0;          ///< position projections (a position-based peer's own constraints)
+  long pair_impulses = 0;        ///< pairs holding an impulse at a step's end (projective dynamics' own constraints)
   double detection_seconds = 0;  ///< broad phase, closest points and CCD [s]
   double response_seconds = 0;   ///< impulses, zones and the work's energies [s]
   double work = 0.0;             ///< W_self: the energy the corrections added (< 0: removed) [J]
   /// The counts by the names a result file and the Python door give them
   /// (docs/results-schema.md, /runs/<id>/self_contact).
-  std::array<std::pair<const char*, long>, 8> Counts() const {
+  std::array<std::pair<const char*, long>, 9> Counts() const {
     return {{{"steps", steps}, {"candidates", candidates}, {"broad_phases", broad_phases}, {"repulsions", repulsions},
              {"collisions", collisions}, {"zone_passes", zone_passes}, {"unresolved_steps", unresolved_steps},
-             {"projections", projections}}};
+             {"projections", projections}, {"pair_impulses", pair_impulses}}};
+  }
+  /// The sum of two stages' counters and times (a stepper's own constraints
+  /// and the run's response after them); steps the larger.
+  SelfContactStats& operator+=(const SelfContactStats& o) {
+    steps = std::max(steps, o.steps);
+    candidates += o.candidates;
+    broad_phases += o.broad_phases;
+    repulsions += o.repulsions;
+    collisions += o.collisions;
+    zone_passes += o.zone_passes;
+    unresolved_steps += o.unresolved_steps;
+    projections += o.projections;
+    pair_impulses += o.pair_impulses;
+    detection_seconds += o.detection_seconds;
+    response_seconds += o.response_seconds;
+    work += o.work;
+    return *this;
   }
 };
 

@@ -24,7 +24,8 @@
 //    exactly (r_N = max(0, ·), then r_T projected onto the disc μ r_N).
 //  - Self-contact (`[collision] self = true`): every point–triangle and
 //    edge–edge pair the broad phase finds over the predicted path
-//    x₀ → x₀ + h v⁰ (collision/self_contact.h) within δ plus a skin, as
+//    x₀ → x₀ + h v⁰ (collision/self_contact.h) within δ plus a skin and
+//    the predicted motion of its particles, as
 //    the inequality ⟨n, Σ_k w_k x_k(t₁)⟩ ≥ δ on its closest points' weights
 //    w and normal n at x₀, linearised like the obstacles', frictionless.
 //    Pairs share particles, so W_c = Σ_k w_k² c_k/m_k with c_k the pairs
@@ -44,6 +45,7 @@
 
 #include "collision/obstacle_contacts.h"
 #include "collision/self_contact.h"
+#include "collision/self_contact_response.h"
 #include "model/particle_system.h"
 #include "solver/contact.h"
 
@@ -89,8 +91,11 @@ class ContactImpulses {
   /// Adds the fail-safe projection's work [J] (½ m (|v₁|² − |v|²) of each
   /// particle it moved: its impulse m (v₁ − v) over the mean velocity).
   void AddFailSafeWork(double work) { work_.holding += work; }
-  /// Self-contact pairs listed in the steps since Reset.
-  long self_pairs() const { return self_pairs_; }
+  /// The self-contact counters since Reset: steps, broad_phases, candidates
+  /// (the pairs listed, of those the broad phase reported), pair_impulses (the pairs holding an impulse at a
+  /// step's end), detection_seconds (the list) and response_seconds (the
+  /// local steps of the pairs).
+  const SelfContactStats& self_stats() const { return self_stats_; }
 
   /// The skin of the self-contact list beyond δ, as a fraction of the grid spacing.
   static constexpr double kSkinFraction = 0.25;
@@ -126,12 +131,13 @@ class ContactImpulses {
   std::vector<SelfContactPair> candidates_;
   std::vector<PairContact> pairs_;
   std::vector<int> pair_count_;  // per particle: the pairs it belongs to
+  std::vector<double> motion_;   // per particle: |x_end − x₀| [m]
   std::vector<int> touched_;     // particles of the listed pairs and contacts (sorted, unique)
   std::vector<int> slot_;        // per particle: its index in touched_ (−1: none)
   MatrixN3 impulse_, x_end_;     // R = Σ J_cᵀ r_c; the predicted end positions
   std::vector<Vector3> predicted_;  // per touched_ particle: its velocity in the iterate
   ContactResponse::Work work_;
-  long self_pairs_ = 0;
+  SelfContactStats self_stats_;
 };
 
 }  // namespace clothbench

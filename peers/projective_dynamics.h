@@ -98,8 +98,11 @@ class ProjectiveDynamics : public IteratedStepper {
   const ContactResponse::Work* contact_work() const override {
     return impulses_ ? &impulses_->work() : nullptr;
   }
-  /// kImpulses: the self-contact pairs listed over the steps since Reset (0 without).
-  long self_contact_pairs() const { return impulses_ ? impulses_->self_pairs() : 0; }
+  /// kImpulses with `[collision] self = true`: its pairs' counters (the
+  /// run's response, the fail-safe, adds its own); else nullptr.
+  const SelfContactStats* own_self_contact() const override {
+    return impulses_ && sys_.scene().collision && sys_.scene().collision->self ? &impulses_->self_stats() : nullptr;
+  }
 
  private:
   StepStatus Prepare(double h) override;

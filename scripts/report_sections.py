@@ -249,14 +249,14 @@ def contact_table(f):
                      opt(g, "contact_power_W"), "-" if crossing is None else crossing,
                      attr(g, "collision_self", "-")] +
                     ([attr(sc, k, "-") for k in ("candidates", "repulsions", "collisions", "zone_passes",
-                                                 "projections")] + [opt(sc, "detection_s", "{:.3f}"),
-                                                                    opt(sc, "response_s", "{:.3f}")]
-                     if sc is not None else ["-"] * 7))
+                                                 "projections", "pair_impulses")] +
+                     [opt(sc, "detection_s", "{:.3f}"), opt(sc, "response_s", "{:.3f}")]
+                     if sc is not None else ["-"] * 8))
     if not rows:
         return ""
     return table(["run", "status", "colliding (max)", "depth in an obstacle (max) [m]", "contact power [W]",
                   "crossing pairs (max)", "self-contact", "candidates", "repulsions", "collisions", "zone passes",
-                  "projections", "detection [s]", "response [s]"], rows, "contact")
+                  "projections", "pair impulses", "detection [s]", "response [s]"], rows, "contact")
 
 
 def cg_per_step(f, sink):

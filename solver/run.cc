@@ -372,15 +372,17 @@ class FrameRecorder {
 };
 
 // Self-contact on a scene with `[collision] self = true`: the stepper's
-// own (Stepper::own_self_contact, the position-based peers), or else the
+// own (Stepper::own_self_contact, the position-based peers) and/or the
 // response (collision/self_contact_response.h) that corrects every
-// accepted step's end state, for the steppers that take a correction.
+// accepted step's end state, for the steppers that take a correction
+// (projective dynamics has both: its impulses, then the response as the
+// fail-safe).
 class SelfContactStage {
  public:
   SelfContactStage(const ParticleSystem& system, const Stepper& engine) : sys_(system), engine_(engine) {
     const auto& collision = system.scene().collision;
     active_ = collision && collision->self;
-    if (active_ && !engine.own_self_contact() && engine.corrects_state())
+    if (active_ && engine.corrects_state())
       response_.emplace(system, collision->thickness);
   }
   /// Whether the scene asks for self-contact.
@@ -395,11 +397,13 @@ class SelfContactStage {
     return true;
   }
   const SelfContactResponse* response() const { return response_ ? &*response_ : nullptr; }
-  /// The counters of whichever self-contact acted, or nothing.
+  /// The counters of the self-contact that acted (both summed), or nothing.
   std::optional<SelfContactStats> stats() const {
-    if (response_) return response_->stats();
-    if (const SelfContactStats* own = engine_.own_self_contact()) return *own;
-    return std::nullopt;
+    const SelfContactStats* own = engine_.own_self_contact();
+    if (!response_ && !own) return std::nullopt;
+    SelfContactStats s = response_ ? response_->stats() : SelfContactStats{};
+    if (own) s += *own;
+    return s;
   }
   double work() const { return response_ ? response_->stats().work : 0.0; }
   /// Corrects the step of size h from x_prev to the engine's state; its wall time [s].
