@@ -97,8 +97,11 @@ class ContactImpulses {
   /// local steps of the pairs).
   const SelfContactStats& self_stats() const { return self_stats_; }
 
-  /// The skin of the self-contact list beyond δ, as a fraction of the grid spacing.
-  static constexpr double kSkinFraction = 0.25;
+  /// The skin of the self-contact list beyond δ and the predicted motion,
+  /// as a fraction of the grid spacing (the response's,
+  /// SelfContactResponse::kSkinFraction; a quarter of the spacing listed
+  /// as many pairs on the premise scenes and changed no crossing count).
+  static constexpr double kSkinFraction = SelfContactResponse::kSkinFraction;
 
  private:
   struct NodeContact {
