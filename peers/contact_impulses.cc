@@ -35,6 +35,8 @@ ContactImpulses::ContactImpulses(const ParticleSystem& system, const Eigen::Vect
   }
   listed_.assign(static_cast<std::size_t>(n), 0);
   slot_.assign(static_cast<std::size_t>(n), -1);
+  touched_.reserve(static_cast<std::size_t>(n));
+  predicted_.reserve(static_cast<std::size_t>(n));
   impulse_.setZero(n, 3);
 }
 
