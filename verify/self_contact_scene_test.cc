@@ -224,6 +224,27 @@ TEST(SelfContactScene, XpbdRepeatsBitForBitOnOneAndTwoThreads) {
   EXPECT_EQ(r[1].self_contact->projections, r[0].self_contact->projections);
 }
 
+// Projective dynamics' impulses (a Jacobi sweep over sorted lists, serial)
+// and its CHOLMOD solves: the same frames on 1 and 2 threads, on the fold
+// at h/4 to t = 0.5 s, after its halves met (pairs hold impulses).
+TEST(SelfContactScene, PdRepeatsBitForBitOnOneAndTwoThreads) {
+  const Scene s = Fold(true);
+  const ParticleSystem sys(s);
+  const int threads = omp_get_max_threads();
+  RunSummary r[2];
+  for (int k = 0; k < 2; ++k) {
+    omp_set_num_threads(k + 1);
+    ProjectiveDynamics pd(sys, s.solver, 4);
+    r[k] = RunStepper(sys, pd, {0.25 * s.h, 0.5, s.frame_dt});
+  }
+  omp_set_num_threads(threads);
+  ASSERT_EQ(r[0].status, RunStatus::kOk) << r[0].message;
+  ExpectSameFrames(r[0], r[1]);
+  EXPECT_GT(r[0].self_contact->pair_impulses, 0);
+  EXPECT_EQ(r[1].self_contact->pair_impulses, r[0].self_contact->pair_impulses);
+  EXPECT_EQ(r[1].self_contact->repulsions, r[0].self_contact->repulsions);
+}
+
 // A stepper that neither corrects its state nor has self-contact of its own.
 class NoSelfContact : public StepEngine {
  public:
