@@ -25,7 +25,7 @@
 //  - Self-contact (`[collision] self = true`): every point–triangle and
 //    edge–edge pair the broad phase finds over the predicted path
 //    x₀ → x₀ + h v⁰ (collision/self_contact.h) within δ plus a skin and
-//    the predicted motion of its particles relative to each other, as
+//    the predicted motion of its particles, as
 //    the inequality ⟨n, Σ_k w_k x_k(t₁)⟩ ≥ δ on its closest points' weights
 //    w and normal n at x₀, linearised like the obstacles', frictionless.
 //    Pairs share particles, so W_c = Σ_k w_k² c_k/m_k with c_k the pairs
@@ -134,6 +134,7 @@ class ContactImpulses {
   std::vector<SelfContactPair> candidates_;
   std::vector<PairContact> pairs_;
   std::vector<int> pair_count_;  // per particle: the pairs it belongs to
+  std::vector<double> motion_;   // per particle: |x_end − x₀| [m]
   std::vector<int> touched_;     // particles of the listed pairs and contacts (sorted, unique)
   std::vector<int> slot_;        // per particle: its index in touched_ (−1: none)
   MatrixN3 impulse_, x_end_;     // R = Σ J_cᵀ r_c; the predicted end positions
