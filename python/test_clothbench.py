@@ -470,15 +470,18 @@ def test_self_contact_switch_counts_and_removes_the_crossings():
     with pytest.raises(ValueError, match="self_contact"):
         clothbench.run(scene, "sbdf2", h=0.005, t_end=0.1, self_contact="maybe")
     # XPBD and VBD have their own (constraints in the substeps, a penalty
-    # within bounds), PD takes the response; the SUNDIALS rows are refused
-    # before their first step.
+    # within bounds), PD its impulses in the global step with the response
+    # as the fail-safe; the SUNDIALS rows are refused before their first
+    # step. (PD at 4 iterations per 5 ms step keeps the halves apart to
+    # 0.6 s; at 16 they meet and its pairs hold impulses.)
     xpbd = clothbench.run(scene, "xpbd", h=0.005, substeps=16, t_end=0.6)
     assert xpbd["status"] == "ok" and max(xpbd["crossing_pairs"]) == 0
     assert xpbd["self_contact"]["projections"] > 0
     vbd = clothbench.run(scene, "vbd", h=0.005, iterations=1, t_end=0.6)
     assert vbd["status"] == "ok" and max(vbd["crossing_pairs"]) == 0
-    pd = clothbench.run(scene, "pd", h=0.005, iterations=4, t_end=0.6)
+    pd = clothbench.run(scene, "pd", h=0.005, iterations=16, t_end=0.6)
     assert pd["status"] == "ok" and max(pd["crossing_pairs"]) == 0
+    assert pd["self_contact"]["pair_impulses"] > 0
     assert clothbench.run(scene, "cvode", rtol=1e-4, t_end=0.1)["status"] == "unsupported_scene"
 
 
