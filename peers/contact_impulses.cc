@@ -34,9 +34,8 @@ ContactImpulses::ContactImpulses(const ParticleSystem& system, const Eigen::Vect
     x_end_.setZero(n, 3);
   }
   listed_.assign(static_cast<std::size_t>(n), 0);
-  slot_.assign(static_cast<std::size_t>(n), -1);
+  marked_.assign(static_cast<std::size_t>(n), 0);
   touched_.reserve(static_cast<std::size_t>(n));
-  predicted_.reserve(static_cast<std::size_t>(n));
   impulse_.setZero(n, 3);
 }
 
@@ -52,7 +51,7 @@ void ContactImpulses::Reset() {
 int ContactImpulses::BeginStep(double t0, double h, const MatrixN3& x0, const MatrixN3& v_guess,
                                const MatrixN3* x_prev) {
   for (int p : touched_) {
-    slot_[static_cast<std::size_t>(p)] = -1;
+    marked_[static_cast<std::size_t>(p)] = 0;
     listed_[static_cast<std::size_t>(p)] = 0;
     if (self_) pair_count_[static_cast<std::size_t>(p)] = 0;
   }
@@ -60,8 +59,8 @@ int ContactImpulses::BeginStep(double t0, double h, const MatrixN3& x0, const Ma
   nodes_.clear();
   pairs_.clear();
   const auto touch = [&](int p) {
-    if (slot_[static_cast<std::size_t>(p)] >= 0) return;
-    slot_[static_cast<std::size_t>(p)] = static_cast<int>(touched_.size());
+    if (marked_[static_cast<std::size_t>(p)]) return;
+    marked_[static_cast<std::size_t>(p)] = 1;
     touched_.push_back(p);
   };
   if (obstacles_) {
@@ -128,9 +127,6 @@ int ContactImpulses::BeginStep(double t0, double h, const MatrixN3& x0, const Ma
     self_stats_.candidates += static_cast<long>(pairs_.size());
     self_stats_.detection_seconds += Since(start);
   }
-  std::sort(touched_.begin(), touched_.end());
-  for (std::size_t i = 0; i < touched_.size(); ++i) slot_[static_cast<std::size_t>(touched_[i])] = static_cast<int>(i);
-  predicted_.resize(touched_.size());
   return static_cast<int>(nodes_.size());
 }
 
@@ -142,12 +138,11 @@ void ContactImpulses::BeginIterations() {
 
 void ContactImpulses::Refine(const MatrixN3& v, MatrixN3* b) {
   if (touched_.empty()) return;
-  for (std::size_t i = 0; i < touched_.size(); ++i) predicted_[i] = v.row(touched_[i]).transpose();
   // Every contact from the same iterate (a Jacobi sweep): the order of the
   // lists does not enter.
   for (NodeContact& c : nodes_) {
     const double m = 1.0 / w_(c.particle);
-    const Vector3 rel = predicted_[static_cast<std::size_t>(slot_[static_cast<std::size_t>(c.particle)])] - c.v_obstacle;
+    const Vector3 rel = v.row(c.particle).transpose() - c.v_obstacle;
     const double rel_n = rel.dot(c.normal);
     const double r_n = std::max(0.0, c.r.dot(c.normal) + m * (c.target_n - rel_n));
     Vector3 r_t = c.r - c.r.dot(c.normal) * c.normal - m * (rel - rel_n * c.normal);
@@ -158,8 +153,10 @@ void ContactImpulses::Refine(const MatrixN3& v, MatrixN3* b) {
   const auto start = Clock::now();
   for (PairContact& c : pairs_) {
     double u = 0.0;
-    for (std::size_t k = 0; k < 4; ++k)
-      u += c.w[k] * c.n.dot(predicted_[static_cast<std::size_t>(slot_[static_cast<std::size_t>(c.pair.p[k])])]);
+    for (std::size_t k = 0; k < 4; ++k) {
+      const Vector3 vk = v.row(c.pair.p[k]).transpose();  // a copy: Eigen sums the dot of a strided row in another order
+      u += c.w[k] * c.n.dot(vk);
+    }
     c.r = std::max(0.0, c.r + (c.target - u) / c.compliance);
   }
   for (int p : touched_) impulse_.row(p).setZero();

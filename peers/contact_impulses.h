@@ -57,8 +57,15 @@ class ContactImpulses {
   /// @param w inverse masses [1/kg], 0 for fixed particles (never in a contact)
   ContactImpulses(const ParticleSystem& system, const Eigen::VectorXd& w);
 
-  /// Whether the scene has obstacles or self-contact (otherwise nothing here acts).
+  /// Whether `system` has obstacles or self-contact (`[collision] self =
+  /// true`): otherwise nothing here acts.
+  static bool Acts(const ParticleSystem& system) {
+    const auto& collision = system.scene().collision;
+    return !system.obstacles().empty() || (collision && collision->self);
+  }
   bool active() const { return obstacles_ || self_; }
+  /// Whether the scene asks for self-contact (the pairs are listed).
+  bool self_contact() const { return self_; }
   /// Forgets the last step (a new run); the work restarts.
   void Reset();
 
@@ -135,10 +142,9 @@ class ContactImpulses {
   std::vector<PairContact> pairs_;
   std::vector<int> pair_count_;  // per particle: the pairs it belongs to
   std::vector<double> motion_;   // per particle: |x_end − x₀| [m]
-  std::vector<int> touched_;     // particles of the listed pairs and contacts (sorted, unique)
-  std::vector<int> slot_;        // per particle: its index in touched_ (−1: none)
+  std::vector<int> touched_;     // particles of the listed pairs and contacts (each once)
+  std::vector<char> marked_;     // per particle: in touched_
   MatrixN3 impulse_, x_end_;     // R = Σ J_cᵀ r_c; the predicted end positions
-  std::vector<Vector3> predicted_;  // per touched_ particle: its velocity in the iterate
   ContactResponse::Work work_;
   SelfContactStats self_stats_;
 };

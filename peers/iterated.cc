@@ -45,8 +45,8 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
     filter_.Reserve(n);
     constraint_.assign(static_cast<std::size_t>(n), -1);
     constraints_.reserve(static_cast<std::size_t>(n));
-    xm1_.setZero(n, 3);
   }
+  if (filter || response_ == ObstacleResponse::kOwn) xm1_.setZero(n, 3);
   increments_.reserve(static_cast<std::size_t>(std::max(iterations, rho_iterations)));
   if (cheb_.on && cheb_.rho == 0.0 && rho_estimate_ == RhoEstimate::kKrylov) {
     std::vector<Eigen::Index> free;  // column-major N×3: coordinate c of particle p at c·N + p
@@ -334,7 +334,7 @@ StepStats IteratedStepper::Step(double h) {
   }
   sys_.Prescribe(t1, &x_, &v_);  // moving fixed particles end at their prescribed state
   if (!x_.allFinite() || !v_.allFinite()) return finish(StepStatus::kNonFinite);
-  if (filter) {
+  if (filter || response_ == ObstacleResponse::kOwn) {
     xm1_ = x0_;
     have_history_ = true;
   }

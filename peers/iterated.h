@@ -145,6 +145,9 @@ class IteratedStepper : public Stepper {
   virtual int EndContacts(double /*h*/) { return 0; }
   /// The first iterate of InitialGuess::kInertial, v₀ + h M⁻¹ f_ext, into *v (N×3 [m/s]).
   void InertialVelocity(double h, MatrixN3* v) const { v->noalias() = v0_ + h * (w_.asDiagonal() * f_ext_); }
+  /// kVelocityFilter, kOwn: the positions one step earlier (N×3 [m]), or
+  /// nullptr at the first step after a Reset.
+  const MatrixN3* previous_positions() const { return have_history_ ? &xm1_ : nullptr; }
   /// Time of the ρ measurements so far [s].
   double rho_seconds() const { return rho_seconds_; }
 
@@ -198,7 +201,7 @@ class IteratedStepper : public Stepper {
     Vector3 targets;  // prescribed velocity along each [m/s]
   };
   std::vector<LocalConstraint> constraints_;
-  MatrixN3 xm1_;              // kVelocityFilter: positions one step earlier ((4.4)'s history)
+  MatrixN3 xm1_;              // kVelocityFilter, kOwn: positions one step earlier ((4.4)'s history, the tunnelling test)
   bool have_history_ = false;
   // kVelocityFilter: the step's contacts from x0_, v0_ (ContactResponse::SetUp); returns the colliding count.
   int SetUpContacts(double h);

@@ -5,38 +5,31 @@
 
 namespace clothbench {
 
-namespace {
-bool HasContact(const ParticleSystem& system) {
-  const auto& collision = system.scene().collision;
-  return !system.obstacles().empty() || (collision && collision->self);
-}
-}  // namespace
-
 ProjectiveDynamics::ProjectiveDynamics(const ParticleSystem& system, const SolverSpec& spec, int iterations,
                                        ChebyshevSettings chebyshev, ContactModel contact)
     : IteratedStepper(system, "pd", iterations, chebyshev, kRhoIterations, InitialGuess::kInertial,
-                      contact == ContactModel::kImpulses && HasContact(system) ? ObstacleResponse::kOwn
-                                                                                  : ObstacleResponse::kProjection),
+                      contact == ContactModel::kImpulses && ContactImpulses::Acts(system)
+                          ? ObstacleResponse::kOwn
+                          : ObstacleResponse::kProjection),
       sm_(system, PreconditionerType::kCholesky, spec.cholesky_ordering) {
   const int n = system.num_particles();
   for (MatrixN3* m : {&b0_, &b_, &g_, &lkx_}) m->setZero(n, 3);
   if (system.has_prescribed_motion())
     for (MatrixN3* m : {&moving_v_, &coupling_}) m->setZero(n, 3);
-  if (contact == ContactModel::kImpulses && HasContact(system)) {
+  if (contact == ContactModel::kImpulses && ContactImpulses::Acts(system)) {
     impulses_.emplace(system, w_);
-    for (MatrixN3* m : {&guess_, &xm1_}) m->setZero(n, 3);
+    guess_.setZero(n, 3);
   }
 }
 
 void ProjectiveDynamics::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   IteratedStepper::Reset(t, x, v);
   if (impulses_) impulses_->Reset();
-  have_history_ = false;
 }
 
 int ProjectiveDynamics::BeginContacts(double h) {
   InertialVelocity(h, &guess_);
-  return impulses_->BeginStep(t_, h, x0_, guess_, have_history_ ? &xm1_ : nullptr);
+  return impulses_->BeginStep(t_, h, x0_, guess_, previous_positions());
 }
 
 // The impulses' work and the holding contacts; then the fail-safe: a
@@ -46,7 +39,7 @@ int ProjectiveDynamics::BeginContacts(double h) {
 int ProjectiveDynamics::EndContacts(double h) {
   int acting = impulses_->EndStep(v0_, v_);
   if (!sys_.obstacles().empty()) {
-    guess_ = x_;  // the positions before the projection
+    guess_ = x_;  // reused: the positions before the projection
     acting += ProjectOntoObstacles(sys_, w_, t_ + h, h, x0_, &x_, &impulses_->listed());
     double work = 0.0;
     for (int p = 0; p < x_.rows(); ++p) {
@@ -57,8 +50,6 @@ int ProjectiveDynamics::EndContacts(double h) {
     }
     impulses_->AddFailSafeWork(work);
   }
-  xm1_ = x0_;
-  have_history_ = true;
   return acting;
 }
 

@@ -101,7 +101,7 @@ class ProjectiveDynamics : public IteratedStepper {
   /// kImpulses with `[collision] self = true`: its pairs' counters (the
   /// run's response, the fail-safe, adds its own); else nullptr.
   const SelfContactStats* own_self_contact() const override {
-    return impulses_ && sys_.scene().collision && sys_.scene().collision->self ? &impulses_->self_stats() : nullptr;
+    return impulses_ && impulses_->self_contact() ? &impulses_->self_stats() : nullptr;
   }
 
  private:
@@ -112,8 +112,7 @@ class ProjectiveDynamics : public IteratedStepper {
   int EndContacts(double h) override;
   SystemMatrix sm_;
   std::optional<ContactImpulses> impulses_;  // kImpulses on a scene with obstacles or self-contact
-  MatrixN3 guess_, xm1_;                      // kImpulses: the first iterate; the positions one step earlier
-  bool have_history_ = false;
+  MatrixN3 guess_;                            // kImpulses: the first iterate (after the step: x before the fail-safe)
   MatrixN3 b0_, b_, g_, lkx_;
   MatrixN3 moving_v_, coupling_;  // moving fixed particles: their step velocity V and A V
 };

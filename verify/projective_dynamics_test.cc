@@ -130,7 +130,7 @@ TEST(ProjectiveDynamics, ContactImpulsesStickAndSlideByCoulombsLawOnATiltedPlane
     const MatrixN3 moved = x - sys.rest_positions();
     double slide = 0.0, off_plane = 0.0;
     for (int p = 0; p < x.rows(); ++p) {
-      slide += moved.row(p).dot(downhill.transpose()) / x.rows();
+      slide += moved.row(p).dot(downhill.transpose()) / static_cast<double>(x.rows());
       off_plane = std::max(off_plane, std::abs(x.row(p).dot(normal.transpose()) - delta));
     }
     const double a = std::max(0.0, g * (std::sin(theta) - mu * std::cos(theta)));

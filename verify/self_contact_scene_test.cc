@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <memory>
 #include <string>
 
@@ -185,7 +186,9 @@ TEST_P(SelfContactPeers, NoFrameCrosses) {
     // On the fold at the scene's h, 4 iterations leave the halves apart to
     // t = 0.6 s (measured: no pair within δ at a step's end, and the
     // response acts neither); at h/4 and on the pile the cloth touches itself.
-    if (pile || fraction < 1.0) EXPECT_GT(r.self_contact->pair_impulses, 0);
+    if (pile || fraction < 1.0) {
+      EXPECT_GT(r.self_contact->pair_impulses, 0);
+    }
     EXPECT_EQ(r.trajectory.contact_work_self.size(), r.trajectory.times.size());
     return;
   }
@@ -208,19 +211,29 @@ INSTANTIATE_TEST_SUITE_P(
              std::to_string(c.param.updates) + (c.param.fraction == 1.0 ? "_h" : "_quarter_h");
     });
 
+// The runs of the stepper `make(sys)` builds over `options`, on 1 and on 2
+// threads; both have the same frames.
+template <class Make>
+std::array<RunSummary, 2> OnOneAndTwoThreads(const ParticleSystem& sys, const RunOptions& options, Make make) {
+  const int threads = omp_get_max_threads();
+  std::array<RunSummary, 2> r;
+  for (int k = 0; k < 2; ++k) {
+    omp_set_num_threads(k + 1);
+    auto stepper = make(sys);
+    r[static_cast<std::size_t>(k)] = RunStepper(sys, *stepper, options);
+  }
+  omp_set_num_threads(threads);
+  ExpectSameFrames(r[0], r[1]);
+  return r;
+}
+
 TEST(SelfContactScene, XpbdRepeatsBitForBitOnOneAndTwoThreads) {
   const Scene s = Fold(true);
   const ParticleSystem sys(s);
-  const int threads = omp_get_max_threads();
-  RunSummary r[2];
-  for (int k = 0; k < 2; ++k) {
-    omp_set_num_threads(k + 1);
-    Xpbd xpbd(sys, 4);
-    r[k] = RunStepper(sys, xpbd, {s.h, s.t_end, s.frame_dt});
-  }
-  omp_set_num_threads(threads);
+  const auto r = OnOneAndTwoThreads(sys, {s.h, s.t_end, s.frame_dt},
+                                    [](const ParticleSystem& p) { return std::make_unique<Xpbd>(p, 4); });
   ASSERT_EQ(r[0].status, RunStatus::kOk) << r[0].message;
-  ExpectSameFrames(r[0], r[1]);
+  ASSERT_TRUE(r[0].self_contact && r[1].self_contact);
   EXPECT_EQ(r[1].self_contact->projections, r[0].self_contact->projections);
 }
 
@@ -230,16 +243,11 @@ TEST(SelfContactScene, XpbdRepeatsBitForBitOnOneAndTwoThreads) {
 TEST(SelfContactScene, PdRepeatsBitForBitOnOneAndTwoThreads) {
   const Scene s = Fold(true);
   const ParticleSystem sys(s);
-  const int threads = omp_get_max_threads();
-  RunSummary r[2];
-  for (int k = 0; k < 2; ++k) {
-    omp_set_num_threads(k + 1);
-    ProjectiveDynamics pd(sys, s.solver, 4);
-    r[k] = RunStepper(sys, pd, {0.25 * s.h, 0.5, s.frame_dt});
-  }
-  omp_set_num_threads(threads);
+  const auto r = OnOneAndTwoThreads(sys, {0.25 * s.h, 0.5, s.frame_dt}, [&](const ParticleSystem& p) {
+    return std::make_unique<ProjectiveDynamics>(p, s.solver, 4);
+  });
   ASSERT_EQ(r[0].status, RunStatus::kOk) << r[0].message;
-  ExpectSameFrames(r[0], r[1]);
+  ASSERT_TRUE(r[0].self_contact && r[1].self_contact);
   EXPECT_GT(r[0].self_contact->pair_impulses, 0);
   EXPECT_EQ(r[1].self_contact->pair_impulses, r[0].self_contact->pair_impulses);
   EXPECT_EQ(r[1].self_contact->repulsions, r[0].self_contact->repulsions);
