@@ -24,7 +24,8 @@ IteratedStepper::IteratedStepper(const ParticleSystem& system, std::string_view 
       rho_estimate_(rho_estimate),
       initial_guess_(initial_guess),
       response_(response),
-      contacts_(system) {
+      contacts_(system),
+      proximity_(system) {
   if (iterations < 1) throw std::invalid_argument(fmt::format("{}: iterations = {} must be at least 1", name, iterations));
   if (!cheb_.valid())
     throw std::invalid_argument(fmt::format("{}/chebyshev: rho = {} must be in [0, 1), gamma = {} in (0, 1], delay = {} "
@@ -79,6 +80,7 @@ void IteratedStepper::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   h_last_step_ = 0.0;
   have_history_ = false;
   contacts_.Reset();
+  proximity_.Reset();
 }
 
 int IteratedStepper::SetUpContacts(double h) {
@@ -329,7 +331,7 @@ StepStats IteratedStepper::Step(double h) {
   } else if (response_ == ObstacleResponse::kOwn) {
     st.colliding = EndContacts(h);
   } else if (!sys_.obstacles().empty()) {
-    st.colliding = ProjectOntoObstacles(sys_, w_, t1, h, x0_, &x_);
+    st.colliding = ProjectOntoObstacles(sys_, &proximity_, w_, t1, h, x0_, &x_);
     v_ = (x_ - x0_) / h;
   }
   sys_.Prescribe(t1, &x_, &v_);  // moving fixed particles end at their prescribed state

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "collision/obstacle_proximity.h"
 #include "model/particle_system.h"
 #include "peers/chebyshev.h"
 #include "solver/integrator.h"
@@ -148,6 +149,9 @@ class IteratedStepper : public Stepper {
   /// kVelocityFilter, kOwn: the positions one step earlier (N×3 [m]), or
   /// nullptr at the first step after a Reset.
   const MatrixN3* previous_positions() const { return have_history_ ? &xm1_ : nullptr; }
+  /// The obstacles' entries at a step's end (kProjection and the
+  /// fail-safe of kOwn; collision/obstacle_proximity.h), Reset with the stepper.
+  ObstacleProximity* proximity() { return &proximity_; }
   /// Time of the ρ measurements so far [s].
   double rho_seconds() const { return rho_seconds_; }
 
@@ -193,6 +197,7 @@ class IteratedStepper : public Stepper {
   MatrixN3 v_guess_, x_guess_, f_guess_;  // the extrapolation and the residuals' buffers
   ObstacleResponse response_;
   ContactResponse contacts_;              // kVelocityFilter
+  ObstacleProximity proximity_;           // kProjection, kOwn's fail-safe
   VelocityFilter filter_;                 // kVelocityFilter: the step's fixed particles and contacts
   std::vector<int> constraint_;           // kVelocityFilter: per particle, its contact's index in constraints_ (−1: none)
   struct LocalConstraint {

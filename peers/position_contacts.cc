@@ -9,23 +9,21 @@
 
 namespace clothbench {
 
-int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, double t_end, double dt,
-                         const MatrixN3& x, MatrixN3* p, const std::vector<char>* held) {
+int ProjectOntoObstacles(const ParticleSystem& sys, ObstacleProximity* proximity, const Eigen::VectorXd& w,
+                         double t_end, double dt, const MatrixN3& x, MatrixN3* p, const std::vector<char>* held) {
   int colliding = 0;
-  const int n = sys.num_particles();
-  for (const Obstacle& o : sys.obstacles()) {
+  const auto& obstacles = sys.obstacles();
+  for (std::size_t k = 0; k < obstacles.size(); ++k) {
+    const Obstacle& o = obstacles[k];
     const ObstaclePose pose = o.PoseAt(t_end);
     const double delta = o.spec().collision_distance, mu = o.spec().friction;
-    for (int i = 0; i < n; ++i) {
-      if (w(i) == 0.0) continue;
-      Vector3 q = p->row(i).transpose(), dir;
-      const double d = o.SignedDistance(pose, q, &dir);
-      if (!(d < (held && (*held)[static_cast<std::size_t>(i)] ? 0.0 : delta))) continue;
+    for (const ObstacleContact& c : proximity->Find(static_cast<int>(k), pose, *p, w, held)) {
       ++colliding;
-      const double depth = delta - d;
-      q += depth * dir;
+      const Vector3& dir = c.normal;
+      const double depth = delta - c.distance;
+      Vector3 q = p->row(c.particle).transpose() + depth * dir;
       if (mu > 0.0) {
-        Vector3 rel = q - x.row(i).transpose();
+        Vector3 rel = q - x.row(c.particle).transpose();
         if (!pose.identity) rel -= pose.Velocity(q) * dt;
         const Vector3 tangential = rel - rel.dot(dir) * dir;
         const double len = tangential.norm();
@@ -34,7 +32,7 @@ int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, do
         else
           q -= tangential * (mu * depth / len);
       }
-      p->row(i) = q.transpose();
+      p->row(c.particle) = q.transpose();
     }
   }
   return colliding;

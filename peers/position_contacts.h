@@ -9,6 +9,7 @@
 
 #include <vector>
 
+#include "collision/obstacle_proximity.h"
 #include "collision/self_contact_response.h"
 #include "model/particle_system.h"
 
@@ -19,6 +20,8 @@ namespace clothbench {
 /// displacement relative to the obstacle since `x`: all of it while it is
 /// below μ (δ − d) (static), otherwise by μ (δ − d) (kinetic).
 /// @param sys the model (its obstacles, at their pose at `t_end`)
+/// @param proximity the entries of each obstacle at `p` (the position-based
+///   peers' adapter to the contact list; one per stepper, Reset with it)
 /// @param w inverse masses [1/kg]; particles with w = 0 (fixed) are not moved
 /// @param t_end time of the positions `p` [s]
 /// @param dt time since `x` [s] (the obstacle's own motion over it is not friction)
@@ -27,8 +30,9 @@ namespace clothbench {
 /// @param held per particle, nonzero where another response holds it (a
 ///   contact impulse): projected only from inside the obstacle (d < 0), or nullptr
 /// @return the particles found in an obstacle's collision area
-int ProjectOntoObstacles(const ParticleSystem& sys, const Eigen::VectorXd& w, double t_end, double dt,
-                         const MatrixN3& x, MatrixN3* p, const std::vector<char>* held = nullptr);
+int ProjectOntoObstacles(const ParticleSystem& sys, ObstacleProximity* proximity, const Eigen::VectorXd& w,
+                         double t_end, double dt, const MatrixN3& x, MatrixN3* p,
+                         const std::vector<char>* held = nullptr);
 
 /// The cloth's contact with itself on positions, for the peers that move
 /// particles by position inside a step (XPBD): the inequality constraints

@@ -40,7 +40,7 @@ int ProjectiveDynamics::EndContacts(double h) {
   int acting = impulses_->EndStep(v0_, v_);
   if (!sys_.obstacles().empty()) {
     guess_ = x_;  // reused: the positions before the projection
-    acting += ProjectOntoObstacles(sys_, w_, t_ + h, h, x0_, &x_, &impulses_->listed());
+    acting += ProjectOntoObstacles(sys_, proximity(), w_, t_ + h, h, x0_, &x_, &impulses_->listed());
     double work = 0.0;
     for (int p = 0; p < x_.rows(); ++p) {
       if (x_.row(p) == guess_.row(p)) continue;

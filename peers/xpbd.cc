@@ -40,7 +40,7 @@ double Xpbd::ProjectDistance(Vector3* pa, Vector3* pb, const Vector3& xa, const 
   return dlambda;
 }
 
-Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_(substeps) {
+Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_(substeps), proximity_(system) {
   if (substeps < 1) throw std::invalid_argument(fmt::format("xpbd: substeps = {} must be at least 1", substeps));
   const Scene& scene = system.scene();
   const MaterialSpec& mat = scene.material;
@@ -91,6 +91,7 @@ void Xpbd::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   for (int p : sys_.fixed()) v0_.row(p).setZero();
   sys_.Prescribe(t, &x0_, &v0_);  // moving fixed particles (`[[constraints.motion]]`)
   if (self_) self_->Reset();
+  proximity_.Reset();
 }
 
 void Xpbd::PredictionForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
@@ -188,7 +189,7 @@ StepStats Xpbd::Step(double h) {
       }
       // The obstacles first: a layer that they lift must not be lifted
       // through the one above it.
-      if (!sys_.obstacles().empty()) st.colliding = ProjectOntoObstacles(sys_, w_, t + dt, dt, x_, &p_);
+      if (!sys_.obstacles().empty()) st.colliding = ProjectOntoObstacles(sys_, &proximity_, w_, t + dt, dt, x_, &p_);
       if (self_) self_->Project(x_, static_cast<double>(k) / substeps_, static_cast<double>(k + 1) / substeps_, &p_);
     }
     // 5. v ← (p − x)/Δt, x ← p.

@@ -123,6 +123,7 @@ class Xpbd : public Stepper {
   std::vector<std::string> explicit_names_;
   MatrixN3 x0_, v0_, x_, v_, p_, f_;
   std::optional<PositionSelfContact> self_;  // `[collision] self = true`
+  ObstacleProximity proximity_;              // the obstacles' entries of each substep
 };
 
 }  // namespace clothbench

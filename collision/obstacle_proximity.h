@@ -1,0 +1,77 @@
+// The position-based peers' adapter to the obstacles (docs/collisions.md,
+// "Detection and the contact list"): the particles of a set of positions
+// inside an obstacle's collision area, as entries of the contact list
+// (collision/contact_list.h). XPBD reads it every substep, projective
+// dynamics after its iterations; they project the entries' positions onto
+// the constraint C = d(p) − δ ≥ 0 (peers/position_contacts.h).
+//
+// The distance cull of ObstacleDetection (collision/obstacle_contacts.h)
+// makes a substep's query cheap: a mesh obstacle's distance is 1-Lipschitz
+// (signed for a closed mesh, unsigned for an open one), so with d_a measured
+// at x_a and the obstacle's motion bound m since (Obstacle::MotionBound),
+// d(p) ≥ d_a − |p − x_a| − m. A particle whose bound is at least δ is not in
+// the area and is skipped without a query. The cull is exact: the entries
+// are those of querying every particle, bit for bit.
+#ifndef CLOTHBENCH_COLLISION_OBSTACLE_PROXIMITY_H_
+#define CLOTHBENCH_COLLISION_OBSTACLE_PROXIMITY_H_
+
+#include <vector>
+
+#include "collision/contact_list.h"
+#include "model/particle_system.h"
+
+namespace clothbench {
+
+class ObstacleProximity {
+ public:
+  /// Allocates the per-particle state of the mesh obstacles (nothing without
+  /// obstacles). @param system the model (must outlive this)
+  explicit ObstacleProximity(const ParticleSystem& system);
+
+  /// Forgets the measured distances (a new run); the counters restart.
+  void Reset();
+
+  /// Obstacle k's entries at positions p: every particle i with w_i ≠ 0 and
+  /// d(p_i) < δ_k at the obstacle's pose at t, or d(p_i) < 0 where
+  /// held[i] ≠ 0 (another response holds it), in increasing i. An entry's
+  /// normal is the distance's direction D (away from the obstacle) and its
+  /// distance d, both at p_i; v_obstacle is 0 and inside true.
+  /// The queries run in parallel (OpenMP); the list is the same for any
+  /// thread count. No allocation once the list has reached its size.
+  /// @param k obstacle index into ParticleSystem::obstacles()
+  /// @param pose its pose at t (Obstacle::PoseAt)
+  /// @param p N×3 positions [m]
+  /// @param w N inverse masses [1/kg]; 0: fixed, never an entry
+  /// @param held N flags or nullptr (none held)
+  /// @return the entries, valid until the next call
+  const std::vector<ObstacleContact>& Find(int k, const ObstaclePose& pose, const MatrixN3& p,
+                                           const Eigen::VectorXd& w, const std::vector<char>* held);
+
+  /// Exact signed-distance queries made and skipped by the cull since Reset.
+  long queries() const { return queries_; }
+  long culled() const { return culled_; }
+  /// Turns the distance cull off (every query exact; for the test that the
+  /// cull changes no entry).
+  void set_distance_cull(bool on);
+
+ private:
+  const ParticleSystem& sys_;
+  std::vector<ObstacleContact> found_;
+  std::vector<char> hit_;  // per particle: an entry of this call
+  std::vector<double> distance_;
+  std::vector<Vector3> direction_;
+  // Per mesh obstacle: whether it is culled, the motion bound accumulated
+  // over the calls and the pose of the last; per particle and obstacle the
+  // point of the last exact query, its distance (−∞: none) and the motion
+  // bound then.
+  std::vector<char> cullable_;
+  std::vector<double> motion_;
+  std::vector<ObstaclePose> last_pose_;
+  std::vector<Vector3> anchor_;
+  std::vector<double> anchor_distance_, anchor_motion_;
+  long queries_ = 0, culled_ = 0;
+};
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_COLLISION_OBSTACLE_PROXIMITY_H_
