@@ -13,7 +13,7 @@
 #include <benchmark/benchmark.h>
 
 #include "collision/self_contact_response.h"
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 #include "model/particle_system.h"
 
 namespace clothbench {

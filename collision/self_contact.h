@@ -50,7 +50,7 @@ std::vector<int> GridPatches(int nu, int nv, int cells);
 class SelfContactDetector {
  public:
   /// @param triangles the cloth's triangles (GridTriangles(nu, nv).vertices,
-  ///        model/edge_projection.h), indices into N particles
+  ///        collision/edge_projection.h), indices into N particles
   /// @param num_particles N
   /// @param clusters per triangle its cluster, 0 … C − 1 (GridPatches):
   ///        CGAL boxes the clusters, and the triangle pairs are taken

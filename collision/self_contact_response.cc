@@ -11,7 +11,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/QR>
 
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 
 namespace clothbench {
 namespace {

@@ -14,7 +14,7 @@
 namespace clothbench {
 
 /// The pairs (a, b), a < b, of `triangles` (indices into the rows of x;
-/// the cloth's: GridTriangles(nu, nv).vertices, model/edge_projection.h)
+/// the cloth's: GridTriangles(nu, nv).vertices, collision/edge_projection.h)
 /// that intersect each other beyond what they share, sorted. Triangles
 /// with a zero area are reported by CGAL with themselves and skipped.
 /// @param x N×3 positions [m]

@@ -9,8 +9,9 @@
 
 #include <fmt/format.h>
 
-#include "model/particle_system.h"
 #include "collision/shapes/triangle_mesh.h"
+#include "collision/virtual_particles.h"
+#include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/run.h"
 
@@ -39,7 +40,7 @@ struct Surface {
 Surface ClothSurface(const ParticleSystem& sys, const MatrixN3& x) {
   Surface s;
   for (int p = 0; p < x.rows(); ++p) s.vertices.emplace_back(x.row(p).transpose());
-  if (VirtualParticles* vp = sys.virtual_particles()) {
+  if (VirtualParticles* vp = VirtualParticles::Of(sys)) {
     vp->Update(sys.scene().t_end, x);
     vp->RefinedMesh(x, &s.triangles);
     for (const VirtualParticle& p : vp->particles()) s.vertices.push_back(p.x);
@@ -115,7 +116,7 @@ int RunTable51(std::string out) {
     s.solver.nonlinear_solver = NonlinearSolver::kNewton;
     const ParticleSystem sys(s);
     const RunSummary r = RunIntegrator(sys, Method::kImplicitEuler, {s.h, s.t_end, s.frame_dt});
-    const VirtualParticles* vp = sys.virtual_particles();
+    const VirtualParticles* vp = VirtualParticles::Of(sys);
     const double updates = static_cast<double>(std::max(1L, vp->updates()));
     const double frames = static_cast<double>(std::max(1L, vp->triangulations()));
     const double projection = 1e3 * vp->projection_seconds() / updates;

@@ -98,7 +98,7 @@ struct ObstacleSpec {
   double friction = 0.0;                     ///< Coulomb coefficient c_f (docs/model.md §2.5)
   double relaxation = 0.5;                   ///< ω_r in (4.4), 0 < ω_r ≤ 1
   /// Insert the thesis' virtual particles where this obstacle's edges pass
-  /// through the cloth (§5.2–5.4; model/virtual_particles.h). Only for a
+  /// through the cloth (§5.2–5.4; collision/virtual_particles.h). Only for a
   /// shape with edges (not a plane).
   bool virtual_particles = false;
   /// Rigid motion (any shape); empty: static. Times strictly increasing;
@@ -149,7 +149,7 @@ class Obstacle {
   bool moving() const { return !spec_.keyframes.empty(); }
   /// The obstacle's edges at `pose` (world coordinates), for the projection
   /// onto the cloth of the thesis' virtual particles (§5.3;
-  /// model/edge_projection.h): ObstacleShape::Edges moved to `pose`.
+  /// collision/edge_projection.h): ObstacleShape::Edges moved to `pose`.
   /// @param vertices [m], overwritten; @param edges index pairs into them, overwritten
   void Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices, std::vector<std::array<int, 2>>* edges) const;
   /// The closed triangle surface at rest whose edges include

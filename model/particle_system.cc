@@ -115,8 +115,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   // its terms and their order.
   if (std::any_of(scene.obstacles.begin(), scene.obstacles.end(),
                   [](const ObstacleSpec& o) { return o.virtual_particles; })) {
-    auto term = std::make_unique<VirtualParticles>(nu, nv, springs_, obstacles_,
-                                                   mat.tension_model == TensionModel::kSplit);
+    auto term = std::make_unique<VirtualSprings>(nu, nv, springs_, mat.tension_model == TensionModel::kSplit);
     virtual_ = term.get();
     terms_.push_back(std::move(term));
   }

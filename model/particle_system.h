@@ -12,7 +12,7 @@
 #include "model/force_terms.h"
 #include "model/scene.h"
 #include "model/types.h"
-#include "model/virtual_particles.h"
+#include "model/virtual_springs.h"
 
 namespace clothbench {
 
@@ -76,11 +76,12 @@ class ParticleSystem {
   }
   /// Obstacles of the scene (docs/model.md §7); empty: no detection at all.
   const std::vector<Obstacle>& obstacles() const { return obstacles_; }
-  /// The thesis' virtual particles (model/virtual_particles.h), one of
-  /// terms(), or nullptr if no obstacle asks for them. Their topology is
-  /// per-step state: the run driver calls Update before every step, so
-  /// the pointer is not const although the system is.
-  VirtualParticles* virtual_particles() const { return virtual_; }
+  /// The force of the thesis' virtual particles (model/virtual_springs.h),
+  /// one of terms(), or nullptr if no obstacle asks for them. Its topology
+  /// is per-step state that their detection sets before every step
+  /// (collision/virtual_particles.h, VirtualParticles::Of), so the pointer
+  /// is not const although the system is.
+  VirtualSprings* virtual_springs() const { return virtual_; }
   /// The explicit terms in evaluation order.
   const std::vector<std::unique_ptr<ForceTerm>>& terms() const { return terms_; }
   std::vector<std::string> TermNames() const;
@@ -115,7 +116,7 @@ class ParticleSystem {
 
   /// Energies and momentum of (x, v). The tension is that of the base
   /// springs; with virtual particles the springs they split have the
-  /// energy VirtualParticles::TensionEnergyChange adds, for the topology
+  /// energy VirtualSprings::TensionEnergyChange adds, for the topology
   /// of the state it was computed at (the run driver's guard and the
   /// frames add it; model/trajectory.h). Tension, shear and gravity are exact
   /// potentials of their forces. The bending value is the normal-curvature
@@ -147,7 +148,7 @@ class ParticleSystem {
     KeyframedMotion motion;
   };
   std::vector<Prescribed> prescribed_;  // Scene::motions
-  VirtualParticles* virtual_ = nullptr;  // owned by terms_
+  VirtualSprings* virtual_ = nullptr;  // owned by terms_
 };
 
 }  // namespace clothbench

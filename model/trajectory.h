@@ -18,7 +18,7 @@ namespace clothbench {
 /// and pulling constraint impulses and of friction, when the method has our
 /// contact response (empty otherwise; solver/contact.h), and the virtual
 /// particles of each frame.
-/// The thesis' virtual particles at each frame (model/virtual_particles.h):
+/// The thesis' virtual particles at each frame (collision/virtual_particles.h):
 /// frame k's particles are rows offsets[k] … offsets[k + 1] − 1 of x (K×3
 /// [m], row-major), cloth_edge (K×2: the cloth edge's particles a < b; −1,
 /// −1 inside a face) and obstacle_edge (K×2: the obstacle's index and its

@@ -3,7 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 
 namespace clothbench {
 

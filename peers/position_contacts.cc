@@ -5,7 +5,7 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 
 namespace clothbench {
 

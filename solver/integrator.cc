@@ -317,10 +317,10 @@ StepStats StepEngine::Solve(double h) {
   const bool multistep_form = m == Method::kSbdf2 || m == Method::kBdf2 || m == Method::kSbdf3;
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kProject) ProjectContactHistory();
   // SBDF(2)/(3) extrapolate g from its history. With virtual particles g
-  // is this step's force function (model/virtual_particles.h), so the
+  // is this step's force function (model/virtual_springs.h), so the
   // history is evaluated with it: extrapolating across a change of
   // topology would double the jump of the virtual springs' forces.
-  if (const VirtualParticles* vp = sys_.virtual_particles()) {
+  if (const VirtualSprings* vp = sys_.virtual_springs()) {
     const bool active = !vp->particles().empty();
     if ((active || virtual_before_) && have_history_) {
       if (m == Method::kSbdf2 || m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_, xm1_, vm1_, &gm1_);
@@ -335,7 +335,7 @@ StepStats StepEngine::Solve(double h) {
     st.status = StepStatus::kPreconditionerFailed;
     return st;
   }
-  if (const VirtualParticles* vp = sys_.virtual_particles()) sysmat_.RemoveCouplings(vp->removed_couplings());
+  if (const VirtualSprings* vp = sys_.virtual_springs()) sysmat_.RemoveCouplings(vp->removed_couplings());
   if (contacts_.active()) {
     st.colliding = colliding;
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
@@ -436,12 +436,12 @@ Method StepEngine::StepMethod(double h, bool* sbdf3_start) const {
 
 void StepEngine::EngineExplicitForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const {
   sys_.ExplicitForces(t, x, v, g);
-  if (const VirtualParticles* vp = sys_.virtual_particles()) vp->AddRemovedCouplings(x, v, g);
+  if (const VirtualSprings* vp = sys_.virtual_springs()) vp->AddRemovedCouplings(x, v, g);
 }
 
 void StepEngine::LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) const {
   out->noalias() = (damping ? sys_.damping_laplacian() : sys_.stiffness_laplacian()) * x;
-  if (const VirtualParticles* vp = sys_.virtual_particles()) vp->AddCouplingProduct(damping, x, out);
+  if (const VirtualSprings* vp = sys_.virtual_springs()) vp->AddCouplingProduct(damping, x, out);
 }
 
 StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, double omega, bool imex) {

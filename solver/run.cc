@@ -10,8 +10,9 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include "collision/edge_projection.h"
 #include "collision/self_intersection.h"
-#include "model/edge_projection.h"
+#include "collision/virtual_particles.h"
 #include "model/interrupt.h"
 #include "solver/hermite.h"
 #include "solver/progress.h"
@@ -165,7 +166,7 @@ bool BlowUpGuard::Check(double t, const MatrixN3& x, const MatrixN3& v, double e
   }
   double e = sys_.Energies(x, v).total();
   // The virtual springs of the step just taken (the topology of its start).
-  if (const VirtualParticles* vp = sys_.virtual_particles()) e += vp->TensionEnergyChange(x);
+  if (const VirtualSprings* vp = sys_.virtual_springs()) e += vp->TensionEnergyChange(x);
   if (!std::isfinite(e) || !std::isfinite(external_work) || (contact_work && !std::isfinite(*contact_work))) {
     *status = RunStatus::kNonFinite;
     *message = fmt::format("the energy became non-finite by t = {:.6g} s", t);
@@ -262,7 +263,7 @@ class FrameRecorder {
       : frames_(FrameTimes(options.t_end, options.frame_dt)),
         track_work_(system.has_external_work()),
         track_contact_(engine.contact_work() != nullptr),
-        virtual_(system.virtual_particles()),
+        virtual_(VirtualParticles::Of(system)),
         self_contact_(self_contact),
         response_(response),
         sum_(sum) {
@@ -560,7 +561,7 @@ bool RefusesMotion(const ParticleSystem& system, const Stepper& engine, RunSumma
 // They start empty, before Reset evaluates any force (the error estimate's
 // initial slope): the last run's topology would leak into this one.
 VirtualParticles* ResetToRest(const ParticleSystem& system, Stepper& engine) {
-  VirtualParticles* const virtual_particles = system.virtual_particles();
+  VirtualParticles* const virtual_particles = VirtualParticles::Of(system);
   if (virtual_particles) virtual_particles->Clear();
   MatrixN3 x = system.rest_positions(), v = MatrixN3::Zero(system.num_particles(), 3);
   system.Prescribe(0.0, &x, &v);  // moving fixed particles start on their motion

@@ -71,7 +71,7 @@ TangentSystem::TangentSystem(const ParticleSystem& system, const TangentOptions&
   std::vector<std::size_t> term_begin;
   bool velocity = system.has_tension_damping();
   for (const auto& term : system.terms()) {
-    // The virtual springs (model/virtual_particles.h) belong to the
+    // The virtual springs (model/virtual_springs.h) belong to the
     // tension: in J_α whatever include_explicit_terms says.
     if (options_.include_explicit_terms || term->name() == "virtual_springs") {
       if (term->name() == "tension_nonlinear") continue;  // in the spring blocks

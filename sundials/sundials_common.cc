@@ -66,7 +66,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   res->trajectory.positions.assign(1, system.rest_positions());
   res->trajectory.velocities.assign(1, MatrixN3::Zero(system.num_particles(), 3));
   // The virtual particles of each frame, as the fixed-step driver records them.
-  VirtualParticles* const virtual_particles = system.virtual_particles();
+  VirtualParticles* const virtual_particles = VirtualParticles::Of(system);
   if (virtual_particles) {
     virtual_particles->Update(0.0, res->trajectory.positions[0]);
     virtual_particles->RecordFrame(res->trajectory.positions[0], &res->trajectory.virtual_particles);

@@ -11,6 +11,7 @@
 
 #include <sundials/sundials_linearsolver.h>
 
+#include "collision/virtual_particles.h"
 #include "model/particle_system.h"
 #include "solver/integrator.h"
 #include "solver/pcg.h"
@@ -82,7 +83,7 @@ void NameSundialsRun(const char* integrator, const char* layer, const ReferenceO
 /// be another problem's. Checked by every SUNDIALS entry before it computes.
 bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res);
 
-/// The thesis' virtual particles (model/virtual_particles.h) under a
+/// The thesis' virtual particles (collision/virtual_particles.h) under a
 /// SUNDIALS integrator, as the thesis' methods have them: the topology of
 /// each internal step's initial state, held through the step's stages,
 /// Newton iterations and root functions. A topology change is a jump of
@@ -93,7 +94,7 @@ bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res);
 /// evaluation); RunFrames updates it after every step. Nothing without
 /// virtual particles.
 inline void StartVirtualParticles(const ParticleSystem& sys) {
-  if (VirtualParticles* vp = sys.virtual_particles()) {
+  if (VirtualParticles* vp = VirtualParticles::Of(sys)) {
     vp->Clear();
     vp->Update(0.0, sys.rest_positions());
   }

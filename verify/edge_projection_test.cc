@@ -13,7 +13,7 @@
 
 #include <Eigen/Geometry>
 
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 #include "model/obstacle.h"
 #include "collision/shapes/triangle_mesh.h"
 #include "verify/temp_file.h"

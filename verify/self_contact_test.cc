@@ -12,7 +12,7 @@
 
 #include "collision/self_contact_response.h"
 #include "collision/self_intersection.h"
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 #include "model/particle_system.h"
 
 namespace clothbench {

@@ -7,7 +7,7 @@
 #include <stdexcept>
 
 #include "collision/self_intersection.h"
-#include "model/edge_projection.h"
+#include "collision/edge_projection.h"
 
 namespace clothbench {
 namespace {

@@ -1,4 +1,4 @@
-// The thesis' virtual particles (§5.2–5.4; model/virtual_particles.h).
+// The thesis' virtual particles (§5.2–5.4; collision/virtual_particles.h).
 //
 // 1. The rest lengths of a split spring sum to its rest length (§5.4), and
 //    each virtual particle lies on the obstacle edge it came from and on
@@ -31,7 +31,8 @@
 
 #include <gtest/gtest.h>
 
-#include "model/face_triangulation.h"
+#include "collision/face_triangulation.h"
+#include "collision/virtual_particles.h"
 #include "model/particle_system.h"
 #include "solver/run.h"
 #include "verify/test_scenes.h"
@@ -56,7 +57,7 @@ double DeepestPoint(const Obstacle& o, const Vector3& a, const Vector3& b) {
 TEST(VirtualParticles, RestLengthsSumToTheEdgesAndPointsLieOnBothEdges) {
   Scene s = BoxScene(true);
   const ParticleSystem sys(s);
-  VirtualParticles* vp = sys.virtual_particles();
+  VirtualParticles* vp = VirtualParticles::Of(sys);
   ASSERT_NE(vp, nullptr);
   // The flat cloth 2 cm below the beam's top (z = 0.2 m): the beam's top
   // edges pass through both v-springs and the diagonal.
@@ -107,7 +108,7 @@ TEST_P(VirtualBox, FallsThroughWithoutAndHangsOverTheBeamWith) {
       continue;
     }
     EXPECT_GT(x.col(2).minCoeff(), -0.2) << "held by the virtual particles";
-    VirtualParticles* vp = sys.virtual_particles();
+    VirtualParticles* vp = VirtualParticles::Of(sys);
     vp->Update(s.t_end, x);
     ASSERT_EQ(vp->removed_couplings().size(), 2u);
     const Obstacle& beam = sys.obstacles()[0];
@@ -164,7 +165,7 @@ TEST(VirtualParticles, AKeyframedBeamCarriesTheClothWithIt) {
   ASSERT_EQ(r.trajectory.times.size(), 5u);  // 0, 0.5, 1, 1.5, 2
   const double z_start = r.trajectory.positions[1].col(2).mean(), z_end = r.trajectory.positions[4].col(2).mean();
   EXPECT_GT(z_end, z_start + 0.05);
-  VirtualParticles* vp = sys.virtual_particles();
+  VirtualParticles* vp = VirtualParticles::Of(sys);
   vp->Update(1.0, r.trajectory.positions[2]);  // mid-motion (after the last keyframe the beam rests)
   ASSERT_FALSE(vp->particles().empty());
   for (const VirtualParticle& p : vp->particles()) EXPECT_NEAR(p.v.z(), 0.2, 1e-12) << "the beam's velocity";
@@ -181,7 +182,7 @@ TEST(VirtualParticles, TheRefinedMeshStaysOutsideTheRoundTable) {
   const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {s.h, s.t_end, s.t_end});
   ASSERT_TRUE(r.ok()) << r.status << ": " << r.message;
   const MatrixN3& x = r.trajectory.positions.back();
-  VirtualParticles* vp = sys.virtual_particles();
+  VirtualParticles* vp = VirtualParticles::Of(sys);
   vp->Update(s.t_end, x);
   std::vector<std::array<int, 3>> refined;
   vp->RefinedMesh(x, &refined);

@@ -103,7 +103,7 @@ class ObstacleShape : public std::enable_shared_from_this<ObstacleShape> {
   /// Whether the shape has edges for the thesis' virtual particles (§5.3).
   virtual bool has_edges() const { return true; }
   /// The shape's edges at rest for the virtual particles' projection (§5.3;
-  /// model/edge_projection.h). By default the edges of Surface's triangles,
+  /// collision/edge_projection.h). By default the edges of Surface's triangles,
   /// each once, as sorted index pairs.
   /// @param vertices [m], overwritten; @param edges index pairs into them, overwritten
   virtual void Edges(std::vector<Vector3>* vertices, std::vector<std::array<int, 2>>* edges) const;

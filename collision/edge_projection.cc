@@ -1,6 +1,6 @@
 // The projection of an obstacle edge onto a cloth face (thesis §5.3;
-// model/edge_projection.h).
-#include "model/edge_projection.h"
+// collision/edge_projection.h).
+#include "collision/edge_projection.h"
 
 #include <algorithm>
 #include <cmath>

@@ -3,8 +3,8 @@
 // computed there with Shewchuk's Triangle; here CGAL's
 // Constrained_Delaunay_triangulation_2). All CGAL code of it stays in
 // face_triangulation.cc.
-#ifndef CLOTHBENCH_MODEL_FACE_TRIANGULATION_H_
-#define CLOTHBENCH_MODEL_FACE_TRIANGULATION_H_
+#ifndef CLOTHBENCH_COLLISION_FACE_TRIANGULATION_H_
+#define CLOTHBENCH_COLLISION_FACE_TRIANGULATION_H_
 
 #include <array>
 #include <vector>
@@ -28,4 +28,4 @@ void TriangulateFace(std::vector<Eigen::Vector2d>* points, const std::vector<std
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_MODEL_FACE_TRIANGULATION_H_
+#endif  // CLOTHBENCH_COLLISION_FACE_TRIANGULATION_H_

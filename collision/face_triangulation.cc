@@ -1,5 +1,5 @@
 // CGAL's constrained Delaunay triangulation of a cloth face (thesis §5.3).
-#include "model/face_triangulation.h"
+#include "collision/face_triangulation.h"
 
 #include <algorithm>
 

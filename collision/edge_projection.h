@@ -22,8 +22,8 @@
 // the cross ratio, which a central projection preserves:
 // ratio(X, Y, V) / ratio(X, Y, A) = ratio(X̄, Ȳ, V̄) / ratio(X̄, Ȳ, Ā) with
 // A = (X + Y)/2 and ratio(X, Y, Z) = α/β for Z = αX + βY.
-#ifndef CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
-#define CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
+#ifndef CLOTHBENCH_COLLISION_EDGE_PROJECTION_H_
+#define CLOTHBENCH_COLLISION_EDGE_PROJECTION_H_
 
 #include <algorithm>
 #include <array>
@@ -219,4 +219,4 @@ std::vector<FaceEdgeHit> ProjectObstacleEdges(const MatrixN3& x, const ClothTria
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_MODEL_EDGE_PROJECTION_H_
+#endif  // CLOTHBENCH_COLLISION_EDGE_PROJECTION_H_

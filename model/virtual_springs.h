@@ -1,11 +1,12 @@
-// The thesis' collision-adaptive virtual particles (thesis §5.2–5.4;
-// docs/model.md, "Virtual particles"). Where an obstacle's edges pass
-// through the cloth, points on those edges are inserted into the cloth's
-// triangles for one step. They are not integrated: their positions come
-// from the obstacle, their velocities are the obstacle's. The ones on
-// cloth edges that are tension springs replace a base particle's
-// neighbour in that spring, with the rest length split in proportion to
-// the current segment lengths (§5.4):
+// The force of the thesis' virtual particles (thesis §5.4; docs/model.md,
+// "Virtual particles"): the springs they split, as one explicit term of the
+// model. Where an obstacle's edges pass through the cloth, points on those
+// edges are inserted into the cloth's triangles for one step
+// (collision/virtual_particles.h finds them). They are not integrated:
+// their positions come from the obstacle, their velocities are the
+// obstacle's. The ones on cloth edges that are tension springs replace a
+// base particle's neighbour in that spring, with the rest length split in
+// proportion to the current segment lengths (§5.4):
 //
 //   an edge P_a P_b with rest length r, split by V_1 … V_k, gives P_a the
 //   neighbour V_1 and P_b the neighbour V_k, with rest lengths
@@ -25,24 +26,17 @@
 // (q the replaced neighbour), does not depend on x_p's linear part, and
 // its stiffness is s_e, that of F_nl, which every IMEX method already
 // takes explicitly.
-#ifndef CLOTHBENCH_MODEL_VIRTUAL_PARTICLES_H_
-#define CLOTHBENCH_MODEL_VIRTUAL_PARTICLES_H_
+#ifndef CLOTHBENCH_MODEL_VIRTUAL_SPRINGS_H_
+#define CLOTHBENCH_MODEL_VIRTUAL_SPRINGS_H_
 
-#include <array>
 #include <memory>
 #include <string_view>
 #include <vector>
 
-#include "model/edge_projection.h"
 #include "model/force_terms.h"
-#include "model/obstacle.h"
-#include "model/scene.h"
-#include "model/trajectory.h"
 #include "model/types.h"
 
 namespace clothbench {
-
-class TriangleMesh;
 
 /// One virtual particle of the current step (§5.2–5.3).
 struct VirtualParticle {
@@ -81,30 +75,33 @@ struct RemovedCoupling {
   double damping = 0.0;    ///< c_e [N s/m]
 };
 
-/// The virtual particles of a cloth grid against the obstacles that ask
-/// for them (ObstacleSpec::virtual_particles), and their force correction
-/// as an explicit term. The topology is per-step state: Update sets it from
-/// the step's initial positions, and every force evaluation until the next
-/// Update uses it (the run driver updates before each step).
-class VirtualParticles : public ForceTerm {
+/// The virtual springs' force correction as an explicit term. Its topology
+/// is per-step state that the virtual particles' detection sets
+/// (collision/virtual_particles.h, VirtualParticles::Update): the points
+/// it found (points()), then SplitSprings; every force evaluation until
+/// the next update uses it. Without an update there is no force.
+class VirtualSprings : public ForceTerm {
  public:
   /// @param grid_nu, grid_nv the cloth grid; @param springs the model's springs
-  /// @param obstacles the model's obstacles (must outlive this); those with
-  ///        spec().virtual_particles are projected
   /// @param split_tension true if the tension has the split F_nl (rest
   ///        lengths), false for the linear model (docs/model.md §2.1)
-  VirtualParticles(int grid_nu, int grid_nv, const std::vector<Spring>& springs,
-                   const std::vector<Obstacle>& obstacles, bool split_tension);
-  ~VirtualParticles() override;
+  VirtualSprings(int grid_nu, int grid_nv, const std::vector<Spring>& springs, bool split_tension);
+  ~VirtualSprings() override;
 
-  /// Computes the virtual particles and springs at time t [s] from the N×3
-  /// positions x [m] (§5.3, §5.4); nothing if t and x are those of the last
-  /// update. Reuses its buffers: no allocation once they have grown to the
-  /// scene's need.
-  void Update(double t, const MatrixN3& x);
-  /// Forgets the topology (no virtual particles, no force) and the faces'
-  /// orientations: the start of a run.
-  void Clear();
+  /// Forgets the topology: no virtual particles, no force.
+  void ClearTopology();
+  /// The points of the update under way (the detection appends them,
+  /// found from both faces of a cloth edge or several times inside a face),
+  /// and after SplitSprings the virtual particles.
+  std::vector<VirtualParticle>& points() { return particles_; }
+  /// §5.4: keeps one point per (cloth edge, obstacle edge) and per point
+  /// inside a face, orders the points of each cloth edge from a to b and
+  /// splits the springs at the N×3 positions x [m] of time t [s].
+  void SplitSprings(double t, const MatrixN3& x);
+  /// The index of the virtual particle that candidate c (as found in a
+  /// face) became, −1 if none.
+  int Find(const VirtualParticle& c) const;
+
   const std::vector<VirtualParticle>& particles() const { return particles_; }
   const std::vector<VirtualSpring>& virtual_springs() const { return sides_; }
   /// The tension energy of the virtual springs minus that of the springs
@@ -121,31 +118,16 @@ class VirtualParticles : public ForceTerm {
   /// out.row(a) += w x.row(b) and the same with a and b swapped, with w = s
   /// (stiffness) or c (damping): (ΔL x) for the removed couplings, ΔL(a, b) = w.
   void AddCouplingProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
-  /// The cloth's sub-mesh at positions x [m] (the update's, for display,
-  /// §5.3): every cloth triangle with virtual particles re-triangulated
-  /// with them by a constrained Delaunay triangulation in its plane, the
-  /// projected obstacle edges as constraints, lifted back to the virtual
-  /// particles on the obstacle; the others as they are. Its time counts as
-  /// topology. @param triangles overwritten: indices < N are base particles,
-  /// N + k virtual particle k (a crossing of two projected edges inside a
-  /// face, where the triangulation adds a point, is appended to
-  /// particles() with no force)
-  void RefinedMesh(const MatrixN3& x, std::vector<std::array<int, 3>>* triangles);
-  /// Appends the current virtual particles and the refined mesh at
-  /// positions x [m] as one more frame of `frames` (model/trajectory.h).
-  void RecordFrame(const MatrixN3& x, VirtualFrames* frames);
-  /// The cloth's triangles (GridTriangles) the projection works on.
-  const ClothTriangles& triangles() const { return cloth_; }
-  /// Wall time [s] since Clear (the start of a run) in the projection
-  /// (§5.3; Table 5.1's "projection"), in the springs' topology (ordering
-  /// the points on the cloth edges, splitting the rest lengths) and in
-  /// RefinedMesh's triangulations (with the springs, Table 5.1's
-  /// "topology"); the number of updates that computed and of triangulations.
-  double projection_seconds() const { return projection_seconds_; }
-  double springs_seconds() const { return springs_seconds_; }
-  double triangulation_seconds() const { return triangulation_seconds_; }
-  long updates() const { return updates_; }
-  long triangulations() const { return triangulations_; }
+
+  /// What finds the points: the detection of collision/ (VirtualParticles),
+  /// which this term owns once it is attached, so that every entry point
+  /// that holds the model reaches the same one.
+  class Detection {
+   public:
+    virtual ~Detection() = default;
+  };
+  Detection* detection() const { return detection_.get(); }
+  void Attach(std::unique_ptr<Detection> detection) { detection_ = std::move(detection); }
 
   // ForceTerm: the virtual springs' force minus the original springs'.
   std::string_view name() const override { return "virtual_springs"; }
@@ -157,58 +139,31 @@ class VirtualParticles : public ForceTerm {
   std::size_t jacobian_items() const override { return springs_.size(); }
   void AccumulateJacobian(double t, const MatrixN3& x, const MatrixN3& v, const int* pos, double* dfdx,
                           double* dfdv, std::size_t first, std::size_t last) const override;
-  void PrepareParticleForces(int) const override {}  // the lists are built by Update
+  void PrepareParticleForces(int) const override {}  // the lists are built by SplitSprings
   void AddParticleForce(double t, const MatrixN3& x, const MatrixN3& v, int p, Vector3* f, Matrix3* dfdx,
                         Matrix3* dfdv) const override;
 
  private:
-  struct Source;  // one obstacle that is projected
-  void ClearTopology();
-  // The parts of Update: one obstacle's projection (with its edge index and
-  // its virtual particles), then the split springs.
-  void ProjectSource(Source* src, double t, const MatrixN3& x);
-  void IndexEdges(Source* src, const ObstaclePose& pose);
-  void AddVirtualParticles(const Source* src, const ObstaclePose& pose, const MatrixN3& x);
-  void SplitSprings(const MatrixN3& x);
-  /// The particle that candidate c (as found in a face) became, −1 if none.
-  int Find(const VirtualParticle& c) const;
-  /// The virtual particle `k`'s position at time t [m] (it moves with the obstacle).
+  /// The virtual particle `k`'s position at time t [s] (it moves with the obstacle) [m].
   Vector3 PositionAt(int k, double t) const;
   /// Side `k`'s force correction on its particle p and its blocks
   /// ∂/∂x_p, ∂/∂x_q (∂/∂v_q is −c I).
   void SideTerms(const VirtualSpring& side, double t, const MatrixN3& x, const MatrixN3& v, Vector3* f,
                  Matrix3* dp, Matrix3* dq) const;
 
-  int nu_ = 0, nv_ = 0;
-  double cell_ = 0.0;  // the edge grid's cell [m]: twice the longest rest length
+  int nu_ = 0;
   std::vector<Spring> springs_;
   std::vector<int> u_spring_, v_spring_;  // spring index of the u-/v-edge starting at particle p, −1 if none
   bool split_ = true, damped_ = false;
-  ClothTriangles cloth_;
-  std::vector<std::unique_ptr<Source>> sources_;
-  double t_update_ = 0.0;
-  MatrixN3 x_update_;      // the positions of the last update
-  bool current_ = false;   // an update since Clear
+  double t_update_ = 0.0;  // the time of the last SplitSprings
   std::vector<VirtualParticle> particles_;
   std::vector<VirtualSpring> sides_;
   std::vector<RemovedCoupling> couplings_;
-  struct Segment {  // a standing projection: its face and its two end points (as found)
-    int face = 0;
-    std::array<VirtualParticle, 2> ends;
-  };
-  std::vector<Segment> segments_;
-  std::vector<std::vector<int>> face_points_;      // RefinedMesh: the virtual particles of each face
-  std::vector<std::pair<double, int>> on_edge_;    // RefinedMesh: the points on one face edge, in order
-  std::vector<std::array<int, 3>> record_faces_;   // RecordFrame: the refined mesh
   std::vector<int> spring_side_;  // 2 per spring: the side of P_a, of P_b (index into sides_), −1
   std::vector<int> first_side_, next_side_;  // sides of each particle, a linked list
-  // Scratch of Update.
-  std::vector<Vector3> normal_;
-  std::vector<FaceEdgeHit> hits_;
-  double projection_seconds_ = 0.0, springs_seconds_ = 0.0, triangulation_seconds_ = 0.0;
-  long updates_ = 0, triangulations_ = 0;
+  std::unique_ptr<Detection> detection_;
 };
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_MODEL_VIRTUAL_PARTICLES_H_
+#endif  // CLOTHBENCH_MODEL_VIRTUAL_SPRINGS_H_
