@@ -10,6 +10,7 @@
 
 #include <CGAL/box_intersection_d.h>
 #include <Eigen/Geometry>
+#include <omp.h>
 
 namespace clothbench {
 namespace {
@@ -387,10 +388,6 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
   // overlap whenever the elements' do): every pair exactly once. The
   // triangle pairs come from within each cluster and from the cluster
   // pairs whose boxes CGAL reports.
-  for (const auto& [ta, tb] : same_cluster_)
-    if (Overlap(tri_lo_[static_cast<std::size_t>(ta)], tri_hi_[static_cast<std::size_t>(ta)],
-                tri_lo_[static_cast<std::size_t>(tb)], tri_hi_[static_cast<std::size_t>(tb)]))
-      TrianglePair(static_cast<std::size_t>(ta), static_cast<std::size_t>(tb), margin + slack, out);
   const std::size_t n_clusters = cluster_start_.size() - 1;
   std::vector<TriangleBox> boxes;
   boxes.reserve(n_clusters);
@@ -405,17 +402,61 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     double l[3] = {lo.x(), lo.y(), lo.z()}, h[3] = {hi.x(), hi.y(), hi.z()};
     boxes.emplace_back(l, h, c);
   }
-  const auto report = [&](const TriangleBox& first, const TriangleBox& second) {
-    const std::size_t ca = first.id(), cb = second.id();
-    for (int i = cluster_start_[ca]; i < cluster_start_[ca + 1]; ++i) {
-      const std::size_t ta = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(i)]);
-      for (int j = cluster_start_[cb]; j < cluster_start_[cb + 1]; ++j) {
-        const std::size_t tb = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(j)]);
-        if (Overlap(tri_lo_[ta], tri_hi_[ta], tri_lo_[tb], tri_hi_[tb])) TrianglePair(ta, tb, margin + slack, out);
+  reported_.clear();
+  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const TriangleBox& first, const TriangleBox& second) {
+    reported_.push_back({static_cast<int>(first.id()), static_cast<int>(second.id())});
+  });
+  // The triangle pairs within each cluster, then those of the reported
+  // cluster pairs in CGAL's order. Each thread takes a contiguous range of
+  // both lists into its own part, and the parts are joined in thread
+  // order: the serial order for any thread count.
+  const auto n_same = static_cast<std::ptrdiff_t>(same_cluster_.size());
+  const auto n_reported = static_cast<std::ptrdiff_t>(reported_.size());
+  const bool parallel = n_same + 64 * n_reported >= kParallelMinimum;
+  const int threads = parallel ? omp_get_max_threads() : 1;
+  if (parts_.size() < static_cast<std::size_t>(threads)) {
+    parts_.resize(static_cast<std::size_t>(threads));
+    parts_same_.resize(static_cast<std::size_t>(threads));
+  }
+  int team = 1;
+#pragma omp parallel num_threads(threads) if (parallel)
+  {
+    const int nt = omp_get_num_threads(), id = omp_get_thread_num();
+    if (id == 0) team = nt;
+    std::vector<SelfContactPair>& part = parts_[static_cast<std::size_t>(id)];
+    part.clear();
+    const auto range = [&](std::ptrdiff_t n) {
+      return std::array<std::ptrdiff_t, 2>{n * id / nt, n * (id + 1) / nt};
+    };
+    const auto [s0, s1] = range(n_same);
+    for (std::ptrdiff_t k = s0; k < s1; ++k) {
+      const auto ta = static_cast<std::size_t>(same_cluster_[static_cast<std::size_t>(k)][0]);
+      const auto tb = static_cast<std::size_t>(same_cluster_[static_cast<std::size_t>(k)][1]);
+      if (Overlap(tri_lo_[ta], tri_hi_[ta], tri_lo_[tb], tri_hi_[tb])) TrianglePair(ta, tb, margin + slack, &part);
+    }
+    parts_same_[static_cast<std::size_t>(id)] = part.size();
+    const auto [r0, r1] = range(n_reported);
+    for (std::ptrdiff_t k = r0; k < r1; ++k) {
+      const auto ca = static_cast<std::size_t>(reported_[static_cast<std::size_t>(k)][0]);
+      const auto cb = static_cast<std::size_t>(reported_[static_cast<std::size_t>(k)][1]);
+      for (int i = cluster_start_[ca]; i < cluster_start_[ca + 1]; ++i) {
+        const std::size_t ta = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(i)]);
+        for (int j = cluster_start_[cb]; j < cluster_start_[cb + 1]; ++j) {
+          const std::size_t tb = static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(j)]);
+          if (Overlap(tri_lo_[ta], tri_hi_[ta], tri_lo_[tb], tri_hi_[tb])) TrianglePair(ta, tb, margin + slack, &part);
+        }
       }
     }
-  };
-  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), report);
+  }
+  // Every thread's same-cluster pairs first, then every thread's reported ones.
+  for (int t = 0; t < team; ++t) {
+    const auto& part = parts_[static_cast<std::size_t>(t)];
+    out->insert(out->end(), part.begin(), part.begin() + static_cast<std::ptrdiff_t>(parts_same_[static_cast<std::size_t>(t)]));
+  }
+  for (int t = 0; t < team; ++t) {
+    const auto& part = parts_[static_cast<std::size_t>(t)];
+    out->insert(out->end(), part.begin() + static_cast<std::ptrdiff_t>(parts_same_[static_cast<std::size_t>(t)]), part.end());
+  }
 }
 
 }  // namespace clothbench

@@ -101,6 +101,12 @@ class SelfContactDetector {
   // Per triangle: its box at x0, and its displacements' mean and radius.
   std::vector<Vector3> tri0_lo_, tri0_hi_, move_centre_;
   std::vector<double> move_radius_;
+  // The cluster pairs CGAL reported, and each thread's element pairs (its
+  // range of the same-cluster pairs, the first parts_same_[t], then of
+  // the reported ones).
+  std::vector<std::array<int, 2>> reported_;
+  std::vector<std::vector<SelfContactPair>> parts_;
+  std::vector<std::size_t> parts_same_;
 };
 
 }  // namespace clothbench
