@@ -96,15 +96,29 @@ int ContactImpulses::BeginStep(double t0, double h, const MatrixN3& x0, const Ma
     // falls as a whole, but the twisted strip at 1.25 ms and 4 iterations
     // then ended `speed` at t = 1.90 s.)
     for (int p = 0; p < x0.rows(); ++p) motion_[static_cast<std::size_t>(p)] = (x_end_.row(p) - x0.row(p)).norm();
-    for (const SelfContactPair& pair : candidates_) {
+    // The candidates' geometry at x₀ in parallel, each into its own slot;
+    // then the list in the candidates' order.
+    const auto n_candidates = static_cast<long>(candidates_.size());
+    geometry_.resize(candidates_.size());
+    listed_pair_.resize(candidates_.size());
+#pragma omp parallel for schedule(static) if (n_candidates > 4096)
+    for (long i = 0; i < n_candidates; ++i) {
+      const SelfContactPair& pair = candidates_[static_cast<std::size_t>(i)];
       const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
       double reach_a = 0.0, reach_b = 0.0;
       for (std::size_t k = 0; k < 4; ++k)
         (k < first ? reach_a : reach_b) =
             std::max(k < first ? reach_a : reach_b, motion_[static_cast<std::size_t>(pair.p[k])]);
       const PairGeometry g = Closest(pair, x0);
-      if (!(g.distance > 0.0)) continue;  // touching or crossed: no side to keep (the run's response)
-      if (g.distance - reach_a - reach_b > thickness_ + skin_) continue;
+      geometry_[static_cast<std::size_t>(i)] = g;
+      // Touching or crossed: no side to keep (the run's response).
+      listed_pair_[static_cast<std::size_t>(i)] =
+          g.distance > 0.0 && !(g.distance - reach_a - reach_b > thickness_ + skin_);
+    }
+    for (std::size_t i = 0; i < candidates_.size(); ++i) {
+      if (!listed_pair_[i]) continue;
+      const SelfContactPair& pair = candidates_[i];
+      const PairGeometry& g = geometry_[i];
       PairContact c{pair, g.w, g.n, (thickness_ - g.distance) / h, 0.0, 0.0};
       bool free = false;
       for (std::size_t k = 0; k < 4; ++k) free = free || (w_(pair.p[k]) > 0.0 && c.w[k] != 0.0);

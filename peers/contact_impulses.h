@@ -142,6 +142,8 @@ class ContactImpulses {
   std::vector<PairContact> pairs_;
   std::vector<int> pair_count_;  // per particle: the pairs it belongs to
   std::vector<double> motion_;   // per particle: |x_end − x₀| [m]
+  std::vector<PairGeometry> geometry_;  // per candidate: its closest points at x₀
+  std::vector<char> listed_pair_;       // per candidate: listed
   std::vector<int> touched_;     // particles of the listed pairs and contacts (each once)
   std::vector<char> marked_;     // per particle: in touched_
   MatrixN3 impulse_, x_end_;     // R = Σ J_cᵀ r_c; the predicted end positions
