@@ -54,14 +54,9 @@ const std::vector<ObstacleContact>& ObstacleProximity::Find(int k, const Obstacl
   found_.clear();
   const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
   const auto ku = static_cast<std::size_t>(k);
-  const bool cull = cullable_[ku] != 0;
-  if (cull && o.moving()) {
-    motion_[ku] += o.MotionBound(last_pose_[ku], pose);
-    last_pose_[ku] = pose;
-  }
+  const bool cull = Advance(ku, pose);
   const double delta = o.spec().collision_distance;
   const int n = sys_.num_particles();
-  const std::size_t base = ku * static_cast<std::size_t>(n);
   // The queries in parallel, each particle's into its own slot, then the
   // entries in increasing particle order: the same list for any thread count.
   long queries = 0, culled = 0;
@@ -70,22 +65,7 @@ const std::vector<ObstacleContact>& ObstacleProximity::Find(int k, const Obstacl
     const auto iu = static_cast<std::size_t>(i);
     hit_[iu] = 0;
     if (w(i) == 0.0) continue;
-    const Vector3 q = p.row(i).transpose();
-    const std::size_t at = base + iu;
-    if (cull) {
-      const double bound = anchor_distance_[at] - (q - anchor_[at]).norm() - (motion_[ku] - anchor_motion_[at]);
-      if (bound > delta + kRoundOff) {
-        ++culled;
-        continue;
-      }
-    }
-    const double d = o.SignedDistance(pose, q, &direction_[iu]);
-    ++queries;
-    if (cull) {
-      anchor_[at] = q;
-      anchor_distance_[at] = std::isfinite(d) ? d : -kInf;
-      anchor_motion_[at] = motion_[ku];
-    }
+    const double d = Query(o, ku, i, pose, p.row(i).transpose(), cull ? delta : -kInf, &queries, &culled);
     distance_[iu] = d;
     hit_[iu] = d < (held && (*held)[iu] ? 0.0 : delta) ? 1 : 0;
   }
@@ -103,6 +83,65 @@ const std::vector<ObstacleContact>& ObstacleProximity::Find(int k, const Obstacl
     found_.push_back(c);
   }
   return found_;
+}
+
+Penetration ObstacleProximity::PenetrationOf(int k, const ObstaclePose& pose, const MatrixN3& x) {
+  const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+  const auto ku = static_cast<std::size_t>(k);
+  const double half = 0.5 * o.spec().collision_distance;
+  const bool cull = Advance(ku, pose);
+  const int n = sys_.num_particles();
+  long queries = 0, culled = 0;
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : queries, culled) if (n >= kParallelQueries)
+  for (int i = 0; i < n; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    distance_[iu] = Query(o, ku, i, pose, x.row(i).transpose(), cull ? half : -kInf, &queries, &culled);
+  }
+  queries_ += queries;
+  culled_ += culled;
+  // Obstacle::PenetrationOf's sums, in particle order.
+  Penetration r;
+  for (int i = 0; i < n; ++i) {
+    const double d = distance_[static_cast<std::size_t>(i)];
+    if (d < 0.0) {
+      if (-d > r.max_depth) r.max_depth = -d, r.deepest = i;
+      r.depth_sum += -d;
+      ++r.inside;
+    }
+    if (d < half) ++r.close;
+  }
+  return r;
+}
+
+bool ObstacleProximity::Advance(std::size_t k, const ObstaclePose& pose) {
+  const bool cull = cullable_[k] != 0;
+  const Obstacle& o = sys_.obstacles()[k];
+  if (cull && o.moving()) {
+    motion_[k] += o.MotionBound(last_pose_[k], pose);
+    last_pose_[k] = pose;
+  }
+  return cull;
+}
+
+double ObstacleProximity::Query(const Obstacle& o, std::size_t k, int i, const ObstaclePose& pose, const Vector3& q,
+                                double skip_above, long* queries, long* culled) {
+  const auto iu = static_cast<std::size_t>(i);
+  const std::size_t at = k * static_cast<std::size_t>(sys_.num_particles()) + iu;
+  if (skip_above > -kInf) {
+    const double bound = anchor_distance_[at] - (q - anchor_[at]).norm() - (motion_[k] - anchor_motion_[at]);
+    if (bound > skip_above + kRoundOff) {
+      ++*culled;
+      return kInf;
+    }
+  }
+  const double d = o.SignedDistance(pose, q, &direction_[iu]);
+  ++*queries;
+  if (cullable_[k]) {
+    anchor_[at] = q;
+    anchor_distance_[at] = std::isfinite(d) ? d : -kInf;
+    anchor_motion_[at] = motion_[k];
+  }
+  return d;
 }
 
 }  // namespace clothbench

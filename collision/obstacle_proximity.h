@@ -47,6 +47,13 @@ class ObstacleProximity {
   const std::vector<ObstacleContact>& Find(int k, const ObstaclePose& pose, const MatrixN3& p,
                                            const Eigen::VectorXd& w, const std::vector<char>* held);
 
+  /// Obstacle::PenetrationOf of obstacle k at `pose` for the N×3 positions
+  /// x [m] (the deepest particle inside, the depths and the particles within
+  /// δ/2), with the same cull: a particle whose bound is at least δ/2 adds
+  /// nothing and is not queried. Bit for bit Obstacle::PenetrationOf's
+  /// result. Calls for a sequence of states (frames) keep their anchors.
+  Penetration PenetrationOf(int k, const ObstaclePose& pose, const MatrixN3& x);
+
   /// Exact signed-distance queries made and skipped by the cull since Reset.
   long queries() const { return queries_; }
   long culled() const { return culled_; }
@@ -56,6 +63,13 @@ class ObstacleProximity {
 
  private:
   const ParticleSystem& sys_;
+  // Adds obstacle k's motion bound up to `pose`; whether k is culled.
+  bool Advance(std::size_t k, const ObstaclePose& pose);
+  // Particle i's signed distance at q [m] (its direction into direction_[i]),
+  // or +∞ without a query where its bound exceeds skip_above (−∞: never).
+  double Query(const Obstacle& o, std::size_t k, int i, const ObstaclePose& pose, const Vector3& q, double skip_above,
+               long* queries, long* culled);
+
   std::vector<ObstacleContact> found_;
   std::vector<char> hit_;  // per particle: an entry of this call
   std::vector<double> distance_;

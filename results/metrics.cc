@@ -143,14 +143,17 @@ EnergySeries ComputeEnergies(const ParticleSystem& system, const Trajectory& tra
   return s;
 }
 
-PenetrationSeries ComputePenetration(const ParticleSystem& system, const Trajectory& traj) {
+PenetrationSeries ComputePenetration(const ParticleSystem& system, const Trajectory& traj,
+                                     const PenetrationQuery& query) {
   PenetrationSeries s;
   const auto& obs = system.obstacles();
   s.obstacles = static_cast<int>(obs.size());
   for (std::size_t f = 0; f < traj.positions.size(); ++f) {
     const MatrixN3& x = traj.positions[f];
-    for (const Obstacle& o : obs) {
-      const Penetration p = o.PenetrationOf(o.PoseAt(traj.times[f]), x);
+    for (std::size_t k = 0; k < obs.size(); ++k) {
+      const Obstacle& o = obs[k];
+      const ObstaclePose pose = o.PoseAt(traj.times[f]);
+      const Penetration p = query ? query(static_cast<int>(k), pose, x) : o.PenetrationOf(pose, x);
       s.max_depth.push_back(p.max_depth);
       s.mean_depth.push_back(p.inside ? p.depth_sum / p.inside : 0.0);
       s.close.push_back(p.close);

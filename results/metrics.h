@@ -3,6 +3,7 @@
 #define CLOTHBENCH_RESULTS_METRICS_H_
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string_view>
 #include <vector>
@@ -112,8 +113,15 @@ struct PenetrationSeries {
   std::vector<int32_t> close;      ///< [F·O] particles with d < δ/2
 };
 
-/// Signed distances d of every particle to every obstacle at every frame.
-PenetrationSeries ComputePenetration(const ParticleSystem& system, const Trajectory& trajectory);
+/// Obstacle k's penetration at `pose` for the N×3 positions x [m]
+/// (Obstacle::PenetrationOf, or a culled query with its result:
+/// collision/obstacle_proximity.h).
+using PenetrationQuery = std::function<Penetration(int k, const ObstaclePose& pose, const MatrixN3& x)>;
+
+/// Signed distances d of every particle to every obstacle at every frame,
+/// by `query` (empty: Obstacle::PenetrationOf), frame by frame in time order.
+PenetrationSeries ComputePenetration(const ParticleSystem& system, const Trajectory& trajectory,
+                                     const PenetrationQuery& query = {});
 
 }  // namespace clothbench
 

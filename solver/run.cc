@@ -85,7 +85,7 @@ double ObstacleSpeed(const Obstacle& o, double reach) {
 }  // namespace
 
 BlowUpGuard::BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0, double t_end)
-    : sys_(system) {
+    : sys_(system), proximity_(system) {
   const Scene& s = system.scene();
   const double g = s.forces.gravity.norm();
   const double diagonal = std::hypot(s.grid.size[0], s.grid.size[1]);
@@ -143,7 +143,7 @@ bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, Run
   }
   for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
     const Obstacle& o = sys_.obstacles()[k];
-    const Penetration p = o.PenetrationOf(o.PoseAt(t), x);
+    const Penetration p = proximity_.PenetrationOf(static_cast<int>(k), o.PoseAt(t), x);
     const double delta = o.spec().collision_distance;
     depth_ratio_ = std::max(depth_ratio_, p.max_depth / delta);
     if (p.max_depth > delta) {

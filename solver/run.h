@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "collision/obstacle_proximity.h"
 #include "collision/self_contact_response.h"
 #include "model/particle_system.h"
 #include "model/run_record.h"
@@ -167,6 +168,7 @@ class BlowUpGuard {
 
  private:
   const ParticleSystem& sys_;
+  ObstacleProximity proximity_;  // CheckFrame's penetration, culled over the frames
   double e_scale_ = 0.0, v_bound_ = 0.0, e0_ = 0.0;
   bool open_balance_ = false;
   double gain_ratio_ = -1.0, speed_ratio_ = -1.0, depth_ratio_ = -1.0;  // largest so far; −1: not measured

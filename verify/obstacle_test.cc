@@ -432,7 +432,8 @@ TEST(DistanceCull, SameContactsAsExactQueries) {
 // its distance cull finds the same entries, bit for bit, as querying every
 // particle: along a trajectory of the sheet falling onto the avatar, static
 // and keyframed, with positions pushed toward the body between the calls as
-// a substep's projection would, and with half the particles held.
+// a substep's projection would, and with half the particles held; and its
+// penetration of each state is Obstacle::PenetrationOf's.
 TEST(DistanceCull, ThePositionAdapterFindsWhatExactQueriesFind) {
   for (const bool moving : {false, true}) {
     CullRun run(moving);
@@ -462,6 +463,13 @@ TEST(DistanceCull, ThePositionAdapterFindsWhatExactQueriesFind) {
         ASSERT_TRUE(same(a, exact.Find(0, pose, p, w, h))) << "step " << step << " substep " << sub;
         most = std::max(most, a.size());
       }
+      // The guard's and the writer's penetration, culled, against every query.
+      const ObstaclePose pose = run.sys.obstacles()[0].PoseAt(run.engine.t());
+      const Penetration a = culled.PenetrationOf(0, pose, run.engine.x());
+      const Penetration b = run.sys.obstacles()[0].PenetrationOf(pose, run.engine.x());
+      ASSERT_TRUE(a.max_depth == b.max_depth && a.deepest == b.deepest && a.depth_sum == b.depth_sum &&
+                  a.inside == b.inside && a.close == b.close)
+          << "step " << step;
       ASSERT_EQ(run.engine.Step(run.scene.h).status, StepStatus::kOk);
     }
     // The sheet reaches the head: 31 of its 1296 particles at once within
