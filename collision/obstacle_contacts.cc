@@ -35,23 +35,17 @@ bool Tunnelled(const Obstacle& o, const ObstaclePose& pose, const Vector3& x_pre
 
 }  // namespace
 
-ObstacleDetection::ObstacleDetection(const ParticleSystem& system) : sys_(system) {
+ObstacleDetection::ObstacleDetection(const ParticleSystem& system)
+    : sys_(system), cull_(system.obstacles(), static_cast<std::size_t>(system.num_particles())) {
   const std::size_t n = static_cast<std::size_t>(system.num_particles()), n_obs = system.obstacles().size();
   if (n_obs == 0) return;
   poses_.resize(n_obs);
   last_distance_.assign(n * n_obs, 1e300);
-  for (const Obstacle& o : system.obstacles()) cullable_.push_back(o.mesh() != nullptr);
-  cull_anchor_.assign(n * n_obs, Vector3::Zero());
-  cull_distance_.assign(n * n_obs, -kInf);
-  cull_motion_.assign(n * n_obs, 0.0);
-  motion_.assign(n_obs, 0.0);
-  last_pose_.resize(n_obs);
-  for (std::size_t k = 0; k < n_obs; ++k) last_pose_[k] = system.obstacles()[k].PoseAt(0.0);
 }
 
 void ObstacleDetection::Reset() {
   std::fill(last_distance_.begin(), last_distance_.end(), 1e300);
-  std::fill(cull_distance_.begin(), cull_distance_.end(), -kInf);
+  cull_.Reset();
   queries_ = culled_ = 0;
 }
 
@@ -59,18 +53,13 @@ void ObstacleDetection::Save() { distance_backup_.assign(last_distance_.begin(),
 
 void ObstacleDetection::Restore() { std::copy(distance_backup_.begin(), distance_backup_.end(), last_distance_.begin()); }
 
-void ObstacleDetection::set_distance_cull(bool on) {
-  for (std::size_t k = 0; k < cullable_.size(); ++k) cullable_[k] = on && sys_.obstacles()[k].mesh() != nullptr;
-}
+void ObstacleDetection::set_distance_cull(bool on) { cull_.set_enabled(on); }
 
 void ObstacleDetection::BeginStep(double t0) {
   const auto& obstacles = sys_.obstacles();
   for (std::size_t k = 0; k < obstacles.size(); ++k) {
     poses_[k] = obstacles[k].PoseAt(t0);
-    if (cullable_[k] && obstacles[k].moving()) {
-      motion_[k] += obstacles[k].MotionBound(last_pose_[k], poses_[k]);
-      last_pose_[k] = poses_[k];
-    }
+    cull_.Advance(k, poses_[k]);
   }
 }
 
@@ -90,8 +79,8 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     double& d_stored = last_distance_[pk];
     const Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
     const Vector3 v_rel = v0 - v_obs;
-    if (cullable_[k] && !same_contact) {
-      const double bound = cull_distance_[pk] - (x0 - cull_anchor_[pk]).norm() - (motion_[k] - cull_motion_[pk]);
+    if (cull_.culls(k) && !same_contact) {
+      const double bound = cull_.Bound(k, static_cast<std::size_t>(p), x0);
       const double moved = x_prev ? (x0 - *x_prev).norm() : 0.0;
       if (bound > std::max(delta + h * v_rel.norm(), moved)) {
         d_stored = bound;
@@ -102,11 +91,7 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     Vector3 d_k;
     double d = o.SignedDistance(pose, x0, &d_k);
     ++queries_;
-    if (cullable_[k]) {
-      cull_anchor_[pk] = x0;
-      cull_distance_[pk] = std::isfinite(d) ? d : -kInf;
-      cull_motion_[pk] = motion_[k];
-    }
+    cull_.Record(k, static_cast<std::size_t>(p), x0, d);
     // Side memory: a particle in contact that now finds the obstacle's
     // direction turned against its contact direction has crossed a thin or
     // open part (an open mesh's distance is unsigned): it is behind the

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "collision/contact_list.h"
+#include "collision/distance_cull.h"
 #include "model/particle_system.h"
 
 namespace clothbench {
@@ -93,15 +94,7 @@ class ObstacleDetection {
   std::vector<ObstaclePose> poses_;    // of each obstacle at t₀ (per step)
   std::vector<double> last_distance_;  // N×O: signed distance at x₀ of the last step (x₋₁ now), or a lower bound
   std::vector<double> distance_backup_;
-  // The distance cull (mesh obstacles): per particle and obstacle the point
-  // of the last exact query, its distance (−∞: none) and the obstacle's
-  // accumulated motion bound then; per obstacle whether it is culled, the
-  // motion bound accumulated over the steps and the pose of the last.
-  std::vector<Vector3> cull_anchor_;
-  std::vector<double> cull_distance_, cull_motion_;
-  std::vector<char> cullable_;
-  std::vector<double> motion_;
-  std::vector<ObstaclePose> last_pose_;
+  DistanceCull cull_;  // mesh obstacles
   long queries_ = 0, culled_ = 0;
 };
 

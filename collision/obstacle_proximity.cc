@@ -23,30 +23,22 @@ constexpr int kParallelQueries = 1024;
 
 }  // namespace
 
-ObstacleProximity::ObstacleProximity(const ParticleSystem& system) : sys_(system) {
+ObstacleProximity::ObstacleProximity(const ParticleSystem& system)
+    : sys_(system), cull_(system.obstacles(), static_cast<std::size_t>(system.num_particles())) {
   const std::size_t n = static_cast<std::size_t>(system.num_particles()), n_obs = system.obstacles().size();
   if (n_obs == 0) return;
   found_.reserve(n);
   hit_.assign(n, 0);
   distance_.assign(n, 0.0);
   direction_.assign(n, Vector3::Zero());
-  for (const Obstacle& o : system.obstacles()) cullable_.push_back(o.mesh() != nullptr);
-  motion_.assign(n_obs, 0.0);
-  last_pose_.resize(n_obs);
-  for (std::size_t k = 0; k < n_obs; ++k) last_pose_[k] = system.obstacles()[k].PoseAt(0.0);
-  anchor_.assign(n * n_obs, Vector3::Zero());
-  anchor_distance_.assign(n * n_obs, -kInf);
-  anchor_motion_.assign(n * n_obs, 0.0);
 }
 
 void ObstacleProximity::Reset() {
-  std::fill(anchor_distance_.begin(), anchor_distance_.end(), -kInf);
+  cull_.Reset();
   queries_ = culled_ = 0;
 }
 
-void ObstacleProximity::set_distance_cull(bool on) {
-  for (std::size_t k = 0; k < cullable_.size(); ++k) cullable_[k] = on && sys_.obstacles()[k].mesh() != nullptr;
-}
+void ObstacleProximity::set_distance_cull(bool on) { cull_.set_enabled(on); }
 
 const std::vector<ObstacleContact>& ObstacleProximity::Find(int k, const ObstaclePose& pose, const MatrixN3& p,
                                                             const Eigen::VectorXd& w,
@@ -54,7 +46,8 @@ const std::vector<ObstacleContact>& ObstacleProximity::Find(int k, const Obstacl
   found_.clear();
   const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
   const auto ku = static_cast<std::size_t>(k);
-  const bool cull = Advance(ku, pose);
+  cull_.Advance(ku, pose);
+  const bool cull = cull_.culls(ku);
   const double delta = o.spec().collision_distance;
   const int n = sys_.num_particles();
   // The queries in parallel, each particle's into its own slot, then the
@@ -89,7 +82,8 @@ Penetration ObstacleProximity::PenetrationOf(int k, const ObstaclePose& pose, co
   const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
   const auto ku = static_cast<std::size_t>(k);
   const double half = 0.5 * o.spec().collision_distance;
-  const bool cull = Advance(ku, pose);
+  cull_.Advance(ku, pose);
+  const bool cull = cull_.culls(ku);
   const int n = sys_.num_particles();
   long queries = 0, culled = 0;
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : queries, culled) if (n >= kParallelQueries)
@@ -99,36 +93,14 @@ Penetration ObstacleProximity::PenetrationOf(int k, const ObstaclePose& pose, co
   }
   queries_ += queries;
   culled_ += culled;
-  // Obstacle::PenetrationOf's sums, in particle order.
-  Penetration r;
-  for (int i = 0; i < n; ++i) {
-    const double d = distance_[static_cast<std::size_t>(i)];
-    if (d < 0.0) {
-      if (-d > r.max_depth) r.max_depth = -d, r.deepest = i;
-      r.depth_sum += -d;
-      ++r.inside;
-    }
-    if (d < half) ++r.close;
-  }
-  return r;
-}
-
-bool ObstacleProximity::Advance(std::size_t k, const ObstaclePose& pose) {
-  const bool cull = cullable_[k] != 0;
-  const Obstacle& o = sys_.obstacles()[k];
-  if (cull && o.moving()) {
-    motion_[k] += o.MotionBound(last_pose_[k], pose);
-    last_pose_[k] = pose;
-  }
-  return cull;
+  return SumPenetration(distance_.data(), n, o.spec().collision_distance);
 }
 
 double ObstacleProximity::Query(const Obstacle& o, std::size_t k, int i, const ObstaclePose& pose, const Vector3& q,
                                 double skip_above, long* queries, long* culled) {
   const auto iu = static_cast<std::size_t>(i);
-  const std::size_t at = k * static_cast<std::size_t>(sys_.num_particles()) + iu;
   if (skip_above > -kInf) {
-    const double bound = anchor_distance_[at] - (q - anchor_[at]).norm() - (motion_[k] - anchor_motion_[at]);
+    const double bound = cull_.Bound(k, iu, q);
     if (bound > skip_above + kRoundOff) {
       ++*culled;
       return kInf;
@@ -136,11 +108,7 @@ double ObstacleProximity::Query(const Obstacle& o, std::size_t k, int i, const O
   }
   const double d = o.SignedDistance(pose, q, &direction_[iu]);
   ++*queries;
-  if (cullable_[k]) {
-    anchor_[at] = q;
-    anchor_distance_[at] = std::isfinite(d) ? d : -kInf;
-    anchor_motion_[at] = motion_[k];
-  }
+  cull_.Record(k, iu, q, d);
   return d;
 }
 

@@ -5,12 +5,9 @@
 // dynamics after its iterations; they project the entries' positions onto
 // the constraint C = d(p) − δ ≥ 0 (peers/position_contacts.h).
 //
-// The distance cull of ObstacleDetection (collision/obstacle_contacts.h)
-// makes a substep's query cheap: a mesh obstacle's distance is 1-Lipschitz
-// (signed for a closed mesh, unsigned for an open one), so with d_a measured
-// at x_a and the obstacle's motion bound m since (Obstacle::MotionBound),
-// d(p) ≥ d_a − |p − x_a| − m. A particle whose bound is at least δ is not in
-// the area and is skipped without a query. The cull is exact: the entries
+// The detection's distance cull (collision/distance_cull.h) makes a
+// substep's query cheap: a particle whose lower bound d_a − |p − x_a| − m is
+// at least δ is not in the area and is skipped without a query. The cull is exact: the entries
 // are those of querying every particle, bit for bit.
 #ifndef CLOTHBENCH_COLLISION_OBSTACLE_PROXIMITY_H_
 #define CLOTHBENCH_COLLISION_OBSTACLE_PROXIMITY_H_
@@ -18,6 +15,7 @@
 #include <vector>
 
 #include "collision/contact_list.h"
+#include "collision/distance_cull.h"
 #include "model/particle_system.h"
 
 namespace clothbench {
@@ -63,8 +61,6 @@ class ObstacleProximity {
 
  private:
   const ParticleSystem& sys_;
-  // Adds obstacle k's motion bound up to `pose`; whether k is culled.
-  bool Advance(std::size_t k, const ObstaclePose& pose);
   // Particle i's signed distance at q [m] (its direction into direction_[i]),
   // or +∞ without a query where its bound exceeds skip_above (−∞: never).
   double Query(const Obstacle& o, std::size_t k, int i, const ObstaclePose& pose, const Vector3& q, double skip_above,
@@ -74,15 +70,7 @@ class ObstacleProximity {
   std::vector<char> hit_;  // per particle: an entry of this call
   std::vector<double> distance_;
   std::vector<Vector3> direction_;
-  // Per mesh obstacle: whether it is culled, the motion bound accumulated
-  // over the calls and the pose of the last; per particle and obstacle the
-  // point of the last exact query, its distance (−∞: none) and the motion
-  // bound then.
-  std::vector<char> cullable_;
-  std::vector<double> motion_;
-  std::vector<ObstaclePose> last_pose_;
-  std::vector<Vector3> anchor_;
-  std::vector<double> anchor_distance_, anchor_motion_;
+  DistanceCull cull_;  // mesh obstacles
   long queries_ = 0, culled_ = 0;
 };
 

@@ -58,15 +58,18 @@ Penetration Obstacle::PenetrationOf(const ObstaclePose& pose, const MatrixN3& x)
     Vector3 dir;
     dist[p] = SignedDistance(pose, x.row(p).transpose(), &dir);
   }
+  return SumPenetration(dist, n, spec_.collision_distance);
+}
+
+Penetration SumPenetration(const double* d, int n, double delta) {
   Penetration r;
   for (int p = 0; p < n; ++p) {
-    const double d = dist[p];
-    if (d < 0.0) {
-      if (-d > r.max_depth) r.max_depth = -d, r.deepest = p;
-      r.depth_sum += -d;
+    if (d[p] < 0.0) {
+      if (-d[p] > r.max_depth) r.max_depth = -d[p], r.deepest = p;
+      r.depth_sum += -d[p];
       ++r.inside;
     }
-    if (d < 0.5 * spec_.collision_distance) ++r.close;
+    if (d[p] < 0.5 * delta) ++r.close;
   }
   return r;
 }

@@ -88,6 +88,10 @@ struct Penetration {
   int close = 0;           ///< particles with d < δ/2
 };
 
+/// The Penetration of n signed distances d [m] to an obstacle with
+/// collision distance δ [m], summed in particle order (+∞: far, adds nothing).
+Penetration SumPenetration(const double* d, int n, double delta);
+
 /// An obstacle as written in a scene (`[[obstacle]]`): its shape and the
 /// contact parameters every shape shares.
 struct ObstacleSpec {
