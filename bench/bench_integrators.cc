@@ -98,6 +98,7 @@ int RunSizesCommand(const CLI::App& app, Options& o, const std::vector<Nonlinear
 }
 
 int Main(int argc, char** argv) {
+  const std::vector<std::string> command(argv, argv + argc);  // before MPI_Init may edit argv
   SweepComm comm(&argc, &argv);
   CLI::App app{"clothbench: integrators of implicit cloth simulation against a SUNDIALS CVODE reference"};
   Options o;
@@ -117,6 +118,9 @@ int Main(int argc, char** argv) {
   }
   InstallInterruptHandlers();
   StartInterruptWatchdog("bench_integrators");
+  // A run inside one library call past its --time-limit: a serial process
+  // restarts the command; an MPI rank cannot, and exits 75.
+  WatchOverruns(comm.mpi() ? std::vector<std::string>{} : command);
   // Every rank refuses the same input; rank 0 says so.
   const auto refuse = [&comm](const std::string& what) {
     if (comm.root()) fmt::print(stderr, "bench_integrators: {}\n", EscapeControl(what));

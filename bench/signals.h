@@ -11,12 +11,16 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cerrno>
+#include <cstring>
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <fmt/format.h>
 
+#include "harness/overrun.h"
 #include "model/interrupt.h"
 
 namespace clothbench {
@@ -58,6 +62,65 @@ inline void SetWatchdogNote(std::string note) {
   internal::g_watchdog_note = std::move(note);
 }
 
+namespace internal {
+inline std::atomic<bool> g_watch_overruns{false};
+inline std::vector<std::string> g_restart_argv;  // set before g_watch_overruns; empty: exit 75, no restart
+inline std::chrono::milliseconds g_overrun_grace{5000};
+
+// The watchdog's action on a run `grace` past its deadline: marks its task
+// (harness/overrun.h) and restarts the command or ends the process. Returns
+// only when no journalled task is in progress.
+inline void EndOverrun(const std::string& program) {
+  std::string line;
+  const OverrunMark mark = MarkOverrun(&line);
+  if (mark == OverrunMark::kNoTask) return;
+  std::fflush(stdout);
+  if (mark == OverrunMark::kAgain) {
+    fmt::print(stderr, "{}: {} again, although it was run past its deadline after the same overrun in an earlier "
+                       "process; ended (exit 1) so that the same command does not enter the call once more\n",
+               program, line);
+    std::fflush(stderr);
+    ::_exit(1);
+  }
+  if (!g_restart_argv.empty()) {
+    fmt::print(stderr, "{}: {}; the process restarts the same command, which records the run as time_limit and "
+                       "resumes from the journal\n",
+               program, line);
+    std::fflush(stderr);
+    std::vector<char*> argv;
+    for (std::string& a : g_restart_argv) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv("/proc/self/exe", argv.data());  // returns only on failure
+    fmt::print(stderr, "{}: the restart failed ({}); ", program, std::strerror(errno));
+  } else {
+    fmt::print(stderr, "{}: {}; ", program, line);
+  }
+  fmt::print(stderr, "ended (exit {}): the same command records the run as time_limit and resumes from the "
+                     "journal\n",
+             kExitPartial);
+  std::fflush(stderr);
+  ::_exit(kExitPartial);
+}
+}  // namespace internal
+
+/// Makes the watchdog (StartInterruptWatchdog) also end a run that stays
+/// `grace` past its --time-limit: such a run is inside one library call
+/// that checks no deadline (EarliestActiveDeadline, model/interrupt.h). The
+/// watchdog marks the run's journalled task (harness/overrun.h) and, with
+/// `restart_argv` (the command's arguments, argv[0] first), restarts the
+/// command in the same process (execv of /proc/self/exe: the same pid, the
+/// output lock released with its close-on-exec descriptor and taken again),
+/// which resumes from the journal and records the task as time_limit
+/// without entering the call again. Without it (MPI ranks, which one rank
+/// cannot restart) the process exits kExitPartial (75), and the same
+/// command resumes. A run outside a journalled task is left alone.
+inline void WatchOverruns(std::vector<std::string> restart_argv,
+                          std::chrono::milliseconds grace = std::chrono::milliseconds(5000)) {
+  internal::g_restart_argv = std::move(restart_argv);
+  internal::g_overrun_grace = grace;
+  internal::g_watch_overruns.store(true);
+}
+
 /// Starts a detached thread that ends the process when SIGINT or SIGTERM
 /// is not noticed within `grace`: the run is then inside one library call
 /// that checks no flag and has no callback to stop it (a KLU or CHOLMOD
@@ -68,11 +131,19 @@ inline void SetWatchdogNote(std::string note) {
 /// finished run is in its journal already, written as it ended, and a
 /// journal entry being written is a ".tmp" that readers ignore. A result
 /// file is never being written then: its writer checks the flag between
-/// frames.
+/// frames. After WatchOverruns it also ends a run past its deadline.
 inline void StartInterruptWatchdog(std::string program,
                                    std::chrono::milliseconds grace = std::chrono::milliseconds(1000)) {
   std::thread([program = std::move(program), grace] {
-    while (!InterruptRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    while (!InterruptRequested()) {
+      if (internal::g_watch_overruns.load()) {
+        const auto deadline = EarliestActiveDeadline();
+        if (deadline != std::chrono::steady_clock::time_point::max() &&
+            std::chrono::steady_clock::now() - deadline > internal::g_overrun_grace)
+          internal::EndOverrun(program);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
     const auto noticed_by = std::chrono::steady_clock::now() + grace;
     while (std::chrono::steady_clock::now() < noticed_by) {
       if (internal::g_interrupt_handled.load()) return;

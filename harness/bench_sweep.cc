@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include "harness/overrun.h"
 #include "harness/table_notes.h"
 #include "harness/plot.h"
 #include "harness/progress.h"
@@ -135,7 +136,13 @@ std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_part
   std::vector<long> missing;
   for (long k = 0; k < n_tasks; ++k)
     if (!std::binary_search(have.begin(), have.end(), k)) missing.push_back(k);
+    else journal.ClearOverrun(k);  // a stored run's repetition overran: the run stays
   return missing;
+}
+
+// The reference task's --time-limit [s].
+double ReferenceTimeLimit(const BenchRun& b) {
+  return b.reference_time_limit > 0.0 ? b.reference_time_limit : b.time_limit;
 }
 
 // Rank 0: the reference (task 0, if any) and every row in task order, each
@@ -367,12 +374,21 @@ void KeepOnlyStoredFrames(std::map<int, MethodRun>* runs, const std::string& fra
   }
 }
 
+// The last start of `starts` at fewer than `particles` (starts.end() if none).
+std::vector<SizeHistory::Start>::const_iterator LastSmaller(const std::vector<SizeHistory::Start>& starts,
+                                                            long particles) {
+  auto it = starts.end();
+  while (it != starts.begin() && std::prev(it)->particles >= particles) --it;
+  return it == starts.begin() ? starts.end() : std::prev(it);
+}
+
 double PredictedStartTime(const std::vector<SizeHistory::Start>& starts, long particles) {
-  if (starts.empty() || !(starts.back().wall_time_s > 0.0)) return 0.0;
-  const SizeHistory::Start& last = starts.back();
+  const auto at = LastSmaller(starts, particles);
+  if (at == starts.end() || !(at->wall_time_s > 0.0)) return 0.0;
+  const SizeHistory::Start& last = *at;
   double p = 1.0;
-  if (starts.size() >= 2) {
-    const SizeHistory::Start& before = starts[starts.size() - 2];
+  if (at != starts.begin()) {
+    const SizeHistory::Start& before = *std::prev(at);
     if (before.wall_time_s > 0.0 && last.particles > before.particles)
       p = std::max(1.0, std::log(last.wall_time_s / before.wall_time_s) /
                             std::log(static_cast<double>(last.particles) / static_cast<double>(before.particles)));
@@ -386,41 +402,54 @@ std::vector<SizeHistory::Start>* HistoryOf(const BenchRun& b, const RowMethod& m
   return b.size_history ? &b.size_history->runs[fmt::format("{}@{}", m.label(), rung)] : nullptr;
 }
 
+// --sizes: method m's wall time at rung `rung` and this size, predicted
+// from its runs of that rung at the smaller sizes (0: none).
+double SizePrediction(const BenchRun& b, const RowMethod& m, int rung, long particles) {
+  const std::vector<SizeHistory::Start>* h = HistoryOf(b, m, rung);
+  return h ? PredictedStartTime(*h, particles) : 0.0;
+}
+
+// Why rung `rung` is predicted past --time-limit from the smaller sizes.
+std::string SizePredictionReason(const BenchRun& b, const RowMethod& m, int rung, long particles) {
+  const std::vector<SizeHistory::Start>& h = *HistoryOf(b, m, rung);
+  const SizeHistory::Start& last = *LastSmaller(h, particles);
+  return fmt::format("{} predicted past --time-limit {:g} s (about {:.3g} s from {:.1f} s{} at {} particles)",
+                     RungName(m, RungOf(m, b.scene, rung)), b.time_limit, SizePrediction(b, m, rung, particles),
+                     last.wall_time_s,
+                     last.predicted   ? ", itself predicted"
+                     : last.timed_out ? ", its time limit"
+                     : last.ok        ? ""
+                                      : ", a failed run",
+                     last.particles);
+}
+
 // --sizes: a start predicted past --time-limit from the method's runs of
 // that rung at the smaller sizes is not run (it would cost the whole limit,
 // and inside one library call, a KLU factorisation at 10⁵ particles, the
-// limit is noticed only when the call returns). As a start that reached the
-// limit does, the method then starts once from the next cheaper rung,
-// unless that too is predicted past the limit. The predictions follow from
-// the smaller sizes' stored runs, so a resumed sweep decides the same.
-// @return the rung to start from (0, or −1), or nullopt: not started, the
-//   reason appended to *reasons and the predictions to the history
+// limit is noticed only 5 s after it: harness/overrun.h). As a start that
+// reached the limit does, the method then starts from the next cheaper
+// rung, down the ladder's coarsenings, at the first one predicted within
+// the limit (or without a prediction); the refinement from there stops
+// before a rung the smaller sizes predict past the limit (RefineStop).
+// The predictions follow from the smaller sizes' stored runs, so a resumed
+// sweep decides the same.
+// @return the rung to start from (0 or coarser), or nullopt: not started,
+//   the reason appended to *reasons; the rungs skipped join the history
+//   with their predictions
 std::optional<int> StartRung(const BenchRun& b, const RowMethod& m, long particles, std::vector<std::string>* reasons) {
-  const auto predicted = [&](int rung) {
-    const std::vector<SizeHistory::Start>* h = HistoryOf(b, m, rung);
-    return h ? PredictedStartTime(*h, particles) : 0.0;
+  const auto past_limit = [&](int rung) {
+    return b.time_limit > 0.0 && SizePrediction(b, m, rung, particles) > b.time_limit;
   };
-  const auto past_limit = [&](int rung) { return b.time_limit > 0.0 && predicted(rung) > b.time_limit; };
-  const auto why = [&](int rung) {
-    const SizeHistory::Start& last = HistoryOf(b, m, rung)->back();
-    return fmt::format("{} predicted past --time-limit {:g} s (about {:.3g} s from {:.1f} s{} at {} particles)",
-                       RungName(m, RungOf(m, b.scene, rung)), b.time_limit, predicted(rung), last.wall_time_s,
-                       last.predicted   ? ", itself predicted"
-                       : last.timed_out ? ", its time limit"
-                       : last.ok        ? ""
-                                        : ", a failed run",
-                       last.particles);
-  };
-  if (!past_limit(0)) return 0;
-  const bool cheaper = RungExists(m, b, -1);
-  if (cheaper && !past_limit(-1)) {
-    HistoryOf(b, m, 0)->push_back({particles, predicted(0), false, true});
-    return -1;
-  }
-  reasons->push_back(
-      fmt::format("{}: not started: {}{}", m.label(), why(0), cheaper ? "; " + why(-1) : std::string()));
-  for (int rung = 0; rung >= (cheaper ? -1 : 0); --rung)
-    HistoryOf(b, m, rung)->push_back({particles, predicted(rung), false, true});
+  int rung = 0;
+  while (past_limit(rung) && rung > -kMaxCoarsenings && RungExists(m, b, rung - 1)) --rung;
+  const bool started = !past_limit(rung);
+  if (!started)  // before the predictions join the history
+    reasons->push_back(fmt::format("{}: not started: {}{}", m.label(), SizePredictionReason(b, m, 0, particles),
+                                   rung < 0 ? "; the cheapest, " + SizePredictionReason(b, m, rung, particles)
+                                            : std::string()));
+  for (int skipped = 0; skipped > rung || (!started && skipped == rung); --skipped)
+    HistoryOf(b, m, skipped)->push_back({particles, SizePrediction(b, m, skipped, particles), false, true});
+  if (started) return rung;
   return std::nullopt;
 }
 
@@ -443,7 +472,7 @@ void RecordSizeHistory(const BenchRun& b, const RowMethod& m, long particles, co
 // met, two refinements that gained less than 20 % each, the ladder's end
 // (or kMaxRunsPerMethod), or the next rung predicted past --time-limit.
 std::optional<std::string> RefineStop(const BenchRun& b, const RowMethod& m, const std::map<int, MethodRun>& runs,
-                                      const std::map<int, double>& error, int hi) {
+                                      const std::map<int, double>& error, int hi, long particles) {
   const double smallest = *std::min_element(b.targets.begin(), b.targets.end());
   const MethodRun& f = runs.at(hi);
   const auto rung = [&](int i) { return RungName(m, RungOf(m, b.scene, i)); };
@@ -466,6 +495,10 @@ std::optional<std::string> RefineStop(const BenchRun& b, const RowMethod& m, con
   if (b.time_limit > 0.0 && predicted > b.time_limit)
     return fmt::format("{} predicted past --time-limit {:g} s (about {:.0f} s from {:.1f} s at {})", rung(hi + 1),
                        b.time_limit, predicted, f.wall_time_s, rung(hi));
+  // Without two runs at this size to predict from, the smaller sizes' runs
+  // of the next rung do (--sizes).
+  if (!(predicted > 0.0) && b.time_limit > 0.0 && SizePrediction(b, m, hi + 1, particles) > b.time_limit)
+    return SizePredictionReason(b, m, hi + 1, particles);
   return std::nullopt;
 }
 
@@ -482,17 +515,18 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   const double h_ref = SelfConvergenceStep(b);
   long next = 0;
   // Task `k`: from the journal if stored, else computed and stored.
-  const auto task = [&](auto compute, auto* out) {
+  const auto task = [&](const std::string& what, auto compute, auto* out) {
     const long k = next++;
     if (std::binary_search(have.begin(), have.end(), k)) {
       DecodeRun(journal.Load(k), sys.num_particles(), out);
-      return;
+    } else {
+      *out = RunJournalledTask(journal, k, what, k == 0 ? ReferenceTimeLimit(b) : b.time_limit, k == 0, compute);
+      if (out->ok() || k > 0) journal.Store(k, EncodeRun(*out));
     }
-    *out = compute();
-    if (out->ok() || k > 0) journal.Store(k, EncodeRun(*out));
+    journal.ClearOverrun(k);
   };
   RunSummary ref;
-  task([&] { return ComputeReference(b, sys, ctx, h_ref, progress); }, &ref);
+  task("the reference", [&] { return ComputeReference(b, sys, ctx, h_ref, progress); }, &ref);
   if (!ref.ok()) {
     if (journal.Stored().empty()) journal.Remove();
     ReportReferenceFailure(b, SelfConvergenceIsReference(sys), h_ref, ref);
@@ -510,9 +544,11 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     const auto run = [&](int index) {
       const Rung r = RungOf(m, b.scene, index);
       MethodRun& out = runs[index];
+      const std::string what = fmt::format("{} {}", m.label(), RungName(m, r));
       task(
+          what,
           [&] {
-            progress.Start(fmt::format("{} {}", m.label(), RungName(m, r)), b.scene.t_end);
+            progress.Start(what, b.scene.t_end);
             MethodRun first = m.Run(sys, b.scene, spec, r.param, ctx, r.count);
             RepeatTimings(&first, b.repeat, &budget, [&] { return m.Run(sys, b.scene, spec, r.param, ctx, r.count); });
             return first;
@@ -532,7 +568,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     run(*start);
     int lo = *start, hi = *start;
     // A start past --time-limit tries the next cheaper rung once.
-    if (*start == 0 && runs[lo].status == RunStatus::kTimeLimit && RungExists(m, b, lo - 1)) run(--lo);
+    if (runs[lo].status == RunStatus::kTimeLimit && lo > -kMaxCoarsenings && RungExists(m, b, lo - 1)) run(--lo);
     // A coarsening that cost more than the run it coarsened (rejected
     // attempts, more updates per step) ends the coarsening: the cheapest ok
     // run already meets the largest target ('≤' in the table).
@@ -545,7 +581,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
            RungExists(m, b, lo - 1) && static_cast<int>(runs.size()) < kMaxRunsPerMethod)
       run(--lo);
     std::optional<std::string> reason;
-    while (!(reason = RefineStop(b, m, runs, error, hi))) run(++hi);
+    while (!(reason = RefineStop(b, m, runs, error, hi, particles))) run(++hi);
     progress.Finish();
     reasons.push_back(fmt::format("{}: {} ({} runs)", m.label(), *reason, runs.size()));
     RecordSizeHistory(b, m, particles, runs);
@@ -615,7 +651,9 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     if (!comm.Owns(j)) continue;
     const long k = missing[j];
     if (k < n_ref) {
-      RunSummary r = ComputeReference(b, sys, ctx, h_ref, progress);
+      RunSummary r = RunJournalledTask(journal, k, "the reference", ReferenceTimeLimit(b), true,
+                                       [&] { return ComputeReference(b, sys, ctx, h_ref, progress); });
+      journal.ClearOverrun(k);
       if (!r.ok() && comm.size() == 1) return reference_failed(r);  // serial: before any row
       std::string bytes = EncodeRun(r);
       if (r.ok()) journal_store(k, bytes);  // a failed reference is computed again by a rerun
@@ -626,17 +664,21 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
     const RowMethod& m = b.methods[t.mk];
     const SolverSpec spec = task_spec(t);
-    progress.Start(m.kind() == StepKind::kAdaptive     ? fmt::format("{} rtol {:g}", m.label(), t.param)
-                   : m.kind() == StepKind::kSubstepped ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.count)
-                   : m.kind() == StepKind::kIterated   ? fmt::format("{} h = {:g} s x{}", m.label(), t.param, t.count)
-                                                       : fmt::format("{} h = {:g} s", m.label(), t.param),
-                   b.scene.t_end);
-    Row r = m.Run(sys, b.scene, spec, t.param, ctx, t.count);
+    const std::string what = m.kind() == StepKind::kAdaptive ? fmt::format("{} rtol {:g}", m.label(), t.param)
+                             : m.kind() == StepKind::kSubstepped
+                                 ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.count)
+                             : m.kind() == StepKind::kIterated
+                                 ? fmt::format("{} h = {:g} s x{}", m.label(), t.param, t.count)
+                                 : fmt::format("{} h = {:g} s", m.label(), t.param);
+    progress.Start(what, b.scene.t_end);
+    Row r = RunJournalledTask(journal, k, what, b.time_limit, false,
+                              [&] { return m.Run(sys, b.scene, spec, t.param, ctx, t.count); });
     if (b.etas.size() > 1 && m.uses_pcg()) {
       r.id += fmt::format("_eta{:g}", t.eta);
       r.label += fmt::format(" eta={:g}", t.eta);
     }
     journal_store(k, EncodeRun(r));
+    journal.ClearOverrun(k);
     computed.push_back({k, std::move(r)});
   }
   progress.Finish();
@@ -647,6 +689,9 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
             [](const auto& a, const auto& c) { return a.second.wall_time_s < c.second.wall_time_s; });
   for (auto& [k, r] : computed) {
     const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
+    // A repetition that overruns inside a library call: the rerun keeps
+    // the stored first run (its marker is removed unread, MissingTasks).
+    const ScopedOverrunTask named(journal, k, r.label + " (repetition)", b.time_limit, false);
     RepeatTimings(&r, b.repeat, &budget, [&] { return b.methods[t.mk].Run(sys, b.scene, task_spec(t), t.param, ctx, t.count); });
     if (r.repeats > 1) journal_store(k, EncodeRun(r));
     if (comm.root()) own_rows.emplace(k, std::move(r));

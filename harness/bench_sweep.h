@@ -30,12 +30,13 @@ struct SizeHistory {
     bool predicted = false;  ///< not run: wall_time_s is its prediction
     bool timed_out = false;  ///< ended time_limit: wall_time_s is at least its limit
   };
-  /// per "<row label>@<rung>" (0 the ladder's start, −1 the next cheaper), in size order
+  /// per "<row label>@<rung>" (0 the ladder's start, −1 the next cheaper, 1 the next finer), in size order
   std::map<std::string, std::vector<Start>> runs;
 };
 
 /// The wall time [s] of a method's run at `particles`, predicted from its
-/// runs of the same rung at smaller sizes (`starts`): the last one's wall time scaled by
+/// runs of the same rung at smaller sizes (those of `starts` at fewer
+/// particles; a prediction at this size is ignored): the last one's wall time scaled by
 /// (particles / its particles)^p, p the exponent between the last two
 /// starts (at least 1: no method's start costs less than linearly in N), 1
 /// with only one. A start that ended time_limit counts with its limit, a

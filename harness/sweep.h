@@ -24,6 +24,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -32,6 +33,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -480,6 +482,28 @@ class RecordJournal {
     return false;
   }
   void Remove() const { std::filesystem::remove_all(path_); }
+
+  /// The marker a watchdog leaves when the run of task `index` stayed
+  /// inside one library call past its --time-limit and the process was
+  /// ended (harness/overrun.h): `<index>.overrun`.
+  std::string OverrunEntry(long index) const { return fmt::format("{}/{}.overrun", path_, index); }
+  /// The seconds [s] from the start of task `index` to the end of the
+  /// process that its marker records, or nullopt without a readable marker
+  /// (none, a link, or not "elapsed_s=<seconds>"). Rank 0 and the rank
+  /// that computes the task read it (the journal's shared folder).
+  std::optional<double> Overrun(long index) const {
+    std::string text, why;
+    if (!ReadRegularFile(OverrunEntry(index), &text, &why)) return std::nullopt;
+    double elapsed = 0.0;
+    if (std::sscanf(text.c_str(), "elapsed_s=%lf", &elapsed) != 1 || !std::isfinite(elapsed) || elapsed < 0.0)
+      return std::nullopt;
+    return elapsed;
+  }
+  /// Removes task `index`'s marker (its record is stored).
+  void ClearOverrun(long index) const {
+    std::error_code ec;
+    std::filesystem::remove(OverrunEntry(index), ec);
+  }
 
  private:
   std::string Entry(long index) const { return fmt::format("{}/{}.run", path_, index); }

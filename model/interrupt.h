@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <mutex>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -42,22 +44,59 @@ inline void ThrowIfInterrupted() {
 // one iteration of its limit, not one step.
 namespace internal {
 inline thread_local std::chrono::steady_clock::time_point g_deadline = std::chrono::steady_clock::time_point::max();
+// The deadlines of the runs in progress on every thread, for a watchdog
+// that sees a run stay inside one library call past its deadline.
+inline std::mutex g_active_deadlines_mutex;
+inline std::multiset<std::chrono::steady_clock::time_point> g_active_deadlines;
 }  // namespace internal
 
 /// Sets this thread's deadline to `deadline` (or keeps an earlier one) for
-/// the object's lifetime.
+/// the object's lifetime, and lists it among the runs in progress
+/// (EarliestActiveDeadline).
 class ScopedDeadline {
  public:
   explicit ScopedDeadline(std::chrono::steady_clock::time_point deadline) : saved_(internal::g_deadline) {
     internal::g_deadline = std::min(deadline, saved_);
+    if (internal::g_deadline != std::chrono::steady_clock::time_point::max()) {
+      const std::lock_guard<std::mutex> lock(internal::g_active_deadlines_mutex);
+      // A deadline passed already (PassedDeadline) counts from now.
+      listed_ = internal::g_active_deadlines.insert(std::max(internal::g_deadline, std::chrono::steady_clock::now()));
+      is_listed_ = true;
+    }
   }
-  ~ScopedDeadline() { internal::g_deadline = saved_; }
+  ~ScopedDeadline() {
+    if (is_listed_) {
+      const std::lock_guard<std::mutex> lock(internal::g_active_deadlines_mutex);
+      internal::g_active_deadlines.erase(listed_);
+    }
+    internal::g_deadline = saved_;
+  }
   ScopedDeadline(const ScopedDeadline&) = delete;
   ScopedDeadline& operator=(const ScopedDeadline&) = delete;
 
  private:
   std::chrono::steady_clock::time_point saved_;
+  std::multiset<std::chrono::steady_clock::time_point>::iterator listed_;
+  bool is_listed_ = false;
 };
+
+/// The earliest deadline of the runs in progress on any thread (max if no
+/// run with a deadline is in progress; a run started past its deadline
+/// lists its start). A run past it that has not ended
+/// is inside work that checks no deadline: one library call (a KLU or
+/// CHOLMOD factorisation, a BoomerAMG setup). bench/signals.h's watchdog
+/// reads it.
+inline std::chrono::steady_clock::time_point EarliestActiveDeadline() {
+  const std::lock_guard<std::mutex> lock(internal::g_active_deadlines_mutex);
+  return internal::g_active_deadlines.empty() ? std::chrono::steady_clock::time_point::max()
+                                              : *internal::g_active_deadlines.begin();
+}
+
+/// A deadline that has passed already: the run of a task whose library
+/// call overran its deadline in an earlier process (harness/sweep.h,
+/// RecordJournal::Overrun) runs under it, so that it records time_limit
+/// before its first step instead of entering the call again.
+inline std::chrono::steady_clock::time_point PassedDeadline() { return std::chrono::steady_clock::time_point::min(); }
 
 /// The deadline `limit_s` seconds [s] after `start`; none (max) for a limit
 /// ≤ 0, and at most 10⁸ s ahead (the clock's range is ~3·10¹¹ s).

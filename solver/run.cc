@@ -617,6 +617,14 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   };
 
   while (engine.t() < options.t_end - 1e-12 * options.t_end) {
+    // Before each step too: a run started past its deadline (PassedDeadline,
+    // its library call overran in an earlier process) takes no step.
+    if (DeadlinePassed()) {
+      ThrowIfInterrupted();
+      fail(RunStatus::kTimeLimit, fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
+                                              options.limits.time_limit_s, engine.t(), attempts));
+      break;
+    }
     // After a rejection the driver steps with the reduced h and returns to
     // the grid at its next point (ReturnToGrid).
     const bool on_grid = !controlled && consecutive_rejections == 0;

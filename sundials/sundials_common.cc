@@ -82,6 +82,16 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
   long steps = 0;
   while (ok && next < frames.size()) {
+    // Before each step too: a run started past its deadline (PassedDeadline,
+    // its first factorisation overran in an earlier process) takes no step.
+    if (DeadlinePassed()) {
+      ThrowIfInterrupted();
+      res->status = RunStatus::kTimeLimit;
+      res->message = fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
+                                 options.limits.time_limit_s, t, steps);
+      ok = false;
+      break;
+    }
     const auto t0 = Clock::now();
     const int flag = d.step(&t);
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();

@@ -23,6 +23,8 @@
 #include <fmt/format.h>
 
 #include "harness/bench_sweep.h"
+#include "harness/methods.h"
+#include "harness/overrun.h"
 #include "harness/run_codec.h"
 #include "harness/side_by_side.h"
 #include "harness/sweep.h"
@@ -168,6 +170,10 @@ TEST(Sweep, AStartsWallTimeIsPredictedFromTheSmallerSizes) {
   EXPECT_NEAR(PredictedStartTime({S{100, 4.0, true}, S{400, 2.0, true}}, 800), 4.0, 1e-12);   // p clamped to 1
   EXPECT_NEAR(PredictedStartTime({S{100, 1.0, true}, S{400, 30.0, false}}, 1600),
               30.0 * std::pow(4.0, std::log(30.0) / std::log(4.0)), 1e-9);  // a time_limit start: its limit
+  // A prediction already made at this size (a rung skipped at the start,
+  // which the refinement asks about again) is not a smaller size's run.
+  EXPECT_NEAR(PredictedStartTime({S{100, 1.0, true}, S{400, 8.0, true}, S{1600, 64.0, false, true}}, 1600), 64.0,
+              1e-11);
 }
 
 // The reference's checks run side by side (harness/side_by_side.h): runs
@@ -510,6 +516,61 @@ TEST(Sweep, ASecondWriterOfTheSameOutputIsRefused) {
   }
   EXPECT_FALSE(fs::exists(lock));
   EXPECT_GE(JournalCells(journal), 1);  // the first one's cells, untouched
+}
+
+// A task whose run stayed inside one library call past its --time-limit in
+// an earlier process (its marker `<k>.overrun`, harness/overrun.h) runs
+// under a deadline passed already: the fixed-step driver and SUNDIALS'
+// record time_limit before their first step, with the earlier process'
+// seconds as wall time; a marked reference is not run at all; without a
+// marker the run is the ordinary one.
+TEST(Sweep, AnOverrunTaskRecordsTimeLimitBeforeItsFirstStep) {
+  const fs::path folder = Dir() / "overrun.h5.journal";
+  fs::remove_all(folder);
+  SweepComm comm(nullptr, nullptr);
+  const RecordJournal journal(folder.string(), "key", comm);
+  const Scene scene = BuiltinScene("swinging_sheet");
+  const ParticleSystem sys(scene);
+  for (const std::string label : {"sbdf2", "cvode"}) {
+    const std::vector<RowMethod> rows = ExpandMethods({label}, {scene.solver.nonlinear_solver}, "test");
+    ASSERT_EQ(rows.size(), 1u);
+    const double param = label == "cvode" ? 1e-3 : scene.h;
+    const auto run = [&] { return rows[0].Run(sys, scene, scene.solver, param, RunContext{}); };
+    const MethodRun plain = RunJournalledTask(journal, 1, label, 20.0, false, run);
+    EXPECT_TRUE(plain.ok()) << label << ": " << plain.message;
+    EXPECT_GT(plain.steps, 0) << label;
+    {  // the drivers' check before each step: no step is attempted
+      const ScopedDeadline passed(PassedDeadline());
+      const MethodRun r = run();
+      EXPECT_EQ(r.status, RunStatus::kTimeLimit) << label;
+      EXPECT_NE(r.message.find("after 0 steps"), std::string::npos) << label << ": " << r.message;
+      EXPECT_TRUE(r.step_stats.empty()) << label;
+    }
+    WriteFileAtomically(journal.OverrunEntry(1), "elapsed_s=25.5\n", "--out");
+    ASSERT_EQ(journal.Overrun(1), 25.5);
+    const MethodRun marked = RunJournalledTask(journal, 1, label, 20.0, false, run);
+    EXPECT_EQ(marked.status, RunStatus::kTimeLimit) << label << ": " << marked.message;
+    EXPECT_EQ(marked.steps, 0) << label;
+    EXPECT_EQ(marked.wall_time_s, 25.5) << label;
+    EXPECT_NE(marked.message.find("inside one library call"), std::string::npos) << marked.message;
+    EXPECT_EQ(marked.id, plain.id) << "the row's identity is the ordinary run's";
+    journal.ClearOverrun(1);
+    EXPECT_FALSE(journal.Overrun(1).has_value());
+  }
+  WriteFileAtomically(journal.OverrunEntry(0), "elapsed_s=3\n", "--out");
+  bool computed = false;
+  const RunSummary ref = RunJournalledTask(journal, 0, "the reference", 20.0, true, [&] {
+    computed = true;
+    return RunSummary{};
+  });
+  EXPECT_FALSE(computed) << "a marked reference is not run again";
+  EXPECT_EQ(ref.status, RunStatus::kTimeLimit);
+  // A marker that is not "elapsed_s=<seconds>", or a link, is no marker.
+  WriteFileAtomically(journal.OverrunEntry(2), "elapsed_s=-1\n", "--out");
+  EXPECT_FALSE(journal.Overrun(2).has_value());
+  fs::create_symlink(journal.OverrunEntry(0), journal.OverrunEntry(3));
+  EXPECT_FALSE(journal.Overrun(3).has_value());
+  fs::remove_all(folder);
 }
 
 }  // namespace
