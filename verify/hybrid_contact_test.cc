@@ -286,7 +286,7 @@ TEST(HybridContact, SundialsRowsHaveTheVirtualParticlesAndStartWithoutTheLastRun
     const RunSummary b = run(used);
     ASSERT_TRUE(b.ok()) << name << " after sbdf2: " << b.message;
     const MatrixN3& x = a.trajectory.positions.back();
-    std::printf("[ virtual particles ] %s: %d steps, lowest particle at z = %.3f m\n", name.c_str(), a.steps,
+    std::printf("[ virtual particles ] %s: %ld steps, lowest particle at z = %.3f m\n", name.c_str(), a.steps,
                 x.col(2).minCoeff());
     EXPECT_GT(x.col(2).minCoeff(), -0.2) << name << ": held by the virtual particles";
     EXPECT_TRUE(x == b.trajectory.positions.back()) << name << ": the last run's topology leaked in";
