@@ -303,8 +303,12 @@ int CustomSetScalingVectors(SUNLinearSolver s, N_Vector s1, N_Vector) {
   return SUNLS_SUCCESS;
 }
 int CustomInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
+// Past the run's deadline (or after a signal) no setup starts: a
+// factorisation cannot be stopped once begun (KLU, CHOLMOD). The
+// unrecoverable failure ends the step, and RunFrames records time_limit.
 int CustomSetup(SUNLinearSolver s, SUNMatrix) {
   CustomContent* c = Content(s);
+  if (DeadlinePassed()) return c->last_flag = SUNLS_PSET_FAIL_UNREC;
   const int flag = c->p_setup ? c->p_setup(c->p_data) : 0;
   return c->last_flag = flag == 0 ? SUNLS_SUCCESS : SUNLS_PSET_FAIL_REC;
 }
@@ -342,6 +346,7 @@ SUNLinearSolver_Type TimedType(SUNLinearSolver s) { return SUNLinSolGetType(Time
 SUNLinearSolver_ID TimedId(SUNLinearSolver s) { return SUNLinSolGetID(Timed(s)->inner); }
 int TimedInitialize(SUNLinearSolver s) { return SUNLinSolInitialize(Timed(s)->inner); }
 int TimedSetup(SUNLinearSolver s, SUNMatrix a) {
+  if (DeadlinePassed()) return SUNLS_PACKAGE_FAIL_UNREC;  // as CustomSetup
   const auto start = std::chrono::steady_clock::now();
   const int flag = SUNLinSolSetup(Timed(s)->inner, a);
   *Timed(s)->seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

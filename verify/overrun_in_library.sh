@@ -25,7 +25,10 @@ run() {  # run LAUNCHER OUT: sets code, took [ms]
 check_row() {  # the printed table stores cvode/klu as time_limit, with the reason
   grep -q "^cvode/klu .* time_limit$" "$work/out.txt" || { echo "FAIL: no time_limit row: $(cat "$work/out.txt")"; fail=1; }
   grep -q "stayed inside one library call" "$work/out.txt" || { echo "FAIL: the row's reason is missing"; fail=1; }
-  grep -q "^sbdf2 .* ok$" "$work/out.txt" || { echo "FAIL: sbdf2's row is not ok"; fail=1; }
+  # sbdf2's row (journalled before cvode/klu starts) is there; its status
+  # is not checked: on a loaded machine its 4·10⁴-particle setup may itself
+  # pass the 2 s limit.
+  grep -q "^sbdf2 " "$work/out.txt" || { echo "FAIL: sbdf2's row is missing"; fail=1; }
 }
 
 run "" "$work/serial.h5"
