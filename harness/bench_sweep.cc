@@ -140,6 +140,16 @@ std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_part
   return missing;
 }
 
+// Row task t of method m as the progress line and the watchdog name it.
+std::string RowTaskName(const RowMethod& m, const RowTask& t) {
+  switch (m.kind()) {
+    case StepKind::kAdaptive: return fmt::format("{} rtol {:g}", m.label(), t.param);
+    case StepKind::kSubstepped: return fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.count);
+    case StepKind::kIterated: return fmt::format("{} h = {:g} s x{}", m.label(), t.param, t.count);
+    default: return fmt::format("{} h = {:g} s", m.label(), t.param);
+  }
+}
+
 // The reference task's --time-limit [s].
 double ReferenceTimeLimit(const BenchRun& b) {
   return b.reference_time_limit > 0.0 ? b.reference_time_limit : b.time_limit;
@@ -447,10 +457,10 @@ std::optional<int> StartRung(const BenchRun& b, const RowMethod& m, long particl
     reasons->push_back(fmt::format("{}: not started: {}{}", m.label(), SizePredictionReason(b, m, 0, particles),
                                    rung < 0 ? "; the cheapest, " + SizePredictionReason(b, m, rung, particles)
                                             : std::string()));
-  for (int skipped = 0; skipped > rung || (!started && skipped == rung); --skipped)
+  const int last_skipped = started ? rung + 1 : rung;
+  for (int skipped = 0; skipped >= last_skipped; --skipped)
     HistoryOf(b, m, skipped)->push_back({particles, SizePrediction(b, m, skipped, particles), false, true});
-  if (started) return rung;
-  return std::nullopt;
+  return started ? std::optional<int>(rung) : std::nullopt;
 }
 
 // --sizes: the method's runs at this size join its history, each in place
@@ -664,12 +674,7 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     const RowTask& t = row_tasks[static_cast<std::size_t>(k - n_ref)];
     const RowMethod& m = b.methods[t.mk];
     const SolverSpec spec = task_spec(t);
-    const std::string what = m.kind() == StepKind::kAdaptive ? fmt::format("{} rtol {:g}", m.label(), t.param)
-                             : m.kind() == StepKind::kSubstepped
-                                 ? fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.count)
-                             : m.kind() == StepKind::kIterated
-                                 ? fmt::format("{} h = {:g} s x{}", m.label(), t.param, t.count)
-                                 : fmt::format("{} h = {:g} s", m.label(), t.param);
+    const std::string what = RowTaskName(m, t);
     progress.Start(what, b.scene.t_end);
     Row r = RunJournalledTask(journal, k, what, b.time_limit, false,
                               [&] { return m.Run(sys, b.scene, spec, t.param, ctx, t.count); });

@@ -105,14 +105,13 @@ auto RunJournalledTask(const RecordJournal& journal, long index, const std::stri
                        bool reference, Compute compute) -> decltype(compute()) {
   const std::optional<double> overran = journal.Overrun(index);
   const ScopedOverrunTask named(journal, index, what, limit_s, overran.has_value());
+  if (!overran) return compute();
   decltype(compute()) r;
-  if (overran && reference) {
+  if (reference) {
     r.status = RunStatus::kTimeLimit;
-  } else if (overran) {
+  } else {
     const ScopedDeadline passed(PassedDeadline());
     r = compute();
-  } else {
-    return compute();
   }
   if (r.status == RunStatus::kTimeLimit) {
     r.wall_time_s = *overran;

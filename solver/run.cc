@@ -242,8 +242,7 @@ bool PastLimits(const StepStats& st, const RunOptions& options, double t, long a
   };
   if (st.status == StepStatus::kTimeLimit || CancelRequested() ||
       (options.limits.time_limit_s > 0.0 && elapsed > options.limits.time_limit_s))
-    return fail(RunStatus::kTimeLimit, fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
-                                          options.limits.time_limit_s, t, attempts));
+    return fail(RunStatus::kTimeLimit, TimeLimitMessage(options.limits.time_limit_s, t, attempts));
   if (attempts >= options.limits.max_steps && t < options.t_end - 1e-12 * options.t_end)
     return fail(RunStatus::kStepLimit, fmt::format("{} step attempts reached t = {:.6g} s of t_end = {:g} s (the limit is {})",
                                           attempts, t, options.t_end, options.limits.max_steps));
@@ -571,6 +570,10 @@ VirtualParticles* ResetToRest(const ParticleSystem& system, Stepper& engine) {
 
 }  // namespace
 
+std::string TimeLimitMessage(double limit_s, double t, long steps) {
+  return fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps", limit_s, t, steps);
+}
+
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
@@ -621,8 +624,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     // its library call overran in an earlier process) takes no step.
     if (DeadlinePassed()) {
       ThrowIfInterrupted();
-      fail(RunStatus::kTimeLimit, fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
-                                              options.limits.time_limit_s, engine.t(), attempts));
+      fail(RunStatus::kTimeLimit, TimeLimitMessage(options.limits.time_limit_s, engine.t(), attempts));
       break;
     }
     // After a rejection the driver steps with the reduced h and returns to

@@ -182,6 +182,10 @@ class BlowUpGuard {
 /// "step_limit"; the trajectory holds the frames reached.
 RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunOptions& options);
 
+/// The message of a run that reached --time-limit `limit_s` [s] at time t
+/// [s] after `steps` step attempts (the fixed-step and SUNDIALS drivers').
+std::string TimeLimitMessage(double limit_s, double t, long steps);
+
 /// The same driver for any stepper built on `system` (the peers). Reset to
 /// rest here.
 RunSummary RunStepper(const ParticleSystem& system, Stepper& stepper, const RunOptions& options);

@@ -87,8 +87,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     if (DeadlinePassed()) {
       ThrowIfInterrupted();
       res->status = RunStatus::kTimeLimit;
-      res->message = fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
-                                 options.limits.time_limit_s, t, steps);
+      res->message = TimeLimitMessage(options.limits.time_limit_s, t, steps);
       ok = false;
       break;
     }
@@ -108,8 +107,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
         (options.limits.time_limit_s > 0.0 &&
          std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
       res->status = RunStatus::kTimeLimit;
-      res->message = fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps",
-                                 options.limits.time_limit_s, t, steps);
+      res->message = TimeLimitMessage(options.limits.time_limit_s, t, steps);
       ok = false;
       break;
     }
