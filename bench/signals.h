@@ -7,6 +7,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -20,10 +21,13 @@
 
 #include <fmt/format.h>
 
+#include "harness/output_lock.h"
 #include "harness/overrun.h"
 #include "model/interrupt.h"
 
 namespace clothbench {
+
+inline void OnContinueSignal(int) { NoteContinued(); }
 
 inline void OnInterruptSignal(int sig) {
   RequestInterrupt(sig);
@@ -42,6 +46,14 @@ inline void InstallInterruptHandlers() {
   // EFBIG, reported with the file's name, instead of killing the process
   // with SIGXFSZ and leaving its temporary files.
   signal(SIGXFSZ, SIG_IGN);
+  // SIGCONT after a stop (SIGSTOP, Ctrl-Z): the watchdog measures the
+  // stop, so that a deadline passed while stopped is not taken for a run
+  // stuck inside a library call. SA_RESTART: no system call fails with EINTR.
+  struct sigaction cont {};
+  cont.sa_handler = OnContinueSignal;
+  sigemptyset(&cont.sa_mask);
+  cont.sa_flags = SA_RESTART;
+  sigaction(SIGCONT, &cont, nullptr);
 }
 
 inline const char* SignalName(int sig) { return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "a signal"; }
@@ -90,6 +102,7 @@ inline void EndOverrun(const std::string& program) {
     std::vector<char*> argv;
     for (std::string& a : g_restart_argv) argv.push_back(a.data());
     argv.push_back(nullptr);
+    KeepOutputLocksAcrossExec();  // the restarted command takes its --out locks over
     ::execv("/proc/self/exe", argv.data());  // returns only on failure
     fmt::print(stderr, "{}: the restart failed ({}); ", program, std::strerror(errno));
   } else {
@@ -108,8 +121,9 @@ inline void EndOverrun(const std::string& program) {
 /// that checks no deadline (EarliestActiveDeadline, model/interrupt.h). The
 /// watchdog marks the run's journalled task (harness/overrun.h) and, with
 /// `restart_argv` (the command's arguments, argv[0] first), restarts the
-/// command in the same process (execv of /proc/self/exe: the same pid, the
-/// output lock released with its close-on-exec descriptor and taken again),
+/// command in the same process (execv of /proc/self/exe: the same pid; the
+/// output locks' descriptors stay open across it and the restarted command
+/// takes them over, KeepOutputLocksAcrossExec),
 /// which resumes from the journal and records the task as time_limit
 /// without entering the call again. Without it (MPI ranks, which one rank
 /// cannot restart) the process exits kExitPartial (75), and the same
@@ -135,11 +149,19 @@ inline void WatchOverruns(std::vector<std::string> restart_argv,
 inline void StartInterruptWatchdog(std::string program,
                                    std::chrono::milliseconds grace = std::chrono::milliseconds(1000)) {
   std::thread([program = std::move(program), grace] {
+    using Clock = std::chrono::steady_clock;
+    // A run is stuck inside a library call when it has been running past
+    // its deadline for the grace: time the process spent stopped (SIGSTOP,
+    // a suspended job) does not count, the grace starts again when it
+    // continues, and the stop is added to the run's message.
+    Clock::time_point resumed = Clock::time_point::min();
+    AccountStop(Clock::now());
     while (!InterruptRequested()) {
+      const Clock::time_point now = Clock::now();
+      if (AccountStop(now)) resumed = now;
       if (internal::g_watch_overruns.load()) {
         const auto deadline = EarliestActiveDeadline();
-        if (deadline != std::chrono::steady_clock::time_point::max() &&
-            std::chrono::steady_clock::now() - deadline > internal::g_overrun_grace)
+        if (deadline != Clock::time_point::max() && now - std::max(deadline, resumed) > internal::g_overrun_grace)
           internal::EndOverrun(program);
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));

@@ -332,9 +332,7 @@ void SelfContactDetector::TrianglePair(std::size_t ta, std::size_t tb, double re
   }
 }
 
-void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin,
-                                     std::vector<SelfContactPair>* out, double slack) {
-  out->clear();
+void SelfContactDetector::ComputeBoxes(const MatrixN3& x0, const MatrixN3& x1, double margin) {
   // The boxes of the particles (x0 and x1 grown by the margin), then of the
   // edges and triangles as the hulls of their particles' boxes.
   point_lo_.resize(static_cast<std::size_t>(num_particles_));
@@ -383,6 +381,12 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     move_centre_[k] = mean;
     move_radius_[k] = std::max({(d[0] - mean).norm(), (d[1] - mean).norm(), (d[2] - mean).norm()});
   }
+}
+
+void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin,
+                                     std::vector<SelfContactPair>* out, double slack) {
+  out->clear();
+  ComputeBoxes(x0, x1, margin);
   // Each pair of elements from the pair of triangles that own them (a
   // particle's or edge's box lies in its owner's, so the owners' boxes
   // overlap whenever the elements' do): every pair exactly once. The

@@ -96,6 +96,10 @@ class SelfContactDetector {
   std::vector<std::array<int, 2>> same_cluster_;
   // The element pairs of triangles ta and tb (either order) into out.
   void TrianglePair(std::size_t ta, std::size_t tb, double reach_base, std::vector<SelfContactPair>* out) const;
+  // Candidates' boxes: the particles' (x0 and x1 grown by `margin`), the
+  // edges' and triangles' as their hulls, the triangles' at x0 alone and
+  // their particles' displacements (centre and radius).
+  void ComputeBoxes(const MatrixN3& x0, const MatrixN3& x1, double margin);
   // Boxes of one call (allocated once): particles, edges, triangles.
   std::vector<Vector3> point_lo_, point_hi_, edge_lo_, edge_hi_, tri_lo_, tri_hi_;
   // Per triangle: its box at x0, and its displacements' mean and radius.

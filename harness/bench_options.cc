@@ -289,8 +289,9 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     if (!plot_dir.empty() && !PlotDirWritable(plot_dir))
       throw UsageError(fmt::format("--plot: \"{}\" is not a writable folder", EscapeControl(plot_dir)));
     if (report) CheckReportTarget(out);
-    if (!series.empty())  // a probe, before computing: not the result file nor its XDMF
-      CheckWritableFile(series, "--series", {out, std::filesystem::path(out).replace_extension(".xdmf").string()});
+    if (!series.empty())  // a probe, before computing: not the result file, its XDMF nor its --report page
+      CheckWritableFile(series, "--series", {out, std::filesystem::path(out).replace_extension(".xdmf").string(),
+                                             report ? ReportPageOf(out) : std::string()});
   });
 
   BenchRun run{scene, methods, plan, etas, targets, baseline, *metric, repeat, time_budget, hs, reference_row,

@@ -599,8 +599,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   }
   WriteBench(b, sys, ref, rows, comm, journal, reasons, wp);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
-  if (b.report) Report("bench_integrators", b.out);
-  return 0;
+  return b.report ? Report("bench_integrators", b.out) : 0;
 }
 
 // The sweep: the reference (task 0, if any) and every row in table order.
@@ -716,14 +715,14 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   if (ref && !ref->ok()) return reference_failed(*ref);
   WriteBench(b, sys, ref, rows, comm, journal, {}, wp);
   if (!b.plot_dir.empty()) Plot("bench_integrators", b.out, b.plot_dir);
-  if (b.report) Report("bench_integrators", b.out);
-  return 0;
+  return b.report ? Report("bench_integrators", b.out) : 0;
 }
 
 int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, const std::string& out,
              const std::string& plot_dir, SweepComm& comm, bool report) {
   std::vector<EqualAccuracyTable> tables;
   std::vector<std::string> files;
+  bool no_page = false;  // a size's --report page was not written
   for (std::size_t s = 0; s < runs.size(); ++s) {
     const BenchRun& b = runs[s];
     fmt::print("\n== N = {} ({}×{} particles, {}) ==\n", b.scene.num_particles(), b.scene.grid.nu, b.scene.grid.nv,
@@ -731,7 +730,9 @@ int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, 
     std::fflush(stdout);
     EqualAccuracyTable wp;
     const int status = RunBench(b, comm, &wp);
-    if (status != 0) {
+    if (status == kExitNoPage) {
+      no_page = true;  // the size's file is complete: the verdict goes on
+    } else if (status != 0) {
       fmt::print(stderr, "bench_integrators: --sizes: size {} ({} particles) ended with status {}; no verdict "
                          "written (the finished sizes' runs stay in their journals: rerun the same command)\n",
                  sizes[s], b.scene.num_particles(), status);
@@ -770,8 +771,8 @@ int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, 
   }
   fmt::print("scale verdict: {}\n", out);
   if (!plot_dir.empty()) Plot("bench_integrators", out, plot_dir);
-  if (report) Report("bench_integrators", out);
-  return 0;
+  const int page = report ? Report("bench_integrators", out) : 0;
+  return no_page ? kExitNoPage : page;
 }
 
 }  // namespace clothbench

@@ -11,7 +11,11 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -45,6 +49,58 @@ void ProbeOnRoot(const SweepComm& comm, Probe&& probe) {
   std::vector<long> failed{why.empty() ? 0L : 1L};
   comm.Broadcast(&failed);
   if (failed[0] != 0) throw UsageError(comm.root() ? why : std::string("refused on rank 0"));
+}
+
+namespace internal {
+// The output locks this process holds (descriptor, device, inode), for a
+// restart of the same command by execv (KeepOutputLocksAcrossExec).
+struct HeldLock {
+  int fd;
+  dev_t dev;
+  ino_t ino;
+};
+inline std::mutex g_held_locks_mutex;
+inline std::vector<HeldLock> g_held_locks;
+inline constexpr const char* kHeldLocksVariable = "CLOTHBENCH_HELD_LOCKS";
+
+// The locks an earlier image of this process passed on through execv
+// ("fd:dev:ino;…"), read once and removed from the environment, so that
+// no child process inherits the variable.
+inline std::vector<HeldLock>& InheritedLocks() {
+  static std::vector<HeldLock> inherited = [] {
+    std::vector<HeldLock> out;
+    const char* v = std::getenv(kHeldLocksVariable);
+    if (v == nullptr) return out;
+    std::istringstream in(v);
+    std::string item;
+    while (std::getline(in, item, ';')) {
+      long fd = -1;
+      unsigned long long dev = 0, ino = 0;
+      if (std::sscanf(item.c_str(), "%ld:%llu:%llu", &fd, &dev, &ino) == 3 && fd >= 0)
+        out.push_back({static_cast<int>(fd), static_cast<dev_t>(dev), static_cast<ino_t>(ino)});
+    }
+    ::unsetenv(kHeldLocksVariable);
+    return out;
+  }();
+  return inherited;
+}
+}  // namespace internal
+
+/// Before the watchdog restarts the command in the same process (execv,
+/// bench/signals.h): every held output lock's descriptor stays open across
+/// the exec and is named in the environment, so that the restarted
+/// command takes over its locks (OutputLock) instead of releasing them
+/// for a moment in which another command could take the same --out.
+/// Called on the watchdog's thread, just before execv.
+inline void KeepOutputLocksAcrossExec() {
+  const std::lock_guard<std::mutex> lock(internal::g_held_locks_mutex);
+  std::string v;
+  for (const internal::HeldLock& h : internal::g_held_locks) {
+    const int flags = ::fcntl(h.fd, F_GETFD);
+    if (flags < 0 || ::fcntl(h.fd, F_SETFD, flags & ~FD_CLOEXEC) != 0) continue;
+    v += fmt::format("{}:{}:{};", h.fd, static_cast<unsigned long long>(h.dev), static_cast<unsigned long long>(h.ino));
+  }
+  ::setenv(internal::kHeldLocksVariable, v.c_str(), 1);
 }
 
 /// An exclusive flock(2) on `<out>.lock`, taken by rank 0 (which then
@@ -84,6 +140,10 @@ class OutputLock {
   /// paths that leave by std::exit, before it.
   void Release() {
     if (fd_ < 0) return;
+    {
+      const std::lock_guard<std::mutex> lock(internal::g_held_locks_mutex);
+      std::erase_if(internal::g_held_locks, [&](const internal::HeldLock& h) { return h.fd == fd_; });
+    }
     ::unlink(path_.c_str());
     ::close(fd_);
     fd_ = -1;
@@ -113,13 +173,25 @@ class OutputLock {
   // "" on success, else the refusal.
   std::string Acquire(const std::string& out) {
     for (int attempt = 0; attempt < 8; ++attempt) {
-      const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK, 0644);
+      int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK, 0644);
       if (fd < 0)
         return fmt::format("{}: cannot create the lock file \"{}\": {}", option_, path_, std::strerror(errno));
       struct stat st {};
       if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
         ::close(fd);
         return fmt::format("{}: the lock file \"{}\" is not a regular file", option_, path_);
+      }
+      // The lock this command held before the watchdog restarted it
+      // (KeepOutputLocksAcrossExec): taken over, never released between.
+      for (const internal::HeldLock& h : internal::InheritedLocks()) {
+        struct stat held {};
+        if (h.dev != st.st_dev || h.ino != st.st_ino || ::fstat(h.fd, &held) != 0 || held.st_dev != st.st_dev ||
+            held.st_ino != st.st_ino)
+          continue;
+        ::close(fd);
+        fd = h.fd;
+        ::fcntl(fd, F_SETFD, FD_CLOEXEC);
+        break;
       }
       if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
         char buf[32] = {};
@@ -147,6 +219,8 @@ class OutputLock {
         return fmt::format("{}: cannot write the lock file \"{}\": {}", option_, path_, std::strerror(errno));
       }
       fd_ = fd;
+      const std::lock_guard<std::mutex> lock(internal::g_held_locks_mutex);
+      internal::g_held_locks.push_back({fd, st.st_dev, st.st_ino});
       return "";
     }
     return fmt::format("{}: the lock file \"{}\" kept being replaced by other processes", option_, path_);

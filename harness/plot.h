@@ -53,8 +53,11 @@ inline bool RunPythonScript(const std::string& program, const std::string& optio
     return false;
   }
   std::fflush(stdout);
-  const std::string cmd =
-      fmt::format("{} {} {} --out {} > /dev/null", python, quote(script), quote(file), quote(out));
+  // "--out=<out> -- <file>": a path starting with "-" is a value, never an option.
+  // The report validates the file with the Python module of this build
+  // (CLOTHBENCH_PYTHON_DIR).
+  const std::string cmd = fmt::format("CLOTHBENCH_PYTHON_DIR={} {} {} {} -- {} > /dev/null", quote(CLOTHBENCH_PYTHON_DIR),
+                                      python, quote(script), quote("--out=" + out), quote(file));
   if (std::system(cmd.c_str()) != 0) {
     fmt::print(stderr, "{}: {}: {} failed; the result file is complete\n", program, option, script);
     return false;
@@ -101,13 +104,21 @@ inline void CheckReportTarget(const std::string& result_file) {
                                  EscapeControl(page)));
 }
 
+/// The exit code of a command whose result file is complete but whose
+/// --report page was not written (the reason is on stderr).
+inline constexpr int kExitNoPage = 4;
+
 /// Runs scripts/report on `file` (the page beside it, ReportPageOf) and
-/// prints the page's path (RunPythonScript). @returns true if the page was written.
-inline bool Report(const std::string& program, const std::string& file) {
+/// prints the page's path (RunPythonScript).
+/// @returns 0 if the page was written, else kExitNoPage (said on stderr)
+inline int Report(const std::string& program, const std::string& file) {
   const std::string page = ReportPageOf(file);
-  if (!RunPythonScript(program, "--report", CLOTHBENCH_REPORT_SCRIPT, file, page, "no page")) return false;
+  if (!RunPythonScript(program, "--report", CLOTHBENCH_REPORT_SCRIPT, file, page, "no page")) {
+    fmt::print(stderr, "{}: --report: no page written (exit {})\n", program, kExitNoPage);
+    return kExitNoPage;
+  }
   fmt::print("report: {}\n", page);
-  return true;
+  return 0;
 }
 
 }  // namespace clothbench

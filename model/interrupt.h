@@ -50,12 +50,52 @@ inline std::mutex g_active_deadlines_mutex;
 inline std::multiset<std::chrono::steady_clock::time_point> g_active_deadlines;
 }  // namespace internal
 
+// How long the process has been stopped (SIGSTOP, a suspended job): the
+// SIGCONT handler of the executables sets a flag (NoteContinued), and the
+// watchdog (bench/signals.h), which ticks every 20 ms, adds the time since
+// its last tick to the total (AccountStop). A run reads the total since
+// its outermost deadline started, a stop not yet accounted included.
+namespace internal {
+inline std::atomic<bool> g_continued{false};       // SIGCONT since the watchdog's last tick
+inline std::atomic<long long> g_watch_tick_ns{0};  // the watchdog's last tick (steady clock) [ns]; 0: none
+inline std::atomic<long long> g_stopped_ns{0};
+inline thread_local long long g_stopped_ns_at_run_start = 0;
+inline long long SteadyNs(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
+}
+}  // namespace internal
+
+/// Records that the process was continued (async-signal-safe: one atomic store).
+inline void NoteContinued() { internal::g_continued.store(true, std::memory_order_relaxed); }
+
+/// The watchdog's tick at `now`: a SIGCONT since its last tick adds the
+/// time between them to the process' stopped time. @return whether it did
+inline bool AccountStop(std::chrono::steady_clock::time_point now) {
+  const long long last = internal::g_watch_tick_ns.exchange(internal::SteadyNs(now));
+  if (!internal::g_continued.exchange(false) || last == 0) return false;
+  internal::g_stopped_ns.fetch_add(internal::SteadyNs(now) - last, std::memory_order_relaxed);
+  return true;
+}
+
+/// The time [s] the process was stopped since this thread's run started
+/// (its outermost ScopedDeadline), a stop the watchdog has not ticked
+/// over yet included: a deadline may pass while the process is stopped.
+inline double StoppedSecondsOfRun() {
+  long long ns = internal::g_stopped_ns.load(std::memory_order_relaxed) - internal::g_stopped_ns_at_run_start;
+  const long long tick = internal::g_watch_tick_ns.load(std::memory_order_relaxed);
+  if (internal::g_continued.load(std::memory_order_relaxed) && tick != 0)
+    ns += internal::SteadyNs(std::chrono::steady_clock::now()) - tick;
+  return 1e-9 * static_cast<double>(ns);
+}
+
 /// Sets this thread's deadline to `deadline` (or keeps an earlier one) for
 /// the object's lifetime, and lists it among the runs in progress
 /// (EarliestActiveDeadline).
 class ScopedDeadline {
  public:
   explicit ScopedDeadline(std::chrono::steady_clock::time_point deadline) : saved_(internal::g_deadline) {
+    if (saved_ == std::chrono::steady_clock::time_point::max())
+      internal::g_stopped_ns_at_run_start = internal::g_stopped_ns.load(std::memory_order_relaxed);
     internal::g_deadline = std::min(deadline, saved_);
     if (internal::g_deadline != std::chrono::steady_clock::time_point::max()) {
       const std::lock_guard<std::mutex> lock(internal::g_active_deadlines_mutex);

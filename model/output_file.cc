@@ -8,6 +8,8 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <string_view>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -66,6 +68,31 @@ void RequireAbsentOrRegular(const std::string& path, const std::string& option, 
                                            what, KindOf(st.st_mode)));
 }
 
+// The project's own bookkeeping files: a writer's lock "<out>.lock", its
+// temporaries "<target>.tmp", a sweep's journal "<out>.journal" (a folder
+// of bench_integrators, a file of stress_stability) and everything inside
+// a journal folder. Another command given one of them as its output would
+// replace a running command's lock or journal (its file deleted when that
+// command finishes, or its resume broken). "" if `normal` (absolute,
+// links of its existing part resolved) is none of them, else the rule.
+std::string ProjectFileRule(const std::string& normal) {
+  const std::filesystem::path p(normal);
+  const std::string name = p.filename().string();
+  static constexpr std::pair<std::string_view, std::string_view> kOwned[] = {
+      {".lock", "lock file"}, {".tmp", "temporary file"}, {".journal", "journal"}, {".overrun", "journal entry"}};
+  for (const auto& [suffix, what] : kOwned)
+    if (name.ends_with(suffix))
+      return fmt::format("names a {} of clothbench (a name ending in \"{}\"), which only its writer creates and "
+                         "removes",
+                         what, suffix);
+  for (std::filesystem::path folder = p.parent_path(); !folder.empty() && folder != folder.root_path();
+       folder = folder.parent_path())
+    if (folder.filename().string().ends_with(".journal"))
+      return fmt::format("lies inside the journal \"{}\" of another output, which only its sweep writes and removes",
+                         EscapeControl(folder.string()));
+  return "";
+}
+
 }  // namespace
 
 void NoteInputFile(const std::string& path) {
@@ -92,6 +119,7 @@ void CheckOutputTarget(const std::string& target, const std::string& option, con
   struct stat st {};
   const bool exists = ::stat(target.c_str(), &st) == 0;
   const std::string normal = Normal(target);
+  if (const std::string rule = ProjectFileRule(normal); !rule.empty()) throw Refuse(option, target, rule);
   {
     std::lock_guard<std::mutex> guard(InputsMutex());
     for (const InputFile& in : Inputs())

@@ -13,7 +13,7 @@ constexpr std::array<std::pair<StepKind, std::string_view>, 4> kStepKinds{{
     {StepKind::kIterated, "iterated"},
 }};
 
-constexpr std::array<std::pair<RunStatus, std::string_view>, 19> kRunStatuses{{
+constexpr std::array<std::pair<RunStatus, std::string_view>, 20> kRunStatuses{{
     {RunStatus::kOk, "ok"},
     {RunStatus::kNotRun, "not_run"},
     {RunStatus::kInvalidOptions, "invalid_options"},
@@ -33,6 +33,7 @@ constexpr std::array<std::pair<RunStatus, std::string_view>, 19> kRunStatuses{{
     {RunStatus::kTimeLimit, "time_limit"},
     {RunStatus::kStepLimit, "step_limit"},
     {RunStatus::kSelfIntersection, "self_intersection"},
+    {RunStatus::kTunnelled, "tunnelled"},
 }};
 
 template <class E, std::size_t N>

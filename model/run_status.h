@@ -52,7 +52,8 @@ enum class RunStatus {
   kPenetration,
   kTimeLimit,
   kStepLimit,
-  kSelfIntersection,  ///< a stored frame of a run with self-contact has crossing triangle pairs (last: journals store the number)
+  kSelfIntersection,  ///< a stored frame of a run with self-contact has crossing triangle pairs
+  kTunnelled,         ///< a particle's path over a step passed through an obstacle (last: journals store the number)
 };
 
 /// The stored text: "ok", "cg_failed", "energy_growth", … (snake case of the name).

@@ -2,7 +2,9 @@
 #include "peers/position_contacts.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <functional>
 #include <stdexcept>
 
 #include "collision/edge_projection.h"
@@ -231,14 +233,33 @@ void VbdSelfContact::Detect(const MatrixN3& x) {
   // distances in the bounds.
   std::sort(candidates_.begin(), candidates_.end());
   pairs_.clear();
+  distance_.clear();
   std::fill(bound_.begin(), bound_.end(), query_);
   for (const SelfContactPair& pair : candidates_) {
     const double d = Closest(pair, x).distance;
     if (!(d < query_)) continue;
     pairs_.push_back(pair);
+    distance_.push_back(d);
     for (int q : pair.p) bound_[static_cast<std::size_t>(q)] = std::min(bound_[static_cast<std::size_t>(q)], d);
   }
   for (double& b : bound_) b *= kRelaxation;
+  // The pairs that can come closer than δ before the next detection: every
+  // particle stays within its bound of x_det, and a pair's distance (of a
+  // point to a triangle, or of two edges, by convex weights) changes by at
+  // most the largest bound of each side, at most the sum of the two
+  // largest of its four. A pair farther than δ by more than that never
+  // acts (AddForce skips it), so it is left out of every sweep: the forces
+  // are those of the whole list, bit for bit, at a fraction of the cost
+  // (OGC's per-vertex bounds, Chen et al. 2025, bound the contact set as
+  // they bound the motion).
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < pairs_.size(); ++i) {
+    std::array<double, 4> b;
+    for (std::size_t k = 0; k < 4; ++k) b[k] = bound_[static_cast<std::size_t>(pairs_[i].p[k])];
+    std::partial_sort(b.begin(), b.begin() + 2, b.end(), std::greater<double>());
+    if (distance_[i] - (b[0] + b[1]) < thickness_) pairs_[kept++] = pairs_[i];
+  }
+  pairs_.resize(kept);
   // Each particle's pairs (CSR).
   std::fill(offsets_.begin(), offsets_.end(), 0);
   for (const SelfContactPair& pair : pairs_)

@@ -161,7 +161,8 @@ class VbdSelfContact {
   SelfContactStats stats_;
   MatrixN3 x_det_;
   std::vector<double> bound_;           // b_p [m]
-  std::vector<SelfContactPair> candidates_, pairs_;
+  std::vector<SelfContactPair> candidates_, pairs_;  // pairs_: those that can act before the next detection
+  std::vector<double> distance_;         // scratch of Detect: the listed pairs' distances at x_det [m]
   std::vector<int> offsets_, incident_;  // per particle: its pairs (index·4 + slot) in pairs_
   std::vector<int> fill_;                // scratch of Detect
 };

@@ -29,6 +29,7 @@
 #include "harness/output_lock.h"
 #include "harness/result_writer.h"
 #include "harness/run_request.h"
+#include "model/output_file.h"
 #include "model/interrupt.h"
 #include "model/obstacle.h"
 #include "model/particle_system.h"
@@ -817,6 +818,13 @@ PYBIND11_MODULE(clothbench, m) {
         "equal-accuracy table (work_precision); for a bench_integrators --sizes file also scale_verdict (sizes, "
         "targets, labels, fastest, runner_up, margin and cost_s per size and target). Arrays: read the file with "
         "h5py.");
+  m.def("check_output", [](const std::string& path, const std::string& option, const std::vector<std::string>& others) {
+    CheckOutputTarget(path, option, others);
+  }, py::arg("path"), py::arg("option"), py::arg("others") = std::vector<std::string>{},
+        "Refuses an output path as every writer of the project does (model/output_file.h, CheckOutputTarget): "
+        "ValueError '<option>: \"<path>\" <rule>' for a link, device, FIFO or folder at the path or at its "
+        "temporary, an input of this process, one of `others`, or a lock, journal or temporary of clothbench. "
+        "scripts/report checks its page with it.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         "The reference run (method: cvode or ida with the reduced velocity solve, cvode/klu or ida/klu with KLU; "

@@ -113,6 +113,30 @@ void CheckRun(const ResultReader& f, const std::string& g, long n_particles) {
   }
 }
 
+// The stability maps under `group` (/stress/<scene>/<method id>, an id's
+// "/" nesting groups): every dataset [h × stiffness], outcome and
+// steps_completed non-negative integers, the rest finite.
+void CheckStressMaps(const ResultReader& f, const std::string& group, std::size_t hs, std::size_t stiff, int depth) {
+  if (depth > 8) Broken(f, group, "nested deeper than a method id");
+  for (const std::string& name : f.Children(group)) {
+    const std::string d = group + "/" + name;
+    if (!f.Children(d).empty()) {
+      CheckStressMaps(f, d, hs, stiff, depth + 1);
+      continue;
+    }
+    const std::vector<std::size_t> s = ShapeOf(f, d, 2);
+    if (s[0] != hs || s[1] != stiff)
+      Broken(f, d, fmt::format("shape [{}, {}], [{}, {}] expected (/stress/h × /stress/stiffness)", s[0], s[1], hs,
+                               stiff));
+    if (name == "outcome" || name == "steps_completed") {
+      for (int32_t v : f.Ints(d))
+        if (v < 0) Broken(f, d, fmt::format("{} is negative", v));
+    } else {
+      FiniteDoubles(f, d);
+    }
+  }
+}
+
 }  // namespace
 
 RunTable ValidateResultFile(const ResultReader& f) {
@@ -161,35 +185,19 @@ RunTable ValidateResultFile(const ResultReader& f) {
     for (const char* d : {"targets", "solver_time", "ratio", "min_error"})
       if (f.Exists(std::string("/work_precision/") + d)) FiniteDoubles(f, std::string("/work_precision/") + d);
   }
-  // The run table as every reader reads it: its datasets present and
-  // consistent (the equal-accuracy table's cells, labels and indices).
-  RunTable table = ReadRunTable(f);
-  if (f.Exists("/scene/toml")) (void)f.Text("/scene/toml");
-  return table;
   if (f.Exists("/stress")) {
     CheckAttributes(f, "/stress");
     const std::size_t stiff = ShapeOf(f, "/stress/stiffness", 1)[0], hs = ShapeOf(f, "/stress/h", 1)[0];
     FiniteDoubles(f, "/stress/stiffness");
     FiniteDoubles(f, "/stress/h");
-    for (const std::string& scene : f.Children("/stress")) {
-      const std::string sg = "/stress/" + scene;
-      if (scene == "stiffness" || scene == "h") continue;
-      for (const std::string& label : f.Children(sg))
-        for (const std::string& m : f.Children(sg + "/" + label)) {
-          const std::string d = sg + "/" + label + "/" + m;
-          const std::vector<std::size_t> s = ShapeOf(f, d, 2);
-          if (s[0] != hs || s[1] != stiff)
-            Broken(f, d, fmt::format("shape [{}, {}], [{}, {}] expected (/stress/h × /stress/stiffness)", s[0], s[1],
-                                     hs, stiff));
-          if (m == "outcome" || m == "steps_completed") {
-            for (int32_t v : f.Ints(d))
-              if (v < 0) Broken(f, d, fmt::format("{} is negative", v));
-          } else {
-            FiniteDoubles(f, d);
-          }
-        }
-    }
+    for (const std::string& scene : f.Children("/stress"))
+      if (scene != "stiffness" && scene != "h") CheckStressMaps(f, "/stress/" + scene, hs, stiff, 0);
   }
+  // The run table as every reader reads it: its datasets present and
+  // consistent (the equal-accuracy table's cells, labels and indices).
+  RunTable table = ReadRunTable(f);
+  if (f.Exists("/scene/toml")) (void)f.Text("/scene/toml");
+  return table;
 }
 
 }  // namespace clothbench

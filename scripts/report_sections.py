@@ -10,6 +10,7 @@ import html
 import io
 import os
 import re
+import urllib.parse
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -23,6 +24,33 @@ def attr(g, key, default=None):
 
 def esc(v):
     return html.escape(str(v), quote=True)
+
+
+def num(g, key, kind=float):
+    """Attribute `key` of `g` as a finite number of `kind` (int or float):
+    a stored string, however it looks, is never written into the page as a
+    number. ValueError naming the attribute otherwise."""
+    v = g.attrs.get(key)
+    if isinstance(v, np.ndarray) and v.size == 1:
+        v = v.ravel()[0]
+    ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+    if not ok or not np.isfinite(v) or (kind is int and float(v) != int(v)):
+        raise ValueError(f"{g.name}@{key}: {'an integer' if kind is int else 'a finite number'} expected, "
+                         f"found {type(v).__name__}")
+    return kind(v)
+
+
+# The page's caps: what any file, however large, is summarised to.
+MAX_RUNS = 500             # runs in the tables and the plots; the rest are counted, not shown
+MAX_POINTS = 20000         # points of one plotted line (evenly thinned beyond)
+MAX_LINES = 1000           # lines of a list (why each sweep stopped)
+MAX_SIZES = 50             # sizes of a --sizes verdict
+MAX_OBSTACLES = 50         # obstacles drawn in the scene's picture
+
+
+def thin(n):
+    """The stride that keeps at most MAX_POINTS of n points."""
+    return max(1, -(-n // MAX_POINTS))
 
 
 def fmt(v):
@@ -86,7 +114,9 @@ def draw_obstacles(ax, f, spec, lo, hi):
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     stored = f["scene"].get("obstacles", {})
-    for k, o in enumerate(spec.get("obstacle", [])):
+    for k, o in enumerate(spec.get("obstacle", [])[:MAX_OBSTACLES]):
+        if not isinstance(o, dict):
+            continue
         style = dict(color="0.55", linewidth=0.6, alpha=0.7)
         if str(k) in stored and "triangles" in stored[str(k)]:
             ov, ot = stored[str(k)]["vertices"][:], stored[str(k)]["triangles"][:]
@@ -269,6 +299,7 @@ def cg_per_step(f, sink):
                 continue
             s = g["step_stats"][()]
             s = s[s["status"] == 0]
+            s = s[:: thin(len(s))]
             if len(s) and s["cg_iterations"].max() > 0:
                 st = P.style(label, k)
                 st.pop("marker")
@@ -306,10 +337,12 @@ def machine_rows(f, path):
 def bench_page(f, path, spec, toml_text, sink):
     sections = []
     s = f["scene"]
+    n_fixed = num(s, "n_fixed", int) if "n_fixed" in s.attrs else 0
+    stiffness = f"{num(s, 'numerical_stiffness'):.4g}" if "numerical_stiffness" in s.attrs else "-"
     sections.append(("scene", f"Scene: {attr(s, 'name')}",
-                     f"<p>N = {attr(s, 'n_particles')} particles ({attr(s, 'n_fixed')} fixed), t_end = "
-                     f"{attr(s, 't_end'):g} s, h = {attr(s, 'h'):g} s, numerical stiffness h²k/(ρl²) = "
-                     f"{attr(s, 'numerical_stiffness'):.4g}, explicit terms: {esc(attr(s, 'explicit_terms'))}.</p>" +
+                     f"<p>N = {num(s, 'n_particles', int)} particles ({n_fixed} fixed), t_end = "
+                     f"{num(s, 't_end'):g} s, h = {num(s, 'h'):g} s, numerical stiffness h²k/(ρl²) = "
+                     f"{stiffness}, explicit terms: {esc(attr(s, 'explicit_terms'))}.</p>" +
                      scene_figure(f, spec, sink) +
                      f"<details><summary>scene file ({esc(attr(s, 'source'))})</summary><pre>{esc(toml_text)}</pre>"
                      "</details>"))
@@ -319,7 +352,7 @@ def bench_page(f, path, spec, toml_text, sink):
     if "work_precision" in f:
         body, fastest = equal_accuracy(f)
         P.plot_work_precision(f, sink, "", [])
-        reasons = attr(f["work_precision"], "stop_reasons", "").splitlines()
+        reasons = str(attr(f["work_precision"], "stop_reasons", "")).splitlines()[:MAX_LINES]
         if reasons:  # --sweep-to-targets
             body += f"<p>Why each method's sweep stopped:</p><ul>{''.join(f'<li>{esc(r)}</li>' for r in reasons)}</ul>"
         sections.append(("equal-accuracy", "Equal accuracy and work-precision",
@@ -361,6 +394,7 @@ def sizes_page(f, path, sink):
     cost, bound = v["cost_s"][()], v["upper_bound"][()]
     fastest = [[x.decode() for x in row] for row in v["fastest"][()]]
     files = [x.decode() for x in v["result_files"][()].ravel()]
+    sizes = sizes[:MAX_SIZES]
     rows = []
     for s, n in enumerate(sizes):
         for j, t in enumerate(targets):
@@ -375,15 +409,27 @@ def sizes_page(f, path, sink):
     for s, n in enumerate(sizes):
         g = f["sizes"][f"n{n}"]
         wp = g["work_precision"]
-        reasons = attr(wp, "stop_reasons", "").splitlines()
-        # The size's own page, where scripts/report wrote one beside its file (a link, not a request).
-        size_page = os.path.splitext(files[s])[0] + ".html"
-        link = (f'<p>The size\'s own page: <a href="{esc(size_page)}">{esc(size_page)}</a></p>'
-                if os.path.isfile(os.path.join(os.path.dirname(os.path.abspath(path)), size_page)) else "")
+        reasons = str(attr(wp, "stop_reasons", "")).splitlines()[:MAX_LINES]
+        link = size_page_link(path, files[s], int(n))
         sections.append((f"n{n}", f"N = {n} ({attr(g, 'nu')}×{attr(g, 'nv')}): {files[s]}", link +
                          (f"<p>Why each method's sweep stopped:</p><ul>{''.join(f'<li>{esc(r)}</li>' for r in reasons)}"
                           "</ul>" if reasons else "") + equal_accuracy({"work_precision": wp})[0]))
     return sections, fastest
+
+
+def size_page_link(path, stored, n):
+    """A link to the size's own page where scripts/report wrote one beside
+    it: only for the file the sweep itself names for size n (the verdict's
+    stem + ".n<N>.h5", bench_integrators --sizes), by its plain relative
+    name, whatever the stored entry says; "" otherwise."""
+    own = os.path.splitext(os.path.basename(path))[0] + f".n{n}.h5"
+    if stored != own:
+        return ""
+    page = os.path.splitext(own)[0] + ".html"
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isfile(os.path.join(folder, page)):
+        return ""
+    return f'<p>The size\'s own page: <a href="./{urllib.parse.quote(page)}">{esc(page)}</a></p>'
 
 
 def stress_page(f, sink):

@@ -85,7 +85,8 @@ double ObstacleSpeed(const Obstacle& o, double reach) {
 }  // namespace
 
 BlowUpGuard::BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const MatrixN3& v0, double t_end)
-    : sys_(system), proximity_(system) {
+    : sys_(system), proximity_(system),
+      path_cull_(system.obstacles(), system.obstacles().empty() ? 0 : static_cast<std::size_t>(system.num_particles())) {
   const Scene& s = system.scene();
   const double g = s.forces.gravity.norm();
   const double diagonal = std::hypot(s.grid.size[0], s.grid.size[1]);
@@ -151,6 +152,40 @@ bool BlowUpGuard::CheckFrame(double t, const MatrixN3& x, const MatrixN3& v, Run
       *message = fmt::format("particle {} lies {:.3g} m inside obstacle {} ({}) at t = {:.6g} s, deeper than its "
                              "collision distance {:g} m",
                              p.deepest, p.max_depth, k, o.shape().type(), t, delta);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool BlowUpGuard::CheckPath(double t0, const MatrixN3& x0, double t1, const MatrixN3& x1, RunStatus* status,
+                            std::string* message) {
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
+    const Obstacle& o = sys_.obstacles()[k];
+    const ObstaclePose pose = o.PoseAt(t1);
+    path_cull_.Advance(k, pose);
+    for (int p = 0; p < x1.rows(); ++p) {
+      const Vector3 a = x0.row(p).transpose(), b = x1.row(p).transpose();
+      const double length = (b - a).norm();
+      if (!(length > 0.0)) continue;
+      const std::size_t pk = static_cast<std::size_t>(p);
+      if (path_cull_.Bound(k, pk, a) + path_cull_.Bound(k, pk, b) > length) continue;
+      Vector3 direction;
+      const double d1 = o.SignedDistance(pose, b, &direction);
+      path_cull_.Record(k, pk, b, d1);
+      if (!(d1 > 0.0)) continue;  // ends inside or on it: contact, or CheckFrame's penetration
+      const double d0 = o.SignedDistance(pose, a, &direction);
+      if (!(d0 > 0.0) || d0 + d1 > length) continue;
+      const std::optional<SegmentHit> entry = o.FirstHit(pose, a, b), exit = o.FirstHit(pose, b, a);
+      // Through to the other side: it leaves through a face turned away from
+      // the one it entered by (normals at more than 120°), not across a
+      // corner or a cap it only clipped.
+      if (!entry || !exit || entry->normal.dot(exit->normal) > -0.5) continue;
+      *status = RunStatus::kTunnelled;
+      *message = fmt::format("particle {} passed through obstacle {} ({}) in the step from t = {:.6g} s to {:.6g} s: "
+                             "its path of {:.3g} m enters the obstacle {:.3g} m along it, leaves it through the other "
+                             "side and ends {:.3g} m outside",
+                             p, k, o.shape().type(), t0, t1, length, entry->s * length, d1);
       return false;
     }
   }
@@ -570,8 +605,36 @@ VirtualParticles* ResetToRest(const ParticleSystem& system, Stepper& engine) {
 
 }  // namespace
 
+namespace {
+
+// The step size h [s] after an accepted step of `step` [s], one rule per
+// step control: the error controller (PI, on err_prev) where the step did
+// not end at an event (which says nothing of the error at h), the
+// iteration controller, or back to the grid of h_nominal after a
+// rejection (fixed steps).
+void NextStepSize(const SolverSpec& spec, const std::vector<StepStats>& stats, double step, double h_max,
+                  double h_nominal, bool shortened, const Stepper& engine, double* h, double* err_prev,
+                  long* fixed_step_index) {
+  const StepStats& st = stats.back();
+  if (spec.step_control == StepControl::kError) {
+    const bool after_rejection = stats.size() >= 2 && stats[stats.size() - 2].status != StepStatus::kOk;
+    if (!shortened) *h = ErrorControlledStep(st, step, h_max, after_rejection, err_prev);
+  } else if (spec.step_control != StepControl::kFixed) {
+    *h = IterationControlledStep(st, step, *h, h_max, spec, engine.single_update());
+  } else if (*h < h_nominal) {
+    ReturnToGrid(engine.t(), h_nominal, h, fixed_step_index);
+  }
+}
+
+}  // namespace
+
 std::string TimeLimitMessage(double limit_s, double t, long steps) {
-  return fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps", limit_s, t, steps);
+  const double stopped = StoppedSecondsOfRun();
+  return fmt::format("wall time past --time-limit {:g} s at t = {:.6g} s after {} steps{}", limit_s, t, steps,
+                     stopped >= 0.05 ? fmt::format("; the process was stopped (SIGSTOP, a suspended job) for {:.1f} s "
+                                                   "of that wall time",
+                                                   stopped)
+                                     : std::string());
 }
 
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
@@ -682,20 +745,11 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     // Every accepted step's state against the guard, then its frames.
     if (!guard.Check(engine.t(), engine.x(), engine.v(), work, self_contact.ContactWork(engine), &sum.status,
                      &sum.message) ||
+        !guard.CheckPath(t_start, x_prev, engine.t(), engine.x(), &sum.status, &sum.message) ||
         !recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, guard))
       break;
 
-    // Step-size selection, one rule per step control.
-    if (error_control) {
-      const bool after_rejection =
-          sum.step_stats.size() >= 2 && sum.step_stats[sum.step_stats.size() - 2].status != StepStatus::kOk;
-      // A step ended at an event says nothing of the error at h: h stays.
-      if (!shortened) h = ErrorControlledStep(st, step, h_max, after_rejection, &err_prev);
-    } else if (controlled) {
-      h = IterationControlledStep(st, step, h, h_max, spec, engine.single_update());
-    } else if (h < h_nominal) {
-      ReturnToGrid(engine.t(), h_nominal, &h, &fixed_step_index);
-    }
+    NextStepSize(spec, sum.step_stats, step, h_max, h_nominal, shortened, engine, &h, &err_prev, &fixed_step_index);
   }
   recorder.Trim();
   FinishRun(engine, guard, virtual_particles, solver_seconds, wall_start, &sum);

@@ -56,6 +56,44 @@ namespace {
 // A SUNDIALS return flag's name as the run's status (ParseRunStatus maps
 // error-test, convergence and work-limit failures; the rest is kSolverFailed).
 RunStatus StatusOfFlag(const std::string& name) { return ParseRunStatus(name).value_or(RunStatus::kSolverFailed); }
+
+// The frames up to the internal step's end t [s] (dense output), each
+// against the guard, into res->trajectory; false (res's status and message
+// set) if one fails. `frame`, `frame_v` are scratch of the state's size.
+bool StoreFrames(const OneStepDriver& d, const std::vector<double>& frames, double t, const std::string& error,
+                 BlowUpGuard& guard, VirtualParticles* virtual_particles, std::size_t* next_frame, MatrixN3* frame,
+                 MatrixN3* frame_v, RunSummary* res) {
+  std::size_t& next = *next_frame;
+  const std::size_t first_frame = next;
+  bool ok = true;
+  while (next < frames.size() && frames[next] <= t + 1e-12) {
+    if (next + 1 == frames.size() || frames[next] == t) {
+      d.current_state(frame, frame_v);  // the stop time t_end is hit exactly
+    } else if (const int f = d.state_at(frames[next], frame, frame_v); f < 0) {
+      res->status = StatusOfFlag(d.flag_name(f));
+      res->message = error.empty() ? "dense output failed with " + d.flag_name(f) : error;
+      ok = false;
+      break;
+    }
+    if (!guard.CheckFrame(frames[next], *frame, *frame_v, &res->status, &res->message)) {
+      ok = false;
+      break;
+    }
+    res->trajectory.times.push_back(frames[next]);
+    res->trajectory.positions.push_back(*frame);
+    res->trajectory.velocities.push_back(*frame_v);
+    if (virtual_particles) {
+      virtual_particles->Update(frames[next], *frame);
+      virtual_particles->RecordFrame(*frame, &res->trajectory.virtual_particles);
+    }
+    ++next;
+  }
+  if (virtual_particles && next != first_frame) {  // back to the step's end: the next step's topology
+    d.current_state(frame, frame_v);
+    virtual_particles->Update(t, *frame);
+  }
+  return ok;
+}
 }  // namespace
 
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
@@ -78,6 +116,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0], options.t_end);
   ExternalWork external(system, res->trajectory.positions[0], res->trajectory.velocities[0]);
   double t_checked = 0.0;
+  MatrixN3 step_start = res->trajectory.positions[0];  // the positions at the internal step's start
   const auto wall_start = Clock::now();
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
   long steps = 0;
@@ -131,6 +170,13 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     ReportProgress(t);
     d.current_state(&frame, &frame_v);  // every internal step's state against the guard (no contact response)
     const double work = external.Advance(t - t_checked, t, frame, frame_v);
+    // Every internal step's path: a particle through a thin obstacle keeps
+    // its distance's sign, so the event's root finding does not see it.
+    if (!guard.CheckPath(t_checked, step_start, t, frame, &res->status, &res->message)) {
+      ok = false;
+      break;
+    }
+    step_start = frame;  // the same size: no allocation
     t_checked = t;
     // The next step's virtual particles, from this state (the energy the
     // guard checks includes their springs').
@@ -139,33 +185,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       ok = false;
       break;
     }
-    const std::size_t first_frame = next;
-    while (next < frames.size() && frames[next] <= t + 1e-12) {
-      if (next + 1 == frames.size() || frames[next] == t) {
-        d.current_state(&frame, &frame_v);  // the stop time t_end is hit exactly
-      } else if (const int f = d.state_at(frames[next], &frame, &frame_v); f < 0) {
-        res->status = StatusOfFlag(d.flag_name(f));
-        res->message = error.empty() ? "dense output failed with " + d.flag_name(f) : error;
-        ok = false;
-        break;
-      }
-      if (!guard.CheckFrame(frames[next], frame, frame_v, &res->status, &res->message)) {
-        ok = false;
-        break;
-      }
-      res->trajectory.times.push_back(frames[next]);
-      res->trajectory.positions.push_back(frame);
-      res->trajectory.velocities.push_back(frame_v);
-      if (virtual_particles) {
-        virtual_particles->Update(frames[next], frame);
-        virtual_particles->RecordFrame(frame, &res->trajectory.virtual_particles);
-      }
-      ++next;
-    }
-    if (virtual_particles && next != first_frame) {  // back to the step's end: the next step's topology
-      d.current_state(&frame, &frame_v);
-      virtual_particles->Update(t, frame);
-    }
+    ok = StoreFrames(d, frames, t, error, guard, virtual_particles, &next, &frame, &frame_v, res);
     if (ok && flag == 2 && d.on_root) {  // an event: the frames before it are stored; jump and restart
       const auto e0 = Clock::now();
       const int f = d.on_root(t);
@@ -174,6 +194,9 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
         res->status = StatusOfFlag(d.flag_name(f));
         res->message = error.empty() ? "restart after an event failed with " + d.flag_name(f) : error;
         ok = false;
+      } else {
+        d.current_state(&frame, &frame_v);  // the next path starts where the event's jump put the particles
+        step_start = frame;
       }
     }
   }

@@ -6,6 +6,8 @@
 #  - serial: the process restarts the same command, which resumes from the
 #    journal and stores cvode/klu as time_limit (exit 0, one line on
 #    stderr, the result file written, the journal gone);
+#    a second command with the same --out, started during the restart, is
+#    refused: the lock is held across it;
 #  - one MPI rank (which cannot restart itself): exit 75 with one line, the
 #    journal and the task's marker kept; the same command then finishes
 #    with the same time_limit row.
@@ -45,6 +47,27 @@ grep -q "^1 of 2 runs from $work/serial.h5.journal" "$work/out.txt" || { echo "F
 [ -f "$work/serial.h5" ] || { echo "FAIL: no result file"; fail=1; }
 [ -e "$work/serial.h5.journal" ] && { echo "FAIL: the journal was left"; fail=1; }
 check_row
+
+# The output lock is kept across the restart: the same command, started as
+# the restart line appears, is refused (exit 2), and the restarted command
+# finishes with its file.
+args="--scene $work/sheet_40k.toml --integrators sbdf2,cvode/klu --h 0.01 --rtols 1e-3 --t-end 0.02 --reference none
+  --repeat 1 --quiet --time-limit 2 --out $work/locked.h5"
+# shellcheck disable=SC2086
+"$bench" $args > "$work/a_out.txt" 2> "$work/a_err.txt" &
+first=$!
+i=0
+while ! grep -q "the process restarts" "$work/a_err.txt" 2> /dev/null && [ $i -lt 1200 ]; do sleep 0.05; i=$((i + 1)); done
+# shellcheck disable=SC2086
+"$bench" $args > "$work/b_out.txt" 2> "$work/b_err.txt"
+second=$?
+wait $first
+first_code=$?
+echo "during the restart: the second command exited $second: $(cat "$work/b_err.txt")"
+[ $second -eq 2 ] && grep -q "is being written by process" "$work/b_err.txt" ||
+  { echo "FAIL: a second command took the --out during the restart"; fail=1; }
+[ $first_code -eq 0 ] && [ -f "$work/locked.h5" ] ||
+  { echo "FAIL: the restarted command exited $first_code: $(cat "$work/a_err.txt")"; fail=1; }
 
 if [ -n "$mpiexec" ]; then
   mpirun="env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 $mpiexec -n 1"
