@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <functional>
 #include <stdexcept>
 
 #include "collision/edge_projection.h"
@@ -208,6 +207,24 @@ int PositionSelfContact::Project(const MatrixN3& x, double tau0, double tau1, Ma
   return projected;
 }
 
+namespace {
+
+// The sum of the two largest of four non-negative numbers.
+double TwoLargest(const std::array<double, 4>& a) {
+  double first = std::max(a[0], a[1]), second = std::min(a[0], a[1]);
+  for (std::size_t k = 2; k < 4; ++k) {
+    if (a[k] > first) {
+      second = first;
+      first = a[k];
+    } else if (a[k] > second) {
+      second = a[k];
+    }
+  }
+  return first + second;
+}
+
+}  // namespace
+
 VbdSelfContact::VbdSelfContact(const ParticleSystem& system, double thickness)
     : sys_(system),
       thickness_(thickness),
@@ -223,15 +240,19 @@ VbdSelfContact::VbdSelfContact(const ParticleSystem& system, double thickness)
   offsets_.assign(static_cast<std::size_t>(n) + 1, 0);
 }
 
+void VbdSelfContact::SetStepMotion(double motion) {
+  query_ = std::min(kQueryFactor * thickness_, std::max(kMinQueryFactor * thickness_, 2.0 * motion / kRelaxation));
+}
+
 void VbdSelfContact::Detect(const MatrixN3& x) {
   const auto start = Clock::now();
   x_det_ = x;
   detector_.Candidates(x, x, query_, &candidates_);
   ++stats_.broad_phases;
   stats_.candidates += static_cast<long>(candidates_.size());
-  // The pairs within Q in the pairs' order (deterministic), with their
-  // distances in the bounds.
-  std::sort(candidates_.begin(), candidates_.end());
+  // The pairs within Q, with their distances in the bounds; the list is
+  // sorted once filtered (the pairs' order, deterministic: the sorted list
+  // of every pair within Q restricted to those kept).
   pairs_.clear();
   distance_.clear();
   std::fill(bound_.begin(), bound_.end(), query_);
@@ -252,14 +273,16 @@ void VbdSelfContact::Detect(const MatrixN3& x) {
   // are those of the whole list, bit for bit, at a fraction of the cost
   // (OGC's per-vertex bounds, Chen et al. 2025, bound the contact set as
   // they bound the motion).
-  std::size_t kept = 0;
+  listed_.clear();
   for (std::size_t i = 0; i < pairs_.size(); ++i) {
     std::array<double, 4> b;
     for (std::size_t k = 0; k < 4; ++k) b[k] = bound_[static_cast<std::size_t>(pairs_[i].p[k])];
-    std::partial_sort(b.begin(), b.begin() + 2, b.end(), std::greater<double>());
-    if (distance_[i] - (b[0] + b[1]) < thickness_) pairs_[kept++] = pairs_[i];
+    if (distance_[i] - TwoLargest(b) < thickness_) listed_.push_back({pairs_[i], distance_[i]});
   }
-  pairs_.resize(kept);
+  std::sort(listed_.begin(), listed_.end(),
+            [](const ListedPair& a, const ListedPair& b) { return a.pair < b.pair; });
+  pairs_.clear();
+  for (const ListedPair& l : listed_) pairs_.push_back(l.pair);
   // Each particle's pairs (CSR).
   std::fill(offsets_.begin(), offsets_.end(), 0);
   for (const SelfContactPair& pair : pairs_)
@@ -276,7 +299,14 @@ void VbdSelfContact::Detect(const MatrixN3& x) {
 void VbdSelfContact::AddForce(int p, const MatrixN3& x, Vector3* f, Matrix3* k) const {
   for (int e = offsets_[static_cast<std::size_t>(p)]; e < offsets_[static_cast<std::size_t>(p) + 1]; ++e) {
     const int item = incident_[static_cast<std::size_t>(e)];
-    const SelfContactPair& pair = pairs_[static_cast<std::size_t>(item / 4)];
+    const ListedPair& listed = listed_[static_cast<std::size_t>(item / 4)];
+    const SelfContactPair& pair = listed.pair;
+    // Its particles' motion since x_det so far: a pair still farther than δ
+    // by more than the two largest is not within δ (the bound of Detect with
+    // the motion made instead of the motion allowed), and is skipped.
+    std::array<double, 4> moved;
+    for (std::size_t c = 0; c < 4; ++c) moved[c] = (x.row(pair.p[c]) - x_det_.row(pair.p[c])).norm();
+    if (listed.distance - TwoLargest(moved) >= thickness_) continue;
     const PairGeometry g = Closest(pair, x);
     if (!(g.distance < thickness_)) continue;
     const double w = g.w[static_cast<std::size_t>(item % 4)];

@@ -71,6 +71,14 @@ class PositionSelfContact {
   PositionSelfContact(const ParticleSystem& system, double thickness, const Eigen::VectorXd& w);
 
   void Reset() { stats_ = SelfContactStats{}; }
+  /// Sets the query radius of the detections until the next call from the
+  /// largest distance `motion` [m] a particle is predicted to move in the
+  /// step: Q = min(kQueryFactor δ, max(kMinQueryFactor δ, 2 motion/γ)). A
+  /// particle's bound γ min(Q, …) then stays above twice its predicted
+  /// motion, so the cap Q truncates no particle that a larger Q would
+  /// leave free, while the pairs listed, and each detection's cost, no
+  /// longer grow with δ² when the step moves the cloth less than 20δ/γ.
+  void SetStepMotion(double motion);
   /// Starts a step of size h [s] from positions x0 and velocities v0
   /// (N×3 [m], [m/s]): the broad phase over x₀ → x₀ + h v₀.
   void BeginStep(double h, const MatrixN3& x0, const MatrixN3& v0);
@@ -132,7 +140,8 @@ class PositionSelfContact {
 class VbdSelfContact {
  public:
   static constexpr double kRelaxation = 0.45;  ///< γ (Warp: 0.45; OGC: below 1/2)
-  static constexpr double kQueryFactor = 20.0;  ///< Q / δ
+  static constexpr double kQueryFactor = 20.0;  ///< Q / δ at most
+  static constexpr double kMinQueryFactor = 2.0;  ///< Q / δ at least
   static constexpr double kStiffness = 100.0;  ///< layers whose weight the penalty holds within δ
 
   /// @param system the cloth (grid, masses, fixed particles; must outlive this)
@@ -141,6 +150,14 @@ class VbdSelfContact {
   VbdSelfContact(const ParticleSystem& system, double thickness);
 
   void Reset() { stats_ = SelfContactStats{}; }
+  /// Sets the query radius of the detections until the next call from the
+  /// largest distance `motion` [m] a particle is predicted to move in the
+  /// step: Q = min(kQueryFactor δ, max(kMinQueryFactor δ, 2 motion/γ)). A
+  /// particle's bound γ min(Q, …) then stays above twice its predicted
+  /// motion, so the cap Q truncates no particle that a larger Q would
+  /// leave free, while the pairs listed, and each detection's cost, no
+  /// longer grow with δ² when the step moves the cloth less than 20δ/γ.
+  void SetStepMotion(double motion);
   /// The pairs within Q at x (N×3 [m]), the particles' bounds, and x as x_det.
   void Detect(const MatrixN3& x);
   /// Adds the penalty force [N] on particle p at positions x to *f and its
@@ -161,8 +178,13 @@ class VbdSelfContact {
   SelfContactStats stats_;
   MatrixN3 x_det_;
   std::vector<double> bound_;           // b_p [m]
-  std::vector<SelfContactPair> candidates_, pairs_;  // pairs_: those that can act before the next detection
-  std::vector<double> distance_;         // scratch of Detect: the listed pairs' distances at x_det [m]
+  struct ListedPair {
+    SelfContactPair pair;
+    double distance;  // at x_det [m]
+  };
+  std::vector<SelfContactPair> candidates_, pairs_;  // scratch of Detect: the pairs within Q
+  std::vector<double> distance_;                     // scratch of Detect: their distances at x_det [m]
+  std::vector<ListedPair> listed_;  // the pairs that can act before the next detection, in the pairs' order
   std::vector<int> offsets_, incident_;  // per particle: its pairs (index·4 + slot) in pairs_
   std::vector<int> fill_;                // scratch of Detect
 };

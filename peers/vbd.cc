@@ -57,7 +57,12 @@ VertexBlockDescent::VertexBlockDescent(const ParticleSystem& system, int iterati
 }
 
 StepStats VertexBlockDescent::Step(double h) {
-  if (self_) ++self_->stats().steps;  // once, also where ρ's measurement iterates first
+  if (self_) {
+    ++self_->stats().steps;  // once, also where ρ's measurement iterates first
+    // The step's largest predicted motion: inertia and gravity from its start.
+    const double v_max = v0_.rows() ? v0_.rowwise().norm().maxCoeff() : 0.0;
+    self_->SetStepMotion(h * v_max + h * h * sys_.scene().forces.gravity.norm());
+  }
   const int pieces = self_ && sys_.has_prescribed_motion() ? KinematicSplit(h) : 1;
   if (pieces == 1) return IteratedStepper::Step(h);
   // A moving fixed particle cannot be truncated to its bound, as the free
