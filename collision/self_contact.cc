@@ -411,36 +411,31 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
     reported_.push_back({static_cast<int>(first.id()), static_cast<int>(second.id())});
   });
   // The triangle pairs within each cluster, then those of the reported
-  // cluster pairs in CGAL's order. Each thread takes a contiguous range of
-  // both lists into its own part, and the parts are joined in thread
-  // order: the serial order for any thread count.
+  // cluster pairs in CGAL's order, in kChunks contiguous ranges of both
+  // lists, each into a part of its own; the threads take the chunks one at
+  // a time (a thread slowed by another process on its core takes fewer),
+  // and the parts are joined in chunk order: the serial order for any
+  // thread count. From about a millisecond of work up (a reported cluster
+  // pair is up to 64 triangle pairs; kParallelPairTests).
   const auto n_same = static_cast<std::ptrdiff_t>(same_cluster_.size());
   const auto n_reported = static_cast<std::ptrdiff_t>(reported_.size());
-  const bool parallel = n_same + 64 * n_reported >= kParallelMinimum;
-  const int threads = parallel ? omp_get_max_threads() : 1;
-  if (parts_.size() < static_cast<std::size_t>(threads)) {
-    parts_.resize(static_cast<std::size_t>(threads));
-    parts_same_.resize(static_cast<std::size_t>(threads));
+  const bool parallel = n_same + 64 * n_reported >= 4 * kParallelPairTests;
+  constexpr std::ptrdiff_t kChunks = 16;
+  if (parts_.size() < static_cast<std::size_t>(kChunks)) {
+    parts_.resize(static_cast<std::size_t>(kChunks));
+    parts_same_.resize(static_cast<std::size_t>(kChunks));
   }
-  int team = 1;
-#pragma omp parallel num_threads(threads) if (parallel)
-  {
-    const int nt = omp_get_num_threads(), id = omp_get_thread_num();
-    if (id == 0) team = nt;
-    std::vector<SelfContactPair>& part = parts_[static_cast<std::size_t>(id)];
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+  for (std::ptrdiff_t c = 0; c < kChunks; ++c) {
+    std::vector<SelfContactPair>& part = parts_[static_cast<std::size_t>(c)];
     part.clear();
-    const auto range = [&](std::ptrdiff_t n) {
-      return std::array<std::ptrdiff_t, 2>{n * id / nt, n * (id + 1) / nt};
-    };
-    const auto [s0, s1] = range(n_same);
-    for (std::ptrdiff_t k = s0; k < s1; ++k) {
+    for (std::ptrdiff_t k = n_same * c / kChunks; k < n_same * (c + 1) / kChunks; ++k) {
       const auto ta = static_cast<std::size_t>(same_cluster_[static_cast<std::size_t>(k)][0]);
       const auto tb = static_cast<std::size_t>(same_cluster_[static_cast<std::size_t>(k)][1]);
       if (Overlap(tri_lo_[ta], tri_hi_[ta], tri_lo_[tb], tri_hi_[tb])) TrianglePair(ta, tb, margin + slack, &part);
     }
-    parts_same_[static_cast<std::size_t>(id)] = part.size();
-    const auto [r0, r1] = range(n_reported);
-    for (std::ptrdiff_t k = r0; k < r1; ++k) {
+    parts_same_[static_cast<std::size_t>(c)] = part.size();
+    for (std::ptrdiff_t k = n_reported * c / kChunks; k < n_reported * (c + 1) / kChunks; ++k) {
       const auto ca = static_cast<std::size_t>(reported_[static_cast<std::size_t>(k)][0]);
       const auto cb = static_cast<std::size_t>(reported_[static_cast<std::size_t>(k)][1]);
       for (int i = cluster_start_[ca]; i < cluster_start_[ca + 1]; ++i) {
@@ -452,14 +447,14 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
       }
     }
   }
-  // Every thread's same-cluster pairs first, then every thread's reported ones.
-  for (int t = 0; t < team; ++t) {
-    const auto& part = parts_[static_cast<std::size_t>(t)];
-    out->insert(out->end(), part.begin(), part.begin() + static_cast<std::ptrdiff_t>(parts_same_[static_cast<std::size_t>(t)]));
+  // Every chunk's same-cluster pairs first, then every chunk's reported ones.
+  for (std::ptrdiff_t c = 0; c < kChunks; ++c) {
+    const auto& part = parts_[static_cast<std::size_t>(c)];
+    out->insert(out->end(), part.begin(), part.begin() + static_cast<std::ptrdiff_t>(parts_same_[static_cast<std::size_t>(c)]));
   }
-  for (int t = 0; t < team; ++t) {
-    const auto& part = parts_[static_cast<std::size_t>(t)];
-    out->insert(out->end(), part.begin() + static_cast<std::ptrdiff_t>(parts_same_[static_cast<std::size_t>(t)]), part.end());
+  for (std::ptrdiff_t c = 0; c < kChunks; ++c) {
+    const auto& part = parts_[static_cast<std::size_t>(c)];
+    out->insert(out->end(), part.begin() + static_cast<std::ptrdiff_t>(parts_same_[static_cast<std::size_t>(c)]), part.end());
   }
 }
 

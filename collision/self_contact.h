@@ -17,6 +17,16 @@
 
 namespace clothbench {
 
+/// Element-pair tests (closest points, the motion bound, CCD) that a
+/// parallel region of the self-contact code needs before it starts a
+/// second thread: about 1 ms of serial work at ~70 ns a closest-point test
+/// (this project's machine). Below it the region's work is smaller than
+/// what waking a thread costs when the other core is busy (another
+/// process, ctest -j2), where a second thread made the fold's SBDF(2) step
+/// 2.8x slower than one (scripts/self_contact_cost; docs/performance.md,
+/// "Parallel regions on a busy machine").
+inline constexpr long kParallelPairTests = 16384;
+
 /// Where a pair is closest, or where it touched: the weights w of its four
 /// particles (relative position Σ w_k x_k: point minus triangle point, or
 /// the first edge's point minus the second's), the unit normal n along
@@ -105,8 +115,8 @@ class SelfContactDetector {
   // Per triangle: its box at x0, and its displacements' mean and radius.
   std::vector<Vector3> tri0_lo_, tri0_hi_, move_centre_;
   std::vector<double> move_radius_;
-  // The cluster pairs CGAL reported, and each thread's element pairs (its
-  // range of the same-cluster pairs, the first parts_same_[t], then of
+  // The cluster pairs CGAL reported, and each chunk's element pairs (its
+  // range of the same-cluster pairs, the first parts_same_[c], then of
   // the reported ones).
   std::vector<std::array<int, 2>> reported_;
   std::vector<std::vector<SelfContactPair>> parts_;

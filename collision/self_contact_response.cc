@@ -112,7 +112,7 @@ void SelfContactResponse::Distances(const MatrixN3& x0) {
   test_all_ = true;
   const long n = static_cast<long>(candidates_.size());
   distance0_.resize(candidates_.size());
-#pragma omp parallel for schedule(static) if (n > kParallelPairs)
+#pragma omp parallel for schedule(static) if (n > kParallelPairTests)
   for (long i = 0; i < n; ++i)
     distance0_[static_cast<std::size_t>(i)] = Closest(candidates_[static_cast<std::size_t>(i)], x0).distance;
 }
@@ -130,7 +130,10 @@ int SelfContactResponse::CollisionPass(double h, const MatrixN3& x0, bool apply,
   std::fill(moved_.begin(), moved_.end(), 0);
   const bool all = test_all_;
   test_all_ = false;
-#pragma omp parallel for schedule(dynamic, 1024) if (n > kParallelPairs)
+  // A pass after the first tests only the pairs with a particle moved since
+  // (few): its threshold counts an eighth of the list.
+  const bool parallel = (all ? n : n / 8) > kParallelPairTests;
+#pragma omp parallel for schedule(dynamic, 1024) if (parallel)
   for (long i = 0; i < n; ++i) {
     const std::size_t k = static_cast<std::size_t>(i);
     const auto& p = candidates_[k].p;

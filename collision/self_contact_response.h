@@ -132,7 +132,6 @@ class SelfContactResponse {
   // impulses do not depend on the order of CGAL's report.
   std::vector<std::size_t> acting_;
   void SortActing();
-  static constexpr long kParallelPairs = 4096;  // fewer pairs: one thread
   std::vector<int> parent_;   // impact zones (union–find over particles)
   std::vector<int> colliding_;  // a zone pass's colliding pairs, four particles each
   // Particles whose x_end changed since the last pass tested them; whether

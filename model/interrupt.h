@@ -51,15 +51,18 @@ inline std::multiset<std::chrono::steady_clock::time_point> g_active_deadlines;
 }  // namespace internal
 
 // How long the process has been stopped (SIGSTOP, a suspended job): the
-// SIGCONT handler of the executables sets a flag (NoteContinued), and the
-// watchdog (bench/signals.h), which ticks every 20 ms, adds the time since
-// its last tick to the total (AccountStop). A run reads the total since
-// its outermost deadline started, a stop not yet accounted included.
+// watchdog of the executables (bench/signals.h) ticks every 20 ms
+// (AccountStop); a gap between two ticks of more than kStopGap, or one that
+// ends after a SIGCONT (NoteContinued, from its handler), is time the
+// process did not run, added to the total. A run reads the total since its
+// outermost deadline started, a gap the watchdog has not ticked over yet
+// included (the run's thread may resume before the watchdog's).
 namespace internal {
 inline std::atomic<bool> g_continued{false};       // SIGCONT since the watchdog's last tick
 inline std::atomic<long long> g_watch_tick_ns{0};  // the watchdog's last tick (steady clock) [ns]; 0: none
 inline std::atomic<long long> g_stopped_ns{0};
 inline thread_local long long g_stopped_ns_at_run_start = 0;
+inline constexpr long long kStopGapNs = 500'000'000;  // 25 ticks: not a scheduling delay
 inline long long SteadyNs(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
 }
@@ -68,12 +71,15 @@ inline long long SteadyNs(std::chrono::steady_clock::time_point t) {
 /// Records that the process was continued (async-signal-safe: one atomic store).
 inline void NoteContinued() { internal::g_continued.store(true, std::memory_order_relaxed); }
 
-/// The watchdog's tick at `now`: a SIGCONT since its last tick adds the
-/// time between them to the process' stopped time. @return whether it did
+/// The watchdog's tick at `now`: a gap since its last tick longer than
+/// kStopGapNs, or any gap after a SIGCONT, is added to the process' stopped
+/// time. @return whether it was
 inline bool AccountStop(std::chrono::steady_clock::time_point now) {
-  const long long last = internal::g_watch_tick_ns.exchange(internal::SteadyNs(now));
-  if (!internal::g_continued.exchange(false) || last == 0) return false;
-  internal::g_stopped_ns.fetch_add(internal::SteadyNs(now) - last, std::memory_order_relaxed);
+  const long long now_ns = internal::SteadyNs(now);
+  const long long last = internal::g_watch_tick_ns.exchange(now_ns);
+  const bool continued = internal::g_continued.exchange(false);
+  if (last == 0 || (!continued && now_ns - last < internal::kStopGapNs)) return false;
+  internal::g_stopped_ns.fetch_add(now_ns - last, std::memory_order_relaxed);
   return true;
 }
 
@@ -83,8 +89,8 @@ inline bool AccountStop(std::chrono::steady_clock::time_point now) {
 inline double StoppedSecondsOfRun() {
   long long ns = internal::g_stopped_ns.load(std::memory_order_relaxed) - internal::g_stopped_ns_at_run_start;
   const long long tick = internal::g_watch_tick_ns.load(std::memory_order_relaxed);
-  if (internal::g_continued.load(std::memory_order_relaxed) && tick != 0)
-    ns += internal::SteadyNs(std::chrono::steady_clock::now()) - tick;
+  const long long pending = tick != 0 ? internal::SteadyNs(std::chrono::steady_clock::now()) - tick : 0;
+  if (internal::g_continued.load(std::memory_order_relaxed) || pending >= internal::kStopGapNs) ns += pending;
   return 1e-9 * static_cast<double>(ns);
 }
 

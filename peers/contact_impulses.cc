@@ -101,7 +101,7 @@ int ContactImpulses::BeginStep(double t0, double h, const MatrixN3& x0, const Ma
     const auto n_candidates = static_cast<long>(candidates_.size());
     geometry_.resize(candidates_.size());
     listed_pair_.resize(candidates_.size());
-#pragma omp parallel for schedule(static) if (n_candidates > 4096)
+#pragma omp parallel for schedule(static) if (n_candidates > kParallelPairTests)
     for (long i = 0; i < n_candidates; ++i) {
       const SelfContactPair& pair = candidates_[static_cast<std::size_t>(i)];
       const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
