@@ -211,7 +211,7 @@ void CholeskyFactor::Impl::TreeSolve(const MatrixN3& r, MatrixN3* z) {
   const double* r0 = r.col(0).data();
   const double* r1 = r.col(1).data();
   const double* r2 = r.col(2).data();
-  const bool parallel = n >= 4096;
+  const bool parallel = n >= kParallelSolveRows;
   const int threads = std::min(2, omp_get_max_threads());  // OMP_NUM_THREADS=1: one core
 #pragma omp parallel for num_threads(threads) schedule(static) if (parallel)
   for (int k = 0; k < n; ++k) {
@@ -523,7 +523,7 @@ void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
   // column 2, each reading L, take about half the time
   // (docs/performance.md, BM_StepParts). Each lane has its own Common and
   // workspaces; L is only read.
-  const bool split = n >= 4096 && omp_get_max_threads() >= 2;
+  const bool split = n >= kParallelSolveRows && omp_get_max_threads() >= 2;
   bool ok[2] = {m.factorized, m.factorized};
   if (m.factorized) {
 #pragma omp parallel for num_threads(2) schedule(static, 1) if (split)

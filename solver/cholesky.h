@@ -15,6 +15,15 @@
 
 namespace clothbench {
 
+/// Rows from which the factor's solves and the per-particle loops around
+/// them (frames, contact policy) use a second thread: each runs once per
+/// PCG iteration, and below this its work is a fraction of a millisecond,
+/// less than waiting for a thread whose core another process keeps busy
+/// (at 10⁴ particles and 4096 rows, two threads beside a busy process made
+/// SBDF(2)'s run on the fold 2x one thread; docs/performance.md,
+/// "Parallel regions on a busy machine").
+inline constexpr long kParallelSolveRows = 65536;
+
 /// L Lᵀ = P A_F Pᵀ, where A_F is A with the rows and columns of the fixed
 /// particles decoupled (off-diagonal entries dropped, diagonal kept).
 /// A fixed particle constrains all three directions alike, so

@@ -268,7 +268,7 @@ void Preconditioner::SpreadDirections(const SparseMatrix& a, const VelocityFilte
   for (int sweep = 0; sweep < kFrameSweeps; ++sweep) {
     // Each particle from the last sweep's field alone: the same bits for
     // any thread count.
-#pragma omp parallel for schedule(static) if (n >= 4096)
+#pragma omp parallel for schedule(static) if (n >= kParallelSolveRows)
     for (std::ptrdiff_t pi = 0; pi < static_cast<std::ptrdiff_t>(n); ++pi) {
       const auto p = static_cast<std::size_t>(pi);
       next_field_[p] = f[p];
@@ -539,7 +539,7 @@ void Preconditioner::SetFactorFrames(const SparseMatrix& a, const VelocityFilter
     const Eigen::Matrix3d to_u = SmallestRotation(Vector3::UnitZ(), u);
     cf_frame_.resize(n);
     cf_rotated_.resize(n);
-#pragma omp parallel for schedule(static) if (n >= 4096)
+#pragma omp parallel for schedule(static) if (n >= kParallelSolveRows)
     for (std::ptrdiff_t pi = 0; pi < static_cast<std::ptrdiff_t>(n); ++pi) {
       const auto p = static_cast<std::size_t>(pi);
       const bool plain = !held_[p] && cf_field_[p].z() > kFrameSnap;

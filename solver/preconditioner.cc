@@ -203,7 +203,7 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       const MatrixN3* in = &r;
       if (cf_frames_) {
         rotated_r_ = r;
-#pragma omp parallel for schedule(static) if (r.rows() >= 4096)
+#pragma omp parallel for schedule(static) if (r.rows() >= kParallelSolveRows)
         for (Eigen::Index p = 0; p < r.rows(); ++p)
           if (cf_rotated_[static_cast<std::size_t>(p)])
             rotated_r_.row(p) = r.row(p) * cf_frame_[static_cast<std::size_t>(p)];
@@ -214,7 +214,7 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
       const CholeskyFactor* f[3];
       for (std::size_t c = 0; c < 3; ++c) f[c] = axis_used_[c] ? axis_factor_[c].get() : cholesky_.get();
       applications_ += (f[1] != f[0]) + (f[2] != f[0] && f[2] != f[1]);
-      const bool split = r.rows() >= 4096 && omp_get_max_threads() >= 2;
+      const bool split = r.rows() >= kParallelSolveRows && omp_get_max_threads() >= 2;
 #pragma omp parallel for num_threads(2) schedule(static, 1) if (split)
       for (int lane = 0; lane < 2; ++lane) {
         if (lane == 0) {
@@ -229,7 +229,7 @@ void Preconditioner::Apply(const MatrixN3& r, MatrixN3* z) const {
         }
       }
       if (cf_frames_) {
-#pragma omp parallel for schedule(static) if (r.rows() >= 4096)
+#pragma omp parallel for schedule(static) if (r.rows() >= kParallelSolveRows)
         for (Eigen::Index p = 0; p < r.rows(); ++p)
           if (cf_rotated_[static_cast<std::size_t>(p)]) {
             const Eigen::RowVector3d local = z->row(p);
