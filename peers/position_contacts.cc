@@ -253,14 +253,12 @@ void VbdSelfContact::Detect(const MatrixN3& x) {
   // The pairs within Q, with their distances in the bounds; the list is
   // sorted once filtered (the pairs' order, deterministic: the sorted list
   // of every pair within Q restricted to those kept).
-  pairs_.clear();
-  distance_.clear();
+  listed_.clear();
   std::fill(bound_.begin(), bound_.end(), query_);
   for (const SelfContactPair& pair : candidates_) {
     const double d = Closest(pair, x).distance;
     if (!(d < query_)) continue;
-    pairs_.push_back(pair);
-    distance_.push_back(d);
+    listed_.push_back({pair, d});
     for (int q : pair.p) bound_[static_cast<std::size_t>(q)] = std::min(bound_[static_cast<std::size_t>(q)], d);
   }
   for (double& b : bound_) b *= kRelaxation;
@@ -273,26 +271,24 @@ void VbdSelfContact::Detect(const MatrixN3& x) {
   // are those of the whole list, bit for bit, at a fraction of the cost
   // (OGC's per-vertex bounds, Chen et al. 2025, bound the contact set as
   // they bound the motion).
-  listed_.clear();
-  for (std::size_t i = 0; i < pairs_.size(); ++i) {
+  std::erase_if(listed_, [&](const ListedPair& l) {
     std::array<double, 4> b;
-    for (std::size_t k = 0; k < 4; ++k) b[k] = bound_[static_cast<std::size_t>(pairs_[i].p[k])];
-    if (distance_[i] - TwoLargest(b) < thickness_) listed_.push_back({pairs_[i], distance_[i]});
-  }
+    for (std::size_t k = 0; k < 4; ++k) b[k] = bound_[static_cast<std::size_t>(l.pair.p[k])];
+    return !(l.distance - TwoLargest(b) < thickness_);
+  });
   std::sort(listed_.begin(), listed_.end(),
-            [](const ListedPair& a, const ListedPair& b) { return a.pair < b.pair; });
-  pairs_.clear();
-  for (const ListedPair& l : listed_) pairs_.push_back(l.pair);
+            [](const ListedPair& u, const ListedPair& w) { return u.pair < w.pair; });
   // Each particle's pairs (CSR).
   std::fill(offsets_.begin(), offsets_.end(), 0);
-  for (const SelfContactPair& pair : pairs_)
-    for (int q : pair.p) ++offsets_[static_cast<std::size_t>(q) + 1];
+  for (const ListedPair& l : listed_)
+    for (int q : l.pair.p) ++offsets_[static_cast<std::size_t>(q) + 1];
   for (std::size_t q = 0; q + 1 < offsets_.size(); ++q) offsets_[q + 1] += offsets_[q];
   incident_.resize(static_cast<std::size_t>(offsets_.back()));
   fill_.assign(offsets_.begin(), offsets_.end() - 1);
-  for (std::size_t i = 0; i < pairs_.size(); ++i)
+  for (std::size_t i = 0; i < listed_.size(); ++i)
     for (std::size_t k = 0; k < 4; ++k)
-      incident_[static_cast<std::size_t>(fill_[static_cast<std::size_t>(pairs_[i].p[k])]++)] = static_cast<int>(4 * i + k);
+      incident_[static_cast<std::size_t>(fill_[static_cast<std::size_t>(listed_[i].pair.p[k])]++)] =
+          static_cast<int>(4 * i + k);
   stats_.detection_seconds += Since(start);
 }
 

@@ -182,10 +182,9 @@ class VbdSelfContact {
     SelfContactPair pair;
     double distance;  // at x_det [m]
   };
-  std::vector<SelfContactPair> candidates_, pairs_;  // scratch of Detect: the pairs within Q
-  std::vector<double> distance_;                     // scratch of Detect: their distances at x_det [m]
+  std::vector<SelfContactPair> candidates_;
   std::vector<ListedPair> listed_;  // the pairs that can act before the next detection, in the pairs' order
-  std::vector<int> offsets_, incident_;  // per particle: its pairs (index·4 + slot) in pairs_
+  std::vector<int> offsets_, incident_;  // per particle: its pairs (index·4 + slot) in listed_
   std::vector<int> fill_;                // scratch of Detect
 };
 
