@@ -539,6 +539,7 @@ bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool im
   // the midpoint of the first update's v₁ (an O(h²) midpoint state) gives a
   // local error O(h³), which keeps the method third order.
   const int max_updates = imex ? 1 : sbdf3_start ? 2 : opts_.max_updates;
+  const double b0_norm = FreeRowsNorm(b0_, sys_.fixed());
   bool converged = false;
   for (int u = 0; u < max_updates && !converged; ++u) {
     if (!imex) {
@@ -553,6 +554,7 @@ bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool im
     }
     b_ = b0_ + (beta * h) * g_;
     if (fixed_only_norm) pcg_opts.rhs_norm = FreeRowsNorm(b_, sys_.fixed());
+    pcg_opts.residual_floor = RoundOffFloor(b0_norm, beta * h * FreeRowsNorm(g_, sys_.fixed()));
     if (opts_.fixed_point_tolerance > 0.0) vprev_ = v1_;
     last_pcg_ = FilteredPcg(sysmat_.matrix(), b_, filter_, sysmat_.preconditioner(), pcg_opts, &v1_, &work_);
     ++st->updates;
@@ -713,7 +715,9 @@ double StepEngine::ErrorNorm(double h, int* order) {
 // initial residual is then −S F(v). The stop is Alg. 6's: ‖S F(v)‖₂ ≤ η·‖S_F b‖₂
 // (the fixed point's "PCG needed 0 iterations"; the same norm, see
 // CgReference), or max |Δv| ≤ fixed_point_tolerance if that is set, so both
-// solvers stop at the same discrete solution within the same tolerance.
+// solvers stop at the same discrete solution within the same tolerance; or
+// ‖S F(v)‖₂ at the round-off of b (RoundOffFloor, solver/pcg.h), below
+// which neither test can pass (cloth at rest without external forces).
 // The inner PCG stops at a tenth of that threshold, so that the next
 // residual is not dominated by the linear solve's own error.
 bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma_g, double t_g, bool midpoint,
@@ -723,6 +727,7 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
   const SparseMatrix& a = sysmat_.matrix();
   filter_.Impose(&v1_);  // the iterates satisfy the constraints from the start
   double dv_max = 0.0, dv_norm = 0.0, dv_prev = 0.0;
+  const double b0_norm = FreeRowsNorm(b0_, sys_.fixed());
   for (int u = 0; u < opts_.max_updates; ++u) {
     xg_ = xg0_ + (gamma_g * h) * v1_;
     if (midpoint) vg_ = 0.5 * (v0_ + v1_);
@@ -748,7 +753,9 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
       st->status = u > 0 ? StepStatus::kNewtonDiverged : StepStatus::kNonFinite;
       return false;
     }
-    const double threshold = opts_.cg_tolerance * reference;
+    // Below the round-off of b (RoundOffFloor) the residual says nothing.
+    const double floor = RoundOffFloor(b0_norm, beta * h * FreeRowsNorm(g_, sys_.fixed()));
+    const double threshold = std::max(opts_.cg_tolerance * reference, floor);
     // Both tests: the residual (Alg. 6's), and the error of the iterate
     // relative to the velocities, estimated from the last correction as
     // ρ/(1 − ρ)‖Δv‖ with the observed contraction ρ = ‖Δv_k‖/‖Δv_{k−1}‖ (as
@@ -761,7 +768,7 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
     const double rate = dv_prev > 0.0 ? dv_norm / dv_prev : 1.0;
     const double error_estimate = rate < 1.0 && u > 1 ? rate / (1.0 - rate) * dv_norm : dv_norm;
     const bool small_step = u == 0 || error_estimate <= opts_.cg_tolerance * std::max(v1_.norm(), v0_.norm());
-    if ((residual <= threshold && small_step) ||
+    if ((residual <= threshold && small_step) || residual <= floor ||
         (u > 0 && opts_.fixed_point_tolerance > 0.0 && dv_max <= opts_.fixed_point_tolerance)) {
       last_pcg_ = PcgSummary{PcgStatus::kConverged, 0, residual, reference};
       return true;
@@ -781,7 +788,8 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
     vr_ = v1_;
     TangentProduct(tangent_->matrix(), vr_, &br_);
     br_ -= tmp_;
-    PcgOptions inner{kLinearFraction * opts_.cg_tolerance, opts_.cg_max_iterations, reference};
+    PcgOptions inner{kLinearFraction * opts_.cg_tolerance, opts_.cg_max_iterations, reference,
+                     kLinearFraction * floor};
     last_pcg_ = FilteredPcg(tangent_->matrix(), br_, filter_, tangent_pre_, inner, &vr_, &tangent_work_);
     st->cg_iterations += last_pcg_.iterations;
     if (last_pcg_.status != PcgStatus::kConverged) {

@@ -120,7 +120,7 @@ PcgSummary FilteredPcgImpl(const Op& op, const Vec& b, const VelocityFilter& fil
   } else {
     s.rhs_norm = filtered ? filter.ProjectedNorm(b) : b.norm();
   }
-  const double threshold = options.tolerance * s.rhs_norm;
+  const double threshold = std::max(options.tolerance * s.rhs_norm, options.residual_floor);
 
   op.Residual(b, *v, &r);  // line 2: r = S(b − A v)
   if (filtered) filter.Project(&r);

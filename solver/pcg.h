@@ -60,7 +60,28 @@ struct PcgOptions {
   /// If ≥ 0: the norm η is relative to instead of ‖S b‖₂ [units of b]
   /// (the step engine passes ‖S_F b‖₂, see CgReference).
   double rhs_norm = -1.0;
+  /// Absolute floor of the stopping threshold [units of b]: stop when
+  /// ‖r‖₂ ≤ max(η ‖S b‖₂, residual_floor). The step engine passes the
+  /// round-off of b (RoundOffFloor); 0: none.
+  double residual_floor = 0.0;
 };
+
+/// The round-off of a right-hand side b = b₀ + βh g [units of b]:
+/// 32 ε (‖b₀‖₂ + βh ‖g‖₂), with b₀_norm = ‖b₀‖₂ and hg_norm = βh ‖g‖₂.
+/// Where the summands cancel, as the linear tension's h L_K x̂ in b₀ and the
+/// nonlinear tension in g do on cloth at rest without external forces, ‖b‖
+/// is itself this round-off (measured 2–8 ε (‖b₀‖ + βh‖g‖) on a 10×10 sheet
+/// at h = 0.01–0.16 s), and a residual relative to ‖b‖ cannot fall below
+/// it: every update needs PCG iterations, Alg. 6's "0 iterations" never
+/// comes, and the step is rejected after max_updates. The factor 32 = 2⁵
+/// covers the measured 8 and the sum of a few such vectors (the change of b
+/// between two updates); it matters only where ‖b‖ < 32 ε (‖b₀‖ + βh‖g‖)/η,
+/// 7·10⁻⁹ (‖b₀‖ + βh‖g‖) at η = 10⁻⁶ — never on a scene that moves or hangs
+/// under gravity (there ‖b‖ ≥ m‖g_grav‖h, 5·10⁻⁵ of it on the default sheet).
+inline double RoundOffFloor(double b0_norm, double hg_norm) {
+  constexpr double kFactor = 32.0;
+  return kFactor * std::numeric_limits<double>::epsilon() * (b0_norm + hg_norm);
+}
 
 struct PcgSummary {
   PcgStatus status = PcgStatus::kBreakdown;
