@@ -16,3 +16,14 @@ set_target_properties(HYPRE::HYPRE PROPERTIES
   IMPORTED_LOCATION "${HYPRE_LIBRARY}"
   INTERFACE_INCLUDE_DIRECTORIES "${HYPRE_INCLUDE_DIR}"
   INTERFACE_LINK_LIBRARIES MPI::MPI_C)
+
+# KLU (SuiteSparse), called directly for its symbolic analysis: the fill and
+# flop count that predict a cvode/klu or ida/klu run's first factorisation
+# (reference/klu_prediction.h). SUNDIALS links it through sunlinsolklu.
+find_path(KLU_INCLUDE_DIR klu.h PATH_SUFFIXES suitesparse REQUIRED)
+find_library(KLU_LIBRARY klu REQUIRED)
+add_library(KLU::KLU UNKNOWN IMPORTED)
+set_target_properties(KLU::KLU PROPERTIES
+  IMPORTED_LOCATION "${KLU_LIBRARY}"
+  INTERFACE_INCLUDE_DIRECTORIES "${KLU_INCLUDE_DIR}"
+  INTERFACE_LINK_LIBRARIES "${SUITESPARSECONFIG_LIBRARY}")

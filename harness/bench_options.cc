@@ -44,7 +44,7 @@ void AddOptions(CLI::App& app, Options& o) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -146,6 +146,10 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--plot", plot_dir,
                  "after writing the results, draw them into DIR with scripts/plot (work-precision, observed order, "
                  "energy, Fig. 4.3 on obstacle scenes; PNG and SVG)");
+  app.add_flag("--start-predicted", start_predicted,
+               "start every run, also one whose first run is predicted past --time-limit or 80 % of the available "
+               "memory (by default such a row is stored not_started with the prediction and its source; "
+               "docs/work-precision.md, \"Predicting a first run\")");
   app.add_flag("--report", report,
                "after writing the results, write one self-contained HTML page beside the result file (<stem>.html; "
                "with --sizes also the verdict's) with scripts/report: scene, settings, tables, work-precision, "
@@ -187,7 +191,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
                           plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report] = o;
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
   if (sweep_to_targets && !app.count("--time-limit")) time_limit = kSweepTimeLimit;
   Scene scene = SceneOfOptions(app, o, size);
   if (app.count("--integrators") && integrators_arg.empty())
@@ -299,7 +303,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                quiet, app.count("--preconditioner") > 0,
                app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
                time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets, /*keep_journal=*/false,
-               report, /*size_history=*/nullptr};
+               report, /*size_history=*/nullptr, start_predicted};
   run.reference_time_limit = app.count("--time-limit") ? time_limit : RunLimits().time_limit_s;
   return run;
 }

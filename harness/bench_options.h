@@ -33,6 +33,7 @@ struct Options {
   std::string sizes_arg;
   std::string self_contact;  ///< --self-contact on | off (RunRequest::self_contact)
   bool report = false;       ///< --report: the result file's HTML page (scripts/report)
+  bool start_predicted = false;  ///< --start-predicted: start rows predicted past the limits (harness/first_run.h)
 };
 
 /// Registers every option of bench_integrators on `app`, into `o`.

@@ -215,7 +215,7 @@ RunContext ContextOf(const BenchRun& b) {
   RunLimits limits;
   limits.time_limit_s = b.time_limit;
   return RunContext{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
-                    b.tangent_terms_from_cli, b.cvode};
+                    b.tangent_terms_from_cli, b.cvode, !b.start_predicted};
 }
 
 // The self-convergence run at h_ref with its own error against the same at
@@ -489,6 +489,8 @@ std::optional<std::string> RefineStop(const BenchRun& b, const RowMethod& m, con
   const auto err = [&](int i) { return error.at(i); };
   const bool any_ok = !error.empty();
   if (f.status == RunStatus::kTimeLimit) return fmt::format("time_limit at {}", rung(hi));
+  // Predicted past the limits: every finer rung costs at least as much.
+  if (f.status == RunStatus::kNotStarted) return fmt::format("not started at {}", rung(hi));
   if (!f.ok() && any_ok && error.begin()->first < hi) return fmt::format("failed ({}) at {}", f.status, rung(hi));
   if (f.ok() && error.count(hi) && err(hi) <= smallest) return std::string("targets met");
   if (error.count(hi) && error.count(hi - 1) && error.count(hi - 2) && err(hi) > 0.8 * err(hi - 1) &&

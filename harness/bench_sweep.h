@@ -82,6 +82,8 @@ struct BenchRun {
   /// --sizes: the starts at the smaller sizes, shared by the sizes' runs
   /// (nullptr: a single size).
   std::shared_ptr<SizeHistory> size_history;
+  /// --start-predicted: start rows predicted past the limits (harness/first_run.h).
+  bool start_predicted = false;
   /// The reference's wall-time budget [s]: --time-limit if the command gave
   /// one, else RunLimits' default (the 30 s a sweep's runs default to is
   /// not the reference's: at 10⁵ particles it needs minutes).

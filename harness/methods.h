@@ -23,6 +23,7 @@
 
 #include <fmt/format.h>
 
+#include "harness/first_run.h"
 #include "model/particle_system.h"
 #include "model/trajectory.h"
 #include "peers/arkode.h"
@@ -32,6 +33,7 @@
 #include "peers/xpbd.h"
 #include "reference/cvode_reference.h"
 #include "reference/ida_reference.h"
+#include "reference/klu_prediction.h"
 #include "results/metrics.h"
 #include "results/result_file.h"
 #include "results/run_table.h"
@@ -60,6 +62,9 @@ struct RunContext {
   /// hold for every row, MethodEntry::best_tangent_explicit_terms included.
   bool tangent_terms_from_cli = false;
   CvodeSettings cvode{};  ///< --cvode-setting
+  /// Whether a row predicted past the limits is not started
+  /// (MethodEntry::predict; false: --start-predicted).
+  bool refuse_predicted = true;
 };
 
 struct MethodEntry {
@@ -81,6 +86,11 @@ struct MethodEntry {
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                           const RunContext& ctx) = nullptr;
+  /// A lower bound of a run's time and memory on `sys` for the row's
+  /// `variant`, known before it starts (FirstRunPrediction, solver/run.h);
+  /// nullptr or zeros: none. A row predicted past --time-limit or the
+  /// available memory is not started (harness/first_run.h).
+  FirstRunPrediction (*predict)(const ParticleSystem& sys, std::string_view variant) = nullptr;
   /// Whether the method can be the reference (--reference NAME,
   /// clothbench.reference(): RunReference), the tight run every row's error
   /// is measured against.
@@ -283,6 +293,12 @@ inline std::vector<MethodEntry> PeerEntries() {
 }  // namespace internal
 
 /// Every method, in table order.
+/// cvode/klu and ida/klu: KLU's analysis of their Newton matrix
+/// (reference/klu_prediction.h); the reduced rows: none.
+inline FirstRunPrediction PredictKluVariant(const ParticleSystem& sys, std::string_view variant) {
+  return variant == "klu" ? PredictKluRun(sys) : FirstRunPrediction{};
+}
+
 inline const std::vector<MethodEntry>& Registry() {
   using internal::MakeEngine;
   constexpr auto kAdaptive = StepKind::kAdaptive;
@@ -320,6 +336,7 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
        },
+       .predict = PredictKluVariant,
        .reference = true, .variants = {"klu"}, .cvode_settings = true, .best_preconditioner = kBest},
       // ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N
       // residual Jacobian (the reference's solver).
@@ -329,6 +346,7 @@ inline const std::vector<MethodEntry>& Registry() {
                        const RunContext& ctx) {
          return ctx.variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
        },
+       .predict = PredictKluVariant,
        .reference = true, .variants = {"klu"}, .best_preconditioner = kBest},
     };
     for (MethodEntry& e : sundials) rows.push_back(std::move(e));
@@ -485,7 +503,10 @@ struct RowMethod {
     MethodRun row;
     const SolverSpec s = Settings(row_spec, param);
     std::unique_ptr<Stepper> stepper;
-    if (entry->make) {
+    if (entry->predict && ctx.refuse_predicted &&
+        RefusedByPrediction(PredictOnce(entry->predict, sys, variant), ctx.limits.time_limit_s, &row)) {
+      // not started: the record says why, its identity follows
+    } else if (entry->make) {
       stepper = entry->make(sys, s, count, variant);
       // Error-controlled rows start at the scene's h; the controller takes over.
       static_cast<RunSummary&>(row) =

@@ -13,7 +13,7 @@ constexpr std::array<std::pair<StepKind, std::string_view>, 4> kStepKinds{{
     {StepKind::kIterated, "iterated"},
 }};
 
-constexpr std::array<std::pair<RunStatus, std::string_view>, 20> kRunStatuses{{
+constexpr std::array<std::pair<RunStatus, std::string_view>, 21> kRunStatuses{{
     {RunStatus::kOk, "ok"},
     {RunStatus::kNotRun, "not_run"},
     {RunStatus::kInvalidOptions, "invalid_options"},
@@ -34,6 +34,7 @@ constexpr std::array<std::pair<RunStatus, std::string_view>, 20> kRunStatuses{{
     {RunStatus::kStepLimit, "step_limit"},
     {RunStatus::kSelfIntersection, "self_intersection"},
     {RunStatus::kTunnelled, "tunnelled"},
+    {RunStatus::kNotStarted, "not_started"},
 }};
 
 template <class E, std::size_t N>

@@ -53,7 +53,8 @@ enum class RunStatus {
   kTimeLimit,
   kStepLimit,
   kSelfIntersection,  ///< a stored frame of a run with self-contact has crossing triangle pairs
-  kTunnelled,         ///< a particle's path over a step passed through an obstacle (last: journals store the number)
+  kTunnelled,         ///< a particle's path over a step passed through an obstacle
+  kNotStarted,        ///< predicted past the time limit or the memory before any computing (last: journals store the number)
 };
 
 /// The stored text: "ok", "cg_failed", "energy_growth", … (snake case of the name).

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <vector>
 
 #include <cvode/cvode.h>
 #include <fmt/format.h>
@@ -439,6 +440,13 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
 
 RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
   return RunCvodeWith(system, options, nullptr);
+}
+
+SparseMatrix FirstOrderJacobianAtRest(const ParticleSystem& system) {
+  FreeDofOde ode(system, 0.0);
+  std::vector<double> y(static_cast<std::size_t>(ode.size()));
+  ode.map().ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), y.data());
+  return ode.Jacobian(0.0, y.data());
 }
 
 RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec) {

@@ -32,6 +32,12 @@ RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& option
 /// evaluations, nsetups = preconditioner setups, nli = PCG iterations.
 RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec);
 
+/// The first-order system's Jacobian J = [[0, I], [M⁻¹ ∂f/∂x, M⁻¹ ∂f/∂v]]
+/// on the free DOFs y = [x_free; v_free] at rest (t = 0, x the rest
+/// positions, v = 0), with its explicit zero diagonal: the pattern that
+/// cvode/klu and ida/klu factorise (6 N_free × 6 N_free, compressed columns).
+SparseMatrix FirstOrderJacobianAtRest(const ParticleSystem& system);
+
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_REFERENCE_CVODE_REFERENCE_H_

@@ -37,6 +37,16 @@ struct RunLimits {
   long max_steps = static_cast<long>(kMaxSteps);
 };
 
+/// What is known of a run's cost before it starts, from an analysis that
+/// does no numerical work (docs/work-precision.md, "Predicting a first
+/// run"): the row does not start if either bound exceeds what the run may
+/// use (harness/methods.h, RowMethod::Run).
+struct FirstRunPrediction {
+  double seconds = 0.0;  ///< the wall time [s] of what it cannot avoid (a first factorisation); 0: none
+  double bytes = 0.0;    ///< the memory it holds at its peak [B]; 0: none
+  std::string source;    ///< how both were obtained, with the numbers they come from
+};
+
 struct RunOptions {
   double h = 0.01;          ///< nominal (fixed) step [s]
   double t_end = 1.0;       ///< [s]

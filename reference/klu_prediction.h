@@ -1,0 +1,45 @@
+// What KLU's symbolic analysis says of a cvode/klu or ida/klu run before
+// any factorisation (docs/work-precision.md, "Predicting a first run").
+#ifndef CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
+#define CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
+
+#include "model/particle_system.h"
+#include "model/types.h"
+#include "solver/run.h"
+
+namespace clothbench {
+
+/// KLU's analysis (klu_l_analyze, AMD ordering and BTF as SUNDIALS' KLU
+/// solver uses them; Davis & Palamadai Natarajan 2010) of a square sparse
+/// matrix: the estimated entries of L and U and flops of one factorisation.
+struct KluAnalysis {
+  long rows = 0;
+  double nnz = 0.0;           ///< entries of the matrix
+  double lnz = 0.0, unz = 0.0;  ///< estimated entries of L and U, diagonals included
+  double flops = 0.0;         ///< estimated flop count of one factorisation
+};
+
+/// @param a n×n, compressed columns (its pattern is what counts)
+/// @throws std::runtime_error if KLU refuses the matrix (out of memory)
+KluAnalysis AnalyzeKlu(const SparseMatrix& a);
+
+/// What a cvode/klu or ida/klu run on `system` costs at least, before any
+/// numerical work: its Newton matrix I − γJ (the pattern of
+/// FirstOrderJacobianAtRest, reference/cvode_reference.h) needs at least one
+/// factorisation, of KluAnalysis::flops, and holds L and U: 16 bytes per
+/// entry (a double and a 64-bit index, klu_l) with the matrix itself. The
+/// time is the flops over KLU's flop rate on this machine, measured on
+/// leading blocks of the same matrix (the first free particles' rows and
+/// columns), doubled in size from 1/256 of them until one's factorisation
+/// takes 0.2 s and 1/64 of the full flops (at most a quarter of the rows),
+/// and extrapolated to the full flops along the fall of the rate between
+/// the last two blocks (rate ∝ flops^−q, q ≥ 0): the rate falls as the
+/// factor outgrows the caches. Nothing is predicted (seconds = bytes = 0)
+/// where one factorisation is estimated below 10⁹ flops, well under a
+/// second at the rates measured (docs/work-precision.md, "Predicting a
+/// first run").
+FirstRunPrediction PredictKluRun(const ParticleSystem& system);
+
+}  // namespace clothbench
+
+#endif  // CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
