@@ -28,16 +28,18 @@ KluAnalysis AnalyzeKlu(const SparseMatrix& a);
 /// FirstOrderJacobianAtRest, reference/cvode_reference.h) needs at least one
 /// factorisation, of KluAnalysis::flops, and holds L and U: 16 bytes per
 /// entry (a double and a 64-bit index, klu_l) with the matrix itself. The
-/// time is the flops over KLU's flop rate on this machine, measured on
-/// leading blocks of the same matrix (the first free particles' rows and
-/// columns), doubled in size from 1/256 of them until one's factorisation
-/// takes 0.2 s and 1/64 of the full flops (at most a quarter of the rows),
-/// and extrapolated to the full flops along the fall of the rate between
-/// the last two blocks (rate ∝ flops^−q, q ≥ 0): the rate falls as the
-/// factor outgrows the caches. Nothing is predicted (seconds = bytes = 0)
-/// where one factorisation is estimated below 10⁹ flops, well under a
-/// second at the rates measured (docs/work-precision.md, "Predicting a
-/// first run").
+/// time is the flops over KLU's flop rate on this machine, measured on the
+/// same scene's grid refined to fewer particles (RefineGrid; the leading
+/// block of the same matrix where the scene cannot be refined), doubled
+/// from 1/256 of the particles until one factorisation takes 0.2 s and 1/64
+/// of the full flops (at most a quarter of the particles), and extrapolated
+/// to the full flops along the rate's fall between the last two (rate ∝
+/// flops^−q, q ≥ 0). A leading block, a strip of the sheet, factorises at
+/// twice the full square's rate (10 against 4.7 GFlop/s at 1.5·10⁴ rows),
+/// so the refined scene is the calibration. Nothing is predicted
+/// (seconds = bytes = 0) where one factorisation is estimated below 10⁹
+/// flops, well under a second at the rates measured (docs/work-precision.md,
+/// "Predicting a first run").
 FirstRunPrediction PredictKluRun(const ParticleSystem& system);
 
 }  // namespace clothbench
