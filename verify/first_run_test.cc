@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "harness/first_run.h"
 #include "harness/methods.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
@@ -69,6 +70,23 @@ TEST(FirstRun, KluRowPredictedPastTheLimitIsNotStarted) {
         << r.message;
     EXPECT_EQ(r.label, label);
   }
+}
+
+// The rule itself: past the time limit, or past 80 % of the memory
+// available (10¹⁵ B, a petabyte, exceeds any machine's), not started with
+// the reason; within both, or without a time limit, started.
+TEST(FirstRun, RefusalNamesTheBoundItExceeds) {
+  RunSummary run;
+  EXPECT_FALSE(RefusedByPrediction({10.0, 1e6, "src"}, 20.0, &run));
+  EXPECT_FALSE(RefusedByPrediction({10.0, 1e6, "src"}, 0.0, &run));  // no limit
+  EXPECT_EQ(run.status, RunStatus::kNotRun);  // untouched
+  EXPECT_TRUE(RefusedByPrediction({30.0, 1e6, "src"}, 20.0, &run));
+  EXPECT_EQ(run.status, RunStatus::kNotStarted);
+  EXPECT_EQ(run.message, "not started: predicted at 30 s, past --time-limit 20 s (src)");
+  RunSummary big;
+  EXPECT_TRUE(RefusedByPrediction({1.0, 1e15, "src"}, 20.0, &big));
+  EXPECT_EQ(big.status, RunStatus::kNotStarted);
+  EXPECT_NE(big.message.find("predicted to hold 1e+06 GB, more than 80 % of the"), std::string::npos) << big.message;
 }
 
 }  // namespace
