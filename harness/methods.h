@@ -86,8 +86,8 @@ struct MethodEntry {
   /// SUNDIALS-stepped adaptive methods: one run at `o.rtol`; nullptr otherwise.
   RunSummary (*integrate)(const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
                           const RunContext& ctx) = nullptr;
-  /// A lower bound of a run's time and memory on `sys` for the row's
-  /// `variant`, known before it starts (FirstRunPrediction, solver/run.h);
+  /// What a run on `sys` for the row's `variant` cannot avoid in time and
+  /// memory, known before it starts (FirstRunPrediction, solver/run.h);
   /// nullptr or zeros: none. A row predicted past --time-limit or the
   /// available memory is not started (harness/first_run.h).
   FirstRunPrediction (*predict)(const ParticleSystem& sys, std::string_view variant) = nullptr;
@@ -292,13 +292,13 @@ inline std::vector<MethodEntry> PeerEntries() {
 }
 }  // namespace internal
 
-/// Every method, in table order.
 /// cvode/klu and ida/klu: KLU's analysis of their Newton matrix
 /// (reference/klu_prediction.h); the reduced rows: none.
 inline FirstRunPrediction PredictKluVariant(const ParticleSystem& sys, std::string_view variant) {
   return variant == "klu" ? PredictKluRun(sys) : FirstRunPrediction{};
 }
 
+/// Every method, in table order.
 inline const std::vector<MethodEntry>& Registry() {
   using internal::MakeEngine;
   constexpr auto kAdaptive = StepKind::kAdaptive;
@@ -503,8 +503,14 @@ struct RowMethod {
     MethodRun row;
     const SolverSpec s = Settings(row_spec, param);
     std::unique_ptr<Stepper> stepper;
-    if (entry->predict && ctx.refuse_predicted &&
-        RefusedByPrediction(PredictOnce(entry->predict, sys, variant), ctx.limits.time_limit_s, &row)) {
+    if (!entry->make && scene.collision && scene.collision->self) {
+      // SUNDIALS integrates the smooth system between events; self-contact
+      // events (a root function per candidate pair) are not built.
+      row.status = RunStatus::kUnsupportedScene;
+      row.message = "collision.self = true: the SUNDIALS rows have no self-contact events (docs/collisions.md, "
+                    "\"Self-contact\")";
+    } else if (entry->predict && ctx.refuse_predicted &&
+               RefusedByPrediction(PredictOnce(entry->predict, sys, variant), ctx.limits.time_limit_s, &row)) {
       // not started: the record says why, its identity follows
     } else if (entry->make) {
       stepper = entry->make(sys, s, count, variant);
@@ -513,12 +519,6 @@ struct RowMethod {
           RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
       row.step_control = std::string(ToString(s.step_control));
       if (entry->describe) entry->describe(*stepper, sys, &row);
-    } else if (scene.collision && scene.collision->self) {
-      // SUNDIALS integrates the smooth system between events; self-contact
-      // events (a root function per candidate pair) are not built.
-      row.status = RunStatus::kUnsupportedScene;
-      row.message = "collision.self = true: the SUNDIALS rows have no self-contact events (docs/collisions.md, "
-                    "\"Self-contact\")";
     } else {
       static_cast<RunSummary&>(row) = entry->integrate(
           sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, row_ctx);

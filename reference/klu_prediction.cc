@@ -78,15 +78,6 @@ SparseMatrix LeadingBlock(const SparseMatrix& a, int nf, int nc) {
   return b;
 }
 
-}  // namespace
-
-KluAnalysis AnalyzeKlu(const SparseMatrix& a) {
-  KluMatrix m(a);
-  return Analyze(&m);
-}
-
-namespace {
-
 // The Newton matrix of the calibration at about `nc` particles: the same
 // scene's grid refined to nc (RefineGrid: the same shape, so the same kind
 // of fill), or, where the scene cannot be refined, the leading block of
@@ -109,6 +100,11 @@ KluAnalysis TimedFactorisation(const SparseMatrix& a, double* seconds) {
 }
 
 }  // namespace
+
+KluAnalysis AnalyzeKlu(const SparseMatrix& a) {
+  KluMatrix m(a);
+  return Analyze(&m);
+}
 
 FirstRunPrediction PredictKluRun(const ParticleSystem& system) {
   constexpr double kMinFlops = 1e9, kCalibrationSeconds = 0.2, kCalibrationShare = 1.0 / 64.0;

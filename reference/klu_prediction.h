@@ -34,9 +34,10 @@ KluAnalysis AnalyzeKlu(const SparseMatrix& a);
 /// from 1/256 of the particles until one factorisation takes 0.2 s and 1/64
 /// of the full flops (at most a quarter of the particles), and extrapolated
 /// to the full flops along the rate's fall between the last two (rate ∝
-/// flops^−q, q ≥ 0). A leading block, a strip of the sheet, factorises at
-/// twice the full square's rate (10 against 4.7 GFlop/s at 1.5·10⁴ rows),
-/// so the refined scene is the calibration. Nothing is predicted
+/// flops^−q, q ≥ 0). A leading block, a strip of the sheet, factorises
+/// faster than the square at the same flops (316² sheet: 6.1 GFlop/s at
+/// 10¹¹ flops against the refined square's 4.4 at 4.9·10¹⁰), so the
+/// refined scene is the calibration. Nothing is predicted
 /// (seconds = bytes = 0) where one factorisation is estimated below 10⁹
 /// flops, well under a second at the rates measured (docs/work-precision.md,
 /// "Predicting a first run").
