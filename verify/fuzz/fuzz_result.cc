@@ -27,6 +27,7 @@
 #include <string>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <sanitizer/common_interface_defs.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -156,6 +157,7 @@ void ReadOnce(const uint8_t* data, std::size_t size) {
 }
 
 long g_contained = 0;
+constexpr unsigned kChildSeconds = 10;  // a child's alarm; the parent kills it at twice that
 
 // One of 32 branches per outcome text (each a distinct edge for libFuzzer).
 void Feedback(const std::string& text) {
@@ -190,8 +192,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     g_in_child = true;
     // No crash handler of libFuzzer's in the child: a crash there is a
     // contained one (and its handler can deadlock in malloc).
-    for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGILL, SIGFPE}) std::signal(sig, SIG_DFL);
-    alarm(10);  // an HDF5 loop on a damaged header: killed, contained like a crash
+    // libFuzzer's SIGALRM handler (its -timeout) would ignore the alarm
+    // below, and its SIGINT/SIGTERM handlers allocate.
+    for (int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGILL, SIGFPE, SIGALRM, SIGINT, SIGTERM}) std::signal(sig, SIG_DFL);
+    alarm(kChildSeconds);  // an HDF5 loop on a damaged header: killed, contained like a crash
     __sanitizer_set_death_callback(nullptr);  // libFuzzer's would save a contained crash as a finding
     g_report_fd = dup(2);
     if (const int null = open("/dev/null", O_WRONLY); null >= 0) dup2(null, 2);
@@ -200,8 +204,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, std::size_t size) {
     _exit(0);
   }
   close(g_pipe[1]);
+  // The child's refusal, until it exits; the parent's own deadline kills a
+  // child that outlives its alarm (blocked with the signal masked).
   char stage_text[256] = {0};
-  const ssize_t got = read(g_pipe[0], stage_text, sizeof stage_text - 1);
+  ssize_t got = 0;
+  pollfd p{g_pipe[0], POLLIN, 0};
+  int ready = 0;
+  while ((ready = poll(&p, 1, static_cast<int>(2000 * kChildSeconds))) < 0 && errno == EINTR) {
+  }
+  if (ready > 0) got = read(g_pipe[0], stage_text, sizeof stage_text - 1);
+  else kill(pid, SIGKILL);
   close(g_pipe[0]);
   int status = 0;
   while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
