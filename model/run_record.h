@@ -49,6 +49,10 @@ struct RunRecord {
   std::string step_control, predictor, cg_reference, newton_jacobian, butcher_table;
   double atol = 0.0;         ///< adaptive rows: atol (= rtol unless set)
   long threads = 0;          ///< OpenMP threads of the kernels
+  /// The fewest threads a step ran on: below `threads` where other
+  /// processes kept cores busy (solver/thread_budget.h; the same bits, other
+  /// timings); 0: not recorded.
+  long threads_fewest = 0;
   RunStatus status = RunStatus::kOk;  ///< where the run stopped
   std::string message;       ///< failure message (empty when ok)
   long steps = 0, updates = 0, cg_iterations = 0, rejected = 0;

@@ -77,6 +77,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"butcher_table", &R::butcher_table, S::kNonEmpty},
       {"atol", &R::atol, S::kPositive},
       {"threads", &R::threads, S::kPositive},
+      {"threads_fewest", &R::threads_fewest, S::kPositive},
       {"error_test_failures", &R::error_test_failures, S::kNonNegative},
       {"status", &R::status},
       {"message", &R::message, S::kNonEmpty},

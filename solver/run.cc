@@ -16,6 +16,7 @@
 #include "model/interrupt.h"
 #include "solver/hermite.h"
 #include "solver/progress.h"
+#include "solver/thread_budget.h"
 
 namespace clothbench {
 
@@ -646,11 +647,9 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   const SolverSpec& spec = options.solver ? *options.solver : system.scene().solver;
   RunSummary sum;
   if (RefusedOptions(options, spec, engine, &sum)) return sum;
-  sum.steps = sum.rejected = sum.cg_unconverged = sum.updates = sum.cg_iterations = 0;
   // Error-test failures count only under error control (−1: not applicable).
   sum.error_test_failures = spec.step_control == StepControl::kError ? 0 : -1;
   double solver_seconds = 0.0;
-
   if (RefusesMotion(system, engine, &sum)) return sum;
   engine.PlanRun(options.t_end, options.h);
   VirtualParticles* const virtual_particles = ResetToRest(system, engine);
@@ -665,6 +664,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   // The response's work, or a prescribed motion's, is not in the balance.
   if (self_contact.uncounted_work() || system.has_prescribed_motion()) guard.OpenBalance();
   long attempts = 0;
+  ThreadBudget threads;
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();
   const double h_nominal = options.h;
@@ -690,6 +690,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       fail(RunStatus::kTimeLimit, TimeLimitMessage(options.limits.time_limit_s, engine.t(), attempts));
       break;
     }
+    threads.Update();  // fewer threads while other processes hold cores
     // After a rejection the driver steps with the reduced h and returns to
     // the grid at its next point (ReturnToGrid).
     const bool on_grid = !controlled && consecutive_rejections == 0;
@@ -754,6 +755,7 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   recorder.Trim();
   FinishRun(engine, guard, virtual_particles, solver_seconds, wall_start, &sum);
   if (const auto stats = self_contact.stats()) sum.self_contact = *stats;
+  sum.threads_fewest = threads.fewest();
   return sum;
 }
 

@@ -11,6 +11,7 @@
 #include <sunmatrix/sunmatrix_sparse.h>
 
 #include "solver/progress.h"
+#include "solver/thread_budget.h"
 
 namespace clothbench {
 
@@ -120,6 +121,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
   const auto wall_start = Clock::now();
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
   long steps = 0;
+  ThreadBudget threads;  // our kernels inside SUNDIALS' step: fewer threads while other processes hold cores
   while (ok && next < frames.size()) {
     // Before each step too: a run started past its deadline (PassedDeadline,
     // its first factorisation overran in an earlier process) takes no step.
@@ -130,6 +132,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
       ok = false;
       break;
     }
+    threads.Update();
     const auto t0 = Clock::now();
     const int flag = d.step(&t);
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -201,9 +204,8 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     }
   }
   guard.StoreMargins(res);
-  if (ok) {
-    res->status = RunStatus::kOk;
-  }
+  if (ok) res->status = RunStatus::kOk;
+  res->threads_fewest = threads.fewest();
   res->solver_time_s = res->solver_time_s_median = res->solver_time_s_max = solver_seconds;  // one timing
 }
 
