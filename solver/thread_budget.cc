@@ -105,19 +105,13 @@ CpuTimes ReadCpuTimes() {
   // 15th fields; comm may hold spaces and parentheses, so count from the last ')'.
   char self[1024];
   if (ReadSmall("/proc/self/stat", self, sizeof self) == 0) return t;
-  char* q = std::strrchr(self, ')');
-  if (!q) return t;
-  ++q;
+  const char* q = std::strrchr(self, ')');
+  if (!q || q[1] != ' ' || q[2] == '\0') return t;
+  q += 3;  // past ") " and the state's letter
   double own = 0.0;
-  for (int field = 3; field <= 15; ++field) {
-    while (*q == ' ') ++q;
+  for (int field = 4; field <= 15; ++field) {
     char* end = nullptr;
-    const double v = field >= 4 ? static_cast<double>(std::strtoull(q, &end, 10)) : 0.0;
-    if (field == 3) {  // the state, one letter
-      if (*q == '\0') return t;
-      ++q;
-      continue;
-    }
+    const double v = static_cast<double>(std::strtoull(q, &end, 10));
     if (end == q) return t;
     q = end;
     if (field >= 14) own += v;
@@ -143,7 +137,6 @@ ThreadBudget::ThreadBudget(int requested, int cores, std::function<CpuTimes()> p
   if (requested_ > 1 && last >= 1 && last < requested_ &&
       NowNs() - g_last_ns.load() < std::chrono::duration_cast<std::chrono::nanoseconds>(kRecent).count()) {
     SetThreads(last);
-    fewest_ = last;
   }
 }
 
@@ -154,6 +147,7 @@ ThreadBudget::~ThreadBudget() {
 void ThreadBudget::SetThreads(int threads) {
   omp_set_num_threads(threads);
   threads_ = threads;
+  fewest_ = std::min(fewest_, threads);
 }
 
 void ThreadBudget::Update() {
@@ -167,10 +161,7 @@ void ThreadBudget::Update() {
     const double others = std::max(0.0, (after.machine - before_.machine) - (after.process - before_.process)) / seconds;
     const int free = static_cast<int>(std::lround(static_cast<double>(cores_) - others));
     const int next = std::clamp(free, 1, requested_);
-    if (next != threads_) {
-      SetThreads(next);
-      fewest_ = std::min(fewest_, next);
-    }
+    if (next != threads_) SetThreads(next);
     if (shared_) {
       g_last_threads.store(next);
       g_last_ns.store(NowNs());
