@@ -41,18 +41,16 @@ double MotionBound(const SelfContactPair& pair, const MatrixN3& x0, const Matrix
 SelfContactResponse::SelfContactResponse(const ParticleSystem& system, double thickness)
     : sys_(system),
       thickness_(thickness),
-      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
-                GridPatches(system.scene().grid.nu, system.scene().grid.nv, kPatchCells)) {
+      list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
+            GridPatches(system.scene().grid.nu, system.scene().grid.nv, kPatchCells),
+            thickness > 0.0 ? thickness : 1.0, kSkinFraction * std::min(system.scene().lu(), system.scene().lv())) {
   if (!(thickness > 0.0)) throw std::invalid_argument("SelfContactResponse: thickness must be > 0");
-  const Scene& scene = system.scene();
-  skin_ = kSkinFraction * std::min(scene.lu(), scene.lv());
   const int n = system.num_particles();
   inverse_mass_.resize(n);
   for (int p = 0; p < n; ++p) inverse_mass_(p) = system.is_fixed(p) ? 0.0 : 1.0 / system.masses()(p);
   nu_.resize(n, 3);
   nu_start_.resize(n, 3);
   x_end_.resize(n, 3);
-  x_shifted_.resize(n, 3);
   parent_.resize(static_cast<std::size_t>(n));
   moved_.assign(static_cast<std::size_t>(n), 0);
   moved_before_.assign(static_cast<std::size_t>(n), 0);
@@ -79,42 +77,31 @@ bool SelfContactResponse::Push(const SelfContactPair& pair, const PairGeometry& 
   return true;
 }
 
-bool SelfContactResponse::ListCovers(const MatrixN3& x0) const {
-  // The list of this step holds every pair that can touch while each
-  // particle's x_end − c stays within the skin (per coordinate) of where it
-  // was built: its boxes were grown by the skin, and its displacements
-  // change by at most √3·skin each (Candidates' slack).
-  const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
-  return ((x_end_.rowwise() - c.transpose()) - x_shifted_).cwiseAbs().maxCoeff() <= skin_;
-}
-
-void SelfContactResponse::RefreshCandidates(const MatrixN3& x0) {
-  if (!ListCovers(x0)) BroadPhase(x0);
-}
-
-void SelfContactResponse::BroadPhase(const MatrixN3& x0) {
-  // The boxes over x₀ → x_end − c, c = mean(x_end − x₀) (the cloth's mean
-  // displacement, which changes no pair's relative motion: a sheet that
-  // falls or slides as a whole meets its neighbours only), grown by the
-  // thickness (the pairs within it at x₀; the CCD's tolerance is less) and
-  // the skin.
-  const Vector3 c = (x_end_ - x0).colwise().mean().transpose();
-  x_shifted_ = x_end_.rowwise() - c.transpose();
-  detector_.Candidates(x0, x_shifted_, thickness_ + skin_, &candidates_, 2.0 * std::sqrt(3.0) * skin_);
-  ++stats_.broad_phases;
-  stats_.candidates += static_cast<long>(candidates_.size());
-  Distances(x0);
-}
-
-void SelfContactResponse::Distances(const MatrixN3& x0) {
-  // The pairs' distances at x₀, which no pass changes; every pair is tested
-  // in the next pass.
-  test_all_ = true;
-  const long n = static_cast<long>(candidates_.size());
-  distance0_.resize(candidates_.size());
+void SelfContactResponse::Refresh(const MatrixN3& x0) {
+  if (list_.Cover(x0, x_end_)) {
+    ++stats_.broad_phases;
+    stats_.candidates += static_cast<long>(list_.size());
+    stamp_.assign(list_.size(), -1);
+    distance0_.resize(list_.size());
+    test_all_ = true;
+  }
+  // A pair whose bound stays above the thickness along x₀ → x_end can
+  // neither be within it at x₀ nor touch: it is not looked at.
+  near_.clear();
+  fresh_.clear();
+  const double thickness = thickness_;
+  for (std::size_t i = 0; i < list_.size(); ++i) {
+    if (list_.LowerBound(i) > thickness) continue;
+    near_.push_back(i);
+    if (stamp_[i] != step_) fresh_.push_back(i);
+  }
+  const long n = static_cast<long>(fresh_.size());
 #pragma omp parallel for schedule(static) if (n > kParallelPairTests)
-  for (long i = 0; i < n; ++i)
-    distance0_[static_cast<std::size_t>(i)] = Closest(candidates_[static_cast<std::size_t>(i)], x0).distance;
+  for (long j = 0; j < n; ++j) {
+    const std::size_t i = fresh_[static_cast<std::size_t>(j)];
+    distance0_[i] = Closest(list_.pairs()[i], x0).distance;
+    stamp_[i] = step_;
+  }
 }
 
 int SelfContactResponse::CollisionPass(double h, const MatrixN3& x0, bool apply, std::vector<int>* colliding) {
@@ -124,8 +111,9 @@ int SelfContactResponse::CollisionPass(double h, const MatrixN3& x0, bool apply,
   // order, so that the result does not depend on the threads.
   // Only the pairs whose particles moved since their last test can have
   // changed (all of them after a broad phase).
-  const long n = static_cast<long>(candidates_.size());
-  touching_.assign(candidates_.size(), 0);
+  const auto& pairs = list_.pairs();
+  const long n = static_cast<long>(near_.size());
+  touching_.assign(near_.size(), 0);
   moved_before_.swap(moved_);
   std::fill(moved_.begin(), moved_.end(), 0);
   const bool all = test_all_;
@@ -135,24 +123,24 @@ int SelfContactResponse::CollisionPass(double h, const MatrixN3& x0, bool apply,
   const bool parallel = (all ? n : n / 8) > kParallelPairTests;
 #pragma omp parallel for schedule(dynamic, 1024) if (parallel)
   for (long i = 0; i < n; ++i) {
-    const std::size_t k = static_cast<std::size_t>(i);
-    const auto& p = candidates_[k].p;
+    const std::size_t k = near_[static_cast<std::size_t>(i)];
+    const auto& p = pairs[k].p;
     if (!all && !(moved_before_[static_cast<std::size_t>(p[0])] | moved_before_[static_cast<std::size_t>(p[1])] |
                   moved_before_[static_cast<std::size_t>(p[2])] | moved_before_[static_cast<std::size_t>(p[3])]))
       continue;
     // A pair further apart at x₀ than its particles move cannot touch.
-    if (distance0_[k] - MotionBound(candidates_[k], x0, x_end_) > tolerance) continue;
+    if (distance0_[k] - MotionBound(pairs[k], x0, x_end_) > tolerance) continue;
     double theta = 0.0;
     PairGeometry g;
-    touching_[k] = FirstCoplanarContact(candidates_[k], x0, x_end_, tolerance, &theta, &g);
+    touching_[static_cast<std::size_t>(i)] = FirstCoplanarContact(pairs[k], x0, x_end_, tolerance, &theta, &g);
   }
   acting_.clear();
-  for (std::size_t k = 0; k < candidates_.size(); ++k)
-    if (touching_[k]) acting_.push_back(k);
+  for (std::size_t i = 0; i < near_.size(); ++i)
+    if (touching_[i]) acting_.push_back(near_[i]);
   SortActing();
   int count = 0;
   for (std::size_t k : acting_) {
-    const SelfContactPair& pair = candidates_[k];
+    const SelfContactPair& pair = pairs[k];
     double theta = 0.0;
     PairGeometry g;
     if (apply) {
@@ -170,7 +158,7 @@ int SelfContactResponse::CollisionPass(double h, const MatrixN3& x0, bool apply,
 
 void SelfContactResponse::SortActing() {
   std::sort(acting_.begin(), acting_.end(),
-            [&](std::size_t a, std::size_t b) { return candidates_[a] < candidates_[b]; });
+            [&](std::size_t a, std::size_t b) { return list_.pairs()[a] < list_.pairs()[b]; });
 }
 
 int SelfContactResponse::Find(int p) {
@@ -247,21 +235,23 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
   const long pushed_before = stats_.repulsions + stats_.collisions + stats_.zone_passes;
   // 1. Repulsion from the pairs within the thickness at x₀.
   auto t = Clock::now();
-  BroadPhase(x0);  // each step's own: its pruning depends on the step's motion
+  ++step_;
+  test_all_ = true;
+  Refresh(x0);
   detection += Since(t);
   acting_.clear();
-  for (std::size_t k = 0; k < candidates_.size(); ++k)
+  for (std::size_t k : near_)
     if (distance0_[k] < thickness_) acting_.push_back(k);
   SortActing();
   for (std::size_t k : acting_) {
-    const PairGeometry g = Closest(candidates_[k], x0);
-    if (Push(candidates_[k], g, kRepulsion * (thickness_ - g.distance) / h, h, x0)) ++stats_.repulsions;
+    const PairGeometry g = Closest(list_.pairs()[k], x0);
+    if (Push(list_.pairs()[k], g, kRepulsion * (thickness_ - g.distance) / h, h, x0)) ++stats_.repulsions;
   }
   // 2. Collision impulses, Gauss–Seidel in the pairs' order.
   int left = -1;
   for (int pass = 0; pass < kImpulsePasses && left != 0; ++pass) {
     t = Clock::now();
-    RefreshCandidates(x0);
+    Refresh(x0);
     left = CollisionPass(h, x0, true, nullptr);
     detection += Since(t);
   }
@@ -271,7 +261,7 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
     std::fill(in_zone_.begin(), in_zone_.end(), 0);
     for (int pass = 0; pass <= kZonePasses; ++pass) {
       t = Clock::now();
-      RefreshCandidates(x0);
+      Refresh(x0);
       colliding_.clear();
       left = CollisionPass(h, x0, false, &colliding_);
       detection += Since(t);

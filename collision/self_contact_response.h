@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "collision/self_contact.h"
+#include "collision/self_contact_list.h"
 #include "model/particle_system.h"
 
 namespace clothbench {
@@ -77,12 +78,14 @@ class SelfContactResponse {
   /// fraction of the thickness: the bisection finds it to round-off, so
   /// this only widens a crossing through an element's border.
   static constexpr double kCcdToleranceFraction = 1e-3;
-  /// A step's candidate list is kept over its passes while no particle's
-  /// x_end, less the mean motion, moves further than a skin of this
-  /// fraction of the grid spacing from where the list was built. Measured
-  /// on scenes/fold_over_rod_10k.toml (docs/collisions.md): 0.25 gave
-  /// 1.7·10⁵ candidates a step, 0.05 gave 8.7·10⁴ and 18 % less solver time.
-  static constexpr double kSkinFraction = 0.05;
+  /// The candidate list (SelfContactList) is kept over steps while no
+  /// particle, less the cloth's mean motion, moves further than a skin of
+  /// this fraction of the grid spacing from where it was built; the list
+  /// then holds the pairs within thickness + 2 skins. Each step tests only
+  /// the listed pairs whose distance bound falls within the thickness.
+  /// Measured on fold_over_rod and sphere_fold (docs/collisions.md, "The
+  /// list kept over steps").
+  static constexpr double kSkinFraction = 0.25;
   /// The broad phase boxes patches of kPatchCells × kPatchCells grid quads
   /// (GridPatches), not single triangles.
   static constexpr int kPatchCells = 2;
@@ -104,15 +107,10 @@ class SelfContactResponse {
   // Sets the pair's relative velocity along g.n to at least `target` [m/s]
   // by an impulse weighted by inverse mass; updates x_end's rows. true if applied.
   bool Push(const SelfContactPair& pair, const PairGeometry& g, double target, double h, const MatrixN3& x0);
-  // Broad phase for the path x₀ → x_end_, unless the list still covers it.
-  void RefreshCandidates(const MatrixN3& x0);
-  // Whether this step's candidate list still holds every pair that can
-  // touch along x₀ → x_end_ or is within the thickness at x₀.
-  bool ListCovers(const MatrixN3& x0) const;
-  // Broad phase over x₀ → x_end_ − c, boxes grown by thickness + skin.
-  void BroadPhase(const MatrixN3& x0);
-  // distance0_ at x₀.
-  void Distances(const MatrixN3& x0);
+  // Makes the list cover x₀ → x_end_ and collects near_, the listed pairs
+  // whose distance bound is within the thickness, with their distances at
+  // x₀ (each computed once a step).
+  void Refresh(const MatrixN3& x0);
   // The pairs colliding along x₀ → x_end_ (stage 2 applies impulses as it goes).
   int CollisionPass(double h, const MatrixN3& x0, bool apply, std::vector<int>* colliding);
   void RigidZones(double h, const MatrixN3& x0, const std::vector<int>& colliding);
@@ -120,14 +118,16 @@ class SelfContactResponse {
 
   const ParticleSystem& sys_;
   double thickness_;
-  SelfContactDetector detector_;
+  SelfContactList list_;
   Eigen::VectorXd inverse_mass_;
   SelfContactStats stats_;
   // Scratch of one step.
-  MatrixN3 nu_, nu_start_, x_end_, x_shifted_;
-  std::vector<SelfContactPair> candidates_;
-  std::vector<double> distance0_;  // each candidate's distance at x₀ [m]
-  std::vector<char> touching_;     // a pass's test of each candidate
+  MatrixN3 nu_, nu_start_, x_end_;
+  std::vector<std::size_t> near_, fresh_;  // list indices: near the thickness; their distances not yet known
+  std::vector<double> distance0_;  // each listed pair's distance at x₀ [m], where stamp_ is this step's
+  std::vector<long> stamp_;
+  long step_ = 0;
+  std::vector<char> touching_;     // a pass's test of each pair of near_
   // The candidates a stage acts on, in the pairs' order (SortActing): the
   // impulses do not depend on the order of CGAL's report.
   std::vector<std::size_t> acting_;
@@ -138,7 +138,6 @@ class SelfContactResponse {
   // the next pass tests every candidate (after a broad phase).
   std::vector<char> moved_, moved_before_;
   bool test_all_ = true;
-  double skin_ = 0.0;       // [m]
   std::vector<char> in_zone_;
 };
 

@@ -105,10 +105,9 @@ class ContactImpulses {
   const SelfContactStats& self_stats() const { return self_stats_; }
 
   /// The skin of the self-contact list beyond δ and the predicted motion,
-  /// as a fraction of the grid spacing (the response's,
-  /// SelfContactResponse::kSkinFraction; a quarter of the spacing listed
-  /// as many pairs on the premise scenes and changed no crossing count).
-  static constexpr double kSkinFraction = SelfContactResponse::kSkinFraction;
+  /// as a fraction of the grid spacing (a quarter of the spacing listed as
+  /// many pairs on the premise scenes and changed no crossing count).
+  static constexpr double kSkinFraction = 0.05;
 
  private:
   struct NodeContact {
