@@ -74,10 +74,14 @@ bool SelfContactResponse::Push(const SelfContactPair& pair, const PairGeometry& 
     x_end_.row(p) = x0.row(p) + h * nu_.row(p);
     moved_[static_cast<std::size_t>(p)] = 1;
   }
+  end_moved_ = true;
   return true;
 }
 
 void SelfContactResponse::Refresh(const MatrixN3& x0) {
+  // x_end as the last call saw it: nothing to do.
+  if (!end_moved_) return;
+  end_moved_ = false;
   if (list_.Cover(x0, x_end_)) {
     ++stats_.broad_phases;
     stats_.candidates += static_cast<long>(list_.size());
@@ -221,6 +225,7 @@ void SelfContactResponse::RigidZones(double h, const MatrixN3& x0, const std::ve
       x_end_.row(p) = x0.row(p) + h * nu_.row(p);
       moved_[static_cast<std::size_t>(p)] = 1;
     }
+    end_moved_ = true;
     begin = end;
   }
 }
@@ -237,6 +242,7 @@ int SelfContactResponse::Respond(double h, const MatrixN3& x0, MatrixN3* x1, Mat
   auto t = Clock::now();
   ++step_;
   test_all_ = true;
+  end_moved_ = true;
   Refresh(x0);
   detection += Since(t);
   acting_.clear();

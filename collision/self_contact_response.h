@@ -138,6 +138,7 @@ class SelfContactResponse {
   // the next pass tests every candidate (after a broad phase).
   std::vector<char> moved_, moved_before_;
   bool test_all_ = true;
+  bool end_moved_ = true;  // x_end_ changed since the last Refresh
   std::vector<char> in_zone_;
 };
 
