@@ -122,6 +122,21 @@ void PositionsAt(const std::array<Vector3, 4>& a, const std::array<Vector3, 4>& 
 
 PairGeometry Closest(const SelfContactPair& pair, const MatrixN3& x) { return ClosestOf(pair, Corners(pair, x)); }
 
+double ElementBoxGap(const SelfContactPair& pair, const MatrixN3& x) {
+  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
+  Vector3 lo_a = Row(x, pair.p[0]), hi_a = lo_a;
+  Vector3 lo_b = Row(x, pair.p[first]), hi_b = lo_b;
+  for (std::size_t k = 1; k < 4; ++k) {
+    if (k == first) continue;
+    const Vector3 q = Row(x, pair.p[k]);
+    Vector3& lo = k < first ? lo_a : lo_b;
+    Vector3& hi = k < first ? hi_a : hi_b;
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  return (lo_b - hi_a).cwiseMax(lo_a - hi_b).cwiseMax(0.0).norm();
+}
+
 bool FirstCoplanarContact(const SelfContactPair& pair, const MatrixN3& x0, const MatrixN3& x1, double tolerance,
                           double* theta, PairGeometry* at) {
   const std::array<Vector3, 4> a = Corners(pair, x0), b = Corners(pair, x1);

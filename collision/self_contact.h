@@ -43,6 +43,11 @@ struct PairGeometry {
 /// Ericson, Real-Time Collision Detection (2005), §5.1.5 and §5.1.9.
 PairGeometry Closest(const SelfContactPair& pair, const MatrixN3& x);
 
+/// The distance [m] of the bounding boxes of the pair's two elements at x
+/// (N×3 [m]): a lower bound on the elements' distance (Ericson 2005, §5.1.3)
+/// at a tenth of Closest's cost.
+double ElementBoxGap(const SelfContactPair& pair, const MatrixN3& x);
+
 /// The first instant θ ∈ [0, 1] at which `pair`, its particles moving on
 /// straight lines from x0 to x1 (N×3 [m]), is coplanar (the cubic of
 /// Provot 1997 and Bridson et al. 2002, §6.3) with a distance of at most

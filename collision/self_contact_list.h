@@ -43,20 +43,20 @@ class SelfContactList {
 
   /// @param triangles, num_particles as for SelfContactDetector
   /// @param clusters per triangle its cluster, 0 … C − 1 (GridPatches), not empty
-  /// @param reach the distance of interest [m], > 0: every pair that comes
-  ///        within it along a covered path is listed
   /// @param skin R [m], > 0
   /// @throws std::invalid_argument as SelfContactDetector, if `clusters` is
-  ///         empty, or if reach or skin is not > 0
+  ///         empty, or if skin is not > 0
   SelfContactList(const std::vector<std::array<int, 3>>& triangles, int num_particles, const std::vector<int>& clusters,
-                  double reach, double skin);
+                  double skin);
 
-  /// Makes the list cover the straight path x0 → x1 (N×3 [m]): if the
-  /// conditions above fail, rebuilds at x0, with a skin doubled until they
-  /// hold for this path (a step faster than R still gets a complete list).
-  /// O(N + cluster pairs) without a build.
+  /// Makes the list hold every pair that comes within `reach` [m] (> 0, the
+  /// distance of interest) along the straight path x0 → x1 (N×3 [m]): if
+  /// the conditions above fail for this reach, rebuilds at x0 with D =
+  /// reach + 2R, R doubled until they hold for this path (a step faster
+  /// than R still gets a complete list). O(N + cluster pairs) without a
+  /// build.
   /// @return whether it rebuilt
-  bool Cover(const MatrixN3& x0, const MatrixN3& x1);
+  bool Cover(const MatrixN3& x0, const MatrixN3& x1, double reach);
 
   const std::vector<SelfContactPair>& pairs() const { return pairs_; }
   std::size_t size() const { return pairs_.size(); }
@@ -66,14 +66,14 @@ class SelfContactList {
   long builds() const { return builds_; }
 
  private:
-  void Build(const MatrixN3& x0, double skin);
-  // δ at both ends, and whether the list is complete for them (above).
-  bool Holds(const MatrixN3& x0, const MatrixN3& x1);
+  void Build(const MatrixN3& x0, double reach, double skin);
+  // δ at both ends, and whether the list is complete for them and `reach` (above).
+  bool Holds(const MatrixN3& x0, const MatrixN3& x1, double reach);
 
   SelfContactDetector detector_;
-  double reach_, skin_;
+  double skin_;
   bool built_ = false;
-  double built_skin_ = 0.0;
+  double built_d_ = 0.0, built_g_ = 0.0;  // the build's D and G [m]
   long builds_ = 0;
   MatrixN3 x_built_, delta0_, delta1_;
   // Each cluster's particles (CSR, every particle of its triangles once),

@@ -43,7 +43,7 @@ SelfContactResponse::SelfContactResponse(const ParticleSystem& system, double th
       thickness_(thickness),
       list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
             GridPatches(system.scene().grid.nu, system.scene().grid.nv, kPatchCells),
-            thickness > 0.0 ? thickness : 1.0, kSkinFraction * std::min(system.scene().lu(), system.scene().lv())) {
+            kSkinFraction * std::min(system.scene().lu(), system.scene().lv())) {
   if (!(thickness > 0.0)) throw std::invalid_argument("SelfContactResponse: thickness must be > 0");
   const int n = system.num_particles();
   inverse_mass_.resize(n);
@@ -82,7 +82,7 @@ void SelfContactResponse::Refresh(const MatrixN3& x0) {
   // x_end as the last call saw it: nothing to do.
   if (!end_moved_) return;
   end_moved_ = false;
-  if (list_.Cover(x0, x_end_)) {
+  if (list_.Cover(x0, x_end_, thickness_)) {
     ++stats_.broad_phases;
     stats_.candidates += static_cast<long>(list_.size());
     stamp_.assign(list_.size(), -1);

@@ -47,12 +47,13 @@ double Since(Clock::time_point start) { return std::chrono::duration<double>(Clo
 PositionSelfContact::PositionSelfContact(const ParticleSystem& system, double thickness, const Eigen::VectorXd& w)
     : thickness_(thickness),
       skin_(kSkinFraction * std::min(system.scene().lu(), system.scene().lv())),
-      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
-                GridPatches(system.scene().grid.nu, system.scene().grid.nv, SelfContactResponse::kPatchCells)),
+      list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
+            GridPatches(system.scene().grid.nu, system.scene().grid.nv, SelfContactResponse::kPatchCells),
+            SelfContactResponse::kSkinFraction * std::min(system.scene().lu(), system.scene().lv())),
       w_(w) {
   if (!(thickness > 0.0)) throw std::invalid_argument("PositionSelfContact: thickness must be > 0");
   const int n = system.num_particles();
-  for (MatrixN3* m : {&x_det_, &x_end_, &x_shifted_, &path_}) m->setZero(n, 3);
+  for (MatrixN3* m : {&x_det_, &x_end_, &path_}) m->setZero(n, 3);
   moved_.assign(static_cast<std::size_t>(n), 0);
   reach_.assign(static_cast<std::size_t>(n), 0.0);
   step_motion_.assign(static_cast<std::size_t>(n), 0.0);
@@ -71,39 +72,25 @@ double PositionSelfContact::PairMotion(const SelfContactPair& pair) const {
   return a + b;
 }
 
-double PositionSelfContact::BoxGap(const SelfContactPair& pair, const MatrixN3& p) {
-  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
-  Vector3 lo_a = p.row(pair.p[0]).transpose(), hi_a = lo_a;
-  Vector3 lo_b = p.row(pair.p[first]).transpose(), hi_b = lo_b;
-  for (std::size_t k = 1; k < 4; ++k) {
-    if (k == first) continue;
-    const Vector3 q = p.row(pair.p[k]).transpose();
-    Vector3& lo = k < first ? lo_a : lo_b;
-    Vector3& hi = k < first ? hi_a : hi_b;
-    lo = lo.cwiseMin(q);
-    hi = hi.cwiseMax(q);
-  }
-  return (lo_b - hi_a).cwiseMax(lo_a - hi_b).cwiseMax(0.0).norm();
-}
-
 void PositionSelfContact::Detect(const MatrixN3& x_det, const MatrixN3& x_end, double tau) {
   const auto start = Clock::now();
   x_det_ = x_det;
   x_end_ = x_end;
   tau_det_ = tau;
   std::fill(reach_.begin(), reach_.end(), 0.0);
-  // The boxes over x_det → x_end − c, c the mean motion (no pair's relative
-  // motion changes), grown by the thickness and the skin; the slack covers
-  // a path that each particle leaves by at most the skin per coordinate.
-  const Vector3 c = (x_end_ - x_det_).colwise().mean().transpose();
-  x_shifted_ = x_end_.rowwise() - c.transpose();
-  detector_.Candidates(x_det_, x_shifted_, thickness_ + skin_, &candidates_, 2.0 * std::sqrt(3.0) * skin_);
-  by_distance_.resize(candidates_.size());
-  for (std::size_t i = 0; i < candidates_.size(); ++i)
-    by_distance_[i] = {Closest(candidates_[i], x_det_).distance, candidates_[i]};
+  // Every pair that can come within the thickness while each particle
+  // stays within the skin (per coordinate, √3 skin in length) of the
+  // straight path x_det → x_end: those within δ + 2√3 skin along the path
+  // (the list kept over steps, collision/self_contact_list.h).
+  const double reach = thickness_ + 2.0 * std::sqrt(3.0) * skin_;
+  if (list_.Cover(x_det_, x_end_, reach)) {
+    ++stats_.broad_phases;
+    stats_.candidates += static_cast<long>(list_.size());
+  }
+  by_distance_.clear();
+  for (std::size_t i = 0; i < list_.size(); ++i)
+    if (list_.LowerBound(i) <= reach) by_distance_.push_back({Closest(list_.pairs()[i], x_det_).distance, list_.pairs()[i]});
   std::sort(by_distance_.begin(), by_distance_.end());
-  ++stats_.broad_phases;
-  stats_.candidates += static_cast<long>(candidates_.size());
   stats_.detection_seconds += Since(start);
 }
 
@@ -166,7 +153,7 @@ int PositionSelfContact::Project(const MatrixN3& x, double tau0, double tau1, Ma
       // Apart by more than the thickness, and by more than the pair's
       // relative motion in the substep (so it did not cross): no projection.
       // The boxes' distance bounds the elements' (Ericson 2005, §5.1.3).
-      if (BoxGap(pair, *p) >= std::max(thickness_, PairMotion(pair))) continue;
+      if (ElementBoxGap(pair, *p) >= std::max(thickness_, PairMotion(pair))) continue;
       const PairGeometry g = Closest(pair, *p);
       if (start_normal_[i].isZero(0.0)) start_normal_[i] = Closest(pair, x).n;
       const double side = g.n.dot(start_normal_[i]) >= 0.0 ? 1.0 : -1.0;

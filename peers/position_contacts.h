@@ -91,8 +91,6 @@ class PositionSelfContact {
   const SelfContactStats& stats() const { return stats_; }
 
  private:
-  // The distance of the pair's elements' boxes at p [m].
-  static double BoxGap(const SelfContactPair& pair, const MatrixN3& p);
   // The largest motion in the substep of a particle of the first element
   // plus that of one of the second [m].
   double PairMotion(const SelfContactPair& pair) const;
@@ -100,13 +98,12 @@ class PositionSelfContact {
   void Detect(const MatrixN3& x_det, const MatrixN3& x_end, double tau);
 
   double thickness_, skin_;
-  SelfContactDetector detector_;
+  SelfContactList list_;
   Eigen::VectorXd w_;
   SelfContactStats stats_;
-  MatrixN3 x_det_, x_end_, x_shifted_, path_;  // the detection's start, predicted end, end less the mean motion
+  MatrixN3 x_det_, x_end_, path_;  // the detection's start and predicted end
   double tau_det_ = 0.0;                       // fraction of the step at the detection
   std::vector<double> reach_;                  // per particle: largest displacement since the detection, less the mean [m]
-  std::vector<SelfContactPair> candidates_;
   std::vector<std::pair<double, SelfContactPair>> by_distance_;  // candidates by distance at x_det
   std::vector<Vector3> start_normal_;  // a substep's pairs in reach: their normal at its start (0: not yet known)
   std::vector<double> step_motion_;  // per particle: its motion in the substep [m]

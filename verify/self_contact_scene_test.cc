@@ -181,7 +181,9 @@ TEST_P(SelfContactPeers, NoFrameCrosses) {
   ASSERT_EQ(r.status, RunStatus::kOk) << r.message;
   EXPECT_EQ(MostCrossings(r), 0);
   ASSERT_TRUE(r.self_contact.has_value());
-  EXPECT_GE(r.self_contact->broad_phases, r.self_contact->steps);  // at least once per step
+  // Detected: the list kept over steps (collision/self_contact_list.h) is
+  // built at least once, and then again only as the cloth moves.
+  EXPECT_GE(r.self_contact->broad_phases, 1);
   if (peer == PeerCase::kPd) {  // its own impulses acted; the fail-safe response's work is counted
     // On the fold at the scene's h, 4 iterations leave the halves apart to
     // t = 0.6 s (measured: no pair within δ at a step's end, and the

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "collision/self_contact_list.h"
 #include "collision/self_contact_response.h"
 #include "collision/self_intersection.h"
 #include "collision/edge_projection.h"
@@ -227,6 +228,51 @@ TEST_F(SelfContactHairpin, PatchesGiveTheSameCandidatesAsTriangles) {
     EXPECT_EQ(got, expected) << cells << " × " << cells << " patches";
   }
   EXPECT_THROW(SelfContactDetector(triangles, sys.num_particles(), std::vector<int>(3, 0)), std::invalid_argument);
+}
+
+// The list kept over steps (collision/self_contact_list.h) on the hairpin
+// closing over 20 steps while it turns by half a radian about x and slides
+// along it: at every step's two ends every pair within the reach is listed
+// (each pair once) and its bound is at most its distance there; the list
+// is kept over steps and rebuilt as the cloth moves.
+TEST_F(SelfContactHairpin, ListKeptOverStepsHoldsEveryPairWithinReach) {
+  const std::vector<std::array<int, 3>> triangles = GridTriangles(side, side).vertices;
+  const double reach = thickness, skin = 0.25 * l;
+  SelfContactList list(triangles, sys.num_particles(), GridPatches(side, side, 2), skin);
+  const SelfContactDetector all_of(triangles, sys.num_particles());
+  const std::vector<SelfContactPair> all = AllPairs(all_of);
+  constexpr int kSteps = 20;
+  const auto at = [&](int k) {
+    const double s = static_cast<double>(k) / kSteps, angle = 0.5 * s;
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(angle, Vector3::UnitX()).toRotationMatrix();
+    MatrixN3 x = (x0 + s * (x1 - x0)) * turn.transpose();
+    x.col(0).array() += 0.1 * s;
+    return x;
+  };
+  long within = 0;
+  for (int k = 0; k < kSteps; ++k) {
+    const MatrixN3 a = at(k), b = at(k + 1);
+    list.Cover(a, b, reach);
+    std::vector<std::pair<SelfContactPair, std::size_t>> listed;
+    for (std::size_t i = 0; i < list.size(); ++i) listed.push_back({list.pairs()[i], i});
+    std::sort(listed.begin(), listed.end(), [](const auto& u, const auto& w) { return u.first < w.first; });
+    for (std::size_t i = 1; i < listed.size(); ++i) EXPECT_FALSE(listed[i - 1].first == listed[i].first);
+    for (const SelfContactPair& pair : all) {
+      const double da = Closest(pair, a).distance, db = Closest(pair, b).distance;
+      if (std::min(da, db) > reach) continue;
+      ++within;
+      const auto it = std::lower_bound(listed.begin(), listed.end(), pair,
+                                       [](const auto& u, const SelfContactPair& w) { return u.first < w; });
+      ASSERT_TRUE(it != listed.end() && it->first == pair) << "step " << k << ", pair kind " << pair.kind;
+      // The bound holds at both ends (round-off of the distances aside).
+      EXPECT_LE(list.LowerBound(it->second), std::min(da, db) + 1e-12) << "step " << k;
+    }
+  }
+  EXPECT_GT(within, 100);  // the layers come within the reach: the check is not empty
+  EXPECT_GT(list.builds(), 1);
+  EXPECT_LT(list.builds(), kSteps);
+  EXPECT_THROW(list.Cover(x0, x1, 0.0), std::invalid_argument);
+  EXPECT_THROW(SelfContactList(triangles, sys.num_particles(), {}, skin), std::invalid_argument);
 }
 
 TEST(SelfContact, BroadPhaseLeavesOutASheetThatSlidesAsAWhole) {
