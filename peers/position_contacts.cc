@@ -216,8 +216,9 @@ VbdSelfContact::VbdSelfContact(const ParticleSystem& system, double thickness)
     : sys_(system),
       thickness_(thickness),
       query_(kQueryFactor * thickness),
-      detector_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
-                GridPatches(system.scene().grid.nu, system.scene().grid.nv, SelfContactResponse::kPatchCells)) {
+      list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
+            GridPatches(system.scene().grid.nu, system.scene().grid.nv, SelfContactResponse::kPatchCells),
+            SelfContactResponse::kSkinFraction * std::min(system.scene().lu(), system.scene().lv())) {
   if (!(thickness > 0.0)) throw std::invalid_argument("VbdSelfContact: thickness must be > 0");
   constexpr double kG0 = 9.81;  // m/s², the weight's scale
   stiffness_ = kStiffness * system.masses().mean() * kG0 / thickness;
@@ -234,15 +235,20 @@ void VbdSelfContact::SetStepMotion(double motion) {
 void VbdSelfContact::Detect(const MatrixN3& x) {
   const auto start = Clock::now();
   x_det_ = x;
-  detector_.Candidates(x, x, query_, &candidates_);
-  ++stats_.broad_phases;
-  stats_.candidates += static_cast<long>(candidates_.size());
+  // The pairs within Q at x: those of the list kept over steps
+  // (collision/self_contact_list.h) whose bound is within Q.
+  if (list_.Cover(x, x, query_)) {
+    ++stats_.broad_phases;
+    stats_.candidates += static_cast<long>(list_.size());
+  }
   // The pairs within Q, with their distances in the bounds; the list is
   // sorted once filtered (the pairs' order, deterministic: the sorted list
   // of every pair within Q restricted to those kept).
   listed_.clear();
   std::fill(bound_.begin(), bound_.end(), query_);
-  for (const SelfContactPair& pair : candidates_) {
+  for (std::size_t i = 0; i < list_.size(); ++i) {
+    if (list_.LowerBound(i) >= query_) continue;
+    const SelfContactPair& pair = list_.pairs()[i];
     const double d = Closest(pair, x).distance;
     if (!(d < query_)) continue;
     listed_.push_back({pair, d});

@@ -172,7 +172,7 @@ class VbdSelfContact {
  private:
   const ParticleSystem& sys_;
   double thickness_, query_, stiffness_;
-  SelfContactDetector detector_;
+  SelfContactList list_;
   SelfContactStats stats_;
   MatrixN3 x_det_;
   std::vector<double> bound_;           // b_p [m]
@@ -180,7 +180,6 @@ class VbdSelfContact {
     SelfContactPair pair;
     double distance;  // at x_det [m]
   };
-  std::vector<SelfContactPair> candidates_;
   std::vector<ListedPair> listed_;  // the pairs that can act before the next detection, in the pairs' order
   std::vector<int> offsets_, incident_;  // per particle: its pairs (index·4 + slot) in listed_
   std::vector<int> fill_;                // scratch of Detect
