@@ -136,7 +136,7 @@ class ContactImpulses {
   std::vector<ObstacleDetection::Prior> prior_;  // per particle: the last step's holding contact
   std::vector<char> listed_;
   double thickness_ = 0.0, skin_ = 0.0;
-  std::optional<SelfContactList> list_;
+  std::optional<SelfContactDetector> detector_;
   std::vector<SelfContactPair> candidates_;
   std::vector<PairContact> pairs_;
   std::vector<int> pair_count_;  // per particle: the pairs it belongs to
