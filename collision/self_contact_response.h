@@ -32,8 +32,8 @@ namespace clothbench {
 /// What the response did since Reset.
 struct SelfContactStats {
   long steps = 0;                ///< steps responded to
-  long candidates = 0;           ///< broad-phase pairs examined, summed over the passes
-  long broad_phases = 0;         ///< broad-phase passes (CGAL box_intersection_d)
+  long candidates = 0;           ///< pairs each broad phase listed, summed over them
+  long broad_phases = 0;         ///< broad phases (CGAL box_intersection_d; builds of a list kept over steps)
   long repulsions = 0;           ///< repulsion impulses (stage 1)
   long collisions = 0;           ///< collision impulses (stage 2)
   long zone_passes = 0;          ///< impact-zone passes (stage 3)
