@@ -38,12 +38,17 @@ double MotionBound(const SelfContactPair& pair, const MatrixN3& x0, const Matrix
 
 }  // namespace
 
+SelfContactList GridSelfContactList(const ParticleSystem& system) {
+  const Scene& scene = system.scene();
+  return SelfContactList(GridTriangles(scene.grid.nu, scene.grid.nv).vertices, system.num_particles(),
+                         GridPatches(scene.grid.nu, scene.grid.nv, SelfContactResponse::kPatchCells),
+                         SelfContactResponse::kSkinFraction * std::min(scene.lu(), scene.lv()));
+}
+
 SelfContactResponse::SelfContactResponse(const ParticleSystem& system, double thickness)
     : sys_(system),
       thickness_(thickness),
-      list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
-            GridPatches(system.scene().grid.nu, system.scene().grid.nv, kPatchCells),
-            kSkinFraction * std::min(system.scene().lu(), system.scene().lv())) {
+      list_(GridSelfContactList(system)) {
   if (!(thickness > 0.0)) throw std::invalid_argument("SelfContactResponse: thickness must be > 0");
   const int n = system.num_particles();
   inverse_mass_.resize(n);
@@ -93,9 +98,8 @@ void SelfContactResponse::Refresh(const MatrixN3& x0) {
   // neither be within it at x₀ nor touch: it is not looked at.
   near_.clear();
   fresh_.clear();
-  const double thickness = thickness_;
   for (std::size_t i = 0; i < list_.size(); ++i) {
-    if (list_.LowerBound(i) > thickness) continue;
+    if (list_.LowerBound(i) > thickness_) continue;
     near_.push_back(i);
     if (stamp_[i] != step_) fresh_.push_back(i);
   }

@@ -69,6 +69,12 @@ struct SelfContactStats {
   }
 };
 
+/// The candidate list kept over steps of the cloth's grid triangles:
+/// patches of SelfContactResponse::kPatchCells² quads, a skin of
+/// SelfContactResponse::kSkinFraction grid spacings.
+/// @param system the cloth (its scene's grid)
+SelfContactList GridSelfContactList(const ParticleSystem& system);
+
 class SelfContactResponse {
  public:
   static constexpr double kRepulsion = 0.1;  ///< Bridson et al. 2002, §7.2: 0.1 d/Δt
@@ -78,13 +84,13 @@ class SelfContactResponse {
   /// fraction of the thickness: the bisection finds it to round-off, so
   /// this only widens a crossing through an element's border.
   static constexpr double kCcdToleranceFraction = 1e-3;
-  /// The candidate list (SelfContactList) is kept over steps while no
-  /// particle, less the cloth's mean motion, moves further than a skin of
-  /// this fraction of the grid spacing from where it was built; the list
-  /// then holds the pairs within thickness + 2 skins. Each step tests only
-  /// the listed pairs whose distance bound falls within the thickness.
-  /// Measured on fold_over_rod and sphere_fold (docs/collisions.md, "The
-  /// list kept over steps").
+  /// The skin R of the candidate lists kept over steps (SelfContactList,
+  /// GridSelfContactList) as a fraction of the grid spacing: a list holds
+  /// the pairs within reach + 2R and is rebuilt when a patch's motion could
+  /// bring a pair it left out within the reach. Each step tests only the
+  /// listed pairs whose distance bound falls within the thickness. Measured
+  /// on fold_over_rod and sphere_fold (docs/collisions.md, "The list kept
+  /// over steps").
   static constexpr double kSkinFraction = 0.25;
   /// The broad phase boxes patches of kPatchCells × kPatchCells grid quads
   /// (GridPatches), not single triangles.

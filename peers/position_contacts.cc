@@ -47,9 +47,7 @@ double Since(Clock::time_point start) { return std::chrono::duration<double>(Clo
 PositionSelfContact::PositionSelfContact(const ParticleSystem& system, double thickness, const Eigen::VectorXd& w)
     : thickness_(thickness),
       skin_(kSkinFraction * std::min(system.scene().lu(), system.scene().lv())),
-      list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
-            GridPatches(system.scene().grid.nu, system.scene().grid.nv, SelfContactResponse::kPatchCells),
-            SelfContactResponse::kSkinFraction * std::min(system.scene().lu(), system.scene().lv())),
+      list_(GridSelfContactList(system)),
       w_(w) {
   if (!(thickness > 0.0)) throw std::invalid_argument("PositionSelfContact: thickness must be > 0");
   const int n = system.num_particles();
@@ -216,9 +214,7 @@ VbdSelfContact::VbdSelfContact(const ParticleSystem& system, double thickness)
     : sys_(system),
       thickness_(thickness),
       query_(kQueryFactor * thickness),
-      list_(GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices, system.num_particles(),
-            GridPatches(system.scene().grid.nu, system.scene().grid.nv, SelfContactResponse::kPatchCells),
-            SelfContactResponse::kSkinFraction * std::min(system.scene().lu(), system.scene().lv())) {
+      list_(GridSelfContactList(system)) {
   if (!(thickness > 0.0)) throw std::invalid_argument("VbdSelfContact: thickness must be > 0");
   constexpr double kG0 = 9.81;  // m/s², the weight's scale
   stiffness_ = kStiffness * system.masses().mean() * kG0 / thickness;

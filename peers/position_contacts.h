@@ -55,9 +55,10 @@ int ProjectOntoObstacles(const ParticleSystem& sys, ObstacleProximity* proximity
 /// reached their size.
 class PositionSelfContact {
  public:
-  /// The skin of a substep's list as a fraction of the grid spacing: 0.05
-  /// gave half the candidates of 0.25 on scenes/fold_over_rod_10k.toml and
-  /// 18 % less solver time (docs/collisions.md).
+  /// The skin of a substep's detection as a fraction of the grid spacing:
+  /// a particle that leaves the detection's path by more (per coordinate)
+  /// is detected again from the substep's start; the pairs looked at are
+  /// those of the list kept over steps within δ + 2√3 skins of it.
   static constexpr double kSkinFraction = 0.05;
   /// Gauss–Seidel passes over the pairs per substep, until one projects none.
   static constexpr int kPasses = 8;
