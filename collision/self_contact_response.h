@@ -70,7 +70,7 @@ struct SelfContactStats {
 };
 
 /// The candidate list kept over steps of the cloth's grid triangles:
-/// patches of SelfContactResponse::kPatchCells² quads, a skin of
+/// patches of SelfContactResponse::kPatchCells × kPatchCells grid quads, a skin of
 /// SelfContactResponse::kSkinFraction grid spacings.
 /// @param system the cloth (its scene's grid)
 SelfContactList GridSelfContactList(const ParticleSystem& system);
