@@ -474,31 +474,4 @@ void SelfContactDetector::Candidates(const MatrixN3& x0, const MatrixN3& x1, dou
   }
 }
 
-void SelfContactDetector::NearClusters(const MatrixN3& x, double gap, std::vector<ClusterPair>* out) {
-  out->clear();
-  const std::size_t n_clusters = cluster_start_.size() - 1;
-  cluster_lo_.resize(n_clusters);
-  cluster_hi_.resize(n_clusters);
-  std::vector<TriangleBox> boxes;
-  boxes.reserve(n_clusters);
-  for (std::size_t c = 0; c < n_clusters; ++c) {
-    Vector3 lo = Vector3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k)
-      for (int p : triangles_[static_cast<std::size_t>(cluster_triangles_[static_cast<std::size_t>(k)])]) {
-        lo = lo.cwiseMin(x.row(p).transpose());
-        hi = hi.cwiseMax(x.row(p).transpose());
-      }
-    cluster_lo_[c] = lo;
-    cluster_hi_[c] = hi;
-    double l[3] = {lo.x() - 0.5 * gap, lo.y() - 0.5 * gap, lo.z() - 0.5 * gap};
-    double h[3] = {hi.x() + 0.5 * gap, hi.y() + 0.5 * gap, hi.z() + 0.5 * gap};
-    boxes.emplace_back(l, h, c);
-  }
-  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const TriangleBox& first, const TriangleBox& second) {
-    const std::size_t a = first.id(), b = second.id();
-    const double d = (cluster_lo_[b] - cluster_hi_[a]).cwiseMax(cluster_lo_[a] - cluster_hi_[b]).cwiseMax(0.0).norm();
-    if (d <= gap) out->push_back({static_cast<int>(std::min(a, b)), static_cast<int>(std::max(a, b)), d});
-  });
-}
-
 }  // namespace clothbench

@@ -94,16 +94,6 @@ class SelfContactDetector {
   void Candidates(const MatrixN3& x0, const MatrixN3& x1, double margin, std::vector<SelfContactPair>* out,
                   double slack = 0.0);
 
-  /// The pairs of different clusters whose boxes at x (N×3 [m]), each the
-  /// bounding box of its triangles, are within `gap` [m] of each other
-  /// (CGAL's box_self_intersection_d on the boxes grown by gap/2), each
-  /// with that box distance [m] (Euclidean; it bounds the distance of any
-  /// element of one to any of the other from below); `out` is reused.
-  struct ClusterPair {
-    int a, b;
-    double gap;
-  };
-  void NearClusters(const MatrixN3& x, double gap, std::vector<ClusterPair>* out);
   /// The clusters' triangles (CSR): cluster c holds
   /// cluster_triangles()[cluster_start()[c] … cluster_start()[c + 1]).
   const std::vector<int>& cluster_start() const { return cluster_start_; }
@@ -135,7 +125,6 @@ class SelfContactDetector {
   // Per triangle: its box at x0, and its displacements' mean and radius.
   std::vector<Vector3> tri0_lo_, tri0_hi_, move_centre_;
   std::vector<double> move_radius_;
-  std::vector<Vector3> cluster_lo_, cluster_hi_;  // NearClusters' boxes at x
   // The cluster pairs CGAL reported, and each chunk's element pairs (its
   // range of the same-cluster pairs, the first parts_same_[c], then of
   // the reported ones).

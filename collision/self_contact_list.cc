@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace clothbench {
@@ -30,9 +31,9 @@ SelfContactList::SelfContactList(const std::vector<std::array<int, 3>>& triangle
     std::sort(cluster_particles_.begin() + static_cast<std::ptrdiff_t>(first), cluster_particles_.end());
     cluster_start_.push_back(static_cast<int>(cluster_particles_.size()));
   }
-  mean0_.resize(n_clusters);
-  mean1_.resize(n_clusters);
-  sigma_.resize(n_clusters);
+  nodes_.reserve(2 * n_clusters - 1);
+  order_.resize(n_clusters);
+  centre_.resize(n_clusters);
 }
 
 double SelfContactList::LowerBound(std::size_t i) const {
@@ -47,41 +48,110 @@ double SelfContactList::LowerBound(std::size_t i) const {
   return built_distance_[i] - std::sqrt(most);
 }
 
+void SelfContactList::NodeMotions() {
+  for (Node& node : nodes_) {
+    if (node.cluster >= 0) {
+      const auto c = static_cast<std::size_t>(node.cluster);
+      Vector3 m0 = Vector3::Zero(), m1 = Vector3::Zero();
+      for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k) {
+        const int p = cluster_particles_[static_cast<std::size_t>(k)];
+        m0 += delta0_.row(p).transpose();
+        m1 += delta1_.row(p).transpose();
+      }
+      m0 /= node.count;
+      m1 /= node.count;
+      double s = 0.0;
+      for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k) {
+        const int p = cluster_particles_[static_cast<std::size_t>(k)];
+        s = std::max({s, (delta0_.row(p).transpose() - m0).squaredNorm(), (delta1_.row(p).transpose() - m1).squaredNorm()});
+      }
+      node.mean0 = m0;
+      node.mean1 = m1;
+      node.sigma = std::sqrt(s);
+      continue;
+    }
+    // Children are stored before their parent (BuildTree).
+    const Node& l = nodes_[static_cast<std::size_t>(node.left)];
+    const Node& r = nodes_[static_cast<std::size_t>(node.right)];
+    node.mean0 = (l.count * l.mean0 + r.count * r.mean0) / node.count;
+    node.mean1 = (l.count * l.mean1 + r.count * r.mean1) / node.count;
+    node.sigma = std::max(l.sigma + std::max((l.mean0 - node.mean0).norm(), (l.mean1 - node.mean1).norm()),
+                          r.sigma + std::max((r.mean0 - node.mean0).norm(), (r.mean1 - node.mean1).norm()));
+  }
+}
+
 bool SelfContactList::Holds(const MatrixN3& x0, const MatrixN3& x1, double reach) {
   delta0_ = x0 - x_built_;
   delta1_ = x1 - x_built_;
-  const double d = built_d_, g = built_g_;
-  const Vector3 c0 = delta0_.colwise().mean().transpose(), c1 = delta1_.colwise().mean().transpose();
-  double far = 0.0;
-  for (std::size_t c = 0; c + 1 < cluster_start_.size(); ++c) {
-    Vector3 m0 = Vector3::Zero(), m1 = Vector3::Zero();
-    for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k) {
-      const int p = cluster_particles_[static_cast<std::size_t>(k)];
-      m0 += delta0_.row(p).transpose();
-      m1 += delta1_.row(p).transpose();
+  NodeMotions();
+  const double d = built_d_;
+  const int root = static_cast<int>(nodes_.size()) - 1;
+  stack_.clear();
+  stack_.push_back({root, root});
+  while (!stack_.empty()) {
+    const auto [a, b] = stack_.back();
+    stack_.pop_back();
+    const Node& na = nodes_[static_cast<std::size_t>(a)];
+    const Node& nb = nodes_[static_cast<std::size_t>(b)];
+    if (a == b) {
+      if (2.0 * na.sigma <= d - reach) continue;
+      if (na.cluster >= 0) return false;
+      stack_.push_back({na.left, na.left});
+      stack_.push_back({na.right, na.right});
+      stack_.push_back({na.left, na.right});
+      continue;
     }
-    const double count = cluster_start_[c + 1] - cluster_start_[c];
-    m0 /= count;
-    m1 /= count;
-    double s = 0.0;
-    for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k) {
-      const int p = cluster_particles_[static_cast<std::size_t>(k)];
-      s = std::max({s, (delta0_.row(p).transpose() - m0).squaredNorm(), (delta1_.row(p).transpose() - m1).squaredNorm()});
+    const double gap = (nb.lo - na.hi).cwiseMax(na.lo - nb.hi).cwiseMax(0.0).norm();
+    const double apart = std::max((na.mean0 - nb.mean0).norm(), (na.mean1 - nb.mean1).norm());
+    if (na.sigma + nb.sigma + apart <= std::max(d, gap) - reach) continue;
+    if (na.cluster >= 0 && nb.cluster >= 0) return false;
+    // Split the node with more particles (a cluster is never split).
+    if (nb.cluster >= 0 || (na.cluster < 0 && na.count >= nb.count)) {
+      stack_.push_back({na.left, b});
+      stack_.push_back({na.right, b});
+    } else {
+      stack_.push_back({a, nb.left});
+      stack_.push_back({a, nb.right});
     }
-    s = std::sqrt(s);
-    if (2.0 * s > d - reach) return false;
-    mean0_[c] = m0;
-    mean1_[c] = m1;
-    sigma_[c] = s;
-    far = std::max(far, s + std::max((m0 - c0).norm(), (m1 - c1).norm()));
-  }
-  if (2.0 * far > g - reach) return false;
-  for (const auto& pq : near_clusters_) {
-    const auto a = static_cast<std::size_t>(pq.a), b = static_cast<std::size_t>(pq.b);
-    const double apart = std::max((mean0_[a] - mean0_[b]).norm(), (mean1_[a] - mean1_[b]).norm());
-    if (sigma_[a] + sigma_[b] + apart > std::max(d, pq.gap) - reach) return false;
   }
   return true;
+}
+
+int SelfContactList::BuildTree(int first, int last) {
+  Node node;
+  if (last - first == 1) {
+    const auto c = static_cast<std::size_t>(order_[static_cast<std::size_t>(first)]);
+    node.cluster = static_cast<int>(c);
+    node.lo = Vector3::Constant(std::numeric_limits<double>::infinity());
+    node.hi = -node.lo;
+    for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k) {
+      const int p = cluster_particles_[static_cast<std::size_t>(k)];
+      node.lo = node.lo.cwiseMin(x_built_.row(p).transpose());
+      node.hi = node.hi.cwiseMax(x_built_.row(p).transpose());
+    }
+    node.count = cluster_start_[c + 1] - cluster_start_[c];
+  } else {
+    Vector3 lo = Vector3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (int k = first; k < last; ++k) {
+      lo = lo.cwiseMin(centre_[static_cast<std::size_t>(order_[static_cast<std::size_t>(k)])]);
+      hi = hi.cwiseMax(centre_[static_cast<std::size_t>(order_[static_cast<std::size_t>(k)])]);
+    }
+    Eigen::Index axis = 0;
+    (hi - lo).maxCoeff(&axis);
+    const int mid = first + (last - first) / 2;
+    std::nth_element(order_.begin() + first, order_.begin() + mid, order_.begin() + last, [&](int p, int q) {
+      return centre_[static_cast<std::size_t>(p)](axis) < centre_[static_cast<std::size_t>(q)](axis);
+    });
+    node.left = BuildTree(first, mid);
+    node.right = BuildTree(mid, last);
+    const Node& l = nodes_[static_cast<std::size_t>(node.left)];
+    const Node& r = nodes_[static_cast<std::size_t>(node.right)];
+    node.lo = l.lo.cwiseMin(r.lo);
+    node.hi = l.hi.cwiseMax(r.hi);
+    node.count = l.count + r.count;
+  }
+  nodes_.push_back(node);
+  return static_cast<int>(nodes_.size()) - 1;
 }
 
 bool SelfContactList::Cover(const MatrixN3& x0, const MatrixN3& x1, double reach) {
@@ -99,7 +169,6 @@ bool SelfContactList::Cover(const MatrixN3& x0, const MatrixN3& x1, double reach
 void SelfContactList::Build(const MatrixN3& x0, double reach, double skin) {
   built_ = true;
   built_d_ = reach + 2.0 * skin;
-  built_g_ = reach + 2.0 * kFarSkins * skin;
   ++builds_;
   // Every pair within D at x0: boxes grown by D/2 overlap wherever the
   // elements are within D (in each coordinate), and the detector's
@@ -124,7 +193,16 @@ void SelfContactList::Build(const MatrixN3& x0, double reach, double skin) {
     pairs_.push_back(candidates_[i]);
     built_distance_.push_back(candidate_distance_[i]);
   }
-  detector_.NearClusters(x0, built_g_, &near_clusters_);
+  // The clusters' tree at x_b, halved at their centres' medians.
+  for (std::size_t c = 0; c < order_.size(); ++c) {
+    order_[c] = static_cast<int>(c);
+    Vector3 sum = Vector3::Zero();
+    for (int k = cluster_start_[c]; k < cluster_start_[c + 1]; ++k)
+      sum += x0.row(cluster_particles_[static_cast<std::size_t>(k)]).transpose();
+    centre_[c] = sum / (cluster_start_[c + 1] - cluster_start_[c]);
+  }
+  nodes_.clear();
+  BuildTree(0, static_cast<int>(order_.size()));
 }
 
 }  // namespace clothbench

@@ -15,15 +15,20 @@
 //
 // Pairs not listed: per cluster P (GridPatches' patches) and end e, c_P the
 // mean of δ over its triangles' particles and σ_P the largest |δ_k − c_P|
-// over both ends. Any pair with one element in P and one in Q has
-// |δ_i − δ_j| ≤ σ_P + σ_Q + max_e |c_P − c_Q|. A pair not listed is farther
-// than D at x_b, and farther than its clusters' box gap g_PQ; the list
-// stays complete (every pair that comes within `reach` along the path is
-// in it) while, for every cluster P, 2σ_P ≤ D − reach; for every pair of
-// clusters whose gap was within G = reach + 2·kFarSkins·R at x_b,
-// σ_P + σ_Q + max_e |c_P − c_Q| ≤ max(D, g_PQ) − reach; and for all others,
-// with c the mean over all particles, 2 max_P (σ_P + max_e |c_P − c|) ≤
-// G − reach. A path that breaks one rebuilds the list at its start.
+// over both ends; a tree over the clusters (halved at the median of their
+// centres at x_b, along the widest axis) gives each node A the same c_A,
+// and σ_A = max over its children C of σ_C + max_e |c_C − c_A|, which
+// bounds |δ_k − c_A| for every particle k below A. Any pair with one
+// element below A and one below B has |δ_i − δ_j| ≤ σ_A + σ_B +
+// max_e |c_A − c_B|; a pair not listed was farther than D at x_b, and
+// farther than the gap g_AB of A's and B's boxes there. The list stays
+// complete (every pair that comes within `reach` along the path is in it)
+// while every node pair (A, B) reached from (root, root) meets
+// σ_A + σ_B + max_e |c_A − c_B| ≤ max(D, g_AB) − reach (for A = B:
+// 2σ_A ≤ D − reach), a pair that does not being split into its
+// children's pairs down to the clusters (the dual-tree traversal of Gray
+// & Moore, "N-body problems in statistical learning", NIPS 2000). A path
+// that breaks it at two clusters rebuilds the list at its start.
 #ifndef CLOTHBENCH_COLLISION_SELF_CONTACT_LIST_H_
 #define CLOTHBENCH_COLLISION_SELF_CONTACT_LIST_H_
 
@@ -37,10 +42,6 @@ namespace clothbench {
 
 class SelfContactList {
  public:
-  /// The far clusters' skin as a multiple of R: clusters apart by more than
-  /// G = reach + 2·kFarSkins·R at a build are checked together, against G.
-  static constexpr double kFarSkins = 8.0;
-
   /// @param triangles, num_particles as for SelfContactDetector
   /// @param clusters per triangle its cluster, 0 … C − 1 (GridPatches), not empty
   /// @param skin R [m], > 0
@@ -53,8 +54,8 @@ class SelfContactList {
   /// distance of interest) along the straight path x0 → x1 (N×3 [m]): if
   /// the conditions above fail for this reach, rebuilds at x0 with D =
   /// reach + 2R, R doubled until they hold for this path (a step faster
-  /// than R still gets a complete list). O(N + cluster pairs) without a
-  /// build.
+  /// than R still gets a complete list). O(N + C log C) without a build,
+  /// C the clusters, when the clusters' motions are smooth.
   /// @return whether it rebuilt
   bool Cover(const MatrixN3& x0, const MatrixN3& x1, double reach);
 
@@ -67,21 +68,35 @@ class SelfContactList {
 
  private:
   void Build(const MatrixN3& x0, double reach, double skin);
+  // The tree over the clusters at x_b (boxes, children) into nodes_;
+  // returns the subtree's node, its children stored before it.
+  int BuildTree(int first, int last);
   // δ at both ends, and whether the list is complete for them and `reach` (above).
   bool Holds(const MatrixN3& x0, const MatrixN3& x1, double reach);
+  // Each cluster's and node's c (both ends) and σ into nodes_.
+  void NodeMotions();
 
   SelfContactDetector detector_;
   double skin_;
   bool built_ = false;
-  double built_d_ = 0.0, built_g_ = 0.0;  // the build's D and G [m]
+  double built_d_ = 0.0;  // the build's D [m]
   long builds_ = 0;
   MatrixN3 x_built_, delta0_, delta1_;
-  // Each cluster's particles (CSR, every particle of its triangles once),
-  // its means at both ends and its σ.
+  // Each cluster's particles (CSR, every particle of its triangles once).
   std::vector<int> cluster_start_, cluster_particles_;
-  std::vector<Vector3> mean0_, mean1_;
-  std::vector<double> sigma_;
-  std::vector<SelfContactDetector::ClusterPair> near_clusters_;
+  // The tree: a node's box at x_b, its children (−1 at a cluster, whose
+  // index is `cluster`), its particles' count, c at both ends and σ. The
+  // clusters' order for the median splits, their centres at x_b, and the
+  // traversal's stack of node pairs.
+  struct Node {
+    Vector3 lo = Vector3::Zero(), hi = Vector3::Zero(), mean0 = Vector3::Zero(), mean1 = Vector3::Zero();
+    int left = -1, right = -1, cluster = -1;
+    double count = 0.0, sigma = 0.0;
+  };
+  std::vector<Node> nodes_;
+  std::vector<int> order_;
+  std::vector<Vector3> centre_;
+  std::vector<std::array<int, 2>> stack_;
   std::vector<SelfContactPair> candidates_, pairs_;
   std::vector<double> candidate_distance_, built_distance_;
 };
