@@ -13,27 +13,41 @@
 // particles). Along a straight path x0 → x1, δ_i − δ_j is linear, so its
 // largest norm is at an end: the bound of the two ends holds on the path.
 //
-// Pairs not listed: per cluster P (GridPatches' patches) and end e, c_P the
-// mean of δ over its triangles' particles and σ_P the largest |δ_k − c_P|
-// over both ends; a tree over the clusters (halved at the median of their
-// centres at x_b, along the widest axis) gives each node A the same c_A,
-// and σ_A = max over its children C of σ_C + max_e |c_C − c_A|, which
-// bounds |δ_k − c_A| for every particle k below A. Any pair with one
-// element below A and one below B has |δ_i − δ_j| ≤ σ_A + σ_B +
-// max_e |c_A − c_B|; a pair not listed was farther than D at x_b, and
-// farther than the gap g_AB of A's and B's boxes there. The list stays
-// complete (every pair that comes within `reach` along the path is in it)
-// while every node pair (A, B) reached from (root, root) meets
-// σ_A + σ_B + max_e |c_A − c_B| ≤ max(D, g_AB) − reach (for A = B:
-// 2σ_A ≤ D − reach), a pair that does not being split into its
-// children's pairs down to the clusters (the dual-tree traversal of Gray
-// & Moore, "N-body problems in statistical learning", NIPS 2000). A path
-// that breaks it at two clusters rebuilds the list at its start.
+// Pairs not listed. A rigid motion z = Q x_b + t keeps every distance, so
+// a pair's distance at y is also at least its distance at x_b less
+// max |(y_i − z_i) − (y_j − z_j)|, for any rotation Q and translation t;
+// with Q fixed and t linear along the path, that too is largest at an end.
+// Per cluster P (GridPatches' patches) with centre x̄_P at x_b, c_P the
+// mean of δ over its triangles' particles at each end, and Q_P a rotation
+// fitted to both ends (shape matching's), a particle's residual
+// r_k = δ_k − c_P + (I − Q_P)(x_k − x̄_P) is y_k − z_k for z the rigid
+// motion of P, and σ_P bounds |r_k| at both ends. A tree over the
+// clusters (halved at the median of their centres at x_b, along the
+// widest axis) gives each node A a centre, c_A, Q_A and the radius ρ_A of
+// its particles about x̄_A at x_b, and
+//   σ_A = max over its children C of σ_C + S(A, C), where
+//   S(A, B) = max_e |c_Be − c_Ae + (I − Q_A)(x̄_B − x̄_A)| + ‖Q_B − Q_A‖_F ρ_B
+// bounds how far B's particles stray from A's rigid motion beyond σ_B.
+// Any pair with one element below A and one below B thus has
+// |(y_i − z_i) − (y_j − z_j)| ≤ σ_A + σ_B + min(S(A, B), S(B, A)); a pair
+// not listed was farther than D at x_b, and farther than the gap g_AB of
+// A's and B's boxes there. The list stays complete (every pair that comes
+// within `reach` along the path is in it) while every node pair (A, B)
+// reached from (root, root) meets σ_A + σ_B + min(S(A, B), S(B, A)) ≤
+// max(D, g_AB) − reach (for A = B: 2σ_A ≤ D − reach), a pair that does
+// not being split into its children's pairs down to the clusters (the
+// dual-tree traversal of Gray & Moore, "N-body problems in statistical
+// learning", NIPS 2000). A path that breaks it at two clusters rebuilds
+// the list at its start. With Q = I this is the plain Verlet condition;
+// the rotations keep the list of a cloth that turns as a whole (a sleeve
+// on a turning arm), whose displacements alone grow with the angle.
 #ifndef CLOTHBENCH_COLLISION_SELF_CONTACT_LIST_H_
 #define CLOTHBENCH_COLLISION_SELF_CONTACT_LIST_H_
 
 #include <array>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "collision/self_contact.h"
 #include "model/types.h"
@@ -53,9 +67,11 @@ class SelfContactList {
   /// Makes the list hold every pair that comes within `reach` [m] (> 0, the
   /// distance of interest) along the straight path x0 → x1 (N×3 [m]): if
   /// the conditions above fail for this reach, rebuilds at x0 with D =
-  /// reach + 2R, R doubled until they hold for this path (a step faster
-  /// than R still gets a complete list). O(N + C log C) without a build,
-  /// C the clusters, when the clusters' motions are smooth.
+  /// reach + 2R; if they fail for this path even then (a path faster than
+  /// the skin), adds the pairs whose boxes over the path come within D
+  /// (the detector's swept boxes), which covers this path, and the next
+  /// is checked again. O(N + C log C) without a build, C the clusters,
+  /// when the clusters' motions are smooth.
   /// @return whether it rebuilt
   bool Cover(const MatrixN3& x0, const MatrixN3& x1, double reach);
 
@@ -67,7 +83,10 @@ class SelfContactList {
   long builds() const { return builds_; }
 
  private:
-  void Build(const MatrixN3& x0, double reach, double skin);
+  // Lists every pair within D at x0 (x1 the same object as x0) or, with a
+  // path, every pair that can come within D along x0 → x1 (N×3 [m]),
+  // each with a lower bound of its distance at x0.
+  void Build(const MatrixN3& x0, const MatrixN3& x1, double reach);
   // The tree over the clusters at x_b (boxes, children) into nodes_;
   // returns the subtree's node, its children stored before it.
   int BuildTree(int first, int last);
@@ -89,9 +108,12 @@ class SelfContactList {
   // clusters' order for the median splits, their centres at x_b, and the
   // traversal's stack of node pairs.
   struct Node {
-    Vector3 lo = Vector3::Zero(), hi = Vector3::Zero(), mean0 = Vector3::Zero(), mean1 = Vector3::Zero();
+    Vector3 lo = Vector3::Zero(), hi = Vector3::Zero(), centre = Vector3::Zero();
+    Vector3 mean0 = Vector3::Zero(), mean1 = Vector3::Zero();
+    Matrix3 moment = Matrix3::Zero(), rotation = Matrix3::Identity();
+    Eigen::Quaterniond turn = Eigen::Quaterniond::Identity();  // `rotation`, the next one's start
     int left = -1, right = -1, cluster = -1;
-    double count = 0.0, sigma = 0.0;
+    double count = 0.0, radius = 0.0, sigma = 0.0;
   };
   std::vector<Node> nodes_;
   std::vector<int> order_;

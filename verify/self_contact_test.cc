@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 
 #include "collision/self_contact_list.h"
@@ -273,6 +274,48 @@ TEST_F(SelfContactHairpin, ListKeptOverStepsHoldsEveryPairWithinReach) {
   EXPECT_LT(list.builds(), kSteps);
   EXPECT_THROW(list.Cover(x0, x1, 0.0), std::invalid_argument);
   EXPECT_THROW(SelfContactList(triangles, sys.num_particles(), {}, skin), std::invalid_argument);
+}
+
+TEST_F(SelfContactHairpin, ListKeptOverStepsFollowsARigidTurnAndCoversAStepFasterThanItsSkin) {
+  const std::vector<std::array<int, 3>> triangles = GridTriangles(side, side).vertices;
+  const double reach = thickness, skin = 0.25 * l;
+  SelfContactList list(triangles, sys.num_particles(), GridPatches(side, side, 2), skin);
+  // The hairpin turns as a whole by 1 rad about a skew axis in 20 steps
+  // while moving 0.4 m: its far ends move 15 mm a step, and by 0.3 m in
+  // all, ten times D − reach = 2R = 33 mm. Distances do not change, so
+  // the rigid motions fitted to the patches keep the first list (with
+  // Q = I it was built in every step).
+  const Vector3 axis = Vector3(1.0, 1.0, 0.5).normalized();
+  const auto at = [&](int k) {
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.05 * k, axis).toRotationMatrix();
+    MatrixN3 x = x0 * turn.transpose();
+    x.col(0).array() += 0.02 * k;
+    return x;
+  };
+  for (int k = 0; k < 20; ++k) list.Cover(at(k), at(k + 1), reach);
+  EXPECT_EQ(list.builds(), 1);
+  // Then a step that closes legs 1.5 l apart (D = 0.6 l) by up to 3 l,
+  // twelve times the skin, through each other: the pairs that come within
+  // the reach anywhere along it are listed, and their bounds hold at both
+  // ends (without the pairs over the path, this fails).
+  MatrixN3 a, b;
+  Hairpin(sys, 1.5 * l, 3.0 * l, &a, &b);
+  list.Cover(a, b, reach);
+  EXPECT_GE(list.builds(), 2);
+  const SelfContactDetector all_of(triangles, sys.num_particles());
+  long within = 0;
+  for (const SelfContactPair& pair : AllPairs(all_of)) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int t = 0; t <= 16; ++t) nearest = std::min(nearest, Closest(pair, a + (t / 16.0) * (b - a)).distance);
+    if (nearest > reach) continue;
+    ++within;
+    const auto& pairs = list.pairs();
+    const auto it = std::find(pairs.begin(), pairs.end(), pair);
+    ASSERT_TRUE(it != pairs.end()) << "pair kind " << pair.kind;
+    const std::size_t i = static_cast<std::size_t>(it - pairs.begin());
+    EXPECT_LE(list.LowerBound(i), std::min(Closest(pair, a).distance, Closest(pair, b).distance) + 1e-12);
+  }
+  EXPECT_GT(within, 100);  // the legs pass through each other's reach
 }
 
 TEST(SelfContact, BroadPhaseLeavesOutASheetThatSlidesAsAWhole) {
