@@ -2,6 +2,8 @@
 // SceneError whose message is one line: "<source>: <key>: <rule>".
 #include "model/scene.h"
 
+#include <cctype>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -152,6 +154,7 @@ class TableReader {
     return n->as_table();
   }
   std::string Child(std::string_view key) const { return prefix_ + std::string(key) + "."; }
+  const std::string& source() const { return source_; }
 
   /// Reports the first key that was never read.
   void RejectUnknown() const {
@@ -286,6 +289,109 @@ std::vector<ObstacleKeyframe> ParseKeyframes(TableReader& o, const std::string& 
   return keyframes;
 }
 
+// A point [x, y] of a pattern's plane, or fails naming `key`.
+Vector2 PlanePoint(const toml::node& n, TableReader& t, std::string_view key, std::string_view rule) {
+  const toml::array* a = n.as_array();
+  if (!a || a->size() != 2) t.Fail(key, rule);
+  Vector2 q;
+  for (std::size_t k = 0; k < 2; ++k) {
+    auto d = (*a)[k].value<double>();
+    if (!d || !std::isfinite(*d) || std::abs(*d) > 1e6) t.Fail(key, fmt::format("{} (finite, of magnitude at most 1e6 m)", rule));
+    q[static_cast<Eigen::Index>(k)] = *d;
+  }
+  return q;
+}
+
+// One [[pattern]] table (model/pattern.h; docs/scenes.md, "[[pattern]]").
+PatternSpec ParsePattern(TableReader& t) {
+  PatternSpec p;
+  p.name = t.String("name", "");
+  if (p.name.empty() || p.name.size() > 64 ||
+      !std::all_of(p.name.begin(), p.name.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }))
+    t.Fail("name", "must be a word of 1 … 64 letters, digits or '_'");
+  const toml::node* corners = t.Get("corners");
+  const toml::array* ca = corners ? corners->as_array() : nullptr;
+  const char* corner_rule = "must be 4 points [x, y] [m]: u0v0, u1v0, u1v1, u0v1";
+  if (!ca || ca->size() != 4) t.Fail("corners", corner_rule);
+  for (std::size_t k = 0; k < 4; ++k) p.corners[k] = PlanePoint((*ca)[k], t, "corners", corner_rule);
+  static constexpr std::array<std::array<int, 2>, 4> kEnds = {{{0, 1}, {1, 2}, {3, 2}, {0, 3}}};
+  for (std::size_t s = 0; s < 4; ++s) p.sides[s] = {p.corners[kEnds[s][0]], p.corners[kEnds[s][1]]};
+  if (const toml::table* sides = t.SubTable("sides")) {
+    TableReader st(sides, t.Child("sides"), t.source());
+    for (std::size_t s = 0; s < 4; ++s) {
+      const char* key = PatternSpec::kSideNames[s];
+      const toml::node* n = st.Get(key);
+      if (!n) continue;
+      const toml::array* a = n->as_array();
+      const std::string rule = fmt::format("must be a polyline of 2 … 10000 points [x, y] [m] from corner {} to corner {}",
+                                           PatternSpec::kCornerNames[kEnds[s][0]], PatternSpec::kCornerNames[kEnds[s][1]]);
+      if (!a || a->size() < 2 || a->size() > 10000) st.Fail(key, rule);
+      p.sides[s].clear();
+      for (const toml::node& q : *a) p.sides[s].push_back(PlanePoint(q, st, key, rule));
+    }
+    st.RejectUnknown();
+  }
+  const toml::node* samples = t.Get("samples");
+  const toml::array* sa = samples ? samples->as_array() : nullptr;
+  if (!sa || sa->size() != 2) t.Fail("samples", "must be 2 integers [nu, nv], each in [2, 1000000]");
+  std::array<int, 2> n{};
+  for (std::size_t k = 0; k < 2; ++k) {
+    auto i = (*sa)[k].value_exact<int64_t>();
+    if (!i || *i < 2 || *i > 1000000) t.Fail("samples", "must be 2 integers [nu, nv], each in [2, 1000000]");
+    n[k] = static_cast<int>(*i);
+  }
+  p.nu = n[0];
+  p.nv = n[1];
+  if (double(p.nu) * double(p.nv) > kMaxParticles)
+    t.Fail("samples", fmt::format("nu × nv = {} × {} exceeds the limit of {:g} particles", p.nu, p.nv, kMaxParticles));
+  p.origin = t.Vec3("origin", p.origin);
+  if (p.origin.cwiseAbs().maxCoeff() > 1e6) t.Fail("origin", "must have coordinates of magnitude at most 1e6 m");
+  p.x_axis = t.Vec3("x_axis", p.x_axis);
+  p.y_axis = t.Vec3("y_axis", p.y_axis);
+  p.wrap_radius = t.NonNegative("wrap_radius", 0.0);
+  t.RejectUnknown();
+  if (const std::string rule = PatternRule(p); !rule.empty()) t.Fail(rule.substr(0, rule.find(':')), rule.substr(rule.find(':') + 2));
+  return p;
+}
+
+// [[pattern]]: the cloth as patterns, in place of [grid]. The model takes
+// one flat rectangle with straight sides so far: it is [grid]'s sheet.
+void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
+  const toml::node* n = top.Get("pattern");
+  if (!n) return;
+  const toml::array* a = n->as_array();
+  if (!a || a->empty()) top.Fail("pattern", "must be an array of tables ([[pattern]])");
+  if (top.Get("grid")) top.Fail("grid", "give either [grid] or [[pattern]] tables, not both");
+  for (std::size_t k = 0; k < a->size(); ++k) {
+    const toml::table* t = (*a)[k].as_table();
+    if (!t) throw SceneError(fmt::format("{}: pattern[{}]: must be a table", source, k));
+    TableReader r(t, fmt::format("pattern[{}].", k), source);
+    s.patterns.push_back(ParsePattern(r));
+    for (std::size_t q = 0; q < k; ++q)
+      if (s.patterns[q].name == s.patterns[k].name) r.Fail("name", fmt::format("\"{}\" names pattern {} already", s.patterns[k].name, q));
+  }
+  const PatternSpec& p = s.patterns.front();
+  if (s.patterns.size() > 1 || !PatternIsGrid(p, &s.grid.origin, &s.grid.u_axis, &s.grid.v_axis, &s.grid.size))
+    top.Fail("pattern", "the model takes one flat rectangular pattern with straight sides so far "
+                        "(docs/scenes.md, \"[[pattern]]\"); curved, wrapped and sewn patterns are not modelled yet");
+  s.grid.nu = p.nu;
+  s.grid.nv = p.nv;
+  if (s.grid.size[0] / (p.nu - 1) < 1e-6 || s.grid.size[1] / (p.nv - 1) < 1e-6)
+    top.Fail("pattern", "must have spacings of at least 1e-6 m");
+}
+
+// A selection ("edge:u1", or "<pattern>:edge:u1" on patterns) as flat indices.
+std::vector<int> ResolveSelection(const std::string& spec, const Scene& s, const std::string& what) {
+  const auto colon = spec.find(':');
+  const std::string head = spec.substr(0, colon);
+  if (colon != std::string::npos && head != "edge" && head != "corner" && head != "particle") {
+    for (const PatternSpec& p : s.patterns)
+      if (p.name == head) return ResolveFixed(spec.substr(colon + 1), s.grid.nu, s.grid.nv, what);
+    throw SceneError(what + fmt::format("\"{}\" names no pattern of the scene", EscapeControl(head)));
+  }
+  return ResolveFixed(spec, s.grid.nu, s.grid.nv, what);
+}
+
 // [constraints]: fixed particles.
 void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
   TableReader c(top.SubTable("constraints"), top.Child("constraints"), source);
@@ -297,7 +403,7 @@ void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
       auto str = (*a)[k].value_exact<std::string>();
       if (!str) c.Fail("fixed", "must be an array of strings");
       s.fixed_specs.push_back(*str);
-      for (int p : ResolveFixed(*str, s.grid.nu, s.grid.nv, fmt::format("{}: constraints.fixed[{}]: ", source, k)))
+      for (int p : ResolveSelection(*str, s, fmt::format("{}: constraints.fixed[{}]: ", source, k)))
         fixed.insert(p);
     }
     s.fixed.assign(fixed.begin(), fixed.end());
@@ -319,7 +425,7 @@ void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
       motion.particles_spec = m.String("particles", "");
       if (motion.particles_spec.empty()) m.Fail("particles", "must name fixed particles, e.g. \"edge:u1\"");
       std::set<int> ps;
-      for (int p : ResolveFixed(motion.particles_spec, s.grid.nu, s.grid.nv, fmt::format("{}: {}particles: ", source, prefix)))
+      for (int p : ResolveSelection(motion.particles_spec, s, fmt::format("{}: {}particles: ", source, prefix)))
         ps.insert(p);
       for (int p : ps) {
         if (!std::binary_search(s.fixed.begin(), s.fixed.end(), p))
@@ -568,7 +674,8 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   s.h = top.Positive("h", s.h);
   if (s.frame_dt > s.t_end) top.Fail("frame_dt", "must be <= t_end");
 
-  ParseGrid(top, source, s);
+  ParsePatterns(top, source, s);
+  if (s.patterns.empty()) ParseGrid(top, source, s);
   ParseMaterial(top, source, s);
   ParseForces(top, source, s);
   ParseConstraints(top, source, s);
@@ -604,10 +711,15 @@ Scene RefineGrid(const Scene& scene, long n) {
   } catch (const toml::parse_error& e) {
     throw SceneError(fmt::format("{}: TOML syntax error: {}", scene.source, std::string(e.description())));
   }
-  toml::table* grid = root["grid"].as_table();
-  if (!grid) grid = root.insert_or_assign("grid", toml::table{}).first->second.as_table();
-  grid->insert_or_assign("nu", nu);
-  grid->insert_or_assign("nv", nv);
+  if (toml::array* patterns = root["pattern"].as_array(); patterns && !patterns->empty() && (*patterns)[0].as_table()) {
+    // One rectangular pattern (ParsePatterns): its samples are the grid's.
+    (*patterns)[0].as_table()->insert_or_assign("samples", toml::array{nu, nv});
+  } else {
+    toml::table* grid = root["grid"].as_table();
+    if (!grid) grid = root.insert_or_assign("grid", toml::table{}).first->second.as_table();
+    grid->insert_or_assign("nu", nu);
+    grid->insert_or_assign("nv", nv);
+  }
   root.insert_or_assign("name", fmt::format("{}_{}x{}", scene.name, nu, nv));
   std::ostringstream text;
   text << fmt::format("# {} on a {}×{} grid (RefineGrid: bench_integrators --sizes)\n", scene.name, nu, nv) << root

@@ -13,6 +13,7 @@
 
 #include "collision/shapes/escape_control.h"
 #include "model/obstacle.h"
+#include "model/pattern.h"
 #include "model/solver_spec.h"
 #include "model/types.h"
 
@@ -129,7 +130,8 @@ struct Scene {
   double t_end = 1.0;      ///< [s]
   double frame_dt = 0.01;  ///< [s] interval of stored frames
   double h = 0.01;         ///< [s] nominal step
-  GridSpec grid;
+  GridSpec grid;                         ///< the sheet; with `patterns`, the one pattern's grid
+  std::vector<PatternSpec> patterns;     ///< `[[pattern]]`; empty: the cloth is `[grid]`
   MaterialSpec material;
   ForcesSpec forces;
   std::vector<std::string> fixed_specs;  ///< as written in the scene
