@@ -60,7 +60,7 @@ namespace {
 // rotation) for at most kRotationSweeps. Any rotation keeps the bounds
 // valid; the closer to M's, the tighter they are.
 // Two sweeps from the last check's rotation follow a cloth's turn between
-// checks; 8 sweeps from rest spent 6.6 % of the 100 × 100 fold's SBDF(2)
+// checks; 8 sweeps to 10⁻⁹ rad spent 6.6 % of the 100 × 100 fold's SBDF(2)
 // run in this function (`perf`), 2 keep it below the list's other work.
 constexpr int kRotationSweeps = 2;
 // A step below 10⁻⁴ rad moves a particle 8 mm from its centre by 0.8 µm,
