@@ -210,9 +210,8 @@ void ParseGrid(TableReader& top, const std::string& source, Scene& s) {
 }
 
 // [material].
-void ParseMaterial(TableReader& top, const std::string& source, Scene& s) {
-  TableReader m(top.SubTable("material"), top.Child("material"), source);
-  MaterialSpec& mat = s.material;
+// The keys of a material table over `mat`: a key not given keeps its value.
+void ReadMaterial(TableReader& m, MaterialSpec& mat) {
   // Cloth is 0.05–1 kg/m²: the floor keeps masses normal doubles and
   // h²k/(ρl²) finite.
   mat.density = m.Range("density", mat.density, 1e-6, 1e6, " kg/m²");
@@ -228,6 +227,28 @@ void ParseMaterial(TableReader& top, const std::string& source, Scene& s) {
   mat.transverse = m.Number("transverse", mat.transverse);
   mat.mass_lumping = m.Choice("mass_lumping", mat.mass_lumping, {MassLumping::kUniform, MassLumping::kArea});
   m.RejectUnknown();
+}
+
+void ParseMaterial(TableReader& top, const std::string& source, Scene& s) {
+  TableReader m(top.SubTable("material"), top.Child("material"), source);
+  ReadMaterial(m, s.material);
+}
+
+// Each pattern's material: [material] with its [pattern.material] keys
+// over it. The model's one pattern makes its material the cloth's.
+void ParsePatternMaterials(const toml::table& root, const std::string& source, Scene& s) {
+  const toml::array* a = root["pattern"].as_array();
+  if (!a) return;
+  for (std::size_t k = 0; k < s.patterns.size(); ++k) {
+    MaterialSpec mat = s.material;
+    const toml::table* t = (*a)[k].as_table();
+    if (const toml::table* over = t ? (*t)["material"].as_table() : nullptr) {
+      TableReader m(over, fmt::format("pattern[{}].material.", k), source);
+      ReadMaterial(m, mat);
+    }
+    s.pattern_materials.push_back(mat);
+  }
+  if (!s.pattern_materials.empty()) s.material = s.pattern_materials.front();
 }
 
 // [forces].
@@ -349,6 +370,7 @@ PatternSpec ParsePattern(TableReader& t) {
   p.x_axis = t.Vec3("x_axis", p.x_axis);
   p.y_axis = t.Vec3("y_axis", p.y_axis);
   p.wrap_radius = t.NonNegative("wrap_radius", 0.0);
+  t.SubTable("material");  // read over [material] (ParsePatternMaterials)
   t.RejectUnknown();
   if (const std::string rule = PatternRule(p); !rule.empty()) t.Fail(rule.substr(0, rule.find(':')), rule.substr(rule.find(':') + 2));
   return p;
@@ -677,6 +699,7 @@ Scene ParseScene(std::string_view text, const std::string& source) {
   ParsePatterns(top, source, s);
   if (s.patterns.empty()) ParseGrid(top, source, s);
   ParseMaterial(top, source, s);
+  ParsePatternMaterials(root, source, s);
   ParseForces(top, source, s);
   ParseConstraints(top, source, s);
   ParseSolver(top, source, s);

@@ -132,7 +132,9 @@ struct Scene {
   double h = 0.01;         ///< [s] nominal step
   GridSpec grid;                         ///< the sheet; with `patterns`, the one pattern's grid
   std::vector<PatternSpec> patterns;     ///< `[[pattern]]`; empty: the cloth is `[grid]`
-  MaterialSpec material;
+  MaterialSpec material;                 ///< the cloth's; with one pattern, that pattern's
+  /// Per pattern, `[material]` with its `[pattern.material]` keys over it.
+  std::vector<MaterialSpec> pattern_materials;
   ForcesSpec forces;
   std::vector<std::string> fixed_specs;  ///< as written in the scene
   std::vector<int> fixed;                ///< resolved flat particle indices, sorted, unique

@@ -173,6 +173,25 @@ TEST(Pattern, ARectanglePatternIsTheGridsSheet) {
   EXPECT_LT((m.rest_positions().rowwise() - shift.transpose() - a.rest_positions()).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+TEST(Pattern, PatternMaterialOverridesTheScenesKeyByKey) {
+  std::string text = kPatternScene;
+  text.replace(text.find("[material]"), 0, "[pattern.material]\nshear = 25.0\ndensity = 0.2\n");
+  const Scene s = ParseScene(text, "p.toml");
+  ASSERT_EQ(s.pattern_materials.size(), 1u);
+  EXPECT_EQ(s.pattern_materials[0].shear, 25.0);     // the pattern's key
+  EXPECT_EQ(s.pattern_materials[0].density, 0.2);
+  EXPECT_EQ(s.pattern_materials[0].bend[0], 1e-3);   // [material]'s
+  EXPECT_EQ(s.material.shear, 25.0);                 // the one pattern's material is the cloth's
+  std::string bad = kPatternScene;
+  bad.replace(bad.find("[material]"), 0, "[pattern.material]\nshaer = 25.0\n");
+  try {
+    ParseScene(bad, "p.toml");
+    ADD_FAILURE() << "accepted";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), "p.toml: pattern[0].material.shaer: unknown key");
+  }
+}
+
 TEST(Pattern, SceneRefusesBadPatternsNamingThem) {
   const auto refusal = [](std::string text) {
     try {
