@@ -4,9 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include <Eigen/Geometry>
-#include <stdexcept>
 
 namespace clothbench {
 
@@ -226,16 +226,17 @@ bool SelfContactList::Cover(const MatrixN3& x0, const MatrixN3& x1, double reach
   if (!(reach > 0.0)) throw std::invalid_argument("SelfContactList::Cover: the reach must be > 0");
   if (built_ && Holds(x0, x1, reach)) return false;
   x_built_ = x0;
-  Build(x0, x0, reach);
+  Build(x0, nullptr, reach);
   if (Holds(x0, x1, reach)) return true;
   // A path too fast for the skin: the pairs that come within D along it
   // too, so that this path is covered; the next path is checked again.
-  Build(x0, x1, reach);
-  Holds(x0, x1, reach);  // δ at both ends, for LowerBound
+  Build(x0, &x1, reach);
+  delta0_.setZero();  // δ at both ends, for LowerBound (x_b = x0)
+  delta1_ = x1 - x0;
   return true;
 }
 
-void SelfContactList::Build(const MatrixN3& x0, const MatrixN3& x1, double reach) {
+void SelfContactList::Build(const MatrixN3& x0, const MatrixN3* path_end, double reach) {
   built_ = true;
   built_d_ = reach + 2.0 * skin_;
   ++builds_;
@@ -244,8 +245,8 @@ void SelfContactList::Build(const MatrixN3& x0, const MatrixN3& x1, double reach
   // coordinate), and the detector's triangle-pair pruning keeps every pair
   // of triangles that can come within margin + slack = D.
   const double d = built_d_;
-  const bool swept = &x1 != &x0;
-  detector_.Candidates(x0, x1, 0.5 * d, &candidates_, 0.5 * d);
+  const bool swept = path_end != nullptr;
+  detector_.Candidates(x0, swept ? *path_end : x0, 0.5 * d, &candidates_, 0.5 * d);
   const auto n = static_cast<long>(candidates_.size());
   candidate_distance_.resize(candidates_.size());
   // A pair whose elements' boxes are farther than D apart at x0 (a

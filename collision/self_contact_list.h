@@ -83,10 +83,10 @@ class SelfContactList {
   long builds() const { return builds_; }
 
  private:
-  // Lists every pair within D at x0 (x1 the same object as x0) or, with a
-  // path, every pair that can come within D along x0 → x1 (N×3 [m]),
-  // each with a lower bound of its distance at x0.
-  void Build(const MatrixN3& x0, const MatrixN3& x1, double reach);
+  // Lists every pair within D at x0 or, with a path's end (N×3 [m]), every
+  // pair that can come within D along x0 → *path_end, each with a lower
+  // bound of its distance at x0.
+  void Build(const MatrixN3& x0, const MatrixN3* path_end, double reach);
   // The tree over the clusters at x_b (boxes, children) into nodes_;
   // returns the subtree's node, its children stored before it.
   int BuildTree(int first, int last);

@@ -15,9 +15,6 @@ namespace {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 
-// The corners each side runs between (pattern.h).
-constexpr std::array<std::array<int, 2>, 4> kSideCorners = {{{0, 1}, {1, 2}, {3, 2}, {0, 3}}};
-
 double Size(const PatternSpec& p) {
   double size = 0.0;
   for (const Vector2& a : p.corners)
@@ -49,7 +46,7 @@ std::string PatternRule(const PatternSpec& p) {
   const double tolerance = 1e-9 * Size(p);
   for (std::size_t s = 0; s < 4; ++s) {
     const auto& side = p.sides[s];
-    const auto [a, b] = kSideCorners[s];
+    const auto [a, b] = PatternSpec::kSideCorners[s];
     if (side.size() < 2 || (side.front() - p.corners[a]).norm() > tolerance || (side.back() - p.corners[b]).norm() > tolerance)
       return fmt::format("sides.{}: must start at corner {} and end at corner {}", PatternSpec::kSideNames[s],
                          PatternSpec::kCornerNames[a], PatternSpec::kCornerNames[b]);

@@ -25,6 +25,8 @@ struct PatternSpec {
   enum Side { kV0 = 0, kU1 = 1, kV1 = 2, kU0 = 3 };
   static constexpr std::array<const char*, 4> kSideNames = {"v0", "u1", "v1", "u0"};
   static constexpr std::array<const char*, 4> kCornerNames = {"u0v0", "u1v0", "u1v1", "u0v1"};
+  /// Per side, the corners it runs from and to (indices into `corners`).
+  static constexpr std::array<std::array<int, 2>, 4> kSideCorners = {{{0, 1}, {1, 2}, {3, 2}, {0, 3}}};
 
   std::string name;
   /// The corners u0v0, u1v0, u1v1, u0v1 in the pattern's plane [m],

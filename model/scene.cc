@@ -2,9 +2,8 @@
 // SceneError whose message is one line: "<source>: <key>: <rule>".
 #include "model/scene.h"
 
-#include <cctype>
-
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -335,8 +334,8 @@ PatternSpec ParsePattern(TableReader& t) {
   const char* corner_rule = "must be 4 points [x, y] [m]: u0v0, u1v0, u1v1, u0v1";
   if (!ca || ca->size() != 4) t.Fail("corners", corner_rule);
   for (std::size_t k = 0; k < 4; ++k) p.corners[k] = PlanePoint((*ca)[k], t, "corners", corner_rule);
-  static constexpr std::array<std::array<int, 2>, 4> kEnds = {{{0, 1}, {1, 2}, {3, 2}, {0, 3}}};
-  for (std::size_t s = 0; s < 4; ++s) p.sides[s] = {p.corners[kEnds[s][0]], p.corners[kEnds[s][1]]};
+  const auto& ends = PatternSpec::kSideCorners;
+  for (std::size_t s = 0; s < 4; ++s) p.sides[s] = {p.corners[ends[s][0]], p.corners[ends[s][1]]};
   if (const toml::table* sides = t.SubTable("sides")) {
     TableReader st(sides, t.Child("sides"), t.source());
     for (std::size_t s = 0; s < 4; ++s) {
@@ -345,7 +344,7 @@ PatternSpec ParsePattern(TableReader& t) {
       if (!n) continue;
       const toml::array* a = n->as_array();
       const std::string rule = fmt::format("must be a polyline of 2 … 10000 points [x, y] [m] from corner {} to corner {}",
-                                           PatternSpec::kCornerNames[kEnds[s][0]], PatternSpec::kCornerNames[kEnds[s][1]]);
+                                           PatternSpec::kCornerNames[ends[s][0]], PatternSpec::kCornerNames[ends[s][1]]);
       if (!a || a->size() < 2 || a->size() > 10000) st.Fail(key, rule);
       p.sides[s].clear();
       for (const toml::node& q : *a) p.sides[s].push_back(PlanePoint(q, st, key, rule));
@@ -398,6 +397,8 @@ void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
                         "(docs/scenes.md, \"[[pattern]]\"); curved, wrapped and sewn patterns are not modelled yet");
   s.grid.nu = p.nu;
   s.grid.nv = p.nv;
+  if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6)
+    top.Fail("pattern", "must place corner u0v0 at coordinates of magnitude at most 1e6 m, as [grid]'s origin");
   if (s.grid.size[0] / (p.nu - 1) < 1e-6 || s.grid.size[1] / (p.nv - 1) < 1e-6)
     top.Fail("pattern", "must have spacings of at least 1e-6 m");
 }
@@ -717,7 +718,7 @@ Scene RefineGrid(const Scene& scene, long n) {
     throw SceneError(fmt::format("{}: a refined grid must have 4 … {:g} particles (asked for {})", scene.source,
                                  kMaxParticles, n));
   for (const std::string& f : scene.fixed_specs)
-    if (f.rfind("particle:", 0) == 0)
+    if (f.rfind("particle:", 0) == 0 || f.find(":particle:") != std::string::npos)
       throw SceneError(fmt::format("{}: constraints.fixed: \"{}\" names a particle by index, which does not follow "
                                    "a refinement of the grid (use edge:… or corner:…)",
                                    scene.source, EscapeControl(f)));

@@ -59,6 +59,10 @@ TEST(Pattern, CoonsSamplingKeepsCurvedSidesAtEqualArcLength) {
   const Eigen::MatrixX2d x = SamplePattern(p);
   // The first row is the hem itself (Coons interpolates its sides), at
   // equal arc lengths: its pieces are equal chords of the polyline.
+  // The polyline's 16 pieces of 0.049 rad leave its points within
+  // R (1 − cos 0.025) = 4·10⁻⁴ m of the arc (2e-3 below); a chord over
+  // two pieces differs from one within a piece by O(θ²/24) = 10⁻⁴ of
+  // its length (1e-3 below).
   double chord = (x.row(1) - x.row(0)).norm();
   for (int i = 0; i < 9; ++i) {
     const Vector2 q = x.row(i).transpose();
@@ -66,7 +70,7 @@ TEST(Pattern, CoonsSamplingKeepsCurvedSidesAtEqualArcLength) {
     if (i > 0) EXPECT_NEAR((x.row(i) - x.row(i - 1)).norm(), chord, 1e-3 * chord) << i;
   }
   // The sides u0, u1 and v1 stay straight, the middle row lies between.
-  EXPECT_LT((x.row(9 * 4 + 4).transpose() - Vector2(0.5, 1.0)).norm(), 1e-15);
+  EXPECT_LT((x.row(9 * 4 + 4).transpose() - Vector2(0.5, 1.0)).norm(), 1e-15);  // round-off of 8 terms of size 1
   EXPECT_LT(x(9 * 2 + 4, 1), 0.5);
   EXPECT_GT(x(9 * 2 + 4, 1), 0.5 - sag);
 }
@@ -86,13 +90,13 @@ TEST(Pattern, WrapKeepsArcLengthOnTheCylinder) {
   for (int i = 0; i < 21; ++i) {
     Vector3 r = x.row(i).transpose() - axis_point;
     r -= r.dot(p.y_axis) * p.y_axis;
-    EXPECT_NEAR(r.norm(), 0.2, 1e-12) << i;  // on the cylinder
+    EXPECT_NEAR(r.norm(), 0.2, 1e-12) << i;  // on the cylinder, to round-off of sin, cos at 1 m
     if (i > 0) {
       const double chord = (x.row(i) - x.row(i - 1)).norm();
       arc += 2.0 * 0.2 * std::asin(0.5 * chord / 0.2);
     }
   }
-  EXPECT_NEAR(arc, 0.6, 1e-12);  // the row's length in the plane
+  EXPECT_NEAR(arc, 0.6, 1e-12);  // the row's length in the plane, to the round-off of 20 asin
   EXPECT_GT(x(0, 1), p.origin.y());  // wrapped away from the front (−y)
 }
 
@@ -170,6 +174,7 @@ TEST(Pattern, ARectanglePatternIsTheGridsSheet) {
   const ParticleSystem m(moved);
   EXPECT_GT((m.rest_positions() - a.rest_positions()).cwiseAbs().maxCoeff(), 0.1);  // placed elsewhere
   const Vector3 shift = m.rest_positions().row(0) - a.rest_positions().row(0);
+  // Round-off of the turned corners (17 digits) and axes, at 1 m: 1e-12.
   EXPECT_LT((m.rest_positions().rowwise() - shift.transpose() - a.rest_positions()).cwiseAbs().maxCoeff(), 1e-12);
 }
 
@@ -224,6 +229,10 @@ TEST(Pattern, SceneRefusesBadPatternsNamingThem) {
   std::string prefix = kPatternScene;
   prefix.replace(prefix.find("panel:edge"), 5, "back");
   EXPECT_EQ(refusal(prefix), "p.toml: constraints.fixed[0]: \"back\" names no pattern of the scene");
+  // A particle named by index does not follow a refinement, with a prefix too.
+  std::string indexed = kPatternScene;
+  indexed.replace(indexed.find("panel:edge:v0"), 13, "panel:particle:1,0");
+  EXPECT_THROW(RefineGrid(ParseScene(indexed, "p.toml"), 100), SceneError);
   // Curved, wrapped or several patterns: not modelled yet, and said so.
   std::string curved = kPatternScene;
   curved.replace(curved.find("samples"), 0, "sides.v0 = [[0.0, 0.0], [0.3, -0.05], [0.6, 0.0]]\n");

@@ -313,6 +313,7 @@ TEST_F(SelfContactHairpin, ListKeptOverStepsFollowsARigidTurnAndCoversAStepFaste
     const auto it = std::find(pairs.begin(), pairs.end(), pair);
     ASSERT_TRUE(it != pairs.end()) << "pair kind " << pair.kind;
     const std::size_t i = static_cast<std::size_t>(it - pairs.begin());
+    // The bound holds at both ends (round-off of the distances aside).
     EXPECT_LE(list.LowerBound(i), std::min(Closest(pair, a).distance, Closest(pair, b).distance) + 1e-12);
   }
   EXPECT_GT(within, 100);  // the legs pass through each other's reach
