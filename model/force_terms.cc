@@ -8,6 +8,7 @@
 
 #include "model/block_scatter.h"
 
+#include <algorithm>
 #include <array>
 #include <type_traits>
 #include <utility>
@@ -57,11 +58,27 @@ constexpr int Slot(int di, int dj) {
   return -1;
 }
 
-// Read-only view of a gathered patch.
+// The three-point second difference of values at rest distances hp (ahead)
+// and hm (behind) from the middle (docs/model.md §2.7): exact for
+// quadratics, the uniform (plus − 2 mid + minus)/h² when hp = hm = h.
+template <class T>
+T SecondDifference(const T& plus, const T& mid, const T& minus, double hp, double hm) {
+  return (2.0 / (hp + hm)) * ((plus - mid) / hp - (mid - minus) / hm);
+}
+
+// Read-only view of a gathered patch. `rest`, on a curvilinear pattern, holds
+// the slots' rest positions in the pattern's plane, from which the second
+// differences take their spacings; null on a uniform grid.
 template <class S, int K>
 struct Patch {
   const std::array<V3<S>, K>& x;
   std::uint32_t valid;
+  const std::array<Eigen::Vector2d, K>* rest = nullptr;
+  // The rest distance from patch node (di, dj) to node (ei, ej); l on a uniform grid.
+  double Spacing(int di, int dj, int ei, int ej, double l) const {
+    if (!rest) return l;
+    return ((*rest)[static_cast<std::size_t>(Slot(ei, ej))] - (*rest)[static_cast<std::size_t>(Slot(di, dj))]).norm();
+  }
   bool Has(int di, int dj) const {
     const int k = Slot(di, dj);
     return k >= 0 && k < K && ((valid >> k) & 1u);
@@ -76,10 +93,16 @@ struct Patch {
   // normal to a border).
   V3<S> Lu(int di, int dj, double lu) const {
     if (!Has(di - 1, dj) || !Has(di + 1, dj) || !Has(di, dj)) return V3<S>::Zero();
+    if (rest)
+      return SecondDifference<V3<S>>(At(di + 1, dj), At(di, dj), At(di - 1, dj), Spacing(di, dj, di + 1, dj, lu),
+                                     Spacing(di, dj, di - 1, dj, lu));
     return (At(di + 1, dj) - 2.0 * At(di, dj) + At(di - 1, dj)) / (lu * lu);
   }
   V3<S> Lv(int di, int dj, double lv) const {
     if (!Has(di, dj - 1) || !Has(di, dj + 1) || !Has(di, dj)) return V3<S>::Zero();
+    if (rest)
+      return SecondDifference<V3<S>>(At(di, dj + 1), At(di, dj), At(di, dj - 1), Spacing(di, dj, di, dj + 1, lv),
+                                     Spacing(di, dj, di, dj - 1, lv));
     return (At(di, dj + 1) - 2.0 * At(di, dj) + At(di, dj - 1)) / (lv * lv);
   }
   // Unit vertex normal at the centre: mean of the unit normals of the
@@ -244,7 +267,12 @@ class StencilTerm final : public ForceTerm {
     double weight = 0.0;
   };
 
-  StencilTerm(std::string name, Kernel kernel, std::vector<Centre> centres, int num_particles)
+  /// @param planes on a curvilinear pattern, each centre's slots' rest
+  /// positions in the pattern's plane [m] (GridPlanes); empty on a uniform
+  /// grid. A linear kernel then has one weight set per centre, a kernel
+  /// with rest data (Kernel::RestOf) its data per centre.
+  StencilTerm(std::string name, Kernel kernel, std::vector<Centre> centres, int num_particles,
+              const std::vector<std::array<Eigen::Vector2d, K>>& planes = {})
       : name_(std::move(name)), kernel_(std::move(kernel)), centres_(std::move(centres)) {
     if constexpr (std::is_same_v<Kernel, ShearKernel>) {
       // Outputs 1–4 only (the centre's output 0 is always zero), their
@@ -259,9 +287,22 @@ class StencilTerm final : public ForceTerm {
       gather_ = GatherLists(num_particles, centres_.size(), Kernel::kOutputs,
                             [this](std::size_t c, int k) { return centres_[c].nodes[static_cast<std::size_t>(k)]; });
     }
+    if constexpr (kHasRest) {
+      rest_.reserve(planes.size());
+      for (std::size_t c = 0; c < planes.size(); ++c) rest_.push_back(Kernel::RestOf(centres_[c].valid, planes[c]));
+    }
     if constexpr (Kernel::kLinear) {
-      // One weight set per validity mask (a grid has a few dozen).
       weight_set_.resize(centres_.size());
+      if (!planes.empty()) {  // a curvilinear pattern: one weight set per centre
+        curvilinear_ = true;
+        weights_.reserve(centres_.size());
+        for (std::size_t c = 0; c < centres_.size(); ++c) {
+          weights_.push_back(kernel_.Weights(centres_[c].valid, &planes[c]));
+          weight_set_[c] = static_cast<int>(c);
+        }
+        return;
+      }
+      // One weight set per validity mask (a grid has a few dozen).
       std::vector<std::uint32_t> masks;
       for (std::size_t c = 0; c < centres_.size(); ++c) {
         const std::uint32_t m = centres_[c].valid;
@@ -340,7 +381,7 @@ class StencilTerm final : public ForceTerm {
           else vs[k].setZero();
         }
         Vector3 fu, fv;
-        kernel_.template Pair<double>(ce.valid, xs, vs, &fu, &fv);
+        kernel_.template Pair<double>(ce.valid, RestOf(static_cast<std::size_t>(c)), xs, vs, &fu, &fv);
         Eigen::Map<Vector3>(pairs + 6 * c) = fu;
         Eigen::Map<Vector3>(pairs + 6 * c + 3) = fv;
       }
@@ -469,11 +510,11 @@ class StencilTerm final : public ForceTerm {
           nodes |= static_cast<std::uint32_t>(centre.nodes[k] == p) << k;
         }
         if constexpr (Kernel::kLinear)
-          ProjectedParticle<K>(Kernel::kProjectionSign, kernel_.lu * kernel_.lv,
+          ProjectedParticle<K>(Kernel::kProjectionSign, centre.weight,
                                weights_[static_cast<std::size_t>(weight_set_[static_cast<std::size_t>(c)])],
                                Patch<double, K>{xs, centre.valid}, vs, kernel_.damping != 0.0, nodes, f, dfdx, dfdv);
         else
-          kernel_.ParticleTerms(centre.valid, xs, vs, outputs, nodes, f, dfdx, dfdv);
+          kernel_.ParticleTerms(centre.valid, RestOf(static_cast<std::size_t>(c)), xs, vs, outputs, nodes, f, dfdx, dfdv);
         continue;
       }
       std::array<Vector3, Kernel::kOutputs> fs;
@@ -492,6 +533,22 @@ class StencilTerm final : public ForceTerm {
 
  private:
   static constexpr int kFirstOutput = std::is_same_v<Kernel, ShearKernel> ? 1 : 0;
+  static constexpr bool kHasRest = requires { Kernel::kRest; };
+  // The centre's rest data (Kernel::RestOf) on a curvilinear pattern; null on a uniform grid.
+  const double* RestOf(std::size_t c) const { return rest_.empty() ? nullptr : rest_[c].data(); }
+  // f_0 += ±A (s·n̂) n̂ of a linear kernel from centre ci's weights (the
+  // force the AutoDiff pass differentiates on a curvilinear pattern).
+  template <class S>
+  void LinearForce(std::size_t ci, const std::array<V3<S>, K>& xs, const std::array<V3<S>, K>& vs, V3<S>* f0) const {
+    const LinearWeights<K>& w = weights_[static_cast<std::size_t>(weight_set_[ci])];
+    V3<S> s = V3<S>::Zero();
+    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+      s += w.x[k] * xs[k];
+      if (kernel_.damping != 0.0) s += w.v[k] * vs[k];
+    }
+    const V3<S> n = Patch<S, K>{xs, centres_[ci].valid}.Normal();
+    *f0 += (Kernel::kProjectionSign * s.dot(n) * centres_[ci].weight) * n;
+  }
   static constexpr int kParticleOutputs = Kernel::kOutputs - kFirstOutput;
   void Blocks(double t, const MatrixN3& x, const MatrixN3& v, std::size_t ci, std::array<Matrix3, kBlocks>* jx,
               std::array<Matrix3, kBlocks>* jv) const {
@@ -506,7 +563,7 @@ class StencilTerm final : public ForceTerm {
     }
     const LinearWeights<K>* w = nullptr;
     if constexpr (Kernel::kLinear) w = &weights_[static_cast<std::size_t>(weight_set_[ci])];
-    kernel_.Blocks(t, c.valid, c.weight, w, xs, vs, *jx, *jv);
+    kernel_.Blocks(t, c.valid, c.weight, RestOf(ci), w, xs, vs, *jx, *jv);
   }
 
   template <bool kVelocity>
@@ -535,7 +592,15 @@ class StencilTerm final : public ForceTerm {
             vs[k](r) = AD(v(c.nodes[k], r));  // a constant: zero derivatives
           fs[k](r) = AD(0.0);
         }
-      kernel_.template Evaluate<AD>(t, c.valid, c.weight, xs, vs, fs);
+      if constexpr (Kernel::kLinear) {
+        if (curvilinear_) {  // the per-centre weights: the slots' rest positions are not kept
+          LinearForce<AD>(static_cast<std::size_t>(ci), xs, vs, &fs[0]);
+        } else {
+          kernel_.template Evaluate<AD>(t, c.valid, c.weight, nullptr, xs, vs, fs);
+        }
+      } else {
+        kernel_.template Evaluate<AD>(t, c.valid, c.weight, RestOf(static_cast<std::size_t>(ci)), xs, vs, fs);
+      }
       std::size_t pos = static_cast<std::size_t>(ci) * kPer;
       for (int a = 0; a < Kernel::kOutputs; ++a)
         for (int r = 0; r < 3; ++r) {
@@ -571,7 +636,7 @@ class StencilTerm final : public ForceTerm {
       if (kernel_.damping != 0.0)
         for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) s += w.v[k] * v.row(c.nodes[k]).transpose();
       const Vector3 n = Patch<double, K>{xs, c.valid}.Normal();
-      (*out)[0] = (Kernel::kProjectionSign * s.dot(n) * (kernel_.lu * kernel_.lv)) * n;
+      (*out)[0] = (Kernel::kProjectionSign * s.dot(n) * c.weight) * n;
       return;
     }
     std::array<Vector3, K> xs, vs, fs;
@@ -582,7 +647,7 @@ class StencilTerm final : public ForceTerm {
       else vs[k].setZero();
       fs[k].setZero();
     }
-    kernel_.template Evaluate<double>(t, c.valid, c.weight, xs, vs, fs);
+    kernel_.template Evaluate<double>(t, c.valid, c.weight, RestOf(ci), xs, vs, fs);
     for (int k = 0; k < Kernel::kOutputs; ++k) (*out)[static_cast<std::size_t>(k)] = fs[static_cast<std::size_t>(k)];
   }
 
@@ -664,6 +729,8 @@ class StencilTerm final : public ForceTerm {
   mutable std::vector<double> pairs_;  // ShearKernel with many centres: (fu, fv) per centre
   std::vector<LinearWeights<K>> weights_;  // Kernel::kLinear only: one set per validity mask
   std::vector<int> weight_set_;            // of each centre
+  bool curvilinear_ = false;               // Kernel::kLinear: weights per centre (a curvilinear pattern)
+  std::vector<std::array<double, 4>> rest_;  // Kernel::RestOf per centre on a curvilinear pattern
   mutable std::once_flag particle_once_;   // PrepareParticleForces
   mutable GatherLists particle_items_;     // entries c·kParticleOutputs + (output − kFirstOutput)
 };
@@ -687,10 +754,36 @@ std::vector<typename StencilTerm<Kernel>::Centre> GridCentres(const GridGeometry
           c.nodes[k] = p;
         }
       }
-      c.weight = geo.area(p);
+      // The bending terms' A (docs/model.md §2.3, §2.7); the others' node area.
+      if constexpr (Kernel::kLinear) c.weight = geo.curvilinear() ? CentreRestAt(geo, i, j).area : geo.lu * geo.lv;
+      else c.weight = geo.area(p);
       out.push_back(c);
     }
   return out;
+}
+
+// On a curvilinear pattern, the rest positions X_k in the pattern's plane of
+// every centre's slots (a missing slot holds the centre's); empty on a
+// uniform grid.
+template <int K, class Centre>
+std::vector<std::array<Eigen::Vector2d, K>> GridPlanes(const GridGeometry& geo, const std::vector<Centre>& centres) {
+  std::vector<std::array<Eigen::Vector2d, K>> out;
+  if (!geo.curvilinear()) return out;
+  out.resize(centres.size());
+  for (std::size_t c = 0; c < centres.size(); ++c)
+    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) out[c][k] = geo.plane.row(centres[c].nodes[k]).transpose();
+  return out;
+}
+
+// A stencil term on the centres of `geo`, with their rest geometry on a
+// curvilinear pattern.
+template <class Kernel>
+std::unique_ptr<StencilTerm<Kernel>> MakeGridTerm(std::string name, Kernel kernel, const GridGeometry& geo,
+                                                  std::vector<typename StencilTerm<Kernel>::Centre> centres) {
+  std::vector<std::array<Eigen::Vector2d, Kernel::kNodes>> planes;
+  if constexpr (Kernel::kLinear || requires { Kernel::kRest; }) planes = GridPlanes<Kernel::kNodes>(geo, centres);
+  return std::make_unique<StencilTerm<Kernel>>(std::move(name), std::move(kernel), std::move(centres), geo.nu * geo.nv,
+                                               planes);
 }
 
 // Slot pairs (output, node) of a kernel whose single output is the centre.
@@ -721,26 +814,35 @@ struct ShearKernel {
        {3, 1}, {3, 2}, {3, 3}, {3, 4}, {4, 1}, {4, 2}, {4, 3}, {4, 4}}};
   bool uses_velocity() const { return damping != 0.0; }  ///< whether f depends on v
   double mu, damping, lu, lv;
+  // On a curvilinear pattern, per centre: du, dv, A and γ₀ (CentreRest),
+  // from the rest positions of its slots (missing slots hold the centre's).
+  static constexpr bool kRest = true;
+  static std::array<double, 4> RestOf(std::uint32_t valid, const std::array<Eigen::Vector2d, 5>& X) {
+    const Eigen::Vector2d eu = X[1] - X[2], ev = X[3] - X[4];
+    const double cu = ((valid >> 1) & 1u) + ((valid >> 2) & 1u), cv = ((valid >> 3) & 1u) + ((valid >> 4) & 1u);
+    const double du = eu.norm(), dv = ev.norm();
+    return {du, dv, std::abs(eu.x() * ev.y() - eu.y() * ev.x()) / (cu * cv), eu.dot(ev) / (du * dv)};
+  }
   // The pair fu = s b/Δu, fv = s a/Δv (s = σ lu lv) of the centre's
   // outputs: f_r = −fu, f_l = +fu, f_u = −fv, f_d = +fv. Two divisions per
   // centre: the spacings' reciprocals.
   template <class S>
-  void Pair(std::uint32_t valid, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v, V3<S>* fu,
-            V3<S>* fv) const {
-    const double iu = 1.0 / (lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u)));
-    const double iv = 1.0 / (lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u)));
+  void Pair(std::uint32_t valid, const double* rest, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v,
+            V3<S>* fu, V3<S>* fv) const {
+    const double iu = 1.0 / (rest ? rest[0] : lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u)));
+    const double iv = 1.0 / (rest ? rest[1] : lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u)));
     const V3<S> a = (x[1] - x[2]) * iu, b = (x[3] - x[4]) * iv;
-    S sigma = mu * a.dot(b);
+    S sigma = mu * (a.dot(b) - (rest ? rest[3] : 0.0));
     if (damping != 0.0) sigma += damping * (((v[1] - v[2]) * iu).dot(b) + a.dot((v[3] - v[4]) * iv));
-    const S s = sigma * (lu * lv);
+    const S s = sigma * (rest ? rest[2] : lu * lv);
     *fu = (s * iu) * b;
     *fv = (s * iv) * a;
   }
   template <class S>
-  void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v,
+  void Evaluate(double, std::uint32_t valid, double, const double* rest, const std::array<V3<S>, 5>& x, const std::array<V3<S>, 5>& v,
                 std::array<V3<S>, 5>& f) const {
     V3<S> fu, fv;
-    Pair<S>(valid, x, v, &fu, &fv);
+    Pair<S>(valid, rest, x, v, &fu, &fv);
     f[1] -= fu;
     f[2] += fu;
     f[3] -= fv;
@@ -754,16 +856,17 @@ struct ShearKernel {
     Vector3 a, b, ga, gb;
     std::array<double, 5> ea, eb, c;
   };
-  Strain StrainAt(std::uint32_t valid, const std::array<Vector3, 5>& x, const std::array<Vector3, 5>& v) const {
+  Strain StrainAt(std::uint32_t valid, const double* rest, const std::array<Vector3, 5>& x,
+                  const std::array<Vector3, 5>& v) const {
     Strain st;
-    st.du = lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
-    st.dv = lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
+    st.du = rest ? rest[0] : lu * (((valid >> 1) & 1u) + ((valid >> 2) & 1u));
+    st.dv = rest ? rest[1] : lv * (((valid >> 3) & 1u) + ((valid >> 4) & 1u));
     st.a = (x[1] - x[2]) / st.du;
     st.b = (x[3] - x[4]) / st.dv;
     const Vector3 ad = (v[1] - v[2]) / st.du, bd = (v[3] - v[4]) / st.dv;
-    double sigma = mu * st.a.dot(st.b);
+    double sigma = mu * (st.a.dot(st.b) - (rest ? rest[3] : 0.0));
     if (damping != 0.0) sigma += damping * (ad.dot(st.b) + st.a.dot(bd));
-    st.area = lu * lv;
+    st.area = rest ? rest[2] : lu * lv;
     st.s = sigma * st.area;
     const double iu = 1.0 / st.du, iv = 1.0 / st.dv;
     st.ea = {0.0, iu, -iu, 0.0, 0.0};
@@ -777,9 +880,9 @@ struct ShearKernel {
   // in `outputs`, and the blocks (o, k) of Blocks for o in `outputs` and k
   // in `nodes` (the slots that hold the particle), without the others.
   static constexpr bool kParticleTerms = true;
-  void ParticleTerms(std::uint32_t valid, const std::array<Vector3, 5>& x, const std::array<Vector3, 5>& v,
+  void ParticleTerms(std::uint32_t valid, const double* rest, const std::array<Vector3, 5>& x, const std::array<Vector3, 5>& v,
                      std::uint32_t outputs, std::uint32_t nodes, Vector3* f, Matrix3* jx, Matrix3* jv) const {
-    const Strain st = StrainAt(valid, x, v);
+    const Strain st = StrainAt(valid, rest, x, v);
     // Σ over k in nodes of ∂σ/∂x_k (and of the slot weights), the same for every output.
     double sa = 0.0, sb = 0.0;
     for (int k = 1; k <= 4; ++k)
@@ -797,9 +900,9 @@ struct ShearKernel {
       if (damping != 0.0) jv->noalias() += (st.c[o] * st.area * damping) * u * pv.transpose();
     }
   }
-  void Blocks(double, std::uint32_t valid, double, const LinearWeights<5>*, const std::array<Vector3, 5>& x,
+  void Blocks(double, std::uint32_t valid, double, const double* rest, const LinearWeights<5>*, const std::array<Vector3, 5>& x,
               const std::array<Vector3, 5>& v, std::array<Matrix3, 16>& jx, std::array<Matrix3, 16>& jv) const {
-    const Strain st = StrainAt(valid, x, v);
+    const Strain st = StrainAt(valid, rest, x, v);
     for (int o = 1; o <= 4; ++o) {
       const Vector3& u = o <= 2 ? st.b : st.a;
       const std::array<double, 5>& eu = o <= 2 ? st.eb : st.ea;
@@ -885,13 +988,13 @@ void ProjectedParticle(double sign, double area, const LinearWeights<K>& w, cons
 // Weights of a kernel's linear part: its Stiff/Damp operator on unit
 // vectors in slot k.
 template <int K, class Kernel>
-LinearWeights<K> WeightsOf(const Kernel& kernel, std::uint32_t valid) {
+LinearWeights<K> WeightsOf(const Kernel& kernel, std::uint32_t valid, const std::array<Eigen::Vector2d, K>* rest) {
   LinearWeights<K> w;
   for (int k = 0; k < K; ++k) {
     std::array<Vector3, K> e;
     for (Vector3& ek : e) ek.setZero();
     e[static_cast<std::size_t>(k)] = Vector3::UnitX();
-    const Patch<double, K> p{e, valid};
+    const Patch<double, K> p{e, valid, rest};
     w.x[static_cast<std::size_t>(k)] = kernel.template Stiff<double>(p).x();
     w.v[static_cast<std::size_t>(k)] = kernel.template Damp<double>(p).x();
   }
@@ -916,19 +1019,22 @@ struct MembraneKernel {
   V3<S> Damp(const Patch<S, 9>& pv) const {
     return damping * (pv.Lu(0, 0, lu) + pv.Lv(0, 0, lv));
   }
-  LinearWeights<9> Weights(std::uint32_t valid) const { return WeightsOf<9>(*this, valid); }
+  LinearWeights<9> Weights(std::uint32_t valid, const std::array<Eigen::Vector2d, 9>* rest = nullptr) const {
+    return WeightsOf<9>(*this, valid, rest);
+  }
   template <class S>
-  void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>& v,
-                std::array<V3<S>, 9>& f) const {
+  void Evaluate(double, std::uint32_t valid, double area, const double*, const std::array<V3<S>, 9>& x,
+                const std::array<V3<S>, 9>& v, std::array<V3<S>, 9>& f) const {
     const Patch<S, 9> px{x, valid}, pv{v, valid};
     V3<S> s = Stiff(px);
     if (damping != 0.0) s += Damp(pv);
     const V3<S> n = px.Normal();
-    f[0] += (s.dot(n) * (lu * lv)) * n;
+    f[0] += (s.dot(n) * area) * n;
   }
-  void Blocks(double, std::uint32_t valid, double, const LinearWeights<9>* w, const std::array<Vector3, 9>& x,
-              const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>& jv) const {
-    ProjectedBlocks<9>(kProjectionSign, lu * lv, *w, Patch<double, 9>{x, valid}, v, damping != 0.0, jx, jv);
+  void Blocks(double, std::uint32_t valid, double area, const double*, const LinearWeights<9>* w,
+              const std::array<Vector3, 9>& x, const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx,
+              std::array<Matrix3, 9>& jv) const {
+    ProjectedBlocks<9>(kProjectionSign, area, *w, Patch<double, 9>{x, valid}, v, damping != 0.0, jx, jv);
   }
 };
 
@@ -950,6 +1056,13 @@ struct ThinPlateKernel {
     // Second differences of R = Lu + Lv at the centre, zero normal to a border.
     auto R = [&](int di, int dj) { return V3<S>(p.Lu(di, dj, lu) + p.Lv(di, dj, lv)); };
     V3<S> out = V3<S>::Zero();
+    if (p.rest) {  // a curvilinear pattern: the outer differences with the centre's own spacings
+      if (wu != 0.0 && p.Has(1, 0) && p.Has(-1, 0))
+        out += wu * SecondDifference<V3<S>>(R(1, 0), R(0, 0), R(-1, 0), p.Spacing(0, 0, 1, 0, lu), p.Spacing(0, 0, -1, 0, lu));
+      if (wv != 0.0 && p.Has(0, 1) && p.Has(0, -1))
+        out += wv * SecondDifference<V3<S>>(R(0, 1), R(0, 0), R(0, -1), p.Spacing(0, 0, 0, 1, lv), p.Spacing(0, 0, 0, -1, lv));
+      return out;
+    }
     if (wu != 0.0 && p.Has(1, 0) && p.Has(-1, 0)) out += wu * (R(1, 0) - 2.0 * R(0, 0) + R(-1, 0)) / (lu * lu);
     if (wv != 0.0 && p.Has(0, 1) && p.Has(0, -1)) out += wv * (R(0, 1) - 2.0 * R(0, 0) + R(0, -1)) / (lv * lv);
     return out;
@@ -962,20 +1075,23 @@ struct ThinPlateKernel {
   V3<S> Damp(const Patch<S, 13>& pv) const {
     return BiLaplacian(pv, damping, damping, lu, lv);
   }
-  LinearWeights<13> Weights(std::uint32_t valid) const { return WeightsOf<13>(*this, valid); }
+  LinearWeights<13> Weights(std::uint32_t valid, const std::array<Eigen::Vector2d, 13>* rest = nullptr) const {
+    return WeightsOf<13>(*this, valid, rest);
+  }
 
   template <class S>
-  void Evaluate(double, std::uint32_t valid, double, const std::array<V3<S>, 13>& x, const std::array<V3<S>, 13>& v,
-                std::array<V3<S>, 13>& f) const {
+  void Evaluate(double, std::uint32_t valid, double area, const double*, const std::array<V3<S>, 13>& x,
+                const std::array<V3<S>, 13>& v, std::array<V3<S>, 13>& f) const {
     const Patch<S, 13> px{x, valid};
     V3<S> s = Stiff(px);
     if (damping != 0.0) s += Damp(Patch<S, 13>{v, valid});
     const V3<S> n = px.Normal();
-    f[0] -= (s.dot(n) * (lu * lv)) * n;
+    f[0] -= (s.dot(n) * area) * n;
   }
-  void Blocks(double, std::uint32_t valid, double, const LinearWeights<13>* w, const std::array<Vector3, 13>& x,
-              const std::array<Vector3, 13>& v, std::array<Matrix3, 13>& jx, std::array<Matrix3, 13>& jv) const {
-    ProjectedBlocks<13>(kProjectionSign, lu * lv, *w, Patch<double, 13>{x, valid}, v, damping != 0.0, jx, jv);
+  void Blocks(double, std::uint32_t valid, double area, const double*, const LinearWeights<13>* w,
+              const std::array<Vector3, 13>& x, const std::array<Vector3, 13>& v, std::array<Matrix3, 13>& jx,
+              std::array<Matrix3, 13>& jv) const {
+    ProjectedBlocks<13>(kProjectionSign, area, *w, Patch<double, 13>{x, valid}, v, damping != 0.0, jx, jv);
   }
 };
 
@@ -997,28 +1113,37 @@ struct TransverseKernel {
       {{0, 0}, {0, 1}, {0, 2}, {1, 0}, {1, 1}, {1, 2}, {2, 0}, {2, 1}, {2, 2}}};
   bool uses_velocity() const { return false; }  ///< whether f depends on v
   double c1122, lu, lv;
+  // On a curvilinear pattern, per centre: the rest lengths of its u- and
+  // v-edge, in place of lu and lv.
+  static constexpr bool kRest = true;
+  static std::array<double, 4> RestOf(std::uint32_t, const std::array<Eigen::Vector2d, 3>& X) {
+    return {(X[1] - X[0]).norm(), (X[2] - X[0]).norm(), 0.0, 0.0};
+  }
   template <class S>
-  void Evaluate(double, std::uint32_t, double, const std::array<V3<S>, 3>& x, const std::array<V3<S>, 3>&,
-                std::array<V3<S>, 3>& f) const {
+  void Evaluate(double, std::uint32_t, double, const double* rest, const std::array<V3<S>, 3>& x,
+                const std::array<V3<S>, 3>&, std::array<V3<S>, 3>& f) const {
+    const double ru = rest ? rest[0] : lu, rv = rest ? rest[1] : lv;  // rest lengths
     const V3<S> du = x[1] - x[0], dv = x[2] - x[0];
     const S nu = Norm(du), nv = Norm(dv);
-    const S tau1 = c1122 * (nu / lu - 1.0);  // C ε_11 → stress along v
-    const S tau2 = c1122 * (nv / lv - 1.0);  // C ε_22 → stress along u
+    const S tau1 = c1122 * (nu / ru - 1.0);  // C ε_11 → stress along v
+    const S tau2 = c1122 * (nv / rv - 1.0);  // C ε_22 → stress along u
     const V3<S> fu = tau1 * dv / nv, fv = tau2 * du / nu;
     f[0] += fu + fv;
     f[2] -= fu;
     f[1] -= fv;
   }
-  void Blocks(double, std::uint32_t, double, const LinearWeights<3>*, const std::array<Vector3, 3>& x,
-              const std::array<Vector3, 3>&, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>&) const {
+  void Blocks(double, std::uint32_t, double, const double* rest, const LinearWeights<3>*,
+              const std::array<Vector3, 3>& x, const std::array<Vector3, 3>&, std::array<Matrix3, 9>& jx,
+              std::array<Matrix3, 9>&) const {
+    const double ru = rest ? rest[0] : lu, rv = rest ? rest[1] : lv;  // rest lengths
     const Vector3 du = x[1] - x[0], dv = x[2] - x[0];
     const double nu = du.norm(), nv = dv.norm();
     const Vector3 uh = du / nu, vh = dv / nv;
-    const double tau1 = c1122 * (nu / lu - 1.0), tau2 = c1122 * (nv / lv - 1.0);
-    const Matrix3 fu_du = (c1122 / lu) * vh * uh.transpose();
+    const double tau1 = c1122 * (nu / ru - 1.0), tau2 = c1122 * (nv / rv - 1.0);
+    const Matrix3 fu_du = (c1122 / ru) * vh * uh.transpose();
     const Matrix3 fu_dv = (tau1 / nv) * (Matrix3::Identity() - vh * vh.transpose());
     const Matrix3 fv_du = (tau2 / nu) * (Matrix3::Identity() - uh * uh.transpose());
-    const Matrix3 fv_dv = (c1122 / lv) * uh * vh.transpose();
+    const Matrix3 fv_dv = (c1122 / rv) * uh * vh.transpose();
     // ∂f_u, ∂f_v with respect to x_i (slot 0), x_j (1), x_k (2).
     const Matrix3 fu[3] = {-(fu_du + fu_dv), fu_du, fu_dv};
     const Matrix3 fv[3] = {-(fv_du + fv_dv), fv_du, fv_dv};
@@ -1043,7 +1168,8 @@ struct WindKernel {
   WindSpec w;
   Vector3 Field(double t) const { return (w.constant + std::sin(w.angular_frequency * t)) * w.direction; }
   template <class S>
-  void Evaluate(double t, std::uint32_t valid, double area, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>&,
+  void Evaluate(double t, std::uint32_t valid, double area, const double*, const std::array<V3<S>, 9>& x,
+                const std::array<V3<S>, 9>&,
                 std::array<V3<S>, 9>& f) const {
     const Vector3 fw = Field(t);
     const V3<S> n = Patch<S, 9>{x, valid}.Normal();
@@ -1051,7 +1177,8 @@ struct WindKernel {
     const V3<S> normal = fn * n;
     f[0] += area * (w.drag * normal + w.lift * (fw.cast<S>() - normal));
   }
-  void Blocks(double t, std::uint32_t valid, double area, const LinearWeights<9>*, const std::array<Vector3, 9>& x,
+  void Blocks(double t, std::uint32_t valid, double area, const double*, const LinearWeights<9>*,
+              const std::array<Vector3, 9>& x,
               const std::array<Vector3, 9>&, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>&) const {
     const Vector3 fw = Field(t);
     const double c = area * (w.drag - w.lift);
@@ -1079,7 +1206,8 @@ struct AirKernel {
   bool uses_velocity() const { return true; }  ///< whether f depends on v
   double c_air;
   template <class S>
-  void Evaluate(double, std::uint32_t valid, double area, const std::array<V3<S>, 9>& x, const std::array<V3<S>, 9>& v,
+  void Evaluate(double, std::uint32_t valid, double area, const double*, const std::array<V3<S>, 9>& x,
+                const std::array<V3<S>, 9>& v,
                 std::array<V3<S>, 9>& f) const {
     using std::abs;
     const S speed = Norm(v[0]);
@@ -1087,7 +1215,8 @@ struct AirKernel {
     const V3<S> n = Patch<S, 9>{x, valid}.Normal();
     f[0] -= (c_air * area * abs(v[0].dot(n)) / speed) * v[0];
   }
-  void Blocks(double, std::uint32_t valid, double area, const LinearWeights<9>*, const std::array<Vector3, 9>& x,
+  void Blocks(double, std::uint32_t valid, double area, const double*, const LinearWeights<9>*,
+              const std::array<Vector3, 9>& x,
               const std::array<Vector3, 9>& v, std::array<Matrix3, 9>& jx, std::array<Matrix3, 9>& jv) const {
     for (std::size_t k = 0; k < 9; ++k) {
       jx[k].setZero();
@@ -1245,22 +1374,62 @@ std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vect
   return std::make_unique<Gravity>(masses, g);
 }
 
+CentreRest CentreRestAt(const GridGeometry& geo, int i, int j) {
+  const int cu = (i > 0) + (i + 1 < geo.nu), cv = (j > 0) + (j + 1 < geo.nv);
+  if (!geo.curvilinear()) return {geo.lu * cu, geo.lv * cv, geo.lu * geo.lv, 0.0};
+  auto at = [&](int a, int b) { return Eigen::Vector2d(geo.plane.row(a + geo.nu * b).transpose()); };
+  std::array<Eigen::Vector2d, 5> x = {at(i, j), at(std::min(i + 1, geo.nu - 1), j), at(std::max(i - 1, 0), j),
+                                      at(i, std::min(j + 1, geo.nv - 1)), at(i, std::max(j - 1, 0))};
+  const std::uint32_t valid = 1u | (i + 1 < geo.nu ? 2u : 0u) | (i > 0 ? 4u : 0u) | (j + 1 < geo.nv ? 8u : 0u) | (j > 0 ? 16u : 0u);
+  const std::array<double, 4> r = ShearKernel::RestOf(valid, x);
+  return {r[0], r[1], r[2], r[3]};
+}
+
+void CurvilinearEnergies(const GridGeometry& geo, double mu, double bu, double bv, const MatrixN3& x, double* shear,
+                         double* bending) {
+  *shear = *bending = 0.0;
+  for (int j = 0; j < geo.nv; ++j)
+    for (int i = 0; i < geo.nu; ++i) {
+      std::array<Vector3, 9> xs;
+      std::array<Eigen::Vector2d, 9> rest;
+      std::uint32_t valid = 0;
+      for (std::size_t k = 0; k < 9; ++k) {
+        const int a = i + kOffsets[k][0], b = j + kOffsets[k][1];
+        const bool in = a >= 0 && a < geo.nu && b >= 0 && b < geo.nv;
+        const int q = in ? a + geo.nu * b : i + geo.nu * j;
+        valid |= static_cast<std::uint32_t>(in) << k;
+        xs[k] = x.row(q).transpose();
+        rest[k] = geo.plane.row(q).transpose();
+      }
+      const CentreRest r = CentreRestAt(geo, i, j);
+      if (mu != 0.0) {
+        const double gamma = ((xs[1] - xs[2]) / r.du).dot((xs[3] - xs[4]) / r.dv) - r.gamma0;
+        *shear += 0.5 * mu * gamma * gamma * r.area;
+      }
+      if (bu != 0.0 || bv != 0.0) {
+        const Patch<double, 9> p{xs, valid, &rest};
+        const Vector3 n = p.Normal();
+        const double kuu = p.Lu(0, 0, 0.0).dot(n), kvv = p.Lv(0, 0, 0.0).dot(n);
+        *bending += 0.5 * r.area * (bu * kuu * kuu + bv * kvv * kvv);
+      }
+    }
+}
+
 std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double damping) {
-  return std::make_unique<StencilTerm<ShearKernel>>("shear", ShearKernel{mu, damping, geo.lu, geo.lv},
-                                                    GridCentres<ShearKernel>(geo), geo.nu * geo.nv);
+  return MakeGridTerm("shear", ShearKernel{mu, damping, geo.lu, geo.lv}, geo, GridCentres<ShearKernel>(geo));
 }
 
 std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping) {
-  auto term = std::make_unique<StencilTerm<MembraneKernel>>(
-      "bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<MembraneKernel>(geo), geo.nu * geo.nv);
-  term->UseGridRows(geo.nu, geo.nv);
+  auto term = MakeGridTerm("bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, geo,
+                           GridCentres<MembraneKernel>(geo));
+  if (!geo.curvilinear()) term->UseGridRows(geo.nu, geo.nv);
   return term;
 }
 
 std::unique_ptr<ForceTerm> MakeThinPlateBend(const GridGeometry& geo, double bu, double bv, double damping) {
-  auto term = std::make_unique<StencilTerm<ThinPlateKernel>>(
-      "bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, GridCentres<ThinPlateKernel>(geo), geo.nu * geo.nv);
-  term->UseGridRows(geo.nu, geo.nv);
+  auto term = MakeGridTerm("bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, geo,
+                           GridCentres<ThinPlateKernel>(geo));
+  if (!geo.curvilinear()) term->UseGridRows(geo.nu, geo.nv);
   return term;
 }
 
@@ -1276,16 +1445,15 @@ std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122)
       c.weight = geo.area(c.nodes[0]);
       centres.push_back(c);
     }
-  return std::make_unique<StencilTerm<TransverseKernel>>("transverse", TransverseKernel{c1122, geo.lu, geo.lv},
-                                                         std::move(centres), geo.nu * geo.nv);
+  return MakeGridTerm("transverse", TransverseKernel{c1122, geo.lu, geo.lv}, geo, std::move(centres));
 }
 
 std::unique_ptr<ForceTerm> MakeWind(const GridGeometry& geo, const WindSpec& wind) {
-  return std::make_unique<StencilTerm<WindKernel>>("wind", WindKernel{wind}, GridCentres<WindKernel>(geo), geo.nu * geo.nv);
+  return MakeGridTerm("wind", WindKernel{wind}, geo, GridCentres<WindKernel>(geo));
 }
 
 std::unique_ptr<ForceTerm> MakeAirResistance(const GridGeometry& geo, double c_air) {
-  return std::make_unique<StencilTerm<AirKernel>>("air", AirKernel{c_air}, GridCentres<AirKernel>(geo), geo.nu * geo.nv);
+  return MakeGridTerm("air", AirKernel{c_air}, geo, GridCentres<AirKernel>(geo));
 }
 
 }  // namespace clothbench

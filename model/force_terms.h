@@ -84,16 +84,45 @@ struct Spring {
 /// Per-particle data the stencil terms need.
 struct GridGeometry {
   int nu = 0, nv = 0;
-  double lu = 0.0, lv = 0.0;       ///< rest spacings [m]
+  double lu = 0.0, lv = 0.0;       ///< rest spacings [m] of a uniform grid
   Eigen::VectorXd area;            ///< node areas [m²] (m_p/ρ)
+  /// A curvilinear pattern's rest samples X_p in its plane [m], (nu·nv)×2
+  /// in row i + nu·j (SamplePattern); empty: the uniform grid of lu, lv.
+  /// Every stencil then takes its rest geometry from them (docs/model.md
+  /// §2.7, "Curvilinear patterns").
+  Eigen::MatrixX2d plane;
+  bool curvilinear() const { return plane.rows() > 0; }
 };
+
+/// The rest geometry of the stencil centred on node (i, j) of a grid
+/// (docs/model.md §2.7). The chords run between the node's u- and
+/// v-neighbours; a missing neighbour (the border) is the node itself.
+struct CentreRest {
+  double du = 0.0, dv = 0.0;  ///< |X_r − X_l|, |X_u − X_d| [m]; uniform: lu·c_u, lv·c_v
+  /// The node's cell area |(X_r − X_l)/c_u × (X_u − X_d)/c_v| [m²] (c_u, c_v
+  /// the neighbours present along u, v); uniform: lu·lv at every node.
+  double area = 0.0;
+  /// The rest shear γ₀ = ⟨X_r − X_l, X_u − X_d⟩/(du dv), the cosine of the
+  /// rest angle between the threads; uniform: 0.
+  double gamma0 = 0.0;
+};
+/// CentreRest of node (i, j), 0 ≤ i < nu, 0 ≤ j < nv, of `geo`.
+CentreRest CentreRestAt(const GridGeometry& geo, int i, int j);
+
+/// The shear and bending energies [J] of x (N×3 [m]) on the curvilinear
+/// pattern of `geo` (docs/model.md §2.7): Σ ½ μ (γ − γ₀)² A and
+/// Σ ½ A (B_u ⟨s_uu, n̂⟩² + B_v ⟨s_vv, n̂⟩²), the second differences with
+/// each node's rest spacings (ParticleSystem::Energies on such a pattern).
+/// @param mu μ [N/m]; @param bu, bv B_u, B_v
+void CurvilinearEnergies(const GridGeometry& geo, double mu, double bu, double bv, const MatrixN3& x, double* shear,
+                         double* bending);
 
 /// F_nl = −s_e l_e d/|d| per spring: the explicit part of the IMEX split of
 /// tension (docs/model.md §2.1; thesis §3.3.3, Desbrun et al.).
 std::unique_ptr<ForceTerm> MakeTensionNonlinear(std::vector<Spring> springs, int num_particles);
 /// Gravity m_p g (§2.6).
 std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vector3& g);
-/// Shear in energy form E_s = Σ ½ μ γ² lu lv with viscosity d_s γ̇ (docs/model.md §2.2, (2.16), (2.21)).
+/// Shear in energy form E_s = Σ ½ μ (γ − γ₀)² A (A = lu lv on a uniform grid) with viscosity d_s γ̇ (docs/model.md §2.2, (2.16), (2.21)).
 std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double damping);
 /// Membrane bending F = ⟨B_u s_uu + B_v s_vv + d_b Δv, N⟩N lu lv (docs/model.md §2.3, (2.25), Alg. 3).
 std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping);

@@ -15,30 +15,34 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   const double lu = scene.lu(), lv = scene.lv();
   const MaterialSpec& mat = scene.material;
 
-  // Rest positions and lumped masses (docs/model.md §1). "area" halves border masses.
-  rest_.resize(n_, 3);
-  mass_.resize(n_);
-  for (int j = 0; j < nv; ++j)
-    for (int i = 0; i < nu; ++i) {
-      const int p = scene.Index(i, j);
-      rest_.row(p) = (scene.grid.origin + i * lu * scene.grid.u_axis + j * lv * scene.grid.v_axis).transpose();
-      double w = 1.0;
-      if (mat.mass_lumping == MassLumping::kArea) {
-        if (i == 0 || i == nu - 1) w *= 0.5;
-        if (j == 0 || j == nv - 1) w *= 0.5;
+  if (scene.grid.curvilinear()) {
+    CurvilinearCloth(scene);
+  } else {
+    // Rest positions and lumped masses (docs/model.md §1). "area" halves border masses.
+    rest_.resize(n_, 3);
+    mass_.resize(n_);
+    for (int j = 0; j < nv; ++j)
+      for (int i = 0; i < nu; ++i) {
+        const int p = scene.Index(i, j);
+        rest_.row(p) = (scene.grid.origin + i * lu * scene.grid.u_axis + j * lv * scene.grid.v_axis).transpose();
+        double w = 1.0;
+        if (mat.mass_lumping == MassLumping::kArea) {
+          if (i == 0 || i == nu - 1) w *= 0.5;
+          if (j == 0 || j == nv - 1) w *= 0.5;
+        }
+        mass_(p) = mat.density * lu * lv * w;
       }
-      mass_(p) = mat.density * lu * lv * w;
-    }
 
-  // Springs on u- and v-edges (docs/model.md §2.1, (2.20)).
-  for (int j = 0; j < nv; ++j)
-    for (int i = 0; i < nu; ++i) {
-      const int p = scene.Index(i, j);
-      if (i + 1 < nu)
-        springs_.push_back({p, scene.Index(i + 1, j), mat.tension[0] * lv / lu, lu, mat.tension_damping * lv / lu});
-      if (j + 1 < nv)
-        springs_.push_back({p, scene.Index(i, j + 1), mat.tension[1] * lu / lv, lv, mat.tension_damping * lu / lv});
-    }
+    // Springs on u- and v-edges (docs/model.md §2.1, (2.20)).
+    for (int j = 0; j < nv; ++j)
+      for (int i = 0; i < nu; ++i) {
+        const int p = scene.Index(i, j);
+        if (i + 1 < nu)
+          springs_.push_back({p, scene.Index(i + 1, j), mat.tension[0] * lv / lu, lu, mat.tension_damping * lv / lu});
+        if (j + 1 < nv)
+          springs_.push_back({p, scene.Index(i, j + 1), mat.tension[1] * lu / lv, lv, mat.tension_damping * lu / lv});
+      }
+  }
 
   // L_K, L_D (3.19): weighted graph Laplacians, one N×N matrix each.
   auto laplacian = [&](auto weight) {
@@ -87,7 +91,8 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;
 
   // Explicit terms: only those with non-zero coefficients (docs/model.md §2.6).
-  GridGeometry geo{nu, nv, lu, lv, mass_ / mat.density};
+  geo_ = GridGeometry{nu, nv, lu, lv, mass_ / mat.density, scene.grid.plane};
+  const GridGeometry& geo = geo_;
   if ((mat.tension[0] != 0.0 || mat.tension[1] != 0.0) && mat.tension_model == TensionModel::kSplit) {
     std::vector<Spring> stiff;
     for (const Spring& s : springs_)
@@ -119,6 +124,46 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
     virtual_ = term.get();
     terms_.push_back(std::move(term));
   }
+}
+
+// A curvilinear pattern (docs/model.md §2.7): the start is the placed
+// pattern; node (i, j) has the cell area A_ij of CentreRestAt; a spring's
+// rest length is its edge's in the plane, l_e, and its stiffness
+// s_e = k A_e / l_e² with A_e = ½ (A_a + A_b): the tension energy ½ k ε² per
+// area. "uniform" lumping gives m_p = ρ A_p; "area" ρ times a quarter of each
+// adjacent quad's area.
+void ParticleSystem::CurvilinearCloth(const Scene& scene) {
+  const int nu = scene.grid.nu, nv = scene.grid.nv;
+  const MaterialSpec& mat = scene.material;
+  const Eigen::MatrixX2d& plane = scene.grid.plane;
+  rest_ = PlacePattern(scene.patterns.front(), plane);
+  GridGeometry geo{nu, nv, 0.0, 0.0, Eigen::VectorXd(), plane};
+  Eigen::VectorXd cell(n_);
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) cell(scene.Index(i, j)) = CentreRestAt(geo, i, j).area;
+  if (mat.mass_lumping == MassLumping::kArea) {
+    mass_.setZero(n_);
+    for (int j = 0; j + 1 < nv; ++j)
+      for (int i = 0; i + 1 < nu; ++i) {
+        const std::array<int, 4> q = {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)};
+        const Eigen::Vector2d d1 = plane.row(q[2]) - plane.row(q[0]), d2 = plane.row(q[3]) - plane.row(q[1]);
+        const double quarter = 0.125 * std::abs(d1.x() * d2.y() - d1.y() * d2.x());  // ¼ of ½ |d1 × d2|
+        for (int p : q) mass_(p) += quarter;
+      }
+    mass_ *= mat.density;
+  } else {
+    mass_ = mat.density * cell;
+  }
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const int p = scene.Index(i, j);
+      for (int dir = 0; dir < 2; ++dir) {
+        if (dir == 0 ? i + 1 >= nu : j + 1 >= nv) continue;
+        const int q = dir == 0 ? scene.Index(i + 1, j) : scene.Index(i, j + 1);
+        const double l = (plane.row(q) - plane.row(p)).norm(), a = 0.5 * (cell(p) + cell(q));
+        springs_.push_back({p, q, mat.tension[static_cast<std::size_t>(dir)] * a / (l * l), l, mat.tension_damping * a / (l * l)});
+      }
+    }
 }
 
 void ParticleSystem::AddExternalForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
@@ -156,6 +201,11 @@ EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) c
   const bool shear = mat.shear != 0.0;
   const bool bend = mat.bend_model != BendModel::kNone && (mat.bend[0] != 0.0 || mat.bend[1] != 0.0);
   if (!shear && !bend) return e;
+  if (scene_.grid.curvilinear()) {
+    CurvilinearEnergies(geo_, shear ? mat.shear : 0.0, bend ? mat.bend[0] : 0.0, bend ? mat.bend[1] : 0.0, x, &e.shear,
+                        &e.bending);
+    return e;
+  }
   const std::ptrdiff_t n_grid = static_cast<std::ptrdiff_t>(nu) * nv;
   shear_terms.resize(static_cast<std::size_t>(n_grid));
   bend_terms.resize(static_cast<std::size_t>(n_grid));

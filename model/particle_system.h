@@ -35,7 +35,8 @@ class ParticleSystem {
 
   const Scene& scene() const { return scene_; }
   int num_particles() const { return n_; }
-  /// N×3 rest positions x_p = origin + i lu u_axis + j lv v_axis [m].
+  /// N×3 rest positions [m]: x_p = origin + i lu u_axis + j lv v_axis on a
+  /// grid, a curvilinear pattern's placed samples (PlacePattern).
   const MatrixN3& rest_positions() const { return rest_; }
   /// N lumped masses m_p [kg] (docs/model.md §1).
   const Eigen::VectorXd& masses() const { return mass_; }
@@ -74,6 +75,10 @@ class ParticleSystem {
       v->row(p) = vp.transpose();
     });
   }
+  /// The rest geometry of the cloth's stencils: the grid's spacings, the
+  /// node areas and, on a curvilinear pattern, its rest samples
+  /// (CentreRestAt gives a node's).
+  const GridGeometry& geometry() const { return geo_; }
   /// Obstacles of the scene (docs/model.md §7); empty: no detection at all.
   const std::vector<Obstacle>& obstacles() const { return obstacles_; }
   /// The force of the thesis' virtual particles (model/virtual_springs.h),
@@ -132,6 +137,8 @@ class ParticleSystem {
   void AddExternalForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const;
 
  private:
+  // The rest positions, masses and springs of a curvilinear pattern.
+  void CurvilinearCloth(const Scene& scene);
   Scene scene_;
   int n_ = 0;
   MatrixN3 rest_;
@@ -149,6 +156,7 @@ class ParticleSystem {
   };
   std::vector<Prescribed> prescribed_;  // Scene::motions
   VirtualSprings* virtual_ = nullptr;  // owned by terms_
+  GridGeometry geo_;
 };
 
 }  // namespace clothbench

@@ -392,16 +392,46 @@ void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
       if (s.patterns[q].name == s.patterns[k].name) r.Fail("name", fmt::format("\"{}\" names pattern {} already", s.patterns[k].name, q));
   }
   const PatternSpec& p = s.patterns.front();
-  if (s.patterns.size() > 1 || !PatternIsGrid(p, &s.grid.origin, &s.grid.u_axis, &s.grid.v_axis, &s.grid.size))
-    top.Fail("pattern", "the model takes one flat rectangular pattern with straight sides so far "
-                        "(docs/scenes.md, \"[[pattern]]\"); curved, wrapped and sewn patterns are not modelled yet");
+  if (s.patterns.size() > 1)
+    top.Fail("pattern", "the model takes one pattern so far (docs/scenes.md, \"[[pattern]]\"); sewn patterns are not "
+                        "modelled yet");
   s.grid.nu = p.nu;
   s.grid.nv = p.nv;
+  if (!PatternIsGrid(p, &s.grid.origin, &s.grid.u_axis, &s.grid.v_axis, &s.grid.size)) {
+    // Curved, slanted or wrapped: the model takes its rest geometry from
+    // the samples (docs/model.md §2.7).
+    SetCurvilinearCloth(&s, p, SamplePattern(p));
+  }
   if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6)
     top.Fail("pattern", "must place corner u0v0 at coordinates of magnitude at most 1e6 m, as [grid]'s origin");
-  if (s.grid.size[0] / (p.nu - 1) < 1e-6 || s.grid.size[1] / (p.nv - 1) < 1e-6)
-    top.Fail("pattern", "must have spacings of at least 1e-6 m");
+  if (s.lu() < 1e-6 || s.lv() < 1e-6) top.Fail("pattern", "must have spacings of at least 1e-6 m");
 }
+
+}  // namespace
+
+void SetCurvilinearCloth(Scene* scene, const PatternSpec& pattern, Eigen::MatrixX2d plane) {
+  const int nu = pattern.nu, nv = pattern.nv;
+  if (plane.rows() != static_cast<Eigen::Index>(nu) * nv)
+    throw std::invalid_argument(fmt::format("SetCurvilinearCloth: {} samples for {} × {}", plane.rows(), nu, nv));
+  GridSpec& g = scene->grid;
+  g.nu = nu;
+  g.nv = nv;
+  g.origin = pattern.origin;
+  g.u_axis = pattern.x_axis;
+  g.v_axis = pattern.y_axis;
+  g.size = {plane.col(0).maxCoeff() - plane.col(0).minCoeff(), plane.col(1).maxCoeff() - plane.col(1).minCoeff()};
+  double least_u = kMaxMagnitude, least_v = kMaxMagnitude;
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      if (i + 1 < nu) least_u = std::min(least_u, (plane.row(i + 1 + nu * j) - plane.row(i + nu * j)).norm());
+      if (j + 1 < nv) least_v = std::min(least_v, (plane.row(i + nu * (j + 1)) - plane.row(i + nu * j)).norm());
+    }
+  g.least_spacing = {least_u, least_v};
+  g.plane = std::move(plane);
+  scene->patterns = {pattern};
+}
+
+namespace {
 
 // A selection ("edge:u1", or "<pattern>:edge:u1" on patterns) as flat indices.
 std::vector<int> ResolveSelection(const std::string& spec, const Scene& s, const std::string& what) {

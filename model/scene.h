@@ -63,6 +63,14 @@ struct GridSpec {
   Vector3 origin = Vector3(0.0, 0.0, 1.0);        ///< [m] rest position of particle (0,0)
   Vector3 u_axis = Vector3::UnitX();              ///< unit vector along u
   Vector3 v_axis = Vector3::UnitY();              ///< unit vector along v, orthogonal to u
+  /// A curvilinear pattern's rest samples in its plane [m], (nu·nv)×2 in
+  /// row i + nu·j (SamplePattern of the scene's one pattern); empty: the
+  /// uniform lattice of `size`. With them `size` is their bounding box and
+  /// `least_spacing` the smallest rest distance between neighbours along u
+  /// and along v (Scene::lu, lv).
+  Eigen::MatrixX2d plane;
+  std::array<double, 2> least_spacing = {0.0, 0.0};  ///< [m]
+  bool curvilinear() const { return plane.rows() > 0; }
 };
 
 /// Material constants per unit length of cloth (docs/model.md §1).
@@ -146,8 +154,10 @@ struct Scene {
   std::string toml;                      ///< the scene's TOML text
 
   int num_particles() const { return grid.nu * grid.nv; }
-  double lu() const { return grid.size[0] / (grid.nu - 1); }
-  double lv() const { return grid.size[1] / (grid.nv - 1); }
+  /// The rest spacing along u [m]: the grid's, or a curvilinear pattern's smallest.
+  double lu() const { return grid.curvilinear() ? grid.least_spacing[0] : grid.size[0] / (grid.nu - 1); }
+  /// The rest spacing along v [m]: the grid's, or a curvilinear pattern's smallest.
+  double lv() const { return grid.curvilinear() ? grid.least_spacing[1] : grid.size[1] / (grid.nv - 1); }
   /// Flat index p = i + nu·j (docs/model.md §1).
   int Index(int i, int j) const { return i + grid.nu * j; }
   /// Numerical stiffness h²k/(ρl²) (§3.4.4) with the largest k_e/l_e² of u and v.
@@ -184,6 +194,15 @@ Scene LoadSceneOrBuiltin(const std::string& arg);
 ///   particles by index ("particle:I,J" does not follow a refinement), or a
 ///   ParseScene error of the rewritten text
 Scene RefineGrid(const Scene& scene, long n);
+
+/// Makes the rest samples `plane` ((nu·nv)×2 [m], row i + nu·j, nu × nv =
+/// pattern.nu × pattern.nv) the cloth of `scene`, placed by `pattern`
+/// (PlacePattern): GridSpec::plane, its bounding box as `size` and its
+/// smallest spacings; `patterns` becomes {pattern}. The model then takes its
+/// rest geometry from the samples (docs/model.md §2.7). ParsePatterns calls
+/// it with SamplePattern(pattern); tests with their own samplings.
+/// @throws std::invalid_argument if plane's rows are not nu·nv
+void SetCurvilinearCloth(Scene* scene, const PatternSpec& pattern, Eigen::MatrixX2d plane);
 
 /// Resolves a constraint spec ("edge:u0", "corner:u1v0", "particle:I,J") to
 /// flat indices. @throws SceneError naming `what` on a malformed spec.

@@ -56,9 +56,10 @@ Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_
   for (const Distance& d : distance_) has_dampers_ = has_dampers_ || d.damping > 0.0;
   const int nu = scene.grid.nu, nv = scene.grid.nv;
   const double lu = scene.grid.size[0] / (nu - 1), lv = scene.grid.size[1] / (nv - 1);
+  const bool curvilinear = system.geometry().curvilinear();
   if (mat.shear > 0.0) {
-    shear_compliance_ = 1.0 / (mat.shear * lu * lv);
-    shear_damping_ = mat.shear_damping * lu * lv;
+    shear_compliance_ = curvilinear ? 1.0 / mat.shear : 1.0 / (mat.shear * lu * lv);
+    shear_damping_ = curvilinear ? mat.shear_damping : mat.shear_damping * lu * lv;
     shear_.reserve(static_cast<std::size_t>(n));
     for (int j = 0; j < nv; ++j)
       for (int i = 0; i < nu; ++i) {
@@ -68,6 +69,14 @@ Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_
                    j + 1 < nv ? scene.Index(i, j + 1) : c, j > 0 ? scene.Index(i, j - 1) : c};
         s.du = lu * ((i + 1 < nu) + (i > 0));
         s.dv = lv * ((j + 1 < nv) + (j > 0));
+        if (curvilinear) {  // its rest geometry (docs/model.md §2.7)
+          const CentreRest r = CentreRestAt(system.geometry(), i, j);
+          s.du = r.du;
+          s.dv = r.dv;
+          s.gamma0 = r.gamma0;
+          s.compliance_scale = 1.0 / r.area;
+          s.area_scale = r.area;
+        }
         shear_.push_back(s);
       }
   }
@@ -103,9 +112,10 @@ void Xpbd::PredictionForces(double t, const MatrixN3& x, const MatrixN3& v, Matr
 // ∇_r C = b/du, ∇_l C = −b/du, ∇_u C = a/dv, ∇_d C = −a/dv; gradients of
 // slots that hold the same particle (the border) are summed first.
 void Xpbd::ProjectShear(double dt) {
-  const double alpha = shear_compliance_ / (dt * dt);
-  const double gamma = alpha * shear_damping_ * dt;
+  const double alpha0 = shear_compliance_ / (dt * dt);
   for (const ShearCross& s : shear_) {
+    const double alpha = alpha0 * s.compliance_scale;
+    const double gamma = alpha * shear_damping_ * s.area_scale * dt;
     const auto& k = s.nodes;
     const Vector3 a = (p_.row(k[1]) - p_.row(k[2])).transpose() / s.du;
     const Vector3 b = (p_.row(k[3]) - p_.row(k[4])).transpose() / s.dv;
@@ -129,7 +139,7 @@ void Xpbd::ProjectShear(double dt) {
       if (gamma != 0.0) rate += grad[u].dot((p_.row(node[u]) - x_.row(node[u])).transpose());
     }
     if (denom == 0.0) continue;
-    const double dlambda = (-a.dot(b) - gamma * rate) / ((1.0 + gamma) * denom + alpha);  // Eq. 26, λ = 0
+    const double dlambda = (-(a.dot(b) - s.gamma0) - gamma * rate) / ((1.0 + gamma) * denom + alpha);  // Eq. 26, λ = 0
     for (int u = 0; u < m; ++u) p_.row(node[u]) += (w_(node[u]) * dlambda) * grad[u].transpose();
   }
 }

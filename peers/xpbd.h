@@ -104,9 +104,14 @@ class Xpbd : public Stepper {
   };
   // γ_ij at particle c over its cross (c, r, l, u, d); a missing neighbour is
   // c itself and its spacing halves (docs/model.md §2.2).
+  // A cross of the shear constraint C = γ − γ₀ (CentreRest): on a
+  // curvilinear pattern its compliance is 1/(μ A) and its damping d_s A,
+  // the shared values times compliance_scale = 1/A and area_scale = A;
+  // on a uniform grid both scales are 1.
   struct ShearCross {
     std::array<int, 5> nodes;
     double du, dv;
+    double gamma0 = 0.0, compliance_scale = 1.0, area_scale = 1.0;
   };
   void PredictionForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const;
   void ProjectShear(double dt);

@@ -21,17 +21,8 @@
 namespace clothbench {
 namespace {
 
-SparseMatrix ToSparse(int n3, const std::vector<Triplet>& t) {
-  SparseMatrix m(n3, n3);
-  m.setFromTriplets(t.begin(), t.end());
-  return m;
-}
-
-double MaxAbs(const SparseMatrix& m) {
-  double out = 0.0;
-  for (Eigen::Index k = 0; k < m.nonZeros(); ++k) out = std::max(out, std::abs(m.valuePtr()[k]));
-  return out;
-}
+using testing::MaxAbs;
+using testing::ToSparse;
 
 // max |closed − AD| / max |AD| for ∂g/∂x and ∂g/∂v of every term of `sys`.
 void ExpectClosedFormEqualsAutoDiff(const ParticleSystem& sys, const MatrixN3& x, const MatrixN3& v,
@@ -67,6 +58,21 @@ TEST(ClosedFormJacobian, EqualsAutoDiffOnEveryTerm) {
       testing::PerturbedState(sys, seed, &x, &v, 0.02);
       ExpectClosedFormEqualsAutoDiff(sys, x, v, fmt::format("{} seed {}", ToString(bend), seed));
     }
+  }
+}
+
+// Every term on a curvilinear pattern (docs/model.md §2.7): a trapezoid
+// with a curved hem, so that no two stencils share their rest geometry.
+TEST(ClosedFormJacobian, EqualsAutoDiffOnACurvilinearPattern) {
+  const PatternSpec p = testing::CurvedPanel();
+  for (BendModel bend : {BendModel::kThinPlate, BendModel::kMembrane}) {
+    Scene s = testing::AllTermsScene(7, 6, bend);
+    SetCurvilinearCloth(&s, p, SamplePattern(p));
+    const ParticleSystem sys(s);
+    ASSERT_EQ(sys.terms().size(), 7u);
+    MatrixN3 x, v;
+    testing::PerturbedState(sys, 13, &x, &v, 0.02);
+    ExpectClosedFormEqualsAutoDiff(sys, x, v, fmt::format("curvilinear {}", ToString(bend)));
   }
 }
 

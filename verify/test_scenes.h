@@ -11,6 +11,20 @@
 
 namespace clothbench::testing {
 
+/// The n3×n3 sparse matrix of triplets `t` (duplicates summed).
+inline SparseMatrix ToSparse(int n3, const std::vector<Triplet>& t) {
+  SparseMatrix m(n3, n3);
+  m.setFromTriplets(t.begin(), t.end());
+  return m;
+}
+
+/// The largest magnitude of a stored entry of `m`.
+inline double MaxAbs(const SparseMatrix& m) {
+  double out = 0.0;
+  for (Eigen::Index k = 0; k < m.nonZeros(); ++k) out = std::max(out, std::abs(m.valuePtr()[k]));
+  return out;
+}
+
 /// A nu×nv sheet in the xy-plane with every force term switched on.
 inline Scene AllTermsScene(int nu = 5, int nv = 4, BendModel bend = BendModel::kThinPlate) {
   Scene s;
@@ -35,6 +49,51 @@ inline Scene AllTermsScene(int nu = 5, int nv = 4, BendModel bend = BendModel::k
   w.lift = 0.4;
   s.forces.wind = w;
   s.forces.air = 0.7;
+  return s;
+}
+
+/// The samples (nu·nv)×2 [m] of a nu × nv rectangle of `size` under the
+/// map (u, v) ↦ (size_u φ(u), size_v φ(v)) with φ(t) = t + α t (1 − t): graded
+/// along both threads, which stay straight, spacings (1 + α) : (1 − α) from
+/// one edge to the other (α = 0: the uniform grid); `alpha_v`, if given, is
+/// v's α.
+inline Eigen::MatrixX2d GradedSamples(int nu, int nv, std::array<double, 2> size, double alpha, double alpha_v = -1.0) {
+  Eigen::MatrixX2d x(static_cast<Eigen::Index>(nu) * nv, 2);
+  const double av = alpha_v < 0.0 ? alpha : alpha_v;
+  const auto phi = [](double t, double a) { return t + a * t * (1.0 - t); };
+  for (int j = 0; j < nv; ++j)
+    for (int i = 0; i < nu; ++i)
+      x.row(i + nu * j) << size[0] * phi(static_cast<double>(i) / (nu - 1), alpha),
+          size[1] * phi(static_cast<double>(j) / (nv - 1), av);
+  return x;
+}
+
+/// A 7×6-sample trapezoid pattern, 0.3 m at its curved lower side (v0) and
+/// 0.2 m at its top: no two of its stencils share their rest geometry.
+inline PatternSpec CurvedPanel() {
+  PatternSpec p;
+  p.name = "panel";
+  p.corners = {Vector2(0.0, 0.0), Vector2(0.3, 0.0), Vector2(0.25, 0.2), Vector2(0.05, 0.2)};
+  p.sides = {std::vector<Vector2>{p.corners[0], Vector2(0.15, -0.03), p.corners[1]},
+             std::vector<Vector2>{p.corners[1], p.corners[2]}, std::vector<Vector2>{p.corners[3], p.corners[2]},
+             std::vector<Vector2>{p.corners[0], p.corners[3]}};
+  p.nu = 7;
+  p.nv = 6;
+  return p;
+}
+
+/// `s` with its grid's cloth given as the rest samples `plane` of one
+/// pattern placed at the grid's origin and axes (SetCurvilinearCloth): the
+/// model's curvilinear branch (docs/model.md §2.7).
+inline Scene WithSamples(Scene s, Eigen::MatrixX2d plane) {
+  PatternSpec p;
+  p.name = "cloth";
+  p.nu = s.grid.nu;
+  p.nv = s.grid.nv;
+  p.origin = s.grid.origin;
+  p.x_axis = s.grid.u_axis;
+  p.y_axis = s.grid.v_axis;
+  SetCurvilinearCloth(&s, p, std::move(plane));
   return s;
 }
 
