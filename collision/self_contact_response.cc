@@ -12,6 +12,7 @@
 #include <Eigen/QR>
 
 #include "collision/edge_projection.h"
+#include "collision/cloth_mesh.h"
 
 namespace clothbench {
 namespace {
@@ -40,8 +41,8 @@ double MotionBound(const SelfContactPair& pair, const MatrixN3& x0, const Matrix
 
 SelfContactList GridSelfContactList(const ParticleSystem& system) {
   const Scene& scene = system.scene();
-  return SelfContactList(GridTriangles(scene.grid.nu, scene.grid.nv).vertices, system.num_particles(),
-                         GridPatches(scene.grid.nu, scene.grid.nv, SelfContactResponse::kPatchCells),
+  return SelfContactList(SceneTriangles(scene).vertices, system.num_particles(),
+                         ScenePatches(scene, SelfContactResponse::kPatchCells),
                          SelfContactResponse::kSkinFraction * std::min(scene.lu(), scene.lv()));
 }
 

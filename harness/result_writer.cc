@@ -208,17 +208,22 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   f.CreateGroup("/scene");
   WriteSceneRecord(f, table);
   f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
-  // The grid's quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
-  // particle indices, counter-clockwise in (u, v).
+  // The quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
+  // particle indices, counter-clockwise in (u, v); on a cloth of patterns
+  // every pattern's, in the sewn cloth's numbering (ClothLayout::quads).
   {
     const int nu = scene.grid.nu, nv = scene.grid.nv;
     std::vector<int32_t> faces;
-    faces.reserve(static_cast<std::size_t>(4 * (nu - 1) * (nv - 1)));
-    for (int j = 0; j + 1 < nv; ++j)
-      for (int i = 0; i + 1 < nu; ++i)
-        for (int q : {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)})
-          faces.push_back(q);
-    f.WriteTable("/scene/faces", (nu - 1) * (nv - 1), 4, faces);
+    if (scene.cloth) {
+      for (const std::array<int, 4>& q : scene.cloth->quads) faces.insert(faces.end(), q.begin(), q.end());
+    } else {
+      faces.reserve(static_cast<std::size_t>(4 * (nu - 1) * (nv - 1)));
+      for (int j = 0; j + 1 < nv; ++j)
+        for (int i = 0; i + 1 < nu; ++i)
+          for (int q : {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)})
+            faces.push_back(q);
+    }
+    f.WriteTable("/scene/faces", static_cast<int>(faces.size() / 4), 4, faces);
   }
   // Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
   // motion not applied), for the XDMF file; and the polyhedron and edges of

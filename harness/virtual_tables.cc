@@ -14,6 +14,7 @@
 #include "model/particle_system.h"
 #include "results/result_file.h"
 #include "solver/run.h"
+#include "collision/cloth_mesh.h"
 
 namespace clothbench {
 
@@ -46,7 +47,7 @@ Surface ClothSurface(const ParticleSystem& sys, const MatrixN3& x) {
     for (const VirtualParticle& p : vp->particles()) s.vertices.push_back(p.x);
     return s;
   }
-  const ClothTriangles t = GridTriangles(sys.scene().grid.nu, sys.scene().grid.nv);
+  const ClothTriangles t = SceneTriangles(sys.scene());
   s.triangles = t.vertices;
   return s;
 }

@@ -735,11 +735,32 @@ class StencilTerm final : public ForceTerm {
   mutable GatherLists particle_items_;     // entries c·kParticleOutputs + (output − kFirstOutput)
 };
 
-// Builds one centre per particle with the first K patch slots.
+// Builds one centre per particle with the first K patch slots; on a cloth
+// of patterns, per owned node of each block, and (if `planes`) the slots'
+// rest positions in the node's pattern plane (a missing slot holds the
+// centre's particle and position).
 template <class Kernel>
-std::vector<typename StencilTerm<Kernel>::Centre> GridCentres(const GridGeometry& geo) {
+std::vector<typename StencilTerm<Kernel>::Centre> GridCentres(
+    const GridGeometry& geo, std::vector<std::array<Eigen::Vector2d, Kernel::kNodes>>* planes = nullptr) {
   constexpr int K = Kernel::kNodes;
   std::vector<typename StencilTerm<Kernel>::Centre> out;
+  if (geo.curvilinear()) {
+    ForEachCentre(*geo.cloth, [&](const ClothBlock& b, int i, int j, int p) {
+      typename StencilTerm<Kernel>::Centre c;
+      std::array<Eigen::Vector2d, K> rest;
+      for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) {
+        const int q = b.At(i + kOffsets[k][0], j + kOffsets[k][1]);
+        c.valid |= static_cast<std::uint32_t>(q >= 0) << k;
+        c.nodes[k] = q >= 0 ? q : p;
+        rest[k] = b.rest[static_cast<std::size_t>(q >= 0 ? b.Cell(i + kOffsets[k][0], j + kOffsets[k][1]) : b.Cell(i, j))];
+      }
+      if constexpr (Kernel::kLinear) c.weight = CentreRestAt(b, i, j).area;
+      else c.weight = geo.area(p);
+      out.push_back(c);
+      if (planes) planes->push_back(rest);
+    });
+    return out;
+  }
   out.reserve(static_cast<std::size_t>(geo.nu) * geo.nv);
   for (int j = 0; j < geo.nv; ++j)
     for (int i = 0; i < geo.nu; ++i) {
@@ -754,36 +775,23 @@ std::vector<typename StencilTerm<Kernel>::Centre> GridCentres(const GridGeometry
           c.nodes[k] = p;
         }
       }
-      // The bending terms' A (docs/model.md §2.3, §2.7); the others' node area.
-      if constexpr (Kernel::kLinear) c.weight = geo.curvilinear() ? CentreRestAt(geo, i, j).area : geo.lu * geo.lv;
+      // The bending terms' A (docs/model.md §2.3); the others' node area.
+      if constexpr (Kernel::kLinear) c.weight = geo.lu * geo.lv;
       else c.weight = geo.area(p);
       out.push_back(c);
     }
   return out;
 }
 
-// On a curvilinear pattern, the rest positions X_k in the pattern's plane of
-// every centre's slots (a missing slot holds the centre's); empty on a
-// uniform grid.
-template <int K, class Centre>
-std::vector<std::array<Eigen::Vector2d, K>> GridPlanes(const GridGeometry& geo, const std::vector<Centre>& centres) {
-  std::vector<std::array<Eigen::Vector2d, K>> out;
-  if (!geo.curvilinear()) return out;
-  out.resize(centres.size());
-  for (std::size_t c = 0; c < centres.size(); ++c)
-    for (std::size_t k = 0; k < static_cast<std::size_t>(K); ++k) out[c][k] = geo.plane.row(centres[c].nodes[k]).transpose();
-  return out;
-}
-
 // A stencil term on the centres of `geo`, with their rest geometry on a
 // curvilinear pattern.
 template <class Kernel>
-std::unique_ptr<StencilTerm<Kernel>> MakeGridTerm(std::string name, Kernel kernel, const GridGeometry& geo,
-                                                  std::vector<typename StencilTerm<Kernel>::Centre> centres) {
+std::unique_ptr<StencilTerm<Kernel>> MakeGridTerm(std::string name, Kernel kernel, const GridGeometry& geo) {
   std::vector<std::array<Eigen::Vector2d, Kernel::kNodes>> planes;
-  if constexpr (Kernel::kLinear || requires { Kernel::kRest; }) planes = GridPlanes<Kernel::kNodes>(geo, centres);
-  return std::make_unique<StencilTerm<Kernel>>(std::move(name), std::move(kernel), std::move(centres), geo.nu * geo.nv,
-                                               planes);
+  constexpr bool kRestData = Kernel::kLinear || requires { Kernel::kRest; };
+  auto centres = GridCentres<Kernel>(geo, kRestData ? &planes : nullptr);
+  const int n = geo.curvilinear() ? geo.cloth->num_particles : geo.nu * geo.nv;
+  return std::make_unique<StencilTerm<Kernel>>(std::move(name), std::move(kernel), std::move(centres), n, planes);
 }
 
 // Slot pairs (output, node) of a kernel whose single output is the centre.
@@ -1376,11 +1384,18 @@ std::unique_ptr<ForceTerm> MakeGravity(const Eigen::VectorXd& masses, const Vect
 
 CentreRest CentreRestAt(const GridGeometry& geo, int i, int j) {
   const int cu = (i > 0) + (i + 1 < geo.nu), cv = (j > 0) + (j + 1 < geo.nv);
-  if (!geo.curvilinear()) return {geo.lu * cu, geo.lv * cv, geo.lu * geo.lv, 0.0};
-  auto at = [&](int a, int b) { return Eigen::Vector2d(geo.plane.row(a + geo.nu * b).transpose()); };
-  std::array<Eigen::Vector2d, 5> x = {at(i, j), at(std::min(i + 1, geo.nu - 1), j), at(std::max(i - 1, 0), j),
-                                      at(i, std::min(j + 1, geo.nv - 1)), at(i, std::max(j - 1, 0))};
-  const std::uint32_t valid = 1u | (i + 1 < geo.nu ? 2u : 0u) | (i > 0 ? 4u : 0u) | (j + 1 < geo.nv ? 8u : 0u) | (j > 0 ? 16u : 0u);
+  return {geo.lu * cu, geo.lv * cv, geo.lu * geo.lv, 0.0};
+}
+
+CentreRest CentreRestAt(const ClothBlock& b, int i, int j) {
+  std::array<Eigen::Vector2d, 5> x;
+  std::uint32_t valid = 0;
+  for (std::size_t k = 0; k < 5; ++k) {
+    const int di = kOffsets[k][0], dj = kOffsets[k][1];
+    const bool in = b.At(i + di, j + dj) >= 0;
+    valid |= static_cast<std::uint32_t>(in) << k;
+    x[k] = b.rest[static_cast<std::size_t>(in ? b.Cell(i + di, j + dj) : b.Cell(i, j))];
+  }
   const std::array<double, 4> r = ShearKernel::RestOf(valid, x);
   return {r[0], r[1], r[2], r[3]};
 }
@@ -1388,53 +1403,65 @@ CentreRest CentreRestAt(const GridGeometry& geo, int i, int j) {
 void CurvilinearEnergies(const GridGeometry& geo, double mu, double bu, double bv, const MatrixN3& x, double* shear,
                          double* bending) {
   *shear = *bending = 0.0;
-  for (int j = 0; j < geo.nv; ++j)
-    for (int i = 0; i < geo.nu; ++i) {
-      std::array<Vector3, 9> xs;
-      std::array<Eigen::Vector2d, 9> rest;
-      std::uint32_t valid = 0;
-      for (std::size_t k = 0; k < 9; ++k) {
-        const int a = i + kOffsets[k][0], b = j + kOffsets[k][1];
-        const bool in = a >= 0 && a < geo.nu && b >= 0 && b < geo.nv;
-        const int q = in ? a + geo.nu * b : i + geo.nu * j;
-        valid |= static_cast<std::uint32_t>(in) << k;
-        xs[k] = x.row(q).transpose();
-        rest[k] = geo.plane.row(q).transpose();
-      }
-      const CentreRest r = CentreRestAt(geo, i, j);
-      if (mu != 0.0) {
-        const double gamma = ((xs[1] - xs[2]) / r.du).dot((xs[3] - xs[4]) / r.dv) - r.gamma0;
-        *shear += 0.5 * mu * gamma * gamma * r.area;
-      }
-      if (bu != 0.0 || bv != 0.0) {
-        const Patch<double, 9> p{xs, valid, &rest};
-        const Vector3 n = p.Normal();
-        const double kuu = p.Lu(0, 0, 0.0).dot(n), kvv = p.Lv(0, 0, 0.0).dot(n);
-        *bending += 0.5 * r.area * (bu * kuu * kuu + bv * kvv * kvv);
-      }
+  ForEachCentre(*geo.cloth, [&](const ClothBlock& b, int i, int j, int p) {
+    std::array<Vector3, 9> xs;
+    std::array<Eigen::Vector2d, 9> rest;
+    std::uint32_t valid = 0;
+    for (std::size_t k = 0; k < 9; ++k) {
+      const int q = b.At(i + kOffsets[k][0], j + kOffsets[k][1]);
+      valid |= static_cast<std::uint32_t>(q >= 0) << k;
+      xs[k] = x.row(q >= 0 ? q : p).transpose();
+      rest[k] = b.rest[static_cast<std::size_t>(q >= 0 ? b.Cell(i + kOffsets[k][0], j + kOffsets[k][1]) : b.Cell(i, j))];
     }
+    const CentreRest r = CentreRestAt(b, i, j);
+    if (mu != 0.0) {
+      const double gamma = ((xs[1] - xs[2]) / r.du).dot((xs[3] - xs[4]) / r.dv) - r.gamma0;
+      *shear += 0.5 * mu * gamma * gamma * r.area;
+    }
+    if (bu != 0.0 || bv != 0.0) {
+      const Patch<double, 9> patch{xs, valid, &rest};
+      const Vector3 n = patch.Normal();
+      const double kuu = patch.Lu(0, 0, 0.0).dot(n), kvv = patch.Lv(0, 0, 0.0).dot(n);
+      *bending += 0.5 * r.area * (bu * kuu * kuu + bv * kvv * kvv);
+    }
+  });
 }
 
 std::unique_ptr<ForceTerm> MakeShear(const GridGeometry& geo, double mu, double damping) {
-  return MakeGridTerm("shear", ShearKernel{mu, damping, geo.lu, geo.lv}, geo, GridCentres<ShearKernel>(geo));
+  return MakeGridTerm("shear", ShearKernel{mu, damping, geo.lu, geo.lv}, geo);
 }
 
 std::unique_ptr<ForceTerm> MakeMembraneBend(const GridGeometry& geo, double bu, double bv, double damping) {
-  auto term = MakeGridTerm("bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, geo,
-                           GridCentres<MembraneKernel>(geo));
+  auto term = MakeGridTerm("bend_membrane", MembraneKernel{bu, bv, damping, geo.lu, geo.lv}, geo);
   if (!geo.curvilinear()) term->UseGridRows(geo.nu, geo.nv);
   return term;
 }
 
 std::unique_ptr<ForceTerm> MakeThinPlateBend(const GridGeometry& geo, double bu, double bv, double damping) {
-  auto term = MakeGridTerm("bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, geo,
-                           GridCentres<ThinPlateKernel>(geo));
+  auto term = MakeGridTerm("bend_thin_plate", ThinPlateKernel{bu, bv, damping, geo.lu, geo.lv}, geo);
   if (!geo.curvilinear()) term->UseGridRows(geo.nu, geo.nv);
   return term;
 }
 
 std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122) {
+  // Slots: the centre, its u-neighbour (left, right on a border), its
+  // v-neighbour (lower, upper on a border); on patterns also their rest positions.
   std::vector<StencilTerm<TransverseKernel>::Centre> centres;
+  std::vector<std::array<Eigen::Vector2d, 3>> planes;
+  if (geo.curvilinear()) {
+    ForEachCentre(*geo.cloth, [&](const ClothBlock& b, int i, int j, int p) {
+      StencilTerm<TransverseKernel>::Centre c;
+      const int di = b.At(i - 1, j) >= 0 ? -1 : 1, dj = b.At(i, j - 1) >= 0 ? -1 : 1;
+      c.nodes = {p, b.At(i + di, j), b.At(i, j + dj)};
+      c.valid = 7u;
+      c.weight = geo.area(p);
+      centres.push_back(c);
+      planes.push_back({b.rest[static_cast<std::size_t>(b.Cell(i, j))], b.rest[static_cast<std::size_t>(b.Cell(i + di, j))],
+                        b.rest[static_cast<std::size_t>(b.Cell(i, j + dj))]});
+    });
+    return std::make_unique<StencilTerm<TransverseKernel>>("transverse", TransverseKernel{c1122, geo.lu, geo.lv},
+                                                           std::move(centres), geo.cloth->num_particles, planes);
+  }
   for (int j = 0; j < geo.nv; ++j)
     for (int i = 0; i < geo.nu; ++i) {
       StencilTerm<TransverseKernel>::Centre c;
@@ -1445,15 +1472,16 @@ std::unique_ptr<ForceTerm> MakeTransverse(const GridGeometry& geo, double c1122)
       c.weight = geo.area(c.nodes[0]);
       centres.push_back(c);
     }
-  return MakeGridTerm("transverse", TransverseKernel{c1122, geo.lu, geo.lv}, geo, std::move(centres));
+  return std::make_unique<StencilTerm<TransverseKernel>>("transverse", TransverseKernel{c1122, geo.lu, geo.lv},
+                                                         std::move(centres), geo.nu * geo.nv);
 }
 
 std::unique_ptr<ForceTerm> MakeWind(const GridGeometry& geo, const WindSpec& wind) {
-  return MakeGridTerm("wind", WindKernel{wind}, geo, GridCentres<WindKernel>(geo));
+  return MakeGridTerm("wind", WindKernel{wind}, geo);
 }
 
 std::unique_ptr<ForceTerm> MakeAirResistance(const GridGeometry& geo, double c_air) {
-  return MakeGridTerm("air", AirKernel{c_air}, geo, GridCentres<AirKernel>(geo));
+  return MakeGridTerm("air", AirKernel{c_air}, geo);
 }
 
 }  // namespace clothbench

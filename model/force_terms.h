@@ -86,12 +86,11 @@ struct GridGeometry {
   int nu = 0, nv = 0;
   double lu = 0.0, lv = 0.0;       ///< rest spacings [m] of a uniform grid
   Eigen::VectorXd area;            ///< node areas [m²] (m_p/ρ)
-  /// A curvilinear pattern's rest samples X_p in its plane [m], (nu·nv)×2
-  /// in row i + nu·j (SamplePattern); empty: the uniform grid of lu, lv.
-  /// Every stencil then takes its rest geometry from them (docs/model.md
-  /// §2.7, "Curvilinear patterns").
-  Eigen::MatrixX2d plane;
-  bool curvilinear() const { return plane.rows() > 0; }
+  /// The cloth of patterns (Scene::cloth): every stencil then takes its
+  /// particles and rest geometry from its blocks (docs/model.md §2.7–2.8);
+  /// null: the uniform nu × nv grid of lu, lv.
+  std::shared_ptr<const ClothLayout> cloth;
+  bool curvilinear() const { return cloth != nullptr; }
 };
 
 /// The rest geometry of the stencil centred on node (i, j) of a grid
@@ -106,8 +105,22 @@ struct CentreRest {
   /// rest angle between the threads; uniform: 0.
   double gamma0 = 0.0;
 };
-/// CentreRest of node (i, j), 0 ≤ i < nu, 0 ≤ j < nv, of `geo`.
+/// CentreRest of node (i, j), 0 ≤ i < nu, 0 ≤ j < nv, of a uniform `geo`.
 CentreRest CentreRestAt(const GridGeometry& geo, int i, int j);
+/// CentreRest of node (i, j) of a pattern's block, from its frame's rest
+/// positions (across a seam, the other side's nodes).
+CentreRest CentreRestAt(const ClothBlock& block, int i, int j);
+
+/// Calls f(block, i, j, p) for every stencil centre of `cloth` in order:
+/// each block's nodes that own their stencils (ClothBlock::owner), row by
+/// row, p the node's particle.
+template <class F>
+void ForEachCentre(const ClothLayout& cloth, F&& f) {
+  for (const ClothBlock& b : cloth.blocks)
+    for (int j = 0; j < b.nv; ++j)
+      for (int i = 0; i < b.nu; ++i)
+        if (b.owner[static_cast<std::size_t>(i + b.nu * j)]) f(b, i, j, b.At(i, j));
+}
 
 /// The shear and bending energies [J] of x (N×3 [m]) on the curvilinear
 /// pattern of `geo` (docs/model.md §2.7): Σ ½ μ (γ − γ₀)² A and

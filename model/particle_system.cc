@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <array>
+#include <set>
+#include <utility>
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
@@ -11,11 +13,11 @@ namespace clothbench {
 
 ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   const int nu = scene.grid.nu, nv = scene.grid.nv;
-  n_ = nu * nv;
+  n_ = scene.num_particles();
   const double lu = scene.lu(), lv = scene.lv();
   const MaterialSpec& mat = scene.material;
 
-  if (scene.grid.curvilinear()) {
+  if (scene.cloth) {
     CurvilinearCloth(scene);
   } else {
     // Rest positions and lumped masses (docs/model.md §1). "area" halves border masses.
@@ -91,7 +93,7 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   for (int p : fixed_) fixed_mask_[static_cast<std::size_t>(p)] = 1;
 
   // Explicit terms: only those with non-zero coefficients (docs/model.md §2.6).
-  geo_ = GridGeometry{nu, nv, lu, lv, mass_ / mat.density, scene.grid.plane};
+  geo_ = GridGeometry{nu, nv, lu, lv, mass_ / mat.density, scene.cloth};
   const GridGeometry& geo = geo_;
   if ((mat.tension[0] != 0.0 || mat.tension[1] != 0.0) && mat.tension_model == TensionModel::kSplit) {
     std::vector<Spring> stiff;
@@ -126,44 +128,47 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   }
 }
 
-// A curvilinear pattern (docs/model.md §2.7): the start is the placed
-// pattern; node (i, j) has the cell area A_ij of CentreRestAt; a spring's
-// rest length is its edge's in the plane, l_e, and its stiffness
-// s_e = k A_e / l_e² with A_e = ½ (A_a + A_b): the tension energy ½ k ε² per
-// area. "uniform" lumping gives m_p = ρ A_p; "area" ρ times a quarter of each
-// adjacent quad's area.
+// A cloth of patterns (docs/model.md §2.7–2.8): the start is the placed,
+// sewn patterns (ClothLayout::start); each particle has the cell area A of
+// its stencil centre (CentreRestAt); a spring's rest length is its edge's in
+// its pattern's plane, l_e, and its stiffness s_e = k A_e / l_e² with
+// A_e = ½ (A_a + A_b): the tension energy ½ k ε² per area. A seam's edges are
+// in both its patterns; each is one spring, its first pattern's. "uniform"
+// lumping gives m_p = ρ A_p; "area" ρ times a quarter of each adjacent
+// quad's rest area, in every pattern the particle is in.
 void ParticleSystem::CurvilinearCloth(const Scene& scene) {
-  const int nu = scene.grid.nu, nv = scene.grid.nv;
+  const ClothLayout& cloth = *scene.cloth;
   const MaterialSpec& mat = scene.material;
-  const Eigen::MatrixX2d& plane = scene.grid.plane;
-  rest_ = PlacePattern(scene.patterns.front(), plane);
-  GridGeometry geo{nu, nv, 0.0, 0.0, Eigen::VectorXd(), plane};
-  Eigen::VectorXd cell(n_);
-  for (int j = 0; j < nv; ++j)
-    for (int i = 0; i < nu; ++i) cell(scene.Index(i, j)) = CentreRestAt(geo, i, j).area;
+  rest_ = cloth.start;
+  Eigen::VectorXd cell = Eigen::VectorXd::Zero(n_);
+  ForEachCentre(cloth, [&](const ClothBlock& b, int i, int j, int p) { cell(p) = CentreRestAt(b, i, j).area; });
   if (mat.mass_lumping == MassLumping::kArea) {
     mass_.setZero(n_);
-    for (int j = 0; j + 1 < nv; ++j)
-      for (int i = 0; i + 1 < nu; ++i) {
-        const std::array<int, 4> q = {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)};
-        const Eigen::Vector2d d1 = plane.row(q[2]) - plane.row(q[0]), d2 = plane.row(q[3]) - plane.row(q[1]);
-        const double quarter = 0.125 * std::abs(d1.x() * d2.y() - d1.y() * d2.x());  // ¼ of ½ |d1 × d2|
-        for (int p : q) mass_(p) += quarter;
-      }
+    for (const ClothBlock& b : cloth.blocks)
+      for (int j = 0; j + 1 < b.nv; ++j)
+        for (int i = 0; i + 1 < b.nu; ++i) {
+          const std::array<int, 4> q = {i + b.nu * j, i + 1 + b.nu * j, i + 1 + b.nu * (j + 1), i + b.nu * (j + 1)};
+          const Eigen::Vector2d d1 = b.plane.row(q[2]) - b.plane.row(q[0]), d2 = b.plane.row(q[3]) - b.plane.row(q[1]);
+          const double quarter = 0.125 * std::abs(d1.x() * d2.y() - d1.y() * d2.x());  // ¼ of ½ |d1 × d2|
+          for (int k : q) mass_(b.At(k % b.nu, k / b.nu)) += quarter;
+        }
     mass_ *= mat.density;
   } else {
     mass_ = mat.density * cell;
   }
-  for (int j = 0; j < nv; ++j)
-    for (int i = 0; i < nu; ++i) {
-      const int p = scene.Index(i, j);
-      for (int dir = 0; dir < 2; ++dir) {
-        if (dir == 0 ? i + 1 >= nu : j + 1 >= nv) continue;
-        const int q = dir == 0 ? scene.Index(i + 1, j) : scene.Index(i, j + 1);
-        const double l = (plane.row(q) - plane.row(p)).norm(), a = 0.5 * (cell(p) + cell(q));
-        springs_.push_back({p, q, mat.tension[static_cast<std::size_t>(dir)] * a / (l * l), l, mat.tension_damping * a / (l * l)});
-      }
-    }
+  std::set<std::pair<int, int>> edges;
+  for (const ClothBlock& b : cloth.blocks)
+    for (int j = 0; j < b.nv; ++j)
+      for (int i = 0; i < b.nu; ++i)
+        for (int dir = 0; dir < 2; ++dir) {
+          if (dir == 0 ? i + 1 >= b.nu : j + 1 >= b.nv) continue;
+          const int ei = i + (dir == 0), ej = j + (dir == 1);
+          const int p = b.At(i, j), q = b.At(ei, ej);
+          if (p == q || !edges.insert({std::min(p, q), std::max(p, q)}).second) continue;  // a seam's edge: once
+          const double l = (b.plane.row(ei + b.nu * ej) - b.plane.row(i + b.nu * j)).norm(), a = 0.5 * (cell(p) + cell(q));
+          springs_.push_back({p, q, mat.tension[static_cast<std::size_t>(dir)] * a / (l * l), l,
+                              mat.tension_damping * a / (l * l)});
+        }
 }
 
 void ParticleSystem::AddExternalForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) const {
@@ -201,7 +206,7 @@ EnergyBreakdown ParticleSystem::Energies(const MatrixN3& x, const MatrixN3& v) c
   const bool shear = mat.shear != 0.0;
   const bool bend = mat.bend_model != BendModel::kNone && (mat.bend[0] != 0.0 || mat.bend[1] != 0.0);
   if (!shear && !bend) return e;
-  if (scene_.grid.curvilinear()) {
+  if (scene_.cloth) {
     CurvilinearEnergies(geo_, shear ? mat.shear : 0.0, bend ? mat.bend[0] : 0.0, bend ? mat.bend[1] : 0.0, x, &e.shear,
                         &e.bending);
     return e;

@@ -375,11 +375,55 @@ PatternSpec ParsePattern(TableReader& t) {
   return p;
 }
 
-// [[pattern]]: the cloth as patterns, in place of [grid]. The model takes
-// one flat rectangle with straight sides so far: it is [grid]'s sheet.
+// "<pattern>:edge:<side>" of a [[seam]] key: the pattern's index and side.
+std::array<int, 2> SeamSide(TableReader& t, const char* key, const Scene& s, std::string* text) {
+  *text = t.String(key, "");
+  const char* rule = "must name a pattern's side, \"<pattern>:edge:<v0|u1|v1|u0>\"";
+  const auto colon = text->find(':');
+  if (colon == std::string::npos || text->compare(colon, 6, ":edge:") != 0) t.Fail(key, rule);
+  const std::string name = text->substr(0, colon), side = text->substr(colon + 6);
+  int k = 0;
+  while (k < static_cast<int>(s.patterns.size()) && s.patterns[static_cast<std::size_t>(k)].name != name) ++k;
+  if (k == static_cast<int>(s.patterns.size()))
+    t.Fail(key, fmt::format("\"{}\" names no pattern of the scene", EscapeControl(name)));
+  for (int e = 0; e < 4; ++e)
+    if (side == PatternSpec::kSideNames[static_cast<std::size_t>(e)]) return {k, e};
+  t.Fail(key, rule);
+}
+
+// [[seam]]: two patterns' sides sewn sample to sample (docs/scenes.md, "Seams").
+void ParseSeams(TableReader& top, const std::string& source, Scene& s) {
+  const toml::node* n = top.Get("seam");
+  if (!n) return;
+  const toml::array* a = n->as_array();
+  if (!a || a->empty()) top.Fail("seam", "must be an array of tables ([[seam]])");
+  for (std::size_t k = 0; k < a->size(); ++k) {
+    const toml::table* t = (*a)[k].as_table();
+    if (!t) throw SceneError(fmt::format("{}: seam[{}]: must be a table", source, k));
+    TableReader r(t, fmt::format("seam[{}].", k), source);
+    SeamSpec seam;
+    const auto side_a = SeamSide(r, "a", s, &seam.a), side_b = SeamSide(r, "b", s, &seam.b);
+    seam.pattern_a = side_a[0];
+    seam.side_a = side_a[1];
+    seam.pattern_b = side_b[0];
+    seam.side_b = side_b[1];
+    seam.reversed = r.Bool("reversed", false);
+    r.RejectUnknown();
+    if (const std::string rule = SeamRule(s.patterns, seam); !rule.empty())
+      r.Fail(rule.substr(0, rule.find(':')), rule.substr(rule.find(':') + 2));
+    s.seams.push_back(seam);
+  }
+}
+
+// [[pattern]]: the cloth as patterns, in place of [grid]. One flat
+// rectangle with straight sides and no seam is [grid]'s sheet; any other
+// cloth is Scene::cloth (docs/model.md §2.7–2.8).
 void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
   const toml::node* n = top.Get("pattern");
-  if (!n) return;
+  if (!n) {
+    if (top.Get("seam")) top.Fail("seam", "needs [[pattern]] tables to sew");
+    return;
+  }
   const toml::array* a = n->as_array();
   if (!a || a->empty()) top.Fail("pattern", "must be an array of tables ([[pattern]])");
   if (top.Get("grid")) top.Fail("grid", "give either [grid] or [[pattern]] tables, not both");
@@ -391,16 +435,25 @@ void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
     for (std::size_t q = 0; q < k; ++q)
       if (s.patterns[q].name == s.patterns[k].name) r.Fail("name", fmt::format("\"{}\" names pattern {} already", s.patterns[k].name, q));
   }
+  ParseSeams(top, source, s);
+  double total = 0.0;
+  for (const PatternSpec& p : s.patterns) total += static_cast<double>(p.nu) * p.nv;
+  if (total > kMaxParticles)
+    top.Fail("pattern", fmt::format("{:.0f} samples in all exceed the limit of {:g} particles", total, kMaxParticles));
   const PatternSpec& p = s.patterns.front();
-  if (s.patterns.size() > 1)
-    top.Fail("pattern", "the model takes one pattern so far (docs/scenes.md, \"[[pattern]]\"); sewn patterns are not "
-                        "modelled yet");
   s.grid.nu = p.nu;
   s.grid.nv = p.nv;
-  if (!PatternIsGrid(p, &s.grid.origin, &s.grid.u_axis, &s.grid.v_axis, &s.grid.size)) {
-    // Curved, slanted or wrapped: the model takes its rest geometry from
-    // the samples (docs/model.md §2.7).
-    SetCurvilinearCloth(&s, p, SamplePattern(p));
+  if (s.patterns.size() > 1 || !s.seams.empty() ||
+      !PatternIsGrid(p, &s.grid.origin, &s.grid.u_axis, &s.grid.v_axis, &s.grid.size)) {
+    try {
+      SetCloth(&s, BuildClothLayout(s.patterns, s.seams));
+    } catch (const std::invalid_argument& e) {  // a side in two seams
+      top.Fail("seam", e.what());
+    }
+    if (s.cloth->largest_gap > kSeamGap)
+      top.Fail("seam", fmt::format("pairs up to {:.3g} m apart at the start: a seam's samples must start within {:g} m "
+                                   "of each other (a sewing phase that brings them together is not modelled yet)",
+                                   s.cloth->largest_gap, kSeamGap));
   }
   if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6)
     top.Fail("pattern", "must place corner u0v0 at coordinates of magnitude at most 1e6 m, as [grid]'s origin");
@@ -409,40 +462,52 @@ void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
 
 }  // namespace
 
-void SetCurvilinearCloth(Scene* scene, const PatternSpec& pattern, Eigen::MatrixX2d plane) {
-  const int nu = pattern.nu, nv = pattern.nv;
-  if (plane.rows() != static_cast<Eigen::Index>(nu) * nv)
-    throw std::invalid_argument(fmt::format("SetCurvilinearCloth: {} samples for {} × {}", plane.rows(), nu, nv));
+void SetCloth(Scene* scene, ClothLayout cloth) {
+  const ClothBlock& first = cloth.blocks.front();
+  const PatternSpec& p = scene->patterns.front();
   GridSpec& g = scene->grid;
-  g.nu = nu;
-  g.nv = nv;
-  g.origin = pattern.origin;
-  g.u_axis = pattern.x_axis;
-  g.v_axis = pattern.y_axis;
-  g.size = {plane.col(0).maxCoeff() - plane.col(0).minCoeff(), plane.col(1).maxCoeff() - plane.col(1).minCoeff()};
-  double least_u = kMaxMagnitude, least_v = kMaxMagnitude;
-  for (int j = 0; j < nv; ++j)
-    for (int i = 0; i < nu; ++i) {
-      if (i + 1 < nu) least_u = std::min(least_u, (plane.row(i + 1 + nu * j) - plane.row(i + nu * j)).norm());
-      if (j + 1 < nv) least_v = std::min(least_v, (plane.row(i + nu * (j + 1)) - plane.row(i + nu * j)).norm());
-    }
-  g.least_spacing = {least_u, least_v};
-  g.plane = std::move(plane);
+  g.nu = first.nu;
+  g.nv = first.nv;
+  g.origin = p.origin;
+  g.u_axis = p.x_axis;
+  g.v_axis = p.y_axis;
+  g.size = {first.plane.col(0).maxCoeff() - first.plane.col(0).minCoeff(),
+            first.plane.col(1).maxCoeff() - first.plane.col(1).minCoeff()};
+  scene->cloth = std::make_shared<const ClothLayout>(std::move(cloth));
+}
+
+void SetCurvilinearCloth(Scene* scene, const PatternSpec& pattern, Eigen::MatrixX2d plane) {
+  const std::vector<Eigen::MatrixX2d> samples = {std::move(plane)};
   scene->patterns = {pattern};
+  scene->seams.clear();
+  SetCloth(scene, BuildClothLayout(scene->patterns, {}, &samples));
 }
 
 namespace {
 
-// A selection ("edge:u1", or "<pattern>:edge:u1" on patterns) as flat indices.
+// A selection ("edge:u1", or "<pattern>:edge:u1" on patterns) as particle
+// indices: a pattern's nodes through the cloth's numbering.
 std::vector<int> ResolveSelection(const std::string& spec, const Scene& s, const std::string& what) {
   const auto colon = spec.find(':');
   const std::string head = spec.substr(0, colon);
   if (colon != std::string::npos && head != "edge" && head != "corner" && head != "particle") {
-    for (const PatternSpec& p : s.patterns)
-      if (p.name == head) return ResolveFixed(spec.substr(colon + 1), s.grid.nu, s.grid.nv, what);
+    for (std::size_t k = 0; k < s.patterns.size(); ++k) {
+      const PatternSpec& p = s.patterns[k];
+      if (p.name != head) continue;
+      std::vector<int> local = ResolveFixed(spec.substr(colon + 1), p.nu, p.nv, what);
+      if (!s.cloth) return local;
+      for (int& q : local) q = s.cloth->merged[static_cast<std::size_t>(s.cloth->first[k] + q)];
+      std::sort(local.begin(), local.end());
+      local.erase(std::unique(local.begin(), local.end()), local.end());
+      return local;
+    }
     throw SceneError(what + fmt::format("\"{}\" names no pattern of the scene", EscapeControl(head)));
   }
-  return ResolveFixed(spec, s.grid.nu, s.grid.nv, what);
+  if (s.patterns.size() > 1)
+    throw SceneError(what + fmt::format("\"{}\" must name its pattern on a cloth of several patterns, e.g. \"{}:{}\"",
+                                        EscapeControl(spec), s.patterns.front().name, EscapeControl(spec)));
+  if (s.patterns.empty()) return ResolveFixed(spec, s.grid.nu, s.grid.nv, what);
+  return ResolveSelection(s.patterns.front().name + ":" + spec, s, what);
 }
 
 // [constraints]: fixed particles.
@@ -461,7 +526,7 @@ void ParseConstraints(TableReader& top, const std::string& source, Scene& s) {
     }
     s.fixed.assign(fixed.begin(), fixed.end());
     // A sheet with every particle fixed has no unknowns: nothing to integrate.
-    if (static_cast<long>(s.fixed.size()) >= static_cast<long>(s.grid.nu) * s.grid.nv)
+    if (static_cast<long>(s.fixed.size()) >= static_cast<long>(s.num_particles()))
       c.Fail("fixed", fmt::format("fixes all {} particles; at least one must be free", s.fixed.size()));
   }
   // [[constraints.motion]]: fixed particles on a keyframed rigid motion.
@@ -625,6 +690,8 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
       spec.relaxation = o.Positive("relaxation", spec.relaxation);
       if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
       spec.virtual_particles = o.Bool("virtual_particles", false);
+      if (spec.virtual_particles && s.cloth && (s.patterns.size() > 1 || !s.seams.empty()))
+        o.Fail("virtual_particles", "must be false on a sewn cloth: virtual particles run on one pattern's grid");
       if (spec.virtual_particles && !spec.shape->has_edges())
         o.Fail("virtual_particles", fmt::format("must be false for a {} (it has no edges to project onto the cloth)",
                                                 spec.type()));
@@ -765,8 +832,17 @@ Scene RefineGrid(const Scene& scene, long n) {
   } catch (const toml::parse_error& e) {
     throw SceneError(fmt::format("{}: TOML syntax error: {}", scene.source, std::string(e.description())));
   }
-  if (toml::array* patterns = root["pattern"].as_array(); patterns && !patterns->empty() && (*patterns)[0].as_table()) {
-    // One rectangular pattern (ParsePatterns): its samples are the grid's.
+  if (toml::array* patterns = root["pattern"].as_array(); patterns && patterns->size() > 1) {
+    // Several patterns: each pattern's intervals scaled by one factor, so
+    // that a seam's sides keep equal counts and N is about n.
+    const double f = std::sqrt(static_cast<double>(n) / scene.num_particles());
+    for (std::size_t k = 0; k < patterns->size() && k < scene.patterns.size(); ++k) {
+      const PatternSpec& p = scene.patterns[k];
+      const auto scaled = [f](int m) { return std::max(2, static_cast<int>(std::lround((m - 1) * f)) + 1); };
+      (*patterns)[k].as_table()->insert_or_assign("samples", toml::array{scaled(p.nu), scaled(p.nv)});
+    }
+  } else if (patterns && !patterns->empty() && (*patterns)[0].as_table()) {
+    // One pattern (ParsePatterns): its samples are the grid's.
     (*patterns)[0].as_table()->insert_or_assign("samples", toml::array{nu, nv});
   } else {
     toml::table* grid = root["grid"].as_table();
@@ -774,7 +850,9 @@ Scene RefineGrid(const Scene& scene, long n) {
     grid->insert_or_assign("nu", nu);
     grid->insert_or_assign("nv", nv);
   }
-  root.insert_or_assign("name", fmt::format("{}_{}x{}", scene.name, nu, nv));
+  // Several patterns are named by the particles asked for, a grid by its nu × nv.
+  const bool several = scene.patterns.size() > 1;
+  root.insert_or_assign("name", several ? fmt::format("{}_{}", scene.name, n) : fmt::format("{}_{}x{}", scene.name, nu, nv));
   std::ostringstream text;
   text << fmt::format("# {} on a {}×{} grid (RefineGrid: bench_integrators --sizes)\n", scene.name, nu, nv) << root
        << '\n';

@@ -5,6 +5,7 @@
 #define CLOTHBENCH_MODEL_SCENE_H_
 
 #include <array>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -13,6 +14,7 @@
 
 #include "collision/shapes/escape_control.h"
 #include "model/obstacle.h"
+#include "model/cloth_layout.h"
 #include "model/pattern.h"
 #include "model/solver_spec.h"
 #include "model/types.h"
@@ -63,14 +65,6 @@ struct GridSpec {
   Vector3 origin = Vector3(0.0, 0.0, 1.0);        ///< [m] rest position of particle (0,0)
   Vector3 u_axis = Vector3::UnitX();              ///< unit vector along u
   Vector3 v_axis = Vector3::UnitY();              ///< unit vector along v, orthogonal to u
-  /// A curvilinear pattern's rest samples in its plane [m], (nu·nv)×2 in
-  /// row i + nu·j (SamplePattern of the scene's one pattern); empty: the
-  /// uniform lattice of `size`. With them `size` is their bounding box and
-  /// `least_spacing` the smallest rest distance between neighbours along u
-  /// and along v (Scene::lu, lv).
-  Eigen::MatrixX2d plane;
-  std::array<double, 2> least_spacing = {0.0, 0.0};  ///< [m]
-  bool curvilinear() const { return plane.rows() > 0; }
 };
 
 /// Material constants per unit length of cloth (docs/model.md §1).
@@ -140,6 +134,12 @@ struct Scene {
   double h = 0.01;         ///< [s] nominal step
   GridSpec grid;                         ///< the sheet; with `patterns`, the one pattern's grid
   std::vector<PatternSpec> patterns;     ///< `[[pattern]]`; empty: the cloth is `[grid]`
+  std::vector<SeamSpec> seams;           ///< `[[seam]]`
+  /// The cloth of the patterns and seams (docs/model.md §2.7–2.8), unless
+  /// it is `grid`'s uniform sheet (no patterns, or one flat rectangle):
+  /// then null. With it, `grid` holds the first pattern's nu, nv, placement
+  /// and the bounding box of its samples.
+  std::shared_ptr<const ClothLayout> cloth;
   MaterialSpec material;                 ///< the cloth's; with one pattern, that pattern's
   /// Per pattern, `[material]` with its `[pattern.material]` keys over it.
   std::vector<MaterialSpec> pattern_materials;
@@ -153,11 +153,13 @@ struct Scene {
   std::string source = "<memory>";       ///< file path or "<embedded>"
   std::string toml;                      ///< the scene's TOML text
 
-  int num_particles() const { return grid.nu * grid.nv; }
+  int num_particles() const { return cloth ? cloth->num_particles : grid.nu * grid.nv; }
+  /// Whether the cloth is one uniform grid, `grid` (else Scene::cloth).
+  bool uniform_grid() const { return cloth == nullptr; }
   /// The rest spacing along u [m]: the grid's, or a curvilinear pattern's smallest.
-  double lu() const { return grid.curvilinear() ? grid.least_spacing[0] : grid.size[0] / (grid.nu - 1); }
+  double lu() const { return cloth ? cloth->least_spacing[0] : grid.size[0] / (grid.nu - 1); }
   /// The rest spacing along v [m]: the grid's, or a curvilinear pattern's smallest.
-  double lv() const { return grid.curvilinear() ? grid.least_spacing[1] : grid.size[1] / (grid.nv - 1); }
+  double lv() const { return cloth ? cloth->least_spacing[1] : grid.size[1] / (grid.nv - 1); }
   /// Flat index p = i + nu·j (docs/model.md §1).
   int Index(int i, int j) const { return i + grid.nu * j; }
   /// Numerical stiffness h²k/(ρl²) (§3.4.4) with the largest k_e/l_e² of u and v.
@@ -195,12 +197,19 @@ Scene LoadSceneOrBuiltin(const std::string& arg);
 ///   ParseScene error of the rewritten text
 Scene RefineGrid(const Scene& scene, long n);
 
+/// The largest distance [m] a seam's two samples may start apart (they are
+/// merged into one particle at their midpoint).
+inline constexpr double kSeamGap = 1e-6;
+
+/// Makes `cloth` the scene's Scene::cloth, and `grid` its first pattern's
+/// nu, nv, placement and sample box (`patterns` must be the cloth's).
+void SetCloth(Scene* scene, ClothLayout cloth);
+
 /// Makes the rest samples `plane` ((nu·nv)×2 [m], row i + nu·j, nu × nv =
 /// pattern.nu × pattern.nv) the cloth of `scene`, placed by `pattern`
-/// (PlacePattern): GridSpec::plane, its bounding box as `size` and its
-/// smallest spacings; `patterns` becomes {pattern}. The model then takes its
-/// rest geometry from the samples (docs/model.md §2.7). ParsePatterns calls
-/// it with SamplePattern(pattern); tests with their own samplings.
+/// (PlacePattern): Scene::cloth of the one pattern, `patterns` = {pattern},
+/// no seams. The model then takes its rest geometry from the samples
+/// (docs/model.md §2.7). Tests give their own samplings with it.
 /// @throws std::invalid_argument if plane's rows are not nu·nv
 void SetCurvilinearCloth(Scene* scene, const PatternSpec& pattern, Eigen::MatrixX2d plane);
 

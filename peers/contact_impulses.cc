@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include "collision/edge_projection.h"
+#include "collision/cloth_mesh.h"
 
 namespace clothbench {
 
@@ -24,11 +25,10 @@ ContactImpulses::ContactImpulses(const ParticleSystem& system, const Eigen::Vect
     nodes_.reserve(static_cast<std::size_t>(n));
   }
   if (self_) {
-    const auto& grid = system.scene().grid;
     thickness_ = collision->thickness;
     skin_ = kSkinFraction * std::min(system.scene().lu(), system.scene().lv());
-    detector_.emplace(GridTriangles(grid.nu, grid.nv).vertices, n,
-                      GridPatches(grid.nu, grid.nv, SelfContactResponse::kPatchCells));
+    detector_.emplace(SceneTriangles(system.scene()).vertices, n,
+                      ScenePatches(system.scene(), SelfContactResponse::kPatchCells));
     pair_count_.assign(static_cast<std::size_t>(n), 0);
     motion_.assign(static_cast<std::size_t>(n), 0.0);
     x_end_.setZero(n, 3);

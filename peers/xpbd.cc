@@ -61,7 +61,14 @@ Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_
     shear_compliance_ = curvilinear ? 1.0 / mat.shear : 1.0 / (mat.shear * lu * lv);
     shear_damping_ = curvilinear ? mat.shear_damping : mat.shear_damping * lu * lv;
     shear_.reserve(static_cast<std::size_t>(n));
-    for (int j = 0; j < nv; ++j)
+    if (curvilinear) {  // each centre's rest geometry (docs/model.md §2.7–2.8)
+      ForEachCentre(*system.geometry().cloth, [&](const ClothBlock& b, int i, int j, int c) {
+        const auto at = [&](int a, int bb) { return b.At(a, bb) >= 0 ? b.At(a, bb) : c; };
+        const CentreRest r = CentreRestAt(b, i, j);
+        shear_.push_back({{c, at(i + 1, j), at(i - 1, j), at(i, j + 1), at(i, j - 1)}, r.du, r.dv, r.gamma0, 1.0 / r.area, r.area});
+      });
+    }
+    for (int j = 0; j < nv && !curvilinear; ++j)
       for (int i = 0; i < nu; ++i) {
         const int c = scene.Index(i, j);
         ShearCross s;
@@ -69,14 +76,6 @@ Xpbd::Xpbd(const ParticleSystem& system, int substeps) : sys_(system), substeps_
                    j + 1 < nv ? scene.Index(i, j + 1) : c, j > 0 ? scene.Index(i, j - 1) : c};
         s.du = lu * ((i + 1 < nu) + (i > 0));
         s.dv = lv * ((j + 1 < nv) + (j > 0));
-        if (curvilinear) {  // its rest geometry (docs/model.md §2.7)
-          const CentreRest r = CentreRestAt(system.geometry(), i, j);
-          s.du = r.du;
-          s.dv = r.dv;
-          s.gamma0 = r.gamma0;
-          s.compliance_scale = 1.0 / r.area;
-          s.area_scale = r.area;
-        }
         shear_.push_back(s);
       }
   }

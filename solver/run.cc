@@ -17,6 +17,7 @@
 #include "solver/hermite.h"
 #include "solver/progress.h"
 #include "solver/thread_budget.h"
+#include "collision/cloth_mesh.h"
 
 namespace clothbench {
 
@@ -302,7 +303,7 @@ class FrameRecorder {
         self_contact_(self_contact),
         response_(response),
         sum_(sum) {
-    if (system.scene().collision) triangles_ = GridTriangles(system.scene().grid.nu, system.scene().grid.nv).vertices;
+    if (system.scene().collision) triangles_ = SceneTriangles(system.scene()).vertices;
     Trajectory& tr = sum->trajectory;
     tr.times.reserve(frames_.size());
     tr.positions.assign(frames_.size(), MatrixN3(system.num_particles(), 3));

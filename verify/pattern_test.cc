@@ -184,7 +184,7 @@ TEST(Pattern, CurvedAndWrappedPatternsStartAtRestWhereTheyArePlaced) {
   std::string curved = kPatternScene;
   curved.replace(curved.find("samples"), 0, "sides.v0 = [[0.0, 0.0], [0.3, -0.05], [0.6, 0.0]]\nwrap_radius = 0.5\n");
   Scene s = ParseScene(curved, "curved.toml");
-  ASSERT_TRUE(s.grid.curvilinear());
+  ASSERT_FALSE(s.uniform_grid());
   s.forces.gravity = Vector3::Zero();
   const ParticleSystem sys(s);
   EXPECT_EQ(sys.rest_positions(), PlacePattern(s.patterns[0], SamplePattern(s.patterns[0])));
@@ -255,10 +255,14 @@ TEST(Pattern, SceneRefusesBadPatternsNamingThem) {
   std::string indexed = kPatternScene;
   indexed.replace(indexed.find("panel:edge:v0"), 13, "panel:particle:1,0");
   EXPECT_THROW(RefineGrid(ParseScene(indexed, "p.toml"), 100), SceneError);
-  // Several patterns: not modelled yet, and said so.
+  // Several patterns: a selection must say whose particles it names.
   std::string two = twice;
   two.replace(two.rfind("\"panel\""), 7, "\"back\"");
-  EXPECT_NE(refusal(two).find("pattern: the model takes one pattern so far"), std::string::npos) << refusal(two);
+  EXPECT_EQ(ParseScene(two, "p.toml").num_particles(), 70);
+  std::string unnamed = two;
+  unnamed.replace(unnamed.find("panel:edge:v0"), 13, "edge:v0");
+  EXPECT_EQ(refusal(unnamed).rfind("p.toml: constraints.fixed[0]: \"edge:v0\" must name its pattern", 0), 0u)
+      << refusal(unnamed);
 }
 
 }  // namespace
