@@ -117,6 +117,19 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   } catch (const SceneError& e) {
     throw UsageError(fmt::format("{}: /scene/toml: {}", where, e.what()));
   }
+  // A garment starts where its stored sewing phase ended (solver/sewing.h).
+  if (q.scene.cloth && !q.scene.cloth->sewn && file.Exists("/scene/sewn_start")) {
+    const std::vector<double> x = file.Doubles("/scene/sewn_start");
+    if (x.size() != static_cast<std::size_t>(3 * q.scene.num_particles()))
+      throw UsageError(fmt::format("{}: /scene/sewn_start has {} values for {} particles", where, x.size(),
+                                   q.scene.num_particles()));
+    ClothLayout sewn = *q.scene.cloth;
+    for (int p = 0; p < q.scene.num_particles(); ++p)
+      for (int c = 0; c < 3; ++c) sewn.start(p, c) = x[static_cast<std::size_t>(3 * p + c)];
+    if (!sewn.start.allFinite()) throw UsageError(fmt::format("{}: /scene/sewn_start is not finite", where));
+    sewn.sewn = true;
+    SetCloth(&q.scene, std::move(sewn));
+  }
   if (q.scene.num_particles() != table.n_particles)
     throw UsageError(fmt::format("{}: /scene/toml has {} particles, /scene@n_particles {}", where,
                                  q.scene.num_particles(), table.n_particles));

@@ -196,6 +196,38 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
   return t;
 }
 
+namespace {
+
+// The cloth's quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
+// particle indices, counter-clockwise in (u, v); on a cloth of patterns
+// every pattern's, in the sewn cloth's numbering (ClothLayout::quads). And
+// a garment's sewn start (solver/sewing.h): every run starts from it, and a
+// rerun reads it instead of sewing again.
+void WriteCloth(ResultFile& f, const Scene& scene) {
+  const int nu = scene.grid.nu, nv = scene.grid.nv;
+  std::vector<int32_t> faces;
+  if (scene.cloth) {
+    for (const std::array<int, 4>& q : scene.cloth->quads) faces.insert(faces.end(), q.begin(), q.end());
+  } else {
+    faces.reserve(static_cast<std::size_t>(4 * (nu - 1) * (nv - 1)));
+    for (int j = 0; j + 1 < nv; ++j)
+      for (int i = 0; i + 1 < nu; ++i)
+        for (int q : {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)})
+          faces.push_back(q);
+  }
+  f.WriteTable("/scene/faces", static_cast<int>(faces.size() / 4), 4, faces);
+  if (scene.cloth && scene.sewing_time > 0.0) {
+    const MatrixN3& x = scene.cloth->start;
+    std::vector<double> rows(static_cast<std::size_t>(x.size()));
+    for (Eigen::Index p = 0; p < x.rows(); ++p)
+      for (int c = 0; c < 3; ++c) rows[static_cast<std::size_t>(3 * p + c)] = x(p, c);
+    f.WriteTable("/scene/sewn_start", static_cast<int>(x.rows()), 3, rows, "m");
+    f.SetAttribute("/scene/sewn_start", "largest_gap_m", scene.cloth->largest_gap);
+  }
+}
+
+}  // namespace
+
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
                   const std::optional<RunSummary>& ref, const std::vector<Row>& rows,
                   const RunTable& table, long mpi_ranks) {
@@ -208,23 +240,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   f.CreateGroup("/scene");
   WriteSceneRecord(f, table);
   f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
-  // The quads, once: (i, j), (i+1, j), (i+1, j+1), (i, j+1), 0-based
-  // particle indices, counter-clockwise in (u, v); on a cloth of patterns
-  // every pattern's, in the sewn cloth's numbering (ClothLayout::quads).
-  {
-    const int nu = scene.grid.nu, nv = scene.grid.nv;
-    std::vector<int32_t> faces;
-    if (scene.cloth) {
-      for (const std::array<int, 4>& q : scene.cloth->quads) faces.insert(faces.end(), q.begin(), q.end());
-    } else {
-      faces.reserve(static_cast<std::size_t>(4 * (nu - 1) * (nv - 1)));
-      for (int j = 0; j + 1 < nv; ++j)
-        for (int i = 0; i + 1 < nu; ++i)
-          for (int q : {scene.Index(i, j), scene.Index(i + 1, j), scene.Index(i + 1, j + 1), scene.Index(i, j + 1)})
-            faces.push_back(q);
-    }
-    f.WriteTable("/scene/faces", static_cast<int>(faces.size() / 4), 4, faces);
-  }
+  WriteCloth(f, scene);
   // Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
   // motion not applied), for the XDMF file; and the polyhedron and edges of
   // every obstacle with virtual particles (Obstacle::Surface, ::Edges at

@@ -11,6 +11,7 @@
 #include "harness/cli_args.h"
 #include "harness/memory_check.h"
 #include "harness/sweep.h"
+#include "solver/sewing.h"
 
 namespace clothbench {
 
@@ -257,6 +258,7 @@ ResolvedRun RunRequest::Resolve() const {
   // are one per step of a fixed-step row, unknown (0) for adaptive ones.
   const double records = out.row.kind() == StepKind::kAdaptive ? 0.0 : out.scene.t_end / out.param;
   CheckMemory(out.scene, {out.row}, {1}, 1, std::nullopt, records);
+  Sew(&out.scene);  // a garment's sewing phase, once per scene (solver/sewing.h)
   return out;
 }
 
@@ -270,6 +272,7 @@ Scene RunRequest::SweepScene() const {
   if (cg_tolerance) s.solver.cg_tolerance = *cg_tolerance;
   if (preconditioner) s.solver.preconditioner = ParsePreconditioner(EscapeControl(*preconditioner), Field("preconditioner"));
   if (tangent_terms) s.solver.tangent_explicit_terms = *tangent_terms == "all";
+  Sew(&s);  // a garment's sewing phase, once per scene (solver/sewing.h)
   return s;
 }
 

@@ -63,6 +63,9 @@ struct ClothLayout {
   MatrixN3 start;            ///< num_particles × 3 start positions [m]
   std::array<double, 2> least_spacing = {0.0, 0.0};  ///< smallest rest spacing along u and v [m]
   double largest_gap = 0.0;  ///< the largest distance between a seam's two samples at the start [m]
+  /// False while a sewing phase is pending (solver/sewing.h): `start` is
+  /// then each pair's midpoint, and the cloth cannot be run.
+  bool sewn = true;
   /// The quads (i, j), (i+1, j), (i+1, j+1), (i, j+1) of every pattern in
   /// cloth particles, pattern by pattern.
   std::vector<std::array<int, 4>> quads;

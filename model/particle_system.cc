@@ -17,6 +17,8 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
   const double lu = scene.lu(), lv = scene.lv();
   const MaterialSpec& mat = scene.material;
 
+  if (scene.cloth && !scene.cloth->sewn)
+    throw SceneError(fmt::format("{}: sewing: the cloth is not sewn yet (solver/sewing.h, Sew)", scene.source));
   if (scene.cloth) {
     CurvilinearCloth(scene);
   } else {

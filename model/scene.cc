@@ -436,6 +436,13 @@ void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
       if (s.patterns[q].name == s.patterns[k].name) r.Fail("name", fmt::format("\"{}\" names pattern {} already", s.patterns[k].name, q));
   }
   ParseSeams(top, source, s);
+  if (const toml::table* sewing = top.SubTable("sewing")) {
+    TableReader w(sewing, top.Child("sewing"), source);
+    if (s.seams.empty()) top.Fail("sewing", "needs [[seam]] tables to sew");
+    if (!w.Get("time")) w.Fail("time", "must be given: the phase's length [s] > 0");
+    s.sewing_time = w.Positive("time", 0.0);
+    w.RejectUnknown();
+  }
   double total = 0.0;
   for (const PatternSpec& p : s.patterns) total += static_cast<double>(p.nu) * p.nv;
   if (total > kMaxParticles)
@@ -450,10 +457,15 @@ void ParsePatterns(TableReader& top, const std::string& source, Scene& s) {
     } catch (const std::invalid_argument& e) {  // a side in two seams
       top.Fail("seam", e.what());
     }
-    if (s.cloth->largest_gap > kSeamGap)
+    if (s.sewing_time > 0.0) {
+      ClothLayout pending = *s.cloth;  // sewn by solver/sewing.h before any run
+      pending.sewn = false;
+      SetCloth(&s, std::move(pending));
+    } else if (s.cloth->largest_gap > kSeamGap) {
       top.Fail("seam", fmt::format("pairs up to {:.3g} m apart at the start: a seam's samples must start within {:g} m "
-                                   "of each other (a sewing phase that brings them together is not modelled yet)",
+                                   "of each other, or give [sewing] time to bring them together",
                                    s.cloth->largest_gap, kSeamGap));
+    }
   }
   if (s.grid.origin.cwiseAbs().maxCoeff() > 1e6)
     top.Fail("pattern", "must place corner u0v0 at coordinates of magnitude at most 1e6 m, as [grid]'s origin");

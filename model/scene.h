@@ -135,6 +135,9 @@ struct Scene {
   GridSpec grid;                         ///< the sheet; with `patterns`, the one pattern's grid
   std::vector<PatternSpec> patterns;     ///< `[[pattern]]`; empty: the cloth is `[grid]`
   std::vector<SeamSpec> seams;           ///< `[[seam]]`
+  /// `[sewing] time` [s]: the sewing phase that brings the seams' sides
+  /// together (solver/sewing.h); 0: none, the sides must start together.
+  double sewing_time = 0.0;
   /// The cloth of the patterns and seams (docs/model.md §2.7–2.8), unless
   /// it is `grid`'s uniform sheet (no patterns, or one flat rectangle):
   /// then null. With it, `grid` holds the first pattern's nu, nv, placement
