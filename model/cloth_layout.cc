@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 #include <stdexcept>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -44,6 +45,15 @@ struct UnionFind {
 
 }  // namespace
 
+std::vector<std::array<int, 2>> SeamPairs(const SeamSpec& seam, int la, int lb) {
+  const int fa = seam.first_a, ea = seam.last_a < 0 ? la - 1 : seam.last_a;
+  const int fb = seam.first_b, eb = seam.last_b < 0 ? lb - 1 : seam.last_b;
+  std::vector<std::array<int, 2>> out;
+  if (fa < 0 || ea >= la || fa >= ea || fb < 0 || eb >= lb || fb >= eb || ea - fa != eb - fb) return out;
+  for (int k = 0; k <= ea - fa; ++k) out.push_back({fa + k, seam.reversed ? eb - k : fb + k});
+  return out;
+}
+
 std::string SeamRule(const std::vector<PatternSpec>& patterns, const SeamSpec& seam) {
   const int n = static_cast<int>(patterns.size());
   if (seam.pattern_a < 0 || seam.pattern_a >= n) return "a: names no pattern";
@@ -52,9 +62,14 @@ std::string SeamRule(const std::vector<PatternSpec>& patterns, const SeamSpec& s
   const PatternSpec& a = patterns[static_cast<std::size_t>(seam.pattern_a)];
   const PatternSpec& b = patterns[static_cast<std::size_t>(seam.pattern_b)];
   const int la = SideLength(a.nu, a.nv, seam.side_a), lb = SideLength(b.nu, b.nv, seam.side_b);
-  if (la != lb)
-    return fmt::format("b: \"{}\" has {} samples and \"{}\" {}: a seam's sides must have the same number", seam.a, la,
-                       seam.b, lb);
+  const int ea = seam.last_a < 0 ? la - 1 : seam.last_a, eb = seam.last_b < 0 ? lb - 1 : seam.last_b;
+  if (seam.first_a < 0 || ea >= la || seam.first_a >= ea)
+    return fmt::format("a_samples: [{}, {}] must be 2 samples first < last of \"{}\"'s 0 … {}", seam.first_a, ea, seam.a, la - 1);
+  if (seam.first_b < 0 || eb >= lb || seam.first_b >= eb)
+    return fmt::format("b_samples: [{}, {}] must be 2 samples first < last of \"{}\"'s 0 … {}", seam.first_b, eb, seam.b, lb - 1);
+  if (ea - seam.first_a != eb - seam.first_b)
+    return fmt::format("b: \"{}\" has {} samples and \"{}\" {}: a seam's sides must have the same number", seam.a,
+                       ea - seam.first_a + 1, seam.b, eb - seam.first_b + 1);
   return "";
 }
 
@@ -77,24 +92,25 @@ ClothLayout BuildClothLayout(const std::vector<PatternSpec>& patterns, const std
   const auto unsewn = [&](int k, int i, int j) {
     return out.first[static_cast<std::size_t>(k)] + i + patterns[static_cast<std::size_t>(k)].nu * j;
   };
-  // Merge each seam's pairs; a side sews once.
+  // Merge each seam's pairs; a side's sample sews once.
   UnionFind classes(total);
-  std::vector<std::array<int, 2>> sewn;
+  std::vector<std::array<int, 3>> sewn;  // (pattern, side, sample)
   for (const SeamSpec& s : seams) {
     if (const std::string rule = SeamRule(patterns, s); !rule.empty()) throw std::invalid_argument(rule);
-    for (const std::array<int, 2>& side : {std::array<int, 2>{s.pattern_a, s.side_a}, std::array<int, 2>{s.pattern_b, s.side_b}}) {
-      if (std::find(sewn.begin(), sewn.end(), side) != sewn.end())
-        throw std::invalid_argument(fmt::format("b: side {} of pattern \"{}\" is in an earlier seam already",
-                                                PatternSpec::kSideNames[static_cast<std::size_t>(side[1])],
-                                                patterns[static_cast<std::size_t>(side[0])].name));
-      sewn.push_back(side);
-    }
     const PatternSpec& a = patterns[static_cast<std::size_t>(s.pattern_a)];
     const PatternSpec& b = patterns[static_cast<std::size_t>(s.pattern_b)];
-    const int len = SideLength(a.nu, a.nv, s.side_a);
-    for (int t = 0; t < len; ++t) {
-      const auto na = SideNode(a.nu, a.nv, s.side_a, t, 0);
-      const auto nb = SideNode(b.nu, b.nv, s.side_b, s.reversed ? len - 1 - t : t, 0);
+    const auto pairs = SeamPairs(s, SideLength(a.nu, a.nv, s.side_a), SideLength(b.nu, b.nv, s.side_b));
+    for (const auto& [ta, tb] : pairs)
+      for (const std::array<int, 3>& at : {std::array<int, 3>{s.pattern_a, s.side_a, ta}, std::array<int, 3>{s.pattern_b, s.side_b, tb}}) {
+        if (std::find(sewn.begin(), sewn.end(), at) != sewn.end())
+          throw std::invalid_argument(fmt::format("b: sample {} of side {} of pattern \"{}\" is in an earlier seam already",
+                                                  at[2], PatternSpec::kSideNames[static_cast<std::size_t>(at[1])],
+                                                  patterns[static_cast<std::size_t>(at[0])].name));
+        sewn.push_back(at);
+      }
+    for (const auto& [ta, tb] : pairs) {
+      const auto na = SideNode(a.nu, a.nv, s.side_a, ta, 0);
+      const auto nb = SideNode(b.nu, b.nv, s.side_b, tb, 0);
       const int pa = na[0] + a.nu * na[1], pb = nb[0] + b.nu * nb[1];
       out.largest_gap = std::max(out.largest_gap, (placed[static_cast<std::size_t>(s.pattern_a)].row(pa) -
                                                    placed[static_cast<std::size_t>(s.pattern_b)].row(pb)).norm());
@@ -152,9 +168,11 @@ ClothLayout BuildClothLayout(const std::vector<PatternSpec>& patterns, const std
       const int kb = dir == 0 ? s.pattern_b : s.pattern_a, sb = dir == 0 ? s.side_b : s.side_a;
       ClothBlock& a = out.blocks[static_cast<std::size_t>(ka)];
       const ClothBlock& bb = out.blocks[static_cast<std::size_t>(kb)];
-      const int len = SideLength(a.nu, a.nv, sa), depth = SideDepth(bb.nu, bb.nv, sb);
-      for (int t = 0; t < len; ++t) {
-        const int tb = s.reversed ? len - 1 - t : t;
+      const int depth = SideDepth(bb.nu, bb.nv, sb);
+      const ClothBlock& pa = out.blocks[static_cast<std::size_t>(s.pattern_a)];
+      const ClothBlock& pb = out.blocks[static_cast<std::size_t>(s.pattern_b)];
+      for (auto [t, tb] : SeamPairs(s, SideLength(pa.nu, pa.nv, s.side_a), SideLength(pb.nu, pb.nv, s.side_b))) {
+        if (dir == 1) std::swap(t, tb);
         const auto a0 = SideNode(a.nu, a.nv, sa, t, 0), a1 = SideNode(a.nu, a.nv, sa, t, 1);
         const auto b0 = SideNode(bb.nu, bb.nv, sb, tb, 0);
         const Eigen::Vector2d xa0 = a.plane.row(a0[0] + a.nu * a0[1]).transpose();

@@ -17,14 +17,21 @@
 
 namespace clothbench {
 
-/// One `[[seam]]`: side `side_a` of pattern `pattern_a` sewn to side
-/// `side_b` of pattern `pattern_b` (PatternSpec::Side), sample k of one to
-/// sample k of the other, or to sample n − 1 − k when `reversed`.
+/// One `[[seam]]`: samples first_a … last_a of side `side_a` of pattern
+/// `pattern_a` sewn to samples first_b … last_b of side `side_b` of
+/// pattern `pattern_b` (PatternSpec::Side; samples counted in the side's
+/// direction): first_a + k to first_b + k, or to last_b − k when
+/// `reversed`. A last of −1 is the side's last sample.
 struct SeamSpec {
   std::string a, b;  ///< as written: "<pattern>:edge:<side>"
   bool reversed = false;
   int pattern_a = 0, side_a = 0, pattern_b = 0, side_b = 0;
+  int first_a = 0, last_a = -1, first_b = 0, last_b = -1;
 };
+
+/// The sample pairs (t_a, t_b) of `seam` along its two sides (SeamSpec),
+/// for sides of la and lb samples; empty if its ranges do not fit them.
+std::vector<std::array<int, 2>> SeamPairs(const SeamSpec& seam, int la, int lb);
 
 /// One pattern's block. Node (i, j), 0 ≤ i < nu, 0 ≤ j < nv, and the
 /// frame of two cells around it: a cell beyond a seamed side holds the

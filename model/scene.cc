@@ -9,6 +9,7 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
@@ -408,6 +409,20 @@ void ParseSeams(TableReader& top, const std::string& source, Scene& s) {
     seam.pattern_b = side_b[0];
     seam.side_b = side_b[1];
     seam.reversed = r.Bool("reversed", false);
+    // Optional sample ranges [first, last] along each side (a shoulder, the
+    // side below an armhole); the whole side by default.
+    for (const auto& [key, first, last] : {std::tuple<const char*, int*, int*>{"a_samples", &seam.first_a, &seam.last_a},
+                                           std::tuple<const char*, int*, int*>{"b_samples", &seam.first_b, &seam.last_b}}) {
+      const toml::node* range = r.Get(key);
+      if (!range) continue;
+      const toml::array* ra = range->as_array();
+      const char* rule = "must be 2 integers [first, last], samples along the side in its direction";
+      if (!ra || ra->size() != 2) r.Fail(key, rule);
+      const auto f = (*ra)[0].value_exact<int64_t>(), l = (*ra)[1].value_exact<int64_t>();
+      if (!f || !l || *f < 0 || *l < 0 || *l > 1000000) r.Fail(key, rule);
+      *first = static_cast<int>(*f);
+      *last = static_cast<int>(*l);
+    }
     r.RejectUnknown();
     if (const std::string rule = SeamRule(s.patterns, seam); !rule.empty())
       r.Fail(rule.substr(0, rule.find(':')), rule.substr(rule.find(':') + 2));

@@ -141,6 +141,49 @@ TEST(Seam, RefinementScalesEveryPattern) {
   EXPECT_LT(fine.cloth->largest_gap, 1e-12);
 }
 
+// A seam over part of two sides (a shoulder, a side below an armhole):
+// only the samples in its ranges merge, and the cells beyond the rest of
+// the side stay empty, a free border.
+TEST(Seam, ASampleRangeSewsPartOfASide) {
+  const std::string panels = "name = \"p\"\n" + Material() +
+                             Pattern("left", 0.2, 5, "[0.0, 0.0, 0.0]", "[1.0, 0.0, 0.0]") +
+                             Pattern("right", 0.2, 5, "[0.2, 0.0, 0.0]", "[1.0, 0.0, 0.0]");
+  // Flat (no wrap): the two panels side by side, touching along x = 0.2.
+  std::string flat = panels;
+  for (std::size_t at; (at = flat.find("wrap_radius")) != std::string::npos;) flat.erase(at, flat.find('\n', at) - at + 1);
+  const Scene s = ParseScene(flat + "[[seam]]\na = \"left:edge:u1\"\nb = \"right:edge:u0\"\na_samples = [2, 5]\n"
+                                    "b_samples = [2, 5]\n",
+                             "p.toml");
+  EXPECT_EQ(s.num_particles(), 2 * 5 * kRows - 4);
+  const ClothBlock& left = s.cloth->blocks[0];
+  EXPECT_EQ(left.At(4, 3), s.cloth->blocks[1].At(0, 3));  // sewn
+  EXPECT_NE(left.At(4, 0), s.cloth->blocks[1].At(0, 0));  // not in the range
+  EXPECT_EQ(left.At(5, 3), s.cloth->blocks[1].At(1, 3));  // the cell beyond reads across
+  EXPECT_EQ(left.At(5, 0), -1);                           // a free border below the range
+  const ParticleSystem sys(s);
+  MatrixN3 f(sys.num_particles(), 3);
+  sys.Forces(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3), &f);
+  // Flat and sewn where the sides touch: at rest but for gravity, m g per particle (round-off 1e-12 N).
+  EXPECT_LT((f - sys.masses() * Vector3(0.0, -9.81, 0.0).transpose()).cwiseAbs().maxCoeff(), 1e-10);
+  const auto refusal = [&](const std::string& seam) {
+    try {
+      ParseScene(flat + seam, "p.toml");
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(refusal("[[seam]]\na = \"left:edge:u1\"\nb = \"right:edge:u0\"\na_samples = [2, 7]\n"),
+            "p.toml: seam[0].a_samples: [2, 7] must be 2 samples first < last of \"left:edge:u1\"'s 0 … 6");
+  EXPECT_EQ(refusal("[[seam]]\na = \"left:edge:u1\"\nb = \"right:edge:u0\"\na_samples = [2, 5]\n"),
+            "p.toml: seam[0].b: \"left:edge:u1\" has 4 samples and \"right:edge:u0\" 7: a seam's sides must have the "
+            "same number");
+  EXPECT_NE(refusal("[[seam]]\na = \"left:edge:u1\"\nb = \"right:edge:u0\"\na_samples = [0, 3]\nb_samples = [0, 3]\n"
+                    "[[seam]]\na = \"left:edge:u1\"\nb = \"right:edge:u0\"\na_samples = [3, 6]\nb_samples = [3, 6]\n")
+                .find("sample 3 of side u1 of pattern \"left\" is in an earlier seam already"),
+            std::string::npos);
+}
+
 TEST(Seam, RefusesSeamsNamingTheRule) {
   const auto refusal = [](std::string text) {
     try {
