@@ -120,7 +120,6 @@ ClothLayout BuildClothLayout(const std::vector<PatternSpec>& patterns, const std
   // Cloth particles in the order of their first unsewn particle; each at
   // the mean of its unsewn particles' placed positions.
   out.merged.assign(static_cast<std::size_t>(total), -1);
-  std::vector<int> members;
   for (int u = 0; u < total; ++u) {
     const int r = classes.Find(u);
     out.merged[static_cast<std::size_t>(u)] = r == u ? out.num_particles++ : out.merged[static_cast<std::size_t>(r)];
