@@ -504,3 +504,27 @@ def test_twisted_sheet_moves_its_edge_and_refuses_the_sundials_rows():
     assert abs(times[k] - 0.25) < 1e-12
     assert max(abs(a - b) for a, b in zip(corner, (0.275, 0.0, 0.425))) < 1e-12
     assert clothbench.run(scene, "cvode", rtol=1e-4, t_end=0.1)["status"] == "unsupported_scene"
+
+
+def test_a_sewn_garment_runs_as_on_the_command_line(tmp_path):
+    # scenes/sewn_panels.toml: two panels sewn around a cylinder (its
+    # sewing phase runs once, before the row). The module and
+    # bench_integrators run the same harness on the same sewn start, so
+    # every stored frame is equal to the bit; the seams stay closed.
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    scene = os.path.join(root, "scenes", "sewn_panels.toml")
+    out = tmp_path / "cli.h5"
+    subprocess.run([os.environ["CLOTHBENCH_BENCH_INTEGRATORS"], "--scene", scene, "--integrators", "sbdf2",
+                    "--h", "0.005", "--t-end", "0.2", "--reference", "none", "--frames", "all", "--out", str(out),
+                    "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    r = clothbench.run(scene, "sbdf2", h=0.005, t_end=0.2)
+    assert r["status"] == "ok" and max(r["crossing_pairs"]) == 0
+    assert r["positions"].shape == (5, 160, 3)  # 2 x 11 x 8 samples, 2 x 8 merged
+    with h5py.File(out) as f:
+        assert np.array_equal(f["runs/sbdf2_h0.005/positions"][:], r["positions"])
+        assert np.array_equal(f["scene/sewn_start"][:], r["positions"][0])
+    # A selection without its pattern is refused on a garment, as on the
+    # command line.
+    with pytest.raises(ValueError, match="pattern"):
+        clothbench.run(clothbench.load_scene(scene, {"constraints.fixed": ["edge:v0"]}), "sbdf2", h=0.005,
+                       t_end=0.01)

@@ -13,6 +13,7 @@
 #include "model/pattern.h"
 #include "model/scene.h"
 #include "verify/stepping.h"
+#include "verify/test_scenes.h"
 
 namespace clothbench {
 namespace {
@@ -123,29 +124,8 @@ TEST(Pattern, RulesNameTheKey) {
   EXPECT_THROW(SamplePattern(q), std::invalid_argument);
 }
 
-// The same sheet as [grid] and as one [[pattern]]; `fixed` names its v0 edge.
-std::string SheetScene(const std::string& cloth, const std::string& fixed) {
-  return "name = \"sheet\"\nt_end = 0.05\nh = 0.005\nframe_dt = 0.05\n" + cloth +
-         "[material]\nshear = 10.0\nbend = [1e-3, 1e-3]\n[constraints]\nfixed = [\"" + fixed + "\"]\n";
-}
-
-const std::string kGridScene = SheetScene(R"([grid]
-nu = 7
-nv = 5
-size = [0.6, 0.4]
-origin = [0.1, -0.2, 1.0]
-u_axis = [0.0, 1.0, 0.0]
-v_axis = [0.0, 0.0, -1.0]
-)", "edge:v0");
-
-const std::string kPatternScene = SheetScene(R"([[pattern]]
-name = "panel"
-corners = [[0.0, 0.0], [0.6, 0.0], [0.6, 0.4], [0.0, 0.4]]
-samples = [7, 5]
-origin = [0.1, -0.2, 1.0]
-x_axis = [0.0, 1.0, 0.0]
-y_axis = [0.0, 0.0, -1.0]
-)", "panel:edge:v0");
+const std::string kGridScene = testing::SheetScene(testing::kGridSheet, "edge:v0");
+const std::string kPatternScene = testing::SheetScene(testing::kRectanglePattern, "panel:edge:v0");
 
 TEST(Pattern, ARectanglePatternIsTheGridsSheet) {
   const Scene grid = ParseScene(kGridScene, "grid.toml"), pattern = ParseScene(kPatternScene, "pattern.toml");

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <random>
+#include <string>
 
 #include <omp.h>
 
@@ -173,6 +174,33 @@ void WithThreads(int threads, F f) {
   omp_set_num_threads(threads);
   f();
   omp_set_num_threads(before);
+}
+
+// The same sheet as [grid] and as one [[pattern]] (same origin and axes):
+// 7 × 5 samples over 0.6 × 0.4 m, u along +y, v down; SheetScene fixes
+// the selection `fixed` (its v0 edge: "edge:v0" or "panel:edge:v0").
+inline const char* const kGridSheet = R"([grid]
+nu = 7
+nv = 5
+size = [0.6, 0.4]
+origin = [0.1, -0.2, 1.0]
+u_axis = [0.0, 1.0, 0.0]
+v_axis = [0.0, 0.0, -1.0]
+)";
+
+inline const char* const kRectanglePattern = R"([[pattern]]
+name = "panel"
+corners = [[0.0, 0.0], [0.6, 0.0], [0.6, 0.4], [0.0, 0.4]]
+samples = [7, 5]
+origin = [0.1, -0.2, 1.0]
+x_axis = [0.0, 1.0, 0.0]
+y_axis = [0.0, 0.0, -1.0]
+)";
+
+inline std::string SheetScene(const std::string& cloth, const std::string& fixed, double h = 0.005,
+                              double frame_dt = 0.05) {
+  return "name = \"sheet\"\nt_end = 0.05\nh = " + std::to_string(h) + "\nframe_dt = " + std::to_string(frame_dt) +
+         "\n" + cloth + "[material]\nshear = 10.0\nbend = [1e-3, 1e-3]\n[constraints]\nfixed = [\"" + fixed + "\"]\n";
 }
 
 }  // namespace clothbench::testing
