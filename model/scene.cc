@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <sstream>
 #include <tuple>
@@ -793,6 +794,33 @@ void CheckStartOutsideObstacles(const Scene& s) {
   }
 }
 
+// The sample ranges of `scene`'s seams (a_samples, b_samples) on its
+// patterns refined to `scaled(m)` samples per side of m: each range's first
+// sample at the same fraction of its side, and the same count on both
+// sides (the seam's pairs stay pairs), kept within each side.
+void ScaleSeamRanges(const Scene& scene, const std::function<int(int)>& scaled, toml::array* seams) {
+  const auto side_length = [&scene](int pattern, int side) {
+    const PatternSpec& p = scene.patterns[static_cast<std::size_t>(pattern)];
+    return side == PatternSpec::kV0 || side == PatternSpec::kV1 ? p.nu : p.nv;
+  };
+  for (std::size_t k = 0; k < seams->size() && k < scene.seams.size(); ++k) {
+    const SeamSpec& seam = scene.seams[k];
+    toml::table* t = (*seams)[k].as_table();
+    if (!t || (!t->contains("a_samples") && !t->contains("b_samples"))) continue;
+    const int la = side_length(seam.pattern_a, seam.side_a), lb = side_length(seam.pattern_b, seam.side_b);
+    const int la2 = scaled(la), lb2 = scaled(lb);
+    const int last_a = seam.last_a < 0 ? la - 1 : seam.last_a;
+    const double fa = static_cast<double>(la2 - 1) / (la - 1), fb = static_cast<double>(lb2 - 1) / (lb - 1);
+    int count = std::max(1, static_cast<int>(std::lround((last_a - seam.first_a) * fa)));
+    int first_a = static_cast<int>(std::lround(seam.first_a * fa)), first_b = static_cast<int>(std::lround(seam.first_b * fb));
+    count = std::min({count, la2 - 1, lb2 - 1});
+    first_a = std::min(first_a, la2 - 1 - count);
+    first_b = std::min(first_b, lb2 - 1 - count);
+    t->insert_or_assign("a_samples", toml::array{first_a, first_a + count});
+    t->insert_or_assign("b_samples", toml::array{first_b, first_b + count});
+  }
+}
+
 }  // namespace
 
 Scene ParseScene(std::string_view text, const std::string& source) {
@@ -863,11 +891,12 @@ Scene RefineGrid(const Scene& scene, long n) {
     // Several patterns: each pattern's intervals scaled by one factor, so
     // that a seam's sides keep equal counts and N is about n.
     const double f = std::sqrt(static_cast<double>(n) / scene.num_particles());
+    const auto scaled = [f](int m) { return std::max(2, static_cast<int>(std::lround((m - 1) * f)) + 1); };
     for (std::size_t k = 0; k < patterns->size() && k < scene.patterns.size(); ++k) {
       const PatternSpec& p = scene.patterns[k];
-      const auto scaled = [f](int m) { return std::max(2, static_cast<int>(std::lround((m - 1) * f)) + 1); };
       (*patterns)[k].as_table()->insert_or_assign("samples", toml::array{scaled(p.nu), scaled(p.nv)});
     }
+    if (toml::array* seams = root["seam"].as_array()) ScaleSeamRanges(scene, scaled, seams);
   } else if (patterns && !patterns->empty() && (*patterns)[0].as_table()) {
     // One pattern (ParsePatterns): its samples are the grid's.
     (*patterns)[0].as_table()->insert_or_assign("samples", toml::array{nu, nv});

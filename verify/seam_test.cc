@@ -165,6 +165,15 @@ TEST(Seam, ASampleRangeSewsPartOfASide) {
   sys.Forces(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3), &f);
   // Flat and sewn where the sides touch: at rest but for gravity, m g per particle (round-off 1e-12 N).
   EXPECT_LT((f - sys.masses() * Vector3(0.0, -9.81, 0.0).transpose()).cwiseAbs().maxCoeff(), 1e-10);
+  // --sizes scales the ranges with the sides: 7 → 13 samples along u, the
+  // range [2, 5] → [4, 10], the same part of the side, still one pair per sample.
+  const Scene fine = RefineGrid(s, 4L * s.num_particles());
+  ASSERT_EQ(fine.patterns[0].nv, 13);
+  EXPECT_EQ(fine.seams[0].first_a, 4);
+  EXPECT_EQ(fine.seams[0].last_a, 10);
+  EXPECT_EQ(fine.seams[0].first_b, 4);
+  EXPECT_EQ(fine.seams[0].last_b, 10);
+  EXPECT_EQ(fine.num_particles(), 2 * fine.patterns[0].nu * 13 - 7);
   const auto refusal = [&](const std::string& seam) {
     try {
       ParseScene(flat + seam, "p.toml");
