@@ -200,7 +200,8 @@ double SelfConvergenceStep(const BenchRun& b) {
 // Whether a scene's reference is the self-convergence run: with virtual
 // particles, whose edge contacts the hybrid system of the SUNDIALS rows
 // does not have (sundials/hybrid_contact.h), with self-contact, which
-// it has not either, and with moving fixed particles, which its right-hand
+// it takes as a correction between steps (the fixed-step methods'
+// response), not as located events, and with moving fixed particles, which its right-hand
 // side holds at rest. Otherwise the reference row (CVODE's event-located
 // contact) is the reference.
 bool SelfConvergenceIsReference(const ParticleSystem& sys) {

@@ -503,13 +503,7 @@ struct RowMethod {
     MethodRun row;
     const SolverSpec s = Settings(row_spec, param);
     std::unique_ptr<Stepper> stepper;
-    if (!entry->make && scene.collision && scene.collision->self) {
-      // SUNDIALS integrates the smooth system between events; self-contact
-      // events (a root function per candidate pair) are not built.
-      row.status = RunStatus::kUnsupportedScene;
-      row.message = "collision.self = true: the SUNDIALS rows have no self-contact events (docs/collisions.md, "
-                    "\"Self-contact\")";
-    } else if (entry->predict && ctx.refuse_predicted &&
+    if (entry->predict && ctx.refuse_predicted &&
                RefusedByPrediction(PredictOnce(entry->predict, sys, variant), ctx.limits.time_limit_s, &row)) {
       // not started: the record says why, its identity follows
     } else if (entry->make) {

@@ -36,7 +36,7 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
         "1e-12 m/s ({}): {} steps, {:.2f} s; its self-convergence: e_l2 against BDF(2) at 2h = {}",
         ref.h,
         ref.collision_self == "on"
-            ? "the scene has self-contact, which the SUNDIALS rows do not have"
+            ? "the scene has self-contact, which the SUNDIALS rows take as a correction between steps, not as located events"
             : "the scene has virtual particles, whose edge contacts the event-located SUNDIALS rows do not have",
         ref.steps, ref.wall_time_s,
         ref.error_estimate_m >= 0.0 ? fmt::format("{:.3e} m", ref.error_estimate_m) : "-");

@@ -308,15 +308,25 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
       *q = pair->order;
     };
     d.flag_name = [](int f) { return std::string(ARKStepGetReturnFlagName(f)); };
+    // A jump of the state at t (an event, the self-contact response):
+    // ARKODE restarts from h.y and keeps its counters.
+    const auto reset = [&](double t) {
+      int f = ARKStepReset(h.mem, t, h.y);
+      if (f >= 0) f = SetLinearity(h.mem, ode);
+      return f < 0 ? f : ARKStepSetStopTime(h.mem, options.t_end);
+    };
     if (ode.contact().active())
       d.on_root = [&](double t) {
-        int f = ARKStepGetRootInfo(h.mem, roots_found.data());
+        const int f = ARKStepGetRootInfo(h.mem, roots_found.data());
         if (f < 0) return f;
         ode.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y));
-        f = ARKStepReset(h.mem, t, h.y);  // keeps the counters
-        if (f >= 0) f = SetLinearity(h.mem, ode);
-        return f < 0 ? f : ARKStepSetStopTime(h.mem, options.t_end);
+        return reset(t);
       };
+    d.stop_at = [&](double t_stop) { return ARKStepSetStopTime(h.mem, t_stop); };
+    d.restart = [&](double t, const MatrixN3& x, const MatrixN3& v) {
+      ode.map().ToY(x, v, N_VGetArrayPointer(h.y));
+      return reset(t);
+    };
     internal::RunFrames(d, system, options, err, &res);
   }
   SundialsStats& st = res.sundials.emplace();  // ARKStepReset keeps the counters

@@ -317,6 +317,63 @@ bool SetTolerances(void* mem, N_Vector y, const ReferenceOptions& options, N_Vec
   return check(CVodeSVtolerances(mem, options.rtol, *atol), "CVodeSVtolerances");
 }
 
+// The calls of the frame loop (internal::RunFrames) on CVODE's handles:
+// one step, dense output, the state, and the restarts after an event or
+// the self-contact response (counters summed into `counters`).
+internal::OneStepDriver CvodeDriver(CvodeHandles& h, FreeDofOde& ode, const ReferenceOptions& options,
+                                    std::vector<int>& roots_found, SundialsStats& counters) {
+  internal::OneStepDriver d;
+  d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };
+  d.state_at = [&](double tf, MatrixN3* x, MatrixN3* v) {
+    const int f = CVodeGetDky(h.mem, tf, 0, h.dky);
+    if (f >= 0) {
+      ode.map().PositionsFromY(N_VGetArrayPointer(h.dky), x);
+      ode.map().VelocitiesFromY(N_VGetArrayPointer(h.dky), v);
+    }
+    return f;
+  };
+  d.current_state = [&](MatrixN3* x, MatrixN3* v) {
+    ode.map().PositionsFromY(N_VGetArrayPointer(h.y), x);
+    ode.map().VelocitiesFromY(N_VGetArrayPointer(h.y), v);
+  };
+  d.last_step = [&](double* hl, int* q) {
+    CVodeGetLastStep(h.mem, hl);
+    CVodeGetLastOrder(h.mem, q);
+  };
+  d.flag_name = [](int f) { return std::string(CVodeGetReturnFlagName(f)); };
+  // A jump of the state at t (an event, the self-contact response): the
+  // counters so far are kept and CVODE restarts from h.y at order 1 with
+  // the step h_start (0: CVODE's estimate). Copied into the calls below:
+  // it ends with this function.
+  const auto reinit = [&](double t, double h_start) {
+    AddCvodeCounters(h.mem, &counters);
+    int f = CVodeSetInitStep(h.mem, h_start);
+    if (f >= 0) f = CVodeReInit(h.mem, t, h.y);
+    return f < 0 ? f : CVodeSetStopTime(h.mem, options.t_end);
+  };
+  if (ode.contact().active())
+    d.on_root = [&, reinit](double t) {
+      const int f = CVodeGetRootInfo(h.mem, roots_found.data());
+      if (f < 0) return f;
+      ode.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y));
+      return reinit(t, 0.0);
+    };
+  d.stop_at = [&](double t_stop) { return CVodeSetStopTime(h.mem, t_stop); };
+  // After the self-contact response, from the step CVODE would have taken
+  // next (CVodeGetCurrentStep, its error estimate's): a fold at rest is
+  // corrected (repelled) at every step, and each restart from CVODE's
+  // estimate of a first step took 92,303 steps to t = 0.45 s on
+  // fold_over_rod at rtol 1e-3; from the last step's size, which a restart
+  // never lets grow, 17,767 steps to 0.47 s, the last ones 6e-8 s.
+  d.restart = [&, reinit](double t, const MatrixN3& x, const MatrixN3& v) {
+    ode.map().ToY(x, v, N_VGetArrayPointer(h.y));
+    double h_next = 0.0;
+    CVodeGetCurrentStep(h.mem, &h_next);
+    return reinit(t, h_next);
+  };
+  return d;
+}
+
 // CVODE with KLU (reduced == nullptr) or the reduced solve with `reduced`'s
 // settings.
 RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec* reduced) {
@@ -391,34 +448,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
        (!solve || check(CVodeSetEpsLin(h.mem, cs.eps_lin), "CVodeSetEpsLin"));
   res.sundials_settings = cs.ToString();
   if (ok) {
-    internal::OneStepDriver d;
-    d.step = [&](double* t) { return CVode(h.mem, options.t_end, h.y, t, CV_ONE_STEP); };
-    d.state_at = [&](double tf, MatrixN3* x, MatrixN3* v) {
-      const int f = CVodeGetDky(h.mem, tf, 0, h.dky);
-      if (f >= 0) {
-        ode.map().PositionsFromY(N_VGetArrayPointer(h.dky), x);
-        ode.map().VelocitiesFromY(N_VGetArrayPointer(h.dky), v);
-      }
-      return f;
-    };
-    d.current_state = [&](MatrixN3* x, MatrixN3* v) {
-      ode.map().PositionsFromY(N_VGetArrayPointer(h.y), x);
-      ode.map().VelocitiesFromY(N_VGetArrayPointer(h.y), v);
-    };
-    d.last_step = [&](double* hl, int* q) {
-      CVodeGetLastStep(h.mem, hl);
-      CVodeGetLastOrder(h.mem, q);
-    };
-    d.flag_name = [](int f) { return std::string(CVodeGetReturnFlagName(f)); };
-    if (ode.contact().active())
-      d.on_root = [&](double t) {
-        int f = CVodeGetRootInfo(h.mem, roots_found.data());
-        if (f < 0) return f;
-        ode.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y));
-        AddCvodeCounters(h.mem, &counters);
-        f = CVodeReInit(h.mem, t, h.y);
-        return f < 0 ? f : CVodeSetStopTime(h.mem, options.t_end);
-      };
+    const internal::OneStepDriver d = CvodeDriver(h, ode, options, roots_found, counters);
     internal::RunFrames(d, system, options, err, &res);
   }
   SundialsStats& st = res.sundials.emplace(counters);

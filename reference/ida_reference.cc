@@ -48,6 +48,16 @@ class ResidualForm {
     Unpack(y);
     contact_.ApplyEvents(t, found, &x_, &v_,
                          [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
+    Pack(t, y, yp);
+  }
+  /// y = (x, v) and the consistent yp = (v, M⁻¹ f(t, x, v)) of the state
+  /// (x, v) (N×3 [m], [m/s]) at time t.
+  void SetState(double t, const MatrixN3& x, const MatrixN3& v, double* y, double* yp) {
+    x_ = x;
+    v_ = v;
+    Pack(t, y, yp);
+  }
+  void Pack(double t, double* y, double* yp) {
     sys_.Forces(t, x_, v_, &f_);
     contact_.AddContactForces(t, x_, v_, &f_);
     for (int p = 0; p < n_; ++p)
@@ -427,15 +437,25 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
       IDAGetLastOrder(h.mem, q);
     };
     d.flag_name = [](int f) { return std::string(IDAGetReturnFlagName(f)); };
+    // A jump of the state at t (an event, the self-contact response): the
+    // counters so far are kept and IDA restarts from (h.y, h.yp).
+    const auto reinit = [&](double t) {
+      AddIdaCounters(h.mem, &counters);
+      const int f = IDAReInit(h.mem, t, h.y, h.yp);
+      return f < 0 ? f : IDASetStopTime(h.mem, options.t_end);
+    };
     if (form.contact().active())
       d.on_root = [&](double t) {
-        int f = IDAGetRootInfo(h.mem, roots_found.data());
+        const int f = IDAGetRootInfo(h.mem, roots_found.data());
         if (f < 0) return f;
         form.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
-        AddIdaCounters(h.mem, &counters);
-        f = IDAReInit(h.mem, t, h.y, h.yp);
-        return f < 0 ? f : IDASetStopTime(h.mem, options.t_end);
+        return reinit(t);
       };
+    d.stop_at = [&](double t_stop) { return IDASetStopTime(h.mem, t_stop); };
+    d.restart = [&](double t, const MatrixN3& x, const MatrixN3& v) {
+      form.SetState(t, x, v, N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
+      return reinit(t);
+    };
     internal::RunFrames(d, system, options, err, &res);
   }
   SundialsStats& st = res.sundials.emplace(counters);

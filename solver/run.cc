@@ -21,6 +21,18 @@
 
 namespace clothbench {
 
+bool CountCrossings(const std::vector<std::array<int, 3>>& triangles, const MatrixN3& x, double t, bool self_contact,
+                    RunSummary* sum) {
+  const std::vector<std::pair<int, int>> pairs = SelfIntersections(x, triangles);
+  sum->trajectory.crossing_pairs.push_back(static_cast<int32_t>(pairs.size()));
+  if (!self_contact || pairs.empty()) return true;
+  sum->status = RunStatus::kSelfIntersection;
+  sum->message = fmt::format("the cloth crosses itself at t = {:.6g} s: {} crossing triangle pair{} (first: triangles "
+                             "{} and {}) despite self-contact",
+                             t, pairs.size(), pairs.size() > 1 ? "s" : "", pairs[0].first, pairs[0].second);
+  return false;
+}
+
 std::vector<double> FrameTimes(double t_end, double frame_dt) {
   std::vector<double> times;
   const long k = static_cast<long>(std::floor(t_end / frame_dt + 1e-9));
@@ -374,14 +386,7 @@ class FrameRecorder {
   /// The frame's crossing triangle pairs into the trajectory; with the
   /// self-contact response on, a crossing ends the run (the frame is kept).
   bool CountCrossings(const MatrixN3& x, double t) {
-    const std::vector<std::pair<int, int>> pairs = SelfIntersections(x, triangles_);
-    sum_->trajectory.crossing_pairs.push_back(static_cast<int32_t>(pairs.size()));
-    if (!self_contact_ || pairs.empty()) return true;
-    sum_->status = RunStatus::kSelfIntersection;
-    sum_->message = fmt::format("the cloth crosses itself at t = {:.6g} s: {} crossing triangle pair{} (first: triangles "
-                                "{} and {}) despite self-contact",
-                                t, pairs.size(), pairs.size() > 1 ? "s" : "", pairs[0].first, pairs[0].second);
-    return false;
+    return clothbench::CountCrossings(triangles_, x, t, self_contact_, sum_);
   }
 
   /// A failed run keeps the frames it reached.

@@ -4,6 +4,7 @@
 #ifndef CLOTHBENCH_SOLVER_RUN_H_
 #define CLOTHBENCH_SOLVER_RUN_H_
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -212,6 +213,15 @@ RunSummary RunIntegrator(const ParticleSystem& system, Method method, const RunO
 /// The message of a run that reached --time-limit `limit_s` [s] at time t
 /// [s] after `steps` step attempts (the fixed-step and SUNDIALS drivers').
 std::string TimeLimitMessage(double limit_s, double t, long steps);
+
+/// The crossing triangle pairs of the cloth at a stored frame (N×3
+/// positions x [m] at time t [s]; `triangles` the cloth's, SceneTriangles)
+/// appended to sum's trajectory.crossing_pairs. With the self-contact
+/// response on (`self_contact`), a crossing ends the run: false, with
+/// status self_intersection and a message naming t, the count and the first
+/// pair (the frame is kept).
+bool CountCrossings(const std::vector<std::array<int, 3>>& triangles, const MatrixN3& x, double t, bool self_contact,
+                    RunSummary* sum);
 
 /// The same driver for any stepper built on `system` (the peers). Reset to
 /// rest here.

@@ -2,15 +2,19 @@
 #include "sundials/sundials_common.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <chrono>
 #include <cstdlib>
+#include <optional>
 
 #include <fmt/format.h>
 
 #include <sunmatrix/sunmatrix_sparse.h>
 
+#include "collision/cloth_mesh.h"
 #include "solver/progress.h"
+#include "solver/run.h"
 #include "solver/thread_budget.h"
 
 namespace clothbench {
@@ -58,18 +62,77 @@ namespace {
 // error-test, convergence and work-limit failures; the rest is kSolverFailed).
 RunStatus StatusOfFlag(const std::string& name) { return ParseRunStatus(name).value_or(RunStatus::kSolverFailed); }
 
+// Self-contact under a SUNDIALS integrator: the response of the fixed-step
+// methods (collision/self_contact_response.h) corrects each internal
+// step's end, from the step's start, and a corrected state restarts the
+// integrator, as an event does; each stored frame's crossing pairs are
+// counted (a crossing ends the run with the response on).
+class SundialsSelfContact {
+ public:
+  explicit SundialsSelfContact(const ParticleSystem& system)
+      : x_start_(system.rest_positions()), h_scene_(system.scene().h) {
+    const auto& collision = system.scene().collision;
+    if (!collision) return;
+    triangles_ = SceneTriangles(system.scene()).vertices;
+    if (collision->self) response_.emplace(system, collision->thickness);
+  }
+  bool counts() const { return !triangles_.empty(); }
+  /// Whether the response corrects the steps (the scene's self = true).
+  bool corrects() const { return response_.has_value(); }
+  bool CountCrossings(const MatrixN3& x, double t, RunSummary* res) const {
+    return !counts() || clothbench::CountCrossings(triangles_, x, t, response_.has_value(), res);
+  }
+  /// W_contact of the response since t = 0 [J] for the guard.
+  double work() const { return response_ ? response_->stats().work : 0.0; }
+  /// Corrects the internal step of size h ending at t in the integrator's
+  /// state (x, v: scratch of the state's size, left at the step's end) and
+  /// restarts it from a changed state; the flag of the restart (0 if none).
+  /// The response's Δt is max(h, the scene's h): its position corrections
+  /// are those of the step's path, and a step that a restart made small
+  /// does not turn them into large velocities (a repulsion changes the
+  /// velocity by 0.1 (thickness − distance)/Δt).
+  int CorrectStep(const OneStepDriver& d, double t, double h, MatrixN3* x, MatrixN3* v) {
+    d.current_state(x, v);
+    if (!response_) return 0;
+    x_end_ = *x;
+    v_end_ = *v;
+    response_->Respond(std::max(h, h_scene_), x_start_, x, v);
+    x_start_ = *x;
+    if (*x == x_end_ && *v == v_end_) return 0;
+    return d.restart(t, *x, *v);
+  }
+  void Store(RunSummary* res) const {
+    if (response_) res->self_contact = response_->stats();
+  }
+
+ private:
+  std::vector<std::array<int, 3>> triangles_;
+  std::optional<SelfContactResponse> response_;
+  MatrixN3 x_start_, x_end_, v_end_;
+  double h_scene_;
+};
+
+// One step that ends at t_stop [s] at the latest (> t); the stop time's
+// flag if it cannot be set.
+int StepToFrame(const OneStepDriver& d, double t_stop, double* t) {
+  const int f = d.stop_at(t_stop);
+  return f < 0 ? f : d.step(t);
+}
+
 // The frames up to the internal step's end t [s] (dense output), each
 // against the guard, into res->trajectory; false (res's status and message
 // set) if one fails. `frame`, `frame_v` are scratch of the state's size.
 bool StoreFrames(const OneStepDriver& d, const std::vector<double>& frames, double t, const std::string& error,
-                 BlowUpGuard& guard, VirtualParticles* virtual_particles, std::size_t* next_frame, MatrixN3* frame,
-                 MatrixN3* frame_v, RunSummary* res) {
+                 BlowUpGuard& guard, VirtualParticles* virtual_particles, const SundialsSelfContact& self_contact,
+                 std::size_t* next_frame, MatrixN3* frame, MatrixN3* frame_v, RunSummary* res) {
   std::size_t& next = *next_frame;
   const std::size_t first_frame = next;
   bool ok = true;
   while (next < frames.size() && frames[next] <= t + 1e-12) {
-    if (next + 1 == frames.size() || frames[next] == t) {
-      d.current_state(frame, frame_v);  // the stop time t_end is hit exactly
+    // The stop time t_end is hit exactly; with self-contact every frame is
+    // a stop time, which CVODE may return within round-off.
+    if (next + 1 == frames.size() || frames[next] == t || self_contact.corrects()) {
+      d.current_state(frame, frame_v);
     } else if (const int f = d.state_at(frames[next], frame, frame_v); f < 0) {
       res->status = StatusOfFlag(d.flag_name(f));
       res->message = error.empty() ? "dense output failed with " + d.flag_name(f) : error;
@@ -83,6 +146,11 @@ bool StoreFrames(const OneStepDriver& d, const std::vector<double>& frames, doub
     res->trajectory.times.push_back(frames[next]);
     res->trajectory.positions.push_back(*frame);
     res->trajectory.velocities.push_back(*frame_v);
+    if (!self_contact.CountCrossings(*frame, frames[next], res)) {
+      ++next;
+      ok = false;
+      break;
+    }
     if (virtual_particles) {
       virtual_particles->Update(frames[next], *frame);
       virtual_particles->RecordFrame(*frame, &res->trajectory.virtual_particles);
@@ -110,6 +178,8 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     virtual_particles->Update(0.0, res->trajectory.positions[0]);
     virtual_particles->RecordFrame(res->trajectory.positions[0], &res->trajectory.virtual_particles);
   }
+  SundialsSelfContact self_contact(system);
+  self_contact.CountCrossings(res->trajectory.positions[0], 0.0, res);  // the start: sewn, never crossing
   std::size_t next = 1;
   double solver_seconds = 0.0, t = 0.0;
   MatrixN3 frame, frame_v;
@@ -134,7 +204,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     }
     threads.Update();
     const auto t0 = Clock::now();
-    const int flag = d.step(&t);
+    const int flag = self_contact.corrects() ? StepToFrame(d, frames[next], &t) : d.step(&t);
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     solver_seconds += seconds;
     ++steps;
@@ -184,25 +254,30 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     // The next step's virtual particles, from this state (the energy the
     // guard checks includes their springs').
     if (virtual_particles) virtual_particles->Update(t, frame);
-    if (!guard.Check(t, frame, frame_v, work, 0.0, &res->status, &res->message)) {
+    if (!guard.Check(t, frame, frame_v, work, self_contact.work(), &res->status, &res->message)) {
       ok = false;
       break;
     }
-    ok = StoreFrames(d, frames, t, error, guard, virtual_particles, &next, &frame, &frame_v, res);
-    if (ok && flag == 2 && d.on_root) {  // an event: the frames before it are stored; jump and restart
-      const auto e0 = Clock::now();
-      const int f = d.on_root(t);
-      solver_seconds += std::chrono::duration<double>(Clock::now() - e0).count();
-      if (f < 0) {
-        res->status = StatusOfFlag(d.flag_name(f));
-        res->message = error.empty() ? "restart after an event failed with " + d.flag_name(f) : error;
-        ok = false;
-      } else {
-        d.current_state(&frame, &frame_v);  // the next path starts where the event's jump put the particles
-        step_start = frame;
-      }
+    // An event's jump, then the self-contact response's; each restarts
+    // the integrator. Without the response the frames inside the step are
+    // stored first (from the dense output); with it, after (the steps stop
+    // at the frames: a frame is the corrected end of a step).
+    if (!self_contact.corrects())
+      ok = StoreFrames(d, frames, t, error, guard, virtual_particles, self_contact, &next, &frame, &frame_v, res);
+    const auto e0 = Clock::now();
+    int f = ok && flag == 2 && d.on_root ? d.on_root(t) : 0;
+    if (f >= 0 && ok) f = self_contact.CorrectStep(d, t, h, &frame, &frame_v);
+    solver_seconds += std::chrono::duration<double>(Clock::now() - e0).count();
+    if (f < 0) {
+      res->status = StatusOfFlag(d.flag_name(f));
+      res->message = error.empty() ? "restart after an event failed with " + d.flag_name(f) : error;
+      ok = false;
     }
+    step_start = frame;  // the next path starts where the jumps put the particles
+    if (ok && self_contact.corrects())
+      ok = StoreFrames(d, frames, t, error, guard, virtual_particles, self_contact, &next, &frame, &frame_v, res);
   }
+  self_contact.Store(res);
   guard.StoreMargins(res);
   if (ok) res->status = RunStatus::kOk;
   res->threads_fewest = threads.fewest();

@@ -115,10 +115,27 @@ struct OneStepDriver {
   /// are stored: applies the events and restarts the integrator. Returns
   /// its flag (< 0: the run fails with it). Empty: roots are not used.
   std::function<int(double t)> on_root;
+  /// Restarts the integrator at time t from the N×3 state (x [m], v [m/s])
+  /// that the self-contact response made of the last step's end: a jump of
+  /// the state, restarted as an event's. Returns its flag (< 0: the run
+  /// fails with it). Needed on a scene with `[collision] self = true`.
+  std::function<int(double t, const MatrixN3& x, const MatrixN3& v)> restart;
+  /// Sets the time the next steps stop at (CVodeSetStopTime and its
+  /// kin); with self-contact every frame is a step's end, so that a stored
+  /// frame is a corrected state, not the uncorrected step's interpolant.
+  std::function<int(double t_stop)> stop_at;
 };
 
 /// Runs the one-step loop (the Debian build has no monitoring) storing the
-/// step history and the frames 0, frame_dt, …, t_end. `error` holds the
+/// step history and the frames 0, frame_dt, …, t_end. On a scene with
+/// `[collision] self = true` the self-contact response
+/// (collision/self_contact_response.h) corrects every internal step's end,
+/// as it corrects the fixed-step methods', with Δt the larger of the step
+/// and the scene's h; a corrected state restarts the integrator
+/// (OneStepDriver::restart), and the steps stop at every frame
+/// (OneStepDriver::stop_at; docs/collisions.md, "Self-contact under
+/// SUNDIALS"). Every stored frame's crossing pairs are counted on a scene
+/// with `[collision]`. `error` holds the
 /// message of the SUNDIALS error handler, if any. Every frame passes the
 /// BlowUpGuard (a failing one is not kept: status "non_finite" or
 /// "energy_growth"); options.limits end the run with "time_limit" or
