@@ -13,6 +13,7 @@
 #include <benchmark/benchmark.h>
 #include <Eigen/CholmodSupport>
 
+#include "bench/kernel_scenes.h"
 #include "model/particle_system.h"
 #include "solver/integrator.h"
 #include "solver/tangent.h"
@@ -20,35 +21,9 @@
 namespace clothbench {
 namespace {
 
-Scene SquareScene(int side) {
-  Scene s = DefaultScene();
-  s.grid.nu = s.grid.nv = side;
-  s.grid.size = {0.04 * (side - 1), 0.04 * (side - 1)};
-  s.fixed = {s.Index(0, side - 1), s.Index(side - 1, side - 1)};
-  return s;
-}
-
-// A deformed, moving state: the sheet after 0.2 s of swinging (BDF(2));
-// above 40×40 a smooth fold with a velocity field of the same shape (the
-// swing would dominate the benchmark's setup).
-void SwungState(const ParticleSystem& sys, MatrixN3* x, MatrixN3* v) {
-  if (sys.num_particles() > 1600) {
-    *x = sys.rest_positions();
-    v->setZero(sys.num_particles(), 3);
-    for (int p = 0; p < sys.num_particles(); ++p) {
-      const double u = (*x)(p, 0), w = (*x)(p, 1);
-      (*x)(p, 2) += 0.05 * std::sin(4.0 * u) * std::cos(3.0 * w);
-      (*x)(p, 0) *= 1.0 + 0.01 * std::cos(5.0 * w);
-      (*v)(p, 2) = 0.3 * std::cos(2.0 * u + w);
-      (*v)(p, 0) = 0.1 * std::sin(3.0 * w);
-    }
-    return;
-  }
-  StepEngine e(sys, Method::kBdf2, sys.scene().solver);
-  e.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
-  for (int k = 0; k < 80; ++k) e.Step(0.0025);
-  *x = e.x();
-  *v = e.v();
+Scene SheetOf(const benchmark::State& state) {
+  const int side = static_cast<int>(state.range(0));
+  return state.range(1) ? SquarePatternScene(side) : SquareScene(side);
 }
 
 void BM_ExplicitForces(benchmark::State& state) {
@@ -62,6 +37,19 @@ void BM_ExplicitForces(benchmark::State& state) {
   state.SetComplexityN(sys.num_particles());
 }
 BENCHMARK(BM_ExplicitForces)->ArgNames({"side"})->Arg(10)->Arg(20)->Arg(40)->Arg(316)->Complexity(benchmark::oN);
+
+// Explicit forces and a J_α refresh on the grid's path (pattern:0) and on
+// the curvilinear path (pattern:1), the same sheet, 10⁴ to 10⁶ particles.
+void BM_ExplicitForcesPath(benchmark::State& state) {
+  const ParticleSystem sys(SheetOf(state));
+  MatrixN3 x, v, g(sys.num_particles(), 3);
+  SwungState(sys, &x, &v);
+  for (auto _ : state) {
+    sys.ExplicitForces(0.2, x, v, &g);
+    benchmark::DoNotOptimize(g.data());
+  }
+}
+BENCHMARK(BM_ExplicitForcesPath)->ArgNames({"side", "pattern"})->ArgsProduct({{100, 316, 1000}, {0, 1}});
 
 void BM_FilteredPcg(benchmark::State& state) {
   const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
@@ -231,6 +219,18 @@ void BM_TangentUpdate(benchmark::State& state) {
   state.counters["nnz"] = static_cast<double>(ts.matrix().nonZeros());
 }
 BENCHMARK(BM_TangentUpdate)->ArgName("side")->Arg(20)->Arg(316);
+
+void BM_TangentUpdatePath(benchmark::State& state) {
+  const ParticleSystem sys(SheetOf(state));
+  MatrixN3 x, v;
+  SwungState(sys, &x, &v);
+  TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
+  for (auto _ : state) {
+    ts.Update(0.2, x, v, 0.01);
+    benchmark::DoNotOptimize(ts.matrix().valuePtr());
+  }
+}
+BENCHMARK(BM_TangentUpdatePath)->ArgNames({"side", "pattern"})->ArgsProduct({{100, 316}, {0, 1}});
 
 // J_α's values for a new αh from the stored force Jacobians (the pass that
 // follows every Update, and CVODE's γ change without a Jacobian evaluation).
