@@ -79,8 +79,10 @@ class SundialsSelfContact {
   bool counts() const { return !triangles_.empty(); }
   /// Whether the response corrects the steps (the scene's self = true).
   bool corrects() const { return response_.has_value(); }
-  bool CountCrossings(const MatrixN3& x, double t, RunSummary* res) const {
-    return !counts() || clothbench::CountCrossings(triangles_, x, t, response_.has_value(), res);
+  /// The frame's crossing pairs into res; with the response on and
+  /// `ends_run`, a crossing ends the run (false).
+  bool CountCrossings(const MatrixN3& x, double t, RunSummary* res, bool ends_run = true) const {
+    return !counts() || clothbench::CountCrossings(triangles_, x, t, ends_run && response_.has_value(), res);
   }
   /// W_contact of the response since t = 0 [J] for the guard.
   double work() const { return response_ ? response_->stats().work : 0.0; }
@@ -179,7 +181,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     virtual_particles->RecordFrame(res->trajectory.positions[0], &res->trajectory.virtual_particles);
   }
   SundialsSelfContact self_contact(system);
-  self_contact.CountCrossings(res->trajectory.positions[0], 0.0, res);  // the start: sewn, never crossing
+  self_contact.CountCrossings(res->trajectory.positions[0], 0.0, res, false);  // counted, as RunStepper's start
   std::size_t next = 1;
   double solver_seconds = 0.0, t = 0.0;
   MatrixN3 frame, frame_v;
