@@ -26,8 +26,9 @@ Scene SheetOf(const benchmark::State& state) {
   return state.range(1) ? SquarePatternScene(side) : SquareScene(side);
 }
 
-void BM_ExplicitForces(benchmark::State& state) {
-  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+// g(t, x, v) of `scene`'s sheet at its swung state, timed.
+void TimeExplicitForces(benchmark::State& state, const Scene& scene) {
+  const ParticleSystem sys(scene);
   MatrixN3 x, v, g(sys.num_particles(), 3);
   SwungState(sys, &x, &v);
   for (auto _ : state) {
@@ -36,19 +37,15 @@ void BM_ExplicitForces(benchmark::State& state) {
   }
   state.SetComplexityN(sys.num_particles());
 }
+
+void BM_ExplicitForces(benchmark::State& state) {
+  TimeExplicitForces(state, SquareScene(static_cast<int>(state.range(0))));
+}
 BENCHMARK(BM_ExplicitForces)->ArgNames({"side"})->Arg(10)->Arg(20)->Arg(40)->Arg(316)->Complexity(benchmark::oN);
 
 // Explicit forces and a J_α refresh on the grid's path (pattern:0) and on
 // the curvilinear path (pattern:1), the same sheet, 10⁴ to 10⁶ particles.
-void BM_ExplicitForcesPath(benchmark::State& state) {
-  const ParticleSystem sys(SheetOf(state));
-  MatrixN3 x, v, g(sys.num_particles(), 3);
-  SwungState(sys, &x, &v);
-  for (auto _ : state) {
-    sys.ExplicitForces(0.2, x, v, &g);
-    benchmark::DoNotOptimize(g.data());
-  }
-}
+void BM_ExplicitForcesPath(benchmark::State& state) { TimeExplicitForces(state, SheetOf(state)); }
 BENCHMARK(BM_ExplicitForcesPath)->ArgNames({"side", "pattern"})->ArgsProduct({{100, 316, 1000}, {0, 1}});
 
 void BM_FilteredPcg(benchmark::State& state) {
@@ -207,8 +204,8 @@ BENCHMARK(BM_ForceJacobianAutoDiff)->ArgName("side")->Arg(20);
 // springs, symmetrised as Baraff–Witkin uses it): closed-form blocks
 // accumulated into the fixed pattern. Compare with BM_ExplicitForces at the
 // same side.
-void BM_TangentUpdate(benchmark::State& state) {
-  const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));
+void TimeTangentUpdate(benchmark::State& state, const Scene& scene) {
+  const ParticleSystem sys(scene);
   MatrixN3 x, v;
   SwungState(sys, &x, &v);
   TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
@@ -218,18 +215,13 @@ void BM_TangentUpdate(benchmark::State& state) {
   }
   state.counters["nnz"] = static_cast<double>(ts.matrix().nonZeros());
 }
+
+void BM_TangentUpdate(benchmark::State& state) {
+  TimeTangentUpdate(state, SquareScene(static_cast<int>(state.range(0))));
+}
 BENCHMARK(BM_TangentUpdate)->ArgName("side")->Arg(20)->Arg(316);
 
-void BM_TangentUpdatePath(benchmark::State& state) {
-  const ParticleSystem sys(SheetOf(state));
-  MatrixN3 x, v;
-  SwungState(sys, &x, &v);
-  TangentSystem ts(sys, {TangentProjection::kClamp, true, true});
-  for (auto _ : state) {
-    ts.Update(0.2, x, v, 0.01);
-    benchmark::DoNotOptimize(ts.matrix().valuePtr());
-  }
-}
+void BM_TangentUpdatePath(benchmark::State& state) { TimeTangentUpdate(state, SheetOf(state)); }
 BENCHMARK(BM_TangentUpdatePath)->ArgNames({"side", "pattern"})->ArgsProduct({{100, 316}, {0, 1}});
 
 // J_α's values for a new αh from the stored force Jacobians (the pass that

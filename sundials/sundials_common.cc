@@ -86,22 +86,24 @@ class SundialsSelfContact {
   }
   /// W_contact of the response since t = 0 [J] for the guard.
   double work() const { return response_ ? response_->stats().work : 0.0; }
-  /// Corrects the internal step of size h ending at t in the integrator's
-  /// state (x, v: scratch of the state's size, left at the step's end) and
-  /// restarts it from a changed state; the flag of the restart (0 if none).
+  /// Corrects the internal step of size h ending at t, whose end state
+  /// (x, v) it changes in place, and restarts the integrator from a changed
+  /// state; the flag of the restart (0 if none, or without the response).
   /// The response's Δt is max(h, the scene's h): its position corrections
   /// are those of the step's path, and a step that a restart made small
   /// does not turn them into large velocities (a repulsion changes the
   /// velocity by 0.1 (thickness − distance)/Δt).
   int CorrectStep(const OneStepDriver& d, double t, double h, MatrixN3* x, MatrixN3* v) {
-    d.current_state(x, v);
     if (!response_) return 0;
-    x_end_ = *x;
-    v_end_ = *v;
+    // The response changes the state exactly when one of its stages acts.
+    const auto acted = [this] {
+      const SelfContactStats& s = response_->stats();
+      return s.repulsions + s.collisions + s.zone_passes;
+    };
+    const long before = acted();
     response_->Respond(std::max(h, h_scene_), x_start_, x, v);
     x_start_ = *x;
-    if (*x == x_end_ && *v == v_end_) return 0;
-    return d.restart(t, *x, *v);
+    return acted() == before ? 0 : d.restart(t, *x, *v);
   }
   void Store(RunSummary* res) const {
     if (response_) res->self_contact = response_->stats();
@@ -110,7 +112,7 @@ class SundialsSelfContact {
  private:
   std::vector<std::array<int, 3>> triangles_;
   std::optional<SelfContactResponse> response_;
-  MatrixN3 x_start_, x_end_, v_end_;
+  MatrixN3 x_start_;  // the next internal step's start
   double h_scene_;
 };
 
@@ -119,6 +121,21 @@ class SundialsSelfContact {
 int StepToFrame(const OneStepDriver& d, double t_stop, double* t) {
   const int f = d.stop_at(t_stop);
   return f < 0 ? f : d.step(t);
+}
+
+// The jumps after the internal step of size h ending at t: an event's (a
+// root, flag 2), then the self-contact response's, each restarting the
+// integrator; `step_start` becomes the state they leave (x, v scratch).
+// The first failing restart's flag, else 0.
+int Jumps(const OneStepDriver& d, int flag, double t, double h, SundialsSelfContact& self_contact, MatrixN3* x,
+          MatrixN3* v, MatrixN3* step_start) {
+  const bool event = flag == 2 && d.on_root;
+  const int f = event ? d.on_root(t) : 0;
+  if (f < 0 || !(event || self_contact.corrects())) return f;
+  d.current_state(x, v);  // the step's end, after the event's jump
+  const int g = self_contact.CorrectStep(d, t, h, x, v);
+  *step_start = *x;  // the next path starts where the jumps put the particles
+  return g;
 }
 
 // The frames up to the internal step's end t [s] (dense output), each
@@ -267,15 +284,13 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
     if (!self_contact.corrects())
       ok = StoreFrames(d, frames, t, error, guard, virtual_particles, self_contact, &next, &frame, &frame_v, res);
     const auto e0 = Clock::now();
-    int f = ok && flag == 2 && d.on_root ? d.on_root(t) : 0;
-    if (f >= 0 && ok) f = self_contact.CorrectStep(d, t, h, &frame, &frame_v);
+    const int f = ok ? Jumps(d, flag, t, h, self_contact, &frame, &frame_v, &step_start) : 0;
     solver_seconds += std::chrono::duration<double>(Clock::now() - e0).count();
     if (f < 0) {
       res->status = StatusOfFlag(d.flag_name(f));
       res->message = error.empty() ? "restart after an event failed with " + d.flag_name(f) : error;
       ok = false;
     }
-    step_start = frame;  // the next path starts where the jumps put the particles
     if (ok && self_contact.corrects())
       ok = StoreFrames(d, frames, t, error, guard, virtual_particles, self_contact, &next, &frame, &frame_v, res);
   }

@@ -264,8 +264,9 @@ TEST(SelfContactScene, PdRepeatsBitForBitOnOneAndTwoThreads) {
 TEST(SelfContactScene, TheSundialsRowsCorrectTheirStepsAndDoNotCross) {
   const Scene s = Fold(true);
   const ParticleSystem sys(s);
-  // CVODE with the reduced solve (5.5 s on a busy 2-core machine; IDA with
-  // KLU takes ~90 s here and is measured in docs/collisions.md instead).
+  // CVODE with the reduced solve (5.5 s on a busy 2-core machine; RunIda,
+  // with KLU, took ~90 s here: the ida rows are measured in
+  // docs/collisions.md, "Self-contact under SUNDIALS", instead).
   const ReferenceOptions o{1e-3, 1e-3, 5, s.t_end, s.frame_dt};
   const RunSummary r = RunCvodeReduced(sys, o, s.solver);
   std::printf("[ self contact ] cvode on fold_over_rod: %d steps, %.2f s\n", r.steps, r.solver_time_s);
