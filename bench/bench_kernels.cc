@@ -263,7 +263,7 @@ BENCHMARK(BM_TangentProduct)->ArgName("side")->Arg(20)->Arg(316);
 
 // A supernodal CHOLMOD factor (METIS) of the whole 3N×3N J_α, the
 // preconditioner Baraff–Witkin would need to converge in one CG iteration
-// (docs/newton.md): the symbolic analysis and one numeric factorisation,
+// (docs/notes/newton.md): the symbolic analysis and one numeric factorisation,
 // with the factor's entries. Once per size: at side 316 it takes seconds.
 void BM_TangentCholmodFactor(benchmark::State& state) {
   const ParticleSystem sys(SquareScene(static_cast<int>(state.range(0))));

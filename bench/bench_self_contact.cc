@@ -1,5 +1,5 @@
 // Microbenchmarks of the self-contact detection and response
-// (collision/self_contact.h, self_contact_response.h; docs/collisions.md,
+// (collision/self_contact.h, self_contact_response.h; docs/notes/collisions.md,
 // "Self-contact"): the broad phase (CGAL's box_intersection_d) and one
 // response to a step, on a 0.6 m sheet of side×side particles (spacing l)
 // folded into a hairpin whose two layers are 0.3 l apart and each move

@@ -1,5 +1,5 @@
 // clothbench_inspect: reads a bench_integrators result file (schema
-// clothbench/2, docs/results-schema.md) and prints what is in it.
+// clothbench/2, docs/guide/results-schema.md) and prints what is in it.
 //
 //   clothbench_inspect FILE.h5 summary              scene, machine, commit, runs
 //   clothbench_inspect FILE.h5 table                the table bench_integrators printed

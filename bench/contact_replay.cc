@@ -1,6 +1,6 @@
 // contact_replay: saves the state of a scene's run at given times and takes
 // steps from a saved state, printing per step what the filtered PCG and its
-// contact-aware preconditioner did (docs/performance.md, "Prefiltered AMG").
+// contact-aware preconditioner did (docs/notes/performance.md, "Prefiltered AMG").
 // At 10⁶ particles a drape takes minutes to reach its resting state; from a
 // saved state a preconditioner setting is compared on that state in seconds.
 //
@@ -193,7 +193,7 @@ State PrepareReplay(const Args& a, const ParticleSystem& system) {
 
 // What the contact-aware preconditioner's choices cost over the run: the
 // measured break-even of kModifyRowsPerSqrtN and kSetupVCycles
-// (docs/performance.md, "Contact factors", "Prefiltered AMG").
+// (docs/notes/performance.md, "Contact factors", "Prefiltered AMG").
 void PrintCosts(const StepEngine& engine, int num_particles) {
   const ContactFactorStats& c = engine.system_matrix().preconditioner().contact_stats();
   const double root_n = std::sqrt(static_cast<double>(num_particles));

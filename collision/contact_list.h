@@ -1,4 +1,4 @@
-// The entries of a step's contact list (docs/collisions.md): what the
+// The entries of a step's contact list (docs/notes/collisions.md): what the
 // detections of collision/ produce and the responses read. Obstacle
 // contacts come from ObstacleDetection (collision/obstacle_contacts.h), one
 // per particle in contact; self-contact pairs from SelfContactDetector

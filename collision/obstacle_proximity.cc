@@ -1,5 +1,5 @@
 // The position-based peers' adapter to the obstacles
-// (collision/obstacle_proximity.h; docs/collisions.md).
+// (collision/obstacle_proximity.h; docs/notes/collisions.md).
 #include "collision/obstacle_proximity.h"
 
 #include <cmath>

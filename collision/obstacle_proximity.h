@@ -1,4 +1,4 @@
-// The position-based peers' adapter to the obstacles (docs/collisions.md,
+// The position-based peers' adapter to the obstacles (docs/notes/collisions.md,
 // "Detection and the contact list"): the particles of a set of positions
 // inside an obstacle's collision area, as entries of the contact list
 // (collision/contact_list.h). XPBD reads it every substep, projective

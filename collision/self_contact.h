@@ -1,4 +1,4 @@
-// Self-contact of the cloth (docs/collisions.md, "Self-contact"): the
+// Self-contact of the cloth (docs/notes/collisions.md, "Self-contact"): the
 // point–triangle and edge–edge pairs of its grid triangles that come within
 // a thickness of each other or cross during a step, and the response of
 // Bridson, Fedkiw & Anderson 2002 (§6–7): repulsion within the thickness,
@@ -23,7 +23,7 @@ namespace clothbench {
 /// (this project's machine). Below it the region's work is smaller than
 /// what waking a thread costs when the other core is busy (another
 /// process, ctest -j2), where a second thread made the fold's SBDF(2) step
-/// 2.8x slower than one (scripts/self_contact_cost; docs/performance.md,
+/// 2.8x slower than one (scripts/self_contact_cost; docs/notes/performance.md,
 /// "Parallel regions on a busy machine").
 inline constexpr long kParallelPairTests = 16384;
 

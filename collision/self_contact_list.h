@@ -1,4 +1,4 @@
-// A self-contact candidate list kept over many steps (docs/collisions.md,
+// A self-contact candidate list kept over many steps (docs/notes/collisions.md,
 // "Self-contact", "The list kept over steps"): a Verlet list with a skin,
 // as molecular dynamics keeps its neighbour lists (Verlet 1967; Allen &
 // Tildesley, Computer Simulation of Liquids, 2nd ed. 2017, §5.3), checked

@@ -1,4 +1,4 @@
-// The cloth's response to contact with itself (docs/collisions.md,
+// The cloth's response to contact with itself (docs/notes/collisions.md,
 // "Self-contact"), after Bridson, Fedkiw & Anderson 2002, "Robust
 // treatment of collisions, contact and friction for cloth animation", §7:
 // a step's end state is corrected through its mean velocity ν = (x₁ − x₀)/h
@@ -44,7 +44,7 @@ struct SelfContactStats {
   double response_seconds = 0;   ///< impulses, zones and the work's energies [s]
   double work = 0.0;             ///< W_self: the energy the corrections added (< 0: removed) [J]
   /// The counts by the names a result file and the Python door give them
-  /// (docs/results-schema.md, /runs/<id>/self_contact).
+  /// (docs/guide/results-schema.md, /runs/<id>/self_contact).
   std::array<std::pair<const char*, long>, 9> Counts() const {
     return {{{"steps", steps}, {"candidates", candidates}, {"broad_phases", broad_phases}, {"repulsions", repulsions},
              {"collisions", collisions}, {"zone_passes", zone_passes}, {"unresolved_steps", unresolved_steps},
@@ -89,7 +89,7 @@ class SelfContactResponse {
   /// the pairs within reach + 2R and is rebuilt when a patch's motion could
   /// bring a pair it left out within the reach. Each step tests only the
   /// listed pairs whose distance bound falls within the thickness. Measured
-  /// on fold_over_rod and sphere_fold (docs/collisions.md, "The list kept
+  /// on fold_over_rod and sphere_fold (docs/notes/collisions.md, "The list kept
   /// over steps").
   static constexpr double kSkinFraction = 0.25;
   /// The broad phase boxes patches of kPatchCells × kPatchCells grid quads

@@ -62,7 +62,7 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--h", h_arg,
                  "comma-separated step sizes [s] of every fixed-step row and frame steps of the substepped rows "
                  "(default: per method, multiples of the scene's h chosen so that the default scene's runs bracket "
-                 "e_rms = 1e-3 m; docs/work-precision.md)");
+                 "e_rms = 1e-3 m; docs/notes/work-precision.md)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference,
                  fmt::format("the reference: {} (cvode, ida: the reduced velocity solve; /klu: KLU on the first-order "
@@ -130,11 +130,11 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_flag("--sweep-to-targets", sweep_to_targets,
                "choose each method's h, substeps or rtol run by run from its errors against the reference until its "
                "runs bracket every --targets value, it fails, reaches --time-limit or stalls (instead of the fixed "
-               "lists; docs/work-precision.md)");
+               "lists; docs/notes/work-precision.md)");
   app.add_option("--self-contact", self_contact_arg,
                  "on | off: override the scene's collision.self (on: with its [collision] thickness, or 1e-3 m on a "
                  "scene without the table; off: no response, the crossing pairs still counted at every stored frame; "
-                 "docs/collisions.md, \"Self-contact\")");
+                 "docs/notes/collisions.md, \"Self-contact\")");
   app.add_option("--sizes", sizes_arg,
                  "comma-separated particle counts, increasing: the scene's grid refined to about N particles each "
                  "(sheet size, material per unit length and area, forces, constraints and t_end kept; "
@@ -149,7 +149,7 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_flag("--start-predicted", start_predicted,
                "start every run, also one whose first run is predicted past --time-limit or 80 % of the available "
                "memory (by default such a row is stored not_started with the prediction and its source; "
-               "docs/work-precision.md, \"Predicting a first run\")");
+               "docs/notes/work-precision.md, \"Predicting a first run\")");
   app.add_flag("--report", report,
                "after writing the results, write one self-contained HTML page beside the result file (<stem>.html; "
                "with --sizes also the verdict's) with scripts/report: scene, settings, tables, work-precision, "

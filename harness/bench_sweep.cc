@@ -240,7 +240,7 @@ RunSummary SelfConvergenceRun(const BenchRun& b, double h_ref, const char* role,
 // its estimate run and the cross-check's refinements run side by side on
 // kCheckWorkers threads of one kernel thread each: on
 // scenes/round_table_10k.toml they took 5 min 20 s, against 7 min 30 s one
-// after the other on two kernel threads (docs/collisions.md).
+// after the other on two kernel threads (docs/notes/collisions.md).
 constexpr int kCheckWorkers = 2;
 
 RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const RunContext& ctx, double h_ref,
@@ -307,7 +307,7 @@ RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const 
   return r;
 }
 
-// --sweep-to-targets (docs/work-precision.md, "Sweeps driven by the
+// --sweep-to-targets (docs/notes/work-precision.md, "Sweeps driven by the
 // targets"): each method's h (fixed-step), substeps (substepped) or rtol
 // (adaptive) is chosen run by run from the errors against the reference.
 // From the scene's h (1 substep; rtol 1e-4) it coarsens (h × 2, rtol × 10)
@@ -364,7 +364,7 @@ double PredictedWallTime(StepKind kind, double last_s, double before_s) {
 }
 
 // A method's runs keep in memory only the frames the result file keeps
-// (docs/results-schema.md, "Which frames are kept"), once each run's errors
+// (docs/guide/results-schema.md, "Which frames are kept"), once each run's errors
 // and energies against the reference are computed: with --frames default
 // or positions the velocities at t = 0 and t_end, with --frames default
 // also the positions at the ends, but for the method's first (coarsest)

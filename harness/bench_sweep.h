@@ -71,7 +71,7 @@ struct BenchRun {
   std::string arkode_table;
   CvodeSettings cvode;
   /// --sweep-to-targets: each method's h, substeps or rtol chosen run by run
-  /// until its runs bracket every target (RunBench; docs/work-precision.md).
+  /// until its runs bracket every target (RunBench; docs/notes/work-precision.md).
   bool sweep_to_targets = false;
   /// Keep <out>.journal after the file is written (--sizes: removed once
   /// the verdict is written, so that a rerun finds every finished size).
@@ -114,10 +114,10 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp = nullpt
 /// (rtol / 10) `last_s` times the last refinement's growth (at least 1).
 /// 0 (no prediction) without the runs it needs. The sweep does not start a
 /// run predicted past --time-limit, which would cost the whole limit and
-/// end time_limit (docs/work-precision.md, "Sweeps driven by the targets").
+/// end time_limit (docs/notes/work-precision.md, "Sweeps driven by the targets").
 double PredictedWallTime(StepKind kind, double last_s, double before_s);
 
-/// --sizes (docs/work-precision.md, "The size axis"): RunBench for each of
+/// --sizes (docs/notes/work-precision.md, "The size axis"): RunBench for each of
 /// `runs` (one per size, increasing, each on its refined scene with its own
 /// result file and journal), then the verdict file `out`: per size
 /// /sizes/n<N> (its scene text, result file name and work_precision) and

@@ -1,6 +1,6 @@
 // Command-line pieces the executables share: the usage error every
 // refusal throws, comma-separated lists, and the --out check. Each refusal
-// is one line naming the option and the rule (exit 2, docs/scenes.md
+// is one line naming the option and the rule (exit 2, docs/guide/scenes.md
 // "Limits").
 #ifndef CLOTHBENCH_HARNESS_CLI_ARGS_H_
 #define CLOTHBENCH_HARNESS_CLI_ARGS_H_

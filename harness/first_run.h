@@ -1,5 +1,5 @@
 // Not starting a run whose prediction exceeds what it may use
-// (docs/work-precision.md, "Predicting a first run").
+// (docs/notes/work-precision.md, "Predicting a first run").
 #ifndef CLOTHBENCH_HARNESS_FIRST_RUN_H_
 #define CLOTHBENCH_HARNESS_FIRST_RUN_H_
 

@@ -7,7 +7,7 @@
 //
 // Row labels: the name, then "/newton" for a fully implicit method with
 // Newton's method, then "/error" for SBDF(2) and BDF(2) under local error
-// control (adaptive rows, docs/work-precision.md): "bdf2/newton/error".
+// control (adaptive rows, docs/notes/work-precision.md): "bdf2/newton/error".
 #ifndef CLOTHBENCH_HARNESS_METHODS_H_
 #define CLOTHBENCH_HARNESS_METHODS_H_
 
@@ -142,10 +142,10 @@ struct MethodEntry {
 /// cheaper factorisation), so it keeps the scene's. Rows without the PCG
 /// (blender, xpbd, cvode/klu) varied by 1–3 % between these runs, the
 /// timing noise of the minimum. At 10⁴–10⁶ particles the factor wins for
-/// SBDF(2) by 10–30× (docs/performance.md, bench_scaling), and it is the
+/// SBDF(2) by 10–30× (docs/notes/performance.md, bench_scaling), and it is the
 /// large_sheet scene's own setting.
 /// Without contacts "auto" is that factor; in contact it chooses between the
-/// factor with contact factors and the prefiltered AMG (docs/performance.md,
+/// factor with contact factors and the prefiltered AMG (docs/notes/performance.md,
 /// "The contact policy").
 inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kAuto;
 
@@ -219,7 +219,7 @@ inline std::vector<MethodEntry> PeerEntries() {
       // 0.388 s and 1.734 / 1.534 / 1.439 s. On the 10⁶-particle sheet the
       // final positions differ from the η = 10⁻⁶ run by 2.1·10⁻⁶ m rms
       // after 1.4·10⁻² m of motion, and a step takes 2.6–2.9 s instead of
-      // 6.6–7.6 s (docs/newton.md).
+      // 6.6–7.6 s (docs/notes/newton.md).
       // J_α of tension and mass only (tangent_explicit_terms = false; shear,
       // bending and the other terms enter f₀ but not J): `bench_integrators
       // --integrators baraff_witkin --h 0.01,0.00125 --tangent-terms all`
@@ -355,12 +355,12 @@ inline const std::vector<MethodEntry>& Registry() {
   return r;
 }
 
-/// The row every equal-accuracy ratio is relative to (docs/work-precision.md):
+/// The row every equal-accuracy ratio is relative to (docs/notes/work-precision.md):
 /// CVODE with the reduced velocity solve.
 inline constexpr std::string_view kWorkPrecisionBaseline = kCvodeName;
 /// The default reference (--reference): CVODE with the reduced velocity
 /// solve, the fastest of the candidates at every size measured
-/// (docs/work-precision.md, "The reference").
+/// (docs/notes/work-precision.md, "The reference").
 inline constexpr std::string_view kDefaultReference = kCvodeName;
 
 /// The methods that can be the reference, for messages ("cvode, ida").
@@ -488,7 +488,7 @@ struct RowMethod {
     // A scene's IC(0) is the thesis' setting, kept for --table and the
     // stability maps, and kBestPreconditioner was measured against it. A
     // scene that names another preconditioner chose it for itself (the
-    // contact-scale scenes' prefiltered AMG, docs/performance.md
+    // contact-scale scenes' prefiltered AMG, docs/notes/performance.md
     // "Prefiltered AMG") and keeps it.
     if (best && !ctx.preconditioner_from_cli && spec.preconditioner == PreconditionerType::kIc0)
       row_spec.preconditioner = *best;
@@ -669,7 +669,7 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 /// substepped rows) and tolerances rtol (adaptive rows). Chosen on the
 /// default scene (the swinging sheet, h = 0.01 s) so that each row's runs
 /// bracket e_rms = 1e-3 m where that fits the default run's time budget;
-/// the measured e_rms that justify them (docs/work-precision.md):
+/// the measured e_rms that justify them (docs/notes/work-precision.md):
 ///  - imex_euler: 0.61, 0.39, 0.18, 0.060 m at h, h/4, h/16, h/64. Its error
 ///    is 0.017 m at h/256 (`bench_integrators --integrators
 ///    imex_euler,implicit_euler/newton --h 0.01,0.0025,6.25e-4,1.5625e-4,3.90625e-5`); 1e-3 m would need h ≈ 2e-6 s (order 1), about
@@ -693,7 +693,7 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 ///  - pd, pd/chebyshev: h, h/4, h/16 with --iterations 1,4,16,64: implicit
 ///    Euler's floor 2.2e-2, 5.9e-3, 1.5e-3 m, reached in 16, 16 and 4
 ///    iterations; one iteration gives 2.2e-2, 1.8e-3, 1.2e-3 m
-///    (docs/work-precision.md, "pd").
+///    (docs/notes/work-precision.md, "pd").
 ///  - vbd, vbd/chebyshev: a sweep costs 0.22 ms at 400 particles (6× a
 ///    pd iteration) and the default run's budget holds 1 and 4 sweeps at
 ///    h, h/4, h/16 (10,500 sweeps per row, 2.3 s), their own counts: at
@@ -701,7 +701,7 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
 ///    give 0.23, 0.11 m; at h/4 9.8e-2 … 5.9e-3 m (1 … 64); at h/16
 ///    4.8e-2, 2.5e-3, 1.5e-3 m with 1, 4, 16 (the floor); with Chebyshev
 ///    the same within 20 % (`bench_integrators --integrators
-///    vbd,vbd/chebyshev --h 0.01,0.0025,0.000625`, docs/work-precision.md,
+///    vbd,vbd/chebyshev --h 0.01,0.0025,0.000625`, docs/notes/work-precision.md,
 ///    "vbd").
 ///  - sbdf3: 4.2e-1, 4.6e-2, 1.7e-4, 2.2e-5 m at h, h/2, h/4, h/8; at h and
 ///    h/2 it gains energy (+294 W and +2.2 W: BDF3 is not A-stable), so its
@@ -873,7 +873,7 @@ inline void SetReferenceErrorEstimate(RunSummary* ref, const RunSummary& other, 
   if (e && std::isfinite(e->Of(metric))) ref->error_estimate_m = e->Of(metric);
 }
 
-/// The reference run (docs/work-precision.md, "The reference"): `row` at
+/// The reference run (docs/notes/work-precision.md, "The reference"): `row` at
 /// rtol = atol = `rtol`, run as the row of that label is (RowMethod::Run: its
 /// best preconditioner, the context's limits), and its error estimate:
 /// the same row at rtol/10, and error_estimate_m the error `metric` of the

@@ -1,6 +1,6 @@
 // Recomputing one stored run of a result file. The file holds the scene's
 // text (/scene/toml) and every setting the run used (its /runs/<id>
-// attributes, docs/results-schema.md); StoredRunRequest rebuilds the run's
+// attributes, docs/guide/results-schema.md); StoredRunRequest rebuilds the run's
 // RunRequest from them and validates it like any other entry point's, so a
 // file whose stored values break a rule is refused before anything runs.
 // `clothbench_inspect FILE rerun RUN` runs that request in-process

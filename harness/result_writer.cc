@@ -1,5 +1,5 @@
 // Result writing of bench_integrators: the run table, the HDF5 file
-// (docs/results-schema.md), the Fig. 4.3 series and the equal-accuracy table.
+// (docs/guide/results-schema.md), the Fig. 4.3 series and the equal-accuracy table.
 #include "harness/result_writer.h"
 
 #include <algorithm>
@@ -44,7 +44,7 @@ void WriteSundialsStats(ResultFile& f, const std::string& g, const SundialsStats
     if (v >= 0) f.SetAttribute(g, name, v);
 }
 
-// A run's self-contact data under group g (docs/results-schema.md): the
+// A run's self-contact data under group g (docs/guide/results-schema.md): the
 // crossing triangle pairs of every frame, where counted, and the response's
 // counters and times as attributes of g/self_contact.
 void WriteSelfContact(ResultFile& f, const std::string& g, const RunSummary& r) {
@@ -65,7 +65,7 @@ void WriteSelfContact(ResultFile& f, const std::string& g, const RunSummary& r) 
 // else "positions_ends" / "velocities_ends" [2, N, 3] at t = 0 and t_end;
 // plus per-frame views g/frame_views/<name>_<k> for XDMF readers.
 // Double-precision trajectories compress only ~1.2× losslessly, so which
-// frames are kept is what sets the file size (docs/results-schema.md).
+// frames are kept is what sets the file size (docs/guide/results-schema.md).
 void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory& traj, bool every_position,
                            bool every_velocity) {
   const auto write = [&](const std::vector<MatrixN3>& frames, bool every, const std::string& name,
@@ -383,7 +383,7 @@ std::vector<double> MethodOrders(const RunSummary& run) {
   return out;
 }
 
-// The equal-accuracy table (docs/work-precision.md) of the rows' records,
+// The equal-accuracy table (docs/notes/work-precision.md) of the rows' records,
 // after CompareToReference filled their errors.
 EqualAccuracyTable WorkPrecision(const std::vector<Row>& rows, const std::vector<double>& targets,
                                  const std::string& baseline, ErrorMetric metric, double reference_error) {

@@ -1,5 +1,5 @@
 // Turning a sweep's rows into the printed table, the HDF5 result file
-// (docs/results-schema.md), the Fig. 4.3 series and the equal-accuracy
+// (docs/guide/results-schema.md), the Fig. 4.3 series and the equal-accuracy
 // table.
 #ifndef CLOTHBENCH_HARNESS_RESULT_WRITER_H_
 #define CLOTHBENCH_HARNESS_RESULT_WRITER_H_
@@ -56,7 +56,7 @@ std::vector<StepRecord> StepRecords(const RunSummary& run);
 /// A SUNDIALS run's method order q per step (/runs/<id>/method_order).
 std::vector<double> MethodOrders(const RunSummary& run);
 
-/// The equal-accuracy table (docs/work-precision.md) of the rows at the
+/// The equal-accuracy table (docs/notes/work-precision.md) of the rows at the
 /// error `targets` [m] of `metric`, with ratios to the row labelled `baseline`
 /// (--baseline; kWorkPrecisionBaseline by default); targets below 10× the
 /// reference's error estimate `reference_error` [m] (negative: not known)

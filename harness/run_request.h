@@ -6,7 +6,7 @@
 // and call Validate() or Resolve() before anything is computed, so that
 // they refuse the same input with the same line; bench_integrators and
 // stress_stability validate each planned run through it too. The rules
-// (docs/scenes.md "Limits"):
+// (docs/guide/scenes.md "Limits"):
 //  - method: a registry row ("bdf2/newton", "arkode/ark4"), runnable on the
 //    scene's step control;
 //  - h [s]: fixed-step, substepped and iterated rows only, finite, > 0,

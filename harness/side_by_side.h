@@ -1,5 +1,5 @@
 // Runs that no table times, side by side: a reference's checks (its error
-// estimate at rtol/10 and the cross-check's refinement, docs/collisions.md
+// estimate at rtol/10 and the cross-check's refinement, docs/notes/collisions.md
 // "The contact reference"). Two runs at a time on one kernel thread each
 // finish sooner than one after the other on two: at 10⁴ particles two
 // concurrent BDF(2) runs took 32 s each against 26 s alone on two threads.

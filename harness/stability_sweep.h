@@ -1,6 +1,6 @@
 // The stability maps' sweep (stress_stability): cells of scenes x rows x
 // h x numerical stiffness, computed over MPI ranks with a journal, printed
-// as maps and written to a result file (docs/verification.md).
+// as maps and written to a result file (docs/notes/verification.md).
 #ifndef CLOTHBENCH_HARNESS_STABILITY_SWEEP_H_
 #define CLOTHBENCH_HARNESS_STABILITY_SWEEP_H_
 
@@ -44,7 +44,7 @@ struct CellResults {
 /// @throws Interrupted between cells (the journal keeps the finished ones)
 CellResults ComputeCells(const SweepPlan& p, SweepJournal& journal, long max_cells, SweepComm& comm, bool* partial);
 
-/// Prints the maps and writes the result file `out` (rank 0; docs/results-schema.md, /stress).
+/// Prints the maps and writes the result file `out` (rank 0; docs/guide/results-schema.md, /stress).
 /// @throws ResultError if the file cannot be written
 void WriteMaps(const SweepPlan& p, const CellResults& r, const std::string& out, const SweepComm& comm);
 

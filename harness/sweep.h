@@ -9,7 +9,7 @@
 //    it completes, so that an interrupted sweep rerun with the same
 //    arguments computes only the missing cells; RecordJournal: the same for
 //    cells that are whole runs, one file each.
-// docs/verification.md, "Sweeps on many machines, and resuming them".
+// docs/notes/verification.md, "Sweeps on many machines, and resuming them".
 #ifndef CLOTHBENCH_HARNESS_SWEEP_H_
 #define CLOTHBENCH_HARNESS_SWEEP_H_
 

@@ -23,7 +23,7 @@ std::string CrossCheckLine(const RunRecord& ref, const std::string& error_name) 
   if (ref.cross_check_difference_m >= 0.0 && ref.cross_check_error_estimate_m >= 0.0 && ref.error_estimate_m >= 0.0)
     verdict = ref.cross_check_difference_m <= ref.cross_check_error_estimate_m + ref.error_estimate_m
                   ? ", within the sum of the estimates"
-                  : ", more than the sum of the estimates (docs/collisions.md, \"The contact reference\")";
+                  : ", more than the sum of the estimates (docs/notes/collisions.md, \"The contact reference\")";
   return fmt::format("\ncross-check: {} {}, its own estimate {}; {} between the two references: {}{}",
                      "BDF(2) with the thesis' response at", ref.cross_check, m(ref.cross_check_error_estimate_m),
                      error_name, m(ref.cross_check_difference_m), verdict);
@@ -58,32 +58,32 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
 
 }  // namespace
 
-// Why implicit midpoint ends `penetration` at a large h (docs/collisions.md,
+// Why implicit midpoint ends `penetration` at a large h (docs/notes/collisions.md,
 // "Implicit midpoint at the obstacles").
 constexpr const char* kMidpointPenetration =
     "implicit_midpoint rows, penetration: the contact response prescribes the normal velocity v1 at the step's end, "
     "and the midpoint rule moves a particle by h (v0 + v1)/2, so an entering particle travels h|<v0, D>|/2 past where "
     "the response aims it; once that exceeds twice the collision distance delta (h > 4 delta/|<v0, D>|) it can end "
-    "deeper than delta. A property of the method with this response (docs/collisions.md, \"Implicit midpoint at the "
+    "deeper than delta. A property of the method with this response (docs/notes/collisions.md, \"Implicit midpoint at the "
     "obstacles\").";
 
 // Why SBDF(2) and BDF(2) end `penetration` at a large h with the history
-// kept (docs/collisions.md, "BDF(2) at the obstacles").
+// kept (docs/notes/collisions.md, "BDF(2) at the obstacles").
 constexpr const char* kMultistepPenetration =
     "sbdf2/bdf2 rows, penetration: with contact_history = \"keep\" (the default) the multistep formula x1 = (4 x0 - "
     "x-1)/3 + 2h v1/3 carries the last step's displacement on, so in the step after an entry a particle moves about "
     "h|<v0, D>|/3 toward the obstacle whatever v1 the response sets, and it can end deeper than the collision "
     "distance delta once h > 6 delta/|<v0, D>|. A property of the method with this response; contact_history = "
-    "\"project\" or \"land\" removes it (docs/collisions.md, \"BDF(2) at the obstacles\").";
+    "\"project\" or \"land\" removes it (docs/notes/collisions.md, \"BDF(2) at the obstacles\").";
 
 // Why VBD ends `penetration` at a large h with few sweeps
-// (docs/collisions.md, "VBD at the obstacles").
+// (docs/notes/collisions.md, "VBD at the obstacles").
 constexpr const char* kVbdPenetration =
     "vbd rows, penetration: the entry test predicts a particle's path from its velocity at the step's start, and a "
     "VBD iterate that is still far from implicit Euler's solution after its few sweeps can move a particle much "
     "faster than that (on the swinging box at h = 0.01 s and 4 sweeps: 7 cm in one step from 1.9 m/s), past the "
     "test; more sweeps or a smaller h end ok. A property of the method's unconverged iterate "
-    "(docs/collisions.md, \"VBD at the obstacles\").";
+    "(docs/notes/collisions.md, \"VBD at the obstacles\").";
 
 const RunTableNotes& RegistryTableNotes() {
   static const RunTableNotes notes{

@@ -1,4 +1,4 @@
-// The thesis' Tables 3.1 and 3.2 beside ours (docs/thesis-tables.md).
+// The thesis' Tables 3.1 and 3.2 beside ours (docs/notes/thesis-tables.md).
 #include "harness/thesis_tables.h"
 
 #include <algorithm>

@@ -19,7 +19,7 @@ class SideBySide;  // harness/side_by_side.h
 
 /// A tight self-convergence run for obstacle scenes: the reference with
 /// virtual particles and of the thesis' tables, the cross-check of the
-/// event-located reference otherwise (docs/collisions.md, "The contact
+/// event-located reference otherwise (docs/notes/collisions.md, "The contact
 /// reference"). BDF(2) at `h_ref` [s] with CG tolerance 1e-10, fixed-point
 /// tolerance `fixed_point_tolerance` [m/s] (max |Δv| of the last update) and
 /// up to 200 updates per step, the scene's predictor.
@@ -28,11 +28,11 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref, double fix
 /// The cross-check's fixed-point tolerance [m/s]. A step's velocities then
 /// differ from the exact fixed point by about 1e-9 m/s, its positions by h
 /// times that, which adds up to about t_end · 1e-9 m over a run: a
-/// hundredth of the smallest estimate measured (7e-7 m, docs/collisions.md).
+/// hundredth of the smallest estimate measured (7e-7 m, docs/notes/collisions.md).
 /// At 10⁴ particles it halves the updates per step against 1e-12 m/s.
 inline constexpr double kCrossCheckFixedPointTolerance = 1e-9;
 
-/// The cross-check of an event-located contact reference (docs/collisions.md,
+/// The cross-check of an event-located contact reference (docs/notes/collisions.md,
 /// "The contact reference"): SelfConvergenceReference with the friction law
 /// of the contact problem in continuous time (FrictionLaw::kRegularised;
 /// the thesis' explicit law converges to another one), the extrapolating
@@ -44,7 +44,7 @@ inline constexpr double kCrossCheckFixedPointTolerance = 1e-9;
 /// at most F_s d₁/(2^q − 1) with q = min(p, 1) and F_s = 1.25, the Grid
 /// Convergence Index of a three-grid study (Roache, *Verification and
 /// Validation in Computational Science and Engineering*, 1998, §5.4, with
-/// the order capped at the contact response's first, docs/collisions.md
+/// the order capped at the contact response's first, docs/notes/collisions.md
 /// "Orders with contacts": on the round table an accidental p = 4.4 at
 /// h/32 estimated a tenth of the error). With d₂ ≤ d₁, or p > 3 (BDF(2)'s
 /// formal order plus one), the runs are not in their asymptotic range and

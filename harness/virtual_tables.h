@@ -1,6 +1,6 @@
 // The thesis' chapter 5 measurements beside ours: Table 5.1 (the cost of
 // the virtual particles) and Fig. 5.15 (a coarse cloth with virtual
-// particles against fine cloths without), docs/collisions.md.
+// particles against fine cloths without), docs/notes/collisions.md.
 #ifndef CLOTHBENCH_HARNESS_VIRTUAL_TABLES_H_
 #define CLOTHBENCH_HARNESS_VIRTUAL_TABLES_H_
 

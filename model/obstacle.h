@@ -113,7 +113,7 @@ struct ObstacleSpec {
 };
 
 /// Positions beyond this [m] are a blown-up state (scenes place everything
-/// within 1e6 m, docs/scenes.md "Limits"): obstacle queries skip them.
+/// within 1e6 m, docs/guide/scenes.md "Limits"): obstacle queries skip them.
 inline constexpr double kMaxQueryMagnitude = 1e9;
 
 class Obstacle {

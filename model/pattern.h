@@ -1,6 +1,6 @@
 // A garment's pattern: a four-sided piece of fabric in its own plane,
 // sampled regularly in curvilinear coordinates and placed in space
-// (docs/scenes.md, "[[pattern]]"; thesis §2.7, Fig. 2.9: clothes are
+// (docs/guide/scenes.md, "Patterns"; thesis §2.7, Fig. 2.9: clothes are
 // assembled from quadrilateral patterns sampled regularly in curvilinear
 // coordinates, warp and weft along the sampling lines).
 #ifndef CLOTHBENCH_MODEL_PATTERN_H_

@@ -12,7 +12,7 @@
 
 namespace clothbench {
 
-/// One run of one row: the attributes of /runs/<id> (docs/results-schema.md),
+/// One run of one row: the attributes of /runs/<id> (docs/guide/results-schema.md),
 /// the one record of a run from the step loop to the file and to Python.
 /// The step loop fills its status, counts and times (solver RunSummary
 /// extends it with the trajectory and the step history), the harness fills
@@ -97,7 +97,7 @@ struct RunRecord {
   /// self-convergence reference, against the same method at twice its step;
   /// −1: not measured.
   double error_estimate_m = -1.0;
-  /// A reference's cross-check on obstacle scenes (docs/collisions.md, "The
+  /// A reference's cross-check on obstacle scenes (docs/notes/collisions.md, "The
   /// contact reference"): the fixed-step self-convergence run it was
   /// compared with (empty: none), that run's own error estimate [m] and its
   /// difference from the reference [m], both in the table's error metric

@@ -2,7 +2,7 @@
 // RunRecord carries from the step loop (solver/, sundials/, peers/) to the
 // result file (results/) and the entry points (harness/, python/). They are
 // turned into text only where a record is written, printed or read
-// (docs/results-schema.md, /runs/<id> attributes `status` and `step_kind`).
+// (docs/guide/results-schema.md, /runs/<id> attributes `status` and `step_kind`).
 #ifndef CLOTHBENCH_MODEL_RUN_STATUS_H_
 #define CLOTHBENCH_MODEL_RUN_STATUS_H_
 
@@ -24,7 +24,7 @@ std::string_view ToString(StepKind k);
 /// The kind named by ToString's text; nullopt for any other text.
 std::optional<StepKind> ParseStepKind(std::string_view text);
 
-/// Where a run stopped (docs/results-schema.md, `status`; docs/model.md,
+/// Where a run stopped (docs/guide/results-schema.md, `status`; docs/model.md,
 /// "Blow-up statuses"). kOk: it reached t_end. Step failures: the step
 /// engine's StepStatus (solver/integrator.h) of the attempt that could not
 /// be retried; SUNDIALS' error-test and convergence failures map to

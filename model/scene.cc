@@ -324,7 +324,7 @@ Vector2 PlanePoint(const toml::node& n, TableReader& t, std::string_view key, st
   return q;
 }
 
-// One [[pattern]] table (model/pattern.h; docs/scenes.md, "[[pattern]]").
+// One [[pattern]] table (model/pattern.h; docs/guide/scenes.md, "Patterns").
 PatternSpec ParsePattern(TableReader& t) {
   PatternSpec p;
   p.name = t.String("name", "");
@@ -393,7 +393,7 @@ std::array<int, 2> SeamSide(TableReader& t, const char* key, const Scene& s, std
   t.Fail(key, rule);
 }
 
-// [[seam]]: two patterns' sides sewn sample to sample (docs/scenes.md, "Seams").
+// [[seam]]: two patterns' sides sewn sample to sample (docs/guide/scenes.md, "Seams").
 void ParseSeams(TableReader& top, const std::string& source, Scene& s) {
   const toml::node* n = top.Get("seam");
   if (!n) return;

@@ -32,7 +32,7 @@ class SceneError : public std::runtime_error {
 };
 
 /// Limits of a run that every scene and command line is held to before
-/// anything is computed (docs/scenes.md, "Limits"): the steps t_end/h of a
+/// anything is computed (docs/guide/scenes.md, "Limits"): the steps t_end/h of a
 /// fixed-step run, the frames t_end/frame_dt kept, and the particles nu·nv.
 inline constexpr double kMaxStepsPerRun = 1e7;
 inline constexpr double kMaxFramesPerRun = 1e6;
@@ -97,7 +97,7 @@ struct ForcesSpec {
   double air = 0.0;                            ///< c_air [kg/(m² s)], (2.37); 0: no term
 };
 
-/// `[collision]`: the cloth against itself (docs/collisions.md, "Self-contact").
+/// `[collision]`: the cloth against itself (docs/notes/collisions.md, "Self-contact").
 /// Present, every run's stored frames are checked for crossing triangle
 /// pairs; `self` turns the self-contact response on.
 struct SelfCollisionSpec {
@@ -114,7 +114,7 @@ struct SelfCollisionSpec {
 std::string SelfContactThicknessRule(const Scene& scene, double thickness);
 
 /// Fixed particles that follow a keyframed rigid motion
-/// (`[[constraints.motion]]`; docs/scenes.md): their rest positions moved
+/// (`[[constraints.motion]]`; docs/guide/scenes.md): their rest positions moved
 /// by KeyframedMotion (model/obstacle.h) about `anchor`. Every method that
 /// integrates such a scene sets their positions and velocities to the
 /// motion's at each step's end and holds them there through the step's
@@ -170,7 +170,7 @@ struct Scene {
 };
 
 /// Parses and validates a scene from TOML text.
-/// @param text   TOML document (format: docs/scenes.md)
+/// @param text   TOML document (format: docs/guide/scenes.md)
 /// @param source name used in error messages (a path or "<embedded>")
 /// @throws SceneError with a one-line message on any syntax error, unknown
 ///         key, wrong type or value out of range.

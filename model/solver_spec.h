@@ -2,7 +2,7 @@
 // scene parser fills and validates, and that only the solver layers read
 // (solver/, peers/, reference/, the harness). Kept apart from the scene's
 // model (grid, material, forces) so that a solver header depends on these
-// settings and not on the whole scene. docs/model.md §5–6, docs/scenes.md.
+// settings and not on the whole scene. docs/model.md §5–6, docs/guide/scenes.md.
 #ifndef CLOTHBENCH_MODEL_SOLVER_SPEC_H_
 #define CLOTHBENCH_MODEL_SOLVER_SPEC_H_
 
@@ -58,7 +58,7 @@ enum class NewtonJacobian { kRefresh, kFrozen };
 /// (Choi & Ko 2002); "none" is the exact spring Jacobian.
 enum class TangentProjection { kClamp, kNone };
 /// What a multistep method (SBDF(2), BDF(2), SBDF(3)) does with its history
-/// at the obstacles (docs/collisions.md, "Multistep history across contact
+/// at the obstacles (docs/notes/collisions.md, "Multistep history across contact
 /// events"):
 ///  - "keep": nothing (the thesis' response (4.4) acts on the current step only);
 ///  - "restart": the one-step start, as after Reset, whenever the set of
@@ -72,7 +72,7 @@ enum class TangentProjection { kClamp, kNone };
 ///    h·target (4.4) with the history kept: an entering particle lands on δ.
 enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 
-/// Coulomb friction at the obstacles (docs/collisions.md, "Friction laws"):
+/// Coulomb friction at the obstacles (docs/notes/collisions.md, "Friction laws"):
 ///  - "explicit": the thesis' impulse μ J_hold from the last step, against
 ///    the tangential velocity v_t at the step's start and capped at m|v_t|
 ///    (docs/model.md §2.5). A particle it stops is set moving again by the
@@ -80,14 +80,14 @@ enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 ///    one whose slip velocity shrinks with h;
 ///  - "regularised": the same impulse scaled by min(1, |v_t|/v_s), the
 ///    regularised Coulomb law of the contact problem in continuous time
-///    (kSlipVelocity; docs/collisions.md, "Contact in continuous time") that
+///    (kSlipVelocity; docs/notes/collisions.md, "Contact in continuous time") that
 ///    the SUNDIALS rows integrate, so that a fixed-step method converges to
 ///    the same problem as they do (the contact reference's cross-check).
 enum class FrictionLaw { kExplicit, kRegularised };
 
 /// The slip velocity v_s [m/s] below which the continuous contact problem's
 /// Coulomb friction is regularised, F_t = −μ λ w_t / max(|w_t|, v_s)
-/// (docs/collisions.md, "Contact in continuous time").
+/// (docs/notes/collisions.md, "Contact in continuous time").
 inline constexpr double kSlipVelocity = 1e-3;
 
 std::string_view ToString(PreconditionerType p);
@@ -109,7 +109,7 @@ struct SolverSpec {
   int cg_max_iterations = 1000;      ///< a scene without the key gets max(1000, 4·max(nu, nv))
   /// The contact policy: the CHOLMOD factor (fastest on the thesis scenes
   /// and at scale) and in contact the factor with contact factors or the
-  /// prefiltered AMG by their counted cost (docs/performance.md, "The
+  /// prefiltered AMG by their counted cost (docs/notes/performance.md, "The
   /// contact policy"); the thesis scenes name "ic0" explicitly.
   PreconditionerType preconditioner = PreconditionerType::kAuto;
   CholeskyOrdering cholesky_ordering = CholeskyOrdering::kMetis;  ///< "cholesky" only
@@ -128,7 +128,7 @@ struct SolverSpec {
   double fixed_point_tolerance = 0.0;
   /// Alg. 6 (the default and the thesis' reference) or Newton with J_α.
   NonlinearSolver nonlinear_solver = NonlinearSolver::kFixedPoint;
-  /// Newton: J_α at every iterate or once per step (docs/newton.md).
+  /// Newton: J_α at every iterate or once per step (docs/notes/newton.md).
   NewtonJacobian newton_jacobian = NewtonJacobian::kRefresh;
   TangentProjection tangent_projection = TangentProjection::kClamp;
   /// Multistep methods on scenes with obstacles: keep or restart the
@@ -142,7 +142,7 @@ struct SolverSpec {
   bool tangent_explicit_terms = true;
   Predictor predictor = Predictor::kConstantVelocity;  ///< (3.25, 3.32)
   /// fixed h; the thesis' iteration-count controller (docs/model.md §6); or local
-  /// error control of SBDF(2)/BDF(2) against rtol/atol (docs/work-precision.md).
+  /// error control of SBDF(2)/BDF(2) against rtol/atol (docs/notes/work-precision.md).
   StepControl step_control = StepControl::kFixed;
   double rtol = 1e-4;                ///< step_control = "error": relative tolerance
   /// step_control = "error": absolute tolerance [m for x, m/s for v]; 0: atol = rtol.

@@ -32,7 +32,7 @@ const std::vector<std::string>& ArkodeTableNames();
 /// (explicit f_E evaluations), nfe_i (implicit), nni, nli (our PCG
 /// iterations), netf, ncfn, nsetups. On scenes with obstacles it
 /// integrates the hybrid contact problem (sundials/hybrid_contact.h;
-/// docs/collisions.md, "Contact in continuous time"): a sliding particle's
+/// docs/notes/collisions.md, "Contact in continuous time"): a sliding particle's
 /// normal part of f_I moves to f_E as the constraint's acceleration
 /// (HybridContact::SplitExplicit, SplitImplicit), its friction stays in
 /// f_I, events are roots (ARKStepRootInit) followed by ARKStepReset, and

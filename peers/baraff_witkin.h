@@ -52,7 +52,7 @@ struct BaraffWitkinOptions {
 ///    gives it Blender's η = 10⁻², the A_α factor and J_α of tension and mass
 ///    only: harness/methods.h); a step whose CG fails is rejected. The CG
 ///    starts from Δv = 0, as Blender's does (a warm start from the last Δv
-///    changes the method at a loose η: docs/newton.md).
+///    changes the method at a loose η: docs/notes/newton.md).
 ///  - `blender` (BaraffWitkinOptions::blender) is the solver as Blender ships it
 ///    (implicit_blender.cc at commit 1a675d0c, cg_filtered and
 ///    SIM_mass_spring_solve_velocities): no preconditioner,

@@ -27,7 +27,7 @@
 // inertial guess v₀ + h M⁻¹ f_ext the paper's took the default scene's
 // difference to implicit_euler/newton after 64 sweeps from 7.8e-2 to
 // 5.1e-2 m and turned six of the 400-particle scenes' energy_growth and
-// speed rows ok (docs/work-precision.md, "vbd"); the better of the two
+// speed rows ok (docs/notes/work-precision.md, "vbd"); the better of the two
 // takes it to 7.9e-4 m (docs/model.md §10). A J_p whose determinant is
 // negligible leaves p unchanged in that sweep, as Warp's VBD does
 // (warp/sim/integrator_vbd.py, `if abs(wp.determinant(h)) > 1e-5`).
@@ -104,7 +104,7 @@ class VertexBlockDescent : public IteratedStepper {
   /// iteration is sensitive to ρ (default scene, 64 sweeps per step, ρ =
   /// 0.9802: 2.6e-4 m from implicit_euler/newton after 0.5 s; 0.9828:
   /// 1.1e-4 m; 0.9840: 6.4e-5 m), so a run with more sweeps gets a longer
-  /// measurement (docs/work-precision.md, "vbd").
+  /// measurement (docs/notes/work-precision.md, "vbd").
   static constexpr int kRhoIterations = 128;
   /// A colour runs on the OpenMP threads from this many particles up: a
   /// particle's local step costs about 0.55 µs (bench_kernels,

@@ -581,7 +581,7 @@ py::dict Reference(const py::object& scene_arg, const py::object& method, const 
   return out;
 }
 
-// Writes the result file `path` (docs/results-schema.md) of `runs` (dicts
+// Writes the result file `path` (docs/guide/results-schema.md) of `runs` (dicts
 // from run(), in table order, all on `scene`) and `reference` (a dict from
 // reference(), or None), as bench_integrators writes it: errors, observed
 // orders and the equal-accuracy table at `targets` [m] against the
@@ -744,7 +744,7 @@ std::vector<double> DefaultParamsOf(const py::object& scene_arg, const std::stri
   return h;
 }
 
-// The equal-accuracy table (docs/work-precision.md) of {label: [(cost, e_rms), ...]}.
+// The equal-accuracy table (docs/notes/work-precision.md) of {label: [(cost, e_rms), ...]}.
 py::dict EqualAccuracy(const std::vector<std::pair<std::string, std::vector<std::pair<double, double>>>>& runs,
                        const std::vector<double>& targets, const std::string& baseline) {
   std::vector<std::string> labels;
@@ -806,7 +806,7 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("reference") = py::none(), py::arg("frames") = py::none(), py::arg("targets") = py::none(),
         py::arg("baseline") = py::none(), py::arg("error_metric") = py::none(),
         "Writes runs (dicts from run(), in table order, on scene) and the reference (a dict from reference()) "
-        "as the HDF5 result file bench_integrators writes (docs/results-schema.md), under <path>.lock and "
+        "as the HDF5 result file bench_integrators writes (docs/guide/results-schema.md), under <path>.lock and "
         "through a temporary file renamed at the end. error_metric: final | l2 | max (default: l2 on scenes with "
         "obstacles, final otherwise, as bench_integrators). ValueError for a path that is not a regular file (a "
         "link, device, FIFO or folder, or its temporary <path>.tmp is one), is an input read in this process, or "

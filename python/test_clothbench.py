@@ -279,7 +279,7 @@ def test_scene_error_control_makes_an_error_row():
 
 
 def test_contact_phases_summarises_step_stats(tmp_path):
-    # scripts/contact_phases, which prints docs/performance.md's contact
+    # scripts/contact_phases, which prints docs/notes/performance.md's contact
     # tables, on the 400-particle round table: its rows must be the file's
     # step_stats, split into the phases its docstring names. The file has no
     # frames (--frames none): the particle count comes from /scene.

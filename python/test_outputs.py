@@ -169,7 +169,7 @@ READERS = [["summary"], ["table"], ["runs", "--json"], ["diff", "r.h5"], ["rerun
 
 
 def resign(path):
-    """Writes the integrity block of an edited result file again (docs/results-schema.md)."""
+    """Writes the integrity block of an edited result file again (docs/guide/results-schema.md)."""
     import zlib
     data = bytearray(open(path, "rb").read())
     block = 512

@@ -230,7 +230,7 @@ def test_contact_replay_states_and_times(saved_state, tmp_path):
 
 
 def sign(path):
-    """Signs a result file again (docs/results-schema.md, "Integrity"): the
+    """Signs a result file again (docs/guide/results-schema.md, "Integrity"): the
     CRC-32 of everything past the 512-byte block and the file's size."""
     with open(path, "r+b") as f:
         data = f.read()
@@ -351,7 +351,7 @@ def test_ctrl_c_during_a_10_6_particle_setup_returns_after_the_library_call():
     """In a setup, SIGINT is acted on between the phases and as each library
     call returns (METIS' ordering, CHOLMOD's factorisation: neither has a
     callback). At 10⁶ particles the longest of them takes about 5 s here
-    (docs/performance.md: analysis 4.9 s, factorisation 3.7 s), and the
+    (docs/notes/performance.md: analysis 4.9 s, factorisation 3.7 s), and the
     return took 1-8.5 s over eleven times of the signal in the first 14 s:
     bound 15 s."""
     took, err = interrupt_after("clothbench.run('large_sheet', 'sbdf2', h=0.01, repeat=1)", 3.0)

@@ -1,5 +1,5 @@
 // KLU's analysis as the prediction of a cvode/klu or ida/klu run
-// (docs/work-precision.md, "Predicting a first run").
+// (docs/notes/work-precision.md, "Predicting a first run").
 #include "reference/klu_prediction.h"
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // What KLU's symbolic analysis says of a cvode/klu or ida/klu run before
-// any factorisation (docs/work-precision.md, "Predicting a first run").
+// any factorisation (docs/notes/work-precision.md, "Predicting a first run").
 #ifndef CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
 #define CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
 
@@ -39,7 +39,7 @@ KluAnalysis AnalyzeKlu(const SparseMatrix& a);
 /// 10¹¹ flops against the refined square's 4.4 at 4.9·10¹⁰), so the
 /// refined scene is the calibration. Nothing is predicted
 /// (seconds = bytes = 0) where one factorisation is estimated below 10⁹
-/// flops, well under a second at the rates measured (docs/work-precision.md,
+/// flops, well under a second at the rates measured (docs/notes/work-precision.md,
 /// "Predicting a first run").
 FirstRunPrediction PredictKluRun(const ParticleSystem& system);
 

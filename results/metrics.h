@@ -22,7 +22,7 @@ double ErrorRms(const MatrixN3& x, const MatrixN3& ref);
 double ErrorMean(const MatrixN3& x, const MatrixN3& ref);
 
 /// Which error norm the observed orders, the equal-accuracy table and the
-/// plots use (--error-metric; docs/work-precision.md): e_rms at t_end
+/// plots use (--error-metric; docs/notes/work-precision.md): e_rms at t_end
 /// ("final"), the root mean square over the frames of the per-frame e_rms
 /// ("l2"), or its maximum over the frames ("max").
 enum class ErrorMetric { kFinal, kL2, kMax };
@@ -86,7 +86,7 @@ struct EnergySeries {
 };
 
 /// One series of an EnergySeries: its dataset name under <run>/energy
-/// (docs/results-schema.md) and its member. Every series is in J, one value
+/// (docs/guide/results-schema.md) and its member. Every series is in J, one value
 /// per frame; the contact work series are empty for methods without our
 /// contact response and then not stored.
 struct EnergyField {

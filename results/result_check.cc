@@ -1,5 +1,5 @@
 // ValidateResultFile: what a reader checks before it trusts a result file
-// (docs/results-schema.md). Every check names the dataset or attribute and
+// (docs/guide/results-schema.md). Every check names the dataset or attribute and
 // the rule it broke; the caller (clothbench_inspect, the XDMF writer, the
 // fuzz target verify/fuzz/fuzz_result.cc) turns the ResultError into one
 // line and exit 2.

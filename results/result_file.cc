@@ -146,7 +146,7 @@ void WriteScalarAttribute(hid_t file, const std::string& path, const std::string
 }  // namespace
 
 void ResultFile::SetAttribute(const std::string& object, const std::string& name, double value) {
-  if (!std::isfinite(value)) return;  // a non-finite attribute is left out (docs/results-schema.md)
+  if (!std::isfinite(value)) return;  // a non-finite attribute is left out (docs/guide/results-schema.md)
   WriteScalarAttribute(file_, path_, object, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
 }
 

@@ -57,7 +57,7 @@ struct StepRecordField {
 
 /// The columns of a step_stats table in file order: the one list the HDF5
 /// compound type (results/hdf5_util.h) and the Python module's structured
-/// array are made from (docs/results-schema.md, step_stats).
+/// array are made from (docs/guide/results-schema.md, step_stats).
 const std::vector<StepRecordField>& StepRecordFields();
 
 class ResultFile {
@@ -120,7 +120,7 @@ class ResultFile {
 /// [kSignatureBytes, N) and the file size N. ResultReader checks it before
 /// HDF5 parses a byte, so a damaged, truncated or later-modified file is
 /// refused with one line (HDF5 1.10 itself can crash on damaged metadata:
-/// docs/results-schema.md, "Integrity").
+/// docs/guide/results-schema.md, "Integrity").
 inline constexpr std::size_t kSignatureBytes = 512;
 
 /// Writes the integrity block of the HDF5 file at `path` (created with a

@@ -106,7 +106,7 @@ herr_t CheckLink(hid_t group, const char* name, const H5L_info_t* info, void* da
   Handle dcpl{H5Dget_create_plist(ds.id), H5Pclose};
   if (dcpl.id < 0) return 0;
   if (H5Pget_layout(dcpl.id) == H5D_VIRTUAL) {
-    // The frame views (docs/results-schema.md) map datasets of this file
+    // The frame views (docs/guide/results-schema.md) map datasets of this file
     // (source file "."); a source in another file is refused.
     size_t mappings = 0;
     if (H5Pget_virtual_count(dcpl.id, &mappings) < 0)

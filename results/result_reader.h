@@ -1,6 +1,6 @@
 // Reading result files (HDF5 C API): the counterpart of ResultFile, used by
 // clothbench_inspect, the XDMF writer and the tests, so that the schema
-// (docs/results-schema.md) is exercised in both directions.
+// (docs/guide/results-schema.md) is exercised in both directions.
 #ifndef CLOTHBENCH_RESULTS_RESULT_READER_H_
 #define CLOTHBENCH_RESULTS_RESULT_READER_H_
 
@@ -70,7 +70,7 @@ class ResultReader {
   int64_t file_ = -1;  // hid_t
 };
 
-/// Checks what readers rely on before they read (docs/results-schema.md):
+/// Checks what readers rely on before they read (docs/guide/results-schema.md):
 /// ranks and extents against each other (per-frame datasets against
 /// times and /scene@n_particles, face indices against n_particles, triangle
 /// indices against the vertex count, /stress maps against their axes),

@@ -1,4 +1,4 @@
-// The records of a result file in both directions (docs/results-schema.md):
+// The records of a result file in both directions (docs/guide/results-schema.md):
 // a run's attributes (RunRecordFields), the scene's and the equal-accuracy
 // table's, written through ResultFile and read back through ResultReader,
 // so that one file states the schema of each record for the writer and the
@@ -34,7 +34,7 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
             else v = ParseRunStatus(*text);
             if (!v)
               throw ResultError(fmt::format("{}: {} attribute {} = \"{}\" is not one of the schema's values "
-                                            "(docs/results-schema.md)",
+                                            "(docs/guide/results-schema.md)",
                                             f.path(), g, name, *text));
             r.*member = *v;
           } else {

@@ -1,5 +1,5 @@
 // The records of a result file, written and read by one schema
-// (docs/results-schema.md): the run table, a run's attributes, the scene's
+// (docs/guide/results-schema.md): the run table, a run's attributes, the scene's
 // and the equal-accuracy table's (results/run_records.cc).
 #ifndef CLOTHBENCH_RESULTS_RUN_RECORDS_H_
 #define CLOTHBENCH_RESULTS_RUN_RECORDS_H_

@@ -4,7 +4,7 @@
 // it; clothbench_inspect reads it back from the file (result_reader.h) and
 // prints it with the same function, so `clothbench_inspect FILE table`
 // reproduces the printed table from the file alone. Schema:
-// docs/results-schema.md.
+// docs/guide/results-schema.md.
 #ifndef CLOTHBENCH_RESULTS_RUN_TABLE_H_
 #define CLOTHBENCH_RESULTS_RUN_TABLE_H_
 
@@ -53,7 +53,7 @@ struct RecordField {
 
 /// Every field of a RunRecord except its id (the group's name), in the
 /// order files list them: the one list the writer, the reader, the journal
-/// codec and the Python module iterate (docs/results-schema.md).
+/// codec and the Python module iterate (docs/guide/results-schema.md).
 const std::vector<RecordField>& RunRecordFields();
 
 /// True if `reference` (RunTable::reference) is a fixed-step
@@ -120,7 +120,7 @@ struct SceneField {
 
 /// Every /scene attribute in file order: the one list the writer
 /// (WriteSceneRecord), the reader (ReadRunTable) and the Python module's
-/// `read_results()["scene"]` iterate (docs/results-schema.md).
+/// `read_results()["scene"]` iterate (docs/guide/results-schema.md).
 const std::vector<SceneField>& SceneRecordFields();
 
 /// What the lines under a run table say about each kind of row and about
@@ -157,7 +157,7 @@ std::string ErrorName(const std::string& metric);
 /// and the machine line.
 void PrintRunTable(std::FILE* out, const RunTable& table, const RunTableNotes& notes = {});
 
-/// The equal-accuracy table of `runs` (docs/work-precision.md): per row
+/// The equal-accuracy table of `runs` (docs/notes/work-precision.md): per row
 /// label, in order of first appearance, the (solver time, error, timing
 /// spread) of its ok runs that have an error of `metric` ("final", "l2",
 /// "max"), against `targets` [m], ratios to `baseline` (a label; empty: none);
@@ -166,7 +166,7 @@ void PrintRunTable(std::FILE* out, const RunTable& table, const RunTableNotes& n
 EqualAccuracyTable WorkPrecisionOf(const std::vector<const RunRecord*>& runs, const std::vector<double>& targets,
                                    const std::string& baseline, std::string_view metric, double reference_error);
 
-/// Prints the equal-accuracy table (docs/work-precision.md).
+/// Prints the equal-accuracy table (docs/notes/work-precision.md).
 void PrintWorkPrecision(std::FILE* out, const EqualAccuracyTable& table);
 
 }  // namespace clothbench

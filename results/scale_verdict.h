@@ -1,7 +1,7 @@
-// The verdict across sizes (bench_integrators --sizes, docs/work-precision.md
+// The verdict across sizes (bench_integrators --sizes, docs/notes/work-precision.md
 // "The size axis"): per particle count and target error, the fastest method
 // of that size's equal-accuracy table, its margin over the runner-up, and
-// every method's cost; stored as /scale_verdict (docs/results-schema.md).
+// every method's cost; stored as /scale_verdict (docs/guide/results-schema.md).
 #ifndef CLOTHBENCH_RESULTS_SCALE_VERDICT_H_
 #define CLOTHBENCH_RESULTS_SCALE_VERDICT_H_
 

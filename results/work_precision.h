@@ -1,4 +1,4 @@
-// Work-precision at equal accuracy (docs/work-precision.md): the cost of
+// Work-precision at equal accuracy (docs/notes/work-precision.md): the cost of
 // each method at a target error, interpolated between its runs.
 #ifndef CLOTHBENCH_RESULTS_WORK_PRECISION_H_
 #define CLOTHBENCH_RESULTS_WORK_PRECISION_H_

@@ -128,7 +128,7 @@ constexpr int kAggressiveCoarseningNodes = 20000;
 // more CG iterations per step (6.75 instead of 5.25 on bench_scaling's
 // contact-free sheet at 10⁵ and 10⁶), but cheaper V-cycles and setups; the
 // contact-free step of round_table_1m in bench_integrators took 1.72 s
-// against 2.15–2.17 s (docs/performance.md, "2-stage interpolation on the
+// against 2.15–2.17 s (docs/notes/performance.md, "2-stage interpolation on the
 // aggressive level").
 void CoarsenAggressively(HYPRE_Solver amg) {
   HYPRE_BoomerAMGSetAggNumLevels(amg, 1);
@@ -271,7 +271,7 @@ bool AmgPreconditioner::FactorizeSystem(int n_nodes, const std::vector<int>& row
   // of round_table_100k took 26 s instead of 30–32 s. Below, setups are
   // cheap and the iterations count: at 10⁴ the drape takes the same time
   // either way, with twice the CG iterations of a resting step
-  // aggressively coarsened (docs/performance.md, "Prefiltered AMG").
+  // aggressively coarsened (docs/notes/performance.md, "Prefiltered AMG").
   if (n_nodes >= kAggressiveCoarseningNodes) CoarsenAggressively(h.amg);
   if (!SetUp(h.amg, h.par_a, h.par_b, h.par_x, &h.levels)) return false;
   // A setup can succeed and still give a V-cycle that is not finite (a

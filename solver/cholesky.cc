@@ -521,7 +521,7 @@ void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
   // simplicial solve is one thread and latency-bound (scalar loop with
   // indirect addressing), so two threads, one on columns 0–1 and one on
   // column 2, each reading L, take about half the time
-  // (docs/performance.md, BM_StepParts). Each lane has its own Common and
+  // (docs/notes/performance.md, BM_StepParts). Each lane has its own Common and
   // workspaces; L is only read.
   const bool split = n >= kParallelSolveRows && omp_get_max_threads() >= 2;
   bool ok[2] = {m.factorized, m.factorized};

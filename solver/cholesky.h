@@ -20,7 +20,7 @@ namespace clothbench {
 /// PCG iteration, and below this its work is a fraction of a millisecond,
 /// less than waiting for a thread whose core another process keeps busy
 /// (at 10⁴ particles and 4096 rows, two threads beside a busy process made
-/// SBDF(2)'s run on the fold 2x one thread; docs/performance.md,
+/// SBDF(2)'s run on the fold 2x one thread; docs/notes/performance.md,
 /// "Parallel regions on a busy machine").
 inline constexpr long kParallelSolveRows = 65536;
 
@@ -84,7 +84,7 @@ class CholeskyFactor {
   long factor_nonzeros() const;
   bool supernodal() const;
   /// Whether Solve runs the tree-parallel solve (a fresh simplicial LLᵀ
-  /// copy whose elimination tree splits into two parts; docs/performance.md)
+  /// copy whose elimination tree splits into two parts; docs/notes/performance.md)
   /// rather than CHOLMOD's solve.
   bool tree_solve() const;
 

@@ -33,7 +33,7 @@ class ContactResponse {
   /// @return the number of colliding particles (Fig. 4.3). No allocation.
   int SetUp(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3* xm1, VelocityFilter* filter);
 
-  /// Event location (docs/collisions.md, "Error control through contact
+  /// Event location (docs/notes/collisions.md, "Error control through contact
   /// events"), for the error-controlled methods: with a tolerance ε > 0
   /// [m], SetUp constrains no particle for a predicted entry more than ε
   /// away; the step runs free, Crossing finds where it crossed into the

@@ -1,7 +1,7 @@
 // The contact policy of the N×N preconditioner (preconditioner.h,
 // Preconditioner::AdaptTo): contact factors, contact frames and the
 // prefiltered AMG hierarchy, and the measured choice between them
-// (docs/performance.md, "Contact frames").
+// (docs/notes/performance.md, "Contact frames").
 #include "solver/preconditioner.h"
 
 #include <algorithm>
@@ -456,7 +456,7 @@ bool Preconditioner::AdaptFactorsTo(const SparseMatrix& a, const VelocityFilter&
       }
     // Released contacts are coupled back at once: left decoupled (their
     // diagonal as the preconditioner there) they cost more CG iterations
-    // than their row adds (docs/performance.md, "Contact factors").
+    // than their row adds (docs/notes/performance.md, "Contact factors").
     const int changes = added + released;
     // Changes are applied as row deletes and adds while that is cheaper than
     // a refactorisation: up to kModifyRowsPerSqrtN·√N changed rows. Counts,

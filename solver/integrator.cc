@@ -166,7 +166,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   error_control_ =
       solver.step_control == StepControl::kError && (method == Method::kSbdf2 || method == Method::kBdf2);
   // Under error control the contact events are located and restart the
-  // method (docs/collisions.md, "Error control through contact events"):
+  // method (docs/notes/collisions.md, "Error control through contact events"):
   // entries within a hundredth of the absolute tolerance happen now.
   event_location_ = error_control_ && contacts_.active();
   if (event_location_) {
@@ -259,7 +259,7 @@ StepStats StepEngine::StepImpl(double h) {
     StepStats st = Solve(h);
     return st.status == StepStatus::kOk ? FinishStep(h, st) : st;
   }
-  // Event location (docs/collisions.md, "Error control through contact
+  // Event location (docs/notes/collisions.md, "Error control through contact
   // events"): a step in which a free particle crossed into the collision
   // area is redone up to the earliest crossing, whose entries then jump.
   int updates = 0, cg_iterations = 0;

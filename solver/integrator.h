@@ -334,7 +334,7 @@ class StepEngine : public Stepper {
   /// Accepts (x1_, v1_) as the new state if finite; shifts the history.
   bool Commit(double h);
   /// Local error estimate of the step just solved (x1_, v1_), weighted RMS
-  /// norm against rtol/atol (docs/work-precision.md); `order` gets the
+  /// norm against rtol/atol (docs/notes/work-precision.md); `order` gets the
   /// estimate's order q (local error O(h^{q+1})).
   double ErrorNorm(double h, int* order);
   const ParticleSystem& sys_;

@@ -106,7 +106,7 @@ struct ContactFactorStats {
 /// measured cost (the axis factors took 12 CG on the avatar at 10⁴ against
 /// the frames' 15) had to try the axis factors, and on round_table_1m that
 /// one trial step took 289 CG and 69.5 s, the rest of the 0.3 s run 81 s
-/// (docs/performance.md, "Contact frames").
+/// (docs/notes/performance.md, "Contact frames").
 ///
 /// Prefiltered AMG ("amg" with contact_factors; Tamstorf, Jones & McCormick
 /// 2015): with contacts, one V-cycle of BoomerAMG in systems mode on the
@@ -124,17 +124,17 @@ class Preconditioner {
   /// |n_c| at and above which a contact normal n counts as axis c's.
   static constexpr double kContactAxisCosine = 0.9;
   /// An axis gets a factor of its own once at least this share of the
-  /// particles are in contact along it (docs/performance.md).
+  /// particles are in contact along it (docs/notes/performance.md).
   static constexpr double kContactAxisShare = 0.02;
   /// Contact factors: changed rows applied by row deletes and adds up to
   /// this times √N, else a refactorisation. The measured break-even (mean
   /// time of a refactorisation over that of one row change, SBDF(2) on the
   /// round table, contact_replay) is 6.5 √N at N = 10⁴ and 4.3 √N at 10⁵
-  /// (docs/performance.md).
+  /// (docs/notes/performance.md).
   static constexpr double kModifyRowsPerSqrtN = 4.0;
   /// Prefiltered AMG: a setup costs this many V-cycles (measured mean 13.8
   /// at N = 10⁴ and 13.5 at 10⁵ on the round table, contact_replay;
-  /// docs/performance.md): a kept hierarchy is rebuilt once its extra
+  /// docs/notes/performance.md): a kept hierarchy is rebuilt once its extra
   /// V-cycles reach it.
   static constexpr double kSetupVCycles = 12.0;
   /// Prefiltered AMG: a particle's constraint has changed when its S_p
@@ -155,7 +155,7 @@ class Preconditioner {
   /// Jacobi sweeps turn the seams between regions of different contacts
   /// gradually (round_table_100k over the impact: 25.4 CG per step in world
   /// frames, 16.8 with nearest directions alone, 11.6 with 20 sweeps;
-  /// docs/performance.md, "Prefiltered AMG").
+  /// docs/notes/performance.md, "Prefiltered AMG").
   static constexpr int kFrameSweeps = 20;
   /// Prefiltered AMG: the frames of a setup.
   /// - kNearestAxis: a contact's frame takes the axis nearest to its normal
@@ -167,7 +167,7 @@ class Preconditioner {
   /// against 50.4): each setup takes the mode with the fewer V-cycles per
   /// solve over the last hierarchy built with it, and a hierarchy that
   /// needs more than the other mode's last is rebuilt at once
-  /// (docs/performance.md, "Prefiltered AMG").
+  /// (docs/notes/performance.md, "Prefiltered AMG").
   enum class FrameMode { kNearestAxis = 0, kSpread = 1 };
   /// Prefiltered AMG: the frame rule (SolverSpec::amg_frames). Before the
   /// first AdaptTo.
@@ -220,7 +220,7 @@ class Preconditioner {
   /// per step, so that it is tried again, and an untried AMG starts from
   /// kAmgPriorIterations V-cycles per step. A stay lasts at least
   /// kAutoMinStay steps unless its cost exceeds the other's record by
-  /// kAutoAbort. ServedBy() tells what served a step. (docs/performance.md,
+  /// kAutoAbort. ServedBy() tells what served a step. (docs/notes/performance.md,
   /// "The contact policy".)
   /// A V-cycle iteration of the prefiltered AMG in one-factor CG
   /// iterations (each with the product and vector work of a CG

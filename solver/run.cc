@@ -434,7 +434,7 @@ class SelfContactStage {
   bool Refuses(RunSummary* sum) const {
     if (!active_ || response_ || engine_.own_self_contact()) return false;
     sum->status = RunStatus::kUnsupportedScene;
-    sum->message = "collision.self = true: this method has no self-contact response (docs/collisions.md, "
+    sum->message = "collision.self = true: this method has no self-contact response (docs/notes/collisions.md, "
                    "\"Self-contact\")";
     return true;
   }
@@ -594,7 +594,7 @@ bool RefusesMotion(const ParticleSystem& system, const Stepper& engine, RunSumma
   if (!system.has_prescribed_motion() || engine.follows_prescribed_motion()) return false;
   sum->status = RunStatus::kUnsupportedScene;
   sum->message = "constraints.motion: this method does not move fixed particles along a prescribed motion "
-                 "(docs/scenes.md, \"Moving fixed particles\")";
+                 "(docs/guide/scenes.md, \"Moving fixed particles\")";
   return true;
 }
 

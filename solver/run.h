@@ -23,7 +23,7 @@ namespace clothbench {
 /// is not a multiple of frame_dt).
 std::vector<double> FrameTimes(double t_end, double frame_dt);
 
-/// Bounds every run is held to, whatever method steps it (docs/verification.md,
+/// Bounds every run is held to, whatever method steps it (docs/notes/verification.md,
 /// "Blow-ups and limits"). A run that reaches one ends with a failure status
 /// at that step and keeps the frames it reached.
 struct RunLimits {
@@ -39,7 +39,7 @@ struct RunLimits {
 };
 
 /// What is known of a run's cost before it starts, from an analysis that
-/// does no numerical work (docs/work-precision.md, "Predicting a first
+/// does no numerical work (docs/notes/work-precision.md, "Predicting a first
 /// run"): the row does not start if either bound exceeds what the run may
 /// use (harness/methods.h, RowMethod::Run).
 struct FirstRunPrediction {

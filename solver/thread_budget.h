@@ -1,5 +1,5 @@
 // The kernel threads of a run on a machine that other processes share
-// (docs/performance.md, "Parallel regions on a busy machine").
+// (docs/notes/performance.md, "Parallel regions on a busy machine").
 //
 // A parallel region ends at a barrier: when another process holds one of
 // the cores, the team's thread on that core is descheduled for a scheduler

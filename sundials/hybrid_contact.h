@@ -1,5 +1,5 @@
 // The obstacle contact of the particle model in continuous time, as a
-// hybrid system (docs/collisions.md, "Contact in continuous time"), for the
+// hybrid system (docs/notes/collisions.md, "Contact in continuous time"), for the
 // SUNDIALS integrators: each particle is free or slides on one obstacle's
 // δ-surface (d − δ = 0, d the signed distance, δ the collision distance).
 //

@@ -304,7 +304,7 @@ void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const Refer
 bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res) {
   if (!system.has_prescribed_motion()) return false;
   res->status = RunStatus::kUnsupportedScene;
-  res->message = "constraints.motion: the SUNDIALS rows hold fixed particles at rest (docs/scenes.md, "
+  res->message = "constraints.motion: the SUNDIALS rows hold fixed particles at rest (docs/guide/scenes.md, "
                  "\"Moving fixed particles\")";
   return true;
 }

@@ -88,7 +88,7 @@ bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res);
 /// each internal step's initial state, held through the step's stages,
 /// Newton iterations and root functions. A topology change is a jump of
 /// the force between steps, which the next steps' error test sees
-/// (docs/collisions.md, "Virtual particles under SUNDIALS").
+/// (docs/notes/collisions.md, "Virtual particles under SUNDIALS").
 /// StartVirtualParticles forgets the last run's topology and sets that of
 /// the rest state at t = 0 (call it before the integrator's first
 /// evaluation); RunFrames updates it after every step. Nothing without
@@ -133,7 +133,7 @@ struct OneStepDriver {
 /// as it corrects the fixed-step methods', with Δt the larger of the step
 /// and the scene's h; a corrected state restarts the integrator
 /// (OneStepDriver::restart), and the steps stop at every frame
-/// (OneStepDriver::stop_at; docs/collisions.md, "Self-contact under
+/// (OneStepDriver::stop_at; docs/notes/collisions.md, "Self-contact under
 /// SUNDIALS"). Every stored frame's crossing pairs are counted on a scene
 /// with `[collision]`. `error` holds the
 /// message of the SUNDIALS error handler, if any. Every frame passes the

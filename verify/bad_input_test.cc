@@ -1,5 +1,5 @@
 // Every class of bad input and runaway run, through bench_integrators end to
-// end (docs/verification.md, "Bad input, blow-ups and limits"):
+// end (docs/notes/verification.md, "Bad input, blow-ups and limits"):
 //  - refused before computing: exit 2, one line naming the key or option and
 //    the rule (control characters escaped), and no file;
 //  - accepted but numerically hopeless: the run ends with a failure status

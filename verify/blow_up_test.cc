@@ -43,7 +43,7 @@ TEST(BlowUp, Sbdf3AtTheScenesStepFailsOnTheSwingingBox) {
 // With solver.contact_history = "restart" (model/solver_spec.h) SBDF(3)
 // restarts with its one-step start whenever the contact set changes: at
 // h = 0.01 s on the swinging box it no longer gains energy and comes to
-// rest on the box (docs/collisions.md, "Multistep history across contact
+// rest on the box (docs/notes/collisions.md, "Multistep history across contact
 // events": 53.4 particles in contact at rest, 65.8 at h/16).
 TEST(BlowUp, Sbdf3RestartedAtContactEventsRestsOnTheSwingingBox) {
   Scene scene = BuiltinScene("swinging_box");
@@ -82,7 +82,7 @@ TEST(BlowUp, ArkodeAtALooseToleranceFailsOnTheHangingSheet) {
 // calibration (every fixed-step row of every scene, the adaptive rows at
 // their default tolerances) is in docs/model.md, "Blow-up statuses".
 // SBDF(3) is left out of the hanging sheet: it blows up there at every h
-// from h/4 to h/16 (docs/work-precision.md), a real instability.
+// from h/4 to h/16 (docs/notes/work-precision.md), a real instability.
 TEST(BlowUp, SceneRowsAtAQuarterOfTheScenesStepAreNotFlagged) {
   const std::vector<std::string> rows = {"sbdf2", "bdf2/newton", "baraff_witkin", "xpbd"};
   for (const char* name : {"swinging_sheet", "hanging_sheet", "wind_sheet", "swinging_box", "round_table",

@@ -178,8 +178,8 @@ Sweep Sheared(double alpha) {
     std::printf("[ chapter 2 ] shear n=%d: free-edge contraction %.4e m, continuum %.4e m, ratio %.3f\n", n,
                 x(tip, 1) - sys.rest_positions()(tip, 1), exact(tip, 1) - sys.rest_positions()(tip, 1), ratio);
     if (n >= 17 && alpha == 0.0) {
-      EXPECT_GT(ratio, 1.15) << "the odd-even contraction defect changed; update the README and this test";
-      EXPECT_LT(ratio, 1.35) << "the odd-even contraction defect changed; update the README and this test";
+      EXPECT_GT(ratio, 1.15) << "the odd-even contraction defect changed; update docs/notes/verification.md and this test";
+      EXPECT_LT(ratio, 1.35) << "the odd-even contraction defect changed; update docs/notes/verification.md and this test";
     }
   }
   return sw;

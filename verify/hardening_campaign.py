@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Bad-input campaign over bench_integrators, stress_stability and
 clothbench_inspect, as a new user would try them: the CLI, the scene and mesh
-files, the journals, the result files and the environment (docs/verification.md,
+files, the journals, the result files and the environment (docs/notes/verification.md,
 "Bad input, blow-ups and limits").
 
 Every case names what a serious tool does with it (refuse it before computing

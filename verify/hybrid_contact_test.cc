@@ -1,5 +1,5 @@
 // The contact problem in continuous time (sundials/hybrid_contact.h,
-// docs/collisions.md "Contact in continuous time") integrated by CVODE with
+// docs/notes/collisions.md "Contact in continuous time") integrated by CVODE with
 // event location, on the round table over its first 0.3 s (the cloth lands
 // at t ≈ 0.13 s and settles on the top).
 //
@@ -137,7 +137,7 @@ TEST(HybridContact, ReleasesAfterTheJumpsOfAnEventAndTheThesisResponseConvergesO
 }
 
 // The contact reference and its cross-check (harness/thesis_tables.h,
-// ContactCrossCheck; docs/collisions.md, "The contact reference"), as
+// ContactCrossCheck; docs/notes/collisions.md, "The contact reference"), as
 // bench_integrators computes them: CVODE at the reference rtol 1e-10 with
 // its estimate against 1e-11, and BDF(2) with the regularised friction law
 // at h/8, h/16, … down to h/256 until its estimate (Richardson
@@ -151,7 +151,7 @@ TEST(HybridContact, ReleasesAfterTheJumpsOfAnEventAndTheThesisResponseConvergesO
 // the two integrates another problem or underestimates its error.
 // The thesis' explicit friction law at the same h is printed beside it: it
 // converges to Coulomb's stick, not to the regularised law
-// (docs/collisions.md, "Friction laws"), and over the swinging box's 2 s
+// (docs/notes/collisions.md, "Friction laws"), and over the swinging box's 2 s
 // it ends 1.1e-4 m from the reference, beyond any estimate; over these
 // short runs the two laws are as far from it (measured 1.24e-6 and
 // 1.33e-6 m on the round table at h/64, 4.1e-6 and 4.0e-6 m on the box at
@@ -217,7 +217,7 @@ TEST(HybridContact, ArkodeWithEventsAgreesWithCvode) {
   }
 }
 
-// sbdf2/error and bdf2/error with event location (docs/collisions.md,
+// sbdf2/error and bdf2/error with event location (docs/notes/collisions.md,
 // "Error control through contact events") on the round table over 0.3 s
 // (rtol 1e-3 and 1e-6) and on the swinging box over 0.7 s (rtol 1e-4 and
 // 1e-5), against CVODE with events at rtol 1e-9: every run ends ok with

@@ -126,7 +126,7 @@ INSTANTIATE_TEST_SUITE_P(Integrators, AmplificationTest, ::testing::ValuesIn(All
 
 // Spectral radius of one-step amplification at hω → ∞ (ζ = 0): implicit
 // Euler is L-stable (→ 0), implicit midpoint is not (|R| = 1). Printed for
-// docs/verification.md.
+// docs/notes/verification.md.
 TEST(AmplificationTest, StiffLimit) {
   SpringSetup s = MakeSpring(100.0, 0.0);
   const Eigen::Matrix2d j = JacobianOf(s), id = Eigen::Matrix2d::Identity();

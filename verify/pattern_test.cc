@@ -1,4 +1,4 @@
-// Patterns (model/pattern.h; docs/scenes.md, "[[pattern]]"): the Coons
+// Patterns (model/pattern.h; docs/guide/scenes.md, "Patterns"): the Coons
 // sampling, the placement, the rules a pattern is refused by, and a
 // rectangle pattern that is `[grid]`'s sheet.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Seams (docs/model.md §2.8, docs/scenes.md "Seams"): sewn sides become one
+// Seams (docs/model.md §2.8, docs/guide/scenes.md "Seams"): sewn sides become one
 // particle, stencils read across the seam, and a seam is no hinge.
 #include <gtest/gtest.h>
 

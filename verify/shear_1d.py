@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""1-D analysis of chapter-2 experiment 2 (sheared textile), for the README.
+"""1-D analysis of chapter-2 experiment 2 (sheared textile), for docs/notes/verification.md.
 
 With inextensible rows and fibres the discrete sheared sheet is 1-D: row j
 translates by w_j along the fixed edge. The shear energy of docs/model.md §2.2 with

@@ -11,7 +11,7 @@
 //   inside their own limits there).
 // - Implicit Euler, BDF(2) and implicit midpoint never blow up: a cell either
 //   stays bounded or stops because the fixed-point loop of Alg. 6 fails (it
-//   converges only while α²h²s_eλ/m is small, docs/verification.md), which
+//   converges only while α²h²s_eλ/m is small, docs/notes/verification.md), which
 //   happens at every h for S ≥ 1e4.
 #include <gtest/gtest.h>
 

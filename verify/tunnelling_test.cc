@@ -2,7 +2,7 @@
 // stored "ok" (solver/run.h, BlowUpGuard::CheckPath): its distance keeps
 // its sign across a thin obstacle, so neither the event-located rows' root
 // finding nor the stored frames' penetration check sees it. The planted
-// inputs are the two of docs/collisions.md, "Tunnelling": a sheet dropped on
+// inputs are the two of docs/notes/collisions.md, "Tunnelling": a sheet dropped on
 // a 2 mm plate (the adaptive rows at loose tolerances stepped over it) and
 // the round table with one frame at t_end (ARKODE's step was bounded only
 // by the frame interval).
@@ -87,7 +87,7 @@ TEST(Tunnelling, AdaptiveRowsOnAThinPlateAreNeverOkBelowIt) {
   EXPECT_GT(tunnelled, 0) << "no row stepped over the plate: the planted input no longer plants it";
   // SBDF(2) at h = 0.01 s with the collision response: its multistep
   // position update carries a corner particle through the plate (1.9 mm
-  // above it to 1.7 mm below in the step to t = 0.26 s; docs/collisions.md,
+  // above it to 1.7 mm below in the step to t = 0.26 s; docs/notes/collisions.md,
   // "Tunnelling"); it is not ok with a particle through it. Implicit Euler
   // (one step, the response's target velocity) rests on it.
   const MethodRun multistep = RunRow(scene, "sbdf2", 0.01);

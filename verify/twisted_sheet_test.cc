@@ -1,6 +1,6 @@
-// Moving fixed particles (`[[constraints.motion]]`, docs/scenes.md "Moving
+// Moving fixed particles (`[[constraints.motion]]`, docs/guide/scenes.md "Moving
 // fixed particles") and the twisted strip, scenes/twisted_sheet.toml
-// (docs/collisions.md, "Self-contact"): every method that supports the
+// (docs/notes/collisions.md, "Self-contact"): every method that supports the
 // motion puts the moving edge exactly on its keyframed motion; without
 // self-contact the strip passes through itself within its first turn, with
 // it no stored frame has a crossing pair through a whole turn, at h and at
@@ -86,7 +86,7 @@ TEST(TwistedSheet, EveryMethodPutsTheEdgeOnItsMotion) {
 }
 
 // Measured with SBDF(2) at h: the first crossing at t = 0.68 s, 348 pairs
-// at most to t = 2 s (scripts/bench's command in docs/collisions.md).
+// at most to t = 2 s (scripts/bench's command in docs/notes/collisions.md).
 TEST(TwistedSheet, WithoutSelfContactItPassesThroughItselfInItsFirstTurn) {
   const Scene s = Twisted(1.0, false);
   const ParticleSystem sys(s);
@@ -104,7 +104,7 @@ class TwistedSheetMethods : public ::testing::TestWithParam<TwistCase> {};
 
 // A whole turn (t = 1 s), beyond the half turn that the strip needs without
 // self-contact to cross itself. VBD at 4 sweeps: with a purely quadratic
-// penalty it crossed (docs/collisions.md, "The twisted strip").
+// penalty it crossed (docs/notes/collisions.md, "The twisted strip").
 TEST_P(TwistedSheetMethods, NoFrameCrossesThroughAWholeTurn) {
   const auto [method, fraction] = GetParam();
   const Scene s = Twisted(1.0, true);

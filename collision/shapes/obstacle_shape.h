@@ -1,4 +1,4 @@
-// The obstacle shapes (docs/collisions.md "Obstacle shapes"; docs/model.md §7,
+// The obstacle shapes (docs/notes/collisions.md "Obstacle shapes"; docs/model.md §7,
 // thesis ch. 4–5): one interface, one file per shape (plane.cc, sphere.cc,
 // box.cc, cylinder.cc, mesh.cc) and one registry (registry.cc) that picks a
 // shape by the TOML `type` of an `[[obstacle]]` table. A shape answers in

@@ -1,7 +1,7 @@
 // The registry of obstacle shapes: the TOML `type` of an `[[obstacle]]`
 // table → the factory that its file in collision/shapes/ defines. A new
 // shape is one file that defines `std::shared_ptr<const ObstacleShape>
-// Parse<Name>(ShapeKeys&)` and one line here (docs/collisions.md "Obstacle
+// Parse<Name>(ShapeKeys&)` and one line here (docs/notes/collisions.md "Obstacle
 // shapes").
 #include <fmt/format.h>
 

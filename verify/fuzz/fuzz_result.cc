@@ -1,6 +1,6 @@
 // libFuzzer target of the result-file reader (results/result_reader.h) and
 // of what clothbench_inspect reads after ValidateResultFile accepted a file
-// (docs/verification.md, "Fuzzing").
+// (docs/notes/verification.md, "Fuzzing").
 //
 // For any byte string, opened as an in-memory HDF5 image, the reader must
 // either refuse it with a ResultError whose message is one line naming the

@@ -1,10 +1,10 @@
 // libFuzzer target of the scene parser and validator (model/scene.cc) and of
-// the model built from what it accepts (docs/verification.md, "Fuzzing").
+// the model built from what it accepts (docs/notes/verification.md, "Fuzzing").
 //
 // For any byte string, ParseScene must either refuse it with a SceneError
 // whose message is one line naming the source, or return a scene whose
 // every derived quantity is finite and within the stated limits
-// (docs/scenes.md, "Limits"); for accepted scenes of at most 400 particles
+// (docs/guide/scenes.md, "Limits"); for accepted scenes of at most 400 particles
 // without mesh obstacles the particle system is built and its forces and
 // energies at rest, and at a perturbed state, must be finite (a garment
 // whose sewing phase has not run has no model yet). Anything else
