@@ -30,7 +30,7 @@
 //    10⁵ the factor's contact steps cost more than the AMG's prior, so the
 //    prefiltered AMG serves most steps in contact and the median CG per
 //    contact step is at most 15 (6–9 measured once the AMG serves;
-//    docs/performance.md, "The contact policy"). Every step without a
+//    docs/notes/performance.md, "The contact policy"). Every step without a
 //    contact is served by the factor.
 // 4. The avatar (CGAL mesh man.off, scripts/setup extracts it): the same
 //    depth bound for every integrator over the first 1.5 s of the drape,
@@ -146,7 +146,7 @@ TEST_P(ContactWorkTest, AccountsForTheImpactOnAPlane) {
   EXPECT_NEAR(-w, fall, 0.05 * fall);
 }
 
-// 7. solver.contact_history (docs/collisions.md, "Multistep history across
+// 7. solver.contact_history (docs/notes/collisions.md, "Multistep history across
 //    contact events"): the tablecloth dropped 0.1 m onto a plane, SBDF(2) and
 //    BDF(2). In the step where the flat cloth enters the collision area, the
 //    one-step update of (4.4) puts every particle on its border z = 0.7 + δ.
@@ -237,7 +237,7 @@ TEST(ContactPolicy, FramesOrAmgServeTheSphereAt1e5) {
 // With the default settings (SBDF(2), "auto"), each obstacle type at 10⁴
 // particles: the median CG iterations over the steps with at least 1 % of
 // the particles constrained stay at or below 15 (measured over 1 s of
-// drape, docs/performance.md's obstacle × N table: sphere 9, avatar 12,
+// drape, docs/notes/performance.md's obstacle × N table: sphere 9, avatar 12,
 // tilted plane 1, round table 4; here over 0.6 s: 10, 15, 3, 4). Before contact frames
 // the sphere needed 21 (its contacts within 25.8° of e_z were decoupled
 // along e_z, not along their normals).
@@ -261,15 +261,15 @@ TEST(ContactPolicy, FifteenCgPerContactStepOnEveryObstacleAt1e4) {
 INSTANTIATE_TEST_SUITE_P(Multistep, ContactHistoryTest, ::testing::Values(Method::kSbdf2, Method::kBdf2),
                          [](const auto& method_info) { return std::string(ToString(method_info.param)); });
 
-INSTANTIATE_TEST_SUITE_P(AllMethods, ContactWorkTest, ::testing::ValuesIn(AllMethods()),
+INSTANTIATE_TEST_SUITE_P(AllMethods, ContactWorkTest, ::testing::ValuesIn(testing::EngineMethods()),
                          [](const auto& method_info) { return std::string(ToString(method_info.param)); });
 
-INSTANTIATE_TEST_SUITE_P(AllMethods, RestingContactTest, ::testing::ValuesIn(AllMethods()),
+INSTANTIATE_TEST_SUITE_P(AllMethods, RestingContactTest, ::testing::ValuesIn(testing::EngineMethods()),
                          [](const auto& method_info) { return std::string(ToString(method_info.param)); });
 
 INSTANTIATE_TEST_SUITE_P(Tables, PenetrationTest,
                          ::testing::Combine(::testing::Values("tablecloth", "round_table", "avatar_drape"),
-                                            ::testing::ValuesIn(AllMethods())),
+                                            ::testing::ValuesIn(testing::EngineMethods())),
                          [](const auto& param_info) {
                            return std::string(std::get<0>(param_info.param)) + "_" +
                                   std::string(ToString(std::get<1>(param_info.param)));

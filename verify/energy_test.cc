@@ -57,10 +57,10 @@ Scene UndampedMembrane() {
   return s;
 }
 
-TEST(Energy, MidpointConservesAndTheOthersDissipate) {
+TEST(Energy, MidpointConservesSbdf3GrowsSlowlyAndTheOthersDissipate) {
   const Scene s = UndampedMembrane();
   const ParticleSystem sys(s);
-  for (Method m : AllMethods()) {
+  for (Method m : testing::EngineMethods()) {
     const RunSummary r = RunIntegrator(sys, m, {0.002, s.t_end, s.frame_dt});
     ASSERT_TRUE(r.ok()) << testing::Brief(r);
     const EnergySeries e = ComputeEnergies(sys, r.trajectory);
@@ -71,6 +71,14 @@ TEST(Energy, MidpointConservesAndTheOthersDissipate) {
                 std::string(ToString(m)).c_str(), drift / kmax, e.Rate(), kmax);
     if (m == Method::kImplicitMidpoint) {
       EXPECT_LT(drift, 1e-9 * kmax);
+    } else if (m == Method::kSbdf3) {
+      // BDF3 is not A-stable (A(86°), docs/model.md, "SBDF(3)"): the
+      // membrane's undamped modes lie on the imaginary axis, which its
+      // stability region leaves out near the origin, so they grow slowly.
+      // Measured: drift 2.6e-3 of the largest kinetic energy over 1 s; 1e-2
+      // allows 4× that, while a wrong coefficient or start shows as O(1).
+      EXPECT_GT(e.total.back() - e.total.front(), 0.0) << ToString(m);
+      EXPECT_LT(drift, 1e-2 * kmax) << ToString(m);
     } else {
       EXPECT_LT(e.total.back() - e.total.front(), -1e-4 * kmax) << ToString(m);
     }

@@ -37,7 +37,7 @@ TEST(StepEngine, FixedParticlesStayAndRunsAreReproducible) {
   s.t_end = 0.1;
   s.solver.cg_tolerance = 1e-6;
   const ParticleSystem sys(s);
-  for (Method m : AllMethods()) {
+  for (Method m : testing::EngineMethods()) {
     const RunSummary a = RunIntegrator(sys, m, {0.01, s.t_end, s.frame_dt});
     const RunSummary b = RunIntegrator(sys, m, {0.01, s.t_end, s.frame_dt});
     ASSERT_TRUE(a.ok()) << ToString(m) << ": " << a.message;
@@ -47,7 +47,8 @@ TEST(StepEngine, FixedParticlesStayAndRunsAreReproducible) {
     for (int p : sys.fixed())
       EXPECT_EQ((a.trajectory.positions.back().row(p) - sys.rest_positions().row(p)).norm(), 0.0) << ToString(m);
     if (IsImex(m)) {
-      EXPECT_EQ(a.updates, a.steps) << "IMEX methods do one update per step";
+      // SBDF(3)'s start step (an IMEX midpoint step) takes two.
+      EXPECT_EQ(a.updates, a.steps + (m == Method::kSbdf3 ? 1 : 0)) << "IMEX methods do one update per step";
     }
   }
 }

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "solver/run.h"
+#include "verify/test_metrics.h"
 #include "verify/test_scenes.h"
 
 namespace clothbench {
@@ -37,7 +38,7 @@ TEST(Properties, InternalForcesConserveMomentum) {
   const ParticleSystem sys(s);
   MatrixN3 x, v;
   testing::PerturbedState(sys, 11, &x, &v, 0.005);
-  for (Method m : AllMethods()) {
+  for (Method m : testing::EngineMethods()) {
     StepEngine e(sys, m, s.solver);
     e.Reset(0.0, x, v);
     const Eigen::RowVector3d p0 = sys.masses().transpose() * v;
@@ -62,7 +63,7 @@ TEST(Properties, PlacementInvariance) {
   moved.grid.v_axis = rot * s.grid.v_axis;
   moved.forces.gravity = rot * s.forces.gravity;
   const ParticleSystem a(s), b(moved);
-  for (Method m : AllMethods()) {
+  for (Method m : testing::EngineMethods()) {
     const RunSummary ra = RunIntegrator(a, m, {0.001, s.t_end, s.frame_dt});
     const RunSummary rb = RunIntegrator(b, m, {0.001, s.t_end, s.frame_dt});
     ASSERT_TRUE(ra.ok() && rb.ok()) << ToString(m);
@@ -92,7 +93,7 @@ TEST(Properties, ParticleOrderInvariance) {
   for (int p : s.fixed) t.fixed.push_back(t.Index(p / s.grid.nu, p % s.grid.nu));
   std::sort(t.fixed.begin(), t.fixed.end());
   const ParticleSystem a(s), b(t);
-  for (Method m : AllMethods()) {
+  for (Method m : testing::EngineMethods()) {
     const RunSummary ra = RunIntegrator(a, m, {0.001, s.t_end, s.frame_dt});
     const RunSummary rb = RunIntegrator(b, m, {0.001, s.t_end, s.frame_dt});
     ASSERT_TRUE(ra.ok() && rb.ok()) << ToString(m);

@@ -1,5 +1,5 @@
 // Self-contact on the premise scenes scenes/fold_over_rod.toml and
-// scenes/pile_on_floor.toml (docs/collisions.md, "Self-contact"): without a
+// scenes/pile_on_floor.toml (docs/notes/collisions.md, "Self-contact"): without a
 // response the cloth passes through itself; with it no stored frame of a
 // supporting method has a crossing triangle pair, at the scene's h and at
 // h/4 (XPBD and VBD with their own, peers/position_contacts.h); runs
@@ -156,7 +156,7 @@ TEST(SelfContactScene, ACrossingFrameEndsTheRunWithSelfIntersection) {
 // substeps (Δt = 0.31 ms) the fold has no crossing at h and h/4, and on
 // the pile, where layers land on each other at up to 3 m/s, 4 substeps
 // (Δt = 1.25 ms) suffice at h; one substep of 5 ms is not asserted: the
-// pile crosses there (docs/collisions.md, "Self-contact"). VBD: the
+// pile crosses there (docs/notes/collisions.md, "Self-contact"). VBD: the
 // penalty in its local steps within the conservative bounds, at one and
 // four sweeps per step, h and h/4. PD: the run's response after its step.
 struct PeerCase {
@@ -266,10 +266,10 @@ TEST(SelfContactScene, TheSundialsRowsCorrectTheirStepsAndDoNotCross) {
   const ParticleSystem sys(s);
   // CVODE with the reduced solve (5.5 s on a busy 2-core machine; RunIda,
   // with KLU, took ~90 s here: the ida rows are measured in
-  // docs/collisions.md, "Self-contact under SUNDIALS", instead).
+  // docs/notes/collisions.md, "Self-contact under SUNDIALS", instead).
   const ReferenceOptions o{1e-3, 1e-3, 5, s.t_end, s.frame_dt};
   const RunSummary r = RunCvodeReduced(sys, o, s.solver);
-  std::printf("[ self contact ] cvode on fold_over_rod: %d steps, %.2f s\n", r.steps, r.solver_time_s);
+  std::printf("[ self contact ] cvode on fold_over_rod: %ld steps, %.2f s\n", r.steps, r.solver_time_s);
   ASSERT_EQ(r.status, RunStatus::kOk) << r.message;
   EXPECT_EQ(MostCrossings(r), 0);
   ASSERT_TRUE(r.self_contact.has_value());

@@ -16,7 +16,7 @@
 //    Steps h = 4e-4 … 5e-5 s (numerical stiffness 0.1 … 0.0016): there
 //    (a) the fixed-point loop of the implicit methods converges (contraction
 //    ≈ α²h²sλ/(m + α²h²sλ) ≤ 0.45) and (b) IMEX Euler is past its
-//    pre-asymptotic range (docs/verification.md, "Observed order"). CG tolerance 1e-13 and a
+//    pre-asymptotic range (docs/notes/verification.md, "Observed order"). CG tolerance 1e-13 and a
 //    fixed-point tolerance of 1e-14 m/s keep solver errors below 1e-11 m,
 //    under the smallest measured error.
 //
@@ -37,13 +37,6 @@
 
 namespace clothbench {
 namespace {
-
-// The five thesis integrators and SBDF(3).
-std::vector<Method> OrderedMethods() {
-  std::vector<Method> m = AllMethods();
-  m.push_back(Method::kSbdf3);
-  return m;
-}
 
 Scene LinearScene() {
   Scene s = testing::LinearMembrane(0.01);  // proportional: L_D = 1e-3 L_K
@@ -78,7 +71,7 @@ TEST_P(ModalOrderTest, ObservedOrderMatchesClassicalOrder) {
   EXPECT_NEAR(slope, testing::MethodOrder(GetParam()), 0.3);
 }
 
-INSTANTIATE_TEST_SUITE_P(Integrators, ModalOrderTest, ::testing::ValuesIn(OrderedMethods()),
+INSTANTIATE_TEST_SUITE_P(Integrators, ModalOrderTest, ::testing::ValuesIn(testing::EngineMethods()),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
 
@@ -124,7 +117,7 @@ TEST_P(CvodeOrderTest, LeastSquaresSlopeMatchesClassicalOrder) {
   EXPECT_NEAR(slope, testing::MethodOrder(GetParam()), 0.3);
 }
 
-INSTANTIATE_TEST_SUITE_P(Integrators, CvodeOrderTest, ::testing::ValuesIn(OrderedMethods()),
+INSTANTIATE_TEST_SUITE_P(Integrators, CvodeOrderTest, ::testing::ValuesIn(testing::EngineMethods()),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
 }  // namespace

@@ -32,6 +32,19 @@ inline int MethodOrder(Method m) {
   return (m == Method::kImexEuler || m == Method::kImplicitEuler || m == Method::kSymplecticEuler) ? 1 : 2;
 }
 
+/// The step engine's methods that the property, energy, no-allocation and
+/// collision tests cover: the five thesis integrators (AllMethods(), the
+/// bench's order) and SBDF(3). Symplectic Euler, the explicit baseline, is
+/// left out: it is stable only below its step limit.
+inline const std::vector<Method>& EngineMethods() {
+  static const std::vector<Method> kMethods = [] {
+    std::vector<Method> m = AllMethods();
+    m.push_back(Method::kSbdf3);
+    return m;
+  }();
+  return kMethods;
+}
+
 /// Least-squares slope of log e against log h (the observed order over a series).
 inline double LeastSquaresOrder(const std::vector<double>& h, const std::vector<double>& e) {
   const double n = static_cast<double>(h.size());
