@@ -313,8 +313,8 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
       // from an obstacle since the last frame.
       ObstacleProximity proximity(sys);
       const PenetrationSeries pen =
-          ComputePenetration(sys, r.trajectory, [&](int k, const ObstaclePose& pose, const MatrixN3& x) {
-            return proximity.PenetrationOf(k, pose, x);
+          ComputePenetration(sys, r.trajectory, [&](int obstacle, const ObstaclePose& pose, const MatrixN3& x) {
+            return proximity.PenetrationOf(obstacle, pose, x);
           });
       const int frames = static_cast<int>(r.trajectory.times.size());
       f.CreateGroup(g + "/penetration");

@@ -329,7 +329,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
     };
     internal::RunFrames(d, system, options, err, &res);
   }
-  SundialsStats& st = res.sundials.emplace();  // ARKStepReset keeps the counters
+  SundialsStats st;  // ARKStepReset keeps the counters
   ARKStepGetNumSteps(h.mem, &st.nst);
   ARKStepGetNumRhsEvals(h.mem, &st.nfe, &st.nfe_i);
   ARKStepGetNumNonlinSolvIters(h.mem, &st.nni);
@@ -337,10 +337,8 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   ARKStepGetNumErrTestFails(h.mem, &st.netf);
   ARKStepGetNumNonlinSolvConvFails(h.mem, &st.ncfn);
   ARKStepGetNumLinSolvSetups(h.mem, &st.nsetups);
-  if (ode.contact().active()) res.events = static_cast<long>(ode.contact().event_times().size());
-  res.setup_time_s = ode.setup_seconds();
-  internal::SummariseCounters(&res);
-  res.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  internal::FinishRun(st, nullptr, ode.contact().active() ? &ode.contact().event_times() : nullptr, ode.setup_seconds(),
+                      wall_start, &res);
   return res;
 }
 

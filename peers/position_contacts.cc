@@ -160,11 +160,11 @@ int PositionSelfContact::Project(const MatrixN3& x, double tau0, double tau1, Ma
       for (std::size_t k = 0; k < 4; ++k) denom += g.w[k] * g.w[k] * w_(pair.p[k]);
       if (!(denom > 0.0)) continue;
       const double lambda = (thickness_ - side * g.distance) / denom;  // −C / Σ w_k² m_k⁻¹
-      const Vector3 n = side * g.n;
+      const Vector3 normal = side * g.n;
       for (std::size_t k = 0; k < 4; ++k) {
         const int q = pair.p[k];
         if (w_(q) == 0.0) continue;
-        p->row(q) += (lambda * g.w[k] * w_(q)) * n.transpose();
+        p->row(q) += (lambda * g.w[k] * w_(q)) * normal.transpose();
         if (moved_[static_cast<std::size_t>(q)] != 1) {
           if (moved_[static_cast<std::size_t>(q)] == 0) moved_list_.push_back(q);
           moved_[static_cast<std::size_t>(q)] = 1;

@@ -451,18 +451,10 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
     const internal::OneStepDriver d = CvodeDriver(h, ode, options, roots_found, counters);
     internal::RunFrames(d, system, options, err, &res);
   }
-  SundialsStats& st = res.sundials.emplace(counters);
-  AddCvodeCounters(h.mem, &st);
-  if (ode.contact().active()) res.events = static_cast<long>(ode.contact().event_times().size());
-  if (solve) {
-    st.nli = solve->tangent().total_iterations();
-    st.nje = solve->tangent().jacobian_evaluations();
-    res.setup_time_s = solve->tangent().setup_seconds();
-  } else {
-    res.setup_time_s = klu_seconds + ode.jacobian_seconds();
-  }
-  internal::SummariseCounters(&res);
-  res.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  AddCvodeCounters(h.mem, &counters);
+  internal::FinishRun(counters, solve ? &solve->tangent() : nullptr,
+                      ode.contact().active() ? &ode.contact().event_times() : nullptr,
+                      solve ? solve->tangent().setup_seconds() : klu_seconds + ode.jacobian_seconds(), wall_start, &res);
   return res;
 }
 

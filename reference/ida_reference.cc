@@ -458,18 +458,10 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
     };
     internal::RunFrames(d, system, options, err, &res);
   }
-  SundialsStats& st = res.sundials.emplace(counters);
-  AddIdaCounters(h.mem, &st);
-  if (form.contact().active()) res.events = static_cast<long>(form.contact().event_times().size());
-  if (solve) {
-    st.nli = solve->tangent().total_iterations();
-    st.nje = solve->tangent().jacobian_evaluations();
-    res.setup_time_s = solve->tangent().setup_seconds();
-  } else {
-    res.setup_time_s = klu_seconds + form.jacobian_seconds();
-  }
-  internal::SummariseCounters(&res);
-  res.wall_time_s = std::chrono::duration<double>(Clock::now() - wall_start).count();
+  AddIdaCounters(h.mem, &counters);
+  internal::FinishRun(counters, solve ? &solve->tangent() : nullptr,
+                      form.contact().active() ? &form.contact().event_times() : nullptr,
+                      solve ? solve->tangent().setup_seconds() : klu_seconds + form.jacobian_seconds(), wall_start, &res);
   return res;
 }
 

@@ -319,6 +319,19 @@ void NameSundialsRun(const char* integrator, const char* layer, const ReferenceO
   res->step_control = "sundials";
 }
 
+void FinishRun(const SundialsStats& counters, const ReducedTangent* tangent, const std::vector<double>* events,
+               double setup_s, std::chrono::steady_clock::time_point wall_start, RunSummary* res) {
+  SundialsStats& st = res->sundials.emplace(counters);
+  if (tangent) {
+    st.nli = tangent->total_iterations();
+    st.nje = tangent->jacobian_evaluations();
+  }
+  if (events) res->events = static_cast<long>(events->size());
+  res->setup_time_s = setup_s;
+  SummariseCounters(res);
+  res->wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+}
+
 void SummariseCounters(RunSummary* res) {
   const SundialsStats& s = *res->sundials;
   res->steps = static_cast<int>(s.nst);

@@ -4,6 +4,7 @@
 #ifndef CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
 #define CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
 
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <string>
@@ -70,6 +71,20 @@ void AddCounters(void* mem, const CounterGetters& get, SundialsStats* st);
 /// steps = nst, updates = nni, cg_iterations = nli, rejected =
 /// error_test_failures = netf.
 void SummariseCounters(RunSummary* res);
+
+class ReducedTangent;
+
+/// The end of every SUNDIALS run (CVODE, IDA, ARKODE), after its frames:
+/// `counters` (the integrator's own, summed over its restarts) become
+/// res->sundials, with the reduced velocity solve's PCG iterations (nli)
+/// and Jacobian evaluations (nje) where `tangent` is given; then the
+/// contact events (`events`, the hybrid contact's event times, or nullptr
+/// without obstacle contact), the setup time `setup_s` [s], the record's
+/// counts (SummariseCounters) and the wall time since `wall_start`.
+/// @param tangent the reduced solve's tangent, or nullptr (KLU; ARKODE's
+///        nli is its own counter)
+void FinishRun(const SundialsStats& counters, const ReducedTangent* tangent, const std::vector<double>* events,
+               double setup_s, std::chrono::steady_clock::time_point wall_start, RunSummary* res);
 
 /// The record's identity of a SUNDIALS run as the reference it is: the
 /// `integrator` ("cvode", "ida", "arkode"), its `layer` ("reference",

@@ -93,10 +93,10 @@ INSTANTIATE_TEST_SUITE_P(Premises, SelfContactMethods,
                                            MethodCase{false, Method::kImplicitMidpoint, 1.0},
                                            MethodCase{true, Method::kSbdf2, 1.0}, MethodCase{true, Method::kSbdf2, 0.25},
                                            MethodCase{true, Method::kBdf2, 1.0}),
-                         [](const ::testing::TestParamInfo<MethodCase>& info) {
-                           return std::string(info.param.pile ? "pile_" : "fold_") +
-                                  std::string(ToString(info.param.method)) +
-                                  (info.param.fraction == 1.0 ? "_h" : "_quarter_h");
+                         [](const ::testing::TestParamInfo<MethodCase>& param_info) {
+                           return std::string(param_info.param.pile ? "pile_" : "fold_") +
+                                  std::string(ToString(param_info.param.method)) +
+                                  (param_info.param.fraction == 1.0 ? "_h" : "_quarter_h");
                          });
 
 TEST(SelfContactScene, BaraffWitkinHasNoCrossingEither) {
@@ -196,7 +196,9 @@ TEST_P(SelfContactPeers, NoFrameCrosses) {
     EXPECT_EQ(r.trajectory.contact_work_self.size(), r.trajectory.times.size());
     return;
   }
-  if (peer == PeerCase::kXpbd) EXPECT_GT(r.self_contact->projections, 0);  // the constraints acted
+  if (peer == PeerCase::kXpbd) {
+    EXPECT_GT(r.self_contact->projections, 0);  // the constraints acted
+  }
   EXPECT_EQ(r.self_contact->repulsions + r.self_contact->collisions, 0);   // not the response's impulses
   EXPECT_TRUE(r.trajectory.contact_work_self.empty());                     // its work is not counted
 }

@@ -121,8 +121,8 @@ INSTANTIATE_TEST_SUITE_P(Methods, TwistedSheetMethods,
                                            TwistCase{"implicit_euler", 1.0}, TwistCase{"baraff_witkin", 1.0},
                                            TwistCase{"xpbd", 1.0}, TwistCase{"xpbd", 0.25}, TwistCase{"vbd", 1.0},
                                            TwistCase{"pd", 1.0}),
-                         [](const ::testing::TestParamInfo<TwistCase>& info) {
-                           return std::string(info.param.method) + (info.param.fraction == 1.0 ? "_h" : "_quarter_h");
+                         [](const ::testing::TestParamInfo<TwistCase>& param_info) {
+                           return std::string(param_info.param.method) + (param_info.param.fraction == 1.0 ? "_h" : "_quarter_h");
                          });
 
 // With the motion and self-contact, a run repeats bit for bit on one thread

@@ -48,6 +48,7 @@ std::shared_ptr<const ObstacleShape> ParseObstacleShape(std::string_view type, S
   for (std::size_t k = 0; k < n; ++k)
     names += fmt::format("{}\"{}\"", k == 0 ? "" : (k + 1 == n ? " or " : ", "), kShapes[k].type);
   keys.Fail("type", fmt::format("must be {} (got \"{}\")", names, type));
+  return nullptr;  // not reached: Fail throws
 }
 
 }  // namespace clothbench
