@@ -12,6 +12,7 @@
 #include "harness/plan.h"
 #include "harness/plot.h"
 #include "harness/run_request.h"
+#include "harness/reference.h"
 #include "harness/thesis_tables.h"
 #include "model/particle_system.h"
 #include "solver/run.h"

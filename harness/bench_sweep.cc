@@ -18,6 +18,7 @@
 #include "harness/table_notes.h"
 #include "harness/plot.h"
 #include "harness/progress.h"
+#include "harness/reference.h"
 #include "harness/result_writer.h"
 #include "harness/run_codec.h"
 #include "harness/side_by_side.h"
@@ -197,18 +198,18 @@ double SelfConvergenceStep(const BenchRun& b) {
   return (b.hs.empty() ? b.scene.h / 8.0 : *std::min_element(b.hs.begin(), b.hs.end())) / 32.0;
 }
 
-// Whether a scene's reference is the self-convergence run: with virtual
-// particles, whose edge contacts the hybrid system of the SUNDIALS rows
-// does not have (sundials/hybrid_contact.h), with self-contact, which
-// it takes as a correction between steps (the fixed-step methods'
-// response), not as located events, and with moving fixed particles, which its right-hand
-// side holds at rest. Otherwise the reference row (CVODE's event-located
-// contact) is the reference.
-bool SelfConvergenceIsReference(const ParticleSystem& sys) {
-  const auto& collision = sys.scene().collision;
-  return (collision && collision->self) || sys.has_prescribed_motion() ||
-         std::any_of(sys.obstacles().begin(), sys.obstacles().end(),
-                     [](const Obstacle& o) { return o.spec().virtual_particles; });
+// The reference's request from the command (harness/reference.h).
+ReferenceTask ReferenceTaskOf(const BenchRun& b, double h_ref, TerminalProgress& progress) {
+  ReferenceTask t;
+  t.scene = &b.scene;
+  t.row = b.reference ? &*b.reference : nullptr;
+  t.rtol = b.ref_rtol;
+  t.h_ref = h_ref;
+  t.time_limit_s = b.reference_time_limit;
+  t.metric = b.error_metric;
+  t.targets = b.targets;
+  t.started = [&progress](const std::string& what, double t_end) { progress.Start(what, t_end); };
+  return t;
 }
 
 // The rows' context: the command's limits and the settings it named.
@@ -217,94 +218,6 @@ RunContext ContextOf(const BenchRun& b) {
   limits.time_limit_s = b.time_limit;
   return RunContext{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
                     b.tangent_terms_from_cli, b.cvode, !b.start_predicted};
-}
-
-// The self-convergence run at h_ref with its own error against the same at
-// 2 h_ref (RunRecord::error_estimate_m).
-RunSummary SelfConvergenceRun(const BenchRun& b, double h_ref, const char* role, TerminalProgress& progress) {
-  progress.Start(fmt::format("{} bdf2 h = {:g} s", role, h_ref), b.scene.t_end);
-  RunSummary r = SelfConvergenceReference(b.scene, h_ref);
-  if (r.ok()) {
-    progress.Start(fmt::format("{} bdf2 h = {:g} s (self-convergence)", role, 2.0 * h_ref), b.scene.t_end);
-    SetReferenceErrorEstimate(&r, SelfConvergenceReference(b.scene, 2.0 * h_ref), b.error_metric);
-  }
-  return r;
-}
-
-// The reference run (task 0): RunReference (the reference row and its
-// error estimate at rtol/10). On obstacle scenes the row integrates the
-// contact problem in continuous time with event location, and the
-// self-convergence run at h_ref is its cross-check (their difference and
-// its estimate are stored with the reference); with virtual particles the
-// self-convergence run is the reference. With obstacles the reference,
-// its estimate run and the cross-check's refinements run side by side on
-// kCheckWorkers threads of one kernel thread each: on
-// scenes/round_table_10k.toml they took 5 min 20 s, against 7 min 30 s one
-// after the other on two kernel threads (docs/notes/collisions.md).
-constexpr int kCheckWorkers = 2;
-
-RunSummary ComputeReference(const BenchRun& b, const ParticleSystem& sys, const RunContext& ctx, double h_ref,
-                            TerminalProgress& progress) {
-  if (SelfConvergenceIsReference(sys)) return SelfConvergenceRun(b, h_ref, "reference", progress);
-  RunContext reference_ctx = ctx;
-  if (b.reference_time_limit > 0.0) reference_ctx.limits.time_limit_s = b.reference_time_limit;
-  const auto started = [&](double rtol) {
-    progress.Start(fmt::format("reference {} rtol {:g}{}", b.reference->label(), rtol,
-                               rtol < b.ref_rtol ? " (its error estimate)" : ""),
-                   b.scene.t_end);
-  };
-  if (sys.obstacles().empty())
-    return RunReference(sys, b.scene, *b.reference, b.ref_rtol, reference_ctx, b.error_metric, started);
-  // With obstacles the reference, its run at rtol/10 and the cross-check's
-  // refinement run side by side (harness/side_by_side.h), each on one
-  // kernel thread: no table times them, and none needs another's result.
-  // Each has its own copy of the model (its terms keep scratch), made
-  // before the workers: it outlives them (their destructor cancels and
-  // joins a run still going when the reference fails).
-  const ParticleSystem estimate_sys(b.scene);
-  SideBySide checks(kCheckWorkers);
-  // In the order reference, cross-check refinements, estimate: the
-  // refinements are the longest chain (the last alone about twice the
-  // reference at 10⁴ particles), the estimate is needed only at the end.
-  const std::size_t reference = checks.Submit(
-      [&] { return b.reference->Run(sys, b.scene, b.scene.solver, b.ref_rtol, reference_ctx); });
-  std::size_t estimate = 0;
-  const auto queue_estimate = [&] {
-    estimate = checks.Submit(
-        [&] { return b.reference->Run(estimate_sys, b.scene, b.scene.solver, 0.1 * b.ref_rtol, reference_ctx); });
-  };
-  double order = 0.0;
-  // It refines until its estimate resolves the smallest target as the
-  // reference must (a tenth of it), down to h_ref.
-  const double wanted = b.targets.empty() ? 0.0 : 0.1 * *std::min_element(b.targets.begin(), b.targets.end());
-  const auto label = [&](const std::string& what) {
-    progress.Start(fmt::format("{} (side by side: reference {} rtol {:g} and {:g}, cross-check bdf2)", what,
-                               b.reference->label(), b.ref_rtol, 0.1 * b.ref_rtol),
-                   b.scene.t_end);
-  };
-  const RunSummary c = ContactCrossCheck(
-      b.scene, h_ref, wanted, b.error_metric, &order,
-      [&](double h) { label(fmt::format("cross-check h = {:g} s", h)); }, &checks, queue_estimate);
-  label("reference");
-  RunSummary r = checks.Take(reference);
-  if (!r.ok()) return r;
-  label("reference estimate");
-  SetReferenceErrorEstimate(&r, checks.Take(estimate), b.error_metric);
-  r.cross_check = fmt::format("bdf2 h = {:g} s, friction_law = regularised, predictor = extrapolate, "
-                              "fixed_point_tolerance = {:g} m/s, 1 kernel thread (self-convergence against 2h and 4h{}{})",
-                              c.h, kCrossCheckFixedPointTolerance,
-                              !c.ok()              ? fmt::format(": {}", ToString(c.status))
-                              : std::isnan(order) ? ": not in its asymptotic range"
-                              : c.error_estimate_m < 0.0
-                                  ? fmt::format(", observed order {:.2f}: not in its asymptotic range", order)
-                                  : fmt::format(", observed order {:.2f}", order),
-                              c.ok() && !c.message.empty() ? "; " + c.message : std::string());
-  if (!c.ok()) return r;
-  r.cross_check_error_estimate_m = c.error_estimate_m;
-  if (const std::optional<TrajectoryErrors> e = CompareTrajectories(c.trajectory, r.trajectory);
-      e && std::isfinite(e->Of(b.error_metric)))
-    r.cross_check_difference_m = e->Of(b.error_metric);
-  return r;
 }
 
 // --sweep-to-targets (docs/notes/work-precision.md, "Sweeps driven by the
@@ -539,7 +452,7 @@ int RunTargetSweep(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     journal.ClearOverrun(k);
   };
   RunSummary ref;
-  task("the reference", [&] { return ComputeReference(b, sys, ctx, h_ref, progress); }, &ref);
+  task("the reference", [&] { return ComputeReference(ReferenceTaskOf(b, h_ref, progress), sys, ctx); }, &ref);
   if (!ref.ok()) {
     if (journal.Stored().empty()) journal.Remove();
     ReportReferenceFailure(b, SelfConvergenceIsReference(sys), h_ref, ref);
@@ -664,7 +577,7 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     const long k = missing[j];
     if (k < n_ref) {
       RunSummary r = RunJournalledTask(journal, k, "the reference", ReferenceTimeLimit(b), true,
-                                       [&] { return ComputeReference(b, sys, ctx, h_ref, progress); });
+                                       [&] { return ComputeReference(ReferenceTaskOf(b, h_ref, progress), sys, ctx); });
       journal.ClearOverrun(k);
       if (!r.ok() && comm.size() == 1) return reference_failed(r);  // serial: before any row
       std::string bytes = EncodeRun(r);

@@ -848,50 +848,6 @@ inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& name
   return out;
 }
 
-/// The reference row a name gives (--reference, clothbench.reference()):
-/// "cvode" or "ida" (the reduced velocity solve with the PCG), "cvode/klu" or
-/// "ida/klu" (KLU on the first-order Jacobian).
-/// @throws std::invalid_argument naming `option` for any other name
-inline RowMethod ParseReference(const std::string& name, const std::string& option) {
-  std::vector<RowMethod> rows;
-  try {
-    rows = ExpandMethods({name}, {NonlinearSolver::kFixedPoint}, option, {StepKind::kAdaptive});
-  } catch (const std::invalid_argument&) {
-    rows.clear();
-  }
-  if (rows.size() != 1 || !rows[0].entry->reference || rows[0].error_control)
-    throw std::invalid_argument(fmt::format("{}: \"{}\" must be {}", option, name, ReferenceNames()));
-  return rows[0];
-}
-
-/// Sets ref->error_estimate_m to the error `metric` between the reference
-/// and `other`, the same method at a 10× tighter rtol or twice the step
-/// (left −1 if `other` failed or the frames do not pair) [m].
-inline void SetReferenceErrorEstimate(RunSummary* ref, const RunSummary& other, ErrorMetric metric) {
-  const std::optional<TrajectoryErrors> e =
-      other.ok() ? CompareTrajectories(other.trajectory, ref->trajectory) : std::nullopt;
-  if (e && std::isfinite(e->Of(metric))) ref->error_estimate_m = e->Of(metric);
-}
-
-/// The reference run (docs/notes/work-precision.md, "The reference"): `row` at
-/// rtol = atol = `rtol`, run as the row of that label is (RowMethod::Run: its
-/// best preconditioner, the context's limits), and its error estimate:
-/// the same row at rtol/10, and error_estimate_m the error `metric` of the
-/// reference against it [m] (−1 if that run fails or reaches no frame
-/// pairing). Both doors (bench_integrators --reference,
-/// clothbench.reference()) call this.
-/// @param started called with the rtol before each of the two runs (progress)
-inline RunSummary RunReference(const ParticleSystem& sys, const Scene& scene, const RowMethod& row, double rtol,
-                               const RunContext& ctx, ErrorMetric metric,
-                               const std::function<void(double rtol)>& started = {}) {
-  if (started) started(rtol);
-  RunSummary ref = row.Run(sys, scene, scene.solver, rtol, ctx);
-  if (!ref.ok()) return ref;
-  if (started) started(0.1 * rtol);
-  SetReferenceErrorEstimate(&ref, row.Run(sys, scene, scene.solver, 0.1 * rtol, ctx), metric);
-  return ref;
-}
-
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_HARNESS_METHODS_H_

@@ -26,6 +26,7 @@
 #include "harness/bench_sweep.h"
 #include "harness/cli_args.h"
 #include "harness/methods.h"
+#include "harness/reference.h"
 #include "harness/output_lock.h"
 #include "harness/result_writer.h"
 #include "harness/run_request.h"

@@ -39,6 +39,7 @@
 #include <utility>
 #include <vector>
 
+#include "harness/reference.h"
 #include "harness/thesis_tables.h"
 #include "peers/arkode.h"
 #include "reference/cvode_reference.h"
@@ -136,7 +137,7 @@ TEST(HybridContact, ReleasesAfterTheJumpsOfAnEventAndTheThesisResponseConvergesO
   EXPECT_LT(distance[1], 2e-4);
 }
 
-// The contact reference and its cross-check (harness/thesis_tables.h,
+// The contact reference and its cross-check (harness/reference.h,
 // ContactCrossCheck; docs/notes/collisions.md, "The contact reference"), as
 // bench_integrators computes them: CVODE at the reference rtol 1e-10 with
 // its estimate against 1e-11, and BDF(2) with the regularised friction law

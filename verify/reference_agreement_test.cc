@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "harness/methods.h"
+#include "harness/reference.h"
 #include "reference/cvode_reference.h"
 #include "peers/arkode.h"
 #include "reference/ida_reference.h"

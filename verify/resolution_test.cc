@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "harness/methods.h"
+#include "harness/reference.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "reference/cvode_reference.h"
