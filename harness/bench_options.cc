@@ -279,10 +279,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       q.scene = scene;
       q.method = methods[k].label();
       q.names = FieldNames::kOption;
-      if (methods[k].kind() == StepKind::kAdaptive) q.rtol = param;
-      else q.h = param;
-      if (methods[k].kind() == StepKind::kSubstepped) q.substeps = n;
-      if (methods[k].kind() == StepKind::kIterated) q.iterations = n;
+      q.SetStep(SpecOf(methods[k].kind()), param, n);
       q.time_limit = time_limit;
       if (repeat > 0) q.repeat = repeat;
       q.time_budget = time_budget;

@@ -143,12 +143,11 @@ std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_part
 
 // Row task t of method m as the progress line and the watchdog name it.
 std::string RowTaskName(const RowMethod& m, const RowTask& t) {
-  switch (m.kind()) {
-    case StepKind::kAdaptive: return fmt::format("{} rtol {:g}", m.label(), t.param);
-    case StepKind::kSubstepped: return fmt::format("{} h = {:g} s/{}", m.label(), t.param, t.count);
-    case StepKind::kIterated: return fmt::format("{} h = {:g} s x{}", m.label(), t.param, t.count);
-    default: return fmt::format("{} h = {:g} s", m.label(), t.param);
-  }
+  const StepKindSpec& k = SpecOf(m.kind());
+  if (k.adaptive()) return fmt::format("{} rtol {:g}", m.label(), t.param);
+  std::string name = fmt::format("{} h = {:g} s", m.label(), t.param);
+  if (k.counted()) name += fmt::format("{}{}", k.progress_separator, t.count);
+  return name;
 }
 
 // The reference task's --time-limit [s].
@@ -242,9 +241,9 @@ struct Rung {
 };
 
 Rung RungOf(const RowMethod& m, const Scene& scene, int index) {
-  const StepKind kind = m.kind();
-  if (kind == StepKind::kAdaptive) return {1e-4 * std::pow(10.0, -index), 1};
-  if (CountedKind(kind)) return {scene.h, 1 << std::max(0, index)};
+  const StepKindSpec& k = SpecOf(m.kind());
+  if (k.adaptive()) return {1e-4 * std::pow(10.0, -index), 1};
+  if (k.counted()) return {scene.h, 1 << std::max(0, index)};
   return {scene.h * std::pow(2.0, -index), 1};
 }
 
@@ -252,26 +251,22 @@ Rung RungOf(const RowMethod& m, const Scene& scene, int index) {
 // substeps or iterations 1 … 1024; rtol 1e-1 … 10 × the reference's rtol.
 bool RungExists(const RowMethod& m, const BenchRun& b, int index) {
   const Rung r = RungOf(m, b.scene, index);
-  switch (m.kind()) {
-    case StepKind::kAdaptive: return r.param <= 0.1 * (1.0 + 1e-9) && r.param >= 10.0 * b.ref_rtol * (1.0 - 1e-9);
-    case StepKind::kSubstepped:
-    case StepKind::kIterated: return index >= 0 && r.count <= 1024;
-    default: return r.param <= 0.25 * b.scene.t_end && r.param >= b.scene.h / 4096.0;
-  }
+  const StepKindSpec& k = SpecOf(m.kind());
+  if (k.adaptive()) return r.param <= 0.1 * (1.0 + 1e-9) && r.param >= 10.0 * b.ref_rtol * (1.0 - 1e-9);
+  if (k.counted()) return index >= 0 && r.count <= 1024;
+  return r.param <= 0.25 * b.scene.t_end && r.param >= b.scene.h / 4096.0;
 }
 
 std::string RungName(const RowMethod& m, const Rung& r) {
-  switch (m.kind()) {
-    case StepKind::kAdaptive: return fmt::format("rtol {:g}", r.param);
-    case StepKind::kSubstepped: return fmt::format("{} substeps", r.count);
-    case StepKind::kIterated: return fmt::format("{} iterations", r.count);
-    default: return fmt::format("h = {:g} s", r.param);
-  }
+  const StepKindSpec& k = SpecOf(m.kind());
+  if (k.adaptive()) return fmt::format("rtol {:g}", r.param);
+  if (k.counted()) return fmt::format("{} {}", r.count, k.count);
+  return fmt::format("h = {:g} s", r.param);
 }
 
 double PredictedWallTime(StepKind kind, double last_s, double before_s) {
   if (!(last_s > 0.0)) return 0.0;
-  if (kind != StepKind::kAdaptive) return 2.0 * last_s;
+  if (!SpecOf(kind).adaptive()) return 2.0 * last_s;
   if (!(before_s > 0.0)) return 0.0;
   return last_s * std::max(1.0, last_s / before_s);
 }

@@ -42,10 +42,6 @@
 
 namespace clothbench {
 
-/// Whether a kind's rows take a count besides h: substeps (substepped
-/// rows) or iterations per step (iterated rows).
-inline bool CountedKind(StepKind k) { return k == StepKind::kSubstepped || k == StepKind::kIterated; }
-
 /// Settings shared by all rows of one invocation.
 struct RunContext {
   std::string arkode_table = "ARK324L2SA";
@@ -443,10 +439,10 @@ struct RowMethod {
   /// "pd_chebyshev_h0.01_k16", "cvode_rtol0.0001" (a sweep over CG
   /// tolerances appends "_eta<η>").
   std::string RunId(double param, int count) const {
-    return kind() == StepKind::kFixedStep    ? fmt::format("{}_h{:g}", id(), param)
-           : kind() == StepKind::kSubstepped ? fmt::format("{}_h{:g}_n{}", id(), param, count)
-           : kind() == StepKind::kIterated   ? fmt::format("{}_h{:g}_k{}", id(), param, count)
-                                             : fmt::format("{}_rtol{:g}", id(), param);
+    const StepKindSpec& k = SpecOf(kind());
+    std::string run_id = fmt::format("{}_{}{:g}", id(), k.param, param);
+    if (k.counted()) run_id += fmt::format("_{}{}", k.count_id, count);
+    return run_id;
   }
   bool fully_implicit() const { return entry->nonlinear_solver; }
   /// Whether the row reads an ARKODE IMEX table (arkode rows without /ark4 or /ark5).
@@ -526,20 +522,14 @@ struct RowMethod {
     if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
     row.id = RunId(param, count);
     row.h = row.rtol = row.atol = 0.0;
-    if (kind() == StepKind::kFixedStep) {
-      row.h = param;
-      row.numerical_stiffness = scene.NumericalStiffness(param);
-    } else if (kind() == StepKind::kSubstepped) {
-      row.h = param;
-      row.substeps = count;
-      row.numerical_stiffness = scene.NumericalStiffness(param / count);
-    } else if (kind() == StepKind::kIterated) {
-      row.h = param;
-      row.iterations = count;
-      row.numerical_stiffness = scene.NumericalStiffness(param);
-    } else {
+    const StepKindSpec& k = SpecOf(kind());
+    if (k.adaptive()) {
       row.rtol = row.atol = param;  // rtol = atol for every adaptive row
       row.numerical_stiffness = scene.NumericalStiffness(scene.h);
+    } else {
+      row.h = param;
+      if (k.counted()) row.*k.count_field = count;
+      row.numerical_stiffness = scene.NumericalStiffness(k.count_divides_h ? param / count : param);
     }
     if (uses_pcg()) {
       row.cg_tolerance = row_spec.cg_tolerance;
@@ -568,11 +558,11 @@ struct RowOption {
 };
 inline const std::vector<RowOption>& RowOptions() {
   static const std::vector<RowOption> options = {
-      {"rtol", "--rtols", [](const RowMethod& m) { return m.kind() == StepKind::kAdaptive; },
+      {"rtol", "--rtols", [](const RowMethod& m) { return SpecOf(m.kind()).adaptive(); },
        "adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error"},
-      {"substeps", "--substeps", [](const RowMethod& m) { return m.kind() == StepKind::kSubstepped; },
+      {"substeps", "--substeps", [](const RowMethod& m) { return SpecOf(m.kind()).count == "substeps"; },
        "substepped rows: xpbd"},
-      {"iterations", "--iterations", [](const RowMethod& m) { return m.kind() == StepKind::kIterated; },
+      {"iterations", "--iterations", [](const RowMethod& m) { return SpecOf(m.kind()).count == "iterations"; },
        "iterated rows: pd, pd/chebyshev, vbd, vbd/chebyshev"},
       {"cg_tolerance", "--cg-tolerance/--cg-tolerances", [](const RowMethod& m) { return m.uses_pcg(); },
        "rows that solve with the PCG"},
@@ -647,7 +637,7 @@ inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>
   std::vector<RowMethod> kept;
   for (RowMethod& m : *rows) {
     if (m.entry->error_control) m.error_control = true;
-    if (m.kind() == StepKind::kAdaptive) {
+    if (SpecOf(m.kind()).adaptive()) {
       // Default rows: "sbdf2" and "sbdf2/error" are one row here.
       const bool listed = std::any_of(kept.begin(), kept.end(), [&](const RowMethod& k) { return k.label() == m.label(); });
       if (named || !listed) kept.push_back(m);

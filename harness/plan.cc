@@ -34,18 +34,19 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
     if (mh.empty()) mh = {scene.h};
     std::sort(mh.begin(), mh.end(), std::greater<>());
     auto& ps = plan.params[k];
-    if (m.kind() == StepKind::kSubstepped) {
+    const StepKindSpec& kind = SpecOf(m.kind());
+    if (kind.count_divides_h) {  // substeps: the runs in order of decreasing substep h/n
       for (double h : mh)
         for (int n : substeps) ps.emplace_back(h, n);
       std::stable_sort(ps.begin(), ps.end(),
                        [](const auto& a, const auto& b) { return a.first / a.second > b.first / b.second; });
-    } else if (m.kind() == StepKind::kIterated) {
+    } else if (kind.counted()) {  // iterations: the command's, the method's or the default list
       const std::vector<int>& counts = !iterations.empty()    ? iterations
                                        : !d.iterations.empty() ? d.iterations
                                                                : kDefaultIterations;
       for (double h : mh)  // h decreasing, each with its iteration counts increasing
         for (int count : counts) ps.emplace_back(h, count);
-    } else if (m.kind() == StepKind::kFixedStep) {
+    } else if (!kind.adaptive()) {
       for (double h : mh) ps.emplace_back(h, 1);
     } else {
       // A scene under error control sets its own rtol as the default.
@@ -55,9 +56,9 @@ RowPlan PlanRows(const Scene& scene, const std::vector<RowMethod>& methods, cons
     }
     plan.n_params.push_back(ps.size());
     // The longest fixed-step or substepped run must stay within the step limit.
-    if (m.kind() != StepKind::kAdaptive)
+    if (!kind.adaptive())
       for (const auto& [h, count] : ps) {
-        const int n = m.kind() == StepKind::kSubstepped ? count : 1;  // steps per h
+        const int n = kind.count_divides_h ? count : 1;  // steps per h
         plan.step_records += std::ceil(scene.t_end / h * n) * static_cast<double>(m.uses_pcg() ? n_eta : 1);
         if (scene.t_end / h * n > kMaxStepsPerRun)
           throw UsageError(fmt::format("{}: {} at h = {:g} s{} needs t_end/h = {:.3g} steps, more than the limit of "

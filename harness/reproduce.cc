@@ -143,12 +143,8 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   }
   RowMethod m = rows.front();
   if (q.scene.solver.step_control == StepControl::kError && m.entry->error_control) m.error_control = true;
-  switch (m.kind()) {
-    case StepKind::kFixedStep: q.h = r.h; break;
-    case StepKind::kSubstepped: q.h = r.h, q.substeps = r.substeps; break;
-    case StepKind::kIterated: q.h = r.h, q.iterations = r.iterations; break;
-    case StepKind::kAdaptive: q.rtol = r.rtol; break;
-  }
+  const StepKindSpec& kind = SpecOf(m.kind());
+  q.SetStep(kind, kind.adaptive() ? r.rtol : r.h, kind.counted() ? r.*kind.count_field : 1);
   if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
   if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
   if (m.reads_arkode_table() && !r.butcher_table.empty()) q.arkode_table = r.butcher_table;
@@ -177,13 +173,14 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
                                  "agree (the label names {}, {})",
                                  where, r.label, r.integrator, r.step_kind, run.row.name(), ToString(run.row.kind())));
   if (id != run_id) {
-    const char* field = run.row.kind() == StepKind::kAdaptive ? "rtol"
-                        : CountedKind(run.row.kind()) && fmt::format("{:g}", run.param) == fmt::format("{:g}", r.h)
-                            ? (run.row.kind() == StepKind::kSubstepped ? "substeps" : "iterations")
-                            : eta != std::string::npos && run_id.find("_eta") != std::string::npos &&
-                                      id.substr(0, id.find("_eta")) == run_id.substr(0, run_id.find("_eta"))
-                                  ? "cg_tolerance"
-                                  : "h";
+    const StepKindSpec& k = SpecOf(run.row.kind());
+    const std::string field = k.adaptive() ? std::string(k.param)
+                              : k.counted() && fmt::format("{:g}", run.param) == fmt::format("{:g}", r.h)
+                                  ? std::string(k.count)
+                                  : eta != std::string::npos && run_id.find("_eta") != std::string::npos &&
+                                            id.substr(0, id.find("_eta")) == run_id.substr(0, run_id.find("_eta"))
+                                      ? "cg_tolerance"
+                                      : "h";
     throw UsageError(fmt::format("{}: {}: the stored parameters name run \"{}\", not this one", where, field, id));
   }
   return q;

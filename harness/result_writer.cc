@@ -100,8 +100,9 @@ void WriteTrajectoryFrames(ResultFile& f, const std::string& g, const Trajectory
 void CompareToReference(const ParticleSystem& sys, const RunSummary* ref, double t_end, ErrorMetric metric,
                         std::vector<MethodRun>* rows) {
   const auto step = [&](const MethodRun& q) {
-    if (q.kind() == StepKind::kAdaptive) return q.steps > 0 ? t_end / static_cast<double>(q.steps) : 0.0;
-    return q.kind() == StepKind::kSubstepped && q.substeps > 0 ? q.h / static_cast<double>(q.substeps) : q.h;
+    const StepKindSpec& k = SpecOf(q.kind());
+    if (k.adaptive()) return q.steps > 0 ? t_end / static_cast<double>(q.steps) : 0.0;
+    return k.count_divides_h && q.*k.count_field > 0 ? q.h / static_cast<double>(q.*k.count_field) : q.h;
   };
   for (std::size_t i = 0; i < rows->size(); ++i) {
     MethodRun& r = (*rows)[i];

@@ -150,7 +150,8 @@ void ResolveStep(const RunRequest& q, ResolvedRun* out) {
   const RowMethod& m = out->row;
   const Scene& s = out->scene;
   const std::string label = m.label();
-  if (m.kind() == StepKind::kAdaptive) {
+  const StepKindSpec& kind = SpecOf(m.kind());
+  if (kind.adaptive()) {
     if (q.h) throw Fail(q, "h", fmt::format("{} is adaptive: it reads rtol, not h", label));
     double r = 0.0;
     if (q.rtol) r = *q.rtol;
@@ -177,8 +178,8 @@ void ResolveStep(const RunRequest& q, ResolvedRun* out) {
       throw Fail(q, "iterations", fmt::format("{} must be a whole number from 1 to 1e6", *q.iterations));
     out->count = static_cast<int>(*q.iterations);
   }
-  const double step = m.kind() == StepKind::kSubstepped ? out->param / out->count : out->param;
-  if (m.kind() != StepKind::kAdaptive && s.t_end / step > kMaxStepsPerRun)
+  const double step = kind.count_divides_h ? out->param / out->count : out->param;
+  if (!kind.adaptive() && s.t_end / step > kMaxStepsPerRun)
     throw Fail(q, "h", fmt::format("t_end/h = {:g}/{:g} = {:.3g} steps exceeds the limit of {:g}", s.t_end, step,
                                    s.t_end / step, kMaxStepsPerRun));
 }
@@ -256,7 +257,7 @@ ResolvedRun RunRequest::Resolve() const {
   // The one run's memory, before anything is computed, at every door
   // (bench_integrators checks its whole plan as well): its step records
   // are one per step of a fixed-step row, unknown (0) for adaptive ones.
-  const double records = out.row.kind() == StepKind::kAdaptive ? 0.0 : out.scene.t_end / out.param;
+  const double records = SpecOf(out.row.kind()).adaptive() ? 0.0 : out.scene.t_end / out.param;
   CheckMemory(out.scene, {out.row}, {1}, 1, std::nullopt, records);
   Sew(&out.scene);  // a garment's sewing phase, once per scene (solver/sewing.h)
   return out;

@@ -107,6 +107,12 @@ struct RunRequest {
   Scene SweepScene() const;
   /// The name of `field` (a keyword) as this request's entry point spells it.
   std::string Field(std::string_view field) const;
+  /// Sets a row's step as its step kind names it: h or rtol to `param`,
+  /// and its count (substeps or iterations), if the kind has one, to `count`.
+  void SetStep(const StepKindSpec& kind, double param, long count) {
+    (kind.adaptive() ? rtol : h) = param;
+    if (kind.counted()) (kind.count == "substeps" ? substeps : iterations) = count;
+  }
 };
 
 }  // namespace clothbench

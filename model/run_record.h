@@ -110,6 +110,41 @@ struct RunRecord {
   bool ok() const { return status == RunStatus::kOk; }
 };
 
+/// A step kind as data: what its rows' parameter and count are called in
+/// requests, records, options, run ids and the table. Every place that
+/// treats the kinds differently reads this record instead of naming a kind.
+struct StepKindSpec {
+  StepKind kind;
+  /// The parameter: "h" (a step [s]) or "rtol" (rtol = atol of an adaptive
+  /// row); the request's and record's field, and the run id's prefix
+  /// ("bdf2_h0.01", "cvode_rtol0.0001").
+  std::string_view param;
+  /// The count besides h: "substeps" (per frame step) or "iterations" (per
+  /// step), or empty; its request and record field, its option
+  /// ("--substeps") and its word in progress lines.
+  std::string_view count;
+  long RunRecord::*count_field;  ///< &RunRecord::substeps, &RunRecord::iterations or nullptr
+  char count_id;                 ///< the run id's count prefix: "_n4" (substeps), "_k16" (iterations)
+  char count_separator;          ///< the table's h|rtol column: "0.01/4", "0.01x16"
+  std::string_view progress_separator;  ///< progress lines: "h = 0.01 s/4", "h = 0.01 s x16"
+  bool count_divides_h;          ///< substeps: each takes h/count
+  bool adaptive() const { return param == "rtol"; }
+  bool counted() const { return count_field != nullptr; }
+};
+
+/// The record of `kind`.
+inline const StepKindSpec& SpecOf(StepKind kind) {
+  static const StepKindSpec kSpecs[] = {
+      {StepKind::kFixedStep, "h", "", nullptr, 0, 0, "", false},
+      {StepKind::kAdaptive, "rtol", "", nullptr, 0, 0, "", false},
+      {StepKind::kSubstepped, "h", "substeps", &RunRecord::substeps, 'n', '/', "/", true},
+      {StepKind::kIterated, "h", "iterations", &RunRecord::iterations, 'k', 'x', " x", false},
+  };
+  static_assert(static_cast<int>(StepKind::kFixedStep) == 0 && static_cast<int>(StepKind::kAdaptive) == 1 &&
+                static_cast<int>(StepKind::kSubstepped) == 2 && static_cast<int>(StepKind::kIterated) == 3);
+  return kSpecs[static_cast<int>(kind)];
+}
+
 }  // namespace clothbench
 
 #endif  // CLOTHBENCH_MODEL_RUN_RECORD_H_

@@ -739,7 +739,7 @@ std::vector<double> DefaultParamsOf(const py::object& scene_arg, const std::stri
                                                          : scene_arg.cast<Scene>();
   const std::vector<RowMethod> rows = ExpandMethods({method}, {scene.solver.nonlinear_solver}, "method");
   const DefaultParams d = DefaultRowParams(rows.front());
-  if (rows.front().kind() == StepKind::kAdaptive) return d.rtols;
+  if (SpecOf(rows.front().kind()).adaptive()) return d.rtols;
   std::vector<double> h;
   for (double f : d.h_factors) h.push_back(f * scene.h);
   return h;

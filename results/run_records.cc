@@ -149,10 +149,8 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record
           bool store = true;
           switch (field.stored) {
             case Stored::kAlways: break;
-            case Stored::kAdaptive: store = r.step_kind == StepKind::kAdaptive; break;
-            case Stored::kStepped: store = r.step_kind != StepKind::kAdaptive; break;
-            case Stored::kSubstepped: store = r.step_kind == StepKind::kSubstepped; break;
-            case Stored::kIterated: store = r.step_kind == StepKind::kIterated; break;
+            case Stored::kStepParameter: store = SpecOf(r.step_kind).param == field.name; break;
+            case Stored::kStepCount: store = SpecOf(r.step_kind).count == field.name; break;
             default:
               if constexpr (std::is_same_v<T, std::string>) store = !v.empty();
               else if constexpr (std::is_same_v<T, StepKind> || std::is_same_v<T, RunStatus>) store = true;

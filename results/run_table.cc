@@ -57,10 +57,10 @@ const std::vector<RecordField>& RunRecordFields() {
       {"layer", &R::layer},
       {"step_kind", &R::step_kind},
       {"nonlinear_solver", &R::nonlinear_solver, S::kNonEmpty},
-      {"rtol", &R::rtol, S::kAdaptive},
-      {"h", &R::h, S::kStepped},
-      {"substeps", &R::substeps, S::kSubstepped},
-      {"iterations", &R::iterations, S::kIterated},
+      {"rtol", &R::rtol, S::kStepParameter},
+      {"h", &R::h, S::kStepParameter},
+      {"substeps", &R::substeps, S::kStepCount},
+      {"iterations", &R::iterations, S::kStepCount},
       {"chebyshev_rho", &R::chebyshev_rho, S::kPositive},
       {"chebyshev_rho_sweeps", &R::chebyshev_rho_sweeps, S::kPositive},
       {"colours", &R::colours, S::kPositive},
@@ -190,10 +190,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
   for (const RunRecord& r : t.runs) {
     if (!last.empty() && last != r.label) fmt::print(out, "\n");
     last = r.label;
-    const std::string hcol = r.step_kind == StepKind::kAdaptive     ? fmt::format("{:g}", r.rtol)
-                             : r.step_kind == StepKind::kSubstepped ? fmt::format("{:g}/{}", r.h, r.substeps)
-                             : r.step_kind == StepKind::kIterated   ? fmt::format("{:g}x{}", r.h, r.iterations)
-                                                           : fmt::format("{:g}", r.h);
+    const StepKindSpec& kind = SpecOf(r.step_kind);
+    std::string hcol = fmt::format("{:g}", kind.adaptive() ? r.rtol : r.h);
+    if (kind.counted()) hcol += fmt::format("{}{}", kind.count_separator, r.*kind.count_field);
     const std::string contact_col =
         !contact ? "" : fmt::format(" {:>11}", r.ok() && r.contact_power_W ? Sci(*r.contact_power_W) : "");
     fmt::print(out, "{:<24} {:>10} {:>7} {:>8} {:>9} {:>10.3f} {:>9} {:>8} {:>11} {:>7} {:>11}{}  {}\n", r.label, hcol,

@@ -31,10 +31,8 @@ enum class Stored {
   kNonEmpty,     ///< strings: when not empty
   kPositive,     ///< numbers: when > 0
   kNonNegative,  ///< numbers: when ≥ 0 (−1 means "not applicable")
-  kAdaptive,     ///< only for adaptive rows (rtol)
-  kStepped,      ///< only for fixed-step and substepped rows (h)
-  kSubstepped,   ///< only for substepped rows (substeps)
-  kIterated,     ///< only for iterated rows (iterations)
+  kStepParameter,  ///< only where the row's step kind names it its parameter (h or rtol; SpecOf)
+  kStepCount,      ///< only where the row's step kind names it its count (substeps or iterations)
   kSet,          ///< optionals: when they hold a value (no NaN is ever written)
 };
 
