@@ -477,72 +477,7 @@ struct RowMethod {
   /// ones; `spec` the solver settings (the scene's, with the invocation's
   /// overrides). Never throws for a numerical failure (see RunRecord::status).
   MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
-                const RunContext& ctx, int count = 1) const {
-    SolverSpec row_spec = spec;
-    const std::optional<PreconditionerType>& best =
-        error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
-    // A scene's IC(0) is the thesis' setting, kept for --table and the
-    // stability maps, and kBestPreconditioner was measured against it. A
-    // scene that names another preconditioner chose it for itself (the
-    // contact-scale scenes' prefiltered AMG, docs/notes/performance.md
-    // "Prefiltered AMG") and keeps it.
-    if (best && !ctx.preconditioner_from_cli && spec.preconditioner == PreconditionerType::kIc0)
-      row_spec.preconditioner = *best;
-    if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
-    if (entry->best_tangent_explicit_terms && !ctx.tangent_terms_from_cli)
-      row_spec.tangent_explicit_terms = *entry->best_tangent_explicit_terms;
-    RunContext row_ctx = ctx;
-    if (!ArkodeRowTable(variant).empty()) row_ctx.arkode_table = ArkodeRowTable(variant);
-    row_ctx.variant = variant;
-    // The step loop fills the record's status, counts and times (and the
-    // SUNDIALS runs their settings); the row's identity follows.
-    MethodRun row;
-    const SolverSpec s = Settings(row_spec, param);
-    std::unique_ptr<Stepper> stepper;
-    if (entry->predict && ctx.refuse_predicted &&
-               RefusedByPrediction(PredictOnce(entry->predict, sys, variant), ctx.limits.time_limit_s, &row)) {
-      // not started: the record says why, its identity follows
-    } else if (entry->make) {
-      stepper = entry->make(sys, s, count, variant);
-      // Error-controlled rows start at the scene's h; the controller takes over.
-      static_cast<RunSummary&>(row) =
-          RunStepper(sys, *stepper, {error_control ? scene.h : param, scene.t_end, scene.frame_dt, &s, ctx.limits});
-      row.step_control = std::string(ToString(s.step_control));
-      if (entry->describe) entry->describe(*stepper, sys, &row);
-    } else {
-      static_cast<RunSummary&>(row) = entry->integrate(
-          sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, row_ctx);
-      row.step_control = "sundials";
-      if (entry->arkode_table) row.butcher_table = row_ctx.arkode_table;
-    }
-    row.label = label();
-    row.integrator = name();
-    row.layer = std::string(entry->layer);
-    row.step_kind = kind();
-    if (fully_implicit()) row.nonlinear_solver = std::string(ToString(solver));
-    row.id = RunId(param, count);
-    row.h = row.rtol = row.atol = 0.0;
-    const StepKindSpec& k = SpecOf(kind());
-    if (k.adaptive()) {
-      row.rtol = row.atol = param;  // rtol = atol for every adaptive row
-      row.numerical_stiffness = scene.NumericalStiffness(scene.h);
-    } else {
-      row.h = param;
-      if (k.counted()) row.*k.count_field = count;
-      row.numerical_stiffness = scene.NumericalStiffness(k.count_divides_h ? param / count : param);
-    }
-    if (uses_pcg()) {
-      row.cg_tolerance = row_spec.cg_tolerance;
-      row.preconditioner = std::string(ToString(row_spec.preconditioner));
-      row.predictor = std::string(ToString(row_spec.predictor));
-      row.cg_reference = std::string(ToString(row_spec.cg_reference));
-    }
-    if (builds_tangent()) row.tangent_terms = row_spec.tangent_explicit_terms ? "all" : "tension";
-    if (scene.collision) row.collision_self = scene.collision->self ? "on" : "off";
-    if (solver == NonlinearSolver::kNewton) row.newton_jacobian = std::string(ToString(row_spec.newton_jacobian));
-    row.threads = KernelThreads();
-    return row;
-  }
+                const RunContext& ctx, int count = 1) const;
 };
 
 /// An option that only some rows read: its request field (RunRequest,
@@ -596,30 +531,7 @@ struct GivenOptions {
 /// that names no row), as "--rtols: no row
 /// of this run uses it (it applies to …)"; empty if every given option is
 /// used. An option nobody reads would otherwise be ignored silently.
-inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions& given) {
-  const auto any = [&](auto&& reads) { return std::any_of(rows.begin(), rows.end(), reads); };
-  const std::pair<const char*, bool> checks[] = {
-      {"rtol", given.rtols},
-      {"substeps", given.substeps},
-      {"iterations", given.iterations},
-      {"cg_tolerance", given.cg_tolerance},
-      {"preconditioner", given.preconditioner},
-      {"nonlinear_solver", given.nonlinear_solver},
-      {"arkode_table", given.arkode_table},
-      {"cvode_setting", given.cvode_setting},
-      {"tangent_terms", given.tangent_terms},
-  };
-  for (const auto& [field, was_given] : checks) {
-    const RowOption& o = RowOptionOf(field);
-    if (was_given && !any(o.reads)) return fmt::format("{}: no row of this run uses it (it applies to {})", o.option, o.rows);
-  }
-  if (!given.baseline.empty() && !any([&](const RowMethod& m) { return m.label() == given.baseline; })) {
-    std::string labels;
-    for (const RowMethod& m : rows) labels += (labels.empty() ? "" : ", ") + m.label();
-    return fmt::format("--baseline: \"{}\" is not a row of this run ({})", given.baseline, labels);
-  }
-  return "";
-}
+std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions& given);
 
 /// Under a scene whose [solver] step_control is "error", the rows of the
 /// methods that run under error control (sbdf2, bdf2) are their "/error"
@@ -631,28 +543,8 @@ inline std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenO
 /// (`named`) it is refused before anything is computed; among the default
 /// rows it is left out (and a default row that becomes one already listed).
 /// @throws std::invalid_argument naming the row and the scene key
-inline void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows, bool named,
-                                  std::string_view option = "--integrators") {
-  if (spec.step_control != StepControl::kError) return;
-  std::vector<RowMethod> kept;
-  for (RowMethod& m : *rows) {
-    if (m.entry->error_control) m.error_control = true;
-    if (SpecOf(m.kind()).adaptive()) {
-      // Default rows: "sbdf2" and "sbdf2/error" are one row here.
-      const bool listed = std::any_of(kept.begin(), kept.end(), [&](const RowMethod& k) { return k.label() == m.label(); });
-      if (named || !listed) kept.push_back(m);
-    } else if (named) {
-      std::string with;
-      for (const MethodEntry& e : Registry())
-        if (e.error_control) with += (with.empty() ? "" : ", ") + std::string(e.name);
-      throw std::invalid_argument(fmt::format(
-          "{}: {} cannot step under the scene's [solver] step_control = \"error\" (it has no error estimate; rows "
-          "that have one: {}, and the adaptive cvode, ida, arkode)",
-          option, m.label(), with));
-    }
-  }
-  *rows = std::move(kept);
-}
+void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows, bool named,
+                           std::string_view option = "--integrators");
 
 /// A row's default parameters when the command line gives none: step sizes
 /// as multiples of the scene's h (fixed-step rows; frame steps of
@@ -779,64 +671,8 @@ inline NonlinearSolver ParseNonlinearSolver(const std::string& s, const std::str
 /// @param kinds if non-empty, the step kinds the caller can run (others are
 ///              refused, naming `option`)
 /// @throws std::invalid_argument for an unknown name, solver or modifier.
-inline std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names,
-                                            const std::vector<NonlinearSolver>& solvers, const std::string& option,
-                                            const std::vector<StepKind>& kinds = {}) {
-  std::vector<RowMethod> out;
-  for (const std::string& full : names) {
-    std::vector<std::string> parts;
-    for (std::size_t b = 0;;) {
-      const std::size_t e = full.find('/', b);
-      parts.push_back(full.substr(b, e == std::string::npos ? std::string::npos : e - b));
-      if (e == std::string::npos) break;
-      b = e + 1;
-    }
-    RowMethod r;
-    r.entry = FindMethod(parts[0]);
-    if (!r.entry)
-      throw std::invalid_argument(
-          fmt::format("{}: unknown integrator \"{}\" (expected {})", option, full, KnownMethodNames()));
-    bool solver_named = false;
-    for (std::size_t k = 1; k < parts.size(); ++k) {
-      if (r.variant.empty() && std::find(r.entry->variants.begin(), r.entry->variants.end(), parts[k]) !=
-                                   r.entry->variants.end()) {
-        r.variant = parts[k];
-      } else if (parts[k] == "error") {
-        if (r.error_control)
-          throw std::invalid_argument(fmt::format("{}: \"{}\" names /error twice", option, full));
-        if (!r.entry->error_control)
-          throw std::invalid_argument(
-              fmt::format("{}: \"{}\": only sbdf2 and bdf2 run under error control (/error)", option, full));
-        r.error_control = true;
-      } else if (r.entry->nonlinear_solver) {
-        if (solver_named)
-          throw std::invalid_argument(fmt::format("{}: \"{}\" names a nonlinear solver twice", option, full));
-        r.solver = ParseNonlinearSolver(parts[k], option);
-        solver_named = true;
-      } else {
-        std::string takes;
-        for (std::string_view v : r.entry->variants) takes += (takes.empty() ? "" : ", ") + std::string(v);
-        if (r.entry->error_control) takes += std::string(takes.empty() ? "" : ", ") + "error";
-        throw std::invalid_argument(
-            takes.empty() ? fmt::format("{}: \"{}\": {} takes no modifier after '/'", option, full, r.entry->name)
-                          : fmt::format("{}: \"{}\": \"{}\" is not a modifier of {} (it takes {})", option, full,
-                                        parts[k], r.entry->name, takes));
-      }
-    }
-    if (!kinds.empty() && std::find(kinds.begin(), kinds.end(), r.kind()) == kinds.end())
-      throw std::invalid_argument(fmt::format("{}: \"{}\" is {}, which this command does not run", option, full,
-                                              ToString(r.kind())));
-    if (r.fully_implicit() && !solver_named) {
-      for (NonlinearSolver s : solvers) {
-        r.solver = s;
-        out.push_back(r);
-      }
-    } else {
-      out.push_back(r);
-    }
-  }
-  return out;
-}
+std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names, const std::vector<NonlinearSolver>& solvers,
+                                     const std::string& option, const std::vector<StepKind>& kinds = {});
 
 }  // namespace clothbench
 
