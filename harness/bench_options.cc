@@ -68,7 +68,7 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--reference", reference,
                  fmt::format("the reference: {} (cvode, ida: the reduced velocity solve; /klu: KLU on the first-order "
                              "Jacobian) or none (default {})",
-                             ReferenceNames(), kDefaultReference));
+                             ReferenceNames(), DefaultReference()));
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--cvode-setting", cvode_setting_arg,
                  "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
@@ -102,7 +102,7 @@ void AddOptions(CLI::App& app, Options& o) {
                  "the row the equal-accuracy ratios are relative to (default cvode: CVODE with the reduced solve)");
   app.add_option("--tangent-terms", tangent_terms,
                  "J_alpha's terms in every row that builds it: all | tension (tension and mass only); default: the "
-                 "scene's solver.tangent_explicit_terms, and each method's measured best (harness/methods.h)");
+                 "scene's solver.tangent_explicit_terms, and each method's measured best (its row, solver/method_row.h)");
   app.add_option("--frames", frames_mode,
                  "which frames the file keeps (errors and energies always use every frame_dt): default: positions "
                  "every frame_dt for the reference and each method's first row, at t = 0 and t_end for the other "

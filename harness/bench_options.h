@@ -19,11 +19,11 @@ namespace clothbench {
 
 /// The command line's values, as given (validated by PlanBench).
 struct Options {
-  std::string scene_path, integrators_arg, h_arg, reference = std::string(kDefaultReference), out, rtols_arg;
+  std::string scene_path, integrators_arg, h_arg, reference = std::string(DefaultReference()), out, rtols_arg;
   double t_end = 0.0, ref_rtol = 1e-10, cg_tolerance = 0.0, time_limit = RunLimits().time_limit_s, time_budget = 15.0;
   int repeat = 0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
-  std::string tangent_terms, baseline = std::string(kWorkPrecisionBaseline), error_metric = "final";
+  std::string tangent_terms, baseline = std::string(DefaultReference()), error_metric = "final";
   std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64",
                                                                                     iterations_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;

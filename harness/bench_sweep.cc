@@ -215,7 +215,7 @@ ReferenceTask ReferenceTaskOf(const BenchRun& b, double h_ref, TerminalProgress&
 RunContext ContextOf(const BenchRun& b) {
   RunLimits limits;
   limits.time_limit_s = b.time_limit;
-  return RunContext{b.arkode_table, limits, "", b.preconditioner_from_cli, b.cg_tolerance_from_cli,
+  return RunContext{b.arkode_table, limits, b.preconditioner_from_cli, b.cg_tolerance_from_cli,
                     b.tangent_terms_from_cli, b.cvode, !b.start_predicted};
 }
 

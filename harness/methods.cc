@@ -25,9 +25,6 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
   if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
   if (entry->best_tangent_explicit_terms && !ctx.tangent_terms_from_cli)
     row_spec.tangent_explicit_terms = *entry->best_tangent_explicit_terms;
-  RunContext row_ctx = ctx;
-  if (!ArkodeRowTable(variant).empty()) row_ctx.arkode_table = ArkodeRowTable(variant);
-  row_ctx.variant = variant;
   // The step loop fills the record's status, counts and times (and the
   // SUNDIALS runs their settings); the row's identity follows.
   MethodRun row;
@@ -45,9 +42,8 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
     if (entry->describe) entry->describe(*stepper, sys, &row);
   } else {
     static_cast<RunSummary&>(row) = entry->integrate(
-        sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, row_ctx);
+        sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, variant, ctx);
     row.step_control = "sundials";
-    if (entry->arkode_table) row.butcher_table = row_ctx.arkode_table;
   }
   row.label = label();
   row.integrator = name();
@@ -78,6 +74,23 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
   return row;
 }
 
+std::string RowsReading(const RowOption& o) {
+  std::string labels;
+  for (const MethodEntry& e : Registry()) {
+    std::vector<std::string> variants = {""};
+    for (std::string_view v : e.variants) variants.emplace_back(v);
+    for (const NonlinearSolver solver : {NonlinearSolver::kFixedPoint, NonlinearSolver::kNewton})
+      for (const bool error_control : {false, true})
+        for (const std::string& variant : variants) {
+          if ((solver == NonlinearSolver::kNewton && !e.nonlinear_solver) || (error_control && !e.error_control))
+            continue;
+          const RowMethod m{&e, solver, error_control, variant};
+          if (o.reads(m)) labels += (labels.empty() ? "" : ", ") + m.label();
+        }
+  }
+  return fmt::format("{}: {}", o.what, labels.empty() ? std::string("none") : labels);
+}
+
 std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions& given) {
   const auto any = [&](auto&& reads) { return std::any_of(rows.begin(), rows.end(), reads); };
   const std::pair<const char*, bool> checks[] = {
@@ -93,7 +106,7 @@ std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions&
   };
   for (const auto& [field, was_given] : checks) {
     const RowOption& o = RowOptionOf(field);
-    if (was_given && !any(o.reads)) return fmt::format("{}: no row of this run uses it (it applies to {})", o.option, o.rows);
+    if (was_given && !any(o.reads)) return fmt::format("{}: no row of this run uses it (it applies to {})", o.option, RowsReading(o));
   }
   if (!given.baseline.empty() && !any([&](const RowMethod& m) { return m.label() == given.baseline; })) {
     std::string labels;

@@ -57,10 +57,12 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref, double fix
   tight.solver.fixed_point_tolerance = fixed_point_tolerance;
   tight.solver.max_updates = 200;
   const ParticleSystem tight_sys(tight);
-  RunSummary r = RunIntegrator(tight_sys, Method::kBdf2, {h_ref, scene.t_end, scene.frame_dt});
-  r.integrator = r.label = "bdf2_self_convergence";
+  const MethodEntry& method = SelfConvergenceMethod();
+  const std::unique_ptr<Stepper> stepper = method.make(tight_sys, tight.solver, 1, "");
+  RunSummary r = RunStepper(tight_sys, *stepper, {h_ref, scene.t_end, scene.frame_dt});
+  r.integrator = r.label = std::string(method.name) + "_self_convergence";
   if (scene.collision) r.collision_self = scene.collision->self ? "on" : "off";
-  r.layer = "solver";
+  r.layer = std::string(method.layer);
   r.step_kind = StepKind::kFixedStep;
   r.h = h_ref;
   r.cg_tolerance = tight.solver.cg_tolerance;
@@ -146,10 +148,10 @@ void Start(const ReferenceTask& t, const std::string& what) {
 // The self-convergence run at h_ref with its own error against the same at
 // 2 h_ref (RunRecord::error_estimate_m).
 RunSummary SelfConvergenceRun(const ReferenceTask& t) {
-  Start(t, fmt::format("reference bdf2 h = {:g} s", t.h_ref));
+  Start(t, fmt::format("reference {} h = {:g} s", SelfConvergenceMethod().name, t.h_ref));
   RunSummary r = SelfConvergenceReference(*t.scene, t.h_ref);
   if (r.ok()) {
-    Start(t, fmt::format("reference bdf2 h = {:g} s (self-convergence)", 2.0 * t.h_ref));
+    Start(t, fmt::format("reference {} h = {:g} s (self-convergence)", SelfConvergenceMethod().name, 2.0 * t.h_ref));
     SetReferenceErrorEstimate(&r, SelfConvergenceReference(*t.scene, 2.0 * t.h_ref), t.metric);
   }
   return r;
@@ -203,8 +205,8 @@ RunSummary ComputeReference(const ReferenceTask& t, const ParticleSystem& sys, c
   // reference must (a tenth of it), down to h_ref.
   const double wanted = t.targets.empty() ? 0.0 : 0.1 * *std::min_element(t.targets.begin(), t.targets.end());
   const auto label = [&](const std::string& what) {
-    Start(t, fmt::format("{} (side by side: reference {} rtol {:g} and {:g}, cross-check bdf2)", what, row.label(),
-                         t.rtol, 0.1 * t.rtol));
+    Start(t, fmt::format("{} (side by side: reference {} rtol {:g} and {:g}, cross-check {})", what, row.label(),
+                         t.rtol, 0.1 * t.rtol, SelfConvergenceMethod().name));
   };
   const RunSummary c = ContactCrossCheck(
       scene, t.h_ref, wanted, t.metric, &order,
@@ -214,9 +216,9 @@ RunSummary ComputeReference(const ReferenceTask& t, const ParticleSystem& sys, c
   if (!r.ok()) return r;
   label("reference estimate");
   SetReferenceErrorEstimate(&r, checks.Take(estimate), t.metric);
-  r.cross_check = fmt::format("bdf2 h = {:g} s, friction_law = regularised, predictor = extrapolate, "
+  r.cross_check = fmt::format("{} h = {:g} s, friction_law = regularised, predictor = extrapolate, "
                               "fixed_point_tolerance = {:g} m/s, 1 kernel thread (self-convergence against 2h and 4h{}{})",
-                              c.h, kCrossCheckFixedPointTolerance,
+                              SelfConvergenceMethod().name, c.h, kCrossCheckFixedPointTolerance,
                               !c.ok()              ? fmt::format(": {}", ToString(c.status))
                               : std::isnan(order) ? ": not in its asymptotic range"
                               : c.error_estimate_m < 0.0

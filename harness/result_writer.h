@@ -58,7 +58,7 @@ std::vector<double> MethodOrders(const RunSummary& run);
 
 /// The equal-accuracy table (docs/notes/work-precision.md) of the rows at the
 /// error `targets` [m] of `metric`, with ratios to the row labelled `baseline`
-/// (--baseline; kWorkPrecisionBaseline by default); targets below 10× the
+/// (--baseline; DefaultReference() by default); targets below 10× the
 /// reference's error estimate `reference_error` [m] (negative: not known)
 /// unresolved.
 EqualAccuracyTable WorkPrecision(const std::vector<MethodRun>& rows, const std::vector<double>& targets,

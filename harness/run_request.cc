@@ -47,7 +47,7 @@ UsageError Fail(const RunRequest& q, std::string_view field, const std::string& 
 // Refuses option `field` of q if row m does not read it (RowOptions()).
 void RefuseUnread(const RunRequest& q, const RowMethod& m, const char* field) {
   const RowOption& o = RowOptionOf(field);
-  if (!o.reads(m)) throw Fail(q, field, fmt::format("{} does not read it (it applies to {})", m.label(), o.rows));
+  if (!o.reads(m)) throw Fail(q, field, fmt::format("{} does not read it (it applies to {})", m.label(), RowsReading(o)));
 }
 
 }  // namespace

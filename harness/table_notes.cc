@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 
+#include "harness/methods.h"
+
 namespace clothbench {
 namespace {
 
@@ -56,61 +58,41 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
          CrossCheckLine(ref, error_name);
 }
 
+// The methods of step kind `kind`, "cvode, ida, arkode", in registry order;
+// for adaptive rows also "*/error" if a method runs under error control.
+std::string NamesOf(StepKind kind) {
+  std::string names;
+  bool error_rows = false;
+  for (const MethodEntry& e : Registry()) {
+    if (e.kind == kind) names += (names.empty() ? "" : ", ") + std::string(e.name);
+    error_rows = error_rows || e.error_control;
+  }
+  if (kind == StepKind::kAdaptive && error_rows) names += (names.empty() ? "" : ", ") + std::string("*/error");
+  return names;
+}
+
 }  // namespace
 
-// Why implicit midpoint ends `penetration` at a large h (docs/notes/collisions.md,
-// "Implicit midpoint at the obstacles").
-constexpr const char* kMidpointPenetration =
-    "implicit_midpoint rows, penetration: the contact response prescribes the normal velocity v1 at the step's end, "
-    "and the midpoint rule moves a particle by h (v0 + v1)/2, so an entering particle travels h|<v0, D>|/2 past where "
-    "the response aims it; once that exceeds twice the collision distance delta (h > 4 delta/|<v0, D>|) it can end "
-    "deeper than delta. A property of the method with this response (docs/notes/collisions.md, \"Implicit midpoint at the "
-    "obstacles\").";
-
-// Why SBDF(2) and BDF(2) end `penetration` at a large h with the history
-// kept (docs/notes/collisions.md, "BDF(2) at the obstacles").
-constexpr const char* kMultistepPenetration =
-    "sbdf2/bdf2 rows, penetration: with contact_history = \"keep\" (the default) the multistep formula x1 = (4 x0 - "
-    "x-1)/3 + 2h v1/3 carries the last step's displacement on, so in the step after an entry a particle moves about "
-    "h|<v0, D>|/3 toward the obstacle whatever v1 the response sets, and it can end deeper than the collision "
-    "distance delta once h > 6 delta/|<v0, D>|. A property of the method with this response; contact_history = "
-    "\"project\" or \"land\" removes it (docs/notes/collisions.md, \"BDF(2) at the obstacles\").";
-
-// Why VBD ends `penetration` at a large h with few sweeps
-// (docs/notes/collisions.md, "VBD at the obstacles").
-constexpr const char* kVbdPenetration =
-    "vbd rows, penetration: the entry test predicts a particle's path from its velocity at the step's start, and a "
-    "VBD iterate that is still far from implicit Euler's solution after its few sweeps can move a particle much "
-    "faster than that (on the swinging box at h = 0.01 s and 4 sweeps: 7 cm in one step from 1.9 m/s), past the "
-    "test; more sweeps or a smaller h end ok. A property of the method's unconverged iterate "
-    "(docs/notes/collisions.md, \"VBD at the obstacles\").";
-
 const RunTableNotes& RegistryTableNotes() {
-  static const RunTableNotes notes{
-      .legend = "h|rtol: the step of fixed-step rows, rtol = atol of adaptive rows (cvode, ida, arkode, */error), "
-                "frame step/substeps of substepped rows (xpbd), step x iterations of iterated rows (pd, vbd).",
-      .rows = {{"xpbd", "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
-                "explicit forces in the prediction: "},
-               {"pd",
-                "pd rows: updates = iterations (each projects the springs, evaluates the other forces at the iterate "
-                "and solves with A_1's factor, factorised once per h); projected: ",
-                "at the iterate: "},
-               {"vbd",
-                "vbd rows: updates = iterations (each a sweep of one local Newton step per particle, every term "
-                "implicit, the colours of the particle graph in sequence)",
-                ""}},
-      .after_rows = "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, "
-                    "ida, arkode: our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the "
-                    "direct KLU solver).",
+  static const RunTableNotes notes = [] {
+    RunTableNotes n{
+      .legend = fmt::format("h|rtol: the step of fixed-step rows, rtol = atol of adaptive rows ({}), frame "
+                            "step/substeps of substepped rows ({}), step x iterations of iterated rows ({}).",
+                            NamesOf(StepKind::kAdaptive), NamesOf(StepKind::kSubstepped), NamesOf(StepKind::kIterated)),
+      .rows = {},
+      .after_rows = std::string(kSundialsCountsNote),
       .reference = ReferenceLine,
-      .statuses = {{"implicit_midpoint", "penetration", kMidpointPenetration},
-                   {"implicit_midpoint/newton", "penetration", kMidpointPenetration},
-                   {"sbdf2", "penetration", kMultistepPenetration},
-                   {"bdf2", "penetration", kMultistepPenetration},
-                   {"bdf2/newton", "penetration", kMultistepPenetration},
-                   {"vbd", "penetration", kVbdPenetration},
-                   {"vbd/chebyshev", "penetration", kVbdPenetration}},
-  };
+      .statuses = {},
+    };
+    // Each method's own notes (MethodEntry::table_note, status_notes), in registry order.
+    for (const MethodEntry& e : Registry()) {
+      if (!e.table_note.empty())
+        n.rows.push_back({std::string(e.name), std::string(e.table_note), std::string(e.table_note_terms)});
+      for (const StatusNote& note : e.status_notes)
+        n.statuses.push_back({std::string(note.label), std::string(note.status), std::string(note.text)});
+    }
+    return n;
+  }();
   return notes;
 }
 

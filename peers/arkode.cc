@@ -343,3 +343,39 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
 }
 
 }  // namespace clothbench
+
+// The rows of ARKODE, as the registry lists them (harness/registry.cc).
+#include "solver/method_row.h"
+
+namespace clothbench {
+
+/// arkode: ARKStep's IMEX pair (--arkode-table, ARK324L2SA by default);
+/// arkode/ark4 is ARK436L2SA (Kennedy & Carpenter 2003, order 4),
+/// arkode/ark5 ARK548L2SA (order 5). Default tolerances: arkode rtol
+/// 1e-2 … 1e-6 (its error is 1.7e-4 m already at rtol 1e-3; rtol 1e-7
+/// alone costs 9.6 s); arkode/ark4 1.1e-3, 2.9e-5, 1.7e-6, 1.4e-7, 1.2e-8 m
+/// at rtol 1e-2 … 1e-6; arkode/ark5 2.0e-5 m at rtol 1e-2 with 51
+/// error-test failures, then 1.5e-6, 7.7e-7, 6.6e-9, 5.5e-10 m at rtol
+/// 1e-3 … 1e-6 (below ~1e-9 m the CVODE reference at rtol 1e-10 is the
+/// limit). `bench_integrators --integrators
+/// sbdf2,sbdf3,arkode,arkode/ark4,arkode/ark5,cvode` with the arkode rows at
+/// rtol 1e-2 … 1e-7.
+MethodEntry ArkodeRow() {
+  static const std::vector<double> kRtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6};
+  return {.name = kArkodeName, .kind = StepKind::kAdaptive, .layer = "peers", .pcg = true,
+          .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                          std::string_view variant, const RunContext& ctx) {
+            const std::string table = variant == "ark4"   ? "ARK436L2SA"
+                                      : variant == "ark5" ? "ARK548L2SA"
+                                                          : ctx.arkode_table;
+            RunSummary res = RunArkode(sys, o, table, &spec);
+            res.butcher_table = table;
+            return res;
+          },
+          .variants = {"ark4", "ark5"}, .arkode_table = true, .best_preconditioner = kBestPreconditioner,
+          .defaults = {{.modifiers = "", .rtols = kRtols},
+                       {.modifiers = "ark4", .rtols = kRtols},
+                       {.modifiers = "ark5", .rtols = {1e-3, 1e-4, 1e-5, 1e-6}}}};
+}
+
+}  // namespace clothbench

@@ -162,3 +162,63 @@ StepStats BaraffWitkin::Step(double h) {
 }
 
 }  // namespace clothbench
+
+// The rows of Baraff–Witkin at its best and of Blender as it ships, as the
+// registry lists them (harness/registry.cc).
+#include "solver/method_row.h"
+
+namespace clothbench {
+
+/// baraff_witkin: also measured at h = 0.01, 0.00125, 0.0003125 s alone
+/// (`bench_integrators --integrators baraff_witkin --h
+/// 0.01,0.00125,0.0003125 --preconditioner P`): solver time 0.124,
+/// 0.554, 1.835 s with "cholesky", 0.174, 0.876, 3.149 s with "ic0"
+/// (IC(0) of J refactorised every step), 0.230, 0.693, 2.048 s with 3×3
+/// block Jacobi and 0.281, 0.635, 1.878 s with none.
+/// Its CG tolerance is Blender's conjgrad_epsilon, 10⁻², on the Δv
+/// form's ‖S r‖/‖S b_Δ‖ (the scenes' η = 10⁻⁶ is the thesis' velocity-
+/// form setting). Measured (`bench_integrators --integrators
+/// baraff_witkin --cg-tolerances 1e-6,1e-4,1e-3,1e-2`, default scene):
+/// e_rms 2.986e-3 / 2.961e-3 / 3.008e-3 m at h = 0.00125 s and
+/// 7.540e-4 / 7.541e-4 / 7.765e-4 m at h = 0.0003125 s for η = 10⁻⁶,
+/// 10⁻³, 10⁻² (+0.7 % and +3 % at 10⁻²), solver time 0.537 / 0.433 /
+/// 0.388 s and 1.734 / 1.534 / 1.439 s. On the 10⁶-particle sheet the
+/// final positions differ from the η = 10⁻⁶ run by 2.1·10⁻⁶ m rms
+/// after 1.4·10⁻² m of motion, and a step takes 2.6–2.9 s instead of
+/// 6.6–7.6 s (docs/notes/newton.md).
+/// J_α of tension and mass only (tangent_explicit_terms = false; shear,
+/// bending and the other terms enter f₀ but not J): `bench_integrators
+/// --integrators baraff_witkin --h 0.01,0.00125 --tangent-terms all`
+/// and `tension` on the default scene: solver time 0.064 / 0.379 s with
+/// all terms, 0.032 / 0.163 s with tension (CG iterations 785 / 1655
+/// and 796 / 1660), e_rms 2.351e-2 / 3.008e-3 m and 2.206e-2 / 2.781e-3
+/// m. At h = 0.01 s on hanging_sheet, wind_sheet, tablecloth,
+/// hanging_tablecloth, round_table and swinging_box it takes 0.48–0.53×
+/// the solver time with the same CG counts (±3 %) and dE/dt to three
+/// digits. The Newton rows keep the scene's: their quadratic
+/// convergence needs the whole J (bdf2/newton at h = 0.01 s: 503
+/// instead of 300 updates, the same time).
+/// Default parameters: 3.0e-3 m at h/8, 7.5e-4 m at h/32 (`bench_integrators
+/// --integrators baraff_witkin,blender --h
+/// 0.01,0.005,0.0025,0.00125,0.000625,0.0003125`).
+MethodEntry BaraffWitkinRow() {
+  return {.name = kBaraffWitkinName, .layer = "peers", .collisions = true, .pcg = true, .tangent = true,
+          .make = [](const ParticleSystem& sys, const SolverSpec& spec, int, std::string_view) -> std::unique_ptr<Stepper> {
+            return std::make_unique<BaraffWitkin>(sys, spec);
+          },
+          .best_preconditioner = kBestPreconditioner, .best_cg_tolerance = 1e-2, .best_tangent_explicit_terms = false,
+          .defaults = {{.modifiers = "", .h_factors = {1.0 / 8, 1.0 / 32}}}};
+}
+
+/// blender: Blender's solver as it ships, with its own CG settings, so the
+/// scene's η does not apply. Default parameters: 2.8e-3 m at h/8 and
+/// 6.4e-4 m at h/32 (the command above).
+MethodEntry BlenderRow() {
+  return {.name = kBlenderName, .layer = "peers", .collisions = true, .tangent = true,
+          .make = [](const ParticleSystem& sys, const SolverSpec& spec, int, std::string_view) -> std::unique_ptr<Stepper> {
+            return std::make_unique<BaraffWitkin>(sys, spec, BaraffWitkinOptions{true});
+          },
+          .defaults = {{.modifiers = "", .h_factors = {1.0 / 8, 1.0 / 32}}}};
+}
+
+}  // namespace clothbench

@@ -50,7 +50,7 @@ struct BaraffWitkinOptions {
 ///    b = J v₀ + b_Δ would be dominated by the momentum M v₀), with the
 ///    η and preconditioner of the SolverSpec it is given (the default run
 ///    gives it Blender's η = 10⁻², the A_α factor and J_α of tension and mass
-///    only: harness/methods.h); a step whose CG fails is rejected. The CG
+///    only: BaraffWitkinRow); a step whose CG fails is rejected. The CG
 ///    starts from Δv = 0, as Blender's does (a warm start from the last Δv
 ///    changes the method at a loose η: docs/notes/newton.md).
 ///  - `blender` (BaraffWitkinOptions::blender) is the solver as Blender ships it

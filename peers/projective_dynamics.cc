@@ -90,3 +90,41 @@ void ProjectiveDynamics::Iteration(double h) {
 }
 
 }  // namespace clothbench
+
+// The row of projective dynamics, as the registry lists it (harness/registry.cc).
+#include "solver/method_row.h"
+
+namespace clothbench {
+
+/// pd: projective dynamics, the model's springs projected and A₁
+/// prefactored; pd/chebyshev with Wang's acceleration at the measured ρ
+/// (kPdChebyshev). Default parameters: h, h/4, h/16 with --iterations
+/// 1,4,16,64 reach implicit Euler's floor 2.2e-2, 5.9e-3, 1.5e-3 m in 16,
+/// 16 and 4 iterations; one iteration gives 2.2e-2, 1.8e-3, 1.2e-3 m
+/// (docs/notes/work-precision.md, "pd").
+MethodEntry ProjectiveDynamicsRow() {
+  return {.name = kProjectiveDynamicsName, .kind = StepKind::kIterated, .layer = "peers", .collisions = true,
+          .make = [](const ParticleSystem& sys, const SolverSpec& spec, int iterations,
+                     std::string_view variant) -> std::unique_ptr<Stepper> {
+            return std::make_unique<ProjectiveDynamics>(sys, spec, iterations,
+                                                        variant == "chebyshev" ? kPdChebyshev : ChebyshevSettings{});
+          },
+          .variants = {"chebyshev"},
+          .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
+            // The springs are projected (F_nl); every other explicit term
+            // enters the global step's right-hand side at the iterate.
+            const auto& pd = static_cast<const ProjectiveDynamics&>(stepper);  // this entry builds one
+            row->chebyshev_rho = pd.rho();
+            row->chebyshev_rho_sweeps = pd.rho_sweeps();
+            row->constraints = "tension";
+            for (const std::string& t : sys.TermNames())
+              if (t != "tension_nonlinear") row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
+          },
+          .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 4, 1.0 / 16}},
+                       {.modifiers = "chebyshev", .h_factors = {1.0, 1.0 / 4, 1.0 / 16}}},
+          .table_note = "pd rows: updates = iterations (each projects the springs, evaluates the other forces at the "
+                        "iterate and solves with A_1's factor, factorised once per h); projected: ",
+          .table_note_terms = "at the iterate: "};
+}
+
+}  // namespace clothbench

@@ -218,3 +218,28 @@ StepStats Xpbd::Step(double h) {
 }
 
 }  // namespace clothbench
+
+// The row of XPBD, as the registry lists it (harness/registry.cc).
+#include "solver/method_row.h"
+
+namespace clothbench {
+
+/// xpbd: substepped; default frame steps h and h/16, with --substeps
+/// 1,4,16,64 substeps h/1 … h/1024: 0.19 … 2.7e-3 m at h/256 and ≈ 6.7e-4 m
+/// at h/1024 on the default scene (docs/notes/work-precision.md).
+MethodEntry XpbdRow() {
+  return {.name = kXpbdName, .kind = StepKind::kSubstepped, .layer = "peers", .collisions = true,
+          .make = [](const ParticleSystem& sys, const SolverSpec&, int substeps,
+                     std::string_view) -> std::unique_ptr<Stepper> { return std::make_unique<Xpbd>(sys, substeps); },
+          .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
+            const auto& x = static_cast<const Xpbd&>(stepper);  // this entry's make builds an Xpbd
+            for (const std::string& t : x.explicit_terms()) row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
+            row->constraints = std::string("tension") + (x.shear_constraint() ? ",shear" : "") +
+                               (sys.obstacles().empty() ? "" : ",obstacles");
+          },
+          .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 16}}},
+          .table_note = "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",
+          .table_note_terms = "explicit forces in the prediction: "};
+}
+
+}  // namespace clothbench

@@ -545,7 +545,7 @@ py::dict Reference(const py::object& scene_arg, const py::object& method, const 
   const InterruptScope interrupts;  // Ctrl-C reaches the loops inside a step and the setup
   RunRequest q;
   q.scene = SceneArg(scene_arg, overrides);
-  const std::string name = Arg<std::string>(method, "method").value_or(std::string(kDefaultReference));
+  const std::string name = Arg<std::string>(method, "method").value_or(std::string(DefaultReference()));
   try {
     ParseReference(name, "method");
   } catch (const std::invalid_argument& e) {
@@ -607,7 +607,7 @@ void WriteResultFile(const py::object& path_arg, const py::object& scene_arg, co
     frames_only.frames = frames;
     (void)frames_only.SweepScene();
   }
-  const std::string baseline = Arg<std::string>(baseline_arg, "baseline").value_or(std::string(kWorkPrecisionBaseline));
+  const std::string baseline = Arg<std::string>(baseline_arg, "baseline").value_or(std::string(DefaultReference()));
   std::vector<double> targets = {1e-2, 1e-3, 1e-4};
   if (!targets_arg.is_none()) {
     if (!py::isinstance<py::sequence>(targets_arg) || py::isinstance<py::str>(targets_arg))
@@ -826,7 +826,7 @@ PYBIND11_MODULE(clothbench, m) {
         "ValueError '<option>: \"<path>\" <rule>' for a link, device, FIFO or folder at the path or at its "
         "temporary, an input of this process, one of `others`, or a lock, journal or temporary of clothbench. "
         "scripts/report checks its page with it.");
-  m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(kDefaultReference),
+  m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(DefaultReference()),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         "The reference run (method: cvode or ida with the reduced velocity solve, cvode/klu or ida/klu with KLU; "
         "as --reference, with its error estimate error_estimate_m against the same at rtol/10): the attributes a "
@@ -850,7 +850,7 @@ PYBIND11_MODULE(clothbench, m) {
         "e_rms = sqrt((1/N) sum_p |x_p - ref_p|^2) [m] of two N×3 arrays of the same N. TypeError for a "
         "non-real array, ValueError (naming x or ref) for another shape, N = 0 or a NaN/Inf value.");
   m.def("equal_accuracy", &EqualAccuracy, py::arg("runs"), py::arg("targets") = std::vector<double>{1e-2, 1e-3, 1e-4},
-        py::arg("baseline") = std::string(kWorkPrecisionBaseline),
+        py::arg("baseline") = std::string(DefaultReference()),
         "The equal-accuracy table of runs = [(label, [(solver_time_s, e_rms_m), ...]), ...] (runs in the order "
         "of decreasing h or rtol): cost and ratio per label and target (None where the runs do not bracket it), "
         "and the fastest label per target.");

@@ -166,7 +166,7 @@ def test_work_precision_example_runs(tmp_path):
 
 
 def test_method_best_settings_and_their_overrides():
-    # baraff_witkin's measured best (harness/methods.h): Blender's CG
+    # baraff_witkin's measured best (BaraffWitkinRow, peers/baraff_witkin.cc): Blender's CG
     # tolerance 1e-2 and J_alpha of tension and mass only, unless the call
     # names its own; the run reports what it used.
     r = clothbench.run("swinging_sheet", "baraff_witkin", h=0.01, t_end=0.05)

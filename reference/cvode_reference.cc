@@ -476,3 +476,31 @@ RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions&
 }
 
 }  // namespace clothbench
+
+// The rows of CVODE, as the registry lists them (harness/registry.cc).
+#include "reference/klu_prediction.h"
+#include "solver/method_row.h"
+
+namespace clothbench {
+
+/// cvode: the reduced velocity solve with the PCG; cvode/klu: KLU on the
+/// 6N×6N first-order Jacobian (the reference's solver). Both integrate
+/// obstacle contact as a hybrid system with event location
+/// (sundials/hybrid_contact.h). cvode is the default reference and the
+/// equal-accuracy baseline: the fastest of the candidates at every size
+/// measured (docs/notes/work-precision.md, "The reference"). Default
+/// tolerances rtol 1e-2 … 1e-7.
+MethodEntry CvodeRow() {
+  return {.name = kCvodeName, .kind = StepKind::kAdaptive, .layer = "reference", .collisions = true, .pcg = true,
+          .tangent = true, .sparse_jacobian = true,
+          .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                          std::string_view variant, const RunContext&) {
+            return variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
+          },
+          .predict = PredictKluVariant,
+          .reference = true, .default_reference = true, .variants = {"klu"}, .cvode_settings = true,
+          .best_preconditioner = kBestPreconditioner,
+          .defaults = {{.modifiers = "", .rtols = kDefaultRtols}, {.modifiers = "klu", .rtols = kDefaultRtols}}};
+}
+
+}  // namespace clothbench

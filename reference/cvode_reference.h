@@ -11,7 +11,7 @@
 
 namespace clothbench {
 
-/// The registry row that runs CVODE (harness/methods.h).
+/// The method's name (CvodeRow, at the end of reference/cvode_reference.cc).
 inline constexpr const char* kCvodeName = "cvode";
 
 /// Integrates `system` from rest to options.t_end; frames by CVODE's dense

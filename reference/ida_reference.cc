@@ -476,3 +476,24 @@ RunSummary RunIdaReduced(const ParticleSystem& system, const ReferenceOptions& o
 }
 
 }  // namespace clothbench
+
+// The rows of IDA, as the registry lists them (harness/registry.cc).
+#include "reference/klu_prediction.h"
+#include "solver/method_row.h"
+
+namespace clothbench {
+
+/// ida: the reduced velocity solve; ida/klu: KLU on the 6N×6N residual
+/// Jacobian (the reference's solver). Not a default row.
+MethodEntry IdaRow() {
+  return {.name = kIdaName, .kind = StepKind::kAdaptive, .layer = "reference", .collisions = true, .pcg = true,
+          .tangent = true, .sparse_jacobian = true,
+          .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
+                          std::string_view variant, const RunContext&) {
+            return variant == "klu" ? RunIda(sys, o) : RunIdaReduced(sys, o, spec);
+          },
+          .predict = PredictKluVariant,
+          .reference = true, .variants = {"klu"}, .best_preconditioner = kBestPreconditioner};
+}
+
+}  // namespace clothbench

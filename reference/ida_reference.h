@@ -12,7 +12,7 @@
 
 namespace clothbench {
 
-/// The registry row that runs IDA (harness/methods.h).
+/// The method's name (IdaRow, at the end of reference/ida_reference.cc).
 inline constexpr const char* kIdaName = "ida";
 
 /// Integrates `system` from rest to options.t_end; frames by IDA's dense

@@ -3,6 +3,8 @@
 #ifndef CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
 #define CLOTHBENCH_REFERENCE_KLU_PREDICTION_H_
 
+#include <string_view>
+
 #include "model/particle_system.h"
 #include "model/types.h"
 #include "solver/run.h"
@@ -42,6 +44,12 @@ KluAnalysis AnalyzeKlu(const SparseMatrix& a);
 /// flops, well under a second at the rates measured (docs/notes/work-precision.md,
 /// "Predicting a first run").
 FirstRunPrediction PredictKluRun(const ParticleSystem& system);
+
+/// The prediction of a CVODE or IDA row of `variant` (MethodEntry::predict):
+/// PredictKluRun for "klu", nothing for the reduced solve.
+inline FirstRunPrediction PredictKluVariant(const ParticleSystem& system, std::string_view variant) {
+  return variant == "klu" ? PredictKluRun(system) : FirstRunPrediction{};
+}
 
 }  // namespace clothbench
 

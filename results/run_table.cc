@@ -146,7 +146,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
              "solver: cg_tolerance {:g} ({}), preconditioner {}, max_updates {}, predictor {}, numerical stiffness "
              "h^2 k/(rho l^2) = {:.3g} at h = {:g} s\n",
              t.cg_tolerance, t.cg_reference, t.preconditioner, t.max_updates, t.predictor, t.numerical_stiffness, t.h);
-  // Rows whose preconditioner is not the scene's (harness/methods.h: each
+  // Rows whose preconditioner is not the scene's (solver/method_row.h: each
   // method at its best), grouped by preconditioner in row order.
   std::vector<std::pair<std::string, std::vector<std::string>>> other;  // preconditioner, its labels
   for (const RunRecord& r : t.runs) {
@@ -156,7 +156,7 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
     if (std::find(it->second.begin(), it->second.end(), r.label) == it->second.end()) it->second.push_back(r.label);
   }
   for (const auto& [pre, labels] : other)
-    fmt::print(out, "preconditioner {} (each method's best, harness/methods.h) in rows: {}\n", pre,
+    fmt::print(out, "preconditioner {} (each method's best, solver/method_row.h) in rows: {}\n", pre,
                fmt::join(labels, ", "));
   // The same for the CG tolerance (a row's own η, not a --cg-tolerances sweep).
   std::vector<std::pair<double, std::vector<std::string>>> other_eta;  // η, its labels
@@ -172,10 +172,10 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
     if (r.tangent_terms == "tension" && std::find(tension_only.begin(), tension_only.end(), r.label) == tension_only.end())
       tension_only.push_back(r.label);
   if (!tension_only.empty())
-    fmt::print(out, "J_alpha of tension and mass only (tangent_terms, harness/methods.h) in rows: {}\n",
+    fmt::print(out, "J_alpha of tension and mass only (tangent_terms, solver/method_row.h) in rows: {}\n",
                fmt::join(tension_only, ", "));
   for (const auto& [eta, labels] : other_eta)
-    fmt::print(out, "cg_tolerance {:g} (each method's best, harness/methods.h) in rows: {}\n", eta,
+    fmt::print(out, "cg_tolerance {:g} (each method's best, solver/method_row.h) in rows: {}\n", eta,
                fmt::join(labels, ", "));
   if (t.reference && notes.reference) fmt::print(out, "{}\n", notes.reference(*t.reference, ErrorName(t.error_metric)));
   else

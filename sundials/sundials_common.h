@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <sundials/sundials_linearsolver.h>
@@ -52,6 +53,36 @@ struct ReferenceOptions {
   CvodeSettings cvode{};  ///< CVODE runs only
   double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
 };
+
+/// The settings of one invocation that its rows read (the command line's
+/// or a run request's): the limits every row runs under, whether the
+/// invocation named the settings a row's best values would otherwise
+/// replace (MethodEntry::best_preconditioner, …), and the SUNDIALS rows'
+/// own settings.
+struct RunContext {
+  std::string arkode_table = "ARK324L2SA";  ///< arkode rows without a variant (--arkode-table)
+  RunLimits limits{};  ///< wall time and steps of every row (--time-limit)
+  /// True if the command line named the preconditioner (--preconditioner):
+  /// it then holds for every row, MethodEntry::best_preconditioner included.
+  bool preconditioner_from_cli = false;
+  /// True if the command line named the CG tolerance (--cg-tolerance or
+  /// --cg-tolerances): it then holds for every row, MethodEntry::best_cg_tolerance
+  /// included.
+  bool cg_tolerance_from_cli = false;
+  /// True if the command line named J_α's terms (--tangent-terms): they then
+  /// hold for every row, MethodEntry::best_tangent_explicit_terms included.
+  bool tangent_terms_from_cli = false;
+  CvodeSettings cvode{};  ///< --cvode-setting
+  /// Whether a row predicted past the limits is not started
+  /// (MethodEntry::predict; false: --start-predicted).
+  bool refuse_predicted = true;
+};
+
+/// The run table's note on the SUNDIALS rows' counts (SummariseCounters).
+inline constexpr std::string_view kSundialsCountsNote =
+    "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, "
+    "ida, arkode: our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the "
+    "direct KLU solver).";
 
 namespace internal {
 

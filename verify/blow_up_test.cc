@@ -16,7 +16,7 @@
 namespace clothbench {
 namespace {
 
-// A registry row's run as bench_integrators runs it (harness/methods.h).
+// A registry row's run as bench_integrators runs it (RowMethod::Run, harness/methods.h).
 MethodRun RunRow(const Scene& scene, const std::string& label, double param) {
   const std::vector<RowMethod> rows = ExpandMethods({label}, {scene.solver.nonlinear_solver}, "test");
   EXPECT_EQ(rows.size(), 1u) << label;

@@ -68,7 +68,9 @@ TEST(Pattern, CoonsSamplingKeepsCurvedSidesAtEqualArcLength) {
   for (int i = 0; i < 9; ++i) {
     const Vector2 q = x.row(i).transpose();
     EXPECT_NEAR(q.y(), -sag + radius * (1.0 - std::cos(std::asin((q.x() - 0.5) / radius))), 2e-3) << i;
-    if (i > 0) EXPECT_NEAR((x.row(i) - x.row(i - 1)).norm(), chord, 1e-3 * chord) << i;
+    if (i > 0) {
+      EXPECT_NEAR((x.row(i) - x.row(i - 1)).norm(), chord, 1e-3 * chord) << i;
+    }
   }
   // The sides u0, u1 and v1 stay straight, the middle row lies between.
   EXPECT_LT((x.row(9 * 4 + 4).transpose() - Vector2(0.5, 1.0)).norm(), 1e-15);  // round-off of 8 terms of size 1

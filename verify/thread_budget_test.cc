@@ -121,7 +121,7 @@ TEST(ThreadBudget, EveryStepperRowRepeatsBitForBitOnOneAndTwoThreads) {
   s.frame_dt = s.t_end;
   const ParticleSystem sys(s);
   for (const std::string label : {"sbdf2", "sbdf2/cholesky", "bdf2/newton", "implicit_euler", "baraff_witkin",
-                                  "blender", "xpbd", "vbd", "pd", "pd/chebyshev"}) {
+                                  "blender", "xpbd", "vbd", "vbd/chebyshev", "pd", "pd/chebyshev"}) {
     const bool cholesky = label == "sbdf2/cholesky";
     const std::vector<RowMethod> rows = ExpandMethods({cholesky ? "sbdf2" : label}, {s.solver.nonlinear_solver}, "test");
     ASSERT_EQ(rows.size(), 1u) << label;
