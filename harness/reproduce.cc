@@ -147,8 +147,14 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   q.SetStep(kind, kind.adaptive() ? r.rtol : r.h, kind.counted() ? r.*kind.count_field : 1);
   if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
   if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
-  if (m.reads_arkode_table() && !r.butcher_table.empty()) q.arkode_table = r.butcher_table;
-  if (m.entry->cvode_settings && !r.sundials_settings.empty()) q.cvode_setting = r.sundials_settings;
+  // The method's own settings, stored as its attributes (MethodEntry::rerun_settings).
+  for (const auto& [attribute, field] : m.entry->rerun_settings) {
+    const std::string value = r.MethodText(attribute);
+    if (value.empty() || !RowOptionOf(field).reads(m)) continue;
+    if (field == "arkode_table") q.arkode_table = value;
+    else if (field == "cvode_setting") q.cvode_setting = value;
+    else throw std::logic_error(fmt::format("{}: no request field {}", m.label(), field));
+  }
   if (!r.collision_self.empty()) q.self_contact = r.collision_self;
   q.t_end = table.t_end;
   // The file's frame spacing, so that the frame-based errors (l2, max) are

@@ -205,6 +205,43 @@ inline void CheckStepStatus(int status) {
   if (status < 0 || status > static_cast<int>(StepStatus::kTimeLimit)) OutOfRange(fmt::format("step status {}", status));
 }
 
+/// A run's method attributes (RunRecord::method_attributes): their count,
+/// then each one's name, type index and value.
+inline void PutMethodAttributes(ByteWriter& w, const std::vector<std::pair<std::string, MethodValue>>& attributes) {
+  w.Pod(static_cast<long>(attributes.size()));
+  for (const auto& [name, value] : attributes) {
+    w.Str(name);
+    w.Pod(static_cast<int>(value.index()));
+    std::visit(
+        [&](const auto& v) {
+          if constexpr (std::is_same_v<std::remove_cvref_t<decltype(v)>, std::string>) w.Str(v);
+          else w.Pod(v);
+        },
+        value);
+  }
+}
+
+/// Reads what PutMethodAttributes wrote. @throws std::runtime_error on a
+/// count or type out of range.
+inline std::vector<std::pair<std::string, MethodValue>> GetMethodAttributes(ByteReader& r) {
+  const long n = r.Pod<long>();
+  if (n < 0 || n > 1024) OutOfRange(fmt::format("method attribute count {}", n));
+  std::vector<std::pair<std::string, MethodValue>> attributes;
+  for (long k = 0; k < n; ++k) {
+    std::string name = r.Str();
+    const int type = r.Pod<int>();
+    if (type == 0) attributes.emplace_back(std::move(name), r.Str());
+    else if (type == 1) attributes.emplace_back(std::move(name), r.Pod<long>());
+    else if (type == 2) {
+      const double v = r.Pod<double>();
+      CheckFinite(v, "a method attribute");
+      attributes.emplace_back(std::move(name), v);
+    }
+    else OutOfRange(fmt::format("method attribute type {}", type));
+  }
+  return attributes;
+}
+
 }  // namespace internal
 
 /// One run as the step loop returned it (a row's MethodRun, the reference,
@@ -224,6 +261,7 @@ inline std::string EncodeRun(const RunSummary& m) {
             else if constexpr (!std::is_same_v<T, std::optional<double>>) w.Pod(v);
           },
           field.member);
+  internal::PutMethodAttributes(w, m.method_attributes);
   w.Pod(m.matrix_rebuilds);
   w.Vec(m.step_stats);
   internal::PutTrajectory(w, m.trajectory);
@@ -249,6 +287,7 @@ inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
             else if constexpr (!std::is_same_v<T, std::optional<double>>) v = r.Pod<T>();
           },
           field.member);
+  m->method_attributes = internal::GetMethodAttributes(r);
   m->matrix_rebuilds = r.Pod<int>();
   m->step_stats = r.Vec<StepStats>();
   m->trajectory = internal::GetTrajectory(r);

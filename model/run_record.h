@@ -7,10 +7,16 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <variant>
+#include <vector>
 
 #include "model/run_status.h"
 
 namespace clothbench {
+
+/// A value that one method alone stores about its run: text, a count or a number.
+using MethodValue = std::variant<std::string, long, double>;
 
 /// One run of one row: the attributes of /runs/<id> (docs/guide/results-schema.md),
 /// the one record of a run from the step loop to the file and to Python.
@@ -33,20 +39,39 @@ struct RunRecord {
   double rtol = 0.0;         ///< adaptive rows: rtol = atol
   long substeps = 0;         ///< substepped rows: substeps per frame step
   long iterations = 0;       ///< iterated rows (pd, vbd): iterations per step
-  double chebyshev_rho = 0.0;  ///< pd/chebyshev, vbd/chebyshev: the ρ measured at the first step and used (0: none)
-  long chebyshev_rho_sweeps = 0;  ///< the plain iterations behind chebyshev_rho, over every h (0: not measured)
-  long colours = 0;          ///< vbd: colours of the particle graph (its sweeps' sequential stages)
   double cg_tolerance = 0.0; ///< η of the PCG; 0 if the method has none
-  std::string constraints;   ///< xpbd, pd: the terms solved as constraints or projections ("tension,shear,obstacles")
-  std::string explicit_terms;///< xpbd: the terms applied in the prediction; pd: those at the iterate ("gravity,bend_thin_plate")
-  std::string sundials_settings;  ///< cvode rows: the setup knobs ("lsetup_frequency=20,…")
   /// The settings the run used (not the scene's where the row overrides them):
   /// step_control "fixed" | "iterations" | "error" (our steppers) or
   /// "sundials" (SUNDIALS' own controller); predictor and cg_reference (rows
-  /// with the PCG); newton_jacobian "refresh" | "frozen" (Newton rows);
-  /// butcher_table: the IMEX additive Runge–Kutta pair (ARKODE rows, e.g.
-  /// "ARK324L2SA").
-  std::string step_control, predictor, cg_reference, newton_jacobian, butcher_table;
+  /// with the PCG); newton_jacobian "refresh" | "frozen" (Newton rows).
+  std::string step_control, predictor, cg_reference, newton_jacobian;
+  /// What one method alone says about its run, by attribute name in the
+  /// order set (its registry row's `describe`, or its run; each method's
+  /// row documents its own, docs/guide/results-schema.md): the result file
+  /// stores each as an attribute of /runs/<id> under its name, and the
+  /// reader reads every attribute that is not a field of the record back
+  /// into this list. The names never repeat a field's.
+  std::vector<std::pair<std::string, MethodValue>> method_attributes;
+  /// Sets the method attribute `name` to `value`, replacing an earlier value.
+  void SetMethodAttribute(const std::string& name, MethodValue value) {
+    for (auto& [n, v] : method_attributes)
+      if (n == name) {
+        v = std::move(value);
+        return;
+      }
+    method_attributes.emplace_back(name, std::move(value));
+  }
+  /// The method attribute `name`, or nullptr if the run has none.
+  const MethodValue* MethodAttribute(std::string_view name) const {
+    for (const auto& [n, v] : method_attributes)
+      if (n == name) return &v;
+    return nullptr;
+  }
+  /// The text attribute `name`, or "" if the run has none or it is not text.
+  std::string MethodText(std::string_view name) const {
+    const MethodValue* v = MethodAttribute(name);
+    return v && std::holds_alternative<std::string>(*v) ? std::get<std::string>(*v) : std::string();
+  }
   double atol = 0.0;         ///< adaptive rows: atol (= rtol unless set)
   long threads = 0;          ///< OpenMP threads of the kernels
   /// The fewest threads a step ran on: below `threads` where other

@@ -369,10 +369,11 @@ MethodEntry ArkodeRow() {
                                       : variant == "ark5" ? "ARK548L2SA"
                                                           : ctx.arkode_table;
             RunSummary res = RunArkode(sys, o, table, &spec);
-            res.butcher_table = table;
+            res.SetMethodAttribute("butcher_table", table);  // the IMEX additive Runge–Kutta pair
             return res;
           },
-          .variants = {"ark4", "ark5"}, .arkode_table = true, .best_preconditioner = kBestPreconditioner,
+          .variants = {"ark4", "ark5"}, .arkode_table = true, .rerun_settings = {{"butcher_table", "arkode_table"}},
+          .best_preconditioner = kBestPreconditioner,
           .defaults = {{.modifiers = "", .rtols = kRtols},
                        {.modifiers = "ark4", .rtols = kRtols},
                        {.modifiers = "ark5", .rtols = {1e-3, 1e-4, 1e-5, 1e-6}}}};

@@ -111,14 +111,18 @@ MethodEntry ProjectiveDynamicsRow() {
           },
           .variants = {"chebyshev"},
           .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
-            // The springs are projected (F_nl); every other explicit term
-            // enters the global step's right-hand side at the iterate.
+            // constraints: the springs are projected (F_nl); explicit_terms:
+            // every other term enters the global step's right-hand side at
+            // the iterate; chebyshev_rho(_sweeps): the ρ measured and used
+            // by pd/chebyshev and the plain iterations behind it.
             const auto& pd = static_cast<const ProjectiveDynamics&>(stepper);  // this entry builds one
-            row->chebyshev_rho = pd.rho();
-            row->chebyshev_rho_sweeps = pd.rho_sweeps();
-            row->constraints = "tension";
+            if (pd.rho() > 0.0) row->SetMethodAttribute("chebyshev_rho", pd.rho());
+            if (pd.rho_sweeps() > 0) row->SetMethodAttribute("chebyshev_rho_sweeps", long{pd.rho_sweeps()});
+            row->SetMethodAttribute("constraints", std::string("tension"));
+            std::string terms;
             for (const std::string& t : sys.TermNames())
-              if (t != "tension_nonlinear") row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
+              if (t != "tension_nonlinear") terms += (terms.empty() ? "" : ",") + t;
+            if (!terms.empty()) row->SetMethodAttribute("explicit_terms", terms);
           },
           .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 4, 1.0 / 16}},
                        {.modifiers = "chebyshev", .h_factors = {1.0, 1.0 / 4, 1.0 / 16}}},

@@ -222,10 +222,14 @@ MethodEntry VbdRow() {
           },
           .variants = {"chebyshev"},
           .describe = [](const Stepper& stepper, const ParticleSystem&, RunRecord* row) {
+            // chebyshev_rho: the ρ measured at the first step and used (none
+            // without Chebyshev); chebyshev_rho_sweeps: the plain sweeps behind
+            // it, over every h; colours: the particle graph's colours (a
+            // sweep's sequential stages).
             const auto& vbd = static_cast<const VertexBlockDescent&>(stepper);  // this entry builds one
-            row->chebyshev_rho = vbd.rho();
-            row->chebyshev_rho_sweeps = vbd.rho_sweeps();
-            row->colours = vbd.colours();
+            if (vbd.rho() > 0.0) row->SetMethodAttribute("chebyshev_rho", vbd.rho());
+            if (vbd.rho_sweeps() > 0) row->SetMethodAttribute("chebyshev_rho_sweeps", long{vbd.rho_sweeps()});
+            row->SetMethodAttribute("colours", long{vbd.colours()});
           },
           .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 4, 1.0 / 16}, .iterations = {1, 4}},
                        {.modifiers = "chebyshev", .h_factors = {1.0, 1.0 / 4, 1.0 / 16}, .iterations = {1, 4}}},

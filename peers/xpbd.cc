@@ -232,10 +232,14 @@ MethodEntry XpbdRow() {
           .make = [](const ParticleSystem& sys, const SolverSpec&, int substeps,
                      std::string_view) -> std::unique_ptr<Stepper> { return std::make_unique<Xpbd>(sys, substeps); },
           .describe = [](const Stepper& stepper, const ParticleSystem& sys, RunRecord* row) {
+            // constraints: the terms solved as constraints ("tension,shear,
+            // obstacles"); explicit_terms: those applied in the prediction.
             const auto& x = static_cast<const Xpbd&>(stepper);  // this entry's make builds an Xpbd
-            for (const std::string& t : x.explicit_terms()) row->explicit_terms += (row->explicit_terms.empty() ? "" : ",") + t;
-            row->constraints = std::string("tension") + (x.shear_constraint() ? ",shear" : "") +
-                               (sys.obstacles().empty() ? "" : ",obstacles");
+            std::string terms;
+            for (const std::string& t : x.explicit_terms()) terms += (terms.empty() ? "" : ",") + t;
+            if (!terms.empty()) row->SetMethodAttribute("explicit_terms", terms);
+            row->SetMethodAttribute("constraints", std::string("tension") + (x.shear_constraint() ? ",shear" : "") +
+                                                       (sys.obstacles().empty() ? "" : ",obstacles"));
           },
           .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 16}}},
           .table_note = "xpbd rows: updates = substeps (one constraint sweep each); constraints: ",

@@ -316,8 +316,8 @@ std::shared_ptr<Record> RecordOf(const py::object& d, const char* name, const ch
 }
 
 // A RunRecord (a row of a result file, or its reference) as a dict: its
-// id and every field of RunRecordFields() under its attribute name;
-// optional values are None.
+// id, every field of RunRecordFields() under its attribute name (optional
+// values are None) and the run's method attributes under theirs.
 py::dict RecordDict(const RunRecord& r) {
   py::dict d;
   d["id"] = r.id;
@@ -334,6 +334,8 @@ py::dict RecordDict(const RunRecord& r) {
             d[field.name] = v;
         },
         field.member);
+  for (const auto& attribute : r.method_attributes)
+    std::visit([&](const auto& v) { d[py::str(attribute.first)] = v; }, attribute.second);
   return d;
 }
 

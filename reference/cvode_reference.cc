@@ -446,7 +446,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
        check(CVodeSetDeltaGammaMaxLSetup(h.mem, cs.dgmax_lsetup), "CVodeSetDeltaGammaMaxLSetup") &&
        check(CVodeSetStabLimDet(h.mem, cs.stab_lim_det ? SUNTRUE : SUNFALSE), "CVodeSetStabLimDet") &&
        (!solve || check(CVodeSetEpsLin(h.mem, cs.eps_lin), "CVodeSetEpsLin"));
-  res.sundials_settings = cs.ToString();
+  res.SetMethodAttribute("sundials_settings", cs.ToString());  // CVODE's setup knobs ("lsetup_frequency=20,…")
   if (ok) {
     const internal::OneStepDriver d = CvodeDriver(h, ode, options, roots_found, counters);
     internal::RunFrames(d, system, options, err, &res);
@@ -499,6 +499,7 @@ MethodEntry CvodeRow() {
           },
           .predict = PredictKluVariant,
           .reference = true, .default_reference = true, .variants = {"klu"}, .cvode_settings = true,
+          .rerun_settings = {{"sundials_settings", "cvode_setting"}},
           .best_preconditioner = kBestPreconditioner,
           .defaults = {{.modifiers = "", .rtols = kDefaultRtols}, {.modifiers = "klu", .rtols = kDefaultRtols}}};
 }

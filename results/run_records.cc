@@ -6,6 +6,7 @@
 #include "results/run_records.h"
 
 #include <sstream>
+#include <stdexcept>
 #include <type_traits>
 #include <variant>
 
@@ -47,6 +48,8 @@ RunRecord ReadRunRecord(const ResultReader& f, const std::string& g, const std::
   if (!f.Double(g, "solver_time_s_median")) r.solver_time_s_median = r.solver_time_s;
   if (!f.Double(g, "solver_time_s_max")) r.solver_time_s_max = r.solver_time_s;
   if (!r.error_final_m) r.error_final_m = f.Double(g, "error_rms_m");  // files before error_final_m
+  for (auto& [name, value] : f.Attributes(g))
+    if (IsMethodAttributeName(name)) r.method_attributes.emplace_back(name, std::move(value));
   return r;
 }
 
@@ -164,6 +167,12 @@ void WriteRunRecord(ResultFile& f, const std::string& g, const RunRecord& record
           else f.SetAttribute(g, field.name, v);
         },
         field.member);
+  }
+  for (const auto& attribute : r.method_attributes) {
+    const std::string& name = attribute.first;
+    if (!IsMethodAttributeName(name))
+      throw std::logic_error(fmt::format("{}: method attribute {} repeats a field's name", g, name));
+    std::visit([&](const auto& v) { f.SetAttribute(g, name, v); }, attribute.second);
   }
 }
 

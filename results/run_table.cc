@@ -61,20 +61,13 @@ const std::vector<RecordField>& RunRecordFields() {
       {"h", &R::h, S::kStepParameter},
       {"substeps", &R::substeps, S::kStepCount},
       {"iterations", &R::iterations, S::kStepCount},
-      {"chebyshev_rho", &R::chebyshev_rho, S::kPositive},
-      {"chebyshev_rho_sweeps", &R::chebyshev_rho_sweeps, S::kPositive},
-      {"colours", &R::colours, S::kPositive},
-      {"constraints", &R::constraints, S::kNonEmpty},
-      {"explicit_terms", &R::explicit_terms, S::kNonEmpty},
       {"tangent_terms", &R::tangent_terms, S::kNonEmpty},
       {"collision_self", &R::collision_self, S::kNonEmpty},
       {"preconditioner", &R::preconditioner, S::kNonEmpty},
-      {"sundials_settings", &R::sundials_settings, S::kNonEmpty},
       {"step_control", &R::step_control, S::kNonEmpty},
       {"predictor", &R::predictor, S::kNonEmpty},
       {"cg_reference", &R::cg_reference, S::kNonEmpty},
       {"newton_jacobian", &R::newton_jacobian, S::kNonEmpty},
-      {"butcher_table", &R::butcher_table, S::kNonEmpty},
       {"atol", &R::atol, S::kPositive},
       {"threads", &R::threads, S::kPositive},
       {"threads_fewest", &R::threads_fewest, S::kPositive},
@@ -115,6 +108,19 @@ const std::vector<RecordField>& RunRecordFields() {
   };
   return fields;
 }
+const std::vector<std::string>& SundialsCounterNames() {
+  static const std::vector<std::string> names = {"nst", "nfe", "nfe_i", "nni", "nli", "netf", "ncfn", "nje", "nsetups"};
+  return names;
+}
+
+bool IsMethodAttributeName(const std::string& name) {
+  if (name == "error_rms_m") return false;  // files before error_final_m
+  for (const RecordField& field : RunRecordFields())
+    if (name == field.name) return false;
+  const std::vector<std::string>& counters = SundialsCounterNames();
+  return std::find(counters.begin(), counters.end(), name) == counters.end();
+}
+
 namespace {
 
 std::string Sci(double v) { return fmt::format("{:.3e}", v); }
@@ -216,8 +222,9 @@ void PrintRunTable(std::FILE* out, const RunTable& t, const RunTableNotes& notes
   for (const RunTableNotes::Row& note : notes.rows)
     for (const RunRecord& r : t.runs)
       if (r.integrator == note.integrator) {
-        fmt::print(out, "{}{}", note.text, r.constraints);
-        if (!note.terms.empty()) fmt::print(out, "; {}{}", note.terms, r.explicit_terms.empty() ? "none" : r.explicit_terms);
+        fmt::print(out, "{}{}", note.text, r.MethodText("constraints"));
+        const std::string terms = r.MethodText("explicit_terms");
+        if (!note.terms.empty()) fmt::print(out, "; {}{}", note.terms, terms.empty() ? "none" : terms);
         fmt::print(out, ".\n");
         break;
       }

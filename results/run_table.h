@@ -54,6 +54,16 @@ struct RecordField {
 /// codec and the Python module iterate (docs/guide/results-schema.md).
 const std::vector<RecordField>& RunRecordFields();
 
+/// The SUNDIALS counters a run group also holds as attributes (nst, nfe,
+/// nfe_i, nni, nli, netf, ncfn, nje, nsetups: CVodePrintAllStats' names),
+/// which are neither fields of the record nor method attributes.
+const std::vector<std::string>& SundialsCounterNames();
+
+/// Whether `name` may name a method attribute (RunRecord::method_attributes):
+/// not a field of RunRecordFields(), a SUNDIALS counter or a name older
+/// files used for a field (error_rms_m).
+bool IsMethodAttributeName(const std::string& name);
+
 /// True if `reference` (RunTable::reference) is a fixed-step
 /// self-convergence run (a fixed-step run of one of the thesis' methods at a
 /// fraction of the scene's smallest step) rather than an adaptive run at an rtol.

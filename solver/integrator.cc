@@ -37,13 +37,22 @@ const std::vector<Method>& AllMethods() {
   return kAll;
 }
 
-bool IsImex(Method m) { return m == Method::kImexEuler || m == Method::kSbdf2 || m == Method::kSbdf3; }
-
-bool IsFullyImplicit(Method m) {
-  return m == Method::kImplicitEuler || m == Method::kBdf2 || m == Method::kImplicitMidpoint;
+const Scheme& SchemeOf(Method m) {
+  switch (m) {
+    case Method::kImexEuler: return ImexEulerScheme();
+    case Method::kImplicitEuler: return ImplicitEulerScheme();
+    case Method::kSbdf2: return Sbdf2Scheme();
+    case Method::kBdf2: return Bdf2Scheme();
+    case Method::kImplicitMidpoint: return ImplicitMidpointScheme();
+    case Method::kSymplecticEuler: return SymplecticEulerScheme();
+    case Method::kSbdf3: return Sbdf3Scheme();
+  }
+  return ImexEulerScheme();  // not reached: every Method is listed
 }
 
+bool IsImex(Method m) { return SchemeOf(m).imex(); }
 
+bool IsFullyImplicit(Method m) { return !SchemeOf(m).imex() && !SchemeOf(m).explicit_step(); }
 
 std::string_view ToString(StepStatus s) {
   switch (s) {
@@ -153,6 +162,7 @@ bool SystemMatrix::AdaptTo(const VelocityFilter& filter) {
 StepEngine::StepEngine(const ParticleSystem& system, Method method, const SolverSpec& solver)
     : sys_(system),
       method_(method),
+      scheme_(SchemeOf(method)),
       opts_(solver),
       sysmat_(system, solver.preconditioner, solver.cholesky_ordering, solver.contact_factors),
       contacts_(system) {
@@ -162,9 +172,8 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
-  const bool multistep = method == Method::kSbdf2 || method == Method::kBdf2 || method == Method::kSbdf3;
-  error_control_ =
-      solver.step_control == StepControl::kError && (method == Method::kSbdf2 || method == Method::kBdf2);
+  const bool multistep = scheme_.past_steps() > 0;
+  error_control_ = solver.step_control == StepControl::kError && scheme_.error_controlled();
   // Under error control the contact events are located and restart the
   // method (docs/notes/collisions.md, "Error control through contact events"):
   // entries within a hundredth of the absolute tolerance happen now.
@@ -183,7 +192,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
     in_contact_.assign(static_cast<std::size_t>(n), 0);
     in_contact_prev_.assign(static_cast<std::size_t>(n), 0);
   }
-  if (IsFullyImplicit(method) && solver.nonlinear_solver == NonlinearSolver::kNewton) {
+  if (!scheme_.imex() && !scheme_.explicit_step() && solver.nonlinear_solver == NonlinearSolver::kNewton) {
     const auto start = std::chrono::steady_clock::now();
     TangentOptions to;
     to.projection = solver.tangent_projection;
@@ -202,8 +211,9 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
     m->setZero(n, 3);
   if (error_control_)
     for (MatrixN3* m : {&xm2_, &vm2_, &a_init_}) m->setZero(n, 3);
-  if (method == Method::kSbdf3)
-    for (MatrixN3* m : {&xm2_, &vm2_, &gm2_}) m->setZero(n, 3);
+  if (scheme_.past_steps() >= 2)
+    for (MatrixN3* m : {&xm2_, &vm2_}) m->setZero(n, 3);
+  if (scheme_.past_g() >= 2) gm2_.setZero(n, 3);
 }
 
 void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -211,11 +221,9 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   x0_ = x;
   v0_ = v;
   filter_.Impose(&v0_);
-  have_history_ = false;
+  past_ = 0;
   have_g0_ = false;
   h_prev_ = h_prev2_ = 0.0;
-  history_ = 0;
-  sbdf3_history_ = 0;
   event_step_ = false;
   jumped_ = false;
   events_ = 0;
@@ -249,7 +257,7 @@ StepStats StepEngine::Step(double h) {
 }
 
 StepStats StepEngine::StepImpl(double h) {
-  if (method_ == Method::kSymplecticEuler) {
+  if (scheme_.explicit_step()) {
     StepStats st;
     st.t = t_ + h;
     st.h = h;
@@ -296,25 +304,21 @@ StepStats StepEngine::Solve(double h) {
   // its one-step start.
   int colliding = 0;
   if (contacts_.active()) {
-    const MatrixN3* xm1 = have_history_ ? &xm1_ : nullptr;
+    const MatrixN3* xm1 = past_ > 0 ? &xm1_ : nullptr;
     colliding = contacts_.SetUp(t_, h, x0_, v0_, xm1, &filter_);
     // event_step_ stays set over a retry or a redo (ContactSetChanged
     // compares with the last attempt) until the step is accepted.
-    if (!in_contact_.empty() && ContactSetChanged() && (have_history_ || event_location_)) {
-      have_history_ = false;
-      history_ = 0;
-      sbdf3_history_ = 0;
+    if (!in_contact_.empty() && ContactSetChanged() && (past_ > 0 || event_location_)) {
+      past_ = 0;
       event_step_ = event_location_;
     }
     if (event_step_) StartSlope();  // with this attempt's filter and friction
   }
   PrescribeFixedTargets(sys_, t_ + h, &filter_);  // moving fixed particles: their velocity at the step's end
-  bool sbdf3_start = false;
-  const Method m = StepMethod(h, &sbdf3_start);
-  const bool imex = IsImex(m);
+  const Scheme& step = StepScheme(h);
   // Variable-step BDF(2) coefficients, ω = h_n/h_{n−1} (docs/model.md §4, (3.28)–(3.32)).
-  const double omega = have_history_ ? h / h_prev_ : 1.0;
-  const bool multistep_form = m == Method::kSbdf2 || m == Method::kBdf2 || m == Method::kSbdf3;
+  const double omega = past_ > 0 ? h / h_prev_ : 1.0;
+  const bool multistep_form = step.past_steps() > 0;
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kProject) ProjectContactHistory();
   // SBDF(2)/(3) extrapolate g from its history. With virtual particles g
   // is this step's force function (model/virtual_springs.h), so the
@@ -322,13 +326,13 @@ StepStats StepEngine::Solve(double h) {
   // topology would double the jump of the virtual springs' forces.
   if (const VirtualSprings* vp = sys_.virtual_springs()) {
     const bool active = !vp->particles().empty();
-    if ((active || virtual_before_) && have_history_) {
-      if (m == Method::kSbdf2 || m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_, xm1_, vm1_, &gm1_);
-      if (m == Method::kSbdf3) EngineExplicitForces(t_ - h_prev_ - h_prev2_, xm2_, vm2_, &gm2_);
+    if ((active || virtual_before_) && past_ > 0) {
+      if (step.past_g() >= 1) EngineExplicitForces(t_ - h_prev_, xm1_, vm1_, &gm1_);
+      if (step.past_g() >= 2) EngineExplicitForces(t_ - h_prev_ - h_prev2_, xm2_, vm2_, &gm2_);
     }
     virtual_before_ = active;
   }
-  const StageCoefficients c = PrepareStage(m, h, omega, imex);
+  const StageCoefficients c = PrepareStage(step, h, omega);
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kLand) LandContactTargets(h, c.gamma);
 
   if (!sysmat_.Update(c.alpha * h)) {
@@ -346,20 +350,20 @@ StepStats StepEngine::Solve(double h) {
       return st;
     }
   }
-  // SBDF(3)'s start step evaluates g₀ too, for the history.
-  if (imex || sbdf3_start) ExplicitTerms(m, omega);
+  // IMEX steps, and a start step whose successor extrapolates g₀.
+  if (step.evaluates_g0()) ExplicitTerms(step, omega);
 
   // Predictor (3.25, 3.32): constant velocity, or linear extrapolation.
   v1_ = v0_;
-  if (opts_.predictor == Predictor::kExtrapolate && have_history_) v1_ += omega * (v0_ - vm1_);
+  if (opts_.predictor == Predictor::kExtrapolate && past_ > 0) v1_ += omega * (v0_ - vm1_);
 
   const PcgOptions pcg_opts{opts_.cg_tolerance, opts_.cg_max_iterations};
   // With contacts and CgReference::kFixedOnly, η is relative to ‖S_F b‖:
   // only the fixed particles' rows are left out (see CgReference).
   const bool fixed_only_norm = contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly;
-  if (!imex && !sbdf3_start && tangent_) {
+  if (step.exact_updates() == 0 && tangent_) {
     if (!NewtonIterate(h, c.alpha, c.beta, c.gamma_g, c.t_g, c.midpoint, fixed_only_norm, &st)) return st;
-  } else if (!FixedPointIterate(h, c, imex, sbdf3_start, fixed_only_norm, pcg_opts, &st)) {
+  } else if (!FixedPointIterate(h, c, step, fixed_only_norm, pcg_opts, &st)) {
     return st;
   }
   x1_ = xhat_ + (c.gamma * h) * v1_;
@@ -419,19 +423,11 @@ void StepEngine::LandContactTargets(double h, double gamma) {
   });
 }
 
-Method StepEngine::StepMethod(double h, bool* sbdf3_start) const {
-  // Multistep methods start with a one-step method of the same family
-  // (docs/model.md §4): SBDF(2) with IMEX Euler, BDF(2) with implicit Euler.
-  Method m = method_;
-  const bool multistep = method_ == Method::kSbdf2 || method_ == Method::kBdf2;
-  if (multistep && !have_history_) m = method_ == Method::kSbdf2 ? Method::kImexEuler : Method::kImplicitEuler;
-  // SBDF(3): the IMEX midpoint start step, then SBDF(2) until three equal
-  // steps give the BDF3 history.
-  *sbdf3_start = method_ == Method::kSbdf3 && sbdf3_history_ == 0;
-  if (*sbdf3_start) m = Method::kImplicitMidpoint;
-  if (method_ == Method::kSbdf3 && !*sbdf3_start && (sbdf3_history_ < 2 || h != h_prev_ || h_prev_ != h_prev2_))
-    m = Method::kSbdf2;
-  return m;
+const Scheme& StepEngine::StepScheme(double h) const {
+  // Multistep methods start with a one-step formula of the same family
+  // (docs/model.md §4): SBDF(2) with IMEX Euler, BDF(2) with implicit
+  // Euler, SBDF(3) with the IMEX midpoint step and SBDF(2).
+  return scheme_.ForStep(past_, h == h_prev_ && h_prev_ == h_prev2_);
 }
 
 void StepEngine::EngineExplicitForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const {
@@ -444,101 +440,45 @@ void StepEngine::LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) c
   if (const VirtualSprings* vp = sys_.virtual_springs()) vp->AddCouplingProduct(damping, x, out);
 }
 
-StepEngine::StageCoefficients StepEngine::PrepareStage(Method m, double h, double omega, bool imex) {
-  const Bdf2Coefficients bdf(omega);
-  const double c1 = bdf.c1, c2 = bdf.c2, c3 = bdf.c3;
-  StageCoefficients k;
-  double& alpha = k.alpha;
-  double& beta = k.beta;
-  double& gamma = k.gamma;
-  double& gamma_g = k.gamma_g;
-  double& t_g = k.t_g;
-  bool& midpoint = k.midpoint;
-  t_g = t_ + h;
-  const Eigen::VectorXd& mass = sys_.masses();
-  switch (m) {
-    case Method::kImexEuler:
-    case Method::kImplicitEuler:
-      // (3.22)–(3.25), (3.33), (3.34): x₁ = x₀ + h v₁,
-      // A₁ v₁ = M v₀ − h L_K x₀ + h g.
-      xhat_ = x0_;
-      vhat_ = v0_;
-      b0_.noalias() = mass.asDiagonal() * v0_;
-      LinearProduct(false, x0_, &tmp_);
-      b0_ -= h * tmp_;
-      if (!imex) xg0_ = x0_;
-      t_g = imex ? t_ : t_ + h;
-      break;
-    case Method::kSbdf2:
-    case Method::kBdf2:
-    case Method::kSbdf3: {
-      // (3.30), (3.35), (3.36): x₁ = c1 x₀ − c2 x₋₁ + c3 h v₁,
-      // A_c3 v₁ = M(c1 v₀ − c2 v₋₁) − c3 h L_K (c1 x₀ − c2 x₋₁) + c3 h ĝ.
-      // SBDF(3) (Ascher, Ruuth & Wetton 1995, k = 3, constant step):
-      // z₁ = (18 z₀ − 9 z₋₁ + 2 z₋₂)/11 + (6/11) h ż₁ for z = x, v, so
-      // A_{6/11} v₁ = M v̂ − (6/11) h L_K x̂ + (6/11) h ĝ.
-      const bool third = m == Method::kSbdf3;
-      alpha = beta = gamma = gamma_g = third ? 6.0 / 11.0 : c3;
-      if (third) {
-        xhat_ = (18.0 / 11.0) * x0_ - (9.0 / 11.0) * xm1_ + (2.0 / 11.0) * xm2_;
-        vhat_ = (18.0 / 11.0) * v0_ - (9.0 / 11.0) * vm1_ + (2.0 / 11.0) * vm2_;
-      } else {
-        xhat_ = c1 * x0_ - c2 * xm1_;
-        vhat_ = c1 * v0_ - c2 * vm1_;
-      }
-      LinearProduct(false, xhat_, &tmp_);
-      b0_ = mass.asDiagonal() * vhat_ - (alpha * h) * tmp_;  // one pass (the same roundings as two)
-      if (!imex) xg0_ = xhat_;  // g's base point: only the fully implicit updates move it
-      t_g = t_ + h;
-      break;
-    }
-    case Method::kImplicitMidpoint:
-      // (3.26): x₁ = x₀ + (h/2)(v₀ + v₁), x_m = x₀ + (h/4)(v₀ + v₁),
-      // A_½ v₁ = M v₀ − h L_K (x₀ + (h/4) v₀) − (h/2) L_D v₀ + h g(t₀ + h/2, x_m, v_m).
-      midpoint = true;
-      alpha = 0.5;
-      gamma = 0.5;
-      gamma_g = 0.25;
-      xhat_ = x0_ + (0.5 * h) * v0_;
-      vhat_ = v0_;
-      xg0_ = x0_ + (0.25 * h) * v0_;
-      b0_.noalias() = mass.asDiagonal() * v0_;
-      LinearProduct(false, xg0_, &tmp_);
-      b0_ -= h * tmp_;
-      if (sys_.has_tension_damping()) {
-        LinearProduct(true, v0_, &tmp_);
-        b0_ -= (0.5 * h) * tmp_;
-      }
-      t_g = t_ + 0.5 * h;
-      break;
-    case Method::kSymplecticEuler:  // handled by ExplicitStep
-      break;
-  }
-
-  return k;
+StageCoefficients StepEngine::PrepareStage(const Scheme& scheme, double h, double omega) {
+  Stage stage;
+  stage.t = t_;
+  stage.h = h;
+  stage.omega = omega;
+  stage.mass = &sys_.masses();
+  stage.x0 = &x0_;
+  stage.v0 = &v0_;
+  stage.xm1 = &xm1_;
+  stage.vm1 = &vm1_;
+  stage.xm2 = &xm2_;
+  stage.vm2 = &vm2_;
+  stage.xhat = &xhat_;
+  stage.vhat = &vhat_;
+  stage.xg0 = &xg0_;
+  stage.b0 = &b0_;
+  stage.tmp = &tmp_;
+  stage.engine = this;
+  return scheme.Prepare(stage);
 }
 
-void StepEngine::ExplicitTerms(Method m, double omega) {
+void StepEngine::ExplicitTerms(const Scheme& scheme, double omega) {
   if (!have_g0_) {
     EngineExplicitForces(t_, x0_, v0_, &g0_);
     have_g0_ = true;
   }
-  if (m == Method::kSbdf2)
-    g_ = (1 + omega) * g0_ - omega * gm1_;  // ĝ, variable-step extrapolation (docs/model.md §4)
-  else if (m == Method::kSbdf3)
-    g_ = 3.0 * g0_ - 3.0 * gm1_ + gm2_;  // ĝ, third order at a constant step
-  else
-    g_ = g0_;
+  scheme.Extrapolate(g0_, gm1_, gm2_, omega, &g_);
 }
 
-bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool imex, bool sbdf3_start,
-                                   bool fixed_only_norm, PcgOptions pcg_opts, StepStats* st) {
+bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, const Scheme& scheme, bool fixed_only_norm,
+                                   PcgOptions pcg_opts, StepStats* st) {
   const double beta = c.beta, gamma_g = c.gamma_g, t_g = c.t_g;
   const bool midpoint = c.midpoint;
-  // SBDF(3)'s start is the midpoint rule with exactly two updates: g at
-  // the midpoint of the first update's v₁ (an O(h²) midpoint state) gives a
-  // local error O(h³), which keeps the method third order.
-  const int max_updates = imex ? 1 : sbdf3_start ? 2 : opts_.max_updates;
+  // IMEX steps do one update, a start step may do an exact number
+  // (Scheme::exact_updates: SBDF(3)'s midpoint start two), the fully
+  // implicit ones iterate to convergence.
+  const bool imex = scheme.imex();
+  const int exact = scheme.exact_updates();
+  const int max_updates = exact > 0 ? exact : opts_.max_updates;
   const double b0_norm = FreeRowsNorm(b0_, sys_.fixed());
   bool converged = false;
   for (int u = 0; u < max_updates && !converged; ++u) {
@@ -572,7 +512,7 @@ bool StepEngine::FixedPointIterate(double h, const StageCoefficients& c, bool im
     // Alg. 6 line 11: converged when the PCG needed 0 iterations (the new
     // g did not move the solution beyond the CG tolerance); optionally also
     // when max |Δv| ≤ fixed_point_tolerance.
-    if (imex || (sbdf3_start && u == 1) || last_pcg_.iterations == 0 ||
+    if ((exact > 0 && u + 1 == exact) || last_pcg_.iterations == 0 ||
         (opts_.fixed_point_tolerance > 0.0 && (v1_ - vprev_).cwiseAbs().maxCoeff() <= opts_.fixed_point_tolerance)) {
       converged = true;
       break;
@@ -634,19 +574,19 @@ double StepEngine::ErrorNorm(double h, int* order) {
   const int n = sys_.num_particles();
   double k = 0.5;  // LTE = k (z₁ − P)
   const double hh = h_prev_, h2 = h_prev2_;
-  if (history_ == 0) {
+  if (past_ == 0) {
     *order = 1;
   } else {
     *order = 2;
     const Bdf2Coefficients bdf(h / hh);
     const double ec = (bdf.c2 * std::pow(h + hh, 3) - bdf.c1 * h * h * h) / 6.0;
-    const double ep = history_ == 1 ? h * (h + hh) * (h + hh) / 6.0 : h * (h + hh) * (h + hh + h2) / 6.0;
+    const double ep = past_ == 1 ? h * (h + hh) * (h + hh) / 6.0 : h * (h + hh) * (h + hh + h2) / 6.0;
     k = ec / (ec + ep);
   }
   // Predictors at t₀ + h. slope: ż₀ (start step) or ż₋₁ (second step).
   auto predict = [&](double zm2, double zm1, double z0, double slope) {
-    if (history_ == 0) return z0 + h * slope;
-    if (history_ == 1) {
+    if (past_ == 0) return z0 + h * slope;
+    if (past_ == 1) {
       // P(s) through (−H, z₋₁) with slope ż₋₁ there, and (0, z₀).
       const double q = (z0 - zm1 - slope * hh) / (hh * hh);
       const double s = h + hh;
@@ -662,10 +602,10 @@ double StepEngine::ErrorNorm(double h, int* order) {
     if (sys_.is_fixed(p)) continue;
     for (int c = 0; c < 3; ++c) {
       double px, pv;
-      if (history_ == 0) {
+      if (past_ == 0) {
         px = predict(0, 0, x0_(p, c), v0_(p, c));
         pv = predict(0, 0, v0_(p, c), a_init_(p, c));
-      } else if (history_ == 1) {
+      } else if (past_ == 1) {
         px = predict(0, xm1_(p, c), x0_(p, c), vm1_(p, c));
         pv = predict(0, vm1_(p, c), v0_(p, c), a_init_(p, c));
       } else {
@@ -814,16 +754,13 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
 bool StepEngine::Commit(double h) {
   if (!x1_.allFinite() || !v1_.allFinite()) return false;
   // (x₋₁, v₋₁, g₋₁) ← (x₀, v₀, g₀), (x₀, v₀) ← (x₁, v₁). Swaps, no copies.
-  if (error_control_ || method_ == Method::kSbdf3) {  // (x₋₂, v₋₂) ← (x₋₁, v₋₁): error estimate, SBDF(3)
+  if (error_control_ || scheme_.past_steps() >= 2) {  // (x₋₂, v₋₂) ← (x₋₁, v₋₁): error estimate, two-step formulas
     xm2_.swap(xm1_);
     vm2_.swap(vm1_);
     h_prev2_ = h_prev_;
-    history_ = std::min(history_ + 1, 2);
   }
-  if (method_ == Method::kSbdf3) {
-    gm2_.swap(gm1_);
-    sbdf3_history_ = std::min(sbdf3_history_ + 1, 2);
-  }
+  if (scheme_.past_g() >= 2) gm2_.swap(gm1_);
+  past_ = std::min(past_ + 1, 2);
   xm1_.swap(x0_);
   x0_.swap(x1_);
   vm1_.swap(v0_);
@@ -831,7 +768,6 @@ bool StepEngine::Commit(double h) {
   gm1_.swap(g0_);  // g₋₁ for SBDF(2): its start step (IMEX Euler) evaluates g₀ too
   have_g0_ = false;
   h_prev_ = h;
-  have_history_ = true;
   if (event_step_) ++events_;
   event_step_ = false;
   t_ += h;

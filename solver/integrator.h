@@ -20,6 +20,7 @@
 #include "model/run_status.h"
 #include "solver/contact.h"
 #include "solver/pcg.h"
+#include "solver/scheme.h"
 #include "solver/tangent.h"
 
 namespace clothbench {
@@ -256,7 +257,7 @@ class StepEngine : public Stepper {
   void SetTime(double t) override { t_ = t; }
   const MatrixN3& x() const override { return x0_; }
   const MatrixN3& v() const override { return v0_; }
-  bool single_update() const override { return IsImex(method_); }
+  bool single_update() const override { return scheme_.imex(); }
   /// SBDF(2) and BDF(2) with step_control = "error".
   bool estimates_error() const override { return error_control_; }
   int matrix_rebuilds() const override { return sysmat_.rebuilds(); }
@@ -280,6 +281,10 @@ class StepEngine : public Stepper {
     return true;
   }
   Method method() const { return method_; }
+  const ParticleSystem& system() const { return sys_; }
+  /// out = L x with L = L_K (or L_D if `damping`) less this step's removed
+  /// couplings (the schemes' stages, solver/scheme.h).
+  void LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
   const SystemMatrix& system_matrix() const { return sysmat_; }
   /// Wall time of the collision detection since Reset [s] (ContactResponse::setup_seconds).
   double contact_seconds() const { return contacts_.setup_seconds(); }
@@ -293,31 +298,23 @@ class StepEngine : public Stepper {
   bool newton() const { return tangent_ != nullptr; }
 
  private:
-  /// The coefficients of one step's velocity system (docs/model.md §4):
-  /// A_α v₁ = b₀ + βh g(t_g, x_g, v_g) with x_g = x̂_g + γ_g h v₁, x₁ = x̂ + γh v₁.
-  struct StageCoefficients {
-    double alpha = 1.0, beta = 1.0, gamma = 1.0, gamma_g = 1.0, t_g = 0.0;
-    bool midpoint = false;  ///< implicit midpoint: g at the mean velocity
-  };
   StepStats StepImpl(double h);
   /// g = the explicit terms at (t, x, v) as this engine splits them: with
   /// the couplings the virtual particles remove added back (their matrix
   /// has them removed, RemovedCoupling).
   void EngineExplicitForces(double t, const MatrixN3& x, const MatrixN3& v, MatrixN3* g) const;
-  /// out = L x with L = L_K (or L_D if `damping`) less this step's removed couplings.
-  void LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
-  /// The method this step takes: the start steps of the multistep methods.
-  /// @param sbdf3_start set if this is SBDF(3)'s midpoint start step
-  Method StepMethod(double h, bool* sbdf3_start) const;
-  /// Sets x̂, v̂, x̂_g and b₀ of method `m` at step h (ω = h/h₋₁) and returns
+  /// The formula this step takes (Scheme::ForStep: the start steps of the
+  /// multistep methods).
+  const Scheme& StepScheme(double h) const;
+  /// Sets x̂, v̂, x̂_g and b₀ of `scheme` at step h (ω = h/h₋₁) and returns
   /// its coefficients (thesis (3.22)–(3.36)).
-  StageCoefficients PrepareStage(Method m, double h, double omega, bool imex);
-  /// The explicit terms g of the IMEX methods: g(t₀, x₀, v₀), extrapolated
-  /// for SBDF(2) and SBDF(3).
-  void ExplicitTerms(Method m, double omega);
-  /// The fixed-point loop (Alg. 6) from the predictor v₁: returns true when
-  /// converged; on failure st->status says why.
-  bool FixedPointIterate(double h, const StageCoefficients& c, bool imex, bool sbdf3_start, bool fixed_only_norm,
+  StageCoefficients PrepareStage(const Scheme& scheme, double h, double omega);
+  /// g₀ = g(t₀, x₀, v₀) if not yet evaluated, and the explicit terms g of
+  /// the step (Scheme::Extrapolate).
+  void ExplicitTerms(const Scheme& scheme, double omega);
+  /// The fixed-point loop (Alg. 6) from the predictor v₁ with `scheme`'s
+  /// updates: returns true when converged; on failure st->status says why.
+  bool FixedPointIterate(double h, const StageCoefficients& c, const Scheme& scheme, bool fixed_only_norm,
                          PcgOptions pcg_opts, StepStats* st);
   /// One attempt at a step of size h: the contacts, the stage and its
   /// solve, x₁. Commits nothing. @return the step's statistics with its status
@@ -339,6 +336,7 @@ class StepEngine : public Stepper {
   double ErrorNorm(double h, int* order);
   const ParticleSystem& sys_;
   Method method_;
+  const Scheme& scheme_;  // method_'s formula (SchemeOf)
   SolverSpec opts_;
   SystemMatrix sysmat_;
   VelocityFilter filter_;
@@ -355,7 +353,10 @@ class StepEngine : public Stepper {
   MatrixN3 x0_, v0_;             // current state
   MatrixN3 xm1_, vm1_, gm1_;     // previous state and g there (multistep)
   double h_prev_ = 0.0;
-  bool have_history_ = false;
+  // Accepted steps since the last restart (Reset, a changed contact set),
+  // capped at 2: the past states the multistep formulas and the error
+  // estimate have.
+  int past_ = 0;
   bool virtual_before_ = false;  // the last step had virtual particles
   // ContactHistory::kRestart: which particles the obstacles constrained in
   // this step and the previous one (allocated once, multistep methods only).
@@ -379,14 +380,12 @@ class StepEngine : public Stepper {
   bool jumped_ = false;          // the last step ended with entries (LeftLimit)
   long events_ = 0;              // accepted steps that began with a changed contact set
   MatrixN3 x_left_, v_left_;     // its state before them
-  // Error control only: (x₋₂, v₋₂), v̇ = M⁻¹f at the last Reset, the step
-  // before h_prev_, and the accepted steps since Reset (capped at 2).
+  // Error control and two-step formulas: (x₋₂, v₋₂) and the step before
+  // h_prev_; error control only: v̇ = M⁻¹f at the last Reset.
   MatrixN3 xm2_, vm2_, a_init_;
   double h_prev2_ = 0.0;
-  int history_ = 0;
-  // SBDF(3): g₋₂, and the accepted steps since Reset (capped at 2).
+  // Formulas that extrapolate g from two past values: g₋₂.
   MatrixN3 gm2_;
-  int sbdf3_history_ = 0;
 
   // Scratch, allocated once.
   MatrixN3 g0_, g_, b0_, b_, xhat_, vhat_, xg0_, vg_, xg_, v1_, x1_, tmp_, vprev_;

@@ -1,7 +1,7 @@
 // A method's row as the registry lists it (harness/registry.cc): how the
 // method is stepped and built, the settings it reads, its default
 // parameters and the notes its table rows print. Each method defines its
-// row beside its code (solver/thesis_rows.cc, peers/<method>.cc,
+// row beside its code (solver/schemes/<method>.cc, peers/<method>.cc,
 // reference/<method>_reference.cc), so that a new method is its files and
 // one registry line (docs/guide/extending.md, "Adding a method").
 #ifndef CLOTHBENCH_SOLVER_METHOD_ROW_H_
@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "model/particle_system.h"
@@ -88,6 +89,10 @@ struct MethodEntry {
   bool arkode_table = false;
   /// Rows read CVODE's setup knobs (--cvode-setting).
   bool cvode_settings = false;
+  /// The method attributes a rerun reads back as request fields, where the
+  /// row reads that field (RowOptions): {attribute, request field}, e.g.
+  /// {"butcher_table", "arkode_table"}.
+  std::vector<std::pair<std::string_view, std::string_view>> rerun_settings = {};
   /// Fills what a row's record says about the stepper beyond the registry
   /// (xpbd: the terms it solves as constraints and those it applies
   /// explicitly); nullptr: nothing.
@@ -145,6 +150,14 @@ struct MethodEntry {
 /// factor with contact factors and the prefiltered AMG (docs/notes/performance.md,
 /// "The contact policy").
 inline constexpr PreconditionerType kBestPreconditioner = PreconditionerType::kAuto;
+
+/// MethodEntry::make of the thesis' methods: the step engine with the
+/// scheme of M (solver/scheme.h).
+template <Method M>
+std::unique_ptr<Stepper> MakeEngine(const ParticleSystem& sys, const SolverSpec& spec, int /*count*/,
+                                    std::string_view /*variant*/) {
+  return std::make_unique<StepEngine>(sys, M, spec);
+}
 
 /// The default run's tolerances of an adaptive row: rtol = atol = 1e-2 … 1e-7.
 inline const std::vector<double> kDefaultRtols = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};

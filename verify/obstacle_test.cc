@@ -65,14 +65,14 @@ ObstacleSpec MovingBoxSpec() {
 // reads only its own keys, and the same rules hold for shapes built in code.
 TEST(ObstacleShapes, TheRegistryNamesAndParsesEveryShape) {
   const std::vector<std::string_view> types = ObstacleShapeTypes();
-  ASSERT_EQ(types.size(), 5u);
+  ASSERT_EQ(types.size(), 6u);
   const std::string grid = "[grid]\nnu = 3\nnv = 3\nsize = [0.1, 0.1]\norigin = [0.0, 0.0, 1.0]\n";
   try {
     ParseScene(grid + "[[obstacle]]\ntype = \"cone\"\n", "cone.toml");
     ADD_FAILURE() << "an unknown type was accepted";
   } catch (const SceneError& e) {
     EXPECT_EQ(std::string(e.what()), "cone.toml: obstacle[0].type: must be \"plane\", \"sphere\", \"box\", "
-                                     "\"cylinder\" or \"mesh\" (got \"cone\")");
+                                     "\"cylinder\", \"capsule\" or \"mesh\" (got \"cone\")");
   }
   const std::string cube = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
   const std::map<std::string_view, std::string> keys = {
@@ -80,6 +80,7 @@ TEST(ObstacleShapes, TheRegistryNamesAndParsesEveryShape) {
       {"sphere", "center = [0.0, 0.0, 0.0]\nradius = 0.2"},
       {"box", "center = [0.0, 0.0, 0.0]\nsize = [0.2, 0.2, 0.2]"},
       {"cylinder", "center = [0.0, 0.0, 0.0]\nradius = 0.2\nheight = 0.1"},
+      {"capsule", "a = [0.0, 0.0, 0.0]\nb = [0.1, 0.0, 0.0]\nradius = 0.2"},
       {"mesh", "path = \"" + cube + "\"\nscale = 0.1"}};
   for (std::string_view type : types) {
     ASSERT_TRUE(keys.count(type)) << type;
@@ -100,6 +101,66 @@ TEST(ObstacleShapes, TheRegistryNamesAndParsesEveryShape) {
   EXPECT_THROW(ShapeFromValues("sphere", {{"radius", -0.2}}), std::invalid_argument);
   EXPECT_THROW(ShapeFromValues("plane", {{"normal", Vector3::Zero()}}), std::invalid_argument);
   EXPECT_EQ(ShapeFromValues("box", {{"size", Vector3(1.0, 2.0, 3.0)}})->type(), "box");
+}
+
+// The capsule (collision/shapes/capsule.cc): its signed distance against
+// the brute-force distance to 40,001 points of its segment less the
+// radius (spacing 1e-5 m: the sampled minimum is within spacing²/(8 d) ≤
+// 1.3e-10 m of the true one at d ≥ 0.1 m, so 1e-9 m), its direction
+// against central differences of the distance (step 1e-6 m: error
+// O(step²/d) ≈ 1e-11, so 1e-6), its entry point along a ray, its surface
+// (every vertex on the capsule to round-off, closed: V − E + F = 2 with
+// every edge in two triangles, each facing away from the axis) and its
+// refusals.
+TEST(ObstacleShapes, CapsuleDistanceDirectionAndSurface) {
+  const Vector3 a(0.1, -0.2, 0.3), b(0.5, 0.1, 0.2);
+  const double radius = 0.1;
+  const auto shape = ShapeFromValues("capsule", {{"a", a}, {"b", b}, {"radius", radius}});
+  std::srand(11);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Vector3 p = 0.5 * (a + b) + 0.6 * Vector3::Random();
+    double brute = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= 40000; ++k) brute = std::min(brute, (p - (a + (b - a) * (k / 40000.0))).norm());
+    if (brute < 0.1) continue;  // the tolerance above holds from 0.1 m
+    Vector3 dir;
+    const double d = shape->SignedDistance(p, &dir);
+    EXPECT_NEAR(d, brute - radius, 1e-9) << p.transpose();
+    Vector3 grad;
+    for (int i = 0; i < 3; ++i) {
+      Vector3 dummy;
+      const Vector3 step = 1e-6 * Vector3::Unit(i);
+      grad(i) = (shape->SignedDistance(p + step, &dummy) - shape->SignedDistance(p - step, &dummy)) / 2e-6;
+    }
+    EXPECT_NEAR((grad - dir).norm(), 0.0, 1e-6) << p.transpose();
+  }
+  // A ray straight down onto the middle of the axis enters where its
+  // distance to the axis line, z sin θ (θ between the axis and the
+  // vertical), is the radius.
+  const Vector3 mid = 0.5 * (a + b);
+  const auto hit = shape->FirstHit(mid + Vector3(0.0, 0.0, 1.0), mid - Vector3(0.0, 0.0, 1.0));
+  ASSERT_TRUE(hit.has_value());
+  const Vector3 entry = mid + Vector3(0.0, 0.0, 1.0) + hit->s * Vector3(0.0, 0.0, -2.0);
+  const double sin_theta = std::sqrt(1.0 - std::pow((b - a).normalized().z(), 2));
+  EXPECT_NEAR(entry.z(), mid.z() + radius / sin_theta, 1e-9);
+  std::vector<Vector3> v;
+  std::vector<std::array<int, 3>> t;
+  shape->Surface(&v, &t);
+  ASSERT_FALSE(t.empty());
+  Vector3 dummy;
+  for (const Vector3& x : v) EXPECT_NEAR(shape->SignedDistance(x, &dummy), 0.0, 1e-12);
+  std::map<std::pair<int, int>, int> edges;
+  for (const auto& tri : t) {
+    for (int k = 0; k < 3; ++k) ++edges[std::minmax(tri[static_cast<std::size_t>(k)], tri[static_cast<std::size_t>((k + 1) % 3)])];
+    const Vector3 p0 = v[static_cast<std::size_t>(tri[0])], p1 = v[static_cast<std::size_t>(tri[1])],
+                  p2 = v[static_cast<std::size_t>(tri[2])];
+    const Vector3 centroid = (p0 + p1 + p2) / 3.0;
+    const double s = std::clamp((centroid - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    EXPECT_GT((p1 - p0).cross(p2 - p0).dot(centroid - (a + s * (b - a))), 0.0);
+  }
+  for (const auto& [edge, count] : edges) EXPECT_EQ(count, 2) << edge.first << "-" << edge.second;
+  EXPECT_EQ(static_cast<long>(v.size()) - static_cast<long>(edges.size()) + static_cast<long>(t.size()), 2);
+  EXPECT_THROW(ShapeFromValues("capsule", {{"a", a}, {"b", a}, {"radius", radius}}), std::invalid_argument);
+  EXPECT_THROW(ShapeFromValues("capsule", {{"a", a}, {"b", b}, {"radius", 0.0}}), std::invalid_argument);
 }
 
 TEST(ObstacleMotion, KeyframedPoseAndVelocity) {

@@ -13,6 +13,7 @@
   X("sphere", ParseSphere)            \
   X("box", ParseBox)                  \
   X("cylinder", ParseCylinder)        \
+  X("capsule", ParseCapsule)          \
   X("mesh", ParseMesh)
 
 namespace clothbench {
