@@ -235,8 +235,12 @@ class Stepper {
   }
 };
 
-/// Advances the state of a particle system step by step with one method.
-/// Fixed particles are held by the velocity filter (zero velocity).
+/// Advances the state of a particle system step by step with one of the
+/// thesis' methods: the machinery they share (contacts, the velocity
+/// system and its preconditioner, the fixed point, Newton, error control,
+/// event location) around the method's formula, its Scheme
+/// (solver/scheme.h, one file per method in solver/schemes/). Fixed
+/// particles are held by the velocity filter (zero velocity).
 class StepEngine : public Stepper {
  public:
   /// @param system the model (must outlive the engine)
