@@ -126,13 +126,11 @@ void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows,
       const bool listed = std::any_of(kept.begin(), kept.end(), [&](const RowMethod& k) { return k.label() == m.label(); });
       if (named || !listed) kept.push_back(m);
     } else if (named) {
-      std::string with;
-      for (const MethodEntry& e : Registry())
-        if (e.error_control) with += (with.empty() ? "" : ", ") + std::string(e.name);
       throw std::invalid_argument(fmt::format(
           "{}: {} cannot step under the scene's [solver] step_control = \"error\" (it has no error estimate; rows "
-          "that have one: {}, and the adaptive cvode, ida, arkode)",
-          option, m.label(), with));
+          "that have one: {}, and the adaptive {})",
+          option, m.label(), MethodNames([](const MethodEntry& e) { return e.error_control; }),
+          MethodNames([](const MethodEntry& e) { return e.kind == StepKind::kAdaptive; })));
     }
   }
   *rows = std::move(kept);
@@ -164,7 +162,8 @@ std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names, cons
           throw std::invalid_argument(fmt::format("{}: \"{}\" names /error twice", option, full));
         if (!r.entry->error_control)
           throw std::invalid_argument(
-              fmt::format("{}: \"{}\": only sbdf2 and bdf2 run under error control (/error)", option, full));
+              fmt::format("{}: \"{}\": only {} run under error control (/error)", option, full,
+                          MethodNames([](const MethodEntry& e) { return e.error_control; })));
         r.error_control = true;
       } else if (r.entry->nonlinear_solver) {
         if (solver_named)

@@ -67,11 +67,19 @@ inline std::string ReferenceNames() {
   return s;
 }
 
+/// The names of the methods whose row satisfies `pred`, in registry order,
+/// for messages ("sbdf2, bdf2").
+template <class Pred>
+std::string MethodNames(Pred pred) {
+  std::string s;
+  for (const MethodEntry& e : Registry())
+    if (pred(e)) s += (s.empty() ? "" : ", ") + std::string(e.name);
+  return s;
+}
+
 /// The known names, for messages.
 inline std::string KnownMethodNames() {
-  std::string s;
-  for (const MethodEntry& e : Registry()) s += (s.empty() ? "" : ", ") + std::string(e.name);
-  return s;
+  return MethodNames([](const MethodEntry&) { return true; });
 }
 
 /// One run of one row: the step loop's RunSummary (its record, the

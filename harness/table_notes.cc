@@ -61,12 +61,8 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
 // The methods of step kind `kind`, "cvode, ida, arkode", in registry order;
 // for adaptive rows also "*/error" if a method runs under error control.
 std::string NamesOf(StepKind kind) {
-  std::string names;
-  bool error_rows = false;
-  for (const MethodEntry& e : Registry()) {
-    if (e.kind == kind) names += (names.empty() ? "" : ", ") + std::string(e.name);
-    error_rows = error_rows || e.error_control;
-  }
+  std::string names = MethodNames([kind](const MethodEntry& e) { return e.kind == kind; });
+  const bool error_rows = !MethodNames([](const MethodEntry& e) { return e.error_control; }).empty();
   if (kind == StepKind::kAdaptive && error_rows) names += (names.empty() ? "" : ", ") + std::string("*/error");
   return names;
 }

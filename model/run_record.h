@@ -61,16 +61,11 @@ struct RunRecord {
       }
     method_attributes.emplace_back(name, std::move(value));
   }
-  /// The method attribute `name`, or nullptr if the run has none.
-  const MethodValue* MethodAttribute(std::string_view name) const {
-    for (const auto& [n, v] : method_attributes)
-      if (n == name) return &v;
-    return nullptr;
-  }
   /// The text attribute `name`, or "" if the run has none or it is not text.
   std::string MethodText(std::string_view name) const {
-    const MethodValue* v = MethodAttribute(name);
-    return v && std::holds_alternative<std::string>(*v) ? std::get<std::string>(*v) : std::string();
+    for (const auto& [n, v] : method_attributes)
+      if (n == name && std::holds_alternative<std::string>(v)) return std::get<std::string>(v);
+    return "";
   }
   double atol = 0.0;         ///< adaptive rows: atol (= rtol unless set)
   long threads = 0;          ///< OpenMP threads of the kernels

@@ -192,7 +192,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
     in_contact_.assign(static_cast<std::size_t>(n), 0);
     in_contact_prev_.assign(static_cast<std::size_t>(n), 0);
   }
-  if (!scheme_.imex() && !scheme_.explicit_step() && solver.nonlinear_solver == NonlinearSolver::kNewton) {
+  if (IsFullyImplicit(method) && solver.nonlinear_solver == NonlinearSolver::kNewton) {
     const auto start = std::chrono::steady_clock::now();
     TangentOptions to;
     to.projection = solver.tangent_projection;

@@ -49,8 +49,6 @@ struct Stage {
 class Scheme {
  public:
   virtual ~Scheme() = default;
-  /// The method whose formula this is.
-  virtual Method method() const = 0;
   /// IMEX: g explicit (from g₀ and its history, Extrapolate), one update a step.
   virtual bool imex() const = 0;
   /// Updates a step does exactly (IMEX: 1; SBDF(3)'s midpoint start: 2), or

@@ -26,7 +26,6 @@ namespace {
 
 class Bdf2 final : public Scheme {
  public:
-  Method method() const override { return Method::kBdf2; }
   bool imex() const override { return false; }
   int past_steps() const override { return 1; }
   bool error_controlled() const override { return true; }

@@ -9,7 +9,6 @@ namespace {
 
 class ImexEuler final : public Scheme {
  public:
-  Method method() const override { return Method::kImexEuler; }
   bool imex() const override { return true; }
   StageCoefficients Prepare(const Stage& s) const override { return EulerStage(s, true); }
 };

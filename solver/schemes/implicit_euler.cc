@@ -23,7 +23,6 @@ namespace {
 
 class ImplicitEuler final : public Scheme {
  public:
-  Method method() const override { return Method::kImplicitEuler; }
   bool imex() const override { return false; }
   StageCoefficients Prepare(const Stage& s) const override { return EulerStage(s, false); }
 };

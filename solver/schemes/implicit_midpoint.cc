@@ -42,7 +42,6 @@ constexpr std::string_view kMidpointPenetration =
 
 class ImplicitMidpoint final : public Scheme {
  public:
-  Method method() const override { return Method::kImplicitMidpoint; }
   bool imex() const override { return false; }
   StageCoefficients Prepare(const Stage& s) const override { return MidpointStage(s); }
 };

@@ -11,7 +11,6 @@ namespace {
 
 class Sbdf2 final : public Scheme {
  public:
-  Method method() const override { return Method::kSbdf2; }
   bool imex() const override { return true; }
   int past_steps() const override { return 1; }
   int past_g() const override { return 1; }

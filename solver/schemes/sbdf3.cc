@@ -17,7 +17,6 @@ namespace {
 // extrapolation of the steps after it.
 class MidpointStart final : public Scheme {
  public:
-  Method method() const override { return Method::kImplicitMidpoint; }
   bool imex() const override { return false; }
   int exact_updates() const override { return 2; }
   bool evaluates_g0() const override { return true; }
@@ -26,7 +25,6 @@ class MidpointStart final : public Scheme {
 
 class Sbdf3 final : public Scheme {
  public:
-  Method method() const override { return Method::kSbdf3; }
   bool imex() const override { return true; }
   int past_steps() const override { return 2; }
   int past_g() const override { return 2; }

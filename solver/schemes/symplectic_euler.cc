@@ -10,7 +10,6 @@ namespace {
 
 class SymplecticEuler final : public Scheme {
  public:
-  Method method() const override { return Method::kSymplecticEuler; }
   bool imex() const override { return false; }
   bool explicit_step() const override { return true; }
   StageCoefficients Prepare(const Stage&) const override { return {}; }  // not used: the step is explicit
