@@ -15,6 +15,7 @@
 
 #include "bench/kernel_scenes.h"
 #include "model/particle_system.h"
+#include "harness/methods.h"
 #include "solver/integrator.h"
 #include "solver/tangent.h"
 
@@ -115,7 +116,7 @@ void BM_StepObstacles(benchmark::State& state) {
     scene.obstacles.push_back(plane);
   }
   const ParticleSystem sys(scene);
-  StepEngine e(sys, Method::kSbdf2, scene.solver);
+  StepEngine e(sys, *MethodFromString(KernelBenchmarkMethod().name), scene.solver);
   MatrixN3 x, v;
   SwungState(sys, &x, &v);
   e.Reset(0.2, x, v);

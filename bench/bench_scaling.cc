@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
+#include "harness/methods.h"
 #include "solver/integrator.h"
 
 namespace clothbench {
@@ -70,7 +71,7 @@ void BM_SbdfStep(benchmark::State& state) {
   if (state.range(3) == 1) scene.solver.cholesky_ordering = CholeskyOrdering::kAmd;
   if (state.range(3) == 2) scene.solver.contact_factors = false;  // the factor of A_F alone
   const ParticleSystem sys(scene);
-  StepEngine engine(sys, Method::kSbdf2, scene.solver);
+  StepEngine engine(sys, *MethodFromString(KernelBenchmarkMethod().name), scene.solver);
   engine.Reset(0.0, sys.rest_positions(), MatrixN3::Zero(sys.num_particles(), 3));
   const double h = scene.h;
   StepStats first = engine.Step(h);  // IMEX Euler start

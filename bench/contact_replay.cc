@@ -85,7 +85,7 @@ int Fail(const std::string& line) {
 
 // The command line of both subcommands.
 struct Args {
-  std::string scene, integrator = std::string(ToString(Method::kSbdf2)), preconditioner, frames, prefix, state;
+  std::string scene, integrator = std::string(KernelBenchmarkMethod().name), preconditioner, frames, prefix, state;
   std::string at_arg;     ///< --at as given: a comma-separated list
   std::vector<double> at;  ///< --at, parsed (ParsePositiveList: no empty item)
   int steps = 0;
@@ -100,7 +100,7 @@ void AddOptions(CLI::App& app, Args* a) {
   a->replay = app.add_subcommand("replay", "take --steps steps from a saved state");
   for (CLI::App* sub : {a->save, a->replay}) {
     sub->add_option("--scene", a->scene, "scene file or built-in scene name")->required();
-    sub->add_option("--integrator", a->integrator, "a thesis integrator (default sbdf2)");
+    sub->add_option("--integrator", a->integrator, "a thesis integrator that solves with the PCG")->capture_default_str();
     sub->add_option("--preconditioner", a->preconditioner, "override the scene's preconditioner");
     sub->add_option("--amg-frames", a->frames, "override the scene's amg_frames (adaptive, nearest_axis, spread)");
     sub->add_flag("--cycle-factor", a->diagnostics.cycle_factor,
@@ -130,12 +130,11 @@ ResolvedRun ResolveRun(const Args& a) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  const std::optional<Method> engine_method = MethodFromString(rows.front().name());
-  if (rows.size() != 1 || rows.front().entry->layer != "solver" || rows.front().kind() != StepKind::kFixedStep ||
-      !engine_method || *engine_method == Method::kSymplecticEuler)
-    throw UsageError(fmt::format("--integrator {}: not one of imex_euler, implicit_euler, sbdf2, bdf2, "
-                                 "implicit_midpoint, sbdf3 (with /newton or /fixed_point where they take one)",
-                                 EscapeControl(a.integrator)));
+  // The step engine's rows that solve with the PCG (the registry's solver/ layer).
+  const auto replays = [](const MethodEntry& e) { return e.layer == "solver" && e.pcg; };
+  if (rows.size() != 1 || !replays(*rows.front().entry) || !SpecOf(rows.front().kind()).plain())
+    throw UsageError(fmt::format("--integrator {}: not one of {} (with /newton or /fixed_point where they take one)",
+                                 EscapeControl(a.integrator), MethodNames(replays)));
   RunRequest q;
   q.scene = scene;
   q.method = a.integrator;

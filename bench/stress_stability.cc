@@ -62,16 +62,16 @@ SweepPlan PlanSweep(const CLI::App& app, const std::string& scenes_arg, const st
   if (app.count("--integrators") && integrators_arg.empty())
     throw UsageError("--integrators: empty list \"\" (name rows, or leave the option out for the default rows)");
   if (integrators_arg.empty()) {
-    for (Method m : AllMethods()) names.emplace_back(ToString(m));
-    names.emplace_back(ToString(Method::kSbdf3));
-    names.emplace_back(ToString(Method::kSymplecticEuler));
+    // The thesis' integrators (the registry's solver/ layer), in registry order.
+    for (const MethodEntry& e : Registry())
+      if (e.layer == "solver") names.emplace_back(e.name);
   } else {
     names = SplitList(integrators_arg, "--integrators");
   }
   std::vector<NonlinearSolver> solvers;
   for (const std::string& n : SplitList(nonlinear_arg, "--nonlinear-solver"))
     solvers.push_back(ParseNonlinearSolver(n, "--nonlinear-solver"));
-  p.methods = ExpandMethods(names, solvers, "--integrators", {StepKind::kFixedStep});
+  p.methods = ExpandMethods(names, solvers, "--integrators", [](const StepKindSpec& k) { return k.plain(); });
   for (std::size_t a = 0; a < p.methods.size(); ++a)
     for (std::size_t b = 0; b < a; ++b)
       if (p.methods[a].label() == p.methods[b].label())

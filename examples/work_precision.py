@@ -20,7 +20,7 @@ rows = sys.argv[1:] or ["sbdf2", "sbdf3", "arkode/ark4", "cvode"]
 ref = clothbench.reference(scene)["positions"][-1]
 runs = []
 for row in rows:
-    key = "rtol" if row.split("/")[0] in ("cvode", "ida", "arkode") or row.endswith("/error") else "h"
+    key = clothbench.row_param(row)
     points = []
     for p in clothbench.default_params(scene, row):
         r = clothbench.run(scene, row, **{key: p})

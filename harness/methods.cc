@@ -130,14 +130,14 @@ void AdoptSceneStepControl(const SolverSpec& spec, std::vector<RowMethod>* rows,
           "{}: {} cannot step under the scene's [solver] step_control = \"error\" (it has no error estimate; rows "
           "that have one: {}, and the adaptive {})",
           option, m.label(), MethodNames([](const MethodEntry& e) { return e.error_control; }),
-          MethodNames([](const MethodEntry& e) { return e.kind == StepKind::kAdaptive; })));
+          MethodNames([](const MethodEntry& e) { return SpecOf(e.kind).adaptive(); })));
     }
   }
   *rows = std::move(kept);
 }
 
 std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names, const std::vector<NonlinearSolver>& solvers,
-                                     const std::string& option, const std::vector<StepKind>& kinds) {
+                                     const std::string& option, bool (*runs)(const StepKindSpec&)) {
   std::vector<RowMethod> out;
   for (const std::string& full : names) {
     std::vector<std::string> parts;
@@ -180,7 +180,7 @@ std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names, cons
                                         parts[k], r.entry->name, takes));
       }
     }
-    if (!kinds.empty() && std::find(kinds.begin(), kinds.end(), r.kind()) == kinds.end())
+    if (runs && !runs(SpecOf(r.kind())))
       throw std::invalid_argument(fmt::format("{}: \"{}\" is {}, which this command does not run", option, full,
                                               ToString(r.kind())));
     if (r.fully_implicit() && !solver_named) {

@@ -48,6 +48,10 @@ std::string_view DefaultReference();
 /// The method of the self-convergence reference (MethodEntry::self_convergence_reference).
 const MethodEntry& SelfConvergenceMethod();
 
+/// The thesis method whose step bench_kernels, bench_scaling and
+/// contact_replay time (MethodEntry::kernel_benchmark; SBDF(2)).
+const MethodEntry& KernelBenchmarkMethod();
+
 /// The methods that can be the reference, for messages ("cvode, ida").
 inline std::string ReferenceNames();
 
@@ -106,7 +110,7 @@ struct RowMethod {
   std::string variant;
 
   std::string name() const { return std::string(entry->name); }
-  StepKind kind() const { return error_control ? StepKind::kAdaptive : entry->kind; }
+  StepKind kind() const { return error_control ? ToleranceKind() : entry->kind; }
   /// "bdf2", "bdf2/newton", "sbdf2/error", "baraff_witkin".
   std::string label() const {
     std::string s = name();
@@ -285,11 +289,11 @@ inline NonlinearSolver ParseNonlinearSolver(const std::string& s, const std::str
 /// One RowMethod per name; a fully implicit method without a solver in its
 /// name gives one row per solver in `solvers` (in that order). A name may
 /// carry modifiers: "bdf2/newton", "sbdf2/error", "bdf2/newton/error".
-/// @param kinds if non-empty, the step kinds the caller can run (others are
-///              refused, naming `option`)
+/// @param runs if given, whether the caller can run a step kind (rows of
+///             other kinds are refused, naming `option`)
 /// @throws std::invalid_argument for an unknown name, solver or modifier.
 std::vector<RowMethod> ExpandMethods(const std::vector<std::string>& names, const std::vector<NonlinearSolver>& solvers,
-                                     const std::string& option, const std::vector<StepKind>& kinds = {});
+                                     const std::string& option, bool (*runs)(const StepKindSpec&) = nullptr);
 
 }  // namespace clothbench
 

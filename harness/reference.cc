@@ -16,7 +16,7 @@ namespace clothbench {
 RowMethod ParseReference(const std::string& name, const std::string& option) {
   std::vector<RowMethod> rows;
   try {
-    rows = ExpandMethods({name}, {NonlinearSolver::kFixedPoint}, option, {StepKind::kAdaptive});
+    rows = ExpandMethods({name}, {NonlinearSolver::kFixedPoint}, option, [](const StepKindSpec& k) { return k.adaptive(); });
   } catch (const std::invalid_argument&) {
     rows.clear();
   }
@@ -63,7 +63,7 @@ RunSummary SelfConvergenceReference(const Scene& scene, double h_ref, double fix
   r.integrator = r.label = std::string(method.name) + "_self_convergence";
   if (scene.collision) r.collision_self = scene.collision->self ? "on" : "off";
   r.layer = std::string(method.layer);
-  r.step_kind = StepKind::kFixedStep;
+  r.step_kind = method.kind;
   r.h = h_ref;
   r.cg_tolerance = tight.solver.cg_tolerance;
   return r;

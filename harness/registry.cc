@@ -63,7 +63,7 @@ const std::vector<DefaultRow>& DefaultRows() {
         DefaultRow row{std::string(e.name) + (d.modifiers.empty() ? "" : "/") + std::string(d.modifiers),
                        {d.h_factors, d.rtols, d.iterations}, d.newton_variant};
         const bool error_row = d.modifiers == "error" || d.modifiers.ends_with("/error");
-        (e.kind == StepKind::kAdaptive || error_row ? adaptive : fixed).push_back(std::move(row));
+        (SpecOf(e.kind).adaptive() || error_row ? adaptive : fixed).push_back(std::move(row));
       }
     fixed.insert(fixed.end(), adaptive.begin(), adaptive.end());
     return fixed;
@@ -72,6 +72,10 @@ const std::vector<DefaultRow>& DefaultRows() {
 }
 
 std::string_view DefaultReference() { return TheOne(&MethodEntry::default_reference, "default reference").name; }
+
+const MethodEntry& KernelBenchmarkMethod() {
+  return TheOne(&MethodEntry::kernel_benchmark, "kernel benchmark");
+}
 
 const MethodEntry& SelfConvergenceMethod() {
   return TheOne(&MethodEntry::self_convergence_reference, "self-convergence reference");

@@ -338,7 +338,7 @@ void WriteSeries(const std::string& path, const std::vector<Row>& rows) {
   fmt::print("\nFig. 4.3 series: {}\n{:<24} {:>8} {:>10} {:>16} {:>16} {:>16} {:>14}\n", path, "integrator", "h",
              "impact_s", "cg/step impact", "upd/step last .3s", "cg/step last .3s", "colliding end");
   for (const Row& r : rows) {
-    if (r.kind() != StepKind::kFixedStep) continue;
+    if (!SpecOf(r.kind()).plain()) continue;
     double impact = -1.0, t_last = r.step_stats.empty() ? 0.0 : r.step_stats.back().t;
     long cg_a = 0, n_a = 0, upd_b = 0, cg_b = 0, n_b = 0;
     for (const StepStats& s : r.step_stats) {

@@ -63,8 +63,20 @@ std::string ReferenceLine(const RunRecord& ref, const std::string& error_name) {
 std::string NamesOf(StepKind kind) {
   std::string names = MethodNames([kind](const MethodEntry& e) { return e.kind == kind; });
   const bool error_rows = !MethodNames([](const MethodEntry& e) { return e.error_control; }).empty();
-  if (kind == StepKind::kAdaptive && error_rows) names += (names.empty() ? "" : ", ") + std::string("*/error");
+  if (kind == ToleranceKind() && error_rows) names += (names.empty() ? "" : ", ") + std::string("*/error");
   return names;
+}
+
+// "h|rtol: " and each step kind's words from its record (StepKindSpec::legend),
+// with its methods after all but the plain step sizes.
+std::string Legend() {
+  std::string legend = "h|rtol:";
+  for (std::size_t k = 0; k < std::size(kAllStepKinds); ++k) {
+    const StepKindSpec& spec = SpecOf(kAllStepKinds[k]);
+    legend += fmt::format("{} {}", k == 0 ? "" : ",", spec.legend);
+    if (!spec.plain()) legend += " (" + NamesOf(spec.kind) + ")";
+  }
+  return legend + ".";
 }
 
 }  // namespace
@@ -72,9 +84,7 @@ std::string NamesOf(StepKind kind) {
 const RunTableNotes& RegistryTableNotes() {
   static const RunTableNotes notes = [] {
     RunTableNotes n{
-      .legend = fmt::format("h|rtol: the step of fixed-step rows, rtol = atol of adaptive rows ({}), frame "
-                            "step/substeps of substepped rows ({}), step x iterations of iterated rows ({}).",
-                            NamesOf(StepKind::kAdaptive), NamesOf(StepKind::kSubstepped), NamesOf(StepKind::kIterated)),
+      .legend = Legend(),
       .rows = {},
       .after_rows = std::string(kSundialsCountsNote),
       .reference = ReferenceLine,

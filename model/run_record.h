@@ -148,22 +148,37 @@ struct StepKindSpec {
   char count_separator;          ///< the table's h|rtol column: "0.01/4", "0.01x16"
   std::string_view progress_separator;  ///< progress lines: "h = 0.01 s/4", "h = 0.01 s x16"
   bool count_divides_h;          ///< substeps: each takes h/count
+  /// The table legend's words for the h|rtol column of its rows: "the step
+  /// of fixed-step rows", "rtol = atol of adaptive rows", …
+  std::string_view legend;
   bool adaptive() const { return param == "rtol"; }
   bool counted() const { return count_field != nullptr; }
+  /// Rows given by a list of step sizes alone (no tolerance, no count).
+  bool plain() const { return !adaptive() && !counted(); }
 };
 
 /// The record of `kind`.
 inline const StepKindSpec& SpecOf(StepKind kind) {
   static const StepKindSpec kSpecs[] = {
-      {StepKind::kFixedStep, "h", "", nullptr, 0, 0, "", false},
-      {StepKind::kAdaptive, "rtol", "", nullptr, 0, 0, "", false},
-      {StepKind::kSubstepped, "h", "substeps", &RunRecord::substeps, 'n', '/', "/", true},
-      {StepKind::kIterated, "h", "iterations", &RunRecord::iterations, 'k', 'x', " x", false},
+      {StepKind::kFixedStep, "h", "", nullptr, 0, 0, "", false, "the step of fixed-step rows"},
+      {StepKind::kAdaptive, "rtol", "", nullptr, 0, 0, "", false, "rtol = atol of adaptive rows"},
+      {StepKind::kSubstepped, "h", "substeps", &RunRecord::substeps, 'n', '/', "/", true,
+       "frame step/substeps of substepped rows"},
+      {StepKind::kIterated, "h", "iterations", &RunRecord::iterations, 'k', 'x', " x", false,
+       "step x iterations of iterated rows"},
   };
   static_assert(static_cast<int>(StepKind::kFixedStep) == 0 && static_cast<int>(StepKind::kAdaptive) == 1 &&
                 static_cast<int>(StepKind::kSubstepped) == 2 && static_cast<int>(StepKind::kIterated) == 3);
   return kSpecs[static_cast<int>(kind)];
 }
+
+/// Every step kind, in the order of the table's legend.
+inline constexpr StepKind kAllStepKinds[] = {StepKind::kFixedStep, StepKind::kAdaptive, StepKind::kSubstepped,
+                                             StepKind::kIterated};
+
+/// The kind of a row that its error estimate steps (rtol rows: the
+/// adaptive SUNDIALS rows and the thesis' methods under error control).
+inline StepKind ToleranceKind() { return StepKind::kAdaptive; }
 
 }  // namespace clothbench
 

@@ -840,6 +840,12 @@ PYBIND11_MODULE(clothbench, m) {
         "(negative inside; the model's own query, meshes included), its unit direction and the obstacle's index: "
         "a dict of distance [F, N], direction [F, N, 3] and obstacle [F, N]. times [F] and positions [F, N, 3] as "
         "run() returns them. TypeError/ValueError naming the argument; ValueError for a scene without obstacles.");
+  m.def("row_param", [](const std::string& method) {
+    const std::vector<RowMethod> rows = ExpandMethods({method}, {NonlinearSolver::kFixedPoint}, "method");
+    return std::string(SpecOf(rows.front().kind()).param);
+  }, py::arg("method"),
+        "The keyword of run() that a row's default_params are for: \"h\" (fixed-step, substepped and iterated rows) "
+        "or \"rtol\" (adaptive rows, */error). ValueError for an unknown row.");
   m.def("default_params", &DefaultParamsOf, py::arg("scene"), py::arg("method"),
         "The default run's h list [s] (fixed-step and substepped rows) or rtol list (adaptive rows) of a row.");
   m.def("error_rms", [](const py::object& x, const py::object& ref) {

@@ -27,6 +27,25 @@ def test_run_is_bit_identical_to_the_command_line(tmp_path):
     assert r["positions"].shape == (101, 400, 3)
 
 
+def test_every_row_runs_at_its_default_params_through_row_param():
+    # Every registry row's default values are for the run() keyword that
+    # row_param names: the first of them runs each row for one step's worth
+    # of time on the swinging sheet (any refusal or failure would fail here).
+    scene = clothbench.load_scene("swinging_sheet", {"t_end": 0.02})
+    rows = clothbench.methods() + ["sbdf2/error"]
+    for row in rows:
+        key = clothbench.row_param(row)
+        assert key in ("h", "rtol"), row
+        params = clothbench.default_params(scene, row)
+        r = clothbench.run(scene, row, **{key: params[0]})
+        assert r["status"] == "ok", (row, r["message"])
+        assert r[key] == params[0], row
+    assert clothbench.row_param("sbdf2") == "h" and clothbench.row_param("sbdf2/error") == "rtol"
+    assert clothbench.row_param("cvode") == "rtol" and clothbench.row_param("xpbd") == "h"
+    with pytest.raises(ValueError, match="method"):
+        clothbench.row_param("no_such")
+
+
 def test_overrides_and_toml_text():
     base = clothbench.load_scene("swinging_sheet")
     heavy = clothbench.load_scene("swinging_sheet", {"material.density": 2.0, "t_end": 0.1})

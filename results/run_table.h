@@ -67,7 +67,7 @@ bool IsMethodAttributeName(const std::string& name);
 /// True if `reference` (RunTable::reference) is a fixed-step
 /// self-convergence run (a fixed-step run of one of the thesis' methods at a
 /// fraction of the scene's smallest step) rather than an adaptive run at an rtol.
-inline bool IsSelfConvergence(const RunRecord& reference) { return reference.step_kind == StepKind::kFixedStep; }
+inline bool IsSelfConvergence(const RunRecord& reference) { return !SpecOf(reference.step_kind).adaptive(); }
 
 
 /// Everything the printed table shows.

@@ -83,6 +83,9 @@ struct MethodEntry {
   /// the reference method cannot run the scene (self-contact, virtual
   /// particles; harness/reference.h): one method only.
   bool self_convergence_reference = false;
+  /// The thesis method whose step the kernel benchmarks time and
+  /// contact_replay takes by default (bench/): one method only.
+  bool kernel_benchmark = false;
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
   /// Rows without a variant read an ARKODE IMEX table (--arkode-table).

@@ -33,7 +33,7 @@ const Scheme& Sbdf2Scheme() {
 /// below 1e-3 m; under error control (sbdf2/error) rtol 1e-2 … 1e-7.
 MethodEntry Sbdf2Row() {
   return {.name = "sbdf2", .layer = "solver", .error_control = true, .collisions = true, .pcg = true,
-          .make = MakeEngine<Method::kSbdf2>, .best_preconditioner = kBestPreconditioner,
+          .make = MakeEngine<Method::kSbdf2>, .kernel_benchmark = true, .best_preconditioner = kBestPreconditioner,
           .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}},
                        {.modifiers = "error", .rtols = kDefaultRtols}},
           .status_notes = {{"sbdf2", "penetration", kMultistepPenetration}}};
