@@ -24,14 +24,13 @@ std::string_view ToString(Method m) {
 }
 
 std::optional<Method> MethodFromString(std::string_view s) {
-  for (Method m : AllMethods())
+  for (Method m : {Method::kImexEuler, Method::kImplicitEuler, Method::kSbdf2, Method::kBdf2,
+                   Method::kImplicitMidpoint, Method::kSymplecticEuler, Method::kSbdf3})
     if (ToString(m) == s) return m;
-  if (s == ToString(Method::kSymplecticEuler)) return Method::kSymplecticEuler;
-  if (s == ToString(Method::kSbdf3)) return Method::kSbdf3;
   return std::nullopt;
 }
 
-const std::vector<Method>& AllMethods() {
+const std::vector<Method>& ThesisTableMethods() {
   static const std::vector<Method> kAll = {Method::kImexEuler, Method::kImplicitEuler, Method::kSbdf2, Method::kBdf2,
                                            Method::kImplicitMidpoint};
   return kAll;

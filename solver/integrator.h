@@ -39,8 +39,9 @@ std::string_view ToString(Method m);
 /// Parses "imex_euler", "implicit_euler", "sbdf2", "bdf2", "implicit_midpoint",
 /// "symplectic_euler", "sbdf3".
 std::optional<Method> MethodFromString(std::string_view s);
-/// The five thesis integrators in table order (the bench default).
-const std::vector<Method>& AllMethods();
+/// The five integrators of the thesis' tables (Tables 3.1, 3.2), in their
+/// order; the step engine has two more (SBDF(3), symplectic Euler).
+const std::vector<Method>& ThesisTableMethods();
 /// IMEX methods (IMEX Euler, SBDF(2), SBDF(3)) do exactly one update per
 /// step (SBDF(3)'s start step two).
 bool IsImex(Method m);

@@ -121,7 +121,7 @@ TEST_P(AmplificationTest, StepMatchesStabilityFunction) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Integrators, AmplificationTest, ::testing::ValuesIn(AllMethods()),
+INSTANTIATE_TEST_SUITE_P(Integrators, AmplificationTest, ::testing::ValuesIn(ThesisTableMethods()),
                          [](const auto& param_info) { return std::string(ToString(param_info.param)); });
 
 // Spectral radius of one-step amplification at hω → ∞ (ζ = 0): implicit
