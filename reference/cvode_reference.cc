@@ -317,7 +317,7 @@ bool SetTolerances(void* mem, N_Vector y, const ReferenceOptions& options, N_Vec
   return check(CVodeSVtolerances(mem, options.rtol, *atol), "CVodeSVtolerances");
 }
 
-// The calls of the frame loop (internal::RunFrames) on CVODE's handles:
+// The calls of the run loop's stepper (internal::RunFrames) on CVODE's handles:
 // one step, dense output, the state, and the restarts after an event or
 // the self-contact response (counters summed into `counters`).
 internal::OneStepDriver CvodeDriver(CvodeHandles& h, FreeDofOde& ode, const ReferenceOptions& options,

@@ -159,9 +159,38 @@ class SystemMatrix {
   double analysis_seconds_ = 0.0;
 };
 
+/// What a stepper that chooses its own internal steps (a SUNDIALS
+/// integrator, sundials/sundials_common.h) adds to the run loop
+/// (RunStepper). Its Step(h) takes one internal step of its own size and
+/// ignores h; the loop neither plans, retries nor controls its steps. A
+/// failed Step ends the run (Failure). After the step's checks the loop
+/// stores the frames inside the step from its dense output (StateAt),
+/// then asks for the step's jumps (EndStep: an event's reaction, its
+/// self-contact response), which restart the integrator; a stepper that
+/// stops at every frame stores its frames after EndStep instead.
+class InternalSteps {
+ public:
+  virtual ~InternalSteps() = default;
+  /// Whether every step ends at the next frame at the latest, and the
+  /// frames are the states after EndStep (self-contact corrects the steps).
+  virtual bool stops_at_frames() const = 0;
+  /// The state at time t [s] inside the last step, before its jumps (dense
+  /// output): N×3 x [m], v [m/s]. False with the run's status and message
+  /// if the library refuses.
+  virtual bool StateAt(double t, MatrixN3* x, MatrixN3* v, RunStatus* status, std::string* message) = 0;
+  /// The last step's jumps; false with the run's status and message if a
+  /// restart fails.
+  virtual bool EndStep(RunStatus* status, std::string* message) = 0;
+  /// The run's status and message after a failed Step.
+  virtual void Failure(RunStatus* status, std::string* message) const = 0;
+  /// W_contact [J] since t = 0 that the blow-up guard's energy balance
+  /// counts: the self-contact response's work (its events only remove energy).
+  virtual double counted_contact_work() const = 0;
+};
+
 /// A one-step-at-a-time integrator of a particle system, as the run driver
 /// (solver/run.h) and the stability maps use it: the thesis' methods
-/// (StepEngine) and the peers (peers/) alike.
+/// (StepEngine), the peers (peers/) and the SUNDIALS rows alike.
 class Stepper {
  public:
   virtual ~Stepper() = default;
@@ -227,6 +256,9 @@ class Stepper {
     (void)v;
     return false;
   }
+  /// Where the stepper chooses its own internal steps: what the run loop
+  /// asks of it besides (InternalSteps); nullptr for steppers the loop steps.
+  virtual InternalSteps* internal_steps() { return nullptr; }
   /// The run ahead: steps of h [s] to t_end [s] from the next Reset (the
   /// run driver says so before it; an iterated peer sizes its ρ
   /// measurement by it). Default: ignored.

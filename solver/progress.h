@@ -1,5 +1,5 @@
 // Progress of the run in flight, for a display such as harness/progress.h.
-// The step loops (RunStepper, the SUNDIALS one-step loop) report the
+// The step loop (RunStepper, for every row, SUNDIALS' too) reports the
 // simulated time after every accepted step; without a sink that is one
 // relaxed atomic load (and one for the interrupt flag).
 #ifndef CLOTHBENCH_SOLVER_PROGRESS_H_

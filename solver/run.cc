@@ -264,14 +264,14 @@ namespace {
 
 // Options the run cannot step with: sum's status "invalid_options" and
 // the reason. @return true if refused
-bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, const Stepper& engine, RunSummary* sum) {
+bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, Stepper& engine, RunSummary* sum) {
   std::string why;
   if (!options.IsValid(&why) || !spec.IsValid(&why)) {
     sum->status = RunStatus::kInvalidOptions;
     sum->message = why;
     return true;
   }
-  if (spec.step_control == StepControl::kError && !engine.estimates_error()) {
+  if (spec.step_control == StepControl::kError && !engine.estimates_error() && !engine.internal_steps()) {
     sum->status = RunStatus::kInvalidOptions;
     sum->message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
     return true;
@@ -306,9 +306,10 @@ class FrameRecorder {
   /// @param self_contact whether the scene asks for self-contact (a
   ///        crossing frame then ends the run)
   /// @param response the self-contact response whose work is recorded, or nullptr
-  FrameRecorder(const ParticleSystem& system, const Stepper& engine, const RunOptions& options, bool self_contact,
+  FrameRecorder(const ParticleSystem& system, Stepper& engine, const RunOptions& options, bool self_contact,
                 const SelfContactResponse* response, RunSummary* sum)
       : frames_(FrameTimes(options.t_end, options.frame_dt)),
+        dense_(engine.internal_steps()),
         track_work_(system.has_external_work()),
         track_contact_(engine.contact_work() != nullptr),
         virtual_(VirtualParticles::Of(system)),
@@ -349,17 +350,13 @@ class FrameRecorder {
   bool Keep(const Stepper& engine, const MatrixN3& x0, const MatrixN3& v0, double t_start, double step, double work0,
             double work1, BlowUpGuard& guard) {
     Trajectory& tr = sum_->trajectory;
-    // Inside a step that ended at a contact event, the frames interpolate
-    // to the state before its jumps.
-    const MatrixN3 *x1 = &engine.x(), *v1 = &engine.v();
-    engine.LeftLimit(&x1, &v1);
-    while (next_ < frames_.size() && frames_[next_] <= engine.t() + 1e-9 * step) {
+    const std::size_t first = next_;
+    // A stepper's own dense output takes the frames within round-off of
+    // the step's end (1e-12 s) from the next step's.
+    while (next_ < frames_.size() && frames_[next_] <= engine.t() + (dense_ ? 1e-12 : 1e-9 * step)) {
       // A frame at (or within round-off past) the step's end is its state.
       const double s = frames_[next_] >= engine.t() ? 1.0 : (frames_[next_] - t_start) / step;
-      if (s < 1.0)
-        Hermite(x0, v0, *x1, *v1, step, s, &tr.positions[next_], &tr.velocities[next_]);
-      else
-        Hermite(x0, v0, engine.x(), engine.v(), step, s, &tr.positions[next_], &tr.velocities[next_]);
+      if (!FrameState(engine, x0, v0, step, s)) return false;
       // A frame that fails the guard is not kept (the run keeps the ones before).
       if (!guard.CheckFrame(frames_[next_], tr.positions[next_], tr.velocities[next_], &sum_->status, &sum_->message))
         return false;
@@ -380,6 +377,33 @@ class FrameRecorder {
       ++next_;
       if (!triangles_.empty() && !CountCrossings(tr.positions[next_ - 1], frames_[next_ - 1])) return false;
     }
+    // With the stepper's own steps, back to the step's end: the next step's topology.
+    if (virtual_ && dense_ && next_ != first) virtual_->Update(engine.t(), engine.x());
+    return true;
+  }
+
+  /// Frame next_'s state at the fraction s of the step from (x0, v0): the
+  /// stepper's dense output, else cubic Hermite interpolation; inside a
+  /// step that ended at a contact event, to the state before its jumps.
+  /// The last frame, a frame at the step's end and every frame of a
+  /// stepper that stops at the frames are its state.
+  bool FrameState(const Stepper& engine, const MatrixN3& x0, const MatrixN3& v0, double step, double s) {
+    Trajectory& tr = sum_->trajectory;
+    if (dense_) {
+      if (next_ + 1 == frames_.size() || frames_[next_] == engine.t() || dense_->stops_at_frames()) {
+        tr.positions[next_] = engine.x();
+        tr.velocities[next_] = engine.v();
+        return true;
+      }
+      return dense_->StateAt(frames_[next_], &tr.positions[next_], &tr.velocities[next_], &sum_->status,
+                             &sum_->message);
+    }
+    const MatrixN3 *x1 = &engine.x(), *v1 = &engine.v();
+    engine.LeftLimit(&x1, &v1);
+    if (s < 1.0)
+      Hermite(x0, v0, *x1, *v1, step, s, &tr.positions[next_], &tr.velocities[next_]);
+    else
+      Hermite(x0, v0, engine.x(), engine.v(), step, s, &tr.positions[next_], &tr.velocities[next_]);
     return true;
   }
 
@@ -402,6 +426,7 @@ class FrameRecorder {
 
  private:
   std::vector<double> frames_;
+  InternalSteps* dense_;  // the stepper's dense output, or nullptr (Hermite)
   bool track_work_, track_contact_;
   VirtualParticles* virtual_;
   bool self_contact_;
@@ -421,11 +446,12 @@ class FrameRecorder {
 // fail-safe).
 class SelfContactStage {
  public:
-  SelfContactStage(const ParticleSystem& system, const Stepper& engine) : sys_(system), engine_(engine) {
+  SelfContactStage(const ParticleSystem& system, Stepper& engine) : sys_(system), engine_(engine) {
     const auto& collision = system.scene().collision;
     active_ = collision && collision->self;
     if (active_ && engine.corrects_state())
       response_.emplace(system, collision->thickness);
+    counts_own_ = engine.internal_steps() != nullptr;  // InternalSteps::counted_contact_work
   }
   /// Whether the scene asks for self-contact.
   bool active() const { return active_; }
@@ -461,19 +487,21 @@ class SelfContactStage {
   /// W_contact for the blow-up guard: the engine's contact work, plus the
   /// self-contact's where the obstacles' is counted or there are none.
   /// Nothing where a stepper's own self-contact does uncounted work.
-  std::optional<double> ContactWork(const Stepper& engine) const {
+  std::optional<double> ContactWork(Stepper& engine) const {
     const ContactResponse::Work* contact = engine.contact_work();
     std::optional<double> total = contact ? std::optional(contact->total()) : std::nullopt;
+    if (const InternalSteps* internal = engine.internal_steps()) total = total.value_or(0.0) + internal->counted_contact_work();
     if (response_ && (contact || sys_.obstacles().empty())) total = total.value_or(0.0) + work();
     return total;
   }
   /// Whether the energy balance misses work the stepper does not count.
-  bool uncounted_work() const { return active_ && !response_; }
+  bool uncounted_work() const { return active_ && !response_ && !counts_own_; }
 
  private:
   const ParticleSystem& sys_;
   const Stepper& engine_;
   bool active_ = false;
+  bool counts_own_ = false;  // the stepper counts its own self-contact's work
   std::optional<SelfContactResponse> response_;
   MatrixN3 x_, v_;  // the corrected state (allocated at the first step)
 };
@@ -644,23 +672,69 @@ std::string TimeLimitMessage(double limit_s, double t, long steps) {
                                      : std::string());
 }
 
+namespace {
+
+// An accepted step's end, from the checks to the frames: the external work
+// by the trapezoidal rule on the step (second order), the state and the
+// path against the guard, then the frames inside the step; for a stepper
+// that chooses its own steps, its jumps after the frames (or before them,
+// where it stops at every frame). @return false (sum's status and message
+// set) if the run ends here
+bool FinishStep(Stepper& engine, const SelfContactStage& self_contact, const MatrixN3& x_prev, const MatrixN3& v_prev,
+                double t_start, double step, ExternalWork& external, BlowUpGuard& guard, FrameRecorder& recorder,
+                double* solver_seconds, RunSummary* sum) {
+  const double work0 = external.work();
+  const double work = external.Advance(step, engine.t(), engine.x(), engine.v());
+  if (!guard.Check(engine.t(), engine.x(), engine.v(), work, self_contact.ContactWork(engine), &sum->status,
+                   &sum->message) ||
+      !guard.CheckPath(t_start, x_prev, engine.t(), engine.x(), &sum->status, &sum->message))
+    return false;
+  InternalSteps* const internal = engine.internal_steps();
+  const bool frames_first = !internal || !internal->stops_at_frames();
+  if (frames_first && !recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, guard)) return false;
+  if (!internal) return true;
+  const auto start = std::chrono::steady_clock::now();
+  const bool ok = internal->EndStep(&sum->status, &sum->message);
+  *solver_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return ok && (frames_first || recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, guard));
+}
+
+// Before each step too: a run started past its deadline (PassedDeadline,
+// its library call overran in an earlier process) takes no step.
+// @return true (sum's status time_limit) if the deadline has passed
+bool StartsPastDeadline(const RunOptions& options, double t, long attempts, RunSummary* sum) {
+  if (!DeadlinePassed()) return false;
+  ThrowIfInterrupted();
+  sum->status = RunStatus::kTimeLimit;
+  sum->message = TimeLimitMessage(options.limits.time_limit_s, t, attempts);
+  return true;
+}
+
+}  // namespace
+
 RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options) {
+  RunSummary sum;
+  RunStepper(system, engine, options, &sum);
+  return sum;
+}
+
+void RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions& options, RunSummary* out) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   // Checked inside the steps too (PCG iterations, substeps): a long step
   // stops at the limit, not after it.
   const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));
   const SolverSpec& spec = options.solver ? *options.solver : system.scene().solver;
-  RunSummary sum;
-  if (RefusedOptions(options, spec, engine, &sum)) return sum;
+  RunSummary& sum = *out;
+  if (RefusedOptions(options, spec, engine, &sum)) return;
   // Error-test failures count only under error control (−1: not applicable).
   sum.error_test_failures = spec.step_control == StepControl::kError ? 0 : -1;
   double solver_seconds = 0.0;
-  if (RefusesMotion(system, engine, &sum)) return sum;
+  if (RefusesMotion(system, engine, &sum)) return;
   engine.PlanRun(options.t_end, options.h);
   VirtualParticles* const virtual_particles = ResetToRest(system, engine);
   SelfContactStage self_contact(system, engine);
-  if (self_contact.Refuses(&sum)) return sum;
+  if (self_contact.Refuses(&sum)) return;
   // Frames, work series and step statistics are allocated before the loop.
   FrameRecorder recorder(system, engine, options, self_contact.active(), self_contact.response(), &sum);
   ExternalWork external(system, engine.x(), engine.v());
@@ -671,31 +745,25 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
   if (self_contact.uncounted_work() || system.has_prescribed_motion()) guard.OpenBalance();
   long attempts = 0;
   ThreadBudget threads;
+  InternalSteps* const internal = engine.internal_steps();  // a SUNDIALS row: it chooses its steps
 
   MatrixN3 x_prev = engine.x(), v_prev = engine.v();
   const double h_nominal = options.h;
   const bool error_control = spec.step_control == StepControl::kError;
   const double h_max = spec.h_max > 0.0 ? spec.h_max : error_control ? options.t_end : h_nominal;
-  const bool controlled = spec.step_control != StepControl::kFixed;
+  const bool controlled = spec.step_control != StepControl::kFixed || internal;
   const double h_floor = StepFloor(spec, options.t_end);
   double err_prev = 1.0;  // the PI controller's previous error norm
   double h = h_nominal;
   int consecutive_rejections = 0;
   long fixed_step_index = 0;  // fixed steps land on n·h exactly (no drift)
   sum.status = RunStatus::kOk;
-  const auto fail = [&](RunStatus status, std::string message) {
-    sum.status = status;
-    sum.message = std::move(message);
-  };
+  // The end: within round-off of t_end, relative; a stepper with its own
+  // steps has stored its last frame within 1e-12 s of it (FrameRecorder).
+  const double t_last = options.t_end - (internal ? 1e-12 : 1e-12 * options.t_end);
 
-  while (engine.t() < options.t_end - 1e-12 * options.t_end) {
-    // Before each step too: a run started past its deadline (PassedDeadline,
-    // its library call overran in an earlier process) takes no step.
-    if (DeadlinePassed()) {
-      ThrowIfInterrupted();
-      fail(RunStatus::kTimeLimit, TimeLimitMessage(options.limits.time_limit_s, engine.t(), attempts));
-      break;
-    }
+  while (engine.t() < t_last) {
+    if (StartsPastDeadline(options, engine.t(), attempts, &sum)) break;
     threads.Update();  // fewer threads while other processes hold cores
     // After a rejection the driver steps with the reduced h and returns to
     // the grid at its next point (ReturnToGrid).
@@ -710,13 +778,15 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     // The thesis' virtual particles of this step, from its initial state
     // (§5.2–5.4): every force evaluation of the step uses them. A frame at
     // the last step's end has computed them already; their time is added
-    // to the solver time after the loop, wherever they were computed.
-    if (virtual_particles) virtual_particles->Update(t_start, engine.x());
+    // to the solver time after the loop, wherever they were computed. A
+    // stepper with its own steps has them from the last step's end.
+    if (virtual_particles && !internal) virtual_particles->Update(t_start, engine.x());
     const auto t0 = Clock::now();
     StepStats st = engine.Step(step);
     solver_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
     const bool shortened = st.h > 0.0 && st.h < step;  // it ended at a located contact event
     if (shortened) step = st.h;
+    if (internal) step = engine.t() - t_start;  // its own internal step
     sum.updates += st.updates;
     sum.cg_iterations += st.cg_iterations;
     sum.step_stats.push_back(st);
@@ -725,6 +795,10 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
                    &sum))
       break;
     if (st.status != StepStatus::kOk) {
+      if (internal) {  // the library's own retries are used up
+        internal->Failure(&sum.status, &sum.message);
+        break;
+      }
       ++sum.rejected;
       ++consecutive_rejections;
       const bool contacts = engine.contact_work() != nullptr;
@@ -732,7 +806,8 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
       continue;
     }
     if (!engine.x().allFinite() || !engine.v().allFinite()) {
-      fail(RunStatus::kNonFinite, fmt::format("the state became non-finite in the step to t = {:.6g} s", engine.t()));
+      sum.status = RunStatus::kNonFinite;
+      sum.message = fmt::format("the state became non-finite in the step to t = {:.6g} s", engine.t());
       break;
     }
     solver_seconds += self_contact.Correct(step, x_prev, engine);
@@ -745,24 +820,20 @@ RunSummary RunStepper(const ParticleSystem& system, Stepper& engine, const RunOp
     }
     consecutive_rejections = 0;
     ReportProgress(engine.t());
-
-    // External work by the trapezoidal rule on the step (second order).
-    const double work0 = external.work();
-    const double work = external.Advance(step, engine.t(), engine.x(), engine.v());
-    // Every accepted step's state against the guard, then its frames.
-    if (!guard.Check(engine.t(), engine.x(), engine.v(), work, self_contact.ContactWork(engine), &sum.status,
-                     &sum.message) ||
-        !guard.CheckPath(t_start, x_prev, engine.t(), engine.x(), &sum.status, &sum.message) ||
-        !recorder.Keep(engine, x_prev, v_prev, t_start, step, work0, work, guard))
+    // A stepper with its own steps: the next step's virtual particles from
+    // this step's end, before its checks (whose energy has their springs)
+    // and its jumps (whose restart evaluates the forces).
+    if (virtual_particles && internal) virtual_particles->Update(engine.t(), engine.x());
+    if (!FinishStep(engine, self_contact, x_prev, v_prev, t_start, step, external, guard, recorder, &solver_seconds,
+                    &sum))
       break;
-
-    NextStepSize(spec, sum.step_stats, step, h_max, h_nominal, shortened, engine, &h, &err_prev, &fixed_step_index);
+    if (!internal)
+      NextStepSize(spec, sum.step_stats, step, h_max, h_nominal, shortened, engine, &h, &err_prev, &fixed_step_index);
   }
   recorder.Trim();
   FinishRun(engine, guard, virtual_particles, solver_seconds, wall_start, &sum);
   if (const auto stats = self_contact.stats()) sum.self_contact = *stats;
   sum.threads_fewest = threads.fewest();
-  return sum;
 }
 
 int KernelThreads() { return omp_get_max_threads(); }

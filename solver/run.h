@@ -223,9 +223,11 @@ std::string TimeLimitMessage(double limit_s, double t, long steps);
 bool CountCrossings(const std::vector<std::array<int, 3>>& triangles, const MatrixN3& x, double t, bool self_contact,
                     RunSummary* sum);
 
-/// The same driver for any stepper built on `system` (the peers). Reset to
-/// rest here.
+/// The same driver for any stepper built on `system` (the peers, and the
+/// SUNDIALS rows through InternalSteps). Reset to rest here.
 RunSummary RunStepper(const ParticleSystem& system, Stepper& stepper, const RunOptions& options);
+/// The same into `sum`, whose other fields (names, settings) it keeps.
+void RunStepper(const ParticleSystem& system, Stepper& stepper, const RunOptions& options, RunSummary* sum);
 
 /// The OpenMP threads the kernels may use (omp_get_max_threads: OMP_NUM_THREADS
 /// or the hardware threads), stored with every run.

@@ -65,25 +65,16 @@ RunStatus StatusOfFlag(const std::string& name) { return ParseRunStatus(name).va
 // Self-contact under a SUNDIALS integrator: the response of the fixed-step
 // methods (collision/self_contact_response.h) corrects each internal
 // step's end, from the step's start, and a corrected state restarts the
-// integrator, as an event does; each stored frame's crossing pairs are
-// counted (a crossing ends the run with the response on).
+// integrator, as an event does.
 class SundialsSelfContact {
  public:
   explicit SundialsSelfContact(const ParticleSystem& system)
       : x_start_(system.rest_positions()), h_scene_(system.scene().h) {
     const auto& collision = system.scene().collision;
-    if (!collision) return;
-    triangles_ = SceneTriangles(system.scene()).vertices;
-    if (collision->self) response_.emplace(system, collision->thickness);
+    if (collision && collision->self) response_.emplace(system, collision->thickness);
   }
-  bool counts() const { return !triangles_.empty(); }
   /// Whether the response corrects the steps (the scene's self = true).
   bool corrects() const { return response_.has_value(); }
-  /// The frame's crossing pairs into res; with the response on and
-  /// `ends_run`, a crossing ends the run (false).
-  bool CountCrossings(const MatrixN3& x, double t, RunSummary* res, bool ends_run = true) const {
-    return !counts() || clothbench::CountCrossings(triangles_, x, t, ends_run && response_.has_value(), res);
-  }
   /// W_contact of the response since t = 0 [J] for the guard.
   double work() const { return response_ ? response_->stats().work : 0.0; }
   /// Corrects the internal step of size h ending at t, whose end state
@@ -105,200 +96,116 @@ class SundialsSelfContact {
     x_start_ = *x;
     return acted() == before ? 0 : d.restart(t, *x, *v);
   }
-  void Store(RunSummary* res) const {
-    if (response_) res->self_contact = response_->stats();
-  }
+  /// Its counters, or nullptr without the response.
+  const SelfContactStats* stats() const { return response_ ? &response_->stats() : nullptr; }
 
  private:
-  std::vector<std::array<int, 3>> triangles_;
   std::optional<SelfContactResponse> response_;
   MatrixN3 x_start_;  // the next internal step's start
   double h_scene_;
 };
 
-// One step that ends at t_stop [s] at the latest (> t); the stop time's
-// flag if it cannot be set.
-int StepToFrame(const OneStepDriver& d, double t_stop, double* t) {
-  const int f = d.stop_at(t_stop);
-  return f < 0 ? f : d.step(t);
+// A SUNDIALS integrator as a stepper of the run loop (solver/run.h,
+// RunStepper): each Step is one internal step (to the next frame at the
+// latest, with self-contact), the frames inside it come from the dense
+// output, and EndStep applies an event's jump, then the self-contact
+// response's, each restarting the integrator.
+class SundialsStepper final : public Stepper, public InternalSteps {
+ public:
+  SundialsStepper(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
+                  const std::string& error)
+      : d_(d), error_(error), frames_(FrameTimes(options.t_end, options.frame_dt)), self_contact_(system) {}
+
+  // Stepper: the state the integrator holds (set up at rest by its driver).
+  void Reset(double t, const MatrixN3& x, const MatrixN3& v) override {
+    t_ = t;
+    x_ = x;
+    v_ = v;
+  }
+  StepStats Step(double) override;
+  double t() const override { return t_; }
+  void SetTime(double t) override { t_ = t; }
+  const MatrixN3& x() const override { return x_; }
+  const MatrixN3& v() const override { return v_; }
+  bool single_update() const override { return false; }
+  int matrix_rebuilds() const override { return -1; }  // not counted
+  double setup_seconds() const override { return 0.0; }  // the driver's (FinishRun)
+  const SelfContactStats* own_self_contact() const override { return self_contact_.stats(); }
+  InternalSteps* internal_steps() override { return this; }
+
+  // InternalSteps.
+  bool stops_at_frames() const override { return self_contact_.corrects(); }
+  bool StateAt(double t, MatrixN3* x, MatrixN3* v, RunStatus* status, std::string* message) override {
+    const int f = d_.state_at(t, x, v);
+    return f >= 0 || Fail(f, "dense output failed with ", status, message);
+  }
+  bool EndStep(RunStatus* status, std::string* message) override;
+  void Failure(RunStatus* status, std::string* message) const override {
+    Fail(flag_, "step failed with ", status, message);
+  }
+  double counted_contact_work() const override { return self_contact_.work(); }
+
+ private:
+  // False, with the status of `flag` and the handler's message (else `what` and the flag's name).
+  bool Fail(int flag, const char* what, RunStatus* status, std::string* message) const {
+    *status = StatusOfFlag(d_.flag_name(flag));
+    *message = error_.empty() ? what + d_.flag_name(flag) : error_;
+    return false;
+  }
+  const OneStepDriver& d_;
+  const std::string& error_;  // the SUNDIALS error handler's message
+  std::vector<double> frames_;
+  std::size_t next_frame_ = 1;  // the first frame after t_
+  SundialsSelfContact self_contact_;
+  double t_ = 0.0, h_ = 0.0;
+  int flag_ = 0;  // the last step's
+  MatrixN3 x_, v_;
+};
+
+StepStats SundialsStepper::Step(double) {
+  StepStats st;
+  st.updates = st.cg_iterations = st.colliding = -1;  // not counted per step
+  while (next_frame_ < frames_.size() && frames_[next_frame_] <= t_ + 1e-12) ++next_frame_;
+  const auto start = std::chrono::steady_clock::now();
+  // With self-contact every frame is a stop time: a stored frame is a
+  // corrected state, not the uncorrected step's interpolant.
+  flag_ = self_contact_.corrects() ? d_.stop_at(frames_[std::min(next_frame_, frames_.size() - 1)]) : 0;
+  if (flag_ >= 0) flag_ = d_.step(&t_);
+  st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (flag_ < 0) {
+    // Past the deadline our PCG stopped the step: a time limit, not a failure.
+    st.status = DeadlinePassed() ? StepStatus::kTimeLimit : StepStatus::kNoNewtonConvergence;
+    return st;
+  }
+  int q = 0;
+  d_.last_step(&h_, &q);
+  st.t = t_;
+  st.h = h_;
+  st.error_order = q;
+  d_.current_state(&x_, &v_);  // every internal step's state against the guard (no contact response)
+  return st;
 }
 
-// The jumps after the internal step of size h ending at t: an event's (a
-// root, flag 2), then the self-contact response's, each restarting the
-// integrator; `step_start` becomes the state they leave (x, v scratch).
-// The first failing restart's flag, else 0.
-int Jumps(const OneStepDriver& d, int flag, double t, double h, SundialsSelfContact& self_contact, MatrixN3* x,
-          MatrixN3* v, MatrixN3* step_start) {
-  const bool event = flag == 2 && d.on_root;
-  const int f = event ? d.on_root(t) : 0;
-  if (f < 0 || !(event || self_contact.corrects())) return f;
-  d.current_state(x, v);  // the step's end, after the event's jump
-  const int g = self_contact.CorrectStep(d, t, h, x, v);
-  *step_start = *x;  // the next path starts where the jumps put the particles
-  return g;
-}
-
-// The frames up to the internal step's end t [s] (dense output), each
-// against the guard, into res->trajectory; false (res's status and message
-// set) if one fails. `frame`, `frame_v` are scratch of the state's size.
-bool StoreFrames(const OneStepDriver& d, const std::vector<double>& frames, double t, const std::string& error,
-                 BlowUpGuard& guard, VirtualParticles* virtual_particles, const SundialsSelfContact& self_contact,
-                 std::size_t* next_frame, MatrixN3* frame, MatrixN3* frame_v, RunSummary* res) {
-  std::size_t& next = *next_frame;
-  const std::size_t first_frame = next;
-  bool ok = true;
-  while (next < frames.size() && frames[next] <= t + 1e-12) {
-    // The stop time t_end is hit exactly; with self-contact every frame is
-    // a stop time, which CVODE may return within round-off.
-    if (next + 1 == frames.size() || frames[next] == t || self_contact.corrects()) {
-      d.current_state(frame, frame_v);
-    } else if (const int f = d.state_at(frames[next], frame, frame_v); f < 0) {
-      res->status = StatusOfFlag(d.flag_name(f));
-      res->message = error.empty() ? "dense output failed with " + d.flag_name(f) : error;
-      ok = false;
-      break;
-    }
-    if (!guard.CheckFrame(frames[next], *frame, *frame_v, &res->status, &res->message)) {
-      ok = false;
-      break;
-    }
-    res->trajectory.times.push_back(frames[next]);
-    res->trajectory.positions.push_back(*frame);
-    res->trajectory.velocities.push_back(*frame_v);
-    if (!self_contact.CountCrossings(*frame, frames[next], res)) {
-      ++next;
-      ok = false;
-      break;
-    }
-    if (virtual_particles) {
-      virtual_particles->Update(frames[next], *frame);
-      virtual_particles->RecordFrame(*frame, &res->trajectory.virtual_particles);
-    }
-    ++next;
+bool SundialsStepper::EndStep(RunStatus* status, std::string* message) {
+  const bool event = flag_ == 2 && d_.on_root;
+  int f = event ? d_.on_root(t_) : 0;
+  if (f >= 0 && (event || self_contact_.corrects())) {
+    d_.current_state(&x_, &v_);  // the step's end, after the event's jump
+    f = self_contact_.CorrectStep(d_, t_, h_, &x_, &v_);
   }
-  if (virtual_particles && next != first_frame) {  // back to the step's end: the next step's topology
-    d.current_state(frame, frame_v);
-    virtual_particles->Update(t, *frame);
-  }
-  return ok;
+  return f >= 0 || Fail(f, "restart after an event failed with ", status, message);
 }
 }  // namespace
 
 void RunFrames(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
                const std::string& error, RunSummary* res) {
-  using Clock = std::chrono::steady_clock;
-  const std::vector<double> frames = FrameTimes(options.t_end, options.frame_dt);
-  res->trajectory.times.assign(1, 0.0);
-  res->trajectory.positions.assign(1, system.rest_positions());
-  res->trajectory.velocities.assign(1, MatrixN3::Zero(system.num_particles(), 3));
-  // The virtual particles of each frame, as the fixed-step driver records them.
-  VirtualParticles* const virtual_particles = VirtualParticles::Of(system);
-  if (virtual_particles) {
-    virtual_particles->Update(0.0, res->trajectory.positions[0]);
-    virtual_particles->RecordFrame(res->trajectory.positions[0], &res->trajectory.virtual_particles);
-  }
-  SundialsSelfContact self_contact(system);
-  self_contact.CountCrossings(res->trajectory.positions[0], 0.0, res, false);  // counted, as RunStepper's start
-  std::size_t next = 1;
-  double solver_seconds = 0.0, t = 0.0;
-  MatrixN3 frame, frame_v;
-  bool ok = true;
-  BlowUpGuard guard(system, res->trajectory.positions[0], res->trajectory.velocities[0], options.t_end);
-  ExternalWork external(system, res->trajectory.positions[0], res->trajectory.velocities[0]);
-  double t_checked = 0.0;
-  MatrixN3 step_start = res->trajectory.positions[0];  // the positions at the internal step's start
-  const auto wall_start = Clock::now();
-  const ScopedDeadline deadline(RunDeadline(wall_start, options.limits.time_limit_s));  // also in our PCG inside a step
-  long steps = 0;
-  ThreadBudget threads;  // our kernels inside SUNDIALS' step: fewer threads while other processes hold cores
-  while (ok && next < frames.size()) {
-    // Before each step too: a run started past its deadline (PassedDeadline,
-    // its first factorisation overran in an earlier process) takes no step.
-    if (DeadlinePassed()) {
-      ThrowIfInterrupted();
-      res->status = RunStatus::kTimeLimit;
-      res->message = TimeLimitMessage(options.limits.time_limit_s, t, steps);
-      ok = false;
-      break;
-    }
-    threads.Update();
-    const auto t0 = Clock::now();
-    const int flag = self_contact.corrects() ? StepToFrame(d, frames[next], &t) : d.step(&t);
-    const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    solver_seconds += seconds;
-    ++steps;
-    ThrowIfInterrupted();  // Ctrl-C inside the step ends our PCG like a deadline: raised here, not a time_limit
-    if (flag < 0 && !DeadlinePassed()) {
-      res->status = StatusOfFlag(d.flag_name(flag));
-      res->message = error.empty() ? "step failed with " + d.flag_name(flag) : error;
-      ok = false;
-      break;
-    }
-    if (flag < 0 || DeadlinePassed() ||  // a failed step past the deadline: our PCG stopped it
-        (options.limits.time_limit_s > 0.0 &&
-         std::chrono::duration<double>(Clock::now() - wall_start).count() > options.limits.time_limit_s)) {
-      res->status = RunStatus::kTimeLimit;
-      res->message = TimeLimitMessage(options.limits.time_limit_s, t, steps);
-      ok = false;
-      break;
-    }
-    if (steps >= options.limits.max_steps && t < options.t_end) {
-      res->status = RunStatus::kStepLimit;
-      res->message = fmt::format("{} internal steps reached t = {:.6g} s of t_end = {:g} s (mxstep of the run is {})",
-                                 steps, t, options.t_end, options.limits.max_steps);
-      ok = false;
-      break;
-    }
-    double h = 0.0;
-    int q = 0;
-    d.last_step(&h, &q);
-    StepStats st;
-    st.t = t;
-    st.h = h;
-    st.updates = st.cg_iterations = st.colliding = -1;
-    st.solve_time = seconds;
-    st.error_order = q;
-    res->step_stats.push_back(st);
-    ReportProgress(t);
-    d.current_state(&frame, &frame_v);  // every internal step's state against the guard (no contact response)
-    const double work = external.Advance(t - t_checked, t, frame, frame_v);
-    // Every internal step's path: a particle through a thin obstacle keeps
-    // its distance's sign, so the event's root finding does not see it.
-    if (!guard.CheckPath(t_checked, step_start, t, frame, &res->status, &res->message)) {
-      ok = false;
-      break;
-    }
-    step_start = frame;  // the same size: no allocation
-    t_checked = t;
-    // The next step's virtual particles, from this state (the energy the
-    // guard checks includes their springs').
-    if (virtual_particles) virtual_particles->Update(t, frame);
-    if (!guard.Check(t, frame, frame_v, work, self_contact.work(), &res->status, &res->message)) {
-      ok = false;
-      break;
-    }
-    // An event's jump, then the self-contact response's; each restarts
-    // the integrator. Without the response the frames inside the step are
-    // stored first (from the dense output); with it, after (the steps stop
-    // at the frames: a frame is the corrected end of a step).
-    if (!self_contact.corrects())
-      ok = StoreFrames(d, frames, t, error, guard, virtual_particles, self_contact, &next, &frame, &frame_v, res);
-    const auto e0 = Clock::now();
-    const int f = ok ? Jumps(d, flag, t, h, self_contact, &frame, &frame_v, &step_start) : 0;
-    solver_seconds += std::chrono::duration<double>(Clock::now() - e0).count();
-    if (f < 0) {
-      res->status = StatusOfFlag(d.flag_name(f));
-      res->message = error.empty() ? "restart after an event failed with " + d.flag_name(f) : error;
-      ok = false;
-    }
-    if (ok && self_contact.corrects())
-      ok = StoreFrames(d, frames, t, error, guard, virtual_particles, self_contact, &next, &frame, &frame_v, res);
-  }
-  self_contact.Store(res);
-  guard.StoreMargins(res);
-  if (ok) res->status = RunStatus::kOk;
-  res->threads_fewest = threads.fewest();
-  res->solver_time_s = res->solver_time_s_median = res->solver_time_s_max = solver_seconds;  // one timing
+  SundialsStepper stepper(d, system, options, error);
+  RunOptions run;
+  run.h = options.t_end;  // the integrator chooses its steps
+  run.t_end = options.t_end;
+  run.frame_dt = options.frame_dt;
+  run.limits = options.limits;
+  RunStepper(system, stepper, run, res);
 }
 
 bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res) {
@@ -433,7 +340,7 @@ int CustomSetScalingVectors(SUNLinearSolver s, N_Vector s1, N_Vector) {
 int CustomInitialize(SUNLinearSolver) { return SUNLS_SUCCESS; }
 // Past the run's deadline (or after a signal) no setup starts: a
 // factorisation cannot be stopped once begun (KLU, CHOLMOD). The
-// unrecoverable failure ends the step, and RunFrames records time_limit.
+// unrecoverable failure ends the step, and the run loop records time_limit.
 int CustomSetup(SUNLinearSolver s, SUNMatrix) {
   CustomContent* c = Content(s);
   if (DeadlinePassed()) return c->last_flag = SUNLS_PSET_FAIL_UNREC;

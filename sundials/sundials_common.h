@@ -1,6 +1,7 @@
 // Shared parts of the SUNDIALS-driven methods, the references (CVODE, IDA)
-// and the ARKODE peer (docs/model.md §8): options, counters, results, the one-step
-// frame loop, the sparse-matrix copy and the reduced velocity solve.
+// and the ARKODE peer (docs/model.md §8): options, counters, results, the
+// integrator as a stepper of the one run loop (RunFrames), the
+// sparse-matrix copy and the reduced velocity solve.
 #ifndef CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
 #define CLOTHBENCH_SUNDIALS_SUNDIALS_COMMON_H_
 
@@ -137,7 +138,7 @@ bool RefusesPrescribedMotion(const ParticleSystem& system, RunSummary* res);
 /// (docs/notes/collisions.md, "Virtual particles under SUNDIALS").
 /// StartVirtualParticles forgets the last run's topology and sets that of
 /// the rest state at t = 0 (call it before the integrator's first
-/// evaluation); RunFrames updates it after every step. Nothing without
+/// evaluation); the run loop updates it after every step. Nothing without
 /// virtual particles.
 inline void StartVirtualParticles(const ParticleSystem& sys) {
   if (VirtualParticles* vp = VirtualParticles::Of(sys)) {
@@ -146,7 +147,7 @@ inline void StartVirtualParticles(const ParticleSystem& sys) {
   }
 }
 
-/// Calls of one SUNDIALS integrator used by the shared frame loop.
+/// Calls of one SUNDIALS integrator: what its stepper in the run loop asks (RunFrames).
 struct OneStepDriver {
   /// Takes one internal step towards t_end; returns the flag, sets t.
   std::function<int(double* t)> step;
@@ -172,8 +173,10 @@ struct OneStepDriver {
   std::function<int(double t_stop)> stop_at;
 };
 
-/// Runs the one-step loop (the Debian build has no monitoring) storing the
-/// step history and the frames 0, frame_dt, …, t_end. On a scene with
+/// Runs the integrator behind `d` as a stepper of the one run loop
+/// (solver/run.h, RunStepper, through InternalSteps): one internal step at
+/// a time (the Debian build has no monitoring), storing the step history
+/// and the frames 0, frame_dt, …, t_end from its dense output. On a scene with
 /// `[collision] self = true` the self-contact response
 /// (collision/self_contact_response.h) corrects every internal step's end,
 /// as it corrects the fixed-step methods', with Δt the larger of the step
