@@ -6,7 +6,7 @@
 #include <string_view>
 
 #include "model/particle_system.h"
-#include "model/run_record.h"
+#include "solver/record/run_record.h"
 #include "solver/run.h"
 
 namespace clothbench {

@@ -22,7 +22,7 @@
 #include "harness/sweep.h"
 #include "model/interrupt.h"
 #include "model/output_file.h"
-#include "model/run_status.h"
+#include "solver/record/run_status.h"
 
 namespace clothbench {
 

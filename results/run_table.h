@@ -16,7 +16,7 @@
 #include <variant>
 #include <vector>
 
-#include "model/run_record.h"
+#include "solver/record/run_record.h"
 #include "results/work_precision.h"
 
 namespace clothbench {

@@ -17,7 +17,7 @@
 
 #include "collision/self_contact_response.h"
 #include "model/particle_system.h"
-#include "model/run_status.h"
+#include "solver/record/run_status.h"
 #include "solver/contact.h"
 #include "solver/pcg.h"
 #include "solver/scheme.h"

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "model/particle_system.h"
-#include "model/run_record.h"
+#include "solver/record/run_record.h"
 #include "solver/integrator.h"
 #include "solver/run.h"
 

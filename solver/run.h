@@ -13,7 +13,7 @@
 #include "collision/obstacle_proximity.h"
 #include "collision/self_contact_response.h"
 #include "model/particle_system.h"
-#include "model/run_record.h"
+#include "solver/record/run_record.h"
 #include "model/trajectory.h"
 #include "solver/integrator.h"
 
@@ -74,7 +74,7 @@ struct SundialsStats {
   long nsetups = -1;  ///< linear solver setups (KLU factorisations)
 };
 
-/// One run by any method: its record (model/run_record.h) and what the
+/// One run by any method: its record (solver/record/run_record.h) and what the
 /// record is derived from. RunStepper fills the record's status, message,
 /// counts and times for the thesis' integrators and the peers; the SUNDIALS
 /// runs (CVODE, IDA, ARKODE) fill the same counts from their own (steps =

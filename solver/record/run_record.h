@@ -1,8 +1,8 @@
 // The record of one run, as plain data shared by every layer from the step
 // loop (solver/) to the result file (results/) and the entry points
 // (harness/, python/).
-#ifndef CLOTHBENCH_MODEL_RUN_RECORD_H_
-#define CLOTHBENCH_MODEL_RUN_RECORD_H_
+#ifndef CLOTHBENCH_SOLVER_RECORD_RUN_RECORD_H_
+#define CLOTHBENCH_SOLVER_RECORD_RUN_RECORD_H_
 
 #include <optional>
 #include <string>
@@ -11,7 +11,7 @@
 #include <variant>
 #include <vector>
 
-#include "model/run_status.h"
+#include "solver/record/run_status.h"
 
 namespace clothbench {
 
@@ -182,4 +182,4 @@ inline StepKind ToleranceKind() { return StepKind::kAdaptive; }
 
 }  // namespace clothbench
 
-#endif  // CLOTHBENCH_MODEL_RUN_RECORD_H_
+#endif  // CLOTHBENCH_SOLVER_RECORD_RUN_RECORD_H_

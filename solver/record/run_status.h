@@ -3,8 +3,8 @@
 // result file (results/) and the entry points (harness/, python/). They are
 // turned into text only where a record is written, printed or read
 // (docs/guide/results-schema.md, /runs/<id> attributes `status` and `step_kind`).
-#ifndef CLOTHBENCH_MODEL_RUN_STATUS_H_
-#define CLOTHBENCH_MODEL_RUN_STATUS_H_
+#ifndef CLOTHBENCH_SOLVER_RECORD_RUN_STATUS_H_
+#define CLOTHBENCH_SOLVER_RECORD_RUN_STATUS_H_
 
 #include <optional>
 #include <ostream>
@@ -87,4 +87,4 @@ struct fmt::formatter<clothbench::RunStatus> : fmt::formatter<std::string_view> 
   }
 };
 
-#endif  // CLOTHBENCH_MODEL_RUN_STATUS_H_
+#endif  // CLOTHBENCH_SOLVER_RECORD_RUN_STATUS_H_

@@ -1,4 +1,4 @@
-#include "model/run_status.h"
+#include "solver/record/run_status.h"
 
 #include <array>
 #include <utility>
