@@ -123,11 +123,12 @@ int Main(int argc, char** argv) {
   long max_cells = 0;
   app.add_option("--scenes", scenes_arg, "built-in scene names or files (default hanging_sheet,swinging_sheet)");
   app.add_option("--integrators", integrators_arg,
-                 "default: the five thesis methods and symplectic_euler; also baraff_witkin, and NAME/newton for the "
-                 "fully implicit methods");
+                 fmt::format("default: the thesis' methods ({}); also any other fixed-step row, and NAME/newton for "
+                             "the fully implicit methods",
+                             MethodNames([](const MethodEntry& e) { return e.layer == "solver"; })));
   app.add_option("--nonlinear-solver", nonlinear_arg,
-                 "fixed_point,newton: one map per solver for implicit_euler, bdf2 and implicit_midpoint (default "
-                 "fixed_point)");
+                 fmt::format("fixed_point,newton: one map per solver for {} (default fixed_point)",
+                             MethodNames([](const MethodEntry& e) { return e.nonlinear_solver; })));
   app.add_option("--stiffness", stiffness_arg, "numerical stiffness values h^2 k/(rho l^2)");
   app.add_option("--h", h_arg, "step sizes [s]");
   app.add_option("--steps", steps, "steps per cell (default 200)")->check(CLI::Range(1, 1000000));

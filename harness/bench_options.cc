@@ -66,8 +66,8 @@ void AddOptions(CLI::App& app, Options& o) {
                  "e_rms = 1e-3 m; docs/notes/work-precision.md)");
   app.add_option("--t-end", t_end, "end time [s] (default: the scene's t_end)");
   app.add_option("--reference", reference,
-                 fmt::format("the reference: {} (cvode, ida: the reduced velocity solve; /klu: KLU on the first-order "
-                             "Jacobian) or none (default {})",
+                 fmt::format("the reference: {} (without /klu: the reduced velocity solve; /klu: KLU on the "
+                             "first-order Jacobian) or none (default {})",
                              ReferenceNames(), DefaultReference()));
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--cvode-setting", cvode_setting_arg,
@@ -75,14 +75,15 @@ void AddOptions(CLI::App& app, Options& o) {
                  "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05, atol_v_scale=1 (atol of the velocities over that of the positions); "
                  "stored as the runs' sundials_settings");
   app.add_option("--rtols", rtols_arg,
-                 "rtol (= atol) list of the adaptive rows: cvode, ida, arkode, sbdf2/error, bdf2/error (default "
-                 "1e-2,…,1e-7; arkode 1e-2,…,1e-6)");
+                 fmt::format("rtol (= atol) list of the {} (default: {})", RowsReading(RowOptionOf("rtol")),
+                             DefaultListsText(true)));
   app.add_option("--substeps", substeps_arg,
-                 "comma-separated substeps per frame step of the substepped rows (xpbd): one row per h and value "
-                 "(default 1,4,16,64)");
+                 fmt::format("comma-separated substeps per frame step of the {}: one row per h and value (default "
+                             "1,4,16,64)",
+                             RowsReading(RowOptionOf("substeps"))));
   app.add_option("--iterations", iterations_arg,
-                 "comma-separated iterations per step of the iterated rows (pd, vbd and their /chebyshev): one row "
-                 "per h and value (default 1,4,16,64; vbd rows 1,4)");
+                 fmt::format("comma-separated iterations per step of the {}: one row per h and value (default: {})",
+                             RowsReading(RowOptionOf("iterations")), DefaultListsText(false)));
   app.add_option("--arkode-table", arkode_table,
                  "ARKODE IMEX pair: ARK324L2SA (default), ARK436L2SA, ARK437L2SA, ARK548L2SA, ARK548L2SAb");
   app.add_option("--targets", targets_arg, "e_rms targets [m] of the equal-accuracy table (default 1e-2,1e-3,1e-4)");
@@ -99,7 +100,7 @@ void AddOptions(CLI::App& app, Options& o) {
                  "(e_rms at t_end; the default without obstacles) | l2 (rms over the frames; the default on scenes with "
                  "obstacles, whose contact events are not smooth) | max (max over the frames)");
   app.add_option("--baseline", baseline,
-                 "the row the equal-accuracy ratios are relative to (default cvode: CVODE with the reduced solve)");
+                 fmt::format("the row the equal-accuracy ratios are relative to (default {})", DefaultReference()));
   app.add_option("--tangent-terms", tangent_terms,
                  "J_alpha's terms in every row that builds it: all | tension (tension and mass only); default: the "
                  "scene's solver.tangent_explicit_terms, and each method's measured best (its row, solver/method_row.h)");
@@ -222,8 +223,8 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
   for (std::size_t a = 0; a < methods.size(); ++a)
     for (std::size_t b = 0; b < a; ++b)
       if (methods[a].label() == methods[b].label())
-        throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver, \"bdf2\" also "
-                                     "names bdf2/newton)",
+        throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver newton, a fully "
+                                     "implicit method's name also names its /newton row)",
                                      methods[a].label()));
   CheckArkodeTable(arkode_table);
   const std::string unused = UnusedOption(

@@ -74,8 +74,8 @@ std::vector<RowTask> RowTasks(const BenchRun& b) {
 
 void ReportReferenceFailure(const BenchRun& b, bool self_convergence, double h_ref, const RunSummary& r) {
   if (self_convergence)
-    fmt::print(stderr, "bench_integrators: self-convergence reference (bdf2, h = {:g} s) failed: {}\n", h_ref,
-               EscapeControl(r.message));
+    fmt::print(stderr, "bench_integrators: self-convergence reference ({}, h = {:g} s) failed: {}\n",
+               SelfConvergenceMethod().name, h_ref, EscapeControl(r.message));
   else
     fmt::print(stderr, "bench_integrators: {} reference at rtol {:g} failed: {}\n", b.reference->label(), b.ref_rtol,
                EscapeControl(r.message));

@@ -4,7 +4,9 @@
 #include "harness/methods.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
+#include <type_traits>
 
 #include <fmt/format.h>
 
@@ -72,6 +74,45 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
   if (solver == NonlinearSolver::kNewton) row.newton_jacobian = std::string(ToString(row_spec.newton_jacobian));
   row.threads = KernelThreads();
   return row;
+}
+
+namespace {
+
+// "1e-2,…,1e-7", "1,4": a default list as the help prints it.
+template <class T>
+std::string ListText(const std::vector<T>& values) {
+  const auto one = [](T v) {
+    if constexpr (std::is_floating_point_v<T>) {
+      const double e = std::log10(v);
+      if (v > 0.0 && e == std::round(e)) return fmt::format("1e{}", static_cast<int>(e));
+    }
+    return fmt::format("{:g}", static_cast<double>(v));
+  };
+  if (values.size() > 4) return one(values.front()) + ",…," + one(values.back());
+  std::string s;
+  for (T v : values) s += (s.empty() ? "" : ",") + one(v);
+  return s;
+}
+
+}  // namespace
+
+std::string DefaultListsText(bool rtols) {
+  const std::string base = rtols ? ListText(kDefaultRtols) : ListText(kDefaultIterations);
+  std::vector<std::pair<std::string, std::string>> groups;  // list, rows
+  for (const MethodEntry& e : Registry())
+    for (const RowDefaults& d : e.defaults) {
+      const bool error_row = d.modifiers == "error" || d.modifiers.ends_with("/error");
+      if (rtols ? !(SpecOf(e.kind).adaptive() || error_row) : SpecOf(e.kind).count != "iterations") continue;
+      const std::string list = rtols ? ListText(d.rtols) : ListText(d.iterations.empty() ? kDefaultIterations : d.iterations);
+      const std::string label = std::string(e.name) + (d.modifiers.empty() ? "" : "/") + std::string(d.modifiers);
+      if (list == base) continue;
+      auto g = std::find_if(groups.begin(), groups.end(), [&](const auto& p) { return p.first == list; });
+      if (g == groups.end()) groups.emplace_back(list, label);
+      else g->second += ", " + label;
+    }
+  std::string text = base;
+  for (const auto& [list, rows] : groups) text += fmt::format("; {} ({})", list, rows);
+  return text;
 }
 
 std::string RowsReading(const RowOption& o) {

@@ -224,6 +224,12 @@ struct GivenOptions {
   std::string baseline;  ///< --baseline ROW; empty: not given
 };
 
+/// The default lists of the registry's rows for the help: rtol lists of
+/// the adaptive rows (`rtols`) or iteration counts of the iterated rows,
+/// the harness' own first and then the rows with their own:
+/// "1e-2,…,1e-7; 1e-2,…,1e-6 (arkode, arkode/ark4); 1e-3,…,1e-6 (arkode/ark5)".
+std::string DefaultListsText(bool rtols);
+
 /// The first given option that no row of `rows` reads (or a --baseline
 /// that names no row), as "--rtols: no row
 /// of this run uses it (it applies to …)"; empty if every given option is

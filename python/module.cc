@@ -794,7 +794,7 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("cvode_setting") = py::none(), py::arg("self_contact") = py::none(),
         "Runs one row as bench_integrators does (the GIL released). Every argument is checked first, by the rules "
         "of the command line (harness/run_request.h): ValueError or TypeError naming the keyword. An option the row "
-        "does not read (rtol of a fixed-step row, substeps of any row but xpbd, ...) is refused. Returns a dict: "
+        "does not read (rtol of a fixed-step row, substeps of a row that takes none, ...) is refused. Returns a dict: "
         "times [F], positions and velocities [F, N, 3], step_stats (structured array), counts, times, status, "
         "energies, and with reference= (a dict from reference() on the same scene and t_end) error_final_m, "
         "error_l2_m, error_max_m (and _mps for the velocities). progress(t, t_end) is called at most every 0.2 s; "
@@ -830,11 +830,12 @@ PYBIND11_MODULE(clothbench, m) {
         "scripts/report checks its page with it.");
   m.def("reference", &Reference, py::arg("scene"), py::arg("method") = std::string(DefaultReference()),
         py::arg("rtol") = 1e-10, py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
-        "The reference run (method: cvode or ida with the reduced velocity solve, cvode/klu or ida/klu with KLU; "
+        fmt::format("The reference run (method: {}; without /klu the reduced velocity solve, with /klu KLU; "
         "as --reference, with its error estimate error_estimate_m against the same at rtol/10): the attributes a "
         "result file stores for /reference (the same record keys as run()'s dict: status, steps, rtol, atol, ...), "
         "times, positions, "
-        "velocities, step_stats, and the scene_hash that run() and write_results() compare with their scene's.");
+        "velocities, step_stats, and the scene_hash that run() and write_results() compare with their scene's.",
+        ReferenceNames()).c_str());  // pybind11 copies the text
   m.def("obstacle_distances", &ObstacleDistances, py::arg("scene"), py::arg("times"), py::arg("positions"),
         "Per frame and particle the signed distance [m] to the scene's nearest obstacle at that frame's time "
         "(negative inside; the model's own query, meshes included), its unit direction and the obstacle's index: "
