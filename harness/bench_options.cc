@@ -71,9 +71,11 @@ void AddOptions(CLI::App& app, Options& o) {
                              ReferenceNames(), DefaultReference()));
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
   app.add_option("--cvode-setting", cvode_setting_arg,
-                 "comma-separated KEY=VALUE setup knobs of the cvode rows (CVODE's defaults otherwise): "
-                 "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05, atol_v_scale=1 (atol of the velocities over that of the positions); "
-                 "stored as the runs' sundials_settings");
+                 fmt::format("comma-separated KEY=VALUE setup knobs of CVODE for the {} (CVODE's defaults otherwise): "
+                             "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, "
+                             "eps_lin=0.05, atol_v_scale=1 (atol of the velocities over that of the positions); stored "
+                             "as the runs' sundials_settings",
+                             RowsReading(RowOptionOf("cvode_setting"))));
   app.add_option("--rtols", rtols_arg,
                  fmt::format("rtol (= atol) list of the {} (default: {})", RowsReading(RowOptionOf("rtol")),
                              DefaultListsText(true)));
