@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
+#include <utility>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_2.h>
@@ -33,6 +35,47 @@ Vector2 AlongSide(const std::vector<Vector2>& side, double t) {
     target -= piece;
   }
   return side.back();
+}
+
+// The transfinite (Coons) sampling of the pattern's plane, nu × nv
+// points, u fastest (docs/model.md §2.7), for a pattern whose sides pass
+// the other rules.
+Eigen::MatrixX2d Sample(const PatternSpec& p) {
+  Eigen::MatrixX2d x(static_cast<Eigen::Index>(p.nu) * p.nv, 2);
+  const auto& c = p.corners;
+  for (int j = 0; j < p.nv; ++j) {
+    const double v = static_cast<double>(j) / (p.nv - 1);
+    const Vector2 u0 = AlongSide(p.sides[PatternSpec::kU0], v), u1 = AlongSide(p.sides[PatternSpec::kU1], v);
+    for (int i = 0; i < p.nu; ++i) {
+      const double u = static_cast<double>(i) / (p.nu - 1);
+      const Vector2 v0 = AlongSide(p.sides[PatternSpec::kV0], u), v1 = AlongSide(p.sides[PatternSpec::kV1], u);
+      const Vector2 corners = (1 - u) * (1 - v) * c[0] + u * (1 - v) * c[1] + u * v * c[2] + (1 - u) * v * c[3];
+      x.row(i + static_cast<Eigen::Index>(p.nu) * j) =
+          ((1 - v) * v0 + v * v1 + (1 - u) * u0 + u * u1 - corners).transpose();
+    }
+  }
+  return x;
+}
+
+
+// The first face (i, j) of the sampling x whose two triangles do not both
+// have positive area in the pattern's plane, or nothing: a strongly
+// concave outline folds its transfinite sampling over itself, and a
+// folded face has a negative area, so its nodes' masses can be ≤ 0.
+std::optional<std::pair<int, int>> FoldedFace(const PatternSpec& p, const Eigen::MatrixX2d& x) {
+  const double floor = 1e-14 * Size(p) * Size(p);
+  const auto area = [&](Eigen::Index a, Eigen::Index b, Eigen::Index c) {
+    const Vector2 ab = (x.row(b) - x.row(a)).transpose(), ac = (x.row(c) - x.row(a)).transpose();
+    return 0.5 * (ab.x() * ac.y() - ab.y() * ac.x());
+  };
+  for (int j = 0; j + 1 < p.nv; ++j)
+    for (int i = 0; i + 1 < p.nu; ++i) {
+      const Eigen::Index k = i + static_cast<Eigen::Index>(p.nu) * j, up = k + p.nu;
+      if (!(area(k, k + 1, up + 1) > floor) || !(area(k, up + 1, up) > floor) || !(area(k, k + 1, up) > floor) ||
+          !(area(k + 1, up + 1, up) > floor))
+        return std::pair(i, j);
+    }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -67,26 +110,17 @@ std::string PatternRule(const PatternSpec& p) {
   if (!outline.is_simple()) return "sides: the outline crosses or touches itself";
   if (outline.orientation() != CGAL::COUNTERCLOCKWISE)
     return "corners: must run counter-clockwise, u0v0, u1v0, u1v1, u0v1";
+  if (const auto face = FoldedFace(p, Sample(p)))
+    return fmt::format("corners, sides: the sampling folds over itself at face ({}, {}) (a face of area <= 0 in the "
+                       "pattern's plane; a strongly concave outline does): move the corners or sides",
+                       face->first, face->second);
   return {};
 }
 
 Eigen::MatrixX2d SamplePattern(const PatternSpec& p) {
   if (const std::string rule = PatternRule(p); !rule.empty())
     throw std::invalid_argument(fmt::format("pattern {}: {}", p.name, rule));
-  Eigen::MatrixX2d x(static_cast<Eigen::Index>(p.nu) * p.nv, 2);
-  const auto& c = p.corners;
-  for (int j = 0; j < p.nv; ++j) {
-    const double v = static_cast<double>(j) / (p.nv - 1);
-    const Vector2 u0 = AlongSide(p.sides[PatternSpec::kU0], v), u1 = AlongSide(p.sides[PatternSpec::kU1], v);
-    for (int i = 0; i < p.nu; ++i) {
-      const double u = static_cast<double>(i) / (p.nu - 1);
-      const Vector2 v0 = AlongSide(p.sides[PatternSpec::kV0], u), v1 = AlongSide(p.sides[PatternSpec::kV1], u);
-      const Vector2 corners = (1 - u) * (1 - v) * c[0] + u * (1 - v) * c[1] + u * v * c[2] + (1 - u) * v * c[3];
-      x.row(i + static_cast<Eigen::Index>(p.nu) * j) =
-          ((1 - v) * v0 + v * v1 + (1 - u) * u0 + u * u1 - corners).transpose();
-    }
-  }
-  return x;
+  return Sample(p);
 }
 
 MatrixN3 PlacePattern(const PatternSpec& p, const Eigen::MatrixX2d& samples) {

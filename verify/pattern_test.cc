@@ -217,6 +217,12 @@ TEST(Pattern, SceneRefusesBadPatternsNamingThem) {
   clockwise.replace(clockwise.find("[[0.0, 0.0]"), 48, "[[0.0, 0.0], [0.0, 0.4], [0.6, 0.4], [0.6, 0.0]]");
   EXPECT_EQ(refusal(clockwise).rfind("p.toml: pattern[0].corners: must run counter-clockwise", 0), 0u)
       << refusal(clockwise);
+  // A simple, counter-clockwise but strongly concave outline folds its
+  // transfinite sampling (a fuzzing finding, whose node masses were <= 0).
+  std::string concave = kPatternScene;
+  concave.replace(concave.find("[[0.0, 0.0]"), 48, "[[0.0, 0.6], [0.0, 0.0], [0.75, 0.1], [0.15, 0.1]]");
+  EXPECT_EQ(refusal(concave).rfind("p.toml: pattern[0].corners, sides: the sampling folds over itself at face", 0), 0u)
+      << refusal(concave);
   std::string one = kPatternScene;
   one.replace(one.find("samples = [7, 5]"), 16, "samples = [1, 5]");
   EXPECT_EQ(refusal(one).rfind("p.toml: pattern[0].samples:", 0), 0u) << refusal(one);
