@@ -101,8 +101,7 @@ std::string DefaultListsText(bool rtols) {
   std::vector<std::pair<std::string, std::string>> groups;  // list, rows
   for (const MethodEntry& e : Registry())
     for (const RowDefaults& d : e.defaults) {
-      const bool error_row = d.modifiers == "error" || d.modifiers.ends_with("/error");
-      if (rtols ? !(SpecOf(e.kind).adaptive() || error_row) : SpecOf(e.kind).count != "iterations") continue;
+      if (rtols ? !(SpecOf(e.kind).adaptive() || d.error_row()) : SpecOf(e.kind).count != "iterations") continue;
       const std::string list = rtols ? ListText(d.rtols) : ListText(d.iterations.empty() ? kDefaultIterations : d.iterations);
       const std::string label = std::string(e.name) + (d.modifiers.empty() ? "" : "/") + std::string(d.modifiers);
       if (list == base) continue;

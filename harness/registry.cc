@@ -62,8 +62,7 @@ const std::vector<DefaultRow>& DefaultRows() {
       for (const RowDefaults& d : e.defaults) {
         DefaultRow row{std::string(e.name) + (d.modifiers.empty() ? "" : "/") + std::string(d.modifiers),
                        {d.h_factors, d.rtols, d.iterations}, d.newton_variant};
-        const bool error_row = d.modifiers == "error" || d.modifiers.ends_with("/error");
-        (SpecOf(e.kind).adaptive() || error_row ? adaptive : fixed).push_back(std::move(row));
+        (SpecOf(e.kind).adaptive() || d.error_row() ? adaptive : fixed).push_back(std::move(row));
       }
     fixed.insert(fixed.end(), adaptive.begin(), adaptive.end());
     return fixed;

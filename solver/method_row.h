@@ -37,6 +37,9 @@ struct RowDefaults {
   /// fixed-point row unless the command line names the nonlinear solver or
   /// the scene already uses Newton.
   bool newton_variant = false;
+  /// Whether it is a row under error control ("error", "newton/error"):
+  /// adaptive, parameterised by rtol.
+  bool error_row() const { return modifiers == "error" || modifiers.ends_with("/error"); }
 };
 
 /// Why a run of a row ended with a status that belongs to the method: the
