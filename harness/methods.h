@@ -52,6 +52,11 @@ const MethodEntry& SelfConvergenceMethod();
 /// contact_replay time (MethodEntry::kernel_benchmark; SBDF(2)).
 const MethodEntry& KernelBenchmarkMethod();
 
+/// The method that ran the thesis' experiment `experiment` ("Table 5.1",
+/// "Fig. 5.15": MethodEntry::thesis_experiments).
+/// @throws std::logic_error if not exactly one method lists it
+const MethodEntry& ThesisExperimentMethod(std::string_view experiment);
+
 /// The methods that can be the reference, for messages ("cvode, ida").
 inline std::string ReferenceNames();
 

@@ -2,6 +2,7 @@
 // defines its row beside its code (MethodEntry, solver/method_row.h). The
 // order of the lines is the tables' order. A new method is its files and
 // one line here (docs/guide/extending.md, "Adding a method").
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -78,6 +79,17 @@ const MethodEntry& KernelBenchmarkMethod() {
 
 const MethodEntry& SelfConvergenceMethod() {
   return TheOne(&MethodEntry::self_convergence_reference, "self-convergence reference");
+}
+
+const MethodEntry& ThesisExperimentMethod(std::string_view experiment) {
+  const MethodEntry* found = nullptr;
+  for (const MethodEntry& e : Registry())
+    if (std::find(e.thesis_experiments.begin(), e.thesis_experiments.end(), experiment) != e.thesis_experiments.end()) {
+      if (found) throw std::logic_error(std::string("two methods ran ") + std::string(experiment));
+      found = &e;
+    }
+  if (!found) throw std::logic_error(std::string("no method ran ") + std::string(experiment));
+  return *found;
 }
 
 }  // namespace clothbench

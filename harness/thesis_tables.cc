@@ -41,7 +41,7 @@ namespace {
 // h/64 on the tablecloth, h/16 on the dress, tight tolerances), and
 // written to HDF5.
 struct ThesisRow {
-  Method method;
+  std::string_view method;  // its registry name
   double k, d;
   long updates, cg;
   double time_s;  // < 0: not given
@@ -108,32 +108,27 @@ struct ThesisSweep {
 // and for 3.2 the sewn dress'. @throws UsageError for another table
 std::vector<Block> ThesisBlocks(const std::string& which, const Scene& base,
                                 std::optional<PreconditionerType> preconditioner) {
-  std::vector<ThesisRow> rows;
-  if (which == "3.1") {
-    rows = {{Method::kBdf2, 1e4, 160, 803, 1160, -1}, {Method::kBdf2, 1e4, 1600, 198, 538, -1}, {Method::kBdf2, 1e5, 1600, 377, 566, -1},
-            {Method::kBdf2, 1e3, 1600, 52, 52, -1}};
-  } else if (which == "3.2") {
-    rows = {{Method::kImexEuler, 9000, 50, 100, 745, 1.69},    {Method::kImplicitEuler, 9000, 50, 206, 1038, 3.06},
-            {Method::kSbdf2, 9000, 50, 100, 304, 1.57},         {Method::kBdf2, 9000, 50, 122, 857, 2.57},
-            {Method::kImplicitMidpoint, 9000, 50, 494, 813, 4.39}};
-  } else {
+  if (which != "3.1" && which != "3.2")
     throw UsageError(fmt::format("--table: \"{}\" must be one of 3.1, 3.2, 5.1, 5.15", which));
-  }
-  std::vector<Block> blocks = {{"tablecloth", base, rows, base.h / 64.0}};
+  // The rows each method lists (MethodEntry::thesis_rows), in the registry's
+  // order; a k or d < 0 is the scene's.
+  const auto rows_on = [&which](std::string_view scene, const Scene& s) {
+    std::vector<ThesisRow> rows;
+    for (const MethodEntry& e : Registry())
+      for (const ThesisTableRow& r : e.thesis_rows)
+        if (r.table == which && r.scene == scene)
+          rows.push_back({e.name, r.k < 0 ? s.material.tension[0] : r.k, r.d < 0 ? s.material.tension_damping : r.d,
+                          r.updates, r.cg, r.time_s});
+    return rows;
+  };
+  std::vector<Block> blocks = {{"tablecloth", base, rows_on("tablecloth", base), base.h / 64.0}};
   if (which == "3.2") {
     // Dress rows: the sewn dress (scenes/dress.toml) on the avatar, 5 s;
     // its sewing phase runs once, before the reference and the rows.
     Scene av = BuiltinScene("dress");
     if (preconditioner) av.solver.preconditioner = *preconditioner;
     Sew(&av);
-    const double kd = av.material.tension[0], dd = av.material.tension_damping;
-    blocks.push_back({"dress", av,
-                      {{Method::kImexEuler, kd, dd, 500, 17198, 152.7},
-                       {Method::kImplicitEuler, kd, dd, 1654, 21424, 204.9},
-                       {Method::kSbdf2, kd, dd, 500, 15360, 169.5},
-                       {Method::kBdf2, kd, dd, 1431, 19307, 194.4},
-                       {Method::kImplicitMidpoint, kd, dd, 2078, 15877, 211.3}},
-                      av.h / 16.0});
+    blocks.push_back({"dress", av, rows_on("dress", av), av.h / 16.0});
   }
   return blocks;
 }
@@ -184,7 +179,7 @@ void ComputeRows(ThesisSweep& t, const std::vector<NonlinearSolver>& solvers, co
   for (std::size_t e = 0; e < etas.size(); ++e)
     for (std::size_t b = 0; b < t.blocks.size(); ++b)
       for (std::size_t i = 0; i < t.blocks[b].rows.size(); ++i)
-        for (const RowMethod& m : ExpandMethods({std::string(ToString(t.blocks[b].rows[i].method))}, solvers, "--table"))
+        for (const RowMethod& m : ExpandMethods({std::string(t.blocks[b].rows[i].method)}, solvers, "--table"))
           t.tasks.push_back({e, b, i, m});
   std::vector<std::pair<long, std::string>> mine;
   for (std::size_t k = 0; k < t.tasks.size(); ++k) {

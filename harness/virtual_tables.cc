@@ -3,8 +3,10 @@
 
 #include <algorithm>
 #include <array>
+#include <memory>
 #include <cmath>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/format.h>
@@ -15,6 +17,7 @@
 #include "results/result_file.h"
 #include "solver/run.h"
 #include "collision/cloth_mesh.h"
+#include "harness/methods.h"
 
 namespace clothbench {
 
@@ -99,6 +102,18 @@ double DeepestInside(const ParticleSystem& sys, const Surface& s) {
 
 }  // namespace
 
+namespace {
+
+// A run of the method that ran the thesis' `experiment`
+// (MethodEntry::thesis_experiments) on `sys` with its scene's solver settings.
+RunSummary RunThesisMethod(const ParticleSystem& sys, std::string_view experiment, const RunOptions& options) {
+  const MethodEntry& e = ThesisExperimentMethod(experiment);
+  const std::unique_ptr<Stepper> stepper = e.make(sys, sys.scene().solver, 1, "");
+  return RunStepper(sys, *stepper, options);
+}
+
+}  // namespace
+
 int RunTable51(std::string out) {
   if (out.empty()) out = "out/table_5_1.h5";
   fmt::print("Table 5.1 — the cost of the virtual particles per step, averaged over the run (implicit Euler with "
@@ -116,7 +131,7 @@ int RunTable51(std::string out) {
     s.frame_dt = s.h;
     s.solver.nonlinear_solver = NonlinearSolver::kNewton;
     const ParticleSystem sys(s);
-    const RunSummary r = RunIntegrator(sys, Method::kImplicitEuler, {s.h, s.t_end, s.frame_dt});
+    const RunSummary r = RunThesisMethod(sys, "Table 5.1", {s.h, s.t_end, s.frame_dt});
     const VirtualParticles* vp = VirtualParticles::Of(sys);
     const double updates = static_cast<double>(std::max(1L, vp->updates()));
     const double frames = static_cast<double>(std::max(1L, vp->triangulations()));
@@ -190,7 +205,7 @@ int RunFig515(std::string out) {
   for (Case& c : cases) {
     c.scene.frame_dt = c.scene.t_end;
     const ParticleSystem sys(c.scene);
-    const RunSummary r = RunIntegrator(sys, Method::kSbdf2, {c.scene.h, c.scene.t_end, c.scene.frame_dt});
+    const RunSummary r = RunThesisMethod(sys, "Fig. 5.15", {c.scene.h, c.scene.t_end, c.scene.frame_dt});
     surfaces.push_back(ClothSurface(sys, r.trajectory.positions.back()));
     solver_s.push_back(r.solver_time_s);
     depth.push_back(DeepestInside(sys, surfaces.back()));

@@ -49,6 +49,16 @@ struct StatusNote {
   std::string_view label = {}, status = {}, text = {};
 };
 
+/// One row of a thesis table that the method ran, with the thesis' own
+/// counts and time (docs/notes/thesis-tables.md prints ours beside them).
+struct ThesisTableRow {
+  std::string_view table;  ///< "3.1" or "3.2"
+  std::string_view scene;  ///< "tablecloth" or "dress"
+  double k = -1.0, d = -1.0;  ///< tension stiffness [N/m] and damping [N·s/m]; < 0: the scene's
+  long updates = 0, cg = 0;   ///< the thesis' Jacobian updates and CG iterations
+  double time_s = -1.0;       ///< the thesis' time [s] (R10000, 180 MHz); < 0: not given
+};
+
 struct MethodEntry {
   std::string_view name;
   StepKind kind = StepKind::kFixedStep;
@@ -129,6 +139,13 @@ struct MethodEntry {
   std::string_view table_note_terms = {};
   /// Statuses that belong to the method, with why (the run table's notes).
   std::vector<StatusNote> status_notes = {};
+  /// The thesis' table rows this method ran (Tables 3.1 and 3.2), in the
+  /// thesis' order within the method; the tables list methods in the
+  /// registry's order.
+  std::vector<ThesisTableRow> thesis_rows = {};
+  /// The thesis' experiments that ran this method alone ("Table 5.1":
+  /// implicit Euler; "Fig. 5.15": SBDF(2)); each names one method.
+  std::vector<std::string_view> thesis_experiments = {};
 };
 
 /// The default run's preconditioner for every method that uses the PCG:

@@ -53,7 +53,13 @@ MethodEntry Bdf2Row() {
                        {.modifiers = "newton", .h_factors = {4.0, 2.0, 1.0}, .newton_variant = true},
                        {.modifiers = "newton/error", .rtols = kDefaultRtols}},
           .status_notes = {{"bdf2", "penetration", kMultistepPenetration},
-                           {"bdf2/newton", "penetration", kMultistepPenetration}}};
+                           {"bdf2/newton", "penetration", kMultistepPenetration}},
+          .thesis_rows = {{"3.1", "tablecloth", 1e4, 160, 803, 1160},
+                          {"3.1", "tablecloth", 1e4, 1600, 198, 538},
+                          {"3.1", "tablecloth", 1e5, 1600, 377, 566},
+                          {"3.1", "tablecloth", 1e3, 1600, 52, 52},
+                          {"3.2", "tablecloth", 9000, 50, 122, 857, 2.57},
+                          {"3.2", "dress", -1, -1, 1431, 19307, 194.4}}};
 }
 
 }  // namespace clothbench

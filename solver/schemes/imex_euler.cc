@@ -29,7 +29,8 @@ const Scheme& ImexEulerScheme() {
 MethodEntry ImexEulerRow() {
   return {.name = "imex_euler", .layer = "solver", .collisions = true, .pcg = true,
           .make = MakeEngine<Method::kImexEuler>, .best_preconditioner = kBestPreconditioner,
-          .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}}}};
+          .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 4, 1.0 / 16, 1.0 / 64}}},
+          .thesis_rows = {{"3.2", "tablecloth", 9000, 50, 100, 745, 1.69}, {"3.2", "dress", -1, -1, 500, 17198, 152.7}}};
 }
 
 }  // namespace clothbench

@@ -43,7 +43,9 @@ MethodEntry ImplicitEulerRow() {
   return {.name = "implicit_euler", .layer = "solver", .nonlinear_solver = true, .collisions = true, .pcg = true,
           .make = MakeEngine<Method::kImplicitEuler>, .best_preconditioner = kBestPreconditioner,
           .defaults = {{.modifiers = "", .h_factors = {1.0 / 8, 1.0 / 16, 1.0 / 32}},
-                       {.modifiers = "newton", .h_factors = {1.0, 1.0 / 2, 1.0 / 4}, .newton_variant = true}}};
+                       {.modifiers = "newton", .h_factors = {1.0, 1.0 / 2, 1.0 / 4}, .newton_variant = true}},
+          .thesis_rows = {{"3.2", "tablecloth", 9000, 50, 206, 1038, 3.06}, {"3.2", "dress", -1, -1, 1654, 21424, 204.9}},
+          .thesis_experiments = {"Table 5.1"}};
 }
 
 }  // namespace clothbench

@@ -36,7 +36,9 @@ MethodEntry Sbdf2Row() {
           .make = MakeEngine<Method::kSbdf2>, .kernel_benchmark = true, .best_preconditioner = kBestPreconditioner,
           .defaults = {{.modifiers = "", .h_factors = {1.0, 1.0 / 2, 1.0 / 4, 1.0 / 8, 1.0 / 16}},
                        {.modifiers = "error", .rtols = kDefaultRtols}},
-          .status_notes = {{"sbdf2", "penetration", kMultistepPenetration}}};
+          .status_notes = {{"sbdf2", "penetration", kMultistepPenetration}},
+          .thesis_rows = {{"3.2", "tablecloth", 9000, 50, 100, 304, 1.57}, {"3.2", "dress", -1, -1, 500, 15360, 169.5}},
+          .thesis_experiments = {"Fig. 5.15"}};
 }
 
 }  // namespace clothbench
