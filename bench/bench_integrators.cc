@@ -105,8 +105,8 @@ int Main(int argc, char** argv) {
   AddOptions(app, o);
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
-                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
+                          plot_dir, tangent_terms, baseline, error_metric, method_settings, targets_arg, cg_tolerances_arg,
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
   try {
     app.parse(argc, argv);
     RefuseEmptyValues(app);

@@ -26,17 +26,37 @@ namespace {
 // longer is stopped there with reason time_limit.
 constexpr double kSweepTimeLimit = 30.0;
 
-// --cvode-setting KEY=VALUE,… as CVODE's settings. @throws UsageError naming the pair
-CvodeSettings CvodeSettingsOf(const CLI::App& app, const std::string& cvode_setting_arg) {
-  CvodeSettings cvode_settings;
-  if (app.count("--cvode-setting"))
-    for (const std::string& kv : SplitList(cvode_setting_arg, "--cvode-setting")) {
-      const std::size_t eq = kv.find('=');
-      std::string why;
-      if (eq == std::string::npos || !cvode_settings.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
-        throw UsageError(fmt::format("--cvode-setting: {}", why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
-    }
-  return cvode_settings;
+// The methods' own settings whose option was given, {field, value}, each
+// checked by its method's rule. @throws UsageError naming the option
+std::vector<std::pair<std::string, std::string>> GivenSettings(const CLI::App& app, const Options& o) {
+  std::vector<std::pair<std::string, std::string>> given;
+  for (const RowOption& row_option : RowOptions()) {
+    const MethodSetting* setting = FindSetting(row_option.field);
+    if (!setting || !app.count(std::string(setting->option))) continue;
+    const std::string& value = o.method_settings.at(row_option.field);
+    if (const std::string why = setting->check(value); !why.empty())
+      throw UsageError(fmt::format("{}: {}", setting->option, EscapeControl(why)));
+    given.emplace_back(row_option.field, value);
+  }
+  return given;
+}
+
+// The options only some rows read that the command line gives (UnusedOption).
+GivenOptions GivenOf(const CLI::App& app, const std::string& baseline,
+                     const std::vector<std::pair<std::string, std::string>>& settings) {
+  GivenOptions given{{}, app.count("--baseline") ? EscapeControl(baseline) : ""};
+  const std::pair<const char*, bool> harness_options[] = {
+      {"rtol", app.count("--rtols") > 0},
+      {"substeps", app.count("--substeps") > 0},
+      {"iterations", app.count("--iterations") > 0},
+      {"cg_tolerance", app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0},
+      {"preconditioner", app.count("--preconditioner") > 0},
+      {"nonlinear_solver", app.count("--nonlinear-solver") > 0},
+      {"tangent_terms", app.count("--tangent-terms") > 0}};
+  for (const auto& [field, given_option] : harness_options)
+    if (given_option) given.fields.emplace_back(field);
+  for (const auto& setting : settings) given.fields.push_back(setting.first);
+  return given;
 }
 
 }  // namespace
@@ -44,8 +64,8 @@ CvodeSettings CvodeSettingsOf(const CLI::App& app, const std::string& cvode_sett
 void AddOptions(CLI::App& app, Options& o) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
-                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
+                          plot_dir, tangent_terms, baseline, error_metric, method_settings, targets_arg, cg_tolerances_arg,
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
   app.add_option("--scene", scene_path,
                  "scene file (TOML) or built-in name (swinging_sheet, hanging_sheet, wind_sheet); default swinging_sheet");
   std::string default_rows;
@@ -70,12 +90,6 @@ void AddOptions(CLI::App& app, Options& o) {
                              "first-order Jacobian) or none (default {})",
                              ReferenceNames(), DefaultReference()));
   app.add_option("--reference-rtol", ref_rtol, "rtol (= atol) of the reference (default 1e-10)");
-  app.add_option("--cvode-setting", cvode_setting_arg,
-                 fmt::format("comma-separated KEY=VALUE setup knobs of CVODE for the {} (CVODE's defaults otherwise): "
-                             "lsetup_frequency=20, jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, "
-                             "eps_lin=0.05, atol_v_scale=1 (atol of the velocities over that of the positions); stored "
-                             "as the runs' sundials_settings",
-                             RowsReading(RowOptionOf("cvode_setting"))));
   app.add_option("--rtols", rtols_arg,
                  fmt::format("rtol (= atol) list of the {} (default: {})", RowsReading(RowOptionOf("rtol")),
                              DefaultListsText(true)));
@@ -86,8 +100,10 @@ void AddOptions(CLI::App& app, Options& o) {
   app.add_option("--iterations", iterations_arg,
                  fmt::format("comma-separated iterations per step of the {}: one row per h and value (default: {})",
                              RowsReading(RowOptionOf("iterations")), DefaultListsText(false)));
-  app.add_option("--arkode-table", arkode_table,
-                 "ARKODE IMEX pair: ARK324L2SA (default), ARK436L2SA, ARK437L2SA, ARK548L2SA, ARK548L2SAb");
+  for (const RowOption& row_option : RowOptions())  // the methods' own settings (MethodEntry::settings)
+    if (const MethodSetting* setting = FindSetting(row_option.field))
+      app.add_option(std::string(setting->option), method_settings[row_option.field],
+                     fmt::format("{} ({})", setting->help, RowsReading(row_option)));
   app.add_option("--targets", targets_arg, "e_rms targets [m] of the equal-accuracy table (default 1e-2,1e-3,1e-4)");
   app.add_option("--cg-tolerances", cg_tolerances_arg,
                  "comma-separated CG tolerances: every method that uses the PCG runs once per value (a second "
@@ -194,8 +210,8 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                    SweepComm& comm, int argc, char** argv, std::optional<long> size) {
   [[maybe_unused]] auto& [scene_path, integrators_arg, h_arg, reference, out, rtols_arg, t_end, ref_rtol, cg_tolerance,
                           time_limit, time_budget, repeat, series, table, preconditioner, frames_mode, nonlinear_arg,
-                          plot_dir, tangent_terms, baseline, error_metric, arkode_table, targets_arg, cg_tolerances_arg,
-                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, cvode_setting_arg, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
+                          plot_dir, tangent_terms, baseline, error_metric, method_settings, targets_arg, cg_tolerances_arg,
+                          substeps_arg, iterations_arg, work_precision_only, quiet, max_runs, sweep_to_targets, sizes_arg, self_contact_arg, report, start_predicted] = o;
   if (sweep_to_targets && !app.count("--time-limit")) time_limit = kSweepTimeLimit;
   Scene scene = SceneOfOptions(app, o, size);
   if (app.count("--integrators") && integrators_arg.empty())
@@ -209,7 +225,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
     }
   }
   CheckTolerance(ref_rtol, "--reference-rtol");
-  const CvodeSettings cvode_settings = CvodeSettingsOf(app, cvode_setting_arg);
+  const std::vector<std::pair<std::string, std::string>> settings = GivenSettings(app, o);
   const std::vector<std::string> names =
       integrators_arg.empty() ? DefaultRowNames(scene.solver.nonlinear_solver, app.count("--nonlinear-solver") > 0)
                               : SplitList(integrators_arg, "--integrators");
@@ -228,13 +244,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
         throw UsageError(fmt::format("--integrators: {} is listed twice (with --nonlinear-solver newton, a fully "
                                      "implicit method's name also names its /newton row)",
                                      methods[a].label()));
-  CheckArkodeTable(arkode_table);
-  const std::string unused = UnusedOption(
-      methods, {app.count("--rtols") > 0, app.count("--substeps") > 0, app.count("--iterations") > 0,
-                app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--preconditioner") > 0,
-                app.count("--nonlinear-solver") > 0, app.count("--arkode-table") > 0,
-                app.count("--cvode-setting") > 0, app.count("--tangent-terms") > 0,
-                app.count("--baseline") ? EscapeControl(baseline) : ""});
+  const std::string unused = UnusedOption(methods, GivenOf(app, baseline, settings));
   if (!unused.empty()) throw UsageError(unused);
   const std::vector<double> targets = ParsePositiveList(targets_arg, "--targets");
   for (double e : targets)
@@ -303,7 +313,7 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
                ref_rtol, out, plot_dir, series, frames_mode, JournalKey(argc, argv, scene), work_precision_only,
                quiet, app.count("--preconditioner") > 0,
                app.count("--cg-tolerance") + app.count("--cg-tolerances") > 0, app.count("--tangent-terms") > 0,
-               time_limit, max_runs, arkode_table, cvode_settings, sweep_to_targets, /*keep_journal=*/false,
+               time_limit, max_runs, settings, sweep_to_targets, /*keep_journal=*/false,
                report, /*size_history=*/nullptr, start_predicted};
   run.reference_time_limit = app.count("--time-limit") ? time_limit : RunLimits().time_limit_s;
   return run;

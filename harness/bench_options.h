@@ -4,6 +4,7 @@
 #ifndef CLOTHBENCH_HARNESS_BENCH_OPTIONS_H_
 #define CLOTHBENCH_HARNESS_BENCH_OPTIONS_H_
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,11 +25,12 @@ struct Options {
   int repeat = 0;
   std::string series, table, preconditioner, frames_mode = "default", nonlinear_arg, plot_dir;
   std::string tangent_terms, baseline = std::string(DefaultReference()), error_metric = "final";
-  std::string arkode_table = "ARK324L2SA", targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64",
-                                                                                    iterations_arg = "1,4,16,64";
+  /// The methods' own settings (MethodSetting), their option's value by field;
+  /// only those whose option was given are read.
+  std::map<std::string, std::string> method_settings;
+  std::string targets_arg = "1e-2,1e-3,1e-4", cg_tolerances_arg, substeps_arg = "1,4,16,64", iterations_arg = "1,4,16,64";
   bool work_precision_only = false, quiet = false;
   long max_runs = 0;
-  std::string cvode_setting_arg;
   bool sweep_to_targets = false;
   std::string sizes_arg;
   std::string self_contact;  ///< --self-contact on | off (RunRequest::self_contact)

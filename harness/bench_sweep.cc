@@ -215,8 +215,8 @@ ReferenceTask ReferenceTaskOf(const BenchRun& b, double h_ref, TerminalProgress&
 RunContext ContextOf(const BenchRun& b) {
   RunLimits limits;
   limits.time_limit_s = b.time_limit;
-  return RunContext{b.arkode_table, limits, b.preconditioner_from_cli, b.cg_tolerance_from_cli,
-                    b.tangent_terms_from_cli, b.cvode, !b.start_predicted};
+  return RunContext{limits, b.preconditioner_from_cli, b.cg_tolerance_from_cli, b.tangent_terms_from_cli,
+                    !b.start_predicted, b.settings};
 }
 
 // --sweep-to-targets (docs/notes/work-precision.md, "Sweeps driven by the

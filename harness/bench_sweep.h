@@ -68,8 +68,8 @@ struct BenchRun {
        tangent_terms_from_cli = false;
   double time_limit = 0.0;  ///< wall-time budget of each run [s]
   long max_runs = 0;        ///< > 0: compute at most this many runs, then exit kExitPartial
-  std::string arkode_table;
-  CvodeSettings cvode;
+  /// The methods' own settings as given, {field, value} (RunContext::settings).
+  std::vector<std::pair<std::string, std::string>> settings;
   /// --sweep-to-targets: each method's h, substeps or rtol chosen run by run
   /// until its runs bracket every target (RunBench; docs/notes/work-precision.md).
   bool sweep_to_targets = false;

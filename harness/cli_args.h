@@ -24,7 +24,6 @@
 
 #include "model/output_file.h"
 #include "model/scene.h"
-#include "peers/arkode.h"
 
 namespace clothbench {
 
@@ -96,14 +95,6 @@ inline std::vector<double> ParsePositiveList(const std::string& s, const std::st
     out.push_back(v);
   }
   return out;
-}
-
-/// @throws UsageError if `name` is not one of ArkodeTableNames() (--arkode-table).
-inline void CheckArkodeTable(const std::string& name) {
-  if (std::find(ArkodeTableNames().begin(), ArkodeTableNames().end(), name) != ArkodeTableNames().end()) return;
-  std::string known;
-  for (const std::string& t : ArkodeTableNames()) known += (known.empty() ? "" : ", ") + t;
-  throw UsageError(fmt::format("--arkode-table: \"{}\" must be one of {}", name, known));
 }
 
 /// Refuses, before any computing, an --out that cannot be written, with one

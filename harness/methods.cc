@@ -44,7 +44,7 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
     if (entry->describe) entry->describe(*stepper, sys, &row);
   } else {
     static_cast<RunSummary&>(row) = entry->integrate(
-        sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits, ctx.cvode}, row_spec, variant, ctx);
+        sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, row_spec, variant, ctx);
     row.step_control = "sundials";
   }
   row.label = label();
@@ -131,22 +131,47 @@ std::string RowsReading(const RowOption& o) {
   return fmt::format("{}: {}", o.what, labels.empty() ? std::string("none") : labels);
 }
 
+const std::vector<RowOption>& RowOptions() {
+  static const std::vector<RowOption> options = [] {
+    std::vector<RowOption> o = {
+        {"rtol", "--rtols", [](const RowMethod& m) { return SpecOf(m.kind()).adaptive(); }, "adaptive rows"},
+        {"substeps", "--substeps", [](const RowMethod& m) { return SpecOf(m.kind()).count == "substeps"; },
+         "substepped rows"},
+        {"iterations", "--iterations", [](const RowMethod& m) { return SpecOf(m.kind()).count == "iterations"; },
+         "iterated rows"},
+        {"cg_tolerance", "--cg-tolerance/--cg-tolerances", [](const RowMethod& m) { return m.uses_pcg(); },
+         "rows that solve with the PCG"},
+        {"preconditioner", "--preconditioner", [](const RowMethod& m) { return m.uses_pcg(); },
+         "rows that solve with the PCG"},
+        {"nonlinear_solver", "--nonlinear-solver", [](const RowMethod& m) { return m.fully_implicit(); },
+         "fully implicit methods"},
+        {"tangent_terms", "--tangent-terms", [](const RowMethod& m) { return m.builds_tangent(); },
+         "rows that build J_alpha"},
+    };
+    for (const MethodEntry& e : Registry())
+      for (const MethodSetting& setting : e.settings) {
+        if (std::any_of(o.begin(), o.end(), [&](const RowOption& r) { return r.field == setting.field; })) continue;
+        const std::string field(setting.field);
+        o.push_back({field, std::string(setting.option),
+                     [field](const RowMethod& m) { return m.setting(field) != nullptr; }, std::string(setting.what)});
+      }
+    return o;
+  }();
+  return options;
+}
+
+const MethodSetting* FindSetting(std::string_view field) {
+  for (const MethodEntry& e : Registry())
+    for (const MethodSetting& s : e.settings)
+      if (s.field == field) return &s;
+  return nullptr;
+}
+
 std::string UnusedOption(const std::vector<RowMethod>& rows, const GivenOptions& given) {
   const auto any = [&](auto&& reads) { return std::any_of(rows.begin(), rows.end(), reads); };
-  const std::pair<const char*, bool> checks[] = {
-      {"rtol", given.rtols},
-      {"substeps", given.substeps},
-      {"iterations", given.iterations},
-      {"cg_tolerance", given.cg_tolerance},
-      {"preconditioner", given.preconditioner},
-      {"nonlinear_solver", given.nonlinear_solver},
-      {"arkode_table", given.arkode_table},
-      {"cvode_setting", given.cvode_setting},
-      {"tangent_terms", given.tangent_terms},
-  };
-  for (const auto& [field, was_given] : checks) {
+  for (const std::string& field : given.fields) {
     const RowOption& o = RowOptionOf(field);
-    if (was_given && !any(o.reads)) return fmt::format("{}: no row of this run uses it (it applies to {})", o.option, RowsReading(o));
+    if (!any(o.reads)) return fmt::format("{}: no row of this run uses it (it applies to {})", o.option, RowsReading(o));
   }
   if (!given.baseline.empty() && !any([&](const RowMethod& m) { return m.label() == given.baseline; })) {
     std::string labels;

@@ -142,8 +142,12 @@ struct RowMethod {
     return run_id;
   }
   bool fully_implicit() const { return entry->nonlinear_solver; }
-  /// Whether the row reads an ARKODE IMEX table (arkode rows without /ark4 or /ark5).
-  bool reads_arkode_table() const { return entry->arkode_table && variant.empty(); }
+  /// The method's setting `field` if this row reads it (MethodSetting::reads), else nullptr.
+  const MethodSetting* setting(std::string_view field) const {
+    for (const MethodSetting& s : entry->settings)
+      if (s.field == field && (!s.reads || s.reads(variant))) return &s;
+    return nullptr;
+  }
   /// Whether the method's linear solves use the PCG (and so the CG tolerance η).
   bool uses_pcg() const { return entry->pcg && variant != "klu"; }
   /// Whether the row builds the 3N×3N tangent system J_α.
@@ -184,33 +188,14 @@ struct RowMethod {
 /// read a given option is refused) and UnusedOption (a bench option that
 /// no row of the invocation reads is refused) consult.
 struct RowOption {
-  const char* field;
-  const char* option;
-  bool (*reads)(const RowMethod&);
-  const char* what;
+  std::string field;
+  std::string option;
+  std::function<bool(const RowMethod&)> reads;
+  std::string what;
 };
-inline const std::vector<RowOption>& RowOptions() {
-  static const std::vector<RowOption> options = {
-      {"rtol", "--rtols", [](const RowMethod& m) { return SpecOf(m.kind()).adaptive(); }, "adaptive rows"},
-      {"substeps", "--substeps", [](const RowMethod& m) { return SpecOf(m.kind()).count == "substeps"; },
-       "substepped rows"},
-      {"iterations", "--iterations", [](const RowMethod& m) { return SpecOf(m.kind()).count == "iterations"; },
-       "iterated rows"},
-      {"cg_tolerance", "--cg-tolerance/--cg-tolerances", [](const RowMethod& m) { return m.uses_pcg(); },
-       "rows that solve with the PCG"},
-      {"preconditioner", "--preconditioner", [](const RowMethod& m) { return m.uses_pcg(); },
-       "rows that solve with the PCG"},
-      {"nonlinear_solver", "--nonlinear-solver", [](const RowMethod& m) { return m.fully_implicit(); },
-       "fully implicit methods"},
-      {"arkode_table", "--arkode-table", [](const RowMethod& m) { return m.reads_arkode_table(); },
-       "rows that read an ARKODE table"},
-      {"cvode_setting", "--cvode-setting", [](const RowMethod& m) { return m.entry->cvode_settings; },
-       "rows that read CVODE's settings"},
-      {"tangent_terms", "--tangent-terms", [](const RowMethod& m) { return m.builds_tangent(); },
-       "rows that build J_alpha"},
-  };
-  return options;
-}
+/// The harness' own options, then each method's settings (MethodEntry::settings,
+/// one entry per field) in the registry's order.
+const std::vector<RowOption>& RowOptions();
 /// "adaptive rows: arkode, arkode/ark4, …": `o.what` and the labels of the
 /// registry's rows that read `o` (every method with each nonlinear solver,
 /// error control and variant it takes).
@@ -222,12 +207,16 @@ inline const RowOption& RowOptionOf(std::string_view field) {
   throw std::logic_error(fmt::format("no row option {}", field));
 }
 
-/// The command-line options that only some rows read, and whether each was given.
+/// The command-line options that only some rows read that were given, by
+/// request field (RowOptions()), and --baseline.
 struct GivenOptions {
-  bool rtols = false, substeps = false, iterations = false, cg_tolerance = false, preconditioner = false, nonlinear_solver = false,
-       arkode_table = false, cvode_setting = false, tangent_terms = false;
+  std::vector<std::string> fields;  ///< "rtol", "cg_tolerance", "arkode_table", …
   std::string baseline;  ///< --baseline ROW; empty: not given
 };
+
+/// The method setting declared for request field `field` (the first method
+/// that declares it), or nullptr if no method does.
+const MethodSetting* FindSetting(std::string_view field);
 
 /// The default lists of the registry's rows for the help: rtol lists of
 /// the adaptive rows (`rtols`) or iteration counts of the iterated rows,

@@ -147,13 +147,10 @@ RunRequest StoredRunRequest(const ResultReader& file, const RunTable& table, con
   q.SetStep(kind, kind.adaptive() ? r.rtol : r.h, kind.counted() ? r.*kind.count_field : 1);
   if (m.uses_pcg() && !r.preconditioner.empty()) q.preconditioner = r.preconditioner, q.cg_tolerance = r.cg_tolerance;
   if (m.builds_tangent() && !r.tangent_terms.empty()) q.tangent_terms = r.tangent_terms;
-  // The method's own settings, stored as its attributes (MethodEntry::rerun_settings).
-  for (const auto& [attribute, field] : m.entry->rerun_settings) {
-    const std::string value = r.MethodText(attribute);
-    if (value.empty() || !RowOptionOf(field).reads(m)) continue;
-    if (field == "arkode_table") q.arkode_table = value;
-    else if (field == "cvode_setting") q.cvode_setting = value;
-    else throw std::logic_error(fmt::format("{}: no request field {}", m.label(), field));
+  // The method's own settings, stored as its attributes (MethodSetting::attribute).
+  for (const MethodSetting& setting : m.entry->settings) {
+    const std::string value = setting.attribute.empty() ? "" : r.MethodText(std::string(setting.attribute));
+    if (!value.empty() && m.setting(setting.field)) q.settings.emplace_back(setting.field, value);
   }
   if (!r.collision_self.empty()) q.self_contact = r.collision_self;
   q.t_end = table.t_end;
@@ -250,8 +247,8 @@ std::string ReproduceScript(const ResultReader& file, const RunTable& table, con
   if (q.preconditioner) cmd += fmt::format(" --preconditioner {}", ShellQuote(*q.preconditioner));
   if (q.cg_tolerance) cmd += fmt::format(" --cg-tolerance {}", number(*q.cg_tolerance));
   if (q.tangent_terms) cmd += fmt::format(" --tangent-terms {}", ShellQuote(*q.tangent_terms));
-  if (q.arkode_table) cmd += fmt::format(" --arkode-table {}", ShellQuote(*q.arkode_table));
-  if (q.cvode_setting) cmd += fmt::format(" --cvode-setting {}", ShellQuote(*q.cvode_setting));
+  for (const auto& [field, value] : q.settings)  // fields of the registry's settings (ReadRun)
+    cmd += fmt::format(" {} {}", FindSetting(field)->option, ShellQuote(value));
   if (q.self_contact) cmd += fmt::format(" --self-contact {}", ShellQuote(*q.self_contact));
   cmd += fmt::format(" --t-end {} --frames {} --reference none --repeat 1 --quiet --out {}", number(*q.t_end),
                      ShellQuote(q.frames), ShellQuote(out));

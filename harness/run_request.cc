@@ -27,14 +27,14 @@ std::string RunRequest::Field(std::string_view field) const {
       {"method", "--integrators"},       {"h", "--h"},
       {"rtol", "--rtols"},               {"substeps", "--substeps"},        {"iterations", "--iterations"},
       {"cg_tolerance", "--cg-tolerance"}, {"preconditioner", "--preconditioner"},
-      {"tangent_terms", "--tangent-terms"}, {"arkode_table", "--arkode-table"},
-      {"cvode_setting", "--cvode-setting"}, {"t_end", "--t-end"},
+      {"tangent_terms", "--tangent-terms"}, {"t_end", "--t-end"},
       {"frames", "--frames"},            {"threads", "OMP_NUM_THREADS"},
       {"time_limit", "--time-limit"},    {"repeat", "--repeat"},
       {"time_budget", "--time-budget"},  {"reference", "--reference"},
       {"self_contact", "--self-contact"}};
   for (const auto& [k, o] : kOptions)
     if (k == field) return std::string(o);
+  if (const MethodSetting* setting = FindSetting(field)) return std::string(setting->option);
   return std::string(field);
 }
 
@@ -45,7 +45,7 @@ UsageError Fail(const RunRequest& q, std::string_view field, const std::string& 
 }
 
 // Refuses option `field` of q if row m does not read it (RowOptions()).
-void RefuseUnread(const RunRequest& q, const RowMethod& m, const char* field) {
+void RefuseUnread(const RunRequest& q, const RowMethod& m, std::string_view field) {
   const RowOption& o = RowOptionOf(field);
   if (!o.reads(m)) throw Fail(q, field, fmt::format("{} does not read it (it applies to {})", m.label(), RowsReading(o)));
 }
@@ -207,25 +207,12 @@ void ApplyOptions(const RunRequest& q, ResolvedRun* out) {
     solver.tangent_explicit_terms = *q.tangent_terms == "all";
     out->ctx.tangent_terms_from_cli = true;
   }
-  if (q.arkode_table) {
-    RefuseUnread(q, m, "arkode_table");
-    const auto& tables = ArkodeTableNames();
-    if (std::find(tables.begin(), tables.end(), *q.arkode_table) == tables.end()) {
-      std::string known;
-      for (const std::string& t : tables) known += (known.empty() ? "" : ", ") + t;
-      throw Fail(q, "arkode_table", fmt::format("\"{}\" must be one of {}", EscapeControl(*q.arkode_table), known));
-    }
-    out->ctx.arkode_table = *q.arkode_table;
-  }
-  if (q.cvode_setting) {
-    RefuseUnread(q, m, "cvode_setting");
-    if (!q.cvode_setting->empty())
-      for (const std::string& kv : SplitList(*q.cvode_setting, q.Field("cvode_setting"))) {
-        const std::size_t eq = kv.find('=');
-        std::string why;
-        if (eq == std::string::npos || !out->ctx.cvode.Set(kv.substr(0, eq), kv.substr(eq + 1), &why))
-          throw Fail(q, "cvode_setting", EscapeControl(why.empty() ? "\"" + kv + "\" is not KEY=VALUE" : why));
-      }
+  for (const auto& [field, value] : q.settings) {
+    const MethodSetting* setting = FindSetting(field);
+    if (!setting) throw Fail(q, field, "is not a setting of any method");
+    RefuseUnread(q, m, field);
+    if (const std::string why = setting->check(value); !why.empty()) throw Fail(q, field, EscapeControl(why));
+    out->ctx.settings.emplace_back(field, value);
   }
 }
 

@@ -14,9 +14,10 @@
 //    [kMinRelativeTolerance, 1); substeps: substepped rows only, 1 … 10⁶;
 //    iterations: iterated rows only, 1 … 10⁶;
 //  - cg_tolerance in (0, 1) and preconditioner: rows that solve with the
-//    PCG; tangent_terms "all" | "tension": rows that build J_α;
-//    arkode_table: arkode rows without /ark4 or /ark5; cvode_setting: cvode
-//    rows (an option no row reads is refused, not ignored);
+//    PCG; tangent_terms "all" | "tension": rows that build J_α; a
+//    method's own setting (MethodSetting: arkode_table, cvode_setting):
+//    the rows that read it, by its method's rule (an option no row reads
+//    is refused, not ignored);
 //  - t_end in (0, 1e6] s with t_end/frame_dt ≤ kMaxFramesPerRun; frames
 //    default | all | positions | ends | none;
 //  - threads 0 (as the process has them) or 1 … kMaxThreads; time_limit in
@@ -76,7 +77,10 @@ struct RunRequest {
   std::optional<double> h, rtol;
   std::optional<long> substeps, iterations;
   std::optional<double> cg_tolerance;
-  std::optional<std::string> preconditioner, tangent_terms, arkode_table, cvode_setting;
+  std::optional<std::string> preconditioner, tangent_terms;
+  /// The methods' own settings, {field, value} (MethodSetting::field:
+  /// "arkode_table", "cvode_setting"), each refused unless the row reads it.
+  std::vector<std::pair<std::string, std::string>> settings;
   /// "on" | "off": overrides the scene's collision.self ("on" on a scene
   /// without [collision] adds it with the default thickness, checked
   /// against the grid as the scene's own; "off" keeps the crossing count).

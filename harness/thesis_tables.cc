@@ -227,8 +227,8 @@ void WriteThesisTable(const std::string& which, const std::string& out, const Sc
   for (std::size_t j = 0; j < t.ref_keys.size(); ++j)
     if (!t.refs[j].ok) {
       const auto [b, i] = t.ref_keys[j];
-      fmt::print(stderr, "bench_integrators: reference (bdf2, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
-                 t.blocks[b].h_ref, t.blocks[b].scene_name, t.blocks[b].rows[i].k, t.blocks[b].rows[i].d, t.refs[j].message);
+      fmt::print(stderr, "bench_integrators: reference ({}, h = {:g} s) on {} k = {:g}, d = {:g} failed: {}\n",
+                 SelfConvergenceMethod().name, t.blocks[b].h_ref, t.blocks[b].scene_name, t.blocks[b].rows[i].k, t.blocks[b].rows[i].d, t.refs[j].message);
     }
   ResultFile f(out);
   WriteProvenance(f);

@@ -449,8 +449,8 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
              const py::object& substeps, const py::object& iterations, const py::object& cg_tolerance, const py::object& preconditioner,
              const py::object& tangent_terms, const py::object& t_end, const py::object& overrides,
              const py::object& progress, const py::object& reference, const py::object& repeat,
-             const py::object& time_budget, const py::object& time_limit, const py::object& arkode_table,
-             const py::object& cvode_setting, const py::object& self_contact) {
+             const py::object& time_budget, const py::object& time_limit, const py::object& self_contact,
+             const py::kwargs& settings) {
   const InterruptScope interrupts;  // Ctrl-C reaches the loops inside a step and the setup
   RunRequest q;
   q.scene = SceneArg(scene_arg, overrides);
@@ -464,8 +464,13 @@ py::dict Run(const py::object& scene_arg, const py::object& method, const py::ob
   q.cg_tolerance = Arg<double>(cg_tolerance, "cg_tolerance");
   q.preconditioner = Arg<std::string>(preconditioner, "preconditioner");
   q.tangent_terms = Arg<std::string>(tangent_terms, "tangent_terms");
-  q.arkode_table = Arg<std::string>(arkode_table, "arkode_table");
-  q.cvode_setting = Arg<std::string>(cvode_setting, "cvode_setting");
+  // The methods' own settings (MethodSetting: arkode_table, cvode_setting), by keyword.
+  for (const auto& [key, value] : settings) {
+    const std::string field = py::str(key);
+    if (!FindSetting(field)) throw py::type_error(fmt::format("run() got an unexpected keyword argument '{}'", field));
+    if (std::optional<std::string> v = Arg<std::string>(py::reinterpret_borrow<py::object>(value), field.c_str()))
+      q.settings.emplace_back(field, std::move(*v));
+  }
   q.self_contact = Arg<std::string>(self_contact, "self_contact");
   q.t_end = Arg<double>(t_end, "t_end");
   q.repeat = Arg<long>(repeat, "repeat");
@@ -790,8 +795,7 @@ PYBIND11_MODULE(clothbench, m) {
         py::arg("substeps") = py::none(), py::arg("iterations") = py::none(), py::arg("cg_tolerance") = py::none(), py::arg("preconditioner") = py::none(),
         py::arg("tangent_terms") = py::none(), py::arg("t_end") = py::none(), py::arg("overrides") = py::none(),
         py::arg("progress") = py::none(), py::arg("reference") = py::none(), py::arg("repeat") = py::none(),
-        py::arg("time_budget") = py::none(), py::arg("time_limit") = py::none(), py::arg("arkode_table") = py::none(),
-        py::arg("cvode_setting") = py::none(), py::arg("self_contact") = py::none(),
+        py::arg("time_budget") = py::none(), py::arg("time_limit") = py::none(), py::arg("self_contact") = py::none(),
         "Runs one row as bench_integrators does (the GIL released). Every argument is checked first, by the rules "
         "of the command line (harness/run_request.h): ValueError or TypeError naming the keyword. An option the row "
         "does not read (rtol of a fixed-step row, substeps of a row that takes none, ...) is refused. Returns a dict: "
@@ -804,7 +808,14 @@ PYBIND11_MODULE(clothbench, m) {
         "time_budget seconds, default 30), each later timing reproducing the end state bit for bit: solver_time_s "
         "is the least, with solver_time_s_median, solver_time_s_max and repeats. time_limit [s] (default 3600) "
         "ends a run with status time_limit. run() and reference() may be called from several threads; they "
-        "compute one at a time (a process-wide lock, waited on with the GIL released)."),
+        "compute one at a time (a process-wide lock, waited on with the GIL released). A method's own settings are "
+        "keywords too (setting_names()), refused for a row that does not read them."),
+  m.def("setting_names", [] {
+    std::vector<std::string> names;
+    for (const RowOption& o : RowOptions())
+      if (FindSetting(o.field)) names.push_back(o.field);
+    return names;
+  }, "The keywords of the methods' own settings that run() takes (each method's MethodEntry::settings).");
   m.def("write_results", &WriteResultFile, py::arg("path"), py::arg("scene"), py::arg("runs"),
         py::arg("reference") = py::none(), py::arg("frames") = py::none(), py::arg("targets") = py::none(),
         py::arg("baseline") = py::none(), py::arg("error_metric") = py::none(),

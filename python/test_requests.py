@@ -107,6 +107,22 @@ def test_python_types_name_the_keyword():
         clothbench.run("swinging_sheet", None, h=0.01)
 
 
+def test_method_settings_are_keywords_of_their_rows_only():
+    # The methods' own settings come from the registry: each is a run()
+    # keyword and a test field above, a keyword no method declares is a
+    # TypeError, and a wrong type names the keyword.
+    names = clothbench.setting_names()
+    assert sorted(names) == sorted(f for f in BAD if f in OPTION and f not in
+                                   ("method", "h", "rtol", "t_end", "preconditioner", "cg_tolerance", "tangent_terms",
+                                    "substeps", "iterations", "time_limit", "repeat", "time_budget", "self_contact"))
+    with pytest.raises(TypeError, match="unexpected keyword argument 'no_such_setting'"):
+        clothbench.run("swinging_sheet", "sbdf2", h=0.01, no_such_setting="x")
+    for name in names:
+        method, base = ROW[name]
+        with pytest.raises(TypeError, match="^" + name + ":"):
+            clothbench.run("swinging_sheet", method, **base, **{name: 3})
+
+
 @pytest.mark.parametrize("field,value", [(f, v) for f, v in cases() if f in ("rtol", "t_end")] +
                          [("method", "sbdf2"), ("method", "no_such")])
 def test_python_reference(field, value):

@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cmath>
+#include <cstdlib>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <cvode/cvode.h>
@@ -304,16 +307,17 @@ struct CvodeHandles {
 
 namespace {
 
-// rtol and atol; with cvode.atol_v_scale ≠ 1 a vector atol, atol on the
+// rtol and atol; with cs.atol_v_scale ≠ 1 a vector atol, atol on the
 // positions and atol_v_scale · atol on the velocities (y = [x_free; v_free]).
 template <class Check>
-bool SetTolerances(void* mem, N_Vector y, const ReferenceOptions& options, N_Vector* atol, Check check) {
+bool SetTolerances(void* mem, N_Vector y, const ReferenceOptions& options, const CvodeSettings& cs, N_Vector* atol,
+                   Check check) {
   const double a = options.AbsoluteTolerance();
-  if (options.cvode.atol_v_scale == 1.0) return check(CVodeSStolerances(mem, options.rtol, a), "CVodeSStolerances");
+  if (cs.atol_v_scale == 1.0) return check(CVodeSStolerances(mem, options.rtol, a), "CVodeSStolerances");
   const sunindextype n = N_VGetLength(y);
   *atol = N_VClone(y);
   double* w = N_VGetArrayPointer(*atol);
-  for (sunindextype k = 0; k < n; ++k) w[k] = k < n / 2 ? a : options.cvode.atol_v_scale * a;
+  for (sunindextype k = 0; k < n; ++k) w[k] = k < n / 2 ? a : cs.atol_v_scale * a;
   return check(CVodeSVtolerances(mem, options.rtol, *atol), "CVodeSVtolerances");
 }
 
@@ -376,7 +380,8 @@ internal::OneStepDriver CvodeDriver(CvodeHandles& h, FreeDofOde& ode, const Refe
 
 // CVODE with KLU (reduced == nullptr) or the reduced solve with `reduced`'s
 // settings.
-RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec* reduced) {
+RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& options, const CvodeSettings& cs,
+                        const SolverSpec* reduced) {
   using Clock = std::chrono::steady_clock;
   const auto wall_start = Clock::now();
   RunSummary res;
@@ -425,7 +430,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   bool ok = check(CVodeSetErrHandlerFn(h.mem, internal::StoreErrorMessage, &err), "CVodeSetErrHandlerFn") &&
             check(CVodeInit(h.mem, RhsFn, 0.0, h.y), "CVodeInit") &&
             check(CVodeSetUserData(h.mem, &user), "CVodeSetUserData") &&
-            SetTolerances(h.mem, h.y, options, &h.atol, check) &&
+            SetTolerances(h.mem, h.y, options, cs, &h.atol, check) &&
             check(CVodeSetLinearSolver(h.mem, h.ls, h.a), "CVodeSetLinearSolver") &&
             check(CVodeSetMaxOrd(h.mem, options.max_order), "CVodeSetMaxOrd") &&
             check(CVodeSetStopTime(h.mem, options.t_end), "CVodeSetStopTime") &&
@@ -440,7 +445,6 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
     ok = check(CVodeSetPreconditioner(h.mem, PrecSetup, PrecSolve), "CVodeSetPreconditioner");
   else if (ok)
     ok = check(CVodeSetJacFn(h.mem, JacFn), "CVodeSetJacFn");
-  const CvodeSettings& cs = options.cvode;
   ok = ok && check(CVodeSetLSetupFrequency(h.mem, cs.lsetup_frequency), "CVodeSetLSetupFrequency") &&
        check(CVodeSetJacEvalFrequency(h.mem, cs.jac_eval_frequency), "CVodeSetJacEvalFrequency") &&
        check(CVodeSetDeltaGammaMaxLSetup(h.mem, cs.dgmax_lsetup), "CVodeSetDeltaGammaMaxLSetup") &&
@@ -460,8 +464,61 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
 
 }  // namespace
 
-RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options) {
-  return RunCvodeWith(system, options, nullptr);
+std::string CvodeSettings::ToString() const {
+  return fmt::format(
+      "lsetup_frequency={},jac_eval_frequency={},dgmax_lsetup={:g},stab_lim_det={},eps_lin={:g},atol_v_scale={:g}",
+      lsetup_frequency, jac_eval_frequency, dgmax_lsetup, stab_lim_det ? 1 : 0, eps_lin, atol_v_scale);
+}
+
+bool CvodeSettings::Set(const std::string& key, const std::string& value, std::string* error) {
+  auto fail = [&](const std::string& why) {
+    *error = fmt::format("{}={}: {}", key, value, why);
+    return false;
+  };
+  char* end = nullptr;
+  const double v = std::strtod(value.c_str(), &end);
+  if (value.empty() || *end != '\0' || !std::isfinite(v)) return fail("the value must be a number");
+  if (key == "lsetup_frequency" || key == "jac_eval_frequency") {
+    if (v < 1 || v > 1e9 || v != std::floor(v)) return fail("must be a whole number from 1 to 1e9");
+    (key == "lsetup_frequency" ? lsetup_frequency : jac_eval_frequency) = static_cast<long>(v);
+  } else if (key == "dgmax_lsetup" || key == "eps_lin") {
+    if (!(v > 0.0) || v > 1e3) return fail("must be in (0, 1e3]");
+    (key == "dgmax_lsetup" ? dgmax_lsetup : eps_lin) = v;
+  } else if (key == "atol_v_scale") {
+    if (!(v >= 1e-6) || v > 1e6) return fail("must be in [1e-6, 1e6]");
+    atol_v_scale = v;
+  } else if (key == "stab_lim_det") {
+    if (v != 0.0 && v != 1.0) return fail("must be 0 or 1");
+    stab_lim_det = v == 1.0;
+  } else {
+    *error = fmt::format("\"{}\" is not one of lsetup_frequency, jac_eval_frequency, dgmax_lsetup, stab_lim_det, "
+                         "eps_lin, atol_v_scale",
+                         key);
+    return false;
+  }
+  return true;
+}
+
+std::string CvodeSettings::Parse(const std::string& text) {
+  if (text.empty()) return "";
+  std::size_t begin = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', begin);
+    std::string kv = text.substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
+    const auto b = kv.find_first_not_of(" \t"), e = kv.find_last_not_of(" \t");
+    if (b == std::string::npos) return fmt::format("empty item in the list \"{}\"", text);
+    kv = kv.substr(b, e - b + 1);
+    const std::size_t eq = kv.find('=');
+    std::string why;
+    if (eq == std::string::npos) return fmt::format("\"{}\" is not KEY=VALUE", kv);
+    if (!Set(kv.substr(0, eq), kv.substr(eq + 1), &why)) return why;
+    if (comma == std::string::npos) return "";
+    begin = comma + 1;
+  }
+}
+
+RunSummary RunCvode(const ParticleSystem& system, const ReferenceOptions& options, const CvodeSettings& settings) {
+  return RunCvodeWith(system, options, settings, nullptr);
 }
 
 SparseMatrix FirstOrderJacobianAtRest(const ParticleSystem& system) {
@@ -471,17 +528,32 @@ SparseMatrix FirstOrderJacobianAtRest(const ParticleSystem& system) {
   return ode.Jacobian(0.0, y.data());
 }
 
-RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec) {
-  return RunCvodeWith(system, options, &spec);
+RunSummary RunCvodeReduced(const ParticleSystem& system, const ReferenceOptions& options, const SolverSpec& spec,
+                            const CvodeSettings& settings) {
+  return RunCvodeWith(system, options, settings, &spec);
 }
 
 }  // namespace clothbench
 
 // The rows of CVODE, as the registry lists them (harness/registry.cc).
+#include <string>
+
 #include "reference/klu_prediction.h"
 #include "solver/method_row.h"
 
 namespace clothbench {
+
+// --cvode-setting: CVODE's setup knobs, every cvode row's own setting,
+// stored as the run's sundials_settings.
+const MethodSetting kCvodeSetting = {
+    .field = "cvode_setting",
+    .option = "--cvode-setting",
+    .help = "comma-separated KEY=VALUE setup knobs of CVODE (CVODE's defaults otherwise): lsetup_frequency=20, "
+            "jac_eval_frequency=51, dgmax_lsetup=0.3, stab_lim_det=0, eps_lin=0.05, atol_v_scale=1 (atol of the "
+            "velocities over that of the positions); stored as the runs' sundials_settings",
+    .what = "rows that read CVODE's settings",
+    .check = [](const std::string& value) { return CvodeSettings().Parse(value); },
+    .attribute = "sundials_settings"};
 
 /// cvode: the reduced velocity solve with the PCG; cvode/klu: KLU on the
 /// 6N×6N first-order Jacobian (the reference's solver). Both integrate
@@ -494,12 +566,13 @@ MethodEntry CvodeRow() {
   return {.name = kCvodeName, .kind = StepKind::kAdaptive, .layer = "reference", .collisions = true, .pcg = true,
           .tangent = true, .sparse_jacobian = true,
           .integrate = [](const ParticleSystem& sys, const ReferenceOptions& o, const SolverSpec& spec,
-                          std::string_view variant, const RunContext&) {
-            return variant == "klu" ? RunCvode(sys, o) : RunCvodeReduced(sys, o, spec);
+                          std::string_view variant, const RunContext& ctx) {
+            CvodeSettings cs;
+            cs.Parse(ctx.Setting("cvode_setting").value_or(""));  // checked before the run (kCvodeSetting)
+            return variant == "klu" ? RunCvode(sys, o, cs) : RunCvodeReduced(sys, o, spec, cs);
           },
           .predict = PredictKluVariant,
-          .reference = true, .default_reference = true, .variants = {"klu"}, .cvode_settings = true,
-          .rerun_settings = {{"sundials_settings", "cvode_setting"}},
+          .reference = true, .default_reference = true, .variants = {"klu"}, .settings = {kCvodeSetting},
           .best_preconditioner = kBestPreconditioner,
           .defaults = {{.modifiers = "", .rtols = kDefaultRtols}, {.modifiers = "klu", .rtols = kDefaultRtols}}};
 }

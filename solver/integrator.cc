@@ -10,22 +10,10 @@
 
 namespace clothbench {
 
-std::string_view ToString(Method m) {
-  switch (m) {
-    case Method::kImexEuler: return "imex_euler";
-    case Method::kImplicitEuler: return "implicit_euler";
-    case Method::kSbdf2: return "sbdf2";
-    case Method::kBdf2: return "bdf2";
-    case Method::kImplicitMidpoint: return "implicit_midpoint";
-    case Method::kSymplecticEuler: return "symplectic_euler";
-    case Method::kSbdf3: return "sbdf3";
-  }
-  return "?";
-}
+std::string_view ToString(Method m) { return SchemeOf(m).name(); }
 
 std::optional<Method> MethodFromString(std::string_view s) {
-  for (Method m : {Method::kImexEuler, Method::kImplicitEuler, Method::kSbdf2, Method::kBdf2,
-                   Method::kImplicitMidpoint, Method::kSymplecticEuler, Method::kSbdf3})
+  for (Method m : kEngineMethods)
     if (ToString(m) == s) return m;
   return std::nullopt;
 }

@@ -35,9 +35,13 @@ namespace clothbench {
 /// updates of the midpoint rule, local error O(h³)) and one SBDF(2) step,
 /// and takes an SBDF(2) step wherever the last three steps differ.
 enum class Method { kImexEuler, kImplicitEuler, kSbdf2, kBdf2, kImplicitMidpoint, kSymplecticEuler, kSbdf3 };
+/// Every method of the step engine, in the enum's order.
+inline constexpr Method kEngineMethods[] = {Method::kImexEuler,        Method::kImplicitEuler,   Method::kSbdf2,
+                                            Method::kBdf2,             Method::kImplicitMidpoint, Method::kSymplecticEuler,
+                                            Method::kSbdf3};
+/// The method's registry name: its scheme's (Scheme::name, solver/schemes/).
 std::string_view ToString(Method m);
-/// Parses "imex_euler", "implicit_euler", "sbdf2", "bdf2", "implicit_midpoint",
-/// "symplectic_euler", "sbdf3".
+/// Parses a name ToString gives.
 std::optional<Method> MethodFromString(std::string_view s);
 /// The five integrators of the thesis' tables (Tables 3.1, 3.2), in their
 /// order; the step engine has two more (SBDF(3), symplectic Euler).

@@ -59,6 +59,27 @@ struct ThesisTableRow {
   double time_s = -1.0;       ///< the thesis' time [s] (R10000, 180 MHz); < 0: not given
 };
 
+/// A setting that only a method's rows read (the ARKODE table, CVODE's
+/// setup knobs), declared by the method: the command line's option, a run
+/// request's field, Python's keyword and a rerun's reading come from this
+/// declaration alone, and the method reads the given value from
+/// RunContext::Setting (docs/guide/extending.md, "A method's own setting").
+struct MethodSetting {
+  std::string_view field;   ///< request field and Python keyword ("arkode_table")
+  std::string_view option;  ///< bench_integrators' option ("--arkode-table")
+  std::string_view help;    ///< the option's help, before the rows that read it
+  std::string_view what;    ///< the rows that read it, in words ("arkode rows without a variant")
+  /// "" if `value` is valid, else the rule it breaks, one line naming the
+  /// value (the caller names the field). Called before anything is computed.
+  std::string (*check)(const std::string& value) = nullptr;
+  /// Whether the method's row with `variant` ("" for the plain row) reads
+  /// it; nullptr: every row of the method.
+  bool (*reads)(std::string_view variant) = nullptr;
+  /// The run attribute that stores the value a run used, which a rerun
+  /// reads back into the field ("butcher_table").
+  std::string_view attribute = {};
+};
+
 struct MethodEntry {
   std::string_view name;
   StepKind kind = StepKind::kFixedStep;
@@ -101,14 +122,8 @@ struct MethodEntry {
   bool kernel_benchmark = false;
   /// Variants a row may name after a '/' ("arkode/ark4", "cvode/klu").
   std::vector<std::string_view> variants = {};
-  /// Rows without a variant read an ARKODE IMEX table (--arkode-table).
-  bool arkode_table = false;
-  /// Rows read CVODE's setup knobs (--cvode-setting).
-  bool cvode_settings = false;
-  /// The method attributes a rerun reads back as request fields, where the
-  /// row reads that field (RowOptions): {attribute, request field}, e.g.
-  /// {"butcher_table", "arkode_table"}.
-  std::vector<std::pair<std::string_view, std::string_view>> rerun_settings = {};
+  /// The settings only this method's rows read (MethodSetting).
+  std::vector<MethodSetting> settings = {};
   /// Fills what a row's record says about the stepper beyond the registry
   /// (xpbd: the terms it solves as constraints and those it applies
   /// explicitly); nullptr: nothing.

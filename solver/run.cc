@@ -16,6 +16,7 @@
 #include "model/interrupt.h"
 #include "solver/hermite.h"
 #include "solver/progress.h"
+#include "solver/scheme.h"
 #include "solver/thread_budget.h"
 #include "collision/cloth_mesh.h"
 
@@ -273,7 +274,10 @@ bool RefusedOptions(const RunOptions& options, const SolverSpec& spec, Stepper& 
   }
   if (spec.step_control == StepControl::kError && !engine.estimates_error() && !engine.internal_steps()) {
     sum->status = RunStatus::kInvalidOptions;
-    sum->message = "solver.step_control = \"error\" needs a method with a local error estimate (sbdf2, bdf2)";
+    std::string methods;  // the schemes with an error estimate (Scheme::error_controlled)
+    for (Method m : kEngineMethods)
+      if (SchemeOf(m).error_controlled()) methods += (methods.empty() ? "" : ", ") + std::string(ToString(m));
+    sum->message = "solver.step_control = \"error\" needs a method with a local error estimate (" + methods + ")";
     return true;
   }
   return false;

@@ -11,6 +11,8 @@
 #ifndef CLOTHBENCH_SOLVER_SCHEME_H_
 #define CLOTHBENCH_SOLVER_SCHEME_H_
 
+#include <string_view>
+
 #include <Eigen/Core>
 
 #include "model/types.h"
@@ -50,6 +52,8 @@ class Scheme {
  public:
   virtual ~Scheme() = default;
   /// IMEX: g explicit (from g₀ and its history, Extrapolate), one update a step.
+  /// The method's registry name ("sbdf2"): its row's name (solver/schemes/).
+  virtual std::string_view name() const = 0;
   virtual bool imex() const = 0;
   /// Updates a step does exactly (IMEX: 1; SBDF(3)'s midpoint start: 2), or
   /// 0: iterated to convergence (fixed point or Newton).

@@ -17,45 +17,6 @@
 #include "solver/run.h"
 #include "solver/thread_budget.h"
 
-namespace clothbench {
-
-std::string CvodeSettings::ToString() const {
-  return fmt::format(
-      "lsetup_frequency={},jac_eval_frequency={},dgmax_lsetup={:g},stab_lim_det={},eps_lin={:g},atol_v_scale={:g}",
-      lsetup_frequency, jac_eval_frequency, dgmax_lsetup, stab_lim_det ? 1 : 0, eps_lin, atol_v_scale);
-}
-
-bool CvodeSettings::Set(const std::string& key, const std::string& value, std::string* error) {
-  auto fail = [&](const std::string& why) {
-    *error = fmt::format("{}={}: {}", key, value, why);
-    return false;
-  };
-  char* end = nullptr;
-  const double v = std::strtod(value.c_str(), &end);
-  if (value.empty() || *end != '\0' || !std::isfinite(v)) return fail("the value must be a number");
-  if (key == "lsetup_frequency" || key == "jac_eval_frequency") {
-    if (v < 1 || v > 1e9 || v != std::floor(v)) return fail("must be a whole number from 1 to 1e9");
-    (key == "lsetup_frequency" ? lsetup_frequency : jac_eval_frequency) = static_cast<long>(v);
-  } else if (key == "dgmax_lsetup" || key == "eps_lin") {
-    if (!(v > 0.0) || v > 1e3) return fail("must be in (0, 1e3]");
-    (key == "dgmax_lsetup" ? dgmax_lsetup : eps_lin) = v;
-  } else if (key == "atol_v_scale") {
-    if (!(v >= 1e-6) || v > 1e6) return fail("must be in [1e-6, 1e6]");
-    atol_v_scale = v;
-  } else if (key == "stab_lim_det") {
-    if (v != 0.0 && v != 1.0) return fail("must be 0 or 1");
-    stab_lim_det = v == 1.0;
-  } else {
-    *error = fmt::format("\"{}\" is not one of lsetup_frequency, jac_eval_frequency, dgmax_lsetup, stab_lim_det, "
-                         "eps_lin, atol_v_scale",
-                         key);
-    return false;
-  }
-  return true;
-}
-
-}  // namespace clothbench
-
 namespace clothbench::internal {
 namespace {
 // A SUNDIALS return flag's name as the run's status (ParseRunStatus maps

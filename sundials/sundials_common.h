@@ -8,8 +8,10 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <sundials/sundials_linearsolver.h>
@@ -23,25 +25,6 @@
 
 namespace clothbench {
 
-/// CVODE's linear-solver setup knobs (CVODE's defaults unless set), as a
-/// SUNDIALS user would tune them; measured in docs/model.md.
-struct CvodeSettings {
-  long lsetup_frequency = 20;   ///< CVodeSetLSetupFrequency (msbp)
-  long jac_eval_frequency = 51; ///< CVodeSetJacEvalFrequency (msbj)
-  double dgmax_lsetup = 0.3;    ///< CVodeSetDeltaGammaMaxLSetup
-  bool stab_lim_det = false;    ///< CVodeSetStabLimDet
-  double eps_lin = 0.05;        ///< CVodeSetEpsLin (linear tolerance factor of iterative solvers)
-  /// The velocities' absolute tolerance over the positions' [1/s]: atol_v =
-  /// atol_v_scale · atol [m/s] (CVodeSVtolerances); 1 is CVODE's scalar
-  /// atol for both (CVodeSStolerances).
-  double atol_v_scale = 1.0;
-  /// "lsetup_frequency=20,jac_eval_frequency=51,…": what a run stores.
-  std::string ToString() const;
-  /// Sets `key` (a field name above) from `value`; false with `error` if
-  /// the key is unknown or the value out of range.
-  bool Set(const std::string& key, const std::string& value, std::string* error);
-};
-
 struct ReferenceOptions {
   double rtol = 1e-10;     ///< relative tolerance
   double atol = -1.0;      ///< absolute tolerance [m, m/s]; < 0: atol = rtol
@@ -51,17 +34,15 @@ struct ReferenceOptions {
   /// Wall time and internal steps (mxstep over the whole run): status
   /// "time_limit" or "step_limit" when reached.
   RunLimits limits{};
-  CvodeSettings cvode{};  ///< CVODE runs only
   double AbsoluteTolerance() const { return atol > 0.0 ? atol : rtol; }
 };
 
 /// The settings of one invocation that its rows read (the command line's
 /// or a run request's): the limits every row runs under, whether the
 /// invocation named the settings a row's best values would otherwise
-/// replace (MethodEntry::best_preconditioner, …), and the SUNDIALS rows'
-/// own settings.
+/// replace (MethodEntry::best_preconditioner, …), and the methods' own
+/// settings as given.
 struct RunContext {
-  std::string arkode_table = "ARK324L2SA";  ///< arkode rows without a variant (--arkode-table)
   RunLimits limits{};  ///< wall time and steps of every row (--time-limit)
   /// True if the command line named the preconditioner (--preconditioner):
   /// it then holds for every row, MethodEntry::best_preconditioner included.
@@ -73,17 +54,25 @@ struct RunContext {
   /// True if the command line named J_α's terms (--tangent-terms): they then
   /// hold for every row, MethodEntry::best_tangent_explicit_terms included.
   bool tangent_terms_from_cli = false;
-  CvodeSettings cvode{};  ///< --cvode-setting
   /// Whether a row predicted past the limits is not started
   /// (MethodEntry::predict; false: --start-predicted).
   bool refuse_predicted = true;
+  /// The methods' own settings as given, {field, value} (MethodSetting,
+  /// solver/method_row.h), each checked by its method's rule and given
+  /// only to a row that reads it.
+  std::vector<std::pair<std::string, std::string>> settings = {};
+  /// The value given for `field`, or nullopt: the method's own default.
+  std::optional<std::string> Setting(std::string_view field) const {
+    for (const auto& [f, v] : settings)
+      if (f == field) return v;
+    return std::nullopt;
+  }
 };
 
 /// The run table's note on the SUNDIALS rows' counts (SummariseCounters).
 inline constexpr std::string_view kSundialsCountsNote =
-    "cvode/ida/arkode rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (cvode, "
-    "ida, arkode: our PCG's iterations in the reduced velocity solve; cvode/klu, ida/klu: 0, the "
-    "direct KLU solver).";
+    "SUNDIALS rows: steps = nst, updates = Newton iterations (nni), cg_iters = nli (rows with the reduced "
+    "velocity solve: our PCG's iterations; /klu rows: 0, the direct KLU solver).";
 
 namespace internal {
 

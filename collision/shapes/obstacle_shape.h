@@ -22,9 +22,11 @@
 
 #include <Eigen/Geometry>
 
-#include "model/types.h"
-
 namespace clothbench {
+
+/// A point or direction [m] (the shapes are the lowest layer, below model/,
+/// and include nothing of ours: this is model/types.h's Vector3).
+using Vector3 = Eigen::Vector3d;
 
 class TriangleMesh;
 

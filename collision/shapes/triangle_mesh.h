@@ -14,7 +14,6 @@
 #include <vector>
 
 #include "collision/shapes/obstacle_shape.h"
-#include "model/types.h"
 
 namespace clothbench {
 

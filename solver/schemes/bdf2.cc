@@ -26,6 +26,7 @@ namespace {
 
 class Bdf2 final : public Scheme {
  public:
+  std::string_view name() const override { return "bdf2"; }
   bool imex() const override { return false; }
   int past_steps() const override { return 1; }
   bool error_controlled() const override { return true; }

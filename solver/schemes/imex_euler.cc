@@ -9,6 +9,7 @@ namespace {
 
 class ImexEuler final : public Scheme {
  public:
+  std::string_view name() const override { return "imex_euler"; }
   bool imex() const override { return true; }
   StageCoefficients Prepare(const Stage& s) const override { return EulerStage(s, true); }
 };

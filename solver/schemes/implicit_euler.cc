@@ -23,6 +23,7 @@ namespace {
 
 class ImplicitEuler final : public Scheme {
  public:
+  std::string_view name() const override { return "implicit_euler"; }
   bool imex() const override { return false; }
   StageCoefficients Prepare(const Stage& s) const override { return EulerStage(s, false); }
 };

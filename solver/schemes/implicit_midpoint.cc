@@ -42,6 +42,7 @@ constexpr std::string_view kMidpointPenetration =
 
 class ImplicitMidpoint final : public Scheme {
  public:
+  std::string_view name() const override { return "implicit_midpoint"; }
   bool imex() const override { return false; }
   StageCoefficients Prepare(const Stage& s) const override { return MidpointStage(s); }
 };

@@ -11,6 +11,7 @@ namespace {
 
 class Sbdf2 final : public Scheme {
  public:
+  std::string_view name() const override { return "sbdf2"; }
   bool imex() const override { return true; }
   int past_steps() const override { return 1; }
   int past_g() const override { return 1; }

@@ -17,6 +17,7 @@ namespace {
 // extrapolation of the steps after it.
 class MidpointStart final : public Scheme {
  public:
+  std::string_view name() const override { return "sbdf3"; }
   bool imex() const override { return false; }
   int exact_updates() const override { return 2; }
   bool evaluates_g0() const override { return true; }
@@ -25,6 +26,7 @@ class MidpointStart final : public Scheme {
 
 class Sbdf3 final : public Scheme {
  public:
+  std::string_view name() const override { return "sbdf3"; }
   bool imex() const override { return true; }
   int past_steps() const override { return 2; }
   int past_g() const override { return 2; }

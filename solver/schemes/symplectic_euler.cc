@@ -10,6 +10,7 @@ namespace {
 
 class SymplecticEuler final : public Scheme {
  public:
+  std::string_view name() const override { return "symplectic_euler"; }
   bool imex() const override { return false; }
   bool explicit_step() const override { return true; }
   StageCoefficients Prepare(const Stage&) const override { return {}; }  // not used: the step is explicit
