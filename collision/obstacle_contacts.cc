@@ -77,8 +77,10 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     const bool same_contact = was && static_cast<int>(k) == prior.obstacle;
     const std::size_t pk = static_cast<std::size_t>(p) * n_obs + k;
     double& d_stored = last_distance_[pk];
-    const Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
-    const Vector3 v_rel = v0 - v_obs;
+    // The obstacle's velocity at x₀ bounds the cull; the contact takes it
+    // at the closest surface point once the distance is known.
+    Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
+    Vector3 v_rel = v0 - v_obs;
     if (cull_.culls(k) && !same_contact) {
       const double bound = cull_.Bound(k, static_cast<std::size_t>(p), x0);
       const double moved = x_prev ? (x0 - *x_prev).norm() : 0.0;
@@ -103,6 +105,10 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     const double d_old = d_stored;  // at x₋₁ (+inf after Reset)
     d_stored = d;
     if (prior.released) continue;
+    if (o.moving() && std::abs(d) < kInf) {  // the surface point's velocity (docs/model.md §7)
+      v_obs = pose.Velocity(x0 - d * d_k);
+      v_rel = v0 - v_obs;
+    }
     // 2. Old→new cast (Tunnelled).
     const bool tunnelled = x_prev && d_old < 1e300 &&
                            Tunnelled(o, pose, *x_prev, x0, d_old, delta, same_contact ? &prior.direction : nullptr,

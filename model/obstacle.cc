@@ -37,6 +37,7 @@ KeyframedMotion::KeyframedMotion(std::vector<ObstacleKeyframe> keys, const Vecto
 }
 
 double Obstacle::MotionBound(const ObstaclePose& a, const ObstaclePose& b) const {
+  if (a.deformed && b.deformed) return a.deformed->MaxVertexDistance(*b.deformed);
   if (!mesh()) return std::numeric_limits<double>::infinity();
   if (!moving()) return 0.0;
   double largest = 0.0;
@@ -117,6 +118,7 @@ double Obstacle::SignedDistance(const ObstaclePose& pose, const Vector3& p, Vect
     *dir = Vector3::UnitZ();
     return std::numeric_limits<double>::infinity();
   }
+  if (pose.deformed) return pose.deformed->SignedDistance(p, dir);
   if (pose.identity) return shape_->SignedDistance(p, dir);
   Vector3 d_placed;
   const double d = shape_->SignedDistance(pose.ToPlaced(p), &d_placed);
@@ -127,6 +129,7 @@ double Obstacle::SignedDistance(const ObstaclePose& pose, const Vector3& p, Vect
 std::optional<SegmentHit> Obstacle::FirstHit(const ObstaclePose& pose, const Vector3& a_world,
                                              const Vector3& b_world) const {
   if (OutOfRange(a_world) || OutOfRange(b_world)) return std::nullopt;  // as in SignedDistance
+  if (pose.deformed) return pose.deformed->FirstHit(a_world, b_world);
   const Vector3 a = pose.ToPlaced(a_world), b = pose.ToPlaced(b_world);
   std::optional<SegmentHit> hit = shape_->FirstHit(a, b);
   if (!hit) return std::nullopt;
@@ -137,6 +140,7 @@ std::optional<SegmentHit> Obstacle::FirstHit(const ObstaclePose& pose, const Vec
 
 void Obstacle::Edges(const ObstaclePose& pose, std::vector<Vector3>* vertices,
                      std::vector<std::array<int, 2>>* edges) const {
+  if (pose.deformed) return pose.deformed->Edges(vertices, edges);
   shape_->Edges(vertices, edges);
   if (!pose.identity)
     for (Vector3& v : *vertices) v = pose.ToWorld(v);

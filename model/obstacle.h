@@ -42,6 +42,10 @@ struct ObstaclePose {
   Vector3 linear_velocity = Vector3::Zero();     ///< of the anchor [m/s]
   Vector3 angular_velocity = Vector3::Zero();    ///< world frame [rad/s]
   bool identity = true;                          ///< no motion applied (static obstacle)
+  /// A deforming shape's state at this time, in world coordinates
+  /// (ObstacleShape::At; the transform above is then the identity):
+  /// distances, casts and edges are its, and so is the surface velocity.
+  std::shared_ptr<const ObstacleShape> deformed;
 
   /// World point → the obstacle's placed (scene) frame.
   Vector3 ToPlaced(const Vector3& p) const {
@@ -53,6 +57,7 @@ struct ObstaclePose {
   Vector3 ToWorld(const Vector3& x) const { return identity ? x : Vector3(anchor + translation + rotation * (x - anchor)); }
   /// Velocity [m/s] of the obstacle's material point at world position p.
   Vector3 Velocity(const Vector3& p) const {
+    if (deformed) return deformed->SurfaceVelocity(p);
     return linear_velocity + angular_velocity.cross(p - anchor - translation);
   }
 };
@@ -141,16 +146,34 @@ class Obstacle {
   /// the deepest particle inside, the depths and the particles within δ/2.
   Penetration PenetrationOf(const ObstaclePose& pose, const MatrixN3& x) const;
   /// The rigid placement at time t [s] from the keyframes (identity if none).
-  ObstaclePose PoseAt(double t) const { return motion_.PoseAt(t); }
+  /// A deforming shape's pose also holds its state at t (ObstaclePose::deformed).
+  ObstaclePose PoseAt(double t) const {
+    ObstaclePose pose = motion_.PoseAt(t);
+    if (shape_->deforms()) pose.deformed = shape_->At(t);
+    return pose;
+  }
   /// An upper bound [m] on how far any point of a mesh obstacle's solid
   /// moves from pose a to pose b: the largest displacement of its vertices
   /// (the displacement of a rigid motion is affine in the point, so its norm
   /// is largest at a vertex of the convex hull). The signed distance of
   /// every world point changes by at most this much (ContactResponse's
   /// distance cull). 0 for a static obstacle; +∞ for analytic obstacles
-  /// (not needed: their distances cost less than the bound).
+  /// (not needed: their distances cost less than the bound). A deforming
+  /// mesh: the largest displacement of its vertices (the surface's points
+  /// are their convex combinations).
   double MotionBound(const ObstaclePose& a, const ObstaclePose& b) const;
-  bool moving() const { return !spec_.keyframes.empty(); }
+  /// Keyframed, or a shape that deforms (a mesh sequence).
+  bool moving() const { return !spec_.keyframes.empty() || shape_->deforms(); }
+  /// The largest speed [m/s] of a deforming shape's vertices (0 otherwise).
+  double MaxVertexSpeed() const { return shape_->MaxVertexSpeed(); }
+  /// Whether the obstacle's velocity field is smooth over (t0, t1]: no
+  /// keyframe time and no frame time of a deforming shape in it (at those
+  /// times the piecewise-linear motion changes its velocity at once).
+  bool SmoothBetween(double t0, double t1) const {
+    for (const ObstacleKeyframe& k : spec_.keyframes)
+      if (k.t > t0 && k.t <= t1) return false;
+    return shape_->SmoothBetween(t0, t1);
+  }
   /// The obstacle's edges at `pose` (world coordinates), for the projection
   /// onto the cloth of the thesis' virtual particles (§5.3;
   /// collision/edge_projection.h): ObstacleShape::Edges moved to `pose`.

@@ -72,7 +72,8 @@ ParticleSystem::ParticleSystem(const Scene& scene) : scene_(scene) {
     try {
       obstacles_.emplace_back(scene.obstacles[k]);
     } catch (const std::runtime_error& e) {  // an unreadable, empty or misplaced mesh
-      throw SceneError(fmt::format("{}: obstacle[{}].path: {}", scene.source, k, e.what()));
+      throw SceneError(fmt::format("{}: obstacle[{}].{}: {}", scene.source, k, scene.obstacles[k].shape->file_key(),
+                                   e.what()));
     }
     // A cloth that starts inside a solid obstacle is refused before
     // computing: meshes here, when they load; analytic obstacles again (a

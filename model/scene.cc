@@ -681,6 +681,29 @@ class SceneShapeKeys final : public ShapeKeys {
     return table_.Numbers<3>(key, fallback, non_negative);
   }
   std::string String(std::string_view key, std::string fallback) override { return table_.String(key, fallback); }
+  std::vector<TimedPath> TimedPaths(std::string_view key) override {
+    std::vector<TimedPath> frames;
+    const toml::node* node = table_.Get(key);
+    if (!node) return frames;
+    const toml::array* items = node->as_array();
+    if (!items || items->empty()) table_.Fail(key, "must be a non-empty array of tables { t = s, path = \"file\" }");
+    for (std::size_t j = 0; j < items->size(); ++j) {
+      const toml::table* ft = (*items)[j].as_table();
+      std::string base = table_.Child(key);  // "obstacle[k].frames."
+      base.pop_back();
+      const std::string prefix = fmt::format("{}[{}].", base, j);
+      if (!ft) throw SceneError(fmt::format("{}: {}: must be a table {{ t, path }}", source_, prefix.substr(0, prefix.size() - 1)));
+      TableReader fr(ft, prefix, source_);
+      if (!ft->contains("t")) fr.Fail("t", "is required (the frame's time [s])");
+      TimedPath f;
+      f.t = fr.NonNegative("t", 0.0);
+      f.path = fr.String("path", "");
+      if (f.path.empty()) fr.Fail("path", "must name a mesh file (OFF, OBJ or PLY)");
+      fr.RejectUnknown();
+      frames.push_back(std::move(f));
+    }
+    return frames;
+  }
   // Relative paths are relative to the scene file (for a built-in scene,
   // the file it was embedded from: the source tree's scenes/).
   std::string ResolvePath(const std::string& path) const override {
@@ -724,6 +747,10 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
         o.Fail("virtual_particles", fmt::format("must be false for a {} (it has no edges to project onto the cloth)",
                                                 spec.type()));
       spec.keyframes = ParseKeyframes(o, prefix, source, false);
+      if (spec.shape->deforms() && !spec.keyframes.empty())
+        o.Fail("keyframes", fmt::format("must be absent for a {} (it moves by its own frames)", spec.type()));
+      if (spec.shape->deforms() && spec.virtual_particles)
+        o.Fail("virtual_particles", fmt::format("must be false for a {} (its edges move with its frames)", spec.type()));
       o.RejectUnknown();
       s.obstacles.push_back(spec);
     }

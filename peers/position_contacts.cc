@@ -25,7 +25,7 @@ int ProjectOntoObstacles(const ParticleSystem& sys, ObstacleProximity* proximity
       Vector3 q = p->row(c.particle).transpose() + depth * dir;
       if (mu > 0.0) {
         Vector3 rel = q - x.row(c.particle).transpose();
-        if (!pose.identity) rel -= pose.Velocity(q) * dt;
+        if (o.moving()) rel -= pose.Velocity(q - delta * dir) * dt;  // of the surface point below q
         const Vector3 tangential = rel - rel.dot(dir) * dir;
         const double len = tangential.norm();
         if (len < mu * depth)

@@ -192,7 +192,9 @@ int ContactResponse::ApplyJumps(double t, MatrixN3* x, MatrixN3* v) {
     const int k = detection_.Nearest(t, x1, &gap, &n);
     if (k < 0 || gap >= event_tolerance_) continue;
     const ObstaclePose pose = sys_.obstacles()[static_cast<std::size_t>(k)].PoseAt(t);
-    const Vector3 u = sys_.obstacles()[static_cast<std::size_t>(k)].moving() ? pose.Velocity(x1) : Vector3::Zero();
+    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+    // The velocity of the closest surface point, δ + gap behind x₁ along n.
+    const Vector3 u = o.moving() ? pose.Velocity(x1 - (o.spec().collision_distance + gap) * n) : Vector3::Zero();
     const double wn = n.dot(v->row(p).transpose() - u);
     if (gap >= 0.0 && wn >= 0.0) continue;  // near, but leaving
     x->row(p) -= gap * n.transpose();  // onto the δ-surface

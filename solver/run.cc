@@ -89,7 +89,7 @@ namespace {
 // anchor's speed plus |ω| R on each (both constant on a segment).
 double ObstacleSpeed(const Obstacle& o, double reach) {
   const std::vector<ObstacleKeyframe>& keys = o.spec().keyframes;
-  double v = 0.0;
+  double v = o.MaxVertexSpeed();  // a deforming mesh's vertices (it has no keyframes)
   for (std::size_t k = 0; k + 1 < keys.size(); ++k) {
     const ObstaclePose pose = o.PoseAt(0.5 * (keys[k].t + keys[k + 1].t));
     v = std::max(v, pose.linear_velocity.norm() + pose.angular_velocity.norm() * (reach + pose.translation.norm()));

@@ -159,7 +159,8 @@ int HybridContact::ApplyEvents(double t, const int* found, MatrixN3* x, MatrixN3
     Vector3 n;
     Distance(k, t, x->row(p).transpose(), &n);
     x->row(p) -= gap * n.transpose();  // onto the δ-surface
-    const Vector3 u = sys_.obstacles()[static_cast<std::size_t>(k)].PoseAt(t).Velocity(x->row(p).transpose());
+    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+    const Vector3 u = o.PoseAt(t).Velocity(x->row(p).transpose() - o.spec().collision_distance * n);  // at the surface
     const double wn = n.dot(v->row(p).transpose() - u);
     if (wn < 0.0) v->row(p) -= wn * n.transpose();  // inelastic impact
     mode = k;

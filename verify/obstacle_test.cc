@@ -65,14 +65,14 @@ ObstacleSpec MovingBoxSpec() {
 // reads only its own keys, and the same rules hold for shapes built in code.
 TEST(ObstacleShapes, TheRegistryNamesAndParsesEveryShape) {
   const std::vector<std::string_view> types = ObstacleShapeTypes();
-  ASSERT_EQ(types.size(), 6u);
+  ASSERT_EQ(types.size(), 7u);
   const std::string grid = "[grid]\nnu = 3\nnv = 3\nsize = [0.1, 0.1]\norigin = [0.0, 0.0, 1.0]\n";
   try {
     ParseScene(grid + "[[obstacle]]\ntype = \"cone\"\n", "cone.toml");
     ADD_FAILURE() << "an unknown type was accepted";
   } catch (const SceneError& e) {
     EXPECT_EQ(std::string(e.what()), "cone.toml: obstacle[0].type: must be \"plane\", \"sphere\", \"box\", "
-                                     "\"cylinder\", \"capsule\" or \"mesh\" (got \"cone\")");
+                                     "\"cylinder\", \"capsule\", \"mesh\" or \"mesh_sequence\" (got \"cone\")");
   }
   const std::string cube = std::string(CLOTHBENCH_DATA_DIR) + "/meshes/cube.off";
   const std::map<std::string_view, std::string> keys = {
@@ -81,7 +81,8 @@ TEST(ObstacleShapes, TheRegistryNamesAndParsesEveryShape) {
       {"box", "center = [0.0, 0.0, 0.0]\nsize = [0.2, 0.2, 0.2]"},
       {"cylinder", "center = [0.0, 0.0, 0.0]\nradius = 0.2\nheight = 0.1"},
       {"capsule", "a = [0.0, 0.0, 0.0]\nb = [0.1, 0.0, 0.0]\nradius = 0.2"},
-      {"mesh", "path = \"" + cube + "\"\nscale = 0.1"}};
+      {"mesh", "path = \"" + cube + "\"\nscale = 0.1"},
+      {"mesh_sequence", "frames = [{ t = 0.0, path = \"" + cube + "\" }, { t = 1.0, path = \"" + cube + "\" }]\nscale = 0.1"}};
   for (std::string_view type : types) {
     ASSERT_TRUE(keys.count(type)) << type;
     const Scene s = ParseScene(grid + "[[obstacle]]\ntype = \"" + std::string(type) + "\"\n" + keys.at(type) + "\n",

@@ -102,6 +102,15 @@ class ValueKeys final : public ShapeKeys {
     if (!s) Fail(key, "must be a string");
     return *s;
   }
+  std::vector<TimedPath> TimedPaths(std::string_view key) override {
+    const ShapeValue* v = Get(key);
+    if (!v) return {};
+    const auto* frames = std::get_if<std::vector<TimedPath>>(v);
+    if (!frames || frames->empty()) Fail(key, "must be a non-empty array of { t, path }");
+    for (const TimedPath& f : *frames)
+      if (!std::isfinite(f.t) || f.t < 0.0 || f.path.empty()) Fail(key, "must have times >= 0 and non-empty paths");
+    return *frames;
+  }
   std::string ResolvePath(const std::string& path) const override { return path; }
   void NoteInputFile(const std::string&) const override {}
 

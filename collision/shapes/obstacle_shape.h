@@ -41,6 +41,12 @@ struct SegmentHit {
   Vector3 normal = Vector3::Zero();    ///< unit surface normal at the hit, facing a's side
 };
 
+/// One frame of a sequence of files: its time [s] and path as written.
+struct TimedPath {
+  double t = 0.0;
+  std::string path;
+};
+
 /// How a shape reads its keys from an `[[obstacle]]` table (the scene's TOML
 /// reader, or ShapeFromValues for shapes built in code). Every read marks
 /// the key as used; the caller rejects keys nobody read.
@@ -57,6 +63,9 @@ class ShapeKeys {
   virtual std::array<double, 3> Numbers3(std::string_view key, std::array<double, 3> fallback, bool non_negative) = 0;
   /// A string; `fallback` if absent.
   virtual std::string String(std::string_view key, std::string fallback) = 0;
+  /// A non-empty array of tables { t = s, path = "…" } (t finite and ≥ 0,
+  /// path a non-empty string; no other keys), as written; empty if absent.
+  virtual std::vector<TimedPath> TimedPaths(std::string_view key) = 0;
   /// A path as written under `key`, resolved: a relative path is relative to
   /// the scene file (for a built-in scene, the source tree's scenes/).
   virtual std::string ResolvePath(const std::string& path) const = 0;
@@ -119,6 +128,29 @@ class ObstacleShape : public std::enable_shared_from_this<ObstacleShape> {
   virtual const TriangleMesh* mesh() const { return nullptr; }
   /// The file the shape was read from; empty for analytic shapes.
   virtual std::string file() const { return ""; }
+  /// The scene key that names the shape's files ("path"; "frames").
+  virtual std::string_view file_key() const { return "path"; }
+
+  /// Shapes that deform in time (a mesh sequence); the others are rigid
+  /// and move only by an obstacle's keyframes.
+  virtual bool deforms() const { return false; }
+  /// A deforming shape at time t [s], in world coordinates (it takes no
+  /// keyframes): a rigid shape whose SurfaceVelocity gives its motion;
+  /// nullptr for a rigid shape. Loaded shapes only.
+  virtual std::shared_ptr<const ObstacleShape> At(double /*t*/) const { return nullptr; }
+  /// The velocity [m/s] of the surface point closest to p [m]: 0 for a
+  /// rigid shape at rest; for a deforming shape's At(t), the barycentric
+  /// interpolation of its closest triangle's vertex velocities.
+  virtual Vector3 SurfaceVelocity(const Vector3& /*p*/) const { return Vector3::Zero(); }
+  /// The largest distance [m] any vertex moves between this state and
+  /// `other` of the same deforming shape (At(t_a), At(t_b)); 0 for a rigid shape.
+  virtual double MaxVertexDistance(const ObstacleShape& /*other*/) const { return 0.0; }
+  /// The largest vertex speed [m/s] of a deforming shape over its whole
+  /// motion; 0 for a rigid shape.
+  virtual double MaxVertexSpeed() const { return 0.0; }
+  /// Whether a deforming shape's vertex velocities are constant over
+  /// (t0, t1]: no frame time in (t0, t1] (true for a rigid shape).
+  virtual bool SmoothBetween(double /*t0*/, double /*t1*/) const { return true; }
 };
 
 /// Appends the triangle (a, b, c) of `vertices`, turned to face away from
@@ -135,7 +167,7 @@ std::shared_ptr<const ObstacleShape> ParseObstacleShape(std::string_view type, S
 std::vector<std::string_view> ObstacleShapeTypes();
 
 /// A key's value for a shape built in code: a number, three numbers or a string.
-using ShapeValue = std::variant<double, Vector3, std::string>;
+using ShapeValue = std::variant<double, Vector3, std::string, std::vector<TimedPath>>;
 
 /// A shape built in code (tests, benchmarks) from the keys its TOML table
 /// would hold, by the same rules as the scene's; paths are used as given.

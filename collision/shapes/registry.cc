@@ -14,7 +14,8 @@
   X("box", ParseBox)                  \
   X("cylinder", ParseCylinder)        \
   X("capsule", ParseCapsule)          \
-  X("mesh", ParseMesh)
+  X("mesh", ParseMesh)                \
+  X("mesh_sequence", ParseMeshSequence)
 
 namespace clothbench {
 

@@ -268,6 +268,12 @@ std::optional<SegmentHit> TriangleMesh::FirstHit(const Vector3& a, const Vector3
 int TriangleMesh::num_vertices() const { return static_cast<int>(impl_->mesh.number_of_vertices()); }
 bool TriangleMesh::closed() const { return impl_->closed; }
 
+int TriangleMesh::ClosestFace(const Vector3& p, Vector3* closest) const {
+  const auto [c, face] = impl_->tree->closest_point_and_primitive(Point(p.x(), p.y(), p.z()));
+  *closest = Vector3(c.x(), c.y(), c.z());
+  return static_cast<int>(face.idx());  // faces are never removed: the index is the face's rank (Export)
+}
+
 void TriangleMesh::Export(std::vector<double>* vertices, std::vector<int32_t>* triangles) const {
   vertices->clear();
   triangles->clear();

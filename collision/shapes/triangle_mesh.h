@@ -52,6 +52,9 @@ class TriangleMesh {
   /// AABB-tree ray cast, kept if within the segment), or nothing. The
   /// normal is the hit face's, turned toward a.
   std::optional<SegmentHit> FirstHit(const Vector3& a, const Vector3& b) const;
+  /// The face closest to p [m] (its index in Export's triangles) and the
+  /// closest point on it [m].
+  int ClosestFace(const Vector3& p, Vector3* closest) const;
   int num_vertices() const;
   /// The placed mesh: vertices [V, 3] row-major [m] and triangles [T, 3]
   /// row-major 0-based vertex indices, e.g. for /scene/obstacles/<k> in

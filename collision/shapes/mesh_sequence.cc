@@ -1,0 +1,225 @@
+// A deforming mesh obstacle: a sequence of meshes with one topology (OFF,
+// OBJ or PLY files, each at its time), placed as `mesh` places one file,
+// x ↦ R(scale · x) + translate. Between frames t_k < t_{k+1} the vertices
+// move linearly,
+//   X(t) = (1 − λ) X_k + λ X_{k+1},  λ = (t − t_k)/(t_{k+1} − t_k),
+// with the constant velocity (X_{k+1} − X_k)/(t_{k+1} − t_k); before the
+// first and after the last frame the mesh is held (docs/model.md §7,
+// "Deforming obstacles"). A surface point moves with the barycentric
+// interpolation of its triangle's vertex velocities.
+#include <algorithm>
+#include <filesystem>
+#include <mutex>
+#include <stdexcept>
+#include <system_error>
+
+#include <fmt/format.h>
+
+#include "collision/shapes/obstacle_shape.h"
+#include "collision/shapes/triangle_mesh.h"
+
+namespace clothbench {
+namespace {
+
+struct SequencePlacement {
+  std::vector<double> times;       ///< strictly increasing [s]
+  std::vector<std::string> paths;  ///< the resolved files, one per time
+  double scale = 1.0;
+  Vector3 rotate = Vector3::Zero();     ///< degrees about x, then y, then z
+  Vector3 translate = Vector3::Zero();  ///< [m]
+};
+
+// The loaded frames: placed vertices per frame, the one triangle list.
+struct SequenceFrames {
+  std::vector<std::vector<Vector3>> vertices;
+  std::vector<std::array<int, 3>> triangles;
+  double max_speed = 0.0;  // [m/s], over the frame intervals
+};
+
+// The sequence at one time: a rigid mesh whose surface moves.
+class MeshAtTime final : public ObstacleShape {
+ public:
+  MeshAtTime(std::vector<Vector3> x, std::vector<Vector3> v, const std::vector<std::array<int, 3>>& triangles)
+      : x_(std::move(x)), v_(std::move(v)), triangles_(triangles), mesh_(x_, triangles) {}
+  std::string_view type() const override { return "mesh_sequence"; }
+  double SignedDistance(const Vector3& p, Vector3* dir) const override { return mesh_.SignedDistance(p, dir); }
+  std::optional<SegmentHit> FirstHit(const Vector3& a, const Vector3& b) const override { return mesh_.FirstHit(a, b); }
+  Vector3 anchor() const override { return Vector3::Zero(); }
+  void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const override {
+    *vertices = x_;
+    *triangles = triangles_;
+  }
+  const TriangleMesh* mesh() const override { return &mesh_; }
+  Vector3 SurfaceVelocity(const Vector3& p) const override {
+    Vector3 c;
+    const std::array<int, 3>& t = triangles_[static_cast<std::size_t>(mesh_.ClosestFace(p, &c))];
+    const Vector3 &a = x_[t[0]], &b = x_[t[1]], &d = x_[t[2]];
+    // Barycentric coordinates of c in (a, b, d) (Ericson, Real-Time Collision Detection §3.4).
+    const Vector3 e0 = b - a, e1 = d - a, e2 = c - a;
+    const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = e2.dot(e0), d21 = e2.dot(e1);
+    const double det = d00 * d11 - d01 * d01;
+    if (!(det > 0.0)) return (v_[t[0]] + v_[t[1]] + v_[t[2]]) / 3.0;  // a degenerate face: its mean
+    const double wb = (d11 * d20 - d01 * d21) / det, wd = (d00 * d21 - d01 * d20) / det;
+    return (1.0 - wb - wd) * v_[t[0]] + wb * v_[t[1]] + wd * v_[t[2]];
+  }
+  double MaxVertexDistance(const ObstacleShape& other) const override {
+    const auto* o = dynamic_cast<const MeshAtTime*>(&other);
+    if (!o || o->x_.size() != x_.size()) throw std::logic_error("mesh_sequence: states of different sequences");
+    double d = 0.0;
+    for (std::size_t k = 0; k < x_.size(); ++k) d = std::max(d, (x_[k] - o->x_[k]).norm());
+    return d;
+  }
+
+ private:
+  std::vector<Vector3> x_, v_;  // vertices [m] and their velocities [m/s]
+  std::vector<std::array<int, 3>> triangles_;
+  TriangleMesh mesh_;
+};
+
+class MeshSequence final : public ObstacleShape {
+ public:
+  explicit MeshSequence(SequencePlacement placement) : placement_(std::move(placement)) {}
+  MeshSequence(SequencePlacement placement, std::shared_ptr<const SequenceFrames> frames)
+      : placement_(std::move(placement)), frames_(std::move(frames)), rest_(Interpolate(placement_.times.front())) {}
+  std::string_view type() const override { return "mesh_sequence"; }
+  std::shared_ptr<const ObstacleShape> Load() const override {
+    if (frames_) return shared_from_this();
+    return std::make_shared<const MeshSequence>(placement_, ReadFrames());
+  }
+  bool loads_file() const override { return true; }
+  std::string file() const override { return placement_.paths.front(); }
+  std::string_view file_key() const override { return "frames"; }
+  bool deforms() const override { return true; }
+  // At rest: the first frame.
+  double SignedDistance(const Vector3& p, Vector3* dir) const override { return Rest().SignedDistance(p, dir); }
+  std::optional<SegmentHit> FirstHit(const Vector3& a, const Vector3& b) const override { return Rest().FirstHit(a, b); }
+  Vector3 anchor() const override { return Vector3::Zero(); }
+  void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const override {
+    Rest().Surface(vertices, triangles);
+  }
+  const TriangleMesh* mesh() const override { return frames_ ? Rest().mesh() : nullptr; }
+  double MaxVertexSpeed() const override { return frames_ ? frames_->max_speed : 0.0; }
+  bool SmoothBetween(double t0, double t1) const override {
+    const std::vector<double>& times = placement_.times;
+    const auto next = std::upper_bound(times.begin(), times.end(), t0);  // the first frame time after t0
+    return next == times.end() || *next > t1;
+  }
+  std::shared_ptr<const ObstacleShape> At(double t) const override {
+    if (!frames_) throw std::logic_error("mesh_sequence queried before Load()");
+    const std::lock_guard<std::mutex> lock(cache_mutex_);
+    for (const auto& [ct, state] : cache_)
+      if (ct == t) return state;
+    std::shared_ptr<const ObstacleShape> state = Interpolate(t);
+    // The few times a step asks for (its start, end and stages): the oldest goes.
+    if (cache_.size() >= 8) cache_.erase(cache_.begin());
+    cache_.emplace_back(t, state);
+    return state;
+  }
+
+ private:
+  const ObstacleShape& Rest() const {
+    if (!rest_) throw std::logic_error("mesh_sequence queried before Load(): " + placement_.paths.front());
+    return *rest_;
+  }
+  std::shared_ptr<const SequenceFrames> ReadFrames() const;
+  std::shared_ptr<const MeshAtTime> Interpolate(double t) const;
+
+  SequencePlacement placement_;
+  std::shared_ptr<const SequenceFrames> frames_;  // after Load (shared by copies)
+  std::shared_ptr<const MeshAtTime> rest_;        // the first frame
+  mutable std::mutex cache_mutex_;
+  mutable std::vector<std::pair<double, std::shared_ptr<const ObstacleShape>>> cache_;
+};
+
+// Reads every frame and checks that they share the first one's topology.
+// @throws std::runtime_error naming the file and the rule
+std::shared_ptr<const SequenceFrames> MeshSequence::ReadFrames() const {
+  auto frames = std::make_shared<SequenceFrames>();
+  const SequencePlacement& p = placement_;
+  for (std::size_t k = 0; k < p.paths.size(); ++k) {
+    const TriangleMesh m(p.paths[k], p.scale, p.rotate, p.translate);
+    std::vector<double> xyz;
+    std::vector<int32_t> tri;
+    m.Export(&xyz, &tri);
+    std::vector<std::array<int, 3>> triangles;
+    for (std::size_t j = 0; j + 2 < tri.size(); j += 3) triangles.push_back({tri[j], tri[j + 1], tri[j + 2]});
+    std::vector<Vector3> x;
+    for (std::size_t j = 0; j + 2 < xyz.size(); j += 3) x.emplace_back(xyz[j], xyz[j + 1], xyz[j + 2]);
+    if (k == 0) {
+      frames->triangles = std::move(triangles);
+    } else if (x.size() != frames->vertices[0].size() || triangles != frames->triangles) {
+      throw std::runtime_error(fmt::format(
+          "frame {} (\"{}\", {} vertices, {} triangles) does not have the topology of frame 0 (\"{}\", {} vertices, "
+          "{} triangles): a sequence keeps one vertex count and the same triangles",
+          k, p.paths[k], x.size(), triangles.size(), p.paths[0], frames->vertices[0].size(), frames->triangles.size()));
+    } else {
+      const double dt = p.times[k] - p.times[k - 1];
+      for (std::size_t j = 0; j < x.size(); ++j)
+        frames->max_speed = std::max(frames->max_speed, (x[j] - frames->vertices[k - 1][j]).norm() / dt);
+    }
+    frames->vertices.push_back(std::move(x));
+  }
+  return frames;
+}
+
+std::shared_ptr<const MeshAtTime> MeshSequence::Interpolate(double t) const {
+  const std::vector<double>& times = placement_.times;
+  const std::vector<std::vector<Vector3>>& x = frames_->vertices;
+  const std::size_t n = x[0].size();
+  std::vector<Vector3> xt(n), vt(n, Vector3::Zero());
+  if (t < times.front() || t >= times.back()) {  // held at the first or last frame
+    xt = t < times.front() ? x.front() : x.back();
+  } else {
+    const std::size_t k =
+        static_cast<std::size_t>(std::upper_bound(times.begin(), times.end(), t) - times.begin()) - 1;
+    const double dt = times[k + 1] - times[k], lambda = (t - times[k]) / dt;
+    for (std::size_t j = 0; j < n; ++j) {
+      xt[j] = (1.0 - lambda) * x[k][j] + lambda * x[k + 1][j];
+      vt[j] = (x[k + 1][j] - x[k][j]) / dt;
+    }
+  }
+  return std::make_shared<const MeshAtTime>(std::move(xt), std::move(vt), frames_->triangles);
+}
+
+// A frame's file: it exists, is a regular file and has a plausible header.
+void CheckFrameFile(ShapeKeys& keys, std::size_t k, const std::filesystem::path& p) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(p, ec);
+  const auto fail = [&](const std::string& rule) {
+    keys.Fail("frames", fmt::format("frame {}: mesh file \"{}\" {}", k, p.string(), rule));
+  };
+  if (ec && ec != std::errc::no_such_file_or_directory) fail("cannot be used: " + ec.message());
+  if (!std::filesystem::exists(status)) fail("not found");
+  if (!std::filesystem::is_regular_file(status)) fail("is not a regular file");
+  if (const std::string why = CheckMeshHeader(p.string()); !why.empty()) fail(why);
+}
+
+}  // namespace
+
+/// Keys: `frames` (an array of { t = s, path = "file" }, times strictly
+/// increasing, paths relative to the scene file, OFF, OBJ or PLY with one
+/// topology), `scale` in [1e-6, 1e6], `rotate` (degrees about x, then y,
+/// then z, at most 3600 in magnitude), `translate` [m] (within 1e6 m).
+std::shared_ptr<const ObstacleShape> ParseMeshSequence(ShapeKeys& keys) {
+  SequencePlacement m;
+  const std::vector<TimedPath> frames = keys.TimedPaths("frames");
+  if (frames.empty()) keys.Fail("frames", "is required: [{ t = s, path = \"file\" }, ...], one mesh per time");
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (k > 0 && !(frames[k].t > frames[k - 1].t))
+      keys.Fail("frames", fmt::format("frame {} (\"{}\"): t = {:g} s must be greater than frame {}'s t = {:g} s", k,
+                                      frames[k].path, frames[k].t, k - 1, frames[k - 1].t));
+    const std::filesystem::path p(keys.ResolvePath(frames[k].path));
+    CheckFrameFile(keys, k, p);
+    m.times.push_back(frames[k].t);
+    m.paths.push_back(p.string());
+    keys.NoteInputFile(m.paths.back());  // an output of this command must not replace it
+  }
+  m.scale = keys.Range("scale", 1.0, 1e-6, 1e6, "");
+  m.rotate = keys.Vec3("rotate", m.rotate);
+  if (m.rotate.cwiseAbs().maxCoeff() > 3600) keys.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
+  m.translate = keys.Vec3("translate", m.translate);
+  if (m.translate.cwiseAbs().maxCoeff() > 1e6) keys.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
+  return std::make_shared<const MeshSequence>(std::move(m));
+}
+
+}  // namespace clothbench
