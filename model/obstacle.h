@@ -164,6 +164,17 @@ class Obstacle {
   double MotionBound(const ObstaclePose& a, const ObstaclePose& b) const;
   /// Keyframed, or a shape that deforms (a mesh sequence).
   bool moving() const { return !spec_.keyframes.empty() || shape_->deforms(); }
+  /// Where the obstacle's motion from pose `a` to pose `b`, `dt` [s] later,
+  /// carries the world point p [m]: the rigid motion's image of p; for a
+  /// deforming shape p moved with its closest surface point's velocity at
+  /// `a` (exact within one frame interval). p itself for a static obstacle.
+  /// The particle's path relative to the obstacle over a step is the
+  /// segment from Carried(x₀) to x₁ at pose b (continuous detection).
+  Vector3 Carried(const ObstaclePose& a, const ObstaclePose& b, const Vector3& p, double dt) const {
+    if (!moving()) return p;
+    if (a.deformed) return p + dt * a.Velocity(p);
+    return b.ToWorld(a.ToPlaced(p));
+  }
   /// The largest speed [m/s] of a deforming shape's vertices (0 otherwise).
   double MaxVertexSpeed() const { return shape_->MaxVertexSpeed(); }
   /// Whether the obstacle's velocity field is smooth over (t0, t1]: no

@@ -178,9 +178,14 @@ bool BlowUpGuard::CheckPath(double t0, const MatrixN3& x0, double t1, const Matr
   for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
     const Obstacle& o = sys_.obstacles()[k];
     const ObstaclePose pose = o.PoseAt(t1);
+    // A moving obstacle: the path relative to it, from where its motion
+    // carries x₀ to x₁ (a particle the obstacle swept past is on the path).
+    ObstaclePose pose0;
+    if (o.moving()) pose0 = o.PoseAt(t0);
     path_cull_.Advance(k, pose);
     for (int p = 0; p < x1.rows(); ++p) {
-      const Vector3 a = x0.row(p).transpose(), b = x1.row(p).transpose();
+      const Vector3 b = x1.row(p).transpose();
+      const Vector3 a = o.moving() ? o.Carried(pose0, pose, x0.row(p).transpose(), t1 - t0) : Vector3(x0.row(p).transpose());
       const double length = (b - a).norm();
       if (!(length > 0.0)) continue;
       const std::size_t pk = static_cast<std::size_t>(p);
