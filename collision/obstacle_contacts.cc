@@ -44,6 +44,7 @@ ObstacleDetection::ObstacleDetection(const ParticleSystem& system)
 }
 
 void ObstacleDetection::Reset() {
+  has_step_ = has_prev_ = false;
   std::fill(last_distance_.begin(), last_distance_.end(), 1e300);
   cull_.Reset();
   queries_ = culled_ = 0;
@@ -57,6 +58,15 @@ void ObstacleDetection::set_distance_cull(bool on) { cull_.set_enabled(on); }
 
 void ObstacleDetection::BeginStep(double t0) {
   const auto& obstacles = sys_.obstacles();
+  // A new step (not a retry of this one): this step's poses become the previous ones.
+  if (has_step_ && t0 != step_t0_) {
+    std::swap(prev_poses_, poses_);
+    poses_.resize(prev_poses_.size());
+    prev_t0_ = step_t0_;
+    has_prev_ = true;
+  }
+  step_t0_ = t0;
+  has_step_ = true;
   for (std::size_t k = 0; k < obstacles.size(); ++k) {
     poses_[k] = obstacles[k].PoseAt(t0);
     cull_.Advance(k, poses_[k]);
@@ -110,8 +120,14 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
       v_rel = v0 - v_obs;
     }
     // 2. Old→new cast (Tunnelled).
+    // Continuous detection against a moving obstacle: x₋₁ where its motion
+    // carried it since the previous step's start, so the cast follows the
+    // path relative to the obstacle (a particle it swept past is on it).
+    const Vector3 from = x_prev && has_prev_ && o.moving() && o.spec().continuous
+                             ? o.Carried(prev_poses_[k], pose, *x_prev, step_t0_ - prev_t0_)
+                             : (x_prev ? *x_prev : x0);
     const bool tunnelled = x_prev && d_old < 1e300 &&
-                           Tunnelled(o, pose, *x_prev, x0, d_old, delta, same_contact ? &prior.direction : nullptr,
+                           Tunnelled(o, pose, from, x0, d_old, delta, same_contact ? &prior.direction : nullptr,
                                      &d, &d_k);
     // 1. Proximity, with hysteresis: a contact that still pushed is kept
     // while d < 2δ. A multistep method's history carries a resting particle

@@ -92,6 +92,11 @@ class ObstacleDetection {
  private:
   const ParticleSystem& sys_;
   std::vector<ObstaclePose> poses_;    // of each obstacle at t₀ (per step)
+  // Of each moving obstacle at the previous step's t₀, where x₋₁ was: the
+  // old→new cast follows the path relative to it (ObstacleSpec::continuous).
+  std::vector<ObstaclePose> prev_poses_;
+  double step_t0_ = 0.0, prev_t0_ = 0.0;
+  bool has_step_ = false, has_prev_ = false;
   std::vector<double> last_distance_;  // N×O: signed distance at x₀ of the last step (x₋₁ now), or a lower bound
   std::vector<double> distance_backup_;
   DistanceCull cull_;  // mesh obstacles

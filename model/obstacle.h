@@ -110,6 +110,11 @@ struct ObstacleSpec {
   /// through the cloth (§5.2–5.4; collision/virtual_particles.h). Only for a
   /// shape with edges (not a plane).
   bool virtual_particles = false;
+  /// Continuous detection against the obstacle's motion: the old→new cast
+  /// of a particle follows its path relative to a moving obstacle (false:
+  /// the obstacle's place at the step's start, as for a static one; the
+  /// blow-up guard follows the relative path either way).
+  bool continuous = true;
   /// Rigid motion (any shape); empty: static. Times strictly increasing;
   /// before the first and after the last keyframe the pose is held.
   std::vector<ObstacleKeyframe> keyframes;

@@ -704,6 +704,20 @@ class SceneShapeKeys final : public ShapeKeys {
     }
     return frames;
   }
+  std::vector<std::pair<std::string, double>> NamedNumbers(std::string_view key) override {
+    std::vector<std::pair<std::string, double>> out;
+    const toml::node* node = table_.Get(key);
+    if (!node) return out;
+    const toml::table* t = node->as_table();
+    if (!t) table_.Fail(key, "must be a table { name = number, ... }");
+    for (const auto& [name, value] : *t) {
+      const std::optional<double> x = value.value<double>();
+      if (!x || !std::isfinite(*x))
+        table_.Fail(key, fmt::format("{} must be a finite number", EscapeControl(std::string(name.str()))));
+      out.emplace_back(std::string(name.str()), *x);
+    }
+    return out;
+  }
   // Relative paths are relative to the scene file (for a built-in scene,
   // the file it was embedded from: the source tree's scenes/).
   std::string ResolvePath(const std::string& path) const override {
@@ -741,6 +755,7 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
       spec.relaxation = o.Positive("relaxation", spec.relaxation);
       if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
       spec.virtual_particles = o.Bool("virtual_particles", false);
+      spec.continuous = o.Bool("continuous", spec.continuous);
       if (spec.virtual_particles && s.cloth && (s.patterns.size() > 1 || !s.seams.empty()))
         o.Fail("virtual_particles", "must be false on a sewn cloth: virtual particles run on one pattern's grid");
       if (spec.virtual_particles && !spec.shape->has_edges())

@@ -9,13 +9,13 @@
 // interpolation of its triangle's vertex velocities.
 #include <algorithm>
 #include <filesystem>
-#include <mutex>
 #include <stdexcept>
 #include <system_error>
 
 #include <fmt/format.h>
 
 #include "collision/shapes/obstacle_shape.h"
+#include "collision/shapes/point_frames.h"
 #include "collision/shapes/triangle_mesh.h"
 
 namespace clothbench {
@@ -31,9 +31,8 @@ struct SequencePlacement {
 
 // The loaded frames: placed vertices per frame, the one triangle list.
 struct SequenceFrames {
-  std::vector<std::vector<Vector3>> vertices;
+  PointFrames vertices;
   std::vector<std::array<int, 3>> triangles;
-  double max_speed = 0.0;  // [m/s], over the frame intervals
 };
 
 // The sequence at one time: a rigid mesh whose surface moves.
@@ -64,10 +63,8 @@ class MeshAtTime final : public ObstacleShape {
   }
   double MaxVertexDistance(const ObstacleShape& other) const override {
     const auto* o = dynamic_cast<const MeshAtTime*>(&other);
-    if (!o || o->x_.size() != x_.size()) throw std::logic_error("mesh_sequence: states of different sequences");
-    double d = 0.0;
-    for (std::size_t k = 0; k < x_.size(); ++k) d = std::max(d, (x_[k] - o->x_[k]).norm());
-    return d;
+    if (!o) throw std::logic_error("mesh_sequence: states of different shapes");
+    return MaxPointDistance(x_, o->x_);
   }
 
  private:
@@ -98,22 +95,11 @@ class MeshSequence final : public ObstacleShape {
     Rest().Surface(vertices, triangles);
   }
   const TriangleMesh* mesh() const override { return frames_ ? Rest().mesh() : nullptr; }
-  double MaxVertexSpeed() const override { return frames_ ? frames_->max_speed : 0.0; }
-  bool SmoothBetween(double t0, double t1) const override {
-    const std::vector<double>& times = placement_.times;
-    const auto next = std::upper_bound(times.begin(), times.end(), t0);  // the first frame time after t0
-    return next == times.end() || *next > t1;
-  }
+  double MaxVertexSpeed() const override { return frames_ ? frames_->vertices.max_speed() : 0.0; }
+  bool SmoothBetween(double t0, double t1) const override { return !frames_ || frames_->vertices.SmoothBetween(t0, t1); }
   std::shared_ptr<const ObstacleShape> At(double t) const override {
     if (!frames_) throw std::logic_error("mesh_sequence queried before Load()");
-    const std::lock_guard<std::mutex> lock(cache_mutex_);
-    for (const auto& [ct, state] : cache_)
-      if (ct == t) return state;
-    std::shared_ptr<const ObstacleShape> state = Interpolate(t);
-    // The few times a step asks for (its start, end and stages): the oldest goes.
-    if (cache_.size() >= 8) cache_.erase(cache_.begin());
-    cache_.emplace_back(t, state);
-    return state;
+    return cache_.At(t, [this](double at) { return Interpolate(at); });
   }
 
  private:
@@ -127,8 +113,7 @@ class MeshSequence final : public ObstacleShape {
   SequencePlacement placement_;
   std::shared_ptr<const SequenceFrames> frames_;  // after Load (shared by copies)
   std::shared_ptr<const MeshAtTime> rest_;        // the first frame
-  mutable std::mutex cache_mutex_;
-  mutable std::vector<std::pair<double, std::shared_ptr<const ObstacleShape>>> cache_;
+  StateCache cache_;
 };
 
 // Reads every frame and checks that they share the first one's topology.
@@ -147,38 +132,21 @@ std::shared_ptr<const SequenceFrames> MeshSequence::ReadFrames() const {
     for (std::size_t j = 0; j + 2 < xyz.size(); j += 3) x.emplace_back(xyz[j], xyz[j + 1], xyz[j + 2]);
     if (k == 0) {
       frames->triangles = std::move(triangles);
-    } else if (x.size() != frames->vertices[0].size() || triangles != frames->triangles) {
+    } else if (x.size() != frames->vertices.frame(0).size() || triangles != frames->triangles) {
       throw std::runtime_error(fmt::format(
           "frame {} (\"{}\", {} vertices, {} triangles) does not have the topology of frame 0 (\"{}\", {} vertices, "
           "{} triangles): a sequence keeps one vertex count and the same triangles",
-          k, p.paths[k], x.size(), triangles.size(), p.paths[0], frames->vertices[0].size(), frames->triangles.size()));
-    } else {
-      const double dt = p.times[k] - p.times[k - 1];
-      for (std::size_t j = 0; j < x.size(); ++j)
-        frames->max_speed = std::max(frames->max_speed, (x[j] - frames->vertices[k - 1][j]).norm() / dt);
+          k, p.paths[k], x.size(), triangles.size(), p.paths[0], frames->vertices.frame(0).size(), frames->triangles.size()));
     }
-    frames->vertices.push_back(std::move(x));
+    frames->vertices.Add(p.times[k], std::move(x));
   }
   return frames;
 }
 
 std::shared_ptr<const MeshAtTime> MeshSequence::Interpolate(double t) const {
-  const std::vector<double>& times = placement_.times;
-  const std::vector<std::vector<Vector3>>& x = frames_->vertices;
-  const std::size_t n = x[0].size();
-  std::vector<Vector3> xt(n), vt(n, Vector3::Zero());
-  if (t < times.front() || t >= times.back()) {  // held at the first or last frame
-    xt = t < times.front() ? x.front() : x.back();
-  } else {
-    const std::size_t k =
-        static_cast<std::size_t>(std::upper_bound(times.begin(), times.end(), t) - times.begin()) - 1;
-    const double dt = times[k + 1] - times[k], lambda = (t - times[k]) / dt;
-    for (std::size_t j = 0; j < n; ++j) {
-      xt[j] = (1.0 - lambda) * x[k][j] + lambda * x[k + 1][j];
-      vt[j] = (x[k + 1][j] - x[k][j]) / dt;
-    }
-  }
-  return std::make_shared<const MeshAtTime>(std::move(xt), std::move(vt), frames_->triangles);
+  std::vector<Vector3> x, v;
+  frames_->vertices.At(t, &x, &v);
+  return std::make_shared<const MeshAtTime>(std::move(x), std::move(v), frames_->triangles);
 }
 
 // A frame's file: it exists, is a regular file and has a plausible header.

@@ -111,6 +111,15 @@ class ValueKeys final : public ShapeKeys {
       if (!std::isfinite(f.t) || f.t < 0.0 || f.path.empty()) Fail(key, "must have times >= 0 and non-empty paths");
     return *frames;
   }
+  std::vector<std::pair<std::string, double>> NamedNumbers(std::string_view key) override {
+    const ShapeValue* v = Get(key);
+    if (!v) return {};
+    const auto* named = std::get_if<std::vector<std::pair<std::string, double>>>(v);
+    if (!named) Fail(key, "must be a table of numbers by name");
+    for (const auto& [name, x] : *named)
+      if (!std::isfinite(x)) Fail(key, fmt::format("{} must be a finite number", name));
+    return *named;
+  }
   std::string ResolvePath(const std::string& path) const override { return path; }
   void NoteInputFile(const std::string&) const override {}
 

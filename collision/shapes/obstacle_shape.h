@@ -17,6 +17,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -66,6 +67,9 @@ class ShapeKeys {
   /// A non-empty array of tables { t = s, path = "…" } (t finite and ≥ 0,
   /// path a non-empty string; no other keys), as written; empty if absent.
   virtual std::vector<TimedPath> TimedPaths(std::string_view key) = 0;
+  /// A table { name = number, … } of finite numbers (checked by the
+  /// caller), as written; empty if absent.
+  virtual std::vector<std::pair<std::string, double>> NamedNumbers(std::string_view key) = 0;
   /// A path as written under `key`, resolved: a relative path is relative to
   /// the scene file (for a built-in scene, the source tree's scenes/).
   virtual std::string ResolvePath(const std::string& path) const = 0;
@@ -167,7 +171,8 @@ std::shared_ptr<const ObstacleShape> ParseObstacleShape(std::string_view type, S
 std::vector<std::string_view> ObstacleShapeTypes();
 
 /// A key's value for a shape built in code: a number, three numbers or a string.
-using ShapeValue = std::variant<double, Vector3, std::string, std::vector<TimedPath>>;
+using ShapeValue = std::variant<double, Vector3, std::string, std::vector<TimedPath>,
+                                std::vector<std::pair<std::string, double>>>;
 
 /// A shape built in code (tests, benchmarks) from the keys its TOML table
 /// would hold, by the same rules as the scene's; paths are used as given.

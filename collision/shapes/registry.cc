@@ -15,7 +15,8 @@
   X("cylinder", ParseCylinder)        \
   X("capsule", ParseCapsule)          \
   X("mesh", ParseMesh)                \
-  X("mesh_sequence", ParseMeshSequence)
+  X("mesh_sequence", ParseMeshSequence) \
+  X("skeleton", ParseSkeleton)
 
 namespace clothbench {
 

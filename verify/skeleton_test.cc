@@ -1,0 +1,147 @@
+// A body driven by motion capture (collision/shapes/skeleton.cc) on the CMU
+// clip 01_01.bvh that scripts/setup installs (assimp-testmodels):
+// 1. Its bones stay rigid: every bone's length is the same at every frame
+//    (forward kinematics composes rotations and the joints' offsets).
+// 2. Its root follows the file's root channel, placed by scale, rotate and
+//    translate, at the clip time start + time_scale · t.
+// 3. A surface point moves with its bone's ends, the chord velocity
+//    between frames; the distance is a union of capsules.
+// 4. A skeleton file without frames, or a missing one, is refused naming
+//    the file and the rule.
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "model/obstacle.h"
+#include "model/particle_system.h"
+#include "model/scene.h"
+#include "temp_file.h"
+
+namespace clothbench {
+namespace {
+
+const std::string kClip = "/usr/share/assimp/models/BVH/01_01.bvh";
+
+// The file's root position (its first three channels) at frame k, and its frame time [s].
+Vector3 RootInFile(int k, double* frame_time = nullptr) {
+  std::ifstream in(kClip);
+  std::string line;
+  while (std::getline(in, line) && line.rfind("Frame Time:", 0) != 0) {
+  }
+  if (frame_time) *frame_time = std::stod(line.substr(11));
+  for (int i = 0; i <= k; ++i) std::getline(in, line);
+  std::istringstream values(line);
+  Vector3 x;
+  values >> x.x() >> x.y() >> x.z();
+  return x;
+}
+
+// The root at clip time τ [s]: linear between the file's frames.
+Vector3 RootAt(double tau) {
+  double dt = 0.0;
+  RootInFile(0, &dt);
+  const int k = static_cast<int>(std::floor(tau / dt));
+  const double lambda = tau / dt - k;
+  return (1.0 - lambda) * RootInFile(k) + lambda * RootInFile(k + 1);
+}
+
+ObstacleSpec Body(double scale, double time_scale, double start, const Vector3& rotate, const Vector3& translate) {
+  ObstacleSpec o;
+  o.shape = ShapeFromValues("skeleton", {{"path", kClip},
+                                         {"scale", scale},
+                                         {"time_scale", time_scale},
+                                         {"start", start},
+                                         {"radius", 0.06},
+                                         {"radii", std::vector<std::pair<std::string, double>>{{"Head", 0.1}}},
+                                         {"rotate", rotate},
+                                         {"translate", translate}});
+  return o;
+}
+
+TEST(Skeleton, BonesStayRigidAndTheRootFollowsTheFile) {
+  ASSERT_TRUE(std::ifstream(kClip).good()) << kClip << " missing: run scripts/setup (assimp-testmodels)";
+  // CMU units to m (0.056: a thigh of 7.1 units is 0.4 m), y up turned to z up.
+  const double scale = 0.056;
+  const Vector3 rotate(90.0, 0.0, 0.0), translate(0.1, 0.2, 0.0);
+  const Obstacle body(Body(scale, 2.0, 1.0, rotate, translate));  // clip time 1 + 2t
+  ASSERT_TRUE(body.moving());
+  std::vector<Vector3> v0, v1;
+  std::vector<std::array<int, 3>> t;
+  // Clip time 1 + 2t: t = 0 is 1 s into the clip, t = 0.5 s is 2 s; before
+  // the clip's start (t < -0.5 s) its first frame holds.
+  for (const auto& [time, tau] : {std::pair{0.0, 1.0}, std::pair{0.5, 2.0}, std::pair{-3.0, 0.0}}) {
+    const ObstaclePose pose = body.PoseAt(time);
+    ASSERT_TRUE(pose.deformed);
+    // The root (Hips) is an end of the capsules of the bones that leave it:
+    // 0.06 m deep, to Assimp's single precision (6e-8 of 20 units · 0.056 m).
+    const Vector3 root = RotationFromDegrees(rotate) * (scale * RootAt(tau)) + translate;
+    Vector3 dir;
+    EXPECT_NEAR(pose.deformed->SignedDistance(root, &dir), -0.06, 1e-6) << "t = " << time;
+  }
+  // Rigid bones: the surface is the capsules' surfaces one after another,
+  // each with a capsule's vertex count and its two poles last (capsule.cc),
+  // |pole_a − pole_b| = the bone's length + 2 radii, the same at every frame.
+  std::vector<Vector3> one;
+  ShapeFromValues("capsule", {{"a", Vector3::Zero()}, {"b", Vector3::UnitX()}, {"radius", 0.1}})->Surface(&one, &t);
+  const std::size_t per = one.size();
+  body.PoseAt(0.0).deformed->Surface(&v0, &t);
+  body.PoseAt(0.5).deformed->Surface(&v1, &t);
+  ASSERT_EQ(v0.size(), v1.size());
+  ASSERT_EQ(v0.size() % per, 0u);
+  const std::size_t bones = v0.size() / per;
+  EXPECT_GT(bones, 20u);  // CMU's 31 joints and end sites, less the zero offsets
+  double worst = 0.0, moved = 0.0;
+  for (std::size_t b = 0; b < bones; ++b) {
+    const std::size_t pa = b * per + per - 2, pb = pa + 1;
+    worst = std::max(worst, std::abs((v0[pa] - v0[pb]).norm() - (v1[pa] - v1[pb]).norm()));
+    moved = std::max(moved, (v0[pa] - v1[pa]).norm());
+  }
+  // The same bone lengths to Assimp's single precision (6e-8 of a bone's
+  // length in file units, 1e-7 m here) [m].
+  EXPECT_LT(worst, 1e-6);
+  EXPECT_GT(moved, 0.05);  // while the body moved
+  // The clip's speed bound: the fastest joint, in scene time (time_scale 2).
+  EXPECT_GT(body.MaxVertexSpeed(), 0.0);
+  // Between frames a surface point moves with its bone's ends; over one
+  // frame (1/240 s of scene time) the distance of a fixed point changes by
+  // at most the joints' largest displacement.
+  const double dt = 1.0 / 240.0;
+  const ObstaclePose a = body.PoseAt(0.25), b = body.PoseAt(0.25 + dt);
+  const Vector3 p = RotationFromDegrees(rotate) * (scale * RootAt(1.5)) + translate + Vector3(0.0, 0.3, 0.0);
+  Vector3 da, db;
+  const double sa = body.SignedDistance(a, p, &da), sb = body.SignedDistance(b, p, &db);
+  EXPECT_LE(std::abs(sa - sb), body.MotionBound(a, b) + 1e-12);
+  EXPECT_LE(a.Velocity(p).norm(), body.MaxVertexSpeed() + 1e-9);
+}
+
+std::string Refusal(const std::string& path) {
+  const std::string grid = "[grid]\nnu = 3\nnv = 3\nsize = [0.1, 0.1]\norigin = [0.0, 0.0, 5.0]\n";
+  try {
+    const Scene s = ParseScene(grid + "[[obstacle]]\ntype = \"skeleton\"\npath = \"" + path + "\"\nscale = 0.056\n", "body.toml");
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Skeleton, RefusesAFileWithoutFramesOrMissing) {
+  std::ifstream in(kClip);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string head = text.str().substr(0, text.str().find("MOTION"));
+  const testing::TempFile none("no_frames.bvh", head + "MOTION\nFrames: 0\nFrame Time: .0083333\n");
+  EXPECT_EQ(Refusal(none.path()),
+            "body.toml: obstacle[0].path: BVH file \"" + none.path() + "\" has no motion frames (Frames: 0)");
+  const testing::TempFile cut("no_motion.bvh", head);
+  EXPECT_EQ(Refusal(cut.path()), "body.toml: obstacle[0].path: BVH file \"" + cut.path() +
+                                     "\" has no motion frames (no MOTION section with a Frames: line)");
+  EXPECT_EQ(Refusal("/nonexistent/walk.bvh"),
+            "body.toml: obstacle[0].path: BVH file \"/nonexistent/walk.bvh\" not found or not a regular file");
+}
+
+}  // namespace
+}  // namespace clothbench
