@@ -145,8 +145,16 @@ void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const 
       g[p] = gap + entry_depth_;
     } else {
       Vector3 n, w;
-      g[p] = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f.row(p).transpose(), &n, &w) +
-             kReleaseAcceleration * sys_.masses()(p);
+      const double m = sys_.masses()(p);
+      const double pushes = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f.row(p).transpose(), &n, &w) +
+                            kReleaseAcceleration * m;
+      // A particle held on the δ-surface of a moving obstacle whose velocity
+      // jumped (a keyframe or frame time: no rate carries the jump) drifts
+      // off it; a drift past another δ releases it. Far below that this
+      // root is 1e6 times the release threshold, so the force decides.
+      const double delta = sys_.obstacles()[static_cast<std::size_t>(k)].spec().collision_distance;
+      const double gap = Distance(k, t, x.row(p).transpose(), &n) - delta;
+      g[p] = std::min(pushes, kReleaseAcceleration * m * (1.0 + 1e6 * (delta - gap) / delta));
     }
   }
 }
