@@ -87,14 +87,17 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     const bool same_contact = was && static_cast<int>(k) == prior.obstacle;
     const std::size_t pk = static_cast<std::size_t>(p) * n_obs + k;
     double& d_stored = last_distance_[pk];
-    // The obstacle's velocity at x₀ bounds the cull; the contact takes it
-    // at the closest surface point once the distance is known.
-    Vector3 v_obs = o.moving() ? pose.Velocity(x0) : Vector3::Zero();
+    // The relative speed bounds the cull: a rigid motion's velocity at x₀,
+    // a deforming shape's largest vertex speed (its velocity at x₀ would
+    // cost the closest-point query the cull saves). The contact takes the
+    // velocity at the closest surface point once the distance is known.
+    Vector3 v_obs = o.moving() && !pose.deformed ? pose.Velocity(x0) : Vector3::Zero();
     Vector3 v_rel = v0 - v_obs;
+    const double rel_speed = pose.deformed ? v0.norm() + o.MaxVertexSpeed() : v_rel.norm();
     if (cull_.culls(k) && !same_contact) {
       const double bound = cull_.Bound(k, static_cast<std::size_t>(p), x0);
       const double moved = x_prev ? (x0 - *x_prev).norm() : 0.0;
-      if (bound > std::max(delta + h * v_rel.norm(), moved)) {
+      if (bound > std::max(delta + h * rel_speed, moved)) {
         d_stored = bound;
         ++culled_;
         continue;

@@ -26,17 +26,14 @@ namespace {
 // longer is stopped there with reason time_limit.
 constexpr double kSweepTimeLimit = 30.0;
 
-// The methods' own settings whose option was given, {field, value}, each
-// checked by its method's rule. @throws UsageError naming the option
+// The methods' own settings whose option was given, {field, value}: each
+// planned run's request checks those its row reads (RunRequest::settings).
 std::vector<std::pair<std::string, std::string>> GivenSettings(const CLI::App& app, const Options& o) {
   std::vector<std::pair<std::string, std::string>> given;
   for (const RowOption& row_option : RowOptions()) {
     const MethodSetting* setting = FindSetting(row_option.field);
-    if (!setting || !app.count(std::string(setting->option))) continue;
-    const std::string& value = o.method_settings.at(row_option.field);
-    if (const std::string why = setting->check(value); !why.empty())
-      throw UsageError(fmt::format("{}: {}", setting->option, EscapeControl(why)));
-    given.emplace_back(row_option.field, value);
+    if (setting && app.count(std::string(setting->option)))
+      given.emplace_back(row_option.field, o.method_settings.at(row_option.field));
   }
   return given;
 }
@@ -293,6 +290,8 @@ BenchRun PlanBench(const CLI::App& app, Options& o, std::vector<NonlinearSolver>
       q.method = methods[k].label();
       q.names = FieldNames::kOption;
       q.SetStep(SpecOf(methods[k].kind()), param, n);
+      for (const auto& setting : settings)
+        if (methods[k].setting(setting.first)) q.settings.push_back(setting);
       q.time_limit = time_limit;
       if (repeat > 0) q.repeat = repeat;
       q.time_budget = time_budget;

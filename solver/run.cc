@@ -180,15 +180,21 @@ bool BlowUpGuard::CheckPath(double t0, const MatrixN3& x0, double t1, const Matr
     const ObstaclePose pose = o.PoseAt(t1);
     // A moving obstacle: the path relative to it, from where its motion
     // carries x₀ to x₁ (a particle the obstacle swept past is on the path).
+    // A deforming shape carries x₀ by at most (t₁ − t₀) times its largest
+    // vertex speed, so the cull (1-Lipschitz bounds) decides before that
+    // costs a closest-point query.
     ObstaclePose pose0;
     if (o.moving()) pose0 = o.PoseAt(t0);
+    const double shift = pose0.deformed ? (t1 - t0) * o.MaxVertexSpeed() : 0.0;
     path_cull_.Advance(k, pose);
     for (int p = 0; p < x1.rows(); ++p) {
-      const Vector3 b = x1.row(p).transpose();
-      const Vector3 a = o.moving() ? o.Carried(pose0, pose, x0.row(p).transpose(), t1 - t0) : Vector3(x0.row(p).transpose());
+      const Vector3 b = x1.row(p).transpose(), start = x0.row(p).transpose();
+      const std::size_t pk = static_cast<std::size_t>(p);
+      if (pose0.deformed && path_cull_.Bound(k, pk, start) + path_cull_.Bound(k, pk, b) - shift > (b - start).norm() + shift)
+        continue;
+      const Vector3 a = o.moving() ? o.Carried(pose0, pose, start, t1 - t0) : start;
       const double length = (b - a).norm();
       if (!(length > 0.0)) continue;
-      const std::size_t pk = static_cast<std::size_t>(p);
       if (path_cull_.Bound(k, pk, a) + path_cull_.Bound(k, pk, b) > length) continue;
       Vector3 direction;
       const double d1 = o.SignedDistance(pose, b, &direction);

@@ -35,9 +35,10 @@ int HybridContact::Nearest(double t, const Vector3& p, double* gap) const {
 }
 
 double HybridContact::Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
-                             Vector3* w) const {
+                             Vector3* w, double* distance) const {
   const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
   const double dx = Distance(k, t, x, n);
+  if (distance) *distance = dx;
   const ObstaclePose pose = o.PoseAt(t);
   const Vector3 u = pose.Velocity(x - dx * *n);  // of the closest surface point
   *w = v - u;
@@ -146,14 +147,16 @@ void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const 
     } else {
       Vector3 n, w;
       const double m = sys_.masses()(p);
-      const double pushes = Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f.row(p).transpose(), &n, &w) +
-                            kReleaseAcceleration * m;
+      double d = 0.0;
+      const double pushes =
+          Lambda(k, t, p, x.row(p).transpose(), v.row(p).transpose(), f.row(p).transpose(), &n, &w, &d) +
+          kReleaseAcceleration * m;
       // A particle held on the δ-surface of a moving obstacle whose velocity
       // jumped (a keyframe or frame time: no rate carries the jump) drifts
       // off it; a drift past another δ releases it. Far below that this
       // root is 1e6 times the release threshold, so the force decides.
       const double delta = sys_.obstacles()[static_cast<std::size_t>(k)].spec().collision_distance;
-      const double gap = Distance(k, t, x.row(p).transpose(), &n) - delta;
+      const double gap = d - delta;
       g[p] = std::min(pushes, kReleaseAcceleration * m * (1.0 + 1e6 * (delta - gap) / delta));
     }
   }

@@ -120,9 +120,10 @@ class HybridContact {
   // The nearest obstacle to p at t: index, and d − δ.
   int Nearest(double t, const Vector3& p, double* gap) const;
   // λ of particle p sliding on obstacle k at (t, x_p, v_p) with f_p the
-  // model's force on it; also its normal n and relative velocity w.
+  // model's force on it; also its normal n, relative velocity w and (if
+  // asked) its signed distance [m].
   double Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
-                Vector3* w) const;
+                Vector3* w, double* distance = nullptr) const;
   // The regularised Coulomb force on particle p sliding on obstacle k with
   // normal force λ, normal n and relative velocity w; keeps its rate.
   Vector3 Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w);

@@ -182,11 +182,7 @@ std::shared_ptr<const ObstacleShape> ParseMeshSequence(ShapeKeys& keys) {
     m.paths.push_back(p.string());
     keys.NoteInputFile(m.paths.back());  // an output of this command must not replace it
   }
-  m.scale = keys.Range("scale", 1.0, 1e-6, 1e6, "");
-  m.rotate = keys.Vec3("rotate", m.rotate);
-  if (m.rotate.cwiseAbs().maxCoeff() > 3600) keys.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
-  m.translate = keys.Vec3("translate", m.translate);
-  if (m.translate.cwiseAbs().maxCoeff() > 1e6) keys.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
+  keys.Placement(&m.scale, &m.rotate, &m.translate);
   return std::make_shared<const MeshSequence>(std::move(m));
 }
 

@@ -80,6 +80,16 @@ class ShapeKeys {
     const auto a = Numbers3(key, {fallback.x(), fallback.y(), fallback.z()}, false);
     return Vector3(a[0], a[1], a[2]);
   }
+  /// A file shape's placement x ↦ R(scale · x) + translate: `scale` in
+  /// [1e-6, 1e6], `rotate` (degrees about x, then y, then z, at most 3600 in
+  /// magnitude), `translate` [m] (within 1e6 m); absent keys keep the values given.
+  void Placement(double* scale, Vector3* rotate, Vector3* translate) {
+    *scale = Range("scale", *scale, 1e-6, 1e6, "");
+    *rotate = Vec3("rotate", *rotate);
+    if (rotate->cwiseAbs().maxCoeff() > 3600) Fail("rotate", "must be angles of magnitude at most 3600 degrees");
+    *translate = Vec3("translate", *translate);
+    if (translate->cwiseAbs().maxCoeff() > 1e6) Fail("translate", "must have coordinates of magnitude at most 1e6 m");
+  }
   /// The centre (or a point) of an analytic shape: coordinates within 1e6 m.
   Vector3 Centre(std::string_view key) {
     const Vector3 c = Vec3(key, Vector3::Zero());

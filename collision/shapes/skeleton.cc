@@ -264,7 +264,7 @@ std::shared_ptr<const ObstacleShape> ParseSkeleton(ShapeKeys& keys) {
   if (const std::string why = CheckBvhFrames(m.path); !why.empty())
     keys.Fail("path", fmt::format("BVH file \"{}\" {}", m.path, why));
   keys.NoteInputFile(m.path);  // an output of this command must not replace it
-  m.scale = keys.Range("scale", 1.0, 1e-6, 1e6, "");
+  keys.Placement(&m.scale, &m.rotate, &m.translate);
   m.time_scale = keys.Range("time_scale", 1.0, 1e-3, 1e3, "");
   m.start = keys.Range("start", 0.0, 0.0, 1e6, " s");
   m.radius = keys.Range("radius", m.radius, 1e-4, 1.0, " m");
@@ -272,10 +272,6 @@ std::shared_ptr<const ObstacleShape> ParseSkeleton(ShapeKeys& keys) {
     if (!(r >= 1e-4 && r <= 1.0)) keys.Fail("radii", fmt::format("{} = {:g} must be in [1e-4, 1] m", name, r));
     m.radii[name] = r;
   }
-  m.rotate = keys.Vec3("rotate", m.rotate);
-  if (m.rotate.cwiseAbs().maxCoeff() > 3600) keys.Fail("rotate", "must be angles of magnitude at most 3600 degrees");
-  m.translate = keys.Vec3("translate", m.translate);
-  if (m.translate.cwiseAbs().maxCoeff() > 1e6) keys.Fail("translate", "must have coordinates of magnitude at most 1e6 m");
   return std::make_shared<const Skeleton>(std::move(m));
 }
 
