@@ -227,6 +227,69 @@ void WriteCloth(ResultFile& f, const Scene& scene) {
   }
 }
 
+// Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
+// motion not applied), for the XDMF file; and the polyhedron and edges of
+// every obstacle with virtual particles (Obstacle::Surface, ::Edges at
+// rest), which their frames' obstacle_edge indices refer to. A deforming
+// obstacle (a mesh sequence, a skeleton) is stored at t = 0, and its
+// surface at frame times as `times` and `positions` [F, V, 3] for the
+// report page and ParaView: every frame_dt, or every k-th where F·V
+// would pass kMaxBodyPoints (a picture of the motion, not its data).
+void WriteObstacles(ResultFile& f, const Scene& scene, const ParticleSystem& sys) {
+  constexpr double kMaxBodyPoints = 2.5e5;  // 6 MB of doubles
+  for (std::size_t k = 0; k < sys.obstacles().size(); ++k) {
+    const Obstacle& obstacle = sys.obstacles()[k];
+    const TriangleMesh* mesh = obstacle.mesh();
+    const bool deforms = obstacle.shape().deforms();
+    if (!mesh && !obstacle.spec().virtual_particles && !deforms) continue;
+    const std::string o = fmt::format("/scene/obstacles/{}", k);
+    std::vector<double> vertices;
+    std::vector<int32_t> triangles;
+    std::vector<Vector3> points;
+    std::vector<std::array<int, 3>> faces;
+    if (deforms) {
+      obstacle.PoseAt(0.0).deformed->Surface(&points, &faces);
+    } else if (mesh) {
+      mesh->Export(&vertices, &triangles);
+    } else {
+      obstacle.Surface(&points, &faces);
+    }
+    for (const Vector3& p : points) vertices.insert(vertices.end(), {p.x(), p.y(), p.z()});
+    for (const auto& t : faces) triangles.insert(triangles.end(), t.begin(), t.end());
+    f.CreateGroup(o);
+    // Absolute, so that the file names the mesh wherever it is read
+    // (clothbench_inspect's command links it next to the scene file).
+    if (mesh && !deforms) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.shape().file()).lexically_normal().string());
+    f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
+    f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
+    if (deforms && !points.empty() && scene.frame_dt > 0.0) {
+      const double frames = std::floor(scene.t_end / scene.frame_dt + 1e-9) + 1.0;
+      const double stride = std::max(1.0, std::ceil(frames * static_cast<double>(points.size()) / kMaxBodyPoints));
+      std::vector<double> times;
+      for (double j = 0.0; j * stride * scene.frame_dt < scene.t_end - 1e-9 * scene.frame_dt; j += 1.0)
+        times.push_back(j * stride * scene.frame_dt);
+      times.push_back(scene.t_end);
+      std::vector<MatrixN3> at;
+      for (const double t : times) {
+        obstacle.PoseAt(t).deformed->Surface(&points, &faces);
+        MatrixN3& x = at.emplace_back(static_cast<Eigen::Index>(points.size()), 3);
+        for (std::size_t i = 0; i < points.size(); ++i) x.row(static_cast<Eigen::Index>(i)) = points[i].transpose();
+      }
+      f.WriteVector(o + "/times", times, "s");
+      f.WriteFrames(o + "/positions", at);
+      f.WriteFrameViews(o + "/positions", o + "/frame_views/positions_");
+    }
+    if (obstacle.spec().virtual_particles) {
+      std::vector<Vector3> points;
+      std::vector<std::array<int, 2>> edges;
+      obstacle.Edges(ObstaclePose{}, &points, &edges);
+      std::vector<int32_t> flat;
+      for (const auto& e : edges) flat.insert(flat.end(), e.begin(), e.end());
+      f.WriteTable(o + "/edges", static_cast<int>(edges.size()), 2, flat);
+    }
+  }
+}
+
 }  // namespace
 
 void WriteResults(const std::string& path, const Scene& scene, const ParticleSystem& sys,
@@ -242,41 +305,7 @@ void WriteResults(const std::string& path, const Scene& scene, const ParticleSys
   WriteSceneRecord(f, table);
   f.WriteString("/scene/toml", scene.toml);  // a dataset: scene files of any size
   WriteCloth(f, scene);
-  // Triangle-mesh obstacles, placed (scale, rotate, translate; keyframed
-  // motion not applied), for the XDMF file; and the polyhedron and edges of
-  // every obstacle with virtual particles (Obstacle::Surface, ::Edges at
-  // rest), which their frames' obstacle_edge indices refer to.
-  for (std::size_t k = 0; k < sys.obstacles().size(); ++k) {
-    const Obstacle& obstacle = sys.obstacles()[k];
-    const TriangleMesh* mesh = obstacle.mesh();
-    if (!mesh && !obstacle.spec().virtual_particles) continue;
-    const std::string o = fmt::format("/scene/obstacles/{}", k);
-    std::vector<double> vertices;
-    std::vector<int32_t> triangles;
-    if (mesh) {
-      mesh->Export(&vertices, &triangles);
-    } else {
-      std::vector<Vector3> points;
-      std::vector<std::array<int, 3>> faces;
-      obstacle.Surface(&points, &faces);
-      for (const Vector3& p : points) vertices.insert(vertices.end(), {p.x(), p.y(), p.z()});
-      for (const auto& t : faces) triangles.insert(triangles.end(), t.begin(), t.end());
-    }
-    f.CreateGroup(o);
-    // Absolute, so that the file names the mesh wherever it is read
-    // (clothbench_inspect's command links it next to the scene file).
-    if (mesh) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.shape().file()).lexically_normal().string());
-    f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
-    f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
-    if (obstacle.spec().virtual_particles) {
-      std::vector<Vector3> points;
-      std::vector<std::array<int, 2>> edges;
-      obstacle.Edges(ObstaclePose{}, &points, &edges);
-      std::vector<int32_t> flat;
-      for (const auto& e : edges) flat.insert(flat.end(), e.begin(), e.end());
-      f.WriteTable(o + "/edges", static_cast<int>(edges.size()), 2, flat);
-    }
-  }
+  WriteObstacles(f, scene, sys);
   if (ref) {
     f.CreateGroup("/reference");
     WriteRunRecord(f, "/reference", *table.reference);

@@ -75,6 +75,20 @@ Penetration SumPenetration(const double* d, int n, double delta) {
   return r;
 }
 
+ObstacleSpec HeldAt(const ObstacleSpec& spec, double t) {
+  ObstacleSpec held = spec;
+  if (!spec.shape || (spec.keyframes.empty() && !spec.shape->deforms())) return held;
+  const Obstacle obstacle(spec);
+  const ObstaclePose pose = obstacle.PoseAt(t);
+  if (pose.deformed) held.shape = pose.deformed;
+  if (!spec.keyframes.empty()) {
+    // R = Rz(γ) Ry(β) Rx(α) (RotationFromDegrees): Eigen's z-y-x angles.
+    const Vector3 zyx = pose.rotation.eulerAngles(2, 1, 0) * (180.0 / M_PI);
+    held.keyframes = {ObstacleKeyframe{0.0, pose.translation, Vector3(zyx.z(), zyx.y(), zyx.x())}};
+  }
+  return held;
+}
+
 ObstaclePose KeyframedMotion::PoseAt(double t) const {
   ObstaclePose pose;
   pose.anchor = anchor_;

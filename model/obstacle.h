@@ -122,6 +122,14 @@ struct ObstacleSpec {
   std::string_view type() const { return shape ? shape->type() : std::string_view("none"); }
 };
 
+/// The obstacle held still in its pose at time t [s]: a keyframed motion
+/// becomes one keyframe with the pose at t (the rotation as degrees about x,
+/// then y, then z), a deforming shape its state at t (ObstacleShape::At).
+/// The sewing pre-phase dresses a moving body in its pose at t = 0
+/// (docs/guide/scenes.md "Sewing").
+/// @throws std::runtime_error as Obstacle's constructor (a shape's file)
+ObstacleSpec HeldAt(const ObstacleSpec& spec, double t);
+
 /// Positions beyond this [m] are a blown-up state (scenes place everything
 /// within 1e6 m, docs/guide/scenes.md "Limits"): obstacle queries skip them.
 inline constexpr double kMaxQueryMagnitude = 1e9;

@@ -169,6 +169,12 @@ RunTable ValidateResultFile(const ResultReader& f) {
         for (int32_t i : f.Ints(o + "/triangles"))
           if (i < 0 || static_cast<std::size_t>(i) >= v[0])
             Broken(f, o + "/triangles", fmt::format("{} is not a vertex index (0 … {})", i, v[0] - 1));
+        if (f.Exists(o + "/positions")) {  // a deforming obstacle's surface at `times`
+          const std::vector<std::size_t> x = ShapeOf(f, o + "/positions", 3);
+          if (x[1] != v[0] || x[2] != 3) Broken(f, o + "/positions", fmt::format("must be [F, {}, 3]", v[0]));
+          if (CheckTimes(f, o) != x[0]) Broken(f, o + "/times", "must hold one time per positions frame");
+          FiniteDoubles(f, o + "/positions");
+        }
       }
     }
   }

@@ -40,6 +40,30 @@ std::vector<double> StoredFrameTimes(const ResultReader& f, const std::string& g
   return {};
 }
 
+// A deforming obstacle's surface as a temporal collection, one grid per
+// stored time (the report's `/scene/obstacles/k/positions`).
+std::string MovingObstacle(const ResultReader& f, const std::string& file, const std::string& k,
+                           const std::vector<std::size_t>& tri) {
+  const std::string o = "/scene/obstacles/" + k;
+  const std::vector<double> times = f.Doubles(o + "/times");
+  const std::vector<std::size_t> shape = f.Shape(o + "/positions");
+  std::string body = fmt::format(R"(    <Grid Name="obstacle_{}" GridType="Collection" CollectionType="Temporal">)"
+                                 "\n",
+                                 k);
+  for (std::size_t j = 0; j < times.size() && j < shape[0]; ++j)
+    body += fmt::format(R"(      <Grid Name="obstacle_{}_{}" GridType="Uniform">)"
+                        "\n"
+                        R"(        <Time Value="{:.17g}"/>)"
+                        "\n"
+                        R"(        <Topology TopologyType="Triangle" NumberOfElements="{}">{}</Topology>)"
+                        "\n"
+                        R"(        <Geometry GeometryType="XYZ">{}</Geometry>)"
+                        "\n      </Grid>\n",
+                        k, j, times[j], tri[0], DataItem(file, o + "/triangles", tri, true),
+                        DataItem(file, fmt::format("{}/frame_views/positions_{}", o, j), {shape[1], 3}, false));
+  return body + "    </Grid>\n";
+}
+
 }  // namespace
 
 std::string WriteXdmf(const std::string& h5_path) {
@@ -88,11 +112,16 @@ std::string WriteXdmf(const std::string& h5_path) {
     ++collections;
   }
   if (collections == 0) return "";
-  // Triangle-mesh obstacles, static.
+  // Triangle-mesh obstacles: static, or a deforming one's surface at its
+  // stored times.
   for (const std::string& k : f.Children("/scene/obstacles")) {
     const std::string o = "/scene/obstacles/" + k;
     if (!f.Exists(o + "/vertices") || !f.Exists(o + "/triangles")) continue;
     const std::vector<std::size_t> tri = f.Shape(o + "/triangles");
+    if (f.Exists(o + "/positions") && f.Exists(o + "/times")) {
+      body += MovingObstacle(f, file, k, tri);
+      continue;
+    }
     body += fmt::format(R"(    <Grid Name="obstacle_{}" GridType="Uniform">)"
                         "\n"
                         R"(      <Topology TopologyType="Triangle" NumberOfElements="{}">{}</Topology>)"

@@ -100,17 +100,24 @@ class Figures:
 
 # ---------------------------------------------------------------- the scene
 def cloth_frames(f):
-    """(label, first positions, last positions, last time) of the reference or
-    the first run that stores frames."""
+    """(label, positions dataset, times) of the reference or the first run
+    that stores frames; `times` has one entry per stored frame."""
     groups = ([("reference", f["reference"])] if "reference" in f else []) + list(f["runs"].items())
     for name, g in groups:
-        for key in ("positions", "positions_ends"):
-            if key in g and len(g[key]) >= 2:
-                return name, g[key][0], g[key][-1], g["times"][-1] if key == "positions" else attr(f["scene"], "t_end")
+        if "positions" in g and len(g["positions"]) >= 2:
+            return name, g["positions"], g["times"][: len(g["positions"])]
+        if "positions_ends" in g and len(g["positions_ends"]) >= 2:
+            return name, g["positions_ends"], np.array([0.0, attr(f["scene"], "t_end")])
     return None
 
 
-def draw_obstacles(ax, f, spec, lo, hi):
+def moving_body(f):
+    """Whether a stored obstacle deforms (its surface has stored times)."""
+    return any("positions" in o for o in f["scene"].get("obstacles", {}).values())
+
+
+def draw_obstacles(ax, f, spec, lo, hi, t=0.0):
+    """The scene's obstacles; a deforming one at its stored time nearest t [s]."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     stored = f["scene"].get("obstacles", {})
@@ -120,9 +127,13 @@ def draw_obstacles(ax, f, spec, lo, hi):
         style = dict(color="0.55", linewidth=0.6, alpha=0.7)
         if str(k) in stored and "triangles" in stored[str(k)]:
             ov, ot = stored[str(k)]["vertices"][:], stored[str(k)]["triangles"][:]
+            body = "positions" in stored[str(k)]  # a deforming body, drawn darker
+            if body:
+                ov = stored[str(k)]["positions"][int(np.argmin(np.abs(stored[str(k)]["times"][:] - t)))]
             if len(ot) > 20000:  # a picture, not a render: every n-th triangle
                 ot = ot[:: len(ot) // 20000 + 1]
-            mesh = Poly3DCollection([ov[t] for t in ot], facecolor="0.75", edgecolor="none", alpha=0.3)
+            mesh = Poly3DCollection([ov[i] for i in ot], facecolor="tan" if body else "0.75", edgecolor="none",
+                                    alpha=0.8 if body else 0.3)
             mesh.set_rasterized(len(ot) > 2000)
             ax.add_collection3d(mesh)
             continue
@@ -163,20 +174,26 @@ def scene_figure(f, spec, sink):
     got = cloth_frames(f)
     if got is None or "faces" not in f["scene"]:
         return ""
-    name, x0, x1, t1 = got
+    name, frames, times = got
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     quads = f["scene"]["faces"][:]
     if len(quads) > 40000:  # a picture: a coarser set of the grid's quads
         quads = quads[:: len(quads) // 40000 + 1]
-    pts = np.vstack([x0, x1])
+    # A moving body: four times through the motion; otherwise the ends.
+    panels = [0, len(times) - 1]
+    if moving_body(f) and len(times) > 3:
+        panels = sorted({int(round(q * (len(times) - 1))) for q in (0.0, 1 / 3, 2 / 3, 1.0)})
+    shown = [(frames[i], float(times[i])) for i in panels]
+    pts = np.vstack([x for x, _ in shown])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    fig = plt.figure(figsize=(10, 4.8))
-    for panel, (x, when) in enumerate(((x0, "t = 0"), (x1, f"t = {t1:.3g} s"))):
-        ax = fig.add_subplot(1, 2, panel + 1, projection="3d")
-        draw_obstacles(ax, f, spec, lo, hi)
+    rows = (len(shown) + 1) // 2
+    fig = plt.figure(figsize=(10, 4.8 * rows))
+    for panel, (x, t) in enumerate(shown):
+        ax = fig.add_subplot(rows, 2, panel + 1, projection="3d")
+        draw_obstacles(ax, f, spec, lo, hi, t)
         cloth = Poly3DCollection([x[q] for q in quads], facecolor="tab:blue", edgecolor="k",
-                                 linewidth=0.15 if len(quads) > 2000 else 0.4, alpha=0.6)
+                                 linewidth=0.15 if len(quads) > 2000 else 0.4, alpha=0.35 if len(panels) > 2 else 0.6)
         # Above a few thousand quads the cloth is drawn as an image inside
         # the SVG (a data: URI, no request): 40,000 vector quads are 15 MB.
         cloth.set_rasterized(len(quads) > 2000)
@@ -186,7 +203,7 @@ def scene_figure(f, spec, sink):
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_zlim(lo[2] - pad, hi[2] + pad)
         ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 1e-3))
-        ax.set_title(f"{when} ({name})", fontsize=9)
+        ax.set_title(f"t = {t:.3g} s ({name})", fontsize=9)
         ax.view_init(elev=22, azim=-60)
         ax.tick_params(labelsize=6)
     sink(fig, "scene")

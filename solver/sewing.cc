@@ -57,6 +57,8 @@ SewingSummary Sew(Scene* scene) {
   // Without self-contact: the two samples of a pair close onto one point,
   // where their patterns' triangles meet edge to edge.
   apart.collision.reset();
+  // A moving body is dressed in its pose at t = 0, held still.
+  for (ObstacleSpec& o : apart.obstacles) o = HeldAt(o, 0.0);
   apart.t_end = apart.frame_dt = scene->sewing_time;
   // Every seam sample moves on a straight path to its particle's start
   // (the mean of the samples it merges) over the phase.

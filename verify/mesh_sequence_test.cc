@@ -8,10 +8,13 @@
 //    rigid keyframes does, within the sequence's interpolation error, for
 //    SBDF(2) and CVODE; the motion itself moves the cloth far more.
 // 3. A bad sequence is refused naming the file and the rule.
+// 4. A run's file stores the moving surface at its frame times.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -26,9 +29,11 @@
 #include "model/scene.h"
 #include "reference/cvode_reference.h"
 #include "results/metrics.h"
+#include "results/result_reader.h"
 #include "solver/integrator.h"
 #include "solver/run.h"
 #include "temp_file.h"
+#include "verify/cli_helpers.h"
 
 namespace clothbench {
 namespace {
@@ -333,6 +338,45 @@ TEST(MeshSequence, TheDrapeSceneEndsOnTheSphereForSbdf2AndCvode) {
   const MatrixN3 a = EndOf(s, false), b = EndOf(s, true);
   EXPECT_LT(ErrorRms(a, b), 5e-3);
   for (const MatrixN3* x : {&a, &b}) EXPECT_LT(x->col(2).maxCoeff(), 0.8 + 2 * 0.01);
+}
+
+// The file of a run on a deforming obstacle holds its surface at every
+// frame time (the report page and ParaView draw the body where it was):
+// /scene/obstacles/0/positions[j] is the sequence's surface at times[j],
+// the file passes the reader's validation, and the XDMF file has a grid of
+// the obstacle at each of those times.
+TEST(MeshSequence, TheResultFileStoresTheMovingSurfaceAtItsFrameTimes) {
+  const std::filesystem::path dir = testing::TempDir("clothbench_mesh_sequence_");
+  const std::string scene = std::string(CLOTHBENCH_SCENES_DIR) + "/mesh_sequence_drape.toml";
+  const std::string out = (dir / "drape.h5").string();
+  const testing::Outcome run = testing::RunCommand(
+      CLOTHBENCH_BENCH_BINARY,
+      "--scene " + scene + " --integrators sbdf2 --t-end 0.05 --reference none --repeat 1 --quiet --out " + out, dir);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const ResultReader f(out);
+  EXPECT_NO_THROW(ValidateResultFile(f));
+  const std::vector<double> times = f.Doubles("/scene/obstacles/0/times");
+  ASSERT_EQ(times.size(), 6u);  // 0, 0.01, …, 0.05: every frame_dt to t_end
+  const Obstacle body(LoadScene(scene).obstacles[0]);
+  std::vector<Vector3> surface;
+  std::vector<std::array<int, 3>> triangles;
+  for (std::size_t j = 0; j < times.size(); ++j) {
+    EXPECT_NEAR(times[j], 0.01 * static_cast<double>(j), 1e-15);
+    body.PoseAt(times[j]).deformed->Surface(&surface, &triangles);
+    const MatrixN3 stored = f.Frame("/scene/obstacles/0/positions", j);
+    ASSERT_EQ(stored.rows(), static_cast<Eigen::Index>(surface.size()));
+    double worst = 0.0;
+    for (std::size_t i = 0; i < surface.size(); ++i)
+      worst = std::max(worst, (stored.row(static_cast<Eigen::Index>(i)).transpose() - surface[i]).norm());
+    EXPECT_EQ(worst, 0.0) << "frame " << j;  // the same doubles, written and read back
+  }
+  // Between its frames the sphere moves: the first and last stored surfaces differ.
+  EXPECT_GT((f.Frame("/scene/obstacles/0/positions", 0) - f.Frame("/scene/obstacles/0/positions", 5)).norm(), 1e-3);
+  std::ifstream xdmf(dir / "drape.xdmf");
+  std::stringstream text;
+  text << xdmf.rdbuf();
+  for (std::size_t j = 0; j < times.size(); ++j)
+    EXPECT_NE(text.str().find(fmt::format("obstacle_0_{}\"", j)), std::string::npos) << "grid " << j;
 }
 
 // A grid above a placeholder obstacle table `keys`; the scene's refusal.

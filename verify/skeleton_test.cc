@@ -8,6 +8,8 @@
 //    between frames; the distance is a union of capsules.
 // 4. A skeleton file without frames, or a missing one, is refused naming
 //    the file and the rule.
+// 5. HeldAt(spec, t), the body that the sewing pre-phase dresses, is the
+//    pose at t held still: of the skeleton and of a keyframed rigid turn.
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -141,6 +143,36 @@ TEST(Skeleton, RefusesAFileWithoutFramesOrMissing) {
                                      "\" has no motion frames (no MOTION section with a Frames: line)");
   EXPECT_EQ(Refusal("/nonexistent/walk.bvh"),
             "body.toml: obstacle[0].path: BVH file \"/nonexistent/walk.bvh\" not found or not a regular file");
+}
+
+
+// The obstacle held in its pose at t: the same signed distances as the moving
+// obstacle at t, at every later time, for the skeleton (its state at t) and
+// for a box on keyframes turning about two axes (one keyframe whose Euler
+// angles give the interpolated rotation).
+TEST(Skeleton, HeldAtIsThePoseAtThatTimeHeldStill) {
+  ObstacleSpec box;
+  box.shape = ShapeFromValues("box", {{"center", Vector3(0.1, 0.0, 0.5)}, {"size", Vector3(0.4, 0.2, 0.1)}});
+  box.keyframes = {ObstacleKeyframe{0.0, Vector3::Zero(), Vector3::Zero()},
+                   ObstacleKeyframe{1.0, Vector3(0.2, -0.1, 0.3), Vector3(30.0, -50.0, 120.0)}};
+  const std::vector<std::pair<ObstacleSpec, double>> cases = {
+      {Body(0.056, 1.0, 0.5, Vector3(90.0, 0.0, 180.0), Vector3(0.53, 1.03, 0.0)), 0.0}, {box, 0.37}};
+  for (const auto& [spec, t] : cases) {
+    const Obstacle moving(spec), held(HeldAt(spec, t));
+    const ObstaclePose at = moving.PoseAt(t);
+    for (const double later : {0.0, t, 0.8, 5.0})
+      for (const Vector3& p : {Vector3(0.0, 0.0, 1.0), Vector3(0.3, -0.2, 1.3), Vector3(-0.1, 0.4, 0.4)}) {
+        Vector3 d0, d1;
+        // The same query, up to the Euler angles' round trip (1e-15 rad
+        // on distances of 1 m) [m].
+        EXPECT_NEAR(held.SignedDistance(later, p, &d1), moving.SignedDistance(at, p, &d0), 1e-12)
+            << spec.type() << " held at " << t << ", queried at " << later;
+      }
+    Vector3 d;
+    const Vector3 q(0.3, -0.2, 1.3);
+    EXPECT_GT(std::abs(moving.SignedDistance(0.8, q, &d) - moving.SignedDistance(at, q, &d)), 1e-3)
+        << spec.type() << ": the moving obstacle moves after " << t;
+  }
 }
 
 }  // namespace
