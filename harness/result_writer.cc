@@ -241,7 +241,8 @@ void WriteObstacles(ResultFile& f, const Scene& scene, const ParticleSystem& sys
     const Obstacle& obstacle = sys.obstacles()[k];
     const TriangleMesh* mesh = obstacle.mesh();
     const bool deforms = obstacle.shape().deforms();
-    if (!mesh && !obstacle.spec().virtual_particles && !deforms) continue;
+    const bool body = deforms || scene.obstacles[k].shape->deforms();  // or one `held` still
+    if (!mesh && !obstacle.spec().virtual_particles && !body) continue;
     const std::string o = fmt::format("/scene/obstacles/{}", k);
     std::vector<double> vertices;
     std::vector<int32_t> triangles;
@@ -249,6 +250,8 @@ void WriteObstacles(ResultFile& f, const Scene& scene, const ParticleSystem& sys
     std::vector<std::array<int, 3>> faces;
     if (deforms) {
       obstacle.PoseAt(0.0).deformed->Surface(&points, &faces);
+    } else if (body) {
+      obstacle.shape().Surface(&points, &faces);
     } else if (mesh) {
       mesh->Export(&vertices, &triangles);
     } else {
@@ -259,7 +262,7 @@ void WriteObstacles(ResultFile& f, const Scene& scene, const ParticleSystem& sys
     f.CreateGroup(o);
     // Absolute, so that the file names the mesh wherever it is read
     // (clothbench_inspect's command links it next to the scene file).
-    if (mesh && !deforms) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.shape().file()).lexically_normal().string());
+    if (mesh && !body) f.SetAttribute(o, "path", std::filesystem::absolute(obstacle.shape().file()).lexically_normal().string());
     f.WriteTable(o + "/vertices", static_cast<int>(vertices.size() / 3), 3, vertices, "m");
     f.WriteTable(o + "/triangles", static_cast<int>(triangles.size() / 3), 3, triangles);
     if (deforms && !points.empty() && scene.frame_dt > 0.0) {

@@ -16,8 +16,13 @@
 
 namespace clothbench {
 
-Obstacle::Obstacle(const ObstacleSpec& spec) : spec_(spec) {
-  if (!spec.shape) throw std::invalid_argument("obstacle without a shape");
+Obstacle::Obstacle(const ObstacleSpec& given) : spec_(given) {
+  if (!given.shape) throw std::invalid_argument("obstacle without a shape");
+  if (given.held) {
+    spec_.held = false;
+    spec_ = HeldAt(spec_, 0.0);
+  }
+  const ObstacleSpec& spec = spec_;
   shape_ = spec.shape->Load();
   if (mesh() && !spec.keyframes.empty()) {
     std::vector<double> xyz;

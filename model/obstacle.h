@@ -115,6 +115,9 @@ struct ObstacleSpec {
   /// the obstacle's place at the step's start, as for a static one; the
   /// blow-up guard follows the relative path either way).
   bool continuous = true;
+  /// Held still in its pose at t = 0 (HeldAt): the same body without its
+  /// motion, for measuring what the motion costs.
+  bool held = false;
   /// Rigid motion (any shape); empty: static. Times strictly increasing;
   /// before the first and after the last keyframe the pose is held.
   std::vector<ObstacleKeyframe> keyframes;

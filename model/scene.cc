@@ -756,6 +756,7 @@ void ParseObstacles(TableReader& top, const std::string& source, Scene& s) {
       if (spec.relaxation > 1.0) o.Fail("relaxation", "must be in (0, 1]");
       spec.virtual_particles = o.Bool("virtual_particles", false);
       spec.continuous = o.Bool("continuous", spec.continuous);
+      spec.held = o.Bool("held", spec.held);
       if (spec.virtual_particles && s.cloth && (s.patterns.size() > 1 || !s.seams.empty()))
         o.Fail("virtual_particles", "must be false on a sewn cloth: virtual particles run on one pattern's grid");
       if (spec.virtual_particles && !spec.shape->has_edges())

@@ -110,17 +110,29 @@ class InterruptScope {
 };
 
 
-// Sets the dotted key `path` ("material.density") in `table` to a Python
+// Sets the dotted key `path` ("material.density"; "obstacle.0.held": the first
+// table of an array of tables) in `table` to a Python
 // scalar or list of numbers, creating tables on the way.
 void SetKey(toml::table& table, const std::string& path, const py::handle& value) {
-  toml::table* t = &table;
+  toml::node* node = &table;
   std::string rest = path;
   for (std::size_t dot; (dot = rest.find('.')) != std::string::npos; rest = rest.substr(dot + 1)) {
     const std::string key = rest.substr(0, dot);
-    if (!t->contains(key)) t->insert(key, toml::table{});
-    t = (*t)[key].as_table();
-    if (!t) throw py::key_error("override \"" + path + "\": \"" + key + "\" is not a table");
+    if (toml::array* a = node->as_array()) {  // an array of tables: "obstacle.0.held"
+      const bool digits = !key.empty() && key.size() < 10 && key.find_first_not_of("0123456789") == std::string::npos;
+      if (!digits || std::stoul(key) >= a->size())
+        throw py::value_error(fmt::format("override \"{}\": \"{}\" is not an index of its {} tables", path, key, a->size()));
+      node = a->get(std::stoul(key));
+    } else {
+      toml::table* t = node->as_table();
+      if (!t->contains(key)) t->insert(key, toml::table{});
+      node = t->get(key);
+    }
+    if (!node->is_table() && !node->is_array_of_tables())
+      throw py::value_error("override \"" + path + "\": \"" + key + "\" is not a table");
   }
+  toml::table* t = node->as_table();
+  if (!t) throw py::value_error("override \"" + path + "\": an index of an array of tables must be followed by a key");
   // A Python int beyond 64 bits: ValueError naming the key, not pybind11's cast error.
   const auto integer = [&path](const py::handle& x) {
     int overflow = 0;

@@ -59,6 +59,16 @@ def test_overrides_and_toml_text():
     assert not np.array_equal(c["positions"][-1], b["positions"][-1])
 
 
+def test_overrides_reach_a_table_of_an_array_of_tables():
+    # "obstacle.0.friction" sets the first [[obstacle]]'s key; the table's
+    # other keys are kept.
+    s = clothbench.load_scene("round_table", {"obstacle.0.friction": 0.75})
+    assert "friction = 0.75" in s.toml and "radius = 0.29999999999999999" in s.toml  # toml++ writes 17 digits
+    for bad in ("obstacle.1.friction", "obstacle.x.friction", "obstacle.0"):
+        with pytest.raises(ValueError, match="override"):
+            clothbench.load_scene("round_table", {bad: 0.7})
+
+
 def test_load_scene_refines_the_grid_as_bench_integrators_sizes():
     fine = clothbench.load_scene("swinging_sheet", particles=2500, overrides={"t_end": 0.05})
     assert fine.num_particles == 2500 and fine.name == "swinging_sheet_50x50" and fine.t_end == 0.05

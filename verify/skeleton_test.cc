@@ -160,6 +160,13 @@ TEST(Skeleton, HeldAtIsThePoseAtThatTimeHeldStill) {
   for (const auto& [spec, t] : cases) {
     const Obstacle moving(spec), held(HeldAt(spec, t));
     const ObstaclePose at = moving.PoseAt(t);
+    ObstacleSpec still = spec;  // the scene key `held`: in its pose at t = 0
+    still.held = true;
+    const Obstacle at_rest(still);
+    Vector3 e0, e1;
+    const Vector3 probe(0.3, -0.2, 1.3);
+    if (spec.shape->deforms()) EXPECT_FALSE(at_rest.moving());  // its state at 0: a still shape
+    EXPECT_NEAR(at_rest.SignedDistance(1.0, probe, &e1), moving.SignedDistance(0.0, probe, &e0), 1e-12) << spec.type();
     for (const double later : {0.0, t, 0.8, 5.0})
       for (const Vector3& p : {Vector3(0.0, 0.0, 1.0), Vector3(0.3, -0.2, 1.3), Vector3(-0.1, 0.4, 0.4)}) {
         Vector3 d0, d1;
