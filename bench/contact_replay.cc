@@ -66,7 +66,7 @@ void PrintStep(const StepEngine& engine, const StepStats& st, const ContactFacto
              st.colliding, st.solve_time, st.setup_time, setups, now.modifications - before.modifications,
              now.frame_setups[0] - before.frame_setups[0], now.frame_setups[1] - before.frame_setups[1],
              now.off_axis, setups > 0 && std::isfinite(now.cycle_factor) ? fmt::format("{:.4f}", now.cycle_factor) : "-",
-             engine.contact_seconds() - contact_seconds_before);
+             engine.contact_detection_seconds() - contact_seconds_before);
   std::fflush(stdout);
 }
 
@@ -148,7 +148,7 @@ ResolvedRun ResolveRun(const Args& a) {
 // One step to t_next, printed. @return false (after one line on stderr) if it failed
 bool StepTo(StepEngine& engine, double h, double t_next) {
   const ContactFactorStats before = engine.system_matrix().preconditioner().contact_stats();
-  const double contact_before = engine.contact_seconds();
+  const double contact_before = engine.contact_detection_seconds();
   const StepStats st = engine.Step(h);
   if (st.status != StepStatus::kOk) {
     std::fprintf(stderr, "contact_replay: the step to t = %.4f s failed (%s)\n", t_next,

@@ -81,6 +81,7 @@ class BaraffWitkin : public Stepper {
   bool single_update() const override { return true; }
   int matrix_rebuilds() const override { return rebuilds_; }
   double setup_seconds() const override;
+  double contact_detection_seconds() const override { return contacts_.setup_seconds(); }
   const ContactResponse::Work* contact_work() const override {
     return contacts_.active() ? &contacts_.work() : nullptr;
   }

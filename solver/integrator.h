@@ -218,6 +218,9 @@ class Stepper {
   virtual int matrix_rebuilds() const = 0;
   /// Setup time so far [s]: assembly, analysis, factorisations.
   virtual double setup_seconds() const = 0;
+  /// Obstacle contact detection time so far [s] (ContactResponse::SetUp);
+  /// < 0: a stepper without that response.
+  virtual double contact_detection_seconds() const { return -1.0; }
   /// True if Step() estimates its local error (StepStats::error_norm) and
   /// rejects a step whose estimate fails the test: the run driver then
   /// controls h by the error (SolverSpec::step_control = "error").
@@ -306,6 +309,7 @@ class StepEngine : public Stepper {
     return contacts_.active() ? &contacts_.work() : nullptr;
   }
   double setup_seconds() const override { return sysmat_.setup_seconds() + tangent_setup_seconds_; }
+  double contact_detection_seconds() const override { return contacts_.setup_seconds(); }
   long events() const override { return event_location_ ? events_ : -1; }
   bool corrects_state() const override { return true; }
   bool follows_prescribed_motion() const override { return true; }
@@ -327,8 +331,6 @@ class StepEngine : public Stepper {
   /// couplings (the schemes' stages, solver/scheme.h).
   void LinearProduct(bool damping, const MatrixN3& x, MatrixN3* out) const;
   const SystemMatrix& system_matrix() const { return sysmat_; }
-  /// Wall time of the collision detection since Reset [s] (ContactResponse::setup_seconds).
-  double contact_seconds() const { return contacts_.setup_seconds(); }
   /// Whether contact factors in contact frames may serve (SystemMatrix::set_frame_factors).
   void set_frame_factors(bool on) { sysmat_.set_frame_factors(on); }
   /// The prefiltered AMG's diagnostics (Preconditioner::set_amg_diagnostics).

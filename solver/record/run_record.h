@@ -94,6 +94,11 @@ struct RunRecord {
     return repeats > 1 && solver_time_s > 0.0 ? (solver_time_s_max - solver_time_s) / solver_time_s : 0.0;
   }
   double setup_time_s = -1.0;     ///< < 0: not measured
+  /// The part of solver_time_s spent detecting obstacle contacts and setting
+  /// up their constraints (ContactResponse::SetUp: the distance queries,
+  /// casts and culls of every step) [s]; < 0: not measured (rows without
+  /// that response).
+  double contact_detection_s = -1.0;
   double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step
   std::optional<double> error_final_m;   ///< e_rms at t_end against the reference [m]
   std::optional<double> error_l2_m;      ///< root mean square over the frames of e_rms [m]
