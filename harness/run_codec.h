@@ -295,7 +295,7 @@ inline void DecodeRun(std::string_view bytes, long n_particles, RunSummary* m) {
   if (!r.done()) throw std::runtime_error("malformed run record");
   using namespace internal;
   for (double v : {m->h, m->rtol, m->cg_tolerance, m->atol, m->solver_time_s, m->solver_time_s_median,
-                   m->solver_time_s_max, m->wall_time_s, m->setup_time_s, m->contact_detection_s,
+                   m->solver_time_s_max, m->wall_time_s, m->setup_time_s, m->contact_detection_time_s,
                    m->numerical_stiffness})
     CheckFinite(v, "a parameter or time");
   if (m->h < 0.0 || m->rtol < 0.0 || m->solver_time_s < 0.0) OutOfRange("a negative step, tolerance or time");

@@ -85,7 +85,7 @@ const std::vector<RecordField>& RunRecordFields() {
       {"solver_time_s_median", &R::solver_time_s_median},
       {"solver_time_s_max", &R::solver_time_s_max},
       {"setup_time_s", &R::setup_time_s, S::kNonNegative},
-      {"contact_detection_s", &R::contact_detection_s, S::kNonNegative},
+      {"contact_detection_time_s", &R::contact_detection_time_s, S::kNonNegative},
       {"wall_time_s", &R::wall_time_s},
       {"numerical_stiffness", &R::numerical_stiffness},
       {"cg_tolerance", &R::cg_tolerance, S::kPositive},

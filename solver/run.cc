@@ -628,7 +628,7 @@ void FinishRun(const Stepper& engine, const BlowUpGuard& guard, const VirtualPar
   if (engine.events() >= 0) sum->events = engine.events();
   sum->solver_time_s = sum->solver_time_s_median = sum->solver_time_s_max = solver_seconds;  // one timing
   sum->setup_time_s = engine.setup_seconds();
-  sum->contact_detection_s = engine.contact_detection_seconds();
+  sum->contact_detection_time_s = engine.contact_detection_seconds();
   sum->wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 }
 

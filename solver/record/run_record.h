@@ -98,7 +98,7 @@ struct RunRecord {
   /// up their constraints (ContactResponse::SetUp: the distance queries,
   /// casts and culls of every step) [s]; < 0: not measured (rows without
   /// that response).
-  double contact_detection_s = -1.0;
+  double contact_detection_time_s = -1.0;
   double numerical_stiffness = 0.0;  ///< h²k/(ρl²) at this row's (sub)step
   std::optional<double> error_final_m;   ///< e_rms at t_end against the reference [m]
   std::optional<double> error_l2_m;      ///< root mean square over the frames of e_rms [m]
