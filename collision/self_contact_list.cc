@@ -88,6 +88,18 @@ double Stray(const Node& a, const Node& b) {
          (b.rotation - a.rotation).norm() * b.radius;
 }
 
+// The largest relative travel [m] of a pair's two elements' vertices from
+// x0 to x1: max over a of one element, b of the other, of |δ_a − δ_b|,
+// δ = x1 − x0.
+double PairTravel(const SelfContactPair& pair, const MatrixN3& x0, const MatrixN3& x1) {
+  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
+  double most = 0.0;
+  for (std::size_t a = 0; a < first; ++a)
+    for (std::size_t b = first; b < 4; ++b)
+      most = std::max(most, ((x1.row(pair.p[a]) - x0.row(pair.p[a])) - (x1.row(pair.p[b]) - x0.row(pair.p[b]))).squaredNorm());
+  return std::sqrt(most);
+}
+
 }  // namespace
 
 void SelfContactList::NodeMotions() {
@@ -263,7 +275,11 @@ void SelfContactList::Build(const MatrixN3& x0, const MatrixN3* path_end, double
   pairs_.clear();
   built_distance_.clear();
   for (std::size_t i = 0; i < candidates_.size(); ++i) {
-    if (!swept && !(candidate_distance_[i] <= d)) continue;
+    // Along the path a pair closes by at most its largest relative vertex
+    // travel (its closest points are convex combinations of its vertices,
+    // as in LowerBound): one that stays farther than D is left out.
+    const double travel = swept ? PairTravel(candidates_[i], x0, *path_end) : 0.0;
+    if (!(candidate_distance_[i] - travel <= d)) continue;
     pairs_.push_back(candidates_[i]);
     built_distance_.push_back(candidate_distance_[i]);
   }
