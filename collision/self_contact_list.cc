@@ -38,8 +38,9 @@ SelfContactList::SelfContactList(const std::vector<std::array<int, 3>>& triangle
   centre_.resize(n_clusters);
 }
 
-double SelfContactList::LowerBound(std::size_t i) const {
-  const SelfContactPair& pair = pairs_[i];
+double SelfContactList::LowerBound(std::size_t i) const { return built_distance_[i] - RelativeMotion(pairs_[i]); }
+
+double SelfContactList::RelativeMotion(const SelfContactPair& pair) const {
   const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
   double most = 0.0;
   for (std::size_t a = 0; a < first; ++a)
@@ -47,7 +48,7 @@ double SelfContactList::LowerBound(std::size_t i) const {
       most = std::max(most, (delta0_.row(pair.p[a]) - delta0_.row(pair.p[b])).squaredNorm());
       most = std::max(most, (delta1_.row(pair.p[a]) - delta1_.row(pair.p[b])).squaredNorm());
     }
-  return built_distance_[i] - std::sqrt(most);
+  return std::sqrt(most);
 }
 
 namespace {
@@ -86,18 +87,6 @@ double Stray(const Node& a, const Node& b) {
   const Vector3 turn = arm - a.rotation * arm;
   return std::max((b.mean0 - a.mean0 + turn).norm(), (b.mean1 - a.mean1 + turn).norm()) +
          (b.rotation - a.rotation).norm() * b.radius;
-}
-
-// The largest relative travel [m] of a pair's two elements' vertices from
-// x0 to x1: max over a of one element, b of the other, of |δ_a − δ_b|,
-// δ = x1 − x0.
-double PairTravel(const SelfContactPair& pair, const MatrixN3& x0, const MatrixN3& x1) {
-  const std::size_t first = pair.kind == SelfContactPair::kPointTriangle ? 1 : 2;
-  double most = 0.0;
-  for (std::size_t a = 0; a < first; ++a)
-    for (std::size_t b = first; b < 4; ++b)
-      most = std::max(most, ((x1.row(pair.p[a]) - x0.row(pair.p[a])) - (x1.row(pair.p[b]) - x0.row(pair.p[b]))).squaredNorm());
-  return std::sqrt(most);
 }
 
 }  // namespace
@@ -243,8 +232,6 @@ bool SelfContactList::Cover(const MatrixN3& x0, const MatrixN3& x1, double reach
   // A path too fast for the skin: the pairs that come within D along it
   // too, so that this path is covered; the next path is checked again.
   Build(x0, &x1, reach);
-  delta0_.setZero();  // δ at both ends, for LowerBound (x_b = x0)
-  delta1_ = x1 - x0;
   return true;
 }
 
@@ -258,6 +245,10 @@ void SelfContactList::Build(const MatrixN3& x0, const MatrixN3* path_end, double
   // of triangles that can come within margin + slack = D.
   const double d = built_d_;
   const bool swept = path_end != nullptr;
+  if (swept) {  // δ at both ends (x_b = x0), for RelativeMotion and LowerBound
+    delta0_.setZero();
+    delta1_ = *path_end - x0;
+  }
   detector_.Candidates(x0, swept ? *path_end : x0, 0.5 * d, &candidates_, 0.5 * d);
   const auto n = static_cast<long>(candidates_.size());
   candidate_distance_.resize(candidates_.size());
@@ -278,7 +269,7 @@ void SelfContactList::Build(const MatrixN3& x0, const MatrixN3* path_end, double
     // Along the path a pair closes by at most its largest relative vertex
     // travel (its closest points are convex combinations of its vertices,
     // as in LowerBound): one that stays farther than D is left out.
-    const double travel = swept ? PairTravel(candidates_[i], x0, *path_end) : 0.0;
+    const double travel = swept ? RelativeMotion(candidates_[i]) : 0.0;
     if (!(candidate_distance_[i] - travel <= d)) continue;
     pairs_.push_back(candidates_[i]);
     built_distance_.push_back(candidate_distance_[i]);

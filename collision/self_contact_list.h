@@ -83,6 +83,9 @@ class SelfContactList {
   long builds() const { return builds_; }
 
  private:
+  // max |δ_a − δ_b| [m] over a vertex a of one element and b of the other,
+  // at either end (delta0_, delta1_): how far the pair can close.
+  double RelativeMotion(const SelfContactPair& pair) const;
   // Lists every pair within D at x0 or, with a path's end (N×3 [m]), every
   // pair that can come within D along x0 → *path_end, each with a lower
   // bound of its distance at x0.

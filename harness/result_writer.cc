@@ -250,9 +250,7 @@ void WriteObstacles(ResultFile& f, const Scene& scene, const ParticleSystem& sys
     std::vector<std::array<int, 3>> faces;
     if (deforms) {
       obstacle.PoseAt(0.0).deformed->Surface(&points, &faces);
-    } else if (body) {
-      obstacle.shape().Surface(&points, &faces);
-    } else if (mesh) {
+    } else if (mesh && !body) {
       mesh->Export(&vertices, &triangles);
     } else {
       obstacle.Surface(&points, &faces);

@@ -82,7 +82,8 @@ Penetration SumPenetration(const double* d, int n, double delta) {
 
 ObstacleSpec HeldAt(const ObstacleSpec& spec, double t) {
   ObstacleSpec held = spec;
-  if (!spec.shape || (spec.keyframes.empty() && !spec.shape->deforms())) return held;
+  // Already held at t = 0 (`held`), or nothing moves.
+  if (spec.held || !spec.shape || (spec.keyframes.empty() && !spec.shape->deforms())) return held;
   const Obstacle obstacle(spec);
   const ObstaclePose pose = obstacle.PoseAt(t);
   if (pose.deformed) held.shape = pose.deformed;

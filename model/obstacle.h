@@ -129,7 +129,7 @@ struct ObstacleSpec {
 /// becomes one keyframe with the pose at t (the rotation as degrees about x,
 /// then y, then z), a deforming shape its state at t (ObstacleShape::At).
 /// The sewing pre-phase dresses a moving body in its pose at t = 0
-/// (docs/model.md §2.9).
+/// (docs/model.md §2.9). A spec already `held` is returned as it is.
 /// @throws std::runtime_error as Obstacle's constructor (a shape's file)
 ObstacleSpec HeldAt(const ObstacleSpec& spec, double t);
 
