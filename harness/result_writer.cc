@@ -174,6 +174,7 @@ RunTable MakeRunTable(const Scene& scene, const ParticleSystem& sys, const std::
   t.newton_jacobian = ToString(sv.newton_jacobian);
   t.contact_history = ToString(sv.contact_history);
   t.friction_law = ToString(sv.friction_law);
+  t.friction_cap = ToString(sv.friction_cap);
   t.controller_updates = std::to_string(sv.controller_updates[0]) + "," + std::to_string(sv.controller_updates[1]);
   t.cg_max_iterations = sv.cg_max_iterations;
   t.max_rejections = sv.max_rejections;

@@ -47,6 +47,14 @@ std::string_view ToString(FrictionLaw f) {
   return "?";
 }
 
+std::string_view ToString(FrictionCap f) {
+  switch (f) {
+    case FrictionCap::kMass: return "mass";
+    case FrictionCap::kSystem: return "system";
+  }
+  return "?";
+}
+
 std::string_view ToString(NewtonJacobian j) {
   return j == NewtonJacobian::kRefresh ? "refresh" : "frozen";
 }

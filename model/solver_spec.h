@@ -85,6 +85,19 @@ enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 ///    the same problem as they do (the contact reference's cross-check).
 enum class FrictionLaw { kExplicit, kRegularised };
 
+/// What caps a step's friction impulse against the tangential velocity v_t
+/// (docs/model.md §2.5; docs/notes/collisions.md, "The friction cap"):
+///  - "mass": m|v_t|, the impulse that stops the particle alone;
+///  - "system": a_t|v_t| with a_t = tᵀ A_pp t (t = v_t/|v_t|), the
+///    particle's diagonal block of the step's matrix (A_α, or Baraff–Witkin's
+///    J): the impulse that stops it while its neighbours keep their
+///    velocities. A_α → M as h → 0, so both caps are one law in the limit;
+///    at a finite h the implicit springs and damping tie a particle to its
+///    neighbours, and the mass cap stops less of the cloth's motion than the
+///    step's solve would, by an amount that shrinks only once h resolves
+///    that coupling.
+enum class FrictionCap { kMass, kSystem };
+
 /// The slip velocity v_s [m/s] below which the continuous contact problem's
 /// Coulomb friction is regularised, F_t = −μ λ w_t / max(|w_t|, v_s)
 /// (docs/notes/collisions.md, "Contact in continuous time").
@@ -101,6 +114,7 @@ std::string_view ToString(NewtonJacobian j);
 std::string_view ToString(TangentProjection p);
 std::string_view ToString(ContactHistory c);
 std::string_view ToString(FrictionLaw f);
+std::string_view ToString(FrictionCap f);
 
 /// Settings of the step engine (docs/model.md §5, §6).
 struct SolverSpec {
@@ -137,6 +151,8 @@ struct SolverSpec {
   /// Scenes with obstacles and friction: the thesis' explicit capped impulse
   /// or the continuous contact problem's regularised law (FrictionLaw).
   FrictionLaw friction_law = FrictionLaw::kExplicit;
+  /// The friction impulse's cap (FrictionCap): the thesis' methods and Baraff–Witkin.
+  FrictionCap friction_cap = FrictionCap::kMass;
   /// Newton and Baraff–Witkin: the explicit terms' Jacobians (shear, bending,
   /// transverse, air) enter J_α; false: tension and mass only.
   bool tangent_explicit_terms = true;

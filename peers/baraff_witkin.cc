@@ -105,6 +105,16 @@ StepStats BaraffWitkin::Step(double h) {
   }
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
   sys_.Forces(t_, x0_, v0_, &f_);
+  if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
+    // tᵀ J_pp t, J's block of particle p (rows and columns 3p … 3p+2).
+    const SparseMatrix& j = tangent_.matrix();
+    contacts_.CapBySystem([&](int p, const Vector3& t) {
+      double a = 0.0;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) a += t(r) * t(c) * j.coeff(3 * p + r, 3 * p + c);
+      return a;
+    });
+  }
   if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
   rhs_ = h * f_;
   tangent_.AddJacobianProducts(h * h, v0_, 0.0, v0_, &rhs_);

@@ -37,6 +37,7 @@ const std::vector<SceneField>& SceneRecordFields() {
       {"solver_newton_jacobian", &T::newton_jacobian, W::kStepEngine},
       {"solver_contact_history", &T::contact_history, W::kStepEngineNonEmpty},
       {"solver_friction_law", &T::friction_law, W::kStepEngineNonEmpty},
+      {"solver_friction_cap", &T::friction_cap, W::kStepEngineNonEmpty},
       {"solver_controller_updates", &T::controller_updates, W::kStepEngine},
       {"solver_cg_max_iterations", &T::cg_max_iterations, W::kStepEngine},
       {"solver_max_rejections", &T::max_rejections, W::kStepEngine},

@@ -67,29 +67,37 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
 
 namespace {
 
-// Coulomb friction's force [N] on a particle of mass m [kg] in contact
-// along `dir`, from the normal impulse `normal_impulse` = μ J_N [N s] of the
-// last step (docs/model.md §2.5), explicit, against the tangential part of
-// the velocity v_rel relative to the obstacle [m/s]. Its impulse is capped at
-// m|v_t|: friction can stop a sliding particle but never reverse it
-// (uncapped, a round-off v_t of 1e-15 m/s got the full μ|f_N| and set
-// resting cloth sliding at h μ g per step).
-// With a slip velocity v_s > 0 [m/s] (FrictionLaw::kRegularised) the
-// impulse is scaled by min(1, |v_t|/v_s), the regularised Coulomb law.
-// *sticks: whether the cap holds (the particle's tangential velocity
-// relative to the obstacle is stopped in the step).
-Vector3 CoulombFriction(double normal_impulse, double m, const Vector3& v_rel, const Vector3& dir, double h,
-                        double slip_velocity, bool* sticks) {
-  const Vector3 vt = v_rel - v_rel.dot(dir) * dir;
-  const double speed = vt.norm();
+// Coulomb friction's impulse μ J_N [N s] from the normal impulse J_N of
+// the last step (docs/model.md §2.5), against the tangential velocity v_t
+// [m/s] relative to the obstacle. With a slip velocity v_s > 0 [m/s]
+// (FrictionLaw::kRegularised) it is scaled by min(1, |v_t|/v_s), the
+// regularised Coulomb law.
+double FrictionLimit(double normal_impulse, double speed, double slip_velocity) {
   if (speed < slip_velocity) normal_impulse *= speed / slip_velocity;
-  *sticks = !(m * speed > normal_impulse);
+  return normal_impulse;
+}
+
+// The explicit friction force [N] of the impulse `limit` [N s] over a step
+// of h [s] against v_t, capped at a|v_t| with a [kg] the mass that the cap
+// stops (FrictionCap): friction can stop a sliding particle but not
+// reverse it (uncapped, a round-off v_t of 1e-15 m/s got the full μ|f_N|
+// and set resting cloth sliding at h μ g per step). *sticks: whether the
+// cap holds (the particle's tangential velocity relative to the obstacle
+// is stopped in the step).
+Vector3 CappedFriction(double limit, double a, const Vector3& vt, double h, bool* sticks) {
+  const double speed = vt.norm();
+  *sticks = !(a * speed > limit);
   if (!(speed > 0.0)) return Vector3::Zero();
-  const double impulse = std::min(normal_impulse, m * speed);
+  const double impulse = std::min(limit, a * speed);
   return (-impulse / (h * speed)) * vt;
 }
 
 }  // namespace
+
+void ContactResponse::CapFriction(int p, double a) {
+  Contact& c = contacts_[static_cast<std::size_t>(p)];
+  friction_.row(p) = CappedFriction(c.friction_limit, a, c.slip, h_, &c.sticks).transpose();
+}
 
 int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                             VelocityFilter* filter) {
@@ -112,6 +120,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     const double last_impulse = c.impulse;
     c.obstacle = -1;
     c.sticks = c.entry = false;
+    c.friction_limit = 0.0;
     const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
     Vector3 x_prev;
     if (xm1) x_prev = xm1->row(p).transpose();
@@ -133,10 +142,12 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     const double mu = o.spec().friction;
     // The last step's normal force J_hold/h₋₁ over this step: J_hold h/h₋₁.
     const double normal_impulse = impulse_scale == 1.0 ? last_impulse : last_impulse * impulse_scale;
-    if (mu > 0.0 && was && last_impulse > 0.0)
-      friction_.row(p) = CoulombFriction(mu * normal_impulse, sys_.masses()(p), contact.v_rel, dir, h,
-                                         friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0, &c.sticks)
-                             .transpose();
+    if (mu > 0.0 && was && last_impulse > 0.0) {
+      c.slip = contact.v_rel - contact.v_rel.dot(dir) * dir;
+      c.friction_limit = FrictionLimit(mu * normal_impulse, c.slip.norm(),
+                                       friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0);
+      friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();
+    }
   }
   return count;
 }

@@ -72,6 +72,23 @@ class ContactResponse {
   /// Coulomb friction forces of the step [N], N×3 (explicit; docs/model.md §2.5).
   const MatrixN3& friction() const { return friction_; }
 
+  /// FrictionCap::kSystem: caps each contact's friction impulse at a_t|v_t|
+  /// instead of m|v_t|, with a_t = tangential_mass(p, t) [kg] the diagonal
+  /// block of particle p in the step's matrix along the unit tangent t of
+  /// v_t (tᵀ A_pp t; model/solver_spec.h, FrictionCap). Between SetUp and
+  /// the read of friction(); also updates sticks(). No allocation.
+  template <class TangentialMass>
+  void CapBySystem(TangentialMass&& tangential_mass) {
+    if (!active()) return;
+    for (int p = 0; p < sys_.num_particles(); ++p) {
+      const Contact& c = contacts_[static_cast<std::size_t>(p)];
+      if (c.obstacle < 0 || !(c.friction_limit > 0.0)) continue;
+      const double speed = c.slip.norm();
+      if (!(speed > 0.0)) continue;  // no friction, sticks already set
+      CapFriction(p, tangential_mass(p, Vector3(c.slip / speed)));
+    }
+  }
+
   /// After a successful solve: the impulse that holds each contact,
   ///   J_hold = ⟨r_p − m_p (v₁ − v̂)_p, D⟩,
   /// with r_p the particle's row of the solved system's residual (A v − b;
@@ -153,6 +170,8 @@ class ContactResponse {
     double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadImpulses)
     bool sticks = false;          // this step's friction stops its tangential velocity (CoulombFriction's cap)
     bool entry = false;           // set by a predicted entry (test 3), not by the area: never released
+    double friction_limit = 0.0;  // this step's friction impulse before its cap, μ J_N [kg m/s]; 0: none
+    Vector3 slip = Vector3::Zero();  // v_t relative to the obstacle at the step's start [m/s]
   };
   const ParticleSystem& sys_;
   std::vector<Contact> contacts_;
@@ -170,6 +189,8 @@ class ContactResponse {
   bool accepted_ = true;
   double h_read_ = 0.0;
   std::vector<Contact> contacts_backup_;
+  // friction_ row p of the contact's impulse capped at a [kg] times |v_t|.
+  void CapFriction(int p, double a);
   int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
              VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit

@@ -329,6 +329,11 @@ StepStats StepEngine::Solve(double h) {
   if (const VirtualSprings* vp = sys_.virtual_springs()) sysmat_.RemoveCouplings(vp->removed_couplings());
   if (contacts_.active()) {
     st.colliding = colliding;
+    if (opts_.friction_cap == FrictionCap::kSystem) {
+      // A_α is isotropic: tᵀ A_pp t = A_pp (model/solver_spec.h, FrictionCap).
+      const SparseMatrix& a = sysmat_.matrix();
+      contacts_.CapBySystem([&](int p, const Vector3&) { return a.coeff(p, p); });
+    }
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
     const bool adapted = sysmat_.AdaptTo(filter_);
     st.preconditioner = sysmat_.preconditioner().ServedBy();

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "harness/methods.h"
+#include "verify/test_rows.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "peers/arkode.h"
@@ -16,13 +17,7 @@
 namespace clothbench {
 namespace {
 
-// A registry row's run as bench_integrators runs it (RowMethod::Run, harness/methods.h).
-MethodRun RunRow(const Scene& scene, const std::string& label, double param) {
-  const std::vector<RowMethod> rows = ExpandMethods({label}, {scene.solver.nonlinear_solver}, "test");
-  EXPECT_EQ(rows.size(), 1u) << label;
-  const ParticleSystem sys(scene);
-  return rows.front().Run(sys, scene, scene.solver, param, RunContext{});
-}
+using testing::RunRow;
 
 // SBDF(3) at h = 0.01 s on the swinging box gains energy once the sheet
 // meets the box (the gain passes E_scale ≈ 6.7 J at t ≈ 0.6 s and 2.4 kJ by

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "harness/methods.h"
+#include "verify/test_rows.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 
@@ -53,12 +54,7 @@ collision_distance = 0.005
   return ParseScene(text, "rest_test");
 }
 
-MethodRun RunRow(const Scene& scene, const std::string& label, double param) {
-  const std::vector<RowMethod> rows = ExpandMethods({label}, {scene.solver.nonlinear_solver}, "test");
-  EXPECT_EQ(rows.size(), 1u) << label;
-  const ParticleSystem sys(scene);
-  return rows.front().Run(sys, scene, scene.solver, param, RunContext{});
-}
+using testing::RunRow;
 
 // Fixed steps, from the scene's h to 16 h: t_end/h steps, one update each,
 // nothing rejected, and the sheet where it was (to 1e-9 m: the rest state

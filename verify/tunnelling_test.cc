@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "harness/methods.h"
+#include "verify/test_rows.h"
 #include "model/particle_system.h"
 #include "model/scene.h"
 #include "solver/run.h"
@@ -22,12 +23,7 @@ namespace {
 // scenes/thin_plate.toml: a 10×10 sheet 0.3 m above a 2 mm plate wider than the sheet.
 Scene ThinPlate() { return LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/thin_plate.toml"); }
 
-MethodRun RunRow(const Scene& scene, const std::string& label, double param) {
-  const std::vector<RowMethod> rows = ExpandMethods({label}, {scene.solver.nonlinear_solver}, "test");
-  EXPECT_EQ(rows.size(), 1u) << label;
-  const ParticleSystem sys(scene);
-  return rows.front().Run(sys, scene, scene.solver, param, RunContext{});
-}
+using testing::RunRow;
 
 // The lowest height [m] the cloth reached at any stored frame.
 double LowestHeight(const MethodRun& r) {
