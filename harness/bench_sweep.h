@@ -14,6 +14,7 @@
 
 #include "harness/methods.h"
 #include "harness/plan.h"
+#include "harness/run_codec.h"
 #include "harness/sweep.h"
 #include "model/scene.h"
 #include "results/work_precision.h"
@@ -129,11 +130,14 @@ double PredictedWallTime(StepKind kind, double last_s, double before_s);
 int RunSizes(const std::vector<BenchRun>& runs, const std::vector<long>& sizes, const std::string& out,
              const std::string& plot_dir, SweepComm& comm, bool report = false);
 
-/// bench_integrators' journal key: the scene's text and the command's arguments, except
-/// those that change no result (--max-runs, --plot, --quiet), so that a rerun
-/// of the same command, sliced or not, finds its journal.
+/// bench_integrators' journal key: the run records' format (RunRecordFormat),
+/// the scene's text and the command's arguments, except those that change
+/// no result (--max-runs, --plot, --quiet), so that a rerun of the same
+/// command, sliced or not, by the same build finds its journal, and another
+/// build whose records differ is refused it.
 inline std::string JournalKey(int argc, char** argv, const Scene& scene) {
-  std::string key = fmt::format("bench_integrators journal 7 scene={} args=", Fnv1a64(scene.toml));
+  std::string key = fmt::format("bench_integrators journal 7 format={} scene={} args=", Fnv1a64(RunRecordFormat()),
+                                Fnv1a64(scene.toml));
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--max-runs" || a == "--plot") {

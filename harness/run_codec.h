@@ -269,6 +269,30 @@ inline std::string EncodeRun(const RunSummary& m) {
   return w.Take();
 }
 
+/// Bumped by hand when EncodeRun's own layout (the method attributes, step
+/// history, trajectory or SUNDIALS counters) changes in a way that
+/// RunRecordFormat does not see.
+inline constexpr int kRunRecordLayout = 1;
+
+/// What fixes EncodeRun's byte layout: the layout number, the stored fields
+/// of RunRecordFields() by name and size in order, and the sizes of a step's
+/// stats and of the SUNDIALS counters. A journal's key carries it
+/// (JournalKey), so that a build whose records differ refuses an older
+/// build's journal instead of discarding its runs as malformed.
+inline std::string RunRecordFormat() {
+  std::string text = fmt::format("layout {}", kRunRecordLayout);
+  for (const RecordField& field : RunRecordFields())
+    if (!field.derived)
+      std::visit(
+          [&](auto member) {
+            using T = std::remove_cvref_t<decltype(RunSummary{}.*member)>;
+            text += fmt::format(" {}:{}", field.name, std::is_same_v<T, std::string> ? 0 : sizeof(T));
+          },
+          field.member);
+  text += fmt::format(" steps:{} sundials:{}", sizeof(StepStats), sizeof(SundialsStats));
+  return text;
+}
+
 /// Decodes what EncodeRun wrote into `m`'s record, step history,
 /// trajectory and SUNDIALS counters (a MethodRun's derived fields are left
 /// alone). @param n_particles the scene's N (every frame is N×3)

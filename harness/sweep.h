@@ -398,8 +398,9 @@ class RecordJournal {
         std::string found, why;
         if (problem.empty() && !ReadRegularFile(k.string(), &found, &why)) problem = "key file " + why;
         if (problem.empty() && found != key)
-          problem = fmt::format("was written by a run with other arguments (\"{}\", not \"{}\"); rerun that command, "
-                                "or delete the folder to start afresh",
+          problem = fmt::format("was written by a run with other arguments, or by a build whose records differ "
+                                "(\"{}\", not \"{}\"); rerun that command with that build, or delete the folder to "
+                                "start afresh",
                                 EscapeControl(found.substr(0, 200)), key.substr(0, 200));
       }
     }

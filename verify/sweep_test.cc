@@ -302,6 +302,28 @@ TEST(Sweep, BenchIntegratorsRefusesAJournalOfOtherArguments) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// A journal written by a build whose run records differ (another
+// RunRecordFormat: a field added or removed) is refused like one of other
+// arguments, its runs kept: decoded by this build they would be malformed,
+// and a journal's malformed entries are removed and computed again.
+TEST(Sweep, BenchIntegratorsRefusesAJournalOfAnotherRecordFormat) {
+  const fs::path out = Dir() / "rows_format.h5";
+  const fs::path journal = out.string() + ".journal";
+  fs::remove_all(journal);
+  ASSERT_EQ(Bench(kRows + " --max-runs 2 --out " + out.string()).exit_code, 75);
+  std::string key = testing::Slurp(journal / "key");
+  const std::size_t at = key.find("format=");
+  ASSERT_NE(at, std::string::npos) << key;
+  key.replace(at + 7, 16, std::string(16, '0'));
+  std::ofstream(journal / "key", std::ios::binary | std::ios::trunc) << key;
+  const Outcome o = Bench(kRows + " --out " + out.string());
+  EXPECT_EQ(o.exit_code, 2) << o.err;
+  EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;
+  EXPECT_NE(o.err.find("or by a build whose records differ"), std::string::npos) << o.err;
+  EXPECT_EQ(RunFiles(journal), 2u);
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // Journals that cannot lie (harness/sweep.h): every stored run carries a
 // checksum of its content and of the command's key. An entry altered by one
 // byte, a symbolic link and a FIFO in its place are all rejected with one
