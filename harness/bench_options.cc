@@ -165,8 +165,8 @@ void AddOptions(CLI::App& app, Options& o) {
                  "energy, Fig. 4.3 on obstacle scenes; PNG and SVG)");
   app.add_flag("--start-predicted", start_predicted,
                "start every run, also one whose first run is predicted past --time-limit or 80 % of the available "
-               "memory (by default such a row is stored not_started with the prediction and its source; "
-               "docs/notes/work-precision.md, \"Predicting a first run\")");
+               "memory, and the finer rungs of a row after one of its runs ended time_limit (by default such a run "
+               "is stored not_started with the reason; docs/notes/work-precision.md, \"Predicting a first run\")");
   app.add_flag("--report", report,
                "after writing the results, write one self-contained HTML page beside the result file (<stem>.html; "
                "with --sizes also the verdict's) with scripts/report: scene, settings, tables, work-precision, "

@@ -124,10 +124,24 @@ void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optiona
 // Rank 0: the tasks (0 the reference if any, then the rows) whose entry in
 // the journal is missing or fails its check (decoded and range-checked
 // before it is trusted; rejected ones are computed again).
-std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_particles) {
-  const std::vector<long> have = journal.Stored([&](long, const std::string& bytes) {
+// How a task ended: its status and the time it reached [s].
+struct TaskEnd {
+  RunStatus status = RunStatus::kOk;
+  double t = 0.0;
+};
+
+TaskEnd EndOf(const RunSummary& r) {
+  const double t = !r.step_stats.empty() ? r.step_stats.back().t
+                   : r.trajectory.times.empty() ? 0.0 : r.trajectory.times.back();
+  return {r.status, t};
+}
+
+// The journal's tasks that are not stored (their ends into *ends).
+std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_particles, std::map<long, TaskEnd>* ends) {
+  const std::vector<long> have = journal.Stored([&](long k, const std::string& bytes) {
     RunSummary run;  // the reference (task 0, if any) and the rows share the codec
     DecodeRun(bytes, n_particles, &run);
+    (*ends)[k] = EndOf(run);
   });
   if (journal.rejected() > 0)
     fmt::print(stderr, "bench_integrators: {}: {} stored run{} failed the check (not a regular file, cut short, "
@@ -148,6 +162,31 @@ std::string RowTaskName(const RowMethod& m, const RowTask& t) {
   std::string name = fmt::format("{} h = {:g} s", m.label(), t.param);
   if (k.counted()) name += fmt::format("{}{}", k.progress_separator, t.count);
   return name;
+}
+
+// Why task `k` (of tasks, the rows' after n_ref) is not started, if an
+// earlier task of its row and CG tolerance at a coarser or equal rung (a
+// larger or equal h or rtol, and no more substeps or iterations) ended
+// time_limit or was not started: a finer rung costs at least as much, as
+// --sweep-to-targets takes it (RefineStop). ends: the tasks' ends known so far.
+std::optional<std::string> FinerThanAStop(const BenchRun& b, const std::vector<RowTask>& tasks, long n_ref, long k,
+                                          const std::map<long, TaskEnd>& ends) {
+  const RowTask& t = tasks[static_cast<std::size_t>(k - n_ref)];
+  for (long j = n_ref; j < k; ++j) {
+    const RowTask& u = tasks[static_cast<std::size_t>(j - n_ref)];
+    if (u.mk != t.mk || u.eta != t.eta || u.param < t.param || u.count > t.count) continue;
+    const auto e = ends.find(j);
+    if (e == ends.end()) continue;
+    const RowMethod& m = b.methods[t.mk];
+    if (e->second.status == RunStatus::kTimeLimit)
+      return fmt::format("not started: {} is finer than {}, which ended time_limit at t = {:.3g} s of {:g} s "
+                         "(--time-limit {:g} s); a finer rung costs at least as much (--start-predicted runs it)",
+                         RowTaskName(m, t), RowTaskName(m, u), e->second.t, b.scene.t_end, b.time_limit);
+    if (e->second.status == RunStatus::kNotStarted)
+      return fmt::format("not started: {} is finer than {}, which was not started (--start-predicted runs it)",
+                         RowTaskName(m, t), RowTaskName(m, u));
+  }
+  return std::nullopt;
 }
 
 // The reference task's --time-limit [s].
@@ -528,7 +567,8 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
   // too; the journal exists only for a run that is not refused.
   const ParticleSystem sys(b.scene);
   RecordJournal journal(b.out + ".journal", b.journal_key, comm);
-  std::vector<long> missing = comm.root() ? MissingTasks(journal, n_tasks, sys.num_particles())
+  std::map<long, TaskEnd> ends;  // of the tasks stored or computed by this rank
+  std::vector<long> missing = comm.root() ? MissingTasks(journal, n_tasks, sys.num_particles(), &ends)
                                           : std::vector<long>{};
   const std::size_t stored = comm.root() ? static_cast<std::size_t>(n_tasks) - missing.size() : 0;
   comm.Broadcast(&missing);
@@ -585,9 +625,14 @@ int RunBench(const BenchRun& b, SweepComm& comm, EqualAccuracyTable* wp) {
     const RowMethod& m = b.methods[t.mk];
     const SolverSpec spec = task_spec(t);
     const std::string what = RowTaskName(m, t);
-    progress.Start(what, b.scene.t_end);
-    Row r = RunJournalledTask(journal, k, what, b.time_limit, false,
-                              [&] { return m.Run(sys, b.scene, spec, t.param, ctx, t.count); });
+    // Serial runs only: a rank does not see the other ranks' ends in time.
+    const std::optional<std::string> finer =
+        ctx.refuse_predicted && comm.size() == 1 ? FinerThanAStop(b, row_tasks, n_ref, k, ends) : std::nullopt;
+    if (!finer) progress.Start(what, b.scene.t_end);
+    Row r = finer ? m.NotStarted(b.scene, spec, t.param, ctx, t.count, *finer)
+                  : RunJournalledTask(journal, k, what, b.time_limit, false,
+                                      [&] { return m.Run(sys, b.scene, spec, t.param, ctx, t.count); });
+    ends[k] = EndOf(r);
     if (b.etas.size() > 1 && m.uses_pcg()) {
       r.id += fmt::format("_eta{:g}", t.eta);
       r.label += fmt::format(" eta={:g}", t.eta);

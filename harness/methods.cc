@@ -12,8 +12,7 @@
 
 namespace clothbench {
 
-MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
-                         const RunContext& ctx, int count) const {
+SolverSpec RowMethod::RowSpec(const SolverSpec& spec, const RunContext& ctx) const {
   SolverSpec row_spec = spec;
   const std::optional<PreconditionerType>& best =
       error_control ? entry->best_preconditioner_error : entry->best_preconditioner;
@@ -27,6 +26,21 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
   if (entry->best_cg_tolerance && !ctx.cg_tolerance_from_cli) row_spec.cg_tolerance = *entry->best_cg_tolerance;
   if (entry->best_tangent_explicit_terms && !ctx.tangent_terms_from_cli)
     row_spec.tangent_explicit_terms = *entry->best_tangent_explicit_terms;
+  return row_spec;
+}
+
+MethodRun RowMethod::NotStarted(const Scene& scene, const SolverSpec& spec, double param, const RunContext& ctx,
+                                int count, std::string message) const {
+  MethodRun row;
+  row.status = RunStatus::kNotStarted;
+  row.message = std::move(message);
+  Identify(scene, RowSpec(spec, ctx), param, count, &row);
+  return row;
+}
+
+MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
+                         const RunContext& ctx, int count) const {
+  const SolverSpec row_spec = RowSpec(spec, ctx);
   // The step loop fills the record's status, counts and times (and the
   // SUNDIALS runs their settings); the row's identity follows.
   MethodRun row;
@@ -47,6 +61,13 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
         sys, {param, -1.0, 5, scene.t_end, scene.frame_dt, ctx.limits}, row_spec, variant, ctx);
     row.step_control = "sundials";
   }
+  Identify(scene, row_spec, param, count, &row);
+  return row;
+}
+
+void RowMethod::Identify(const Scene& scene, const SolverSpec& row_spec, double param, int count,
+                         MethodRun* out) const {
+  MethodRun& row = *out;
   row.label = label();
   row.integrator = name();
   row.layer = std::string(entry->layer);
@@ -73,7 +94,6 @@ MethodRun RowMethod::Run(const ParticleSystem& sys, const Scene& scene, const So
   if (scene.collision) row.collision_self = scene.collision->self ? "on" : "off";
   if (solver == NonlinearSolver::kNewton) row.newton_jacobian = std::string(ToString(row_spec.newton_jacobian));
   row.threads = KernelThreads();
-  return row;
 }
 
 namespace {

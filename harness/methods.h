@@ -179,6 +179,19 @@ struct RowMethod {
   /// overrides). Never throws for a numerical failure (see RunRecord::status).
   MethodRun Run(const ParticleSystem& sys, const Scene& scene, const SolverSpec& spec, double param,
                 const RunContext& ctx, int count = 1) const;
+
+  /// The run Run would give, not started: status kNotStarted, `message`
+  /// (why), and the row's identity and settings as Run fills them.
+  MethodRun NotStarted(const Scene& scene, const SolverSpec& spec, double param, const RunContext& ctx, int count,
+                       std::string message) const;
+
+ private:
+  // The settings the row runs with: `spec` with the row's measured best
+  // preconditioner, CG tolerance and tangent terms where the command line
+  // left them.
+  SolverSpec RowSpec(const SolverSpec& spec, const RunContext& ctx) const;
+  // The row's identity (label, id, h or rtol, count, settings) into *row.
+  void Identify(const Scene& scene, const SolverSpec& row_spec, double param, int count, MethodRun* row) const;
 };
 
 /// An option that only some rows read: its request field (RunRequest,

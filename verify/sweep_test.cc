@@ -30,6 +30,7 @@
 #include "harness/sweep.h"
 #include "model/particle_system.h"
 #include "results/result_reader.h"
+#include "results/run_records.h"
 #include "verify/cli_helpers.h"
 #include "verify/hdf5_scan.h"
 
@@ -300,6 +301,35 @@ TEST(Sweep, BenchIntegratorsRefusesAJournalOfOtherArguments) {
   EXPECT_NE(o.err.find(journal.string() + ": was written by a run with other arguments"), std::string::npos) << o.err;
   EXPECT_EQ(RunFiles(journal), 2u);
   EXPECT_FALSE(fs::exists(out));
+}
+
+// A row whose run ends time_limit does not start its finer rungs (smaller
+// h, tighter rtol): they are stored not_started, naming the rung that
+// stopped and the time it reached; --start-predicted runs them. With a
+// 1 ns --time-limit every started run ends time_limit in its first step.
+TEST(Sweep, FinerRungsAfterATimeLimitAreNotStarted) {
+  const std::string rows = " --integrators sbdf2,cvode --h 0.01,0.005 --rtols 1e-3,1e-4 --reference none "
+                           "--time-limit 1e-9 --quiet";
+  const fs::path out = Dir() / "finer.h5", all = Dir() / "finer_all.h5";
+  const Outcome o = Bench(rows + " --out " + out.string());
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  const RunTable t = ReadRunTable(ResultReader(out.string()));
+  ASSERT_EQ(t.runs.size(), 4u);
+  for (const RunRecord& r : t.runs) {
+    const bool first = r.h == 0.01 || r.rtol == 1e-3;
+    EXPECT_EQ(r.status, first ? RunStatus::kTimeLimit : RunStatus::kNotStarted) << r.id << ": " << r.message;
+    if (!first)
+      EXPECT_NE(r.message.find(r.integrator == "cvode" ? "rtol 0.0001 is finer than cvode rtol 0.001, which ended "
+                                                         "time_limit at t = "
+                                                       : "sbdf2 h = 0.005 s is finer than sbdf2 h = 0.01 s, which ended "
+                                                         "time_limit at t = "),
+                std::string::npos)
+          << r.message;
+  }
+  const Outcome started = Bench(rows + " --start-predicted --out " + all.string());
+  ASSERT_EQ(started.exit_code, 0) << started.err;
+  for (const RunRecord& r : ReadRunTable(ResultReader(all.string())).runs)
+    EXPECT_EQ(r.status, RunStatus::kTimeLimit) << r.id << ": " << r.message;
 }
 
 // A journal written by a build whose run records differ (another
