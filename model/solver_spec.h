@@ -90,8 +90,8 @@ enum class FrictionLaw { kExplicit, kRegularised };
 ///  - "mass": m|v_t|, the impulse that stops the particle alone;
 ///  - "system": a_t|v_t| with a_t = tᵀ A_pp t (t = v_t/|v_t|), the
 ///    particle's diagonal block of the step's matrix (A_α, or Baraff–Witkin's
-///    J): the impulse that stops it while its neighbours keep their
-///    velocities. A_α → M as h → 0, so both caps are one law in the limit;
+///    J; never below m): the impulse that stops it while its neighbours keep
+///    their velocities. A_α → M as h → 0, so both caps are one law in the limit;
 ///    at a finite h the implicit springs and damping tie a particle to its
 ///    neighbours, and the mass cap stops less of the cloth's motion than the
 ///    step's solve would, by an amount that shrinks only once h resolves

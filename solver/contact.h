@@ -7,6 +7,7 @@
 #ifndef CLOTHBENCH_SOLVER_CONTACT_H_
 #define CLOTHBENCH_SOLVER_CONTACT_H_
 
+#include <algorithm>
 #include <vector>
 
 #include "collision/obstacle_contacts.h"
@@ -75,8 +76,10 @@ class ContactResponse {
   /// FrictionCap::kSystem: caps each contact's friction impulse at a_t|v_t|
   /// instead of m|v_t|, with a_t = tangential_mass(p, t) [kg] the diagonal
   /// block of particle p in the step's matrix along the unit tangent t of
-  /// v_t (tᵀ A_pp t; model/solver_spec.h, FrictionCap). Between SetUp and
-  /// the read of friction(); also updates sticks(). No allocation.
+  /// v_t (tᵀ A_pp t; model/solver_spec.h, FrictionCap), and never below m
+  /// (a tangent matrix J whose block along t is softer than M, or not
+  /// positive, caps at m|v_t|). Between SetUp and the read of friction();
+  /// also updates sticks(). No allocation.
   template <class TangentialMass>
   void CapBySystem(TangentialMass&& tangential_mass) {
     if (!active()) return;
@@ -85,7 +88,7 @@ class ContactResponse {
       if (c.obstacle < 0 || !(c.friction_limit > 0.0)) continue;
       const double speed = c.slip.norm();
       if (!(speed > 0.0)) continue;  // no friction, sticks already set
-      CapFriction(p, tangential_mass(p, Vector3(c.slip / speed)));
+      CapFriction(p, std::max(sys_.masses()(p), static_cast<double>(tangential_mass(p, Vector3(c.slip / speed)))));
     }
   }
 
