@@ -88,10 +88,12 @@ enum class FrictionLaw { kExplicit, kRegularised };
 /// What caps a step's friction impulse against the tangential velocity v_t
 /// (docs/model.md §2.5; docs/notes/collisions.md, "The friction cap"):
 ///  - "mass": m|v_t|, the impulse that stops the particle alone;
-///  - "system": a_t|v_t| with a_t = tᵀ A_pp t (t = v_t/|v_t|), the
-///    particle's diagonal block of the step's matrix (A_α, or Baraff–Witkin's
-///    J; never below m): the impulse that stops it while its neighbours keep
-///    their velocities. A_α → M as h → 0, so both caps are one law in the limit;
+///  - "system": a_t|v_t| with a_t = m_p + Σ_q w_q m_q/(m_q + w_q) over p's
+///    couplings w_q = −A_pq in the step's matrix (A_α, or Baraff–Witkin's J
+///    along t = v_t/|v_t|; ContactResponse::StarMass): between m and the
+///    impulse that stops p in the solve, 1/(A⁻¹)_pp, so it never reverses
+///    p (a bound for the M-matrix A_α, an estimate for J). A_α → M as
+///    h → 0, so both caps are one law in the limit;
 ///    at a finite h the implicit springs and damping tie a particle to its
 ///    neighbours, and the mass cap stops less of the cloth's motion than the
 ///    step's solve would, by an amount that shrinks only once h resolves

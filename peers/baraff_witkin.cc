@@ -106,14 +106,24 @@ StepStats BaraffWitkin::Step(double h) {
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
   sys_.Forces(t_, x0_, v0_, &f_);
   if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
-    // tᵀ J_pp t, J's block of particle p (rows and columns 3p … 3p+2).
+    // −tᵀ J_pq t for J's blocks beside particle p's (rows 3p … 3p+2): J is
+    // not an M-matrix, so there StarMass is an estimate, not a bound.
     const SparseMatrix& j = tangent_.matrix();
-    contacts_.CapBySystem([&](int p, const Vector3& t) {
-      double a = 0.0;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) a += t(r) * t(c) * j.coeff(3 * p + r, 3 * p + c);
-      return a;
-    });
+    const auto coupling = [&](int p, const Vector3& t, auto&& visit) {
+      // Column 3p lists each neighbour q's rows 3q … 3q+2 in order (full
+      // 3×3 blocks); −tᵀ J_qp t once per q (J is symmetric).
+      int last = -1;
+      for (SparseMatrix::InnerIterator it(j, 3 * p); it; ++it) {
+        const int q = static_cast<int>(it.row()) / 3;
+        if (q == p || q == last) continue;
+        last = q;
+        double w = 0.0;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) w -= t(r) * t(c) * j.coeff(3 * q + r, 3 * p + c);
+        visit(q, w);
+      }
+    };
+    contacts_.CapBySystem([&](int p, const Vector3& t) { return contacts_.StarMass(p, t, coupling); });
   }
   if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
   rhs_ = h * f_;

@@ -74,12 +74,29 @@ class ContactResponse {
   const MatrixN3& friction() const { return friction_; }
 
   /// FrictionCap::kSystem: caps each contact's friction impulse at a_t|v_t|
-  /// instead of m|v_t|, with a_t = tangential_mass(p, t) [kg] the diagonal
-  /// block of particle p in the step's matrix along the unit tangent t of
-  /// v_t (tᵀ A_pp t; model/solver_spec.h, FrictionCap), and never below m
-  /// (a tangent matrix J whose block along t is softer than M, or not
-  /// positive, caps at m|v_t|). Between SetUp and the read of friction();
-  /// also updates sticks(). No allocation.
+  /// instead of m|v_t|, with a_t = tangential_mass(p, t) [kg] (StarMass,
+  /// along the unit tangent t of v_t; model/solver_spec.h, FrictionCap),
+  /// never below m. Between SetUp and the read of friction(); also updates
+  /// sticks(). No allocation.
+  /// The mass the system cap stops (FrictionCap::kSystem) for particle p:
+  /// m_p + Σ_q w_q m_q/(m_q + w_q) over p's neighbours q in the step's
+  /// matrix, w_q = −(its off-diagonal entry along t) where positive. This is
+  /// 1/(B⁻¹)_pp for B = M plus only the star of p's couplings; for A_α
+  /// (an M-matrix: M plus graph Laplacians) B ≤ A, so (A⁻¹)_pp ≤ (B⁻¹)_pp
+  /// and the cap never exceeds the impulse that stops p in the solve (it
+  /// cannot reverse it), while it grows past m as the coupling does.
+  /// @param coupling callable (p, t) → range of (q, −tᵀA_pq t) over q ≠ p,
+  ///        given as a callable visiting them: coupling(p, t, visit(q, w))
+  template <class Coupling>
+  double StarMass(int p, const Vector3& t, Coupling&& coupling) const {
+    const Eigen::VectorXd& mass = sys_.masses();
+    double s = mass(p);
+    coupling(p, t, [&](int q, double w) {
+      if (w > 0.0) s += w * mass(q) / (mass(q) + w);
+    });
+    return s;
+  }
+
   template <class TangentialMass>
   void CapBySystem(TangentialMass&& tangential_mass) {
     if (!active()) return;

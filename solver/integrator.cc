@@ -330,9 +330,13 @@ StepStats StepEngine::Solve(double h) {
   if (contacts_.active()) {
     st.colliding = colliding;
     if (opts_.friction_cap == FrictionCap::kSystem) {
-      // A_α is isotropic: tᵀ A_pp t = A_pp (model/solver_spec.h, FrictionCap).
+      // A_α is isotropic: tᵀ A_pq t = A_pq (model/solver_spec.h, FrictionCap).
       const SparseMatrix& a = sysmat_.matrix();
-      contacts_.CapBySystem([&](int p, const Vector3&) { return a.coeff(p, p); });
+      const auto coupling = [&](int p, const Vector3&, auto&& visit) {
+        for (SparseMatrix::InnerIterator it(a, p); it; ++it)
+          if (it.row() != p) visit(static_cast<int>(it.row()), -it.value());
+      };
+      contacts_.CapBySystem([&](int p, const Vector3& t) { return contacts_.StarMass(p, t, coupling); });
     }
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
     const bool adapted = sysmat_.AdaptTo(filter_);

@@ -1,18 +1,23 @@
 // The friction impulse's cap (model/solver_spec.h, FrictionCap;
 // docs/notes/collisions.md, "The friction cap").
 //
-// scenes/tilted_plane_10k.toml at 20 × 20 particles: the sheet lands on its
-// upper edge on a plane tilted 30° (friction 0.3 < tan 30°, so it slides),
-// folds onto it and slides down. Each row runs at h = 0.01, 0.005, 0.0025
-// and 0.00125 s to t = 0.5 s; d_k is the rms distance between the end
-// positions of the k-th and (k+1)-th h.
-// - The system cap converges: each d_k is at most 0.7 of the one before,
-//   an observed order of at least 0.5 (first order gives 0.5; measured
-//   ratios 0.51, 0.47 for implicit Euler and 0.41, 0.61 for Baraff–Witkin;
-//   contact switches make the order of a non-smooth problem irregular).
-// - The mass cap does not, at these h: its d_k stay about 2 cm (2.1, 1.8,
-//   2.5 cm for implicit Euler). Its last distance is at least 0.8 of its
-//   first, so this test tells the two caps apart.
+// 1. scenes/tilted_plane_10k.toml at 20 × 20 particles: the sheet lands on
+//    its upper edge on a plane tilted 30° (friction 0.3 < tan 30°, so it
+//    slides), folds onto it and slides down. Each row runs at h = 0.0025,
+//    0.00125, 0.000625 and 0.0003125 s to t = 0.5 s; d_k is the rms distance
+//    between the end positions of the k-th and (k+1)-th h.
+//    - The system cap converges there: each d_k is at most 0.7 of the one
+//      before, an observed order of at least 0.5 (measured ratios 0.11,
+//      0.36 for implicit Euler and 0.16, 0.17 for Baraff–Witkin; contact
+//      switches make the order of a non-smooth problem irregular).
+//    - The mass cap does not yet: its d_k stay above 1 cm (1.7–2.5 cm
+//      measured), so this test tells the two caps apart.
+// 2. The cap never reverses a particle: on scenes/round_table.toml, where
+//    the cloth comes to rest on the table, SBDF(2) at h = 0.00125 s with the
+//    system cap ends with friction work W_friction ≤ 0 (−5.5·10⁻⁵ J
+//    measured). A cap at the diagonal entry A_pp instead, which can exceed
+//    the impulse that stops the particle in the solve, ended at +4·10⁻⁴ J:
+//    friction that feeds the resting cloth.
 #include <cmath>
 #include <string>
 #include <vector>
@@ -32,7 +37,7 @@ std::vector<double> EndDistances(FrictionCap cap, const std::string& row) {
   s.solver.friction_cap = cap;
   std::vector<double> d;
   MatrixN3 last;
-  for (const double h : {0.01, 0.005, 0.0025, 0.00125}) {
+  for (const double h : {0.0025, 0.00125, 0.000625, 0.0003125}) {
     const MethodRun r = testing::RunRow(s, row, h);
     EXPECT_TRUE(r.ok()) << row << " h = " << h << ": " << r.message;
     if (!r.ok() || r.trajectory.positions.empty()) return {};
@@ -43,7 +48,7 @@ std::vector<double> EndDistances(FrictionCap cap, const std::string& row) {
   return d;
 }
 
-TEST(FrictionCap, TheSystemCapConvergesOnALandingSheetAndTheMassCapDoesNot) {
+TEST(FrictionCap, TheSystemCapConvergesOnALandingSheetAndTheMassCapDoesNotYet) {
   for (const std::string row : {"implicit_euler", "baraff_witkin"}) {
     const std::vector<double> system = EndDistances(FrictionCap::kSystem, row);
     const std::vector<double> mass = EndDistances(FrictionCap::kMass, row);
@@ -51,8 +56,18 @@ TEST(FrictionCap, TheSystemCapConvergesOnALandingSheetAndTheMassCapDoesNot) {
     ASSERT_EQ(mass.size(), 3u) << row;
     for (std::size_t k = 1; k < system.size(); ++k)
       EXPECT_LE(system[k], 0.7 * system[k - 1]) << row << ": d = " << system[0] << ", " << system[1] << ", " << system[2];
-    EXPECT_GE(mass.back(), 0.8 * mass.front()) << row << ": d = " << mass[0] << ", " << mass[1] << ", " << mass[2];
+    for (const double d : mass) EXPECT_GT(d, 0.01) << row << ": d = " << mass[0] << ", " << mass[1] << ", " << mass[2];
   }
+}
+
+TEST(FrictionCap, TheSystemCapDoesNotFeedRestingCloth) {
+  Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/round_table.toml");
+  s.frame_dt = s.t_end;
+  s.solver.friction_cap = FrictionCap::kSystem;
+  const MethodRun r = testing::RunRow(s, "sbdf2", 0.00125);
+  ASSERT_TRUE(r.ok()) << r.message;
+  ASSERT_FALSE(r.trajectory.contact_work_friction.empty());
+  EXPECT_LE(r.trajectory.contact_work_friction.back(), 0.0);
 }
 
 }  // namespace
