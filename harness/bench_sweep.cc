@@ -121,9 +121,6 @@ void WriteBench(const BenchRun& b, const ParticleSystem& sys, const std::optiona
   if (!xdmf.empty()) fmt::print("ParaView: {}\n", xdmf);
 }
 
-// Rank 0: the tasks (0 the reference if any, then the rows) whose entry in
-// the journal is missing or fails its check (decoded and range-checked
-// before it is trusted; rejected ones are computed again).
 // How a task ended: its status and the time it reached [s].
 struct TaskEnd {
   RunStatus status = RunStatus::kOk;
@@ -136,7 +133,10 @@ TaskEnd EndOf(const RunSummary& r) {
   return {r.status, t};
 }
 
-// The journal's tasks that are not stored (their ends into *ends).
+// Rank 0: the tasks (0 the reference if any, then the rows) whose entry in
+// the journal is missing or fails its check (decoded and range-checked
+// before it is trusted; rejected ones are computed again); the stored
+// ones' ends into *ends.
 std::vector<long> MissingTasks(RecordJournal& journal, long n_tasks, long n_particles, std::map<long, TaskEnd>* ends) {
   const std::vector<long> have = journal.Stored([&](long k, const std::string& bytes) {
     RunSummary run;  // the reference (task 0, if any) and the rows share the codec

@@ -90,7 +90,7 @@ enum class FrictionLaw { kExplicit, kRegularised };
 ///  - "mass": m|v_t|, the impulse that stops the particle alone;
 ///  - "system": a_t|v_t| with a_t = m_p + Σ_q w_q m_q/(m_q + w_q) over p's
 ///    couplings w_q = −A_pq in the step's matrix (A_α, or Baraff–Witkin's J
-///    along t = v_t/|v_t|; ContactResponse::StarMass): between m and the
+///    along t = v_t/|v_t|; ContactResponse::CapBySystem): between m and the
 ///    impulse that stops p in the solve, 1/(A⁻¹)_pp, so it never reverses
 ///    p (a bound for the M-matrix A_α, an estimate for J). A_α → M as
 ///    h → 0, so both caps are one law in the limit;

@@ -107,7 +107,7 @@ StepStats BaraffWitkin::Step(double h) {
   sys_.Forces(t_, x0_, v0_, &f_);
   if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
     // −tᵀ J_pq t for J's blocks beside particle p's (rows 3p … 3p+2): J is
-    // not an M-matrix, so there StarMass is an estimate, not a bound.
+    // not an M-matrix, so there the system cap is an estimate, not a bound.
     const SparseMatrix& j = tangent_.matrix();
     const auto coupling = [&](int p, const Vector3& t, auto&& visit) {
       // Column 3p lists each neighbour q's rows 3q … 3q+2 in order (full
@@ -123,7 +123,7 @@ StepStats BaraffWitkin::Step(double h) {
         visit(q, w);
       }
     };
-    contacts_.CapBySystem([&](int p, const Vector3& t) { return contacts_.StarMass(p, t, coupling); });
+    contacts_.CapBySystem(coupling);
   }
   if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
   rhs_ = h * f_;

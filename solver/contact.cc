@@ -138,7 +138,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
         contact.v_obstacle.dot(dir) + (contact.inside ? o.spec().relaxation * correction : correction) / h;
     filter->Constrain(p, dir, target_velocity);  // (4.4)
     ++count;
-    // Coulomb friction from the last step's normal impulse (CoulombFriction).
+    // Coulomb friction from the last step's normal impulse (FrictionLimit, CappedFriction).
     const double mu = o.spec().friction;
     // The last step's normal force J_hold/h₋₁ over this step: J_hold h/h₋₁.
     const double normal_impulse = impulse_scale == 1.0 ? last_impulse : last_impulse * impulse_scale;

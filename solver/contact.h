@@ -7,7 +7,6 @@
 #ifndef CLOTHBENCH_SOLVER_CONTACT_H_
 #define CLOTHBENCH_SOLVER_CONTACT_H_
 
-#include <algorithm>
 #include <vector>
 
 #include "collision/obstacle_contacts.h"
@@ -73,39 +72,32 @@ class ContactResponse {
   /// Coulomb friction forces of the step [N], N×3 (explicit; docs/model.md §2.5).
   const MatrixN3& friction() const { return friction_; }
 
-  /// FrictionCap::kSystem: caps each contact's friction impulse at a_t|v_t|
-  /// instead of m|v_t|, with a_t = tangential_mass(p, t) [kg] (StarMass,
-  /// along the unit tangent t of v_t; model/solver_spec.h, FrictionCap),
-  /// never below m. Between SetUp and the read of friction(); also updates
-  /// sticks(). No allocation.
-  /// The mass the system cap stops (FrictionCap::kSystem) for particle p:
-  /// m_p + Σ_q w_q m_q/(m_q + w_q) over p's neighbours q in the step's
-  /// matrix, w_q = −(its off-diagonal entry along t) where positive. This is
-  /// 1/(B⁻¹)_pp for B = M plus only the star of p's couplings; for A_α
-  /// (an M-matrix: M plus graph Laplacians) B ≤ A, so (A⁻¹)_pp ≤ (B⁻¹)_pp
-  /// and the cap never exceeds the impulse that stops p in the solve (it
-  /// cannot reverse it), while it grows past m as the coupling does.
-  /// @param coupling callable (p, t) → range of (q, −tᵀA_pq t) over q ≠ p,
-  ///        given as a callable visiting them: coupling(p, t, visit(q, w))
+  /// FrictionCap::kSystem (model/solver_spec.h): caps each contact's
+  /// friction impulse at a_t|v_t| instead of m|v_t|, with a_t the mass p
+  /// drags through the star of its couplings in the step's matrix along
+  /// the unit tangent t of v_t,
+  ///   a_t = m_p + Σ_q w_q m_q/(m_q + w_q),  w_q the coupling where positive.
+  /// This is 1/(B⁻¹)_pp for B = M plus only p's couplings; for A_α (an
+  /// M-matrix: M plus graph Laplacians) B ≤ A, so (A⁻¹)_pp ≤ (B⁻¹)_pp and the
+  /// cap lies between m and the impulse that stops p in the solve: it
+  /// cannot reverse p. Between SetUp and the read of friction(); also
+  /// updates sticks(). No allocation.
+  /// @param coupling callable coupling(p, t, visit) that calls visit(q, w)
+  ///        for each neighbour q ≠ p with w = −tᵀA_pq t [kg]
   template <class Coupling>
-  double StarMass(int p, const Vector3& t, Coupling&& coupling) const {
-    const Eigen::VectorXd& mass = sys_.masses();
-    double s = mass(p);
-    coupling(p, t, [&](int q, double w) {
-      if (w > 0.0) s += w * mass(q) / (mass(q) + w);
-    });
-    return s;
-  }
-
-  template <class TangentialMass>
-  void CapBySystem(TangentialMass&& tangential_mass) {
+  void CapBySystem(Coupling&& coupling) {
     if (!active()) return;
+    const Eigen::VectorXd& mass = sys_.masses();
     for (int p = 0; p < sys_.num_particles(); ++p) {
       const Contact& c = contacts_[static_cast<std::size_t>(p)];
       if (c.obstacle < 0 || !(c.friction_limit > 0.0)) continue;
       const double speed = c.slip.norm();
       if (!(speed > 0.0)) continue;  // no friction, sticks already set
-      CapFriction(p, std::max(sys_.masses()(p), static_cast<double>(tangential_mass(p, Vector3(c.slip / speed)))));
+      double a = mass(p);
+      coupling(p, Vector3(c.slip / speed), [&](int q, double w) {
+        if (w > 0.0) a += w * mass(q) / (mass(q) + w);
+      });
+      CapFriction(p, a);
     }
   }
 
@@ -188,7 +180,7 @@ class ContactResponse {
     int obstacle = -1;            // obstacle index, −1: none
     Vector3 direction = Vector3::Zero();
     double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadImpulses)
-    bool sticks = false;          // this step's friction stops its tangential velocity (CoulombFriction's cap)
+    bool sticks = false;          // this step's friction stops its tangential velocity (CappedFriction's cap)
     bool entry = false;           // set by a predicted entry (test 3), not by the area: never released
     double friction_limit = 0.0;  // this step's friction impulse before its cap, μ J_N [kg m/s]; 0: none
     Vector3 slip = Vector3::Zero();  // v_t relative to the obstacle at the step's start [m/s]

@@ -336,7 +336,7 @@ StepStats StepEngine::Solve(double h) {
         for (SparseMatrix::InnerIterator it(a, p); it; ++it)
           if (it.row() != p) visit(static_cast<int>(it.row()), -it.value());
       };
-      contacts_.CapBySystem([&](int p, const Vector3& t) { return contacts_.StarMass(p, t, coupling); });
+      contacts_.CapBySystem(coupling);
     }
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
     const bool adapted = sysmat_.AdaptTo(filter_);
