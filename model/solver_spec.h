@@ -92,8 +92,12 @@ enum class FrictionLaw { kExplicit, kRegularised };
 ///    couplings w_q = −A_pq in the step's matrix (A_α, or Baraff–Witkin's J
 ///    along t = v_t/|v_t|; ContactResponse::CapBySystem): between m and the
 ///    impulse that stops p in the solve, 1/(A⁻¹)_pp, so it never reverses
-///    p (a bound for the M-matrix A_α, an estimate for J). A_α → M as
-///    h → 0, so both caps are one law in the limit;
+///    p when p is the only particle capped (a bound for the M-matrix A_α,
+///    an estimate for J). Neighbours capped in the same step add their
+///    impulses, and a region sliding as one gets Σ a_t|v_t| > Σ m|v_t|:
+///    more than stops it. On scenes/sticking_slope.toml friction does
+///    positive work in 10–30 % of the steps with it, in none with "mass".
+///    A_α → M as h → 0, so both caps are one law in the limit;
 ///    at a finite h the implicit springs and damping tie a particle to its
 ///    neighbours, and the mass cap stops less of the cloth's motion than the
 ///    step's solve would, by an amount that shrinks only once h resolves

@@ -80,7 +80,10 @@ class ContactResponse {
   /// This is 1/(B⁻¹)_pp for B = M plus only p's couplings; for A_α (an
   /// M-matrix: M plus graph Laplacians) B ≤ A, so (A⁻¹)_pp ≤ (B⁻¹)_pp and the
   /// cap lies between m and the impulse that stops p in the solve: it
-  /// cannot reverse p. Between SetUp and the read of friction(); also
+  /// cannot reverse p alone. It is not a joint bound: neighbours capped in
+  /// the same step add their impulses, and a region that slides as one
+  /// receives more than stops it (docs/notes/collisions.md, "The friction
+  /// cap"). Between SetUp and the read of friction(); also
   /// updates sticks(). No allocation.
   /// @param coupling callable coupling(p, t, visit) that calls visit(q, w)
   ///        for each neighbour q ≠ p with w = −tᵀA_pq t [kg]

@@ -12,12 +12,27 @@
 //      switches make the order of a non-smooth problem irregular).
 //    - The mass cap does not yet: its d_k stay above 1 cm (1.7–2.5 cm
 //      measured), so this test tells the two caps apart.
-// 2. The cap never reverses a particle: on scenes/round_table.toml, where
+// 2. The cap never lets resting cloth gain energy: on scenes/round_table.toml, where
 //    the cloth comes to rest on the table, SBDF(2) at h = 0.00125 s with the
 //    system cap ends with friction work W_friction ≤ 0 (−5.5·10⁻⁵ J
 //    measured). A cap at the diagonal entry A_pp instead, which can exceed
 //    the impulse that stops the particle in the solve, ended at +4·10⁻⁴ J:
 //    friction that feeds the resting cloth.
+// 3. scenes/sticking_slope.toml: a sheet at rest on a 30° slope that
+//    friction 1.0 holds, the whole sheet in contact; implicit Euler at
+//    h = 0.01 and 0.005 s to t = 0.5 s, a frame at every step.
+//    - The mass cap creeps at first order: each step stops the slip at its
+//      start, and gravity restarts it, so the creep is g sin 30° h t
+//      (2.45·10⁻², 1.23·10⁻² m; measured 2.42·10⁻², 1.24·10⁻² m, 1.3 %
+//      and 1.1 % off: the law assumes the sheet slides rigidly). 5 % is
+//      four times that, and far below the change a cap that stopped a
+//      different share of the slip would make (the system cap's creep
+//      is 8.8·10⁻³ and 7.7·10⁻³ m). Friction never does positive work in
+//      a step.
+//    - The system cap is no joint bound: the sheet slides as one, every
+//      particle is capped at its star's mass a_t > m, and in some steps
+//      friction pushes the sheet back (9 of 50 and 18 of 100 steps
+//      measured).
 #include <cmath>
 #include <string>
 #include <vector>
@@ -68,6 +83,38 @@ TEST(FrictionCap, TheSystemCapDoesNotFeedRestingCloth) {
   ASSERT_TRUE(r.ok()) << r.message;
   ASSERT_FALSE(r.trajectory.contact_work_friction.empty());
   EXPECT_LE(r.trajectory.contact_work_friction.back(), 0.0);
+}
+
+struct SlopeRun {
+  double creep = 0.0;  // rms distance of the end positions from the start [m]
+  int pushing = 0;     // steps in which the friction work rose
+};
+
+SlopeRun OnTheSlope(FrictionCap cap, double h) {
+  Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/sticking_slope.toml");
+  s.frame_dt = h;
+  s.solver.friction_cap = cap;
+  const MethodRun r = testing::RunRow(s, "implicit_euler", h);
+  EXPECT_TRUE(r.ok()) << r.message;
+  const auto& x = r.trajectory.positions;
+  const auto& work = r.trajectory.contact_work_friction;
+  EXPECT_EQ(work.size(), x.size());
+  if (x.size() < 2 || work.size() != x.size()) return {};
+  SlopeRun out;
+  out.creep = std::sqrt((x.back() - x.front()).rowwise().squaredNorm().mean());
+  for (std::size_t k = 1; k < work.size(); ++k) out.pushing += work[k] > work[k - 1];
+  return out;
+}
+
+TEST(FrictionCap, OnAStickingSlopeTheMassCapCreepsAtFirstOrderAndTheSystemCapPushes) {
+  const Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/sticking_slope.toml");
+  const double pull = 9.81 * 0.5;  // g sin 30° [m/s²]
+  for (const double h : {0.01, 0.005}) {
+    const SlopeRun mass = OnTheSlope(FrictionCap::kMass, h);
+    EXPECT_NEAR(mass.creep, pull * h * s.t_end, 0.05 * pull * h * s.t_end) << "h = " << h;
+    EXPECT_EQ(mass.pushing, 0) << "h = " << h;
+    EXPECT_GT(OnTheSlope(FrictionCap::kSystem, h).pushing, 0) << "h = " << h;
+  }
 }
 
 }  // namespace
