@@ -627,7 +627,7 @@ void ParseSolver(TableReader& top, const std::string& source, Scene& s) {
   so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
   so.contact_history = v.Choice("contact_history", so.contact_history, {ContactHistory::kKeep, ContactHistory::kRestart, ContactHistory::kProject, ContactHistory::kLand});
   so.friction_law = v.Choice("friction_law", so.friction_law, {FrictionLaw::kExplicit, FrictionLaw::kRegularised});
-  so.friction_cap = v.Choice("friction_cap", so.friction_cap, {FrictionCap::kMass, FrictionCap::kSystem});
+  so.friction_cap = v.Choice("friction_cap", so.friction_cap, {FrictionCap::kMass, FrictionCap::kSystem, FrictionCap::kStiction});
   so.contact_factors = v.Bool("contact_factors", so.contact_factors);
   so.amg_frames =
       v.Choice("amg_frames", so.amg_frames, {AmgFrames::kAdaptive, AmgFrames::kNearestAxis, AmgFrames::kSpread});

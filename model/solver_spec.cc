@@ -51,6 +51,7 @@ std::string_view ToString(FrictionCap f) {
   switch (f) {
     case FrictionCap::kMass: return "mass";
     case FrictionCap::kSystem: return "system";
+    case FrictionCap::kStiction: return "stiction";
   }
   return "?";
 }
@@ -83,6 +84,9 @@ bool SolverSpec::IsValid(std::string* error) const {
   if (!(rtol > 0.0 && rtol < 1.0)) return fail(fmt::format("rtol = {} must be in (0, 1)", rtol));
   if (!(atol >= 0.0)) return fail(fmt::format("atol = {} must be >= 0", atol));
   if (max_rejections < 0) return fail(fmt::format("max_rejections = {} must be >= 0", max_rejections));
+  if (friction_cap == FrictionCap::kStiction && friction_law == FrictionLaw::kRegularised)
+    return fail("friction_cap = \"stiction\" holds particles in place and friction_law = \"regularised\" has no "
+                "sticking: choose one");
   return true;
 }
 

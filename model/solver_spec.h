@@ -101,8 +101,17 @@ enum class FrictionLaw { kExplicit, kRegularised };
 ///    at a finite h the implicit springs and damping tie a particle to its
 ///    neighbours, and the mass cap stops less of the cloth's motion than the
 ///    step's solve would, by an amount that shrinks only once h resolves
-///    that coupling.
-enum class FrictionCap { kMass, kSystem };
+///    that coupling;
+///  - "stiction": a particle the mass cap would stop is held instead: the
+///    velocity filter constrains it in all three directions to the
+///    obstacle's velocity (and (4.4) along the normal), the thesis' own
+///    prescription for stiction (§2.6: constraints hold colliding particles
+///    in place until a threshold is reached, then it is sliding friction).
+///    The solve finds the impulse that holds every held particle at once;
+///    when its tangential part exceeds μ J_N the particle slides in the
+///    next step, with the friction impulse μ J_N along it. Not with
+///    friction_law = "regularised", which has no sticking.
+enum class FrictionCap { kMass, kSystem, kStiction };
 
 /// The slip velocity v_s [m/s] below which the continuous contact problem's
 /// Coulomb friction is regularised, F_t = −μ λ w_t / max(|w_t|, v_s)

@@ -43,6 +43,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
       contacts_(system) {
   const auto start = std::chrono::steady_clock::now();
   contacts_.set_friction_law(opts_.friction_law);
+  contacts_.set_stiction(opts_.friction_cap == FrictionCap::kStiction);
   const int n = system.num_particles();
   if (UsesAlphaPreconditioner(opts_.preconditioner))
     laplacian_ = std::make_unique<SystemMatrix>(system, opts_.preconditioner, opts_.cholesky_ordering,
@@ -72,37 +73,20 @@ void BaraffWitkin::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   contacts_.Reset();
 }
 
-StepStats BaraffWitkin::Step(double h) {
-  const auto start = std::chrono::steady_clock::now();
-  const double setup_before = setup_seconds();
-  StepStats st;
-  st.t = t_ + h;
-  st.h = h;
-  st.updates = 1;
-  auto finish = [&]() {
-    st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    st.setup_time = setup_seconds() - setup_before;
-    return st;
-  };
-  if (contacts_.active()) st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
-  PrescribeFixedTargets(sys_, t_ + h, &filter_);  // moving fixed particles: their velocity at the step's end
+// Row p of J v₁ − b [kg m/s] of the solve just done (J is symmetric: rows
+// 3p … 3p+2 are those columns).
+Vector3 BaraffWitkin::ResidualRow(int p) const {
+  const SparseMatrix& j = tangent_.matrix();
+  Vector3 r = -br_.row(p).transpose();
+  for (int c = 0; c < 3; ++c)
+    for (SparseMatrix::InnerIterator it(j, 3 * p + c); it; ++it) r(c) += it.value() * vr_.data()[it.row()];
+  return r;
+}
 
-  // J = M − h ∂f/∂v − h² ∂f/∂x at (t₀, x₀, v₀) and its preconditioner.
-  {
-    // A_α's update and contact adaptation count in laplacian_->setup_seconds();
-    // setup_seconds_ holds J's assembly and its preconditioner's own work.
-    bool ok = !laplacian_ || (laplacian_->Update(h) && laplacian_->AdaptTo(filter_));
-    if (laplacian_) st.preconditioner = laplacian_->preconditioner().ServedBy();
-    const auto t0 = std::chrono::steady_clock::now();
-    tangent_.Update(t_, x0_, v0_, h);
-    ok = ok && precond_.Factorize(tangent_.matrix());
-    ++rebuilds_;
-    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (!ok) {
-      st.status = StepStatus::kPreconditionerFailed;
-      return finish();
-    }
-  }
+// The forces, friction and right-hand side at the step's start and the
+// PCG solve for v₁ (in vr_) under this attempt's filter. Returns false
+// with st->status set when the solve fails.
+bool BaraffWitkin::SolveVelocities(double h, StepStats* st) {
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
   sys_.Forces(t_, x0_, v0_, &f_);
   if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
@@ -136,7 +120,6 @@ StepStats BaraffWitkin::Step(double h) {
   // ‖S_F b_Δ‖ (CgReference::kFixedOnly, with contacts) or ‖S b_Δ‖. The
   // residual b − J v = b_Δ − J Δv is the same in both forms; only the
   // reference norm is the Δv form's.
-  const double free_norm = FreeRowsNorm(br_, sys_.fixed());
   rhs_r_ = rhs_;
   if (!(contacts_.active() && opts_.cg_reference == CgReference::kFixedOnly)) filter_.Project(&rhs_r_);
   const double reference =
@@ -144,16 +127,65 @@ StepStats BaraffWitkin::Step(double h) {
                                                                             : rhs_r_.norm();
   const PcgSummary pcg = FilteredPcg(tangent_.matrix(), br_, filter_, precond_,
                                      PcgOptions{opts_.cg_tolerance, opts_.cg_max_iterations, reference}, &vr_, &work_);
-  st.cg_iterations = pcg.iterations;
-  st.pcg_status = pcg.status;
+  st->cg_iterations += pcg.iterations;
+  st->pcg_status = pcg.status;
   // Blender keeps Vnew = V + dV whatever cg_filtered returned
   // (SIM_mass_spring_solve_velocities); a non-finite solve is still a failure.
   const bool kept = blender_ && pcg.status == PcgStatus::kMaxIterations;
   if (pcg.status != PcgStatus::kConverged && !kept) {
-    st.status = pcg.status == PcgStatus::kNonFinite   ? StepStatus::kNonFinite
-                : pcg.status == PcgStatus::kTimeLimit ? StepStatus::kTimeLimit
-                                                      : StepStatus::kCgFailed;
-    return finish();
+    st->status = pcg.status == PcgStatus::kNonFinite   ? StepStatus::kNonFinite
+                 : pcg.status == PcgStatus::kTimeLimit ? StepStatus::kTimeLimit
+                                                       : StepStatus::kCgFailed;
+    return false;
+  }
+  return true;
+}
+
+StepStats BaraffWitkin::Step(double h) {
+  const auto start = std::chrono::steady_clock::now();
+  const double setup_before = setup_seconds();
+  StepStats st;
+  st.t = t_ + h;
+  st.h = h;
+  st.updates = 1;
+  auto finish = [&]() {
+    st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    st.setup_time = setup_seconds() - setup_before;
+    return st;
+  };
+  if (contacts_.active()) st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+  PrescribeFixedTargets(sys_, t_ + h, &filter_);  // moving fixed particles: their velocity at the step's end
+
+  // J = M − h ∂f/∂v − h² ∂f/∂x at (t₀, x₀, v₀) and its preconditioner.
+  {
+    // A_α's update and contact adaptation count in laplacian_->setup_seconds();
+    // setup_seconds_ holds J's assembly and its preconditioner's own work.
+    bool ok = !laplacian_ || (laplacian_->Update(h) && laplacian_->AdaptTo(filter_));
+    if (laplacian_) st.preconditioner = laplacian_->preconditioner().ServedBy();
+    const auto t0 = std::chrono::steady_clock::now();
+    tangent_.Update(t_, x0_, v0_, h);
+    ok = ok && precond_.Factorize(tangent_.matrix());
+    ++rebuilds_;
+    setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!ok) {
+      st.status = StepStatus::kPreconditionerFailed;
+      return finish();
+    }
+  }
+  if (!SolveVelocities(h, &st)) return finish();
+  // Stiction's active set (ContactResponse::ReviseHolds): the step is solved
+  // again without the holds whose tangential impulse exceeds μ J_N.
+  for (int k = 0; k < kHoldRevisions && contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, vr_, v0_,
+                                                              opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
+       ++k) {
+    st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+    PrescribeFixedTargets(sys_, t_ + h, &filter_);
+    ++st.updates;
+    if (laplacian_ && !laplacian_->AdaptTo(filter_)) {
+      st.status = StepStatus::kPreconditionerFailed;
+      return finish();
+    }
+    if (!SolveVelocities(h, &st)) return finish();
   }
   v1_ = vr_;
   x1_ = x0_ + h * v1_;
@@ -163,15 +195,8 @@ StepStats BaraffWitkin::Step(double h) {
     return finish();
   }
   if (contacts_.active()) {
-    // Row p of J v₁ − b (J is symmetric: rows 3p … 3p+2 are those columns).
-    const SparseMatrix& j = tangent_.matrix();
-    auto residual_row = [&](int p) {
-      Vector3 r = -br_.row(p).transpose();
-      for (int c = 0; c < 3; ++c)
-        for (SparseMatrix::InnerIterator it(j, 3 * p + c); it; ++it) r(c) += it.value() * vr_.data()[it.row()];
-      return r;
-    };
-    contacts_.ReadImpulses(residual_row, v0_, v1_, v0_, opts_.cg_tolerance * free_norm);
+    contacts_.ReadImpulses([this](int p) { return ResidualRow(p); }, v0_, v1_, v0_,
+                           opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
   }
   xm1_.swap(x0_);
   x0_.swap(x1_);

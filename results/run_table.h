@@ -94,7 +94,7 @@ struct RunTable {
   std::string tangent_projection, newton_jacobian;
   std::string contact_history;  ///< "keep" | "restart" | "project" | "land"; empty in files written before it was stored
   std::string friction_law;  ///< "explicit" | "regularised"; empty in files written before it was stored
-  std::string friction_cap;  ///< "mass" | "system"; empty in files written before it was stored
+  std::string friction_cap;  ///< "mass" | "system" | "stiction"; empty in files written before it was stored
   std::string controller_updates;  ///< "low,high" fixed-point updates of the iteration controller
   long cg_max_iterations = 0, max_rejections = 0;
   double fixed_point_tolerance = 0.0, step_factor = 0.0, h_min = 0.0, h_max = 0.0;

@@ -12,6 +12,7 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system), d
   const int n = system.num_particles();
   if (system.obstacles().empty()) return;
   contacts_.assign(static_cast<std::size_t>(n), Contact{});
+  released_.assign(static_cast<std::size_t>(n), Vector3::Zero());
   friction_.setZero(n, 3);
 }
 
@@ -55,6 +56,7 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
   if (accepted_) {
     contacts_backup_.assign(contacts_.begin(), contacts_.end());
     detection_.Save();
+    if (stiction_) std::fill(released_.begin(), released_.end(), Vector3::Zero());
   } else {
     std::copy(contacts_backup_.begin(), contacts_backup_.end(), contacts_.begin());
     detection_.Restore();
@@ -99,6 +101,17 @@ void ContactResponse::CapFriction(int p, double a) {
   friction_.row(p) = CappedFriction(c.friction_limit, a, c.slip, h_, &c.sticks).transpose();
 }
 
+double ContactResponse::ReadHold(int p, const Vector3& r, const Vector3& from_start, const Vector3& mean,
+                                 double release_tolerance) {
+  Contact& c = contacts_[static_cast<std::size_t>(p)];
+  const Vector3 tangential = from_start - from_start.dot(c.direction) * c.direction;
+  const double size = tangential.norm();
+  const double mu = sys_.obstacles()[static_cast<std::size_t>(c.obstacle)].spec().friction;
+  c.slides = size > mu * std::max(c.impulse, 0.0) + release_tolerance;
+  c.hold_direction = size > 0.0 ? Vector3(tangential / size) : Vector3::Zero();
+  return (r - r.dot(c.direction) * c.direction).dot(mean);
+}
+
 int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                             VelocityFilter* filter) {
   // The impulses read last are over the last accepted step, h_read_.
@@ -114,12 +127,19 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (sys_.is_fixed(p)) continue;
     const bool was = c.obstacle >= 0;
+    // Stiction: the last hold exceeded μ J_N, or a hold of this step did.
+    const Vector3 released = released_.empty() ? Vector3::Zero() : released_[static_cast<std::size_t>(p)];
+    const bool slide = (c.held && c.slides) || released.squaredNorm() > 0.0;
+    const bool held_before = c.held;              // at rest on the obstacle at this step's start
+    const bool was_held = c.held && !c.slides;  // and the last hold stayed within it
+    const double slip_before = c.last_slip;
+    c.last_slip = std::numeric_limits<double>::infinity();
     // Release below −η‖S_F b‖ only (within the PCG's residual a holding
     // impulse is round-off), and not after a predicted entry (SetUp).
     const ObstacleDetection::Prior prior{c.obstacle, c.direction, was && !c.entry && c.impulse < -release_tolerance_};
     const double last_impulse = c.impulse;
     c.obstacle = -1;
-    c.sticks = c.entry = false;
+    c.sticks = c.entry = c.held = c.slides = false;
     c.friction_limit = 0.0;
     const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
     Vector3 x_prev;
@@ -136,7 +156,6 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     const double correction = event_tolerance_ > 0.0 ? 0.0 : o.spec().collision_distance - contact.distance;
     const double target_velocity =
         contact.v_obstacle.dot(dir) + (contact.inside ? o.spec().relaxation * correction : correction) / h;
-    filter->Constrain(p, dir, target_velocity);  // (4.4)
     ++count;
     // Coulomb friction from the last step's normal impulse (FrictionLimit, CappedFriction).
     const double mu = o.spec().friction;
@@ -146,7 +165,30 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
       c.slip = contact.v_rel - contact.v_rel.dot(dir) * dir;
       c.friction_limit = FrictionLimit(mu * normal_impulse, c.slip.norm(),
                                        friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0);
-      friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();
+      const Vector3 along = released.squaredNorm() > 0.0 ? released : c.hold_direction;
+      if (slide && (held_before || along.dot(c.slip) < 0.0)) {
+        // Stiction, after a hold beyond the cone that held it at rest or
+        // against its slip: μ J_N along the hold's impulse, which stops less
+        // than the hold did.
+        friction_.row(p) = (c.friction_limit / h) * along.transpose();
+      } else if (slide) {  // a hold that pushed it along its slip: the thesis' capped friction against the slip
+        friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();
+      } else {
+        friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();
+        // Held again after a hold within μ J_N; from sliding, held once
+        // friction could stop it, unless it slides faster than a step ago:
+        // then the other forces outpull friction, and a hold would only be
+        // released again.
+        c.held = stiction_ && c.sticks && (was_held || c.slip.norm() <= slip_before);
+      }
+      c.last_slip = c.slip.norm();
+    }
+    if (c.held) {  // stiction: held at the obstacle's velocity, (4.4) along the normal
+      friction_.row(p).setZero();
+      const Vector3 tangential = contact.v_obstacle - contact.v_obstacle.dot(dir) * dir;
+      filter->Fix(p, tangential + target_velocity * dir);
+    } else {
+      filter->Constrain(p, dir, target_velocity);  // (4.4)
     }
   }
   return count;

@@ -7,6 +7,7 @@
 #ifndef CLOTHBENCH_SOLVER_CONTACT_H_
 #define CLOTHBENCH_SOLVER_CONTACT_H_
 
+#include <limits>
 #include <vector>
 
 #include "collision/obstacle_contacts.h"
@@ -43,6 +44,11 @@ class ContactResponse {
   /// The friction law (model/solver_spec.h, FrictionLaw): the thesis'
   /// explicit capped impulse (the default) or the regularised Coulomb law.
   void set_friction_law(FrictionLaw law) { friction_law_ = law; }
+  /// FrictionCap::kStiction (model/solver_spec.h): a contact whose friction
+  /// the mass cap would stop is held by the filter in all three directions
+  /// instead of by an explicit impulse; it slides in the next step once
+  /// the tangential impulse that held it exceeds μ J_N.
+  void set_stiction(bool on) { stiction_ = on; }
   /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
   /// which a particle free in it (the last SetUp constrained it not, and it
   /// started outside the collision area) reaches d = δ, among those ending
@@ -66,7 +72,8 @@ class ContactResponse {
 
   /// Whether particle p's friction in this step is capped: it stops the
   /// particle's tangential velocity relative to the obstacle (stick), a
-  /// jump of the response like an impact's.
+  /// jump of the response like an impact's (or, with stiction, the filter
+  /// holds it).
   bool sticks(int p) const { return active() && contacts_[static_cast<std::size_t>(p)].sticks; }
 
   /// Coulomb friction forces of the step [N], N×3 (explicit; docs/model.md §2.5).
@@ -145,16 +152,52 @@ class ContactResponse {
         continue;
       }
       const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
-      const double full = residual_row(p).dot(c.direction);
+      const Vector3 r = residual_row(p);
+      const double full = r.dot(c.direction);
       c.impulse = full - inertia.dot(c.direction);
       const Vector3 mean = 0.5 * (v0.row(p) + v1.row(p)).transpose();
       (full >= 0.0 ? holding : pulling) += full * c.direction.dot(mean);
       friction += h_ * friction_.row(p).dot(mean.transpose());
+      if (c.held) {
+        // From the step's start state: the inertia of a multistep
+        // predictor v̂ ≠ v₀ is not the hold's.
+        const Vector3 from_start = r + mass(p) * (vhat.row(p) - v0.row(p)).transpose();
+        friction += ReadHold(p, r, from_start, mean, release_tolerance);
+      }
     }
     work_.holding += holding;
     work_.pulling += pulling;
     work_.friction += friction;
     release_tolerance_ = release_tolerance;
+  }
+
+  /// Stiction's active set, after a solve and before its step is finished:
+  /// every held contact whose tangential constraint impulse J_t (the
+  /// tangential part of its residual row, as in ReadImpulses; against its
+  /// normal holding impulse J_N of this solve) exceeds
+  /// μ J_N + release_tolerance is released for this step: the next SetUp
+  /// of the same step does not hold it and applies μ J_N (of the last
+  /// step) along J_t instead. @return whether any was released (then the
+  /// step is solved again). Nothing without stiction. No allocation.
+  template <class RowResidual, class V0, class V1, class VHat>
+  bool ReviseHolds(RowResidual&& residual_row, const V0& v0, const V1& v1, const VHat& vhat,
+                   double release_tolerance) {
+    if (!stiction_ || !active()) return false;
+    bool any = false;
+    const Eigen::VectorXd& mass = sys_.masses();
+    for (int p = 0; p < sys_.num_particles(); ++p) {
+      const Contact& c = contacts_[static_cast<std::size_t>(p)];
+      if (!c.held) continue;
+      const Vector3 r = residual_row(p);
+      const Vector3 from_start = r + mass(p) * (vhat.row(p) - v0.row(p)).transpose();  // as in ReadImpulses
+      const Vector3 tangential = from_start - from_start.dot(c.direction) * c.direction;
+      const double normal = (r - mass(p) * (v1.row(p) - vhat.row(p)).transpose()).dot(c.direction);
+      const double mu = sys_.obstacles()[static_cast<std::size_t>(c.obstacle)].spec().friction;
+      if (!(tangential.norm() > mu * std::max(normal, 0.0) + release_tolerance)) continue;
+      released_[static_cast<std::size_t>(p)] = tangential.normalized();
+      any = true;
+    }
+    return any;
   }
 
   /// Work of the contact response since the last Reset [J] (ReadImpulses).
@@ -185,6 +228,10 @@ class ContactResponse {
     double impulse = 0.0;         // holding impulse of the last step [kg m/s] (ReadImpulses)
     bool sticks = false;          // this step's friction stops its tangential velocity (CappedFriction's cap)
     bool entry = false;           // set by a predicted entry (test 3), not by the area: never released
+    bool held = false;            // stiction: the filter holds it in all three directions in this step
+    bool slides = false;          // stiction: its last hold needed more than μ J_N, so it slides next
+    Vector3 hold_direction = Vector3::Zero();  // of the last hold's tangential impulse
+    double last_slip = std::numeric_limits<double>::infinity();  // |v_t| at the last step's start [m/s]; ∞: none
     double friction_limit = 0.0;  // this step's friction impulse before its cap, μ J_N [kg m/s]; 0: none
     Vector3 slip = Vector3::Zero();  // v_t relative to the obstacle at the step's start [m/s]
   };
@@ -198,6 +245,11 @@ class ContactResponse {
   // Event location: its tolerance [m] (0: off).
   double event_tolerance_ = 0.0;
   FrictionLaw friction_law_ = FrictionLaw::kExplicit;
+  bool stiction_ = false;
+  // Stiction: per particle, the direction of the tangential impulse of a
+  // hold released in this step (ReviseHolds), zero if none; cleared when a
+  // new step begins.
+  std::vector<Vector3> released_;
   // The state the last SetUp started from, and whether a step was
   // accepted since (ReadImpulses): an attempt after a rejected one starts
   // from it again. h_read_: the step whose impulses were read [s].
@@ -206,6 +258,14 @@ class ContactResponse {
   std::vector<Contact> contacts_backup_;
   // friction_ row p of the contact's impulse capped at a [kg] times |v_t|.
   void CapFriction(int p, double a);
+  // Stiction: a held contact's constraint impulse r [kg m/s] (its row of the
+  // residual) and the same from the step's start state, r + m(v̂ − v₀)
+  // (`from_start`; its tangential part J_t is the friction impulse that
+  // held the particle, its slip's momentum included): the contact slides
+  // in the next step when |J_t| > μ J_N + release_tolerance. Returns the
+  // work of r's tangential part over the step, ⟨r_t, mean velocity⟩ [J]
+  // (friction's).
+  double ReadHold(int p, const Vector3& r, const Vector3& from_start, const Vector3& mean, double release_tolerance);
   int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
              VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit

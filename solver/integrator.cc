@@ -155,6 +155,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
       contacts_(system) {
   sysmat_.set_amg_frames(solver.amg_frames);
   contacts_.set_friction_law(solver.friction_law);
+  contacts_.set_stiction(solver.friction_cap == FrictionCap::kStiction);
   const int n = system.num_particles();
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
@@ -251,7 +252,7 @@ StepStats StepEngine::StepImpl(double h) {
     return ExplicitStep(h, st);
   }
   if (!event_location_) {
-    StepStats st = Solve(h);
+    StepStats st = SolveHolding(h);
     return st.status == StepStatus::kOk ? FinishStep(h, st) : st;
   }
   // Event location (docs/notes/collisions.md, "Error control through contact
@@ -261,7 +262,7 @@ StepStats StepEngine::StepImpl(double h) {
   StepStats st;
   jumped_ = false;
   for (int pass = 0;; ++pass) {
-    st = Solve(h);
+    st = SolveHolding(h);
     updates += st.updates;
     cg_iterations += st.cg_iterations;
     if (st.status != StepStatus::kOk) break;
@@ -276,6 +277,28 @@ StepStats StepEngine::StepImpl(double h) {
       break;
     }
     h *= theta;
+  }
+  st.updates = updates;
+  st.cg_iterations = cg_iterations;
+  return st;
+}
+
+Vector3 StepEngine::ResidualRow(int p) const {
+  Vector3 av = Vector3::Zero();
+  for (SparseMatrix::InnerIterator it(sysmat_.matrix(), p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
+  return Vector3(av - b_.row(p).transpose());
+}
+
+StepStats StepEngine::SolveHolding(double h) {
+  StepStats st = Solve(h);
+  int updates = st.updates, cg_iterations = st.cg_iterations;
+  for (int k = 0; k < kHoldRevisions && st.status == StepStatus::kOk; ++k) {
+    if (!contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
+                               opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed())))
+      break;
+    st = Solve(h);
+    updates += st.updates;
+    cg_iterations += st.cg_iterations;
   }
   st.updates = updates;
   st.cg_iterations = cg_iterations;
@@ -372,8 +395,8 @@ StepStats StepEngine::Solve(double h) {
 
 bool StepEngine::ContactSetChanged() {
   std::fill(in_contact_.begin(), in_contact_.end(), 0);
-  filter_.ForEachConstraint([&](int p, int count, const auto&) {
-    if (count < 3) in_contact_[static_cast<std::size_t>(p)] = 1;  // fixed particles: 3 directions, always
+  filter_.ForEachConstraint([&](int p, int, const auto&) {
+    if (!sys_.is_fixed(p)) in_contact_[static_cast<std::size_t>(p)] = 1;  // a contact (held by stiction: 3 directions)
   });
   const bool changed = in_contact_ != in_contact_prev_;
   in_contact_prev_.swap(in_contact_);
@@ -392,7 +415,7 @@ void StepEngine::ProjectContactHistory() {
   const bool second = xm2_.rows() > 0;
   const double back2 = h_prev_ + h_prev2_;
   filter_.ForEachTarget([&](int p, int count, const Eigen::Matrix3d& dirs, const Vector3& targets) {
-    if (count >= 3) return;  // fixed particles
+    if (count >= 3) return;  // fixed particles, and contacts held by stiction (their history kept)
     const Vector3 d = dirs.col(0);
     const double u = targets(0), x0 = x0_.row(p).dot(d);
     auto set = [&](MatrixN3& m, double value) { m.row(p) += (value - m.row(p).dot(d)) * d.transpose(); };
@@ -534,14 +557,8 @@ StepStats StepEngine::FinishStep(double h, StepStats st) {
     }
   }
   if (contacts_.active()) {
-    // Row p of A v₁ − b (A is symmetric: row p is column p).
-    const SparseMatrix& a = sysmat_.matrix();
-    auto residual_row = [&](int p) {
-      Vector3 av = Vector3::Zero();
-      for (SparseMatrix::InnerIterator it(a, p); it; ++it) av += it.value() * v1_.row(it.row()).transpose();
-      return Vector3(av - b_.row(p).transpose());
-    };
-    contacts_.ReadImpulses(residual_row, v0_, v1_, vhat_, opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
+    contacts_.ReadImpulses([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
+                           opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
   }
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;

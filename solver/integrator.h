@@ -362,6 +362,12 @@ class StepEngine : public Stepper {
   /// One attempt at a step of size h: the contacts, the stage and its
   /// solve, x₁. Commits nothing. @return the step's statistics with its status
   StepStats Solve(double h);
+  /// Solve, again while stiction's active set releases holds
+  /// (ContactResponse::ReviseHolds), at most kHoldRevisions more times.
+  StepStats SolveHolding(double h);
+  static constexpr int kHoldRevisions = 8;
+  /// Row p of A v₁ − b of the solve just done [kg m/s] (A symmetric: row p is column p).
+  Vector3 ResidualRow(int p) const;
   /// The error test, the contact impulses and the commit of the solved
   /// step (x1_, v1_). @return st with its status
   StepStats FinishStep(double h, StepStats st);

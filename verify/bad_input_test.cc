@@ -95,6 +95,9 @@ TEST(BadInput, OutOfRangeSceneValuesAreRefusedBeforeComputing) {
   // Virtual particles need edges: a plane has none.
   ExpectRefused(Scene("vplane.toml", kTiny + "\n[[obstacle]]\ntype = \"plane\"\nvirtual_particles = true\n"),
                 "obstacle[0].virtual_particles: must be false for a plane");
+  // Stiction holds particles; the regularised law has no sticking.
+  ExpectRefused(Scene("stiction.toml", Replace(kTiny, "[solver]\n", "[solver]\nfriction_cap = \"stiction\"\nfriction_law = \"regularised\"\n")),
+                "solver: friction_cap = \"stiction\" holds particles in place and friction_law = \"regularised\"");
 }
 
 TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {
