@@ -13,6 +13,7 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system), d
   if (system.obstacles().empty()) return;
   contacts_.assign(static_cast<std::size_t>(n), Contact{});
   released_.assign(static_cast<std::size_t>(n), Vector3::Zero());
+  frictionless_.assign(static_cast<std::size_t>(n), 0);
   friction_.setZero(n, 3);
 }
 
@@ -56,7 +57,10 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
   if (accepted_) {
     contacts_backup_.assign(contacts_.begin(), contacts_.end());
     detection_.Save();
-    if (stiction_) std::fill(released_.begin(), released_.end(), Vector3::Zero());
+    if (stiction_) {
+      std::fill(released_.begin(), released_.end(), Vector3::Zero());
+      std::fill(frictionless_.begin(), frictionless_.end(), 0);
+    }
   } else {
     std::copy(contacts_backup_.begin(), contacts_backup_.end(), contacts_.begin());
     detection_.Restore();
@@ -151,6 +155,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     c.obstacle = contact.obstacle;
     c.entry = !contact.inside;
     c.direction = dir;
+    c.v_obstacle = contact.v_obstacle;
     // (4.4)'s target; under event location no correction, whose velocity
     // grows as 1/h (ApplyJumps instead).
     const double correction = event_tolerance_ > 0.0 ? 0.0 : o.spec().collision_distance - contact.distance;
@@ -183,6 +188,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
       }
       c.last_slip = c.slip.norm();
     }
+    if (!frictionless_.empty() && frictionless_[static_cast<std::size_t>(p)]) friction_.row(p).setZero();
     if (c.held) {  // stiction: held at the obstacle's velocity, (4.4) along the normal
       friction_.row(p).setZero();
       const Vector3 tangential = contact.v_obstacle - contact.v_obstacle.dot(dir) * dir;

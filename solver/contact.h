@@ -7,6 +7,7 @@
 #ifndef CLOTHBENCH_SOLVER_CONTACT_H_
 #define CLOTHBENCH_SOLVER_CONTACT_H_
 
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -177,8 +178,10 @@ class ContactResponse {
   /// normal holding impulse J_N of this solve) exceeds
   /// μ J_N + release_tolerance is released for this step: the next SetUp
   /// of the same step does not hold it and applies μ J_N (of the last
-  /// step) along J_t instead. @return whether any was released (then the
-  /// step is solved again). Nothing without stiction. No allocation.
+  /// step) along J_t instead; and a released contact whose friction points
+  /// along its slip relative to the obstacle in v1 gets no friction for the
+  /// rest of the step. @return whether any changed (then the step is
+  /// solved again). Nothing without stiction. No allocation.
   template <class RowResidual, class V0, class V1, class VHat>
   bool ReviseHolds(RowResidual&& residual_row, const V0& v0, const V1& v1, const VHat& vhat,
                    double release_tolerance) {
@@ -187,7 +190,19 @@ class ContactResponse {
     const Eigen::VectorXd& mass = sys_.masses();
     for (int p = 0; p < sys_.num_particles(); ++p) {
       const Contact& c = contacts_[static_cast<std::size_t>(p)];
-      if (!c.held) continue;
+      const auto i = static_cast<std::size_t>(p);
+      if (!c.held) {
+        // A release whose friction ends along its slip pushed it: none then.
+        if (released_[i].squaredNorm() > 0.0 && !frictionless_[i] && c.obstacle >= 0) {
+          Vector3 slip = Vector3(v1.row(p).transpose()) - c.v_obstacle;
+          slip -= slip.dot(c.direction) * c.direction;
+          if (friction_.row(p).dot(slip.transpose()) > 0.0) {
+            frictionless_[i] = 1;
+            any = true;
+          }
+        }
+        continue;
+      }
       const Vector3 r = residual_row(p);
       const Vector3 from_start = r + mass(p) * (vhat.row(p) - v0.row(p)).transpose();  // as in ReadImpulses
       const Vector3 tangential = from_start - from_start.dot(c.direction) * c.direction;
@@ -231,6 +246,7 @@ class ContactResponse {
     bool held = false;            // stiction: the filter holds it in all three directions in this step
     bool slides = false;          // stiction: its last hold needed more than μ J_N, so it slides next
     Vector3 hold_direction = Vector3::Zero();  // of the last hold's tangential impulse
+    Vector3 v_obstacle = Vector3::Zero();      // the obstacle's velocity at the contact [m/s]
     double last_slip = std::numeric_limits<double>::infinity();  // |v_t| at the last step's start [m/s]; ∞: none
     double friction_limit = 0.0;  // this step's friction impulse before its cap, μ J_N [kg m/s]; 0: none
     Vector3 slip = Vector3::Zero();  // v_t relative to the obstacle at the step's start [m/s]
@@ -250,6 +266,9 @@ class ContactResponse {
   // hold released in this step (ReviseHolds), zero if none; cleared when a
   // new step begins.
   std::vector<Vector3> released_;
+  // Stiction: released in this step, and its friction pushed it along its
+  // slip in a solve (ReviseHolds): no friction for the rest of the step.
+  std::vector<uint8_t> frictionless_;
   // The state the last SetUp started from, and whether a step was
   // accepted since (ReadImpulses): an attempt after a rejected one starts
   // from it again. h_read_: the step whose impulses were read [s].
