@@ -175,8 +175,9 @@ StepStats BaraffWitkin::Step(double h) {
   if (!SolveVelocities(h, &st)) return finish();
   // Stiction's active set (ContactResponse::ReviseHolds): the step is solved
   // again without the holds whose tangential impulse exceeds μ J_N.
-  for (int k = 0; k < kHoldRevisions && contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, vr_, v0_,
-                                                              opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
+  for (int k = 0; contacts_.holds() && k < ContactResponse::kHoldRevisions &&
+                  contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, vr_, v0_,
+                                        opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
        ++k) {
     st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
     PrescribeFixedTargets(sys_, t_ + h, &filter_);

@@ -74,8 +74,6 @@ class BaraffWitkin : public Stepper {
   /// One step of size h [s]: status kCgFailed / kPreconditionerFailed /
   /// kNonFinite on failure (the state is then unchanged). No allocation.
   StepStats Step(double h) override;
-  /// Stiction's active set: solves of one step beyond the first, at most.
-  static constexpr int kHoldRevisions = 8;
   double t() const override { return t_; }
   void SetTime(double t) override { t_ = t; }
   const MatrixN3& x() const override { return x0_; }

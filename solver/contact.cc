@@ -116,6 +116,17 @@ double ContactResponse::ReadHold(int p, const Vector3& r, const Vector3& from_st
   return (r - r.dot(c.direction) * c.direction).dot(mean);
 }
 
+bool ContactResponse::StopPushingRelease(int p, const Vector3& v1) {
+  const auto i = static_cast<std::size_t>(p);
+  const Contact& c = contacts_[i];
+  if (!(released_[i].squaredNorm() > 0.0) || frictionless_[i] || c.obstacle < 0) return false;
+  Vector3 slip = v1 - c.v_obstacle;
+  slip -= slip.dot(c.direction) * c.direction;
+  if (!(friction_.row(p).dot(slip.transpose()) > 0.0)) return false;
+  frictionless_[i] = 1;
+  return true;
+}
+
 int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
                             VelocityFilter* filter) {
   // The impulses read last are over the last accepted step, h_read_.
@@ -132,7 +143,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     if (sys_.is_fixed(p)) continue;
     const bool was = c.obstacle >= 0;
     // Stiction: the last hold exceeded μ J_N, or a hold of this step did.
-    const Vector3 released = released_.empty() ? Vector3::Zero() : released_[static_cast<std::size_t>(p)];
+    const Vector3 released = released_[static_cast<std::size_t>(p)];
     const bool slide = (c.held && c.slides) || released.squaredNorm() > 0.0;
     const bool held_before = c.held;              // at rest on the obstacle at this step's start
     const bool was_held = c.held && !c.slides;  // and the last hold stayed within it
@@ -176,19 +187,17 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
         // against its slip: μ J_N along the hold's impulse, which stops less
         // than the hold did.
         friction_.row(p) = (c.friction_limit / h) * along.transpose();
-      } else if (slide) {  // a hold that pushed it along its slip: the thesis' capped friction against the slip
-        friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();
-      } else {
+      } else {  // the thesis' capped friction against the slip (also after a hold that pushed along it)
         friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();
         // Held again after a hold within μ J_N; from sliding, held once
         // friction could stop it, unless it slides faster than a step ago:
         // then the other forces outpull friction, and a hold would only be
         // released again.
-        c.held = stiction_ && c.sticks && (was_held || c.slip.norm() <= slip_before);
+        c.held = stiction_ && !slide && c.sticks && (was_held || c.slip.norm() <= slip_before);
       }
       c.last_slip = c.slip.norm();
     }
-    if (!frictionless_.empty() && frictionless_[static_cast<std::size_t>(p)]) friction_.row(p).setZero();
+    if (frictionless_[static_cast<std::size_t>(p)]) friction_.row(p).setZero();
     if (c.held) {  // stiction: held at the obstacle's velocity, (4.4) along the normal
       friction_.row(p).setZero();
       const Vector3 tangential = contact.v_obstacle - contact.v_obstacle.dot(dir) * dir;

@@ -50,6 +50,11 @@ class ContactResponse {
   /// instead of by an explicit impulse; it slides in the next step once
   /// the tangential impulse that held it exceeds μ J_N.
   void set_stiction(bool on) { stiction_ = on; }
+  /// Whether stiction may hold contacts (set_stiction, and obstacles): only
+  /// then is a step's solve revised (ReviseHolds).
+  bool holds() const { return stiction_ && active(); }
+  /// Stiction's active set: solves of one step beyond the first, at most.
+  static constexpr int kHoldRevisions = 8;
   /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
   /// which a particle free in it (the last SetUp constrained it not, and it
   /// started outside the collision area) reaches d = δ, among those ending
@@ -185,22 +190,13 @@ class ContactResponse {
   template <class RowResidual, class V0, class V1, class VHat>
   bool ReviseHolds(RowResidual&& residual_row, const V0& v0, const V1& v1, const VHat& vhat,
                    double release_tolerance) {
-    if (!stiction_ || !active()) return false;
+    if (!holds()) return false;
     bool any = false;
     const Eigen::VectorXd& mass = sys_.masses();
     for (int p = 0; p < sys_.num_particles(); ++p) {
       const Contact& c = contacts_[static_cast<std::size_t>(p)];
-      const auto i = static_cast<std::size_t>(p);
       if (!c.held) {
-        // A release whose friction ends along its slip pushed it: none then.
-        if (released_[i].squaredNorm() > 0.0 && !frictionless_[i] && c.obstacle >= 0) {
-          Vector3 slip = Vector3(v1.row(p).transpose()) - c.v_obstacle;
-          slip -= slip.dot(c.direction) * c.direction;
-          if (friction_.row(p).dot(slip.transpose()) > 0.0) {
-            frictionless_[i] = 1;
-            any = true;
-          }
-        }
+        any |= StopPushingRelease(p, Vector3(v1.row(p).transpose()));
         continue;
       }
       const Vector3 r = residual_row(p);
@@ -285,6 +281,10 @@ class ContactResponse {
   // work of r's tangential part over the step, ⟨r_t, mean velocity⟩ [J]
   // (friction's).
   double ReadHold(int p, const Vector3& r, const Vector3& from_start, const Vector3& mean, double release_tolerance);
+  // Stiction: a contact released in this step whose friction points along
+  // its slip relative to the obstacle at v1 [m/s] pushed it; it gets no
+  // friction for the rest of the step. Returns whether that is new.
+  bool StopPushingRelease(int p, const Vector3& v1);
   int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
              VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit

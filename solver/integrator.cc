@@ -292,7 +292,7 @@ Vector3 StepEngine::ResidualRow(int p) const {
 StepStats StepEngine::SolveHolding(double h) {
   StepStats st = Solve(h);
   int updates = st.updates, cg_iterations = st.cg_iterations;
-  for (int k = 0; k < kHoldRevisions && st.status == StepStatus::kOk; ++k) {
+  for (int k = 0; contacts_.holds() && k < ContactResponse::kHoldRevisions && st.status == StepStatus::kOk; ++k) {
     if (!contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
                                opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed())))
       break;

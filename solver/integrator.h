@@ -363,9 +363,9 @@ class StepEngine : public Stepper {
   /// solve, x₁. Commits nothing. @return the step's statistics with its status
   StepStats Solve(double h);
   /// Solve, again while stiction's active set releases holds
-  /// (ContactResponse::ReviseHolds), at most kHoldRevisions more times.
+  /// (ContactResponse::ReviseHolds), at most ContactResponse::kHoldRevisions
+  /// more times.
   StepStats SolveHolding(double h);
-  static constexpr int kHoldRevisions = 8;
   /// Row p of A v₁ − b of the solve just done [kg m/s] (A symmetric: row p is column p).
   Vector3 ResidualRow(int p) const;
   /// The error test, the contact impulses and the commit of the solved
