@@ -82,8 +82,20 @@ enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 ///    regularised Coulomb law of the contact problem in continuous time
 ///    (kSlipVelocity; docs/notes/collisions.md, "Contact in continuous time") that
 ///    the SUNDIALS rows integrate, so that a fixed-step method converges to
-///    the same problem as they do (the contact reference's cross-check).
-enum class FrictionLaw { kExplicit, kRegularised };
+///    the same problem as they do (the contact reference's cross-check);
+///  - "implicit": Coulomb's force evaluated at the step's end velocity with
+///    its rate lagged, F_t = −c_p (v₁ − u)_t, c_p = μ J_N / (h max(|w_t|,
+///    kStickVelocity)) from the last step's J_N and the slip w_t at the
+///    step's start: a damping in the step's matrix (A_α, or Baraff–Witkin's
+///    J) that ties a particle to the obstacle inside the solve, where the
+///    implicit springs and damping tie it to its neighbours. A damping
+///    toward the obstacle's velocity cannot reverse a slip, so it takes no
+///    cap (friction_cap stays "mass"). The
+///    explicit laws converge in h only once h is below the time scale m/d
+///    of the damping between neighbours; this one from the first h
+///    (docs/notes/collisions.md, "Implicit friction"). Thesis methods and
+///    Baraff–Witkin (and Blender); PD and VBD are refused (unsupported_scene).
+enum class FrictionLaw { kExplicit, kRegularised, kImplicit };
 
 /// What caps a step's friction impulse against the tangential velocity v_t
 /// (docs/model.md §2.5; docs/notes/collisions.md, "The friction cap"):
@@ -117,6 +129,11 @@ enum class FrictionCap { kMass, kSystem, kStiction };
 /// Coulomb friction is regularised, F_t = −μ λ w_t / max(|w_t|, v_s)
 /// (docs/notes/collisions.md, "Contact in continuous time").
 inline constexpr double kSlipVelocity = 1e-3;
+
+/// The slip velocity v_ε [m/s] below which FrictionLaw::kImplicit's rate
+/// stops growing, c_p ≤ μ J_N/(h v_ε): a particle friction holds creeps at
+/// below v_ε |F_t|/(μ |F_N|) (docs/notes/collisions.md, "Implicit friction").
+inline constexpr double kStickVelocity = 1e-5;
 
 std::string_view ToString(PreconditionerType p);
 std::string_view ToString(CholeskyOrdering o);

@@ -54,6 +54,10 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &f_, &rhs_, &x1_, &v1_}) m->setZero(n, 3);
+  if (opts_.friction_law == FrictionLaw::kImplicit && contacts_.active()) {
+    friction_diagonal_.setZero(n);
+    friction_change_.setZero(n);
+  }
   vr_.setZero(n, 3);
   br_.setZero(n, 3);
   rhs_r_.setZero(n, 3);
@@ -112,6 +116,11 @@ bool BaraffWitkin::SolveVelocities(double h, StepStats* st) {
   if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
   rhs_ = h * f_;
   tangent_.AddJacobianProducts(h * h, v0_, 0.0, v0_, &rhs_);
+  // FrictionLaw::kImplicit: −c (v₁ − u)_t, h c on J's diagonal (Step) and
+  // h c (u − v₀) in the Δv form's right-hand side.
+  contacts_.ForEachFrictionDamping([&](int p, double c, const Vector3& u) {
+    rhs_.row(p) += (h * c) * (u - v0_.row(p).transpose()).transpose();
+  });
   vr_ = v0_;
   TangentProduct(tangent_.matrix(), vr_, &br_);
   br_ += rhs_;
@@ -141,6 +150,18 @@ bool BaraffWitkin::SolveVelocities(double h, StepStats* st) {
   return true;
 }
 
+// FrictionLaw::kImplicit: J's diagonal += h c_p for this attempt's
+// contacts (ContactResponse::ForEachFrictionDamping), replacing those of the
+// last call. The preconditioner stays that of J as it was factorised.
+void BaraffWitkin::UpdateFrictionDiagonal(double h) {
+  if (friction_diagonal_.size() == 0) return;
+  friction_change_ = -friction_diagonal_;
+  friction_diagonal_.setZero();
+  contacts_.ForEachFrictionDamping([&](int p, double c, const Vector3&) { friction_diagonal_(p) = h * c; });
+  friction_change_ += friction_diagonal_;
+  tangent_.AddToDiagonal(friction_change_);
+}
+
 StepStats BaraffWitkin::Step(double h) {
   const auto start = std::chrono::steady_clock::now();
   const double setup_before = setup_seconds();
@@ -164,6 +185,8 @@ StepStats BaraffWitkin::Step(double h) {
     if (laplacian_) st.preconditioner = laplacian_->preconditioner().ServedBy();
     const auto t0 = std::chrono::steady_clock::now();
     tangent_.Update(t_, x0_, v0_, h);
+    friction_diagonal_.setZero();  // Update overwrote J's diagonal
+    UpdateFrictionDiagonal(h);
     ok = ok && precond_.Factorize(tangent_.matrix());
     ++rebuilds_;
     setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -182,6 +205,7 @@ StepStats BaraffWitkin::Step(double h) {
     st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
     PrescribeFixedTargets(sys_, t_ + h, &filter_);
     ++st.updates;
+    UpdateFrictionDiagonal(h);  // without the contacts that left the cone
     if (laplacian_ && !laplacian_->AdaptTo(filter_)) {
       st.status = StepStatus::kPreconditionerFailed;
       return finish();
@@ -196,6 +220,7 @@ StepStats BaraffWitkin::Step(double h) {
     return finish();
   }
   if (contacts_.active()) {
+    contacts_.SetImplicitFriction(v1_);
     contacts_.ReadImpulses([this](int p) { return ResidualRow(p); }, v0_, v1_, v0_,
                            opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
   }

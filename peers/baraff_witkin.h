@@ -94,6 +94,7 @@ class BaraffWitkin : public Stepper {
 
  private:
   bool SolveVelocities(double h, StepStats* st);
+  void UpdateFrictionDiagonal(double h);
   Vector3 ResidualRow(int p) const;
   const ParticleSystem& sys_;
   SolverSpec opts_;
@@ -104,6 +105,8 @@ class BaraffWitkin : public Stepper {
   TangentPcgWorkspace work_;
   VelocityFilter filter_;
   ContactResponse contacts_;
+  Eigen::VectorXd friction_diagonal_;  // FrictionLaw::kImplicit: h c_p on J's diagonal [kg] (N; empty otherwise)
+  Eigen::VectorXd friction_change_;    // scratch of UpdateFrictionDiagonal
   double t_ = 0.0;
   bool have_history_ = false;
   int rebuilds_ = 0;

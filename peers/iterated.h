@@ -80,6 +80,8 @@ class IteratedStepper : public Stepper {
   /// at its prescribed position; PD moves it to the global step's
   /// right-hand side (a Dirichlet condition).
   bool follows_prescribed_motion() const override { return true; }
+  /// Its ContactResponse adds the explicit friction to the iterates' forces.
+  bool explicit_friction_only() const override { return true; }
   /// kKrylov: ρ's measurement takes a tenth of the run's sweeps
   /// (RhoSweeps); its sketch is allocated here, before the run.
   void PlanRun(double t_end, double h) override;

@@ -57,7 +57,7 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
   if (accepted_) {
     contacts_backup_.assign(contacts_.begin(), contacts_.end());
     detection_.Save();
-    if (stiction_) {
+    if (holds()) {
       std::fill(released_.begin(), released_.end(), Vector3::Zero());
       std::fill(frictionless_.begin(), frictionless_.end(), 0);
     }
@@ -116,6 +116,27 @@ double ContactResponse::ReadHold(int p, const Vector3& r, const Vector3& from_st
   return (r - r.dot(c.direction) * c.direction).dot(mean);
 }
 
+void ContactResponse::SetImplicitFriction(const MatrixN3& v1) {
+  if (friction_law_ != FrictionLaw::kImplicit) return;
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    const Contact& c = contacts_[static_cast<std::size_t>(p)];
+    if (c.obstacle < 0 || !(c.friction_damping > 0.0)) continue;
+    Vector3 slip = v1.row(p).transpose() - c.v_obstacle;
+    slip -= slip.dot(c.direction) * c.direction;
+    friction_.row(p) = -c.friction_damping * slip.transpose();
+  }
+}
+
+bool ContactResponse::LeavesCone(int p, const Vector3& v1, double tolerance) {
+  const Contact& c = contacts_[static_cast<std::size_t>(p)];
+  Vector3 slip = v1 - c.v_obstacle;
+  slip -= slip.dot(c.direction) * c.direction;
+  const double speed = slip.norm();
+  if (!(h_ * c.friction_damping * speed > c.friction_limit + tolerance)) return false;
+  released_[static_cast<std::size_t>(p)] = -slip / speed;
+  return true;
+}
+
 bool ContactResponse::StopPushingRelease(int p, const Vector3& v1) {
   const auto i = static_cast<std::size_t>(p);
   const Contact& c = contacts_[i];
@@ -156,6 +177,7 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     c.obstacle = -1;
     c.sticks = c.entry = c.held = c.slides = false;
     c.friction_limit = 0.0;
+    c.friction_damping = 0.0;
     const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
     Vector3 x_prev;
     if (xm1) x_prev = xm1->row(p).transpose();
@@ -182,10 +204,16 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
       c.friction_limit = FrictionLimit(mu * normal_impulse, c.slip.norm(),
                                        friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0);
       const Vector3 along = released.squaredNorm() > 0.0 ? released : c.hold_direction;
-      if (slide && (held_before || along.dot(c.slip) < 0.0)) {
+      if (friction_law_ == FrictionLaw::kImplicit && !(released.squaredNorm() > 0.0)) {
+        // Coulomb's force at v₁ with its rate lagged (FrictionLaw::kImplicit):
+        // −c_p (v₁ − u)_t in the solve, nothing explicit; once it left the
+        // cone in this step (LeavesCone), μ J_N against the slip below.
+        c.friction_damping = c.friction_limit / (h * std::max(c.slip.norm(), kStickVelocity));
+      } else if (slide && (held_before || friction_law_ == FrictionLaw::kImplicit || along.dot(c.slip) < 0.0)) {
         // Stiction, after a hold beyond the cone that held it at rest or
-        // against its slip: μ J_N along the hold's impulse, which stops less
-        // than the hold did.
+        // against its slip, and the implicit friction beyond its cone: μ J_N
+        // along the hold's impulse (against the solve's slip), which stops
+        // less than the hold did.
         friction_.row(p) = (c.friction_limit / h) * along.transpose();
       } else {  // the thesis' capped friction against the slip (also after a hold that pushed along it)
         friction_.row(p) = CappedFriction(c.friction_limit, sys_.masses()(p), c.slip, h, &c.sticks).transpose();

@@ -50,10 +50,11 @@ class ContactResponse {
   /// instead of by an explicit impulse; it slides in the next step once
   /// the tangential impulse that held it exceeds μ J_N.
   void set_stiction(bool on) { stiction_ = on; }
-  /// Whether stiction may hold contacts (set_stiction, and obstacles): only
-  /// then is a step's solve revised (ReviseHolds).
-  bool holds() const { return stiction_ && active(); }
-  /// Stiction's active set: solves of one step beyond the first, at most.
+  /// Whether a step's solve may be revised (ReviseHolds): stiction may hold
+  /// contacts (set_stiction), or the implicit friction may leave its cone
+  /// (FrictionLaw::kImplicit); and the scene has obstacles.
+  bool holds() const { return (stiction_ || friction_law_ == FrictionLaw::kImplicit) && active(); }
+  /// The active set's solves of one step beyond the first, at most.
   static constexpr int kHoldRevisions = 8;
   /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
   /// which a particle free in it (the last SetUp constrained it not, and it
@@ -84,6 +85,25 @@ class ContactResponse {
 
   /// Coulomb friction forces of the step [N], N×3 (explicit; docs/model.md §2.5).
   const MatrixN3& friction() const { return friction_; }
+  /// FrictionLaw::kImplicit (model/solver_spec.h): visits f(p, c, u) for
+  /// each contact whose friction in this step is the force −c (v₁ − u)_t,
+  /// c = μ J_N/(h max(|w_t|, kStickVelocity)) [kg/s] and u the obstacle's
+  /// velocity there [m/s]. The stepper adds h c to its matrix's diagonal at
+  /// p and h c u to its right-hand side: the filter removes the normal part
+  /// of both, so the isotropic diagonal acts along the tangent plane alone.
+  /// Between SetUp and the solve; nothing under the other laws.
+  template <class F>
+  void ForEachFrictionDamping(F&& f) const {
+    if (friction_law_ != FrictionLaw::kImplicit) return;
+    for (int p = 0; p < sys_.num_particles(); ++p) {
+      const Contact& c = contacts_[static_cast<std::size_t>(p)];
+      if (c.obstacle >= 0 && c.friction_damping > 0.0) f(p, c.friction_damping, c.v_obstacle);
+    }
+  }
+  /// FrictionLaw::kImplicit: sets friction() to the forces −c (v₁ − u)_t
+  /// of the solved v₁ (N×3 [m/s]), for ReadImpulses' work and the record.
+  /// After the solve, before ReadImpulses; nothing under the other laws.
+  void SetImplicitFriction(const MatrixN3& v1);
 
   /// FrictionCap::kSystem (model/solver_spec.h): caps each contact's
   /// friction impulse at a_t|v_t| instead of m|v_t|, with a_t the mass p
@@ -138,7 +158,10 @@ class ContactResponse {
   /// negative work where it stops an impact, contact being inelastic,
   /// positive where the (4.4) position correction pushes a particle out) or
   /// pulling (< 0: the constraint drags a particle toward the obstacle in
-  /// the step before its release). The friction impulse is h f_friction.
+  /// the step before its release). The friction impulse is h f_friction
+  /// (FrictionLaw::kImplicit: its force at v₁, SetImplicitFriction). For a
+  /// particle alone, ⟨I, (v₀ + v₁)/2⟩ is exactly its kinetic energy's
+  /// change m(|v₁|² − |v₀|²)/2 under the impulse I.
   /// @param v0 N×3 velocities at the start of the step [m/s]
   ///
   /// Called once per accepted step: the next SetUp starts from this
@@ -159,7 +182,10 @@ class ContactResponse {
       }
       const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
       const Vector3 r = residual_row(p);
-      const double full = r.dot(c.direction);
+      // Under FrictionLaw::kImplicit the row also holds the friction's
+      // h c (v₁ − u), whose normal part is no constraint impulse.
+      const double full = r.dot(c.direction) - h_ * c.friction_damping *
+                                                   (v1.row(p).transpose() - c.v_obstacle).dot(c.direction);
       c.impulse = full - inertia.dot(c.direction);
       const Vector3 mean = 0.5 * (v0.row(p) + v1.row(p)).transpose();
       (full >= 0.0 ? holding : pulling) += full * c.direction.dot(mean);
@@ -177,8 +203,12 @@ class ContactResponse {
     release_tolerance_ = release_tolerance;
   }
 
-  /// Stiction's active set, after a solve and before its step is finished:
-  /// every held contact whose tangential constraint impulse J_t (the
+  /// The active set, after a solve and before its step is finished.
+  /// FrictionLaw::kImplicit: every contact whose implicit friction impulse
+  /// h c |(v₁ − u)_t| exceeds μ J_N + release_tolerance (its slip grew
+  /// past the step's start and v_ε: Coulomb's cone is left) slides for the
+  /// rest of the step, with μ J_N against that slip, explicit.
+  /// Stiction: every held contact whose tangential constraint impulse J_t (the
   /// tangential part of its residual row, as in ReadImpulses; against its
   /// normal holding impulse J_N of this solve) exceeds
   /// μ J_N + release_tolerance is released for this step: the next SetUp
@@ -195,6 +225,10 @@ class ContactResponse {
     const Eigen::VectorXd& mass = sys_.masses();
     for (int p = 0; p < sys_.num_particles(); ++p) {
       const Contact& c = contacts_[static_cast<std::size_t>(p)];
+      if (c.friction_damping > 0.0) {
+        any |= LeavesCone(p, Vector3(v1.row(p).transpose()), release_tolerance);
+        continue;
+      }
       if (!c.held) {
         any |= StopPushingRelease(p, Vector3(v1.row(p).transpose()));
         continue;
@@ -244,6 +278,7 @@ class ContactResponse {
     Vector3 hold_direction = Vector3::Zero();  // of the last hold's tangential impulse
     Vector3 v_obstacle = Vector3::Zero();      // the obstacle's velocity at the contact [m/s]
     double last_slip = std::numeric_limits<double>::infinity();  // |v_t| at the last step's start [m/s]; ∞: none
+    double friction_damping = 0.0;  // FrictionLaw::kImplicit: μ J_N/(h max(|v_t|, v_ε)) [kg/s]
     double friction_limit = 0.0;  // this step's friction impulse before its cap, μ J_N [kg m/s]; 0: none
     Vector3 slip = Vector3::Zero();  // v_t relative to the obstacle at the step's start [m/s]
   };
@@ -281,6 +316,10 @@ class ContactResponse {
   // work of r's tangential part over the step, ⟨r_t, mean velocity⟩ [J]
   // (friction's).
   double ReadHold(int p, const Vector3& r, const Vector3& from_start, const Vector3& mean, double release_tolerance);
+  // FrictionLaw::kImplicit: whether contact p's friction −c (v₁ − u)_t
+  // exceeds μ J_N + tolerance; then it slides for the rest of the step
+  // (released_ along −(v₁ − u)_t).
+  bool LeavesCone(int p, const Vector3& v1, double tolerance);
   // Stiction: a contact released in this step whose friction points along
   // its slip relative to the obstacle at v1 [m/s] pushed it; it gets no
   // friction for the rest of the step. Returns whether that is new.

@@ -121,10 +121,31 @@ bool SystemMatrix::Update(double alpha_h) {
   return ok;
 }
 
+bool SystemMatrix::Refactorize() {
+  const auto start = std::chrono::steady_clock::now();
+  const bool ok = analyzed_ && precond_.Factorize(a_);
+  setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return ok;
+}
+
+void SystemMatrix::Restore() {
+  double* vals = a_.valuePtr();
+  for (auto it = removed_.rbegin(); it != removed_.rend(); ++it) vals[it->first] = it->second;
+  removed_.clear();
+}
+
+void SystemMatrix::AddToDiagonal(int p, double value) {
+  double* vals = a_.valuePtr();
+  const int* outer = a_.outerIndexPtr();
+  const int* inner = a_.innerIndexPtr();
+  const int* at = std::lower_bound(inner + outer[p], inner + outer[p + 1], p);
+  const int pos = static_cast<int>(at - inner);
+  removed_.emplace_back(pos, vals[pos]);
+  vals[pos] += value;
+}
+
 void SystemMatrix::RemoveCouplings(const std::vector<RemovedCoupling>& couplings) {
   double* vals = a_.valuePtr();
-  for (const auto& [pos, old] : removed_) vals[pos] = old;
-  removed_.clear();
   const int* outer = a_.outerIndexPtr();
   const int* inner = a_.innerIndexPtr();
   for (const RemovedCoupling& c : couplings) {
@@ -160,6 +181,10 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
+  if (solver.friction_law == FrictionLaw::kImplicit && contacts_.active()) {
+    friction_diagonal_.setZero(n);
+    sysmat_.ReserveChanges(n);
+  }
   const bool multistep = scheme_.past_steps() > 0;
   error_control_ = solver.step_control == StepControl::kError && scheme_.error_controlled();
   // Under error control the contact events are located and restart the
@@ -216,6 +241,7 @@ void StepEngine::Reset(double t, const MatrixN3& x, const MatrixN3& v) {
   jumped_ = false;
   events_ = 0;
   contacts_.Reset();
+  refactor_choice_ = RefactorChoice();
   std::fill(in_contact_prev_.begin(), in_contact_prev_.end(), 0);
   if (error_control_) {
     // v̇ at the start, the exact slope of the error estimate's predictors.
@@ -291,17 +317,21 @@ Vector3 StepEngine::ResidualRow(int p) const {
 
 StepStats StepEngine::SolveHolding(double h) {
   StepStats st = Solve(h);
+  const bool friction_step = friction_step_, refactored = refactored_;
   int updates = st.updates, cg_iterations = st.cg_iterations;
   for (int k = 0; contacts_.holds() && k < ContactResponse::kHoldRevisions && st.status == StepStatus::kOk; ++k) {
     if (!contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
                                opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed())))
       break;
+    revising_ = true;
     st = Solve(h);
+    revising_ = false;
     updates += st.updates;
     cg_iterations += st.cg_iterations;
   }
   st.updates = updates;
   st.cg_iterations = cg_iterations;
+  if (friction_step && st.status == StepStatus::kOk) refactor_choice_.Count(refactored, cg_iterations);
   return st;
 }
 
@@ -349,6 +379,12 @@ StepStats StepEngine::Solve(double h) {
     st.status = StepStatus::kPreconditionerFailed;
     return st;
   }
+  sysmat_.Restore();  // the last step's friction rates (FrictionLaw::kImplicit) and removed couplings
+  const bool friction_before = friction_diagonal_set_;
+  if (friction_diagonal_set_) {
+    friction_diagonal_.setZero();
+    friction_diagonal_set_ = false;
+  }
   if (const VirtualSprings* vp = sys_.virtual_springs()) sysmat_.RemoveCouplings(vp->removed_couplings());
   if (contacts_.active()) {
     st.colliding = colliding;
@@ -362,6 +398,23 @@ StepStats StepEngine::Solve(double h) {
       contacts_.CapBySystem(coupling);
     }
     b0_ += h * contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
+    // FrictionLaw::kImplicit: −c (v₁ − u)_t in the solve (h c on A's
+    // diagonal, h c u in b; the filter keeps their tangential part).
+    contacts_.ForEachFrictionDamping([&](int p, double rate, const Vector3& u) {
+      friction_diagonal_(p) = h * rate;
+      friction_diagonal_set_ = true;
+      sysmat_.AddToDiagonal(p, h * rate);
+      b0_.row(p) += (h * rate) * u.transpose();
+    });
+    // The preconditioner of A with this step's rates (and without the
+    // last step's), when that has paid (RefactorChoice); a solve again of
+    // the same step keeps the step's factor.
+    friction_step_ = !revising_ && (friction_before || friction_diagonal_set_);
+    refactored_ = friction_step_ && refactor_choice_.Choose();
+    if (refactored_ && !sysmat_.Refactorize()) {
+      st.status = StepStatus::kPreconditionerFailed;
+      return st;
+    }
     const bool adapted = sysmat_.AdaptTo(filter_);
     st.preconditioner = sysmat_.preconditioner().ServedBy();
     if (!adapted) {
@@ -557,6 +610,7 @@ StepStats StepEngine::FinishStep(double h, StepStats st) {
     }
   }
   if (contacts_.active()) {
+    contacts_.SetImplicitFriction(v1_);
     contacts_.ReadImpulses([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
                            opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
   }
@@ -730,6 +784,7 @@ bool StepEngine::NewtonIterate(double h, double alpha, double beta, double gamma
     if (u == 0 || opts_.newton_jacobian == NewtonJacobian::kRefresh) {
       const auto start = std::chrono::steady_clock::now();
       tangent_->Update(t_g, xg_, vg, alpha_h);
+      if (friction_diagonal_set_) tangent_->AddToDiagonal(friction_diagonal_);  // FrictionLaw::kImplicit
       const bool ok = tangent_pre_.Factorize(tangent_->matrix());
       tangent_setup_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (!ok) {

@@ -129,11 +129,22 @@ class SystemMatrix {
   bool AdaptTo(const VelocityFilter& filter);
   /// Removes the couplings of the springs that virtual particles split
   /// this step from A (A(a, b) += α²h² s + αh c, both triangles; after
-  /// Update, whose αh it uses), first restoring those of the last call
-  /// unless Update has rebuilt A since. The preconditioner stays that of
+  /// Update, whose αh it uses, and Restore). The preconditioner stays that of
   /// A without them: a change of rank 2 per split spring, which the PCG
   /// absorbs in a few iterations.
   void RemoveCouplings(const std::vector<RemovedCoupling>& couplings);
+  /// Restores the values RemoveCouplings and AddToDiagonal changed since
+  /// the last Update or Restore: A as Update made it. Once per step, after
+  /// Update.
+  void Restore();
+  /// A(p, p) += value [kg] (after Update and Restore; undone by the next
+  /// Restore). The preconditioner stays that of A without it: the PCG
+  /// absorbs a diagonal change. No allocation after the first steps.
+  void AddToDiagonal(int p, double value);
+  /// Factorises the preconditioner again for A as it is now.
+  bool Refactorize();
+  /// Room for `count` changes between Restores without allocating.
+  void ReserveChanges(int count) { removed_.reserve(static_cast<std::size_t>(count)); }
   const SparseMatrix& matrix() const { return a_; }
   const Preconditioner& preconditioner() const { return precond_; }
   /// The prefiltered AMG's frame rule (Preconditioner::set_amg_frames).
@@ -161,6 +172,39 @@ class SystemMatrix {
   bool analyzed_ = false;
   double setup_seconds_ = 0.0;
   double analysis_seconds_ = 0.0;
+};
+
+/// FrictionLaw::kImplicit (model/solver_spec.h): whether a step factorises
+/// A_α's preconditioner again with its friction rates on the diagonal.
+/// Left to the PCG, large rates (a particle friction holds: c up to
+/// μ J_N/(h v_ε)) cost it up to ten times the iterations (avatar_drape);
+/// at 10⁴ particles a refactorisation can cost more than it saves
+/// (docs/notes/collisions.md, "Implicit friction"). Counts, not times, so
+/// that a run repeats bit for bit: the CG iterations of the solves of
+/// steps with and without a refactorisation (means with weight 1/2 on
+/// the latest), and a refactorisation while it saved more than
+/// Preconditioner::kRefactorIterations; every kProbeSteps-th step measures
+/// the other choice again.
+class RefactorChoice {
+ public:
+  static constexpr long kProbeSteps = 16;
+  /// For the next step: refactorise?
+  bool Choose() {
+    ++steps_;
+    if (fresh_ < 0.0) return true;
+    if (stale_ < 0.0) return false;
+    const bool refactor = stale_ - fresh_ > Preconditioner::kRefactorIterations;
+    return steps_ % kProbeSteps == 0 ? !refactor : refactor;
+  }
+  /// The CG iterations of a step's solves, with a refactorisation or without.
+  void Count(bool refactored, int iterations) {
+    double& mean = refactored ? fresh_ : stale_;
+    mean = mean < 0.0 ? iterations : 0.5 * (mean + iterations);
+  }
+
+ private:
+  double fresh_ = -1.0, stale_ = -1.0;  // −1: not measured yet
+  long steps_ = 0;
 };
 
 /// What a stepper that chooses its own internal steps (a SUNDIALS
@@ -245,6 +289,13 @@ class Stepper {
   /// along their prescribed motion (ParticleSystem::ForEachPrescribed). A
   /// stepper without it is refused on such a scene (unsupported_scene).
   virtual bool follows_prescribed_motion() const { return false; }
+  /// Whether Step applies the thesis' explicit friction at the obstacles
+  /// whatever solver.friction_law says (model/solver_spec.h, FrictionLaw).
+  /// Such a stepper is refused on a scene that asks for another law and
+  /// has an obstacle with friction (unsupported_scene). Steppers with a
+  /// friction of their own (XPBD's constraints, the SUNDIALS rows'
+  /// continuous law), which the key does not govern, are not.
+  virtual bool explicit_friction_only() const { return false; }
   /// The counters of the stepper's own self-contact on a scene with
   /// `[collision] self = true` (a position-based peer's constraints inside
   /// its step, peers/position_contacts.h), since Reset; nullptr where it
@@ -388,6 +439,12 @@ class StepEngine : public Stepper {
   const Scheme& scheme_;  // method_'s formula (SchemeOf)
   SolverSpec opts_;
   SystemMatrix sysmat_;
+  Eigen::VectorXd friction_diagonal_;   // FrictionLaw::kImplicit: h c_p [kg] of this step (N; empty under the other laws)
+  bool friction_diagonal_set_ = false;  // whether any is nonzero
+  bool revising_ = false;               // a solve again of the same step (SolveHolding)
+  bool friction_step_ = false;          // this step's first solve has friction rates, or the last step had
+  bool refactored_ = false;             // and its preconditioner was factorised again with them
+  RefactorChoice refactor_choice_;
   VelocityFilter filter_;
   ContactResponse contacts_;
   PcgWorkspace work_;

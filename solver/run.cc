@@ -642,6 +642,22 @@ bool RefusesMotion(const ParticleSystem& system, const Stepper& engine, RunSumma
   return true;
 }
 
+// True (sum's status and message set) if the scene asks for a friction law
+// other than the thesis' explicit one at an obstacle with friction, and the
+// stepper applies the explicit law only.
+bool RefusesFrictionLaw(const ParticleSystem& system, const SolverSpec& spec, const Stepper& engine,
+                        RunSummary* sum) {
+  if (spec.friction_law == FrictionLaw::kExplicit || !engine.explicit_friction_only()) return false;
+  const auto& obstacles = system.obstacles();
+  if (std::none_of(obstacles.begin(), obstacles.end(), [](const Obstacle& o) { return o.spec().friction > 0.0; }))
+    return false;
+  sum->status = RunStatus::kUnsupportedScene;
+  sum->message = fmt::format("solver.friction_law = \"{}\": this method applies the explicit friction of "
+                             "docs/model.md §2.5 only (docs/notes/collisions.md, \"Friction laws\")",
+                             ToString(spec.friction_law));
+  return true;
+}
+
 // Puts the engine at rest at t = 0; the scene's virtual particles, if any.
 // They start empty, before Reset evaluates any force (the error estimate's
 // initial slope): the last run's topology would leak into this one.
@@ -747,6 +763,7 @@ void RunStepper(const ParticleSystem& system, Stepper& engine, const RunOptions&
   sum.error_test_failures = spec.step_control == StepControl::kError ? 0 : -1;
   double solver_seconds = 0.0;
   if (RefusesMotion(system, engine, &sum)) return;
+  if (RefusesFrictionLaw(system, spec, engine, &sum)) return;
   engine.PlanRun(options.t_end, options.h);
   VirtualParticles* const virtual_particles = ResetToRest(system, engine);
   SelfContactStage self_contact(system, engine);

@@ -98,6 +98,9 @@ TEST(BadInput, OutOfRangeSceneValuesAreRefusedBeforeComputing) {
   // Stiction holds particles; the regularised law has no sticking.
   ExpectRefused(Scene("stiction.toml", Replace(kTiny, "[solver]\n", "[solver]\nfriction_cap = \"stiction\"\nfriction_law = \"regularised\"\n")),
                 "solver: friction_cap = \"stiction\" holds particles in place and friction_law = \"regularised\"");
+  // The implicit friction has no explicit impulse to cap.
+  ExpectRefused(Scene("implicit_cap.toml", Replace(kTiny, "[solver]\n", "[solver]\nfriction_cap = \"system\"\nfriction_law = \"implicit\"\n")),
+                "solver: friction_cap = \"system\" caps an explicit friction impulse and friction_law = \"implicit\" has none");
 }
 
 TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {
