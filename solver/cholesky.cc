@@ -535,6 +535,8 @@ void CholeskyFactor::Solve(const MatrixN3& r, MatrixN3* z) const {
   if (!ok[0] || !ok[1]) z->setConstant(std::numeric_limits<double>::quiet_NaN());  // the PCG reports cg_non_finite
 }
 
+double CholeskyFactor::factorization_flops() const { return impl_->factor ? impl_->common.fl : 0.0; }
+
 long CholeskyFactor::factor_nonzeros() const {
   const Impl& m = *impl_;
   if (!m.factor) return 0;

@@ -82,6 +82,9 @@ class CholeskyFactor {
   /// Nonzeros of the factor L (after Factorize), and whether CHOLMOD chose
   /// a supernodal factor.
   long factor_nonzeros() const;
+  /// Floating-point operations of one numeric factorisation, as CHOLMOD's
+  /// analysis counts them (cholmod_common::fl; 0 before Analyze).
+  double factorization_flops() const;
   bool supernodal() const;
   /// Whether Solve runs the tree-parallel solve (a fresh simplicial LLᵀ
   /// copy whose elimination tree splits into two parts; docs/notes/performance.md)

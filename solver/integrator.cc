@@ -410,7 +410,7 @@ StepStats StepEngine::Solve(double h) {
     // last step's), when that has paid (RefactorChoice); a solve again of
     // the same step keeps the step's factor.
     friction_step_ = !revising_ && (friction_before || friction_diagonal_set_);
-    refactored_ = friction_step_ && refactor_choice_.Choose();
+    refactored_ = friction_step_ && refactor_choice_.Choose(sysmat_.preconditioner().RefactorIterations(sys_.num_particles()));
     if (refactored_ && !sysmat_.Refactorize()) {
       st.status = StepStatus::kPreconditionerFailed;
       return st;

@@ -182,18 +182,19 @@ class SystemMatrix {
 /// (docs/notes/collisions.md, "Implicit friction"). Counts, not times, so
 /// that a run repeats bit for bit: the CG iterations of the solves of
 /// steps with and without a refactorisation (means with weight 1/2 on
-/// the latest), and a refactorisation while it saved more than
-/// Preconditioner::kRefactorIterations; every kProbeSteps-th step measures
+/// the latest), and a refactorisation while it saved more than it costs
+/// (Preconditioner::RefactorIterations); every kProbeSteps-th step measures
 /// the other choice again.
 class RefactorChoice {
  public:
   static constexpr long kProbeSteps = 16;
-  /// For the next step: refactorise?
-  bool Choose() {
+  /// For the next step: refactorise, at a price of `price` CG iterations
+  /// (Preconditioner::RefactorIterations)?
+  bool Choose(double price) {
     ++steps_;
     if (fresh_ < 0.0) return true;
     if (stale_ < 0.0) return false;
-    const bool refactor = stale_ - fresh_ > Preconditioner::kRefactorIterations;
+    const bool refactor = stale_ - fresh_ > price;
     return steps_ % kProbeSteps == 0 ? !refactor : refactor;
   }
   /// The CG iterations of a step's solves, with a refactorisation or without.

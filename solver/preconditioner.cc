@@ -148,6 +148,21 @@ bool Preconditioner::Analyze(const SparseMatrix& a, const std::vector<int>& fixe
   return false;
 }
 
+double Preconditioner::RefactorIterations(int n) const {
+  switch (type_) {
+    case PreconditionerType::kNone:
+    case PreconditionerType::kJacobi: return 0.0;
+    case PreconditionerType::kIc0: return 1.0;
+    case PreconditionerType::kAmg: return kAutoSetupVCycles * VCycleIterations(n);
+    case PreconditionerType::kCholesky:
+    case PreconditionerType::kAuto: break;
+  }
+  const long nnz = factor_nonzeros();
+  if (!cholesky_ || nnz <= 0) return kRefactorIterations;
+  const int factors = 1 + axis_used_[0] + axis_used_[1] + axis_used_[2];
+  return factors * cholesky_->factorization_flops() / (12.0 * static_cast<double>(nnz));
+}
+
 bool Preconditioner::Factorize(const SparseMatrix& a) {
   switch (type_) {
     case PreconditionerType::kNone: return true;

@@ -287,6 +287,14 @@ class Preconditioner {
   const ContactFactorStats& contact_stats() const { return contact_stats_; }
   /// z ← P⁻¹ r. @param r, z N×3. No allocation (after the first call).
   void Apply(const MatrixN3& r, MatrixN3* z) const;
+  /// What Factorize costs, in the contact policy's unit, one CG iteration
+  /// that reads one factor: for the Cholesky factor its flops over a
+  /// solve's (two triangular solves of three columns, 12 per nonzero of
+  /// L), times one plus the contact factors in use (Factorize makes them
+  /// stale, AdaptTo factorises them again); IC(0) about one iteration; the
+  /// AMG a hierarchy's setup, kAutoSetupVCycles V-cycles; 0 for Jacobi and
+  /// none. @param n the matrix's rows.
+  double RefactorIterations(int n) const;
   /// Nonzeros of the Cholesky factor (0 for other types).
   long factor_nonzeros() const { return cholesky_ ? cholesky_->factor_nonzeros() : 0; }
   /// Levels of the AMG hierarchy (0 for other types).
