@@ -22,6 +22,9 @@
 // 3. A stepper that applies the explicit law only (PD) is refused on a
 //    scene with friction that asks for the implicit law, before it
 //    computes; the same scene without friction runs.
+// 4. RefactorChoice measures both choices first, then refactorises while
+//    the CG iterations saved exceed the price, and every kProbeSteps-th
+//    step tries the other choice.
 #include <cmath>
 #include <string>
 #include <vector>
@@ -29,6 +32,7 @@
 #include <gtest/gtest.h>
 
 #include "model/scene.h"
+#include "solver/integrator.h"
 #include "solver/sewing.h"
 #include "verify/test_rows.h"
 
@@ -105,6 +109,21 @@ TEST(ImplicitFriction, AMethodWithTheExplicitLawOnlyIsRefused) {
   for (auto& o : s.obstacles) o.friction = 0.0;
   s.t_end = s.frame_dt = 0.05;
   EXPECT_TRUE(testing::RunRow(s, "pd", 0.01).ok());
+}
+
+TEST(ImplicitFriction, TheRefactorisationIsChosenByTheIterationsItSaves) {
+  RefactorChoice choice;
+  EXPECT_TRUE(choice.Choose(50.0));  // step 1: with a fresh factor first
+  choice.Count(true, 100);
+  EXPECT_FALSE(choice.Choose(50.0));  // step 2: then without
+  choice.Count(false, 300);
+  EXPECT_TRUE(choice.Choose(50.0));    // 300 − 100 saved > 50
+  EXPECT_FALSE(choice.Choose(500.0));  // but not at a price of 500
+  choice.Count(false, 120);            // stale mean (300 + 120)/2 = 210
+  EXPECT_FALSE(choice.Choose(150.0));  // 210 − 100 = 110 saved < 150
+  int probes = 0;
+  for (long k = 6; k <= 2 * RefactorChoice::kProbeSteps; ++k) probes += choice.Choose(50.0) ? 0 : 1;
+  EXPECT_EQ(probes, 2);  // refactorising, except on steps 16 and 32
 }
 
 }  // namespace
