@@ -414,9 +414,9 @@ class StepEngine : public Stepper {
   /// One attempt at a step of size h: the contacts, the stage and its
   /// solve, x₁. Commits nothing. @return the step's statistics with its status
   StepStats Solve(double h);
-  /// Solve, again while stiction's active set releases holds
-  /// (ContactResponse::ReviseHolds), at most ContactResponse::kHoldRevisions
-  /// more times.
+  /// Solve, again while the active set releases stiction's holds or the
+  /// implicit friction leaves its cone (ContactResponse::ReviseHolds), at
+  /// most ContactResponse::kHoldRevisions more times.
   StepStats SolveHolding(double h);
   /// Row p of A v₁ − b of the solve just done [kg m/s] (A symmetric: row p is column p).
   Vector3 ResidualRow(int p) const;
