@@ -199,7 +199,7 @@ StepStats BaraffWitkin::Step(double h) {
   // The active set (ContactResponse::ReviseHolds): the step is solved again
   // without the stiction holds whose tangential impulse exceeds μ J_N, and
   // with the implicit friction that left its cone as μ J_N.
-  for (int k = 0; contacts_.holds() && k < ContactResponse::kHoldRevisions &&
+  for (int k = 0; contacts_.revises() && k < ContactResponse::kHoldRevisions &&
                   contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, vr_, v0_,
                                         opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
        ++k) {

@@ -57,7 +57,7 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
   if (accepted_) {
     contacts_backup_.assign(contacts_.begin(), contacts_.end());
     detection_.Save();
-    if (holds()) {
+    if (revises()) {
       std::fill(released_.begin(), released_.end(), Vector3::Zero());
       std::fill(frictionless_.begin(), frictionless_.end(), 0);
     }
@@ -121,16 +121,13 @@ void ContactResponse::SetImplicitFriction(const MatrixN3& v1) {
   for (int p = 0; p < sys_.num_particles(); ++p) {
     const Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (c.obstacle < 0 || !(c.friction_damping > 0.0)) continue;
-    Vector3 slip = v1.row(p).transpose() - c.v_obstacle;
-    slip -= slip.dot(c.direction) * c.direction;
-    friction_.row(p) = -c.friction_damping * slip.transpose();
+    friction_.row(p) = -c.friction_damping * TangentialSlip(c, v1.row(p).transpose()).transpose();
   }
 }
 
 bool ContactResponse::LeavesCone(int p, const Vector3& v1, double tolerance) {
   const Contact& c = contacts_[static_cast<std::size_t>(p)];
-  Vector3 slip = v1 - c.v_obstacle;
-  slip -= slip.dot(c.direction) * c.direction;
+  const Vector3 slip = TangentialSlip(c, v1);
   const double speed = slip.norm();
   if (!(h_ * c.friction_damping * speed > c.friction_limit + tolerance)) return false;
   released_[static_cast<std::size_t>(p)] = -slip / speed;
@@ -141,9 +138,7 @@ bool ContactResponse::StopPushingRelease(int p, const Vector3& v1) {
   const auto i = static_cast<std::size_t>(p);
   const Contact& c = contacts_[i];
   if (!(released_[i].squaredNorm() > 0.0) || frictionless_[i] || c.obstacle < 0) return false;
-  Vector3 slip = v1 - c.v_obstacle;
-  slip -= slip.dot(c.direction) * c.direction;
-  if (!(friction_.row(p).dot(slip.transpose()) > 0.0)) return false;
+  if (!(friction_.row(p).dot(TangentialSlip(c, v1).transpose()) > 0.0)) return false;
   frictionless_[i] = 1;
   return true;
 }
@@ -163,7 +158,8 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (sys_.is_fixed(p)) continue;
     const bool was = c.obstacle >= 0;
-    // Stiction: the last hold exceeded μ J_N, or a hold of this step did.
+    // Released: the last stiction hold exceeded μ J_N, or in this step a
+    // hold did or the implicit friction left its cone (ReviseHolds).
     const Vector3 released = released_[static_cast<std::size_t>(p)];
     const bool slide = (c.held && c.slides) || released.squaredNorm() > 0.0;
     const bool held_before = c.held;              // at rest on the obstacle at this step's start

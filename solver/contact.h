@@ -53,7 +53,7 @@ class ContactResponse {
   /// Whether a step's solve may be revised (ReviseHolds): stiction may hold
   /// contacts (set_stiction), or the implicit friction may leave its cone
   /// (FrictionLaw::kImplicit); and the scene has obstacles.
-  bool holds() const { return (stiction_ || friction_law_ == FrictionLaw::kImplicit) && active(); }
+  bool revises() const { return (stiction_ || friction_law_ == FrictionLaw::kImplicit) && active(); }
   /// The active set's solves of one step beyond the first, at most.
   static constexpr int kHoldRevisions = 8;
   /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
@@ -216,11 +216,11 @@ class ContactResponse {
   /// step) along J_t instead; and a released contact whose friction points
   /// along its slip relative to the obstacle in v1 gets no friction for the
   /// rest of the step. @return whether any changed (then the step is
-  /// solved again). Nothing without stiction. No allocation.
+  /// solved again). Nothing unless revises(). No allocation.
   template <class RowResidual, class V0, class V1, class VHat>
   bool ReviseHolds(RowResidual&& residual_row, const V0& v0, const V1& v1, const VHat& vhat,
                    double release_tolerance) {
-    if (!holds()) return false;
+    if (!revises()) return false;
     bool any = false;
     const Eigen::VectorXd& mass = sys_.masses();
     for (int p = 0; p < sys_.num_particles(); ++p) {
@@ -293,12 +293,12 @@ class ContactResponse {
   double event_tolerance_ = 0.0;
   FrictionLaw friction_law_ = FrictionLaw::kExplicit;
   bool stiction_ = false;
-  // Stiction: per particle, the direction of the tangential impulse of a
-  // hold released in this step (ReviseHolds), zero if none; cleared when a
-  // new step begins.
+  // Per particle, the direction of the friction of a contact released in
+  // this step (ReviseHolds: a stiction hold beyond μ J_N, or an implicit
+  // friction beyond its cone), zero if none; cleared when a new step begins.
   std::vector<Vector3> released_;
-  // Stiction: released in this step, and its friction pushed it along its
-  // slip in a solve (ReviseHolds): no friction for the rest of the step.
+  // Released in this step, and its friction pushed it along its slip in a
+  // solve (ReviseHolds): no friction for the rest of the step.
   std::vector<uint8_t> frictionless_;
   // The state the last SetUp started from, and whether a step was
   // accepted since (ReadImpulses): an attempt after a rejected one starts
@@ -320,10 +320,15 @@ class ContactResponse {
   // exceeds μ J_N + tolerance; then it slides for the rest of the step
   // (released_ along −(v₁ − u)_t).
   bool LeavesCone(int p, const Vector3& v1, double tolerance);
-  // Stiction: a contact released in this step whose friction points along
+  // A contact released in this step whose friction points along
   // its slip relative to the obstacle at v1 [m/s] pushed it; it gets no
   // friction for the rest of the step. Returns whether that is new.
   bool StopPushingRelease(int p, const Vector3& v1);
+  // Contact c's velocity v [m/s] relative to its obstacle, its tangential part.
+  static Vector3 TangentialSlip(const Contact& c, const Vector3& v) {
+    const Vector3 w = v - c.v_obstacle;
+    return w - w.dot(c.direction) * c.direction;
+  }
   int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
              VelocityFilter* filter);  // SetUp's work
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit

@@ -319,7 +319,7 @@ StepStats StepEngine::SolveHolding(double h) {
   StepStats st = Solve(h);
   const bool friction_step = friction_step_, refactored = refactored_;
   int updates = st.updates, cg_iterations = st.cg_iterations;
-  for (int k = 0; contacts_.holds() && k < ContactResponse::kHoldRevisions && st.status == StepStatus::kOk; ++k) {
+  for (int k = 0; contacts_.revises() && k < ContactResponse::kHoldRevisions && st.status == StepStatus::kOk; ++k) {
     if (!contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
                                opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed())))
       break;
