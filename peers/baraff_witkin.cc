@@ -203,7 +203,7 @@ StepStats BaraffWitkin::Step(double h) {
                   contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, vr_, v0_,
                                         opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
        ++k) {
-    st.colliding = contacts_.SetUp(t_, h, x0_, v0_, have_history_ ? &xm1_ : nullptr, &filter_);
+    st.colliding = contacts_.SetUpAgain(&filter_);
     PrescribeFixedTargets(sys_, t_ + h, &filter_);
     ++st.updates;
     UpdateFrictionDiagonal(h);  // without the contacts that left the cone

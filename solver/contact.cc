@@ -12,6 +12,7 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system), d
   const int n = system.num_particles();
   if (system.obstacles().empty()) return;
   contacts_.assign(static_cast<std::size_t>(n), Contact{});
+  detected_.assign(static_cast<std::size_t>(n), ObstacleContact{});
   released_.assign(static_cast<std::size_t>(n), Vector3::Zero());
   frictionless_.assign(static_cast<std::size_t>(n), 0);
   friction_.setZero(n, 3);
@@ -66,7 +67,18 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
     detection_.Restore();
   }
   accepted_ = false;
-  const int colliding = Detect(t0, h, x_start, v_start, xm1, filter);
+  Detect(t0, h, x_start, v_start, xm1);
+  const int colliding = Respond(h, filter);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return colliding;
+}
+
+int ContactResponse::SetUpAgain(VelocityFilter* filter) {
+  const auto start = std::chrono::steady_clock::now();
+  // The contacts as the step started; detection_ keeps what this step's
+  // detection measured (Restore and Detect would measure it again).
+  std::copy(contacts_backup_.begin(), contacts_backup_.end(), contacts_.begin());
+  const int colliding = Respond(h_, filter);
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return colliding;
 }
@@ -143,8 +155,29 @@ bool ContactResponse::StopPushingRelease(int p, const Vector3& v1) {
   return true;
 }
 
-int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
-                            VelocityFilter* filter) {
+void ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start,
+                             const MatrixN3* xm1) {
+  detection_.BeginStep(t0);
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    ObstacleContact& contact = detected_[static_cast<std::size_t>(p)];
+    if (sys_.is_fixed(p)) {
+      contact.particle = -1;
+      continue;
+    }
+    const Contact& c = contacts_[static_cast<std::size_t>(p)];
+    // Release below −η‖S_F b‖ only (within the PCG's residual a holding
+    // impulse is round-off), and not after a predicted entry (SetUp).
+    const ObstacleDetection::Prior prior{c.obstacle, c.direction,
+                                         c.obstacle >= 0 && !c.entry && c.impulse < -release_tolerance_};
+    const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
+    Vector3 x_prev;
+    if (xm1) x_prev = xm1->row(p).transpose();
+    const bool found = detection_.Detect(p, h, x0, v0, xm1 ? &x_prev : nullptr, prior, event_tolerance_, &contact);
+    contact.particle = found ? p : -1;
+  }
+}
+
+int ContactResponse::Respond(double h, VelocityFilter* filter) {
   // The impulses read last are over the last accepted step, h_read_.
   const double impulse_scale = h_read_ > 0.0 && h_read_ != h ? h / h_read_ : 1.0;
   h_ = h;
@@ -153,7 +186,6 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
   friction_.setZero();
   int count = 0;
   const auto& obstacles = sys_.obstacles();
-  detection_.BeginStep(t0);
   for (int p = 0; p < sys_.num_particles(); ++p) {
     Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (sys_.is_fixed(p)) continue;
@@ -166,19 +198,13 @@ int ContactResponse::Detect(double t0, double h, const MatrixN3& x_start, const 
     const bool was_held = c.held && !c.slides;  // and the last hold stayed within it
     const double slip_before = c.last_slip;
     c.last_slip = std::numeric_limits<double>::infinity();
-    // Release below −η‖S_F b‖ only (within the PCG's residual a holding
-    // impulse is round-off), and not after a predicted entry (SetUp).
-    const ObstacleDetection::Prior prior{c.obstacle, c.direction, was && !c.entry && c.impulse < -release_tolerance_};
     const double last_impulse = c.impulse;
     c.obstacle = -1;
     c.sticks = c.entry = c.held = c.slides = false;
     c.friction_limit = 0.0;
     c.friction_damping = 0.0;
-    const Vector3 x0 = x_start.row(p).transpose(), v0 = v_start.row(p).transpose();
-    Vector3 x_prev;
-    if (xm1) x_prev = xm1->row(p).transpose();
-    ObstacleContact contact;
-    if (!detection_.Detect(p, h, x0, v0, xm1 ? &x_prev : nullptr, prior, event_tolerance_, &contact)) continue;
+    const ObstacleContact& contact = detected_[static_cast<std::size_t>(p)];
+    if (contact.particle < 0) continue;
     const Obstacle& o = obstacles[static_cast<std::size_t>(contact.obstacle)];
     const Vector3& dir = contact.normal;
     c.obstacle = contact.obstacle;

@@ -34,6 +34,12 @@ class ContactResponse {
   /// @param xm1 N×3 positions one step earlier, or nullptr without history
   /// @return the number of colliding particles (Fig. 4.3). No allocation.
   int SetUp(double t0, double h, const MatrixN3& x0, const MatrixN3& v0, const MatrixN3* xm1, VelocityFilter* filter);
+  /// SetUp for a solve again of the same step (after ReviseHolds returned
+  /// true): rebuilds `filter` and the friction from the contacts the last
+  /// SetUp detected (same t0, h and start state, so detection would find
+  /// them again), with this step's releases. No detection, no allocation.
+  /// @return the number of colliding particles
+  int SetUpAgain(VelocityFilter* filter);
 
   /// Event location (docs/notes/collisions.md, "Error control through contact
   /// events"), for the error-controlled methods: with a tolerance ε > 0
@@ -329,8 +335,13 @@ class ContactResponse {
     const Vector3 w = v - c.v_obstacle;
     return w - w.dot(c.direction) * c.direction;
   }
-  int Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1,
-             VelocityFilter* filter);  // SetUp's work
+  // SetUp's work: every free particle's contact with the obstacles at the
+  // step's start (detected_), then the response to them (Respond).
+  void Detect(double t0, double h, const MatrixN3& x_start, const MatrixN3& v_start, const MatrixN3* xm1);
+  int Respond(double h, VelocityFilter* filter);
+  // Per particle, its contact of the last SetUp (particle −1: none); a
+  // solve again of the step (SetUpAgain) responds to them again.
+  std::vector<ObstacleContact> detected_;
   MatrixN3 friction_;                      // Coulomb friction forces [N], explicit
 };
 

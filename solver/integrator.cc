@@ -345,7 +345,7 @@ StepStats StepEngine::Solve(double h) {
   int colliding = 0;
   if (contacts_.active()) {
     const MatrixN3* xm1 = past_ > 0 ? &xm1_ : nullptr;
-    colliding = contacts_.SetUp(t_, h, x0_, v0_, xm1, &filter_);
+    colliding = revising_ ? contacts_.SetUpAgain(&filter_) : contacts_.SetUp(t_, h, x0_, v0_, xm1, &filter_);
     // event_step_ stays set over a retry or a redo (ContactSetChanged
     // compares with the last attempt) until the step is accepted.
     if (!in_contact_.empty() && ContactSetChanged() && (past_ > 0 || event_location_)) {
