@@ -20,6 +20,8 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system), d
 
 void ContactResponse::Reset() {
   for (Contact& c : contacts_) c = Contact{};
+  for (Echo& e : echoes_)
+    for (MatrixN3* m : {&e.holding, &e.pulling, &e.friction}) m->setZero();
   detection_.Reset();
   seconds_ = 0.0;
   h_ = h_read_ = 0.0;
@@ -117,15 +119,46 @@ void ContactResponse::CapFriction(int p, double a) {
   friction_.row(p) = CappedFriction(c.friction_limit, a, c.slip, h_, &c.sticks).transpose();
 }
 
-double ContactResponse::ReadHold(int p, const Vector3& r, const Vector3& from_start, const Vector3& mean,
-                                 double release_tolerance) {
+Vector3 ContactResponse::ReadHold(int p, const Vector3& r, const Vector3& from_start, double release_tolerance) {
   Contact& c = contacts_[static_cast<std::size_t>(p)];
   const Vector3 tangential = from_start - from_start.dot(c.direction) * c.direction;
   const double size = tangential.norm();
   const double mu = sys_.obstacles()[static_cast<std::size_t>(c.obstacle)].spec().friction;
   c.slides = size > mu * std::max(c.impulse, 0.0) + release_tolerance;
   c.hold_direction = size > 0.0 ? Vector3(tangential / size) : Vector3::Zero();
-  return (r - r.dot(c.direction) * c.direction).dot(mean);
+  return r - r.dot(c.direction) * c.direction;
+}
+
+void ContactResponse::KeepEchoes(int steps) {
+  if (!active()) return;
+  const int n = sys_.num_particles();
+  echoes_.resize(static_cast<std::size_t>(std::clamp(steps, 1, 2)));
+  for (Echo& e : echoes_)
+    for (MatrixN3* m : {&e.holding, &e.pulling, &e.friction}) m->setZero(n, 3);
+}
+
+// The carry (docs/model.md §7, the contact work): a multistep step's
+// momentum change is M(v₁ − v₀) = Σ_F I_F + d₁ M(v₀ − v₋₁) + d₂ M(v₋₁ − v₋₂)
+// with I_F = βh F each force's share of the residual; by linearity each
+// force's part of it is J_F = I_F + d₁ J_F,₋₁ + d₂ J_F,₋₂, and the J_F of
+// all forces sum to M(v₁ − v₀).
+void ContactResponse::AddWork(int p, StepImpulses* in, const Vector3& mean, const HistoryCarry& carry) {
+  if (!echoes_.empty()) {
+    Echo& last = echoes_[0];
+    const bool two = echoes_.size() > 1;
+    auto carried = [&](Vector3* j, MatrixN3 Echo::*kind) {
+      *j += carry.d1 * (last.*kind).row(p).transpose();
+      if (two && carry.d2 != 0.0) *j += carry.d2 * (echoes_[1].*kind).row(p).transpose();
+      if (two) (echoes_[1].*kind).row(p) = (last.*kind).row(p);
+      (last.*kind).row(p) = j->transpose();
+    };
+    carried(&in->holding, &Echo::holding);
+    carried(&in->pulling, &Echo::pulling);
+    carried(&in->friction, &Echo::friction);
+  }
+  work_.holding += in->holding.dot(mean);
+  work_.pulling += in->pulling.dot(mean);
+  work_.friction += in->friction.dot(mean);
 }
 
 void ContactResponse::SetImplicitFriction(const MatrixN3& v1) {

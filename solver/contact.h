@@ -17,6 +17,13 @@
 
 namespace clothbench {
 
+/// How a step's predictor carries the past velocity changes (a multistep
+/// formula, docs/model.md §4): v̂ − v₀ = d1 (v₀ − v₋₁) + d2 (v₋₁ − v₋₂).
+/// Zero: a one-step formula (v̂ = v₀).
+struct HistoryCarry {
+  double d1 = 0.0, d2 = 0.0;
+};
+
 class ContactResponse {
  public:
   /// Allocates the per-particle state (nothing if the scene has no obstacles).
@@ -26,6 +33,11 @@ class ContactResponse {
   bool active() const { return !contacts_.empty(); }
   /// Forgets every contact (a new run).
   void Reset();
+  /// A multistep method's rows: keeps, per particle, the contact impulses
+  /// of the last `steps` (1 or 2) accepted steps with what the history
+  /// carried of them (ReadImpulses' HistoryCarry). Allocates 3·steps N×3
+  /// matrices; call before the run.
+  void KeepEchoes(int steps);
 
   /// Rebuilds `filter` for a step of size h [s] from t0 [s]: the fixed
   /// particles, then one direction per colliding particle with the (4.4)
@@ -168,44 +180,48 @@ class ContactResponse {
   /// (FrictionLaw::kImplicit: its force at v₁, SetImplicitFriction). For a
   /// particle alone, ⟨I, (v₀ + v₁)/2⟩ is exactly its kinetic energy's
   /// change m(|v₁|² − |v₀|²)/2 under the impulse I.
+  /// A multistep method weights a step's forces by β (BDF(2): 2/3) and
+  /// carries part of each past velocity change into v̂ (`carry`): its
+  /// impulses count with what its history carries of them into the later
+  /// steps, J_n = I_n + d₁ J_{n−1} + d₂ J_{n−2} (docs/model.md §7, the
+  /// contact work; needs KeepEchoes), so that the impulses of all forces sum to
+  /// each step's momentum change M(v₁ − v₀).
   /// @param v0 N×3 velocities at the start of the step [m/s]
+  /// @param carry the step's d₁, d₂ (zero: a one-step formula)
   ///
   /// Called once per accepted step: the next SetUp starts from this
   /// state; a SetUp not preceded by it (a rejected or shortened attempt)
   /// starts again from the state the last one started from.
   template <class RowResidual>
   void ReadImpulses(RowResidual&& residual_row, const MatrixN3& v0, const MatrixN3& v1, const MatrixN3& vhat,
-                    double release_tolerance) {
+                    double release_tolerance, const HistoryCarry& carry = HistoryCarry{}) {
     const Eigen::VectorXd& mass = sys_.masses();
-    double holding = 0.0, pulling = 0.0, friction = 0.0;
     accepted_ = true;
     h_read_ = h_;
     for (int p = 0; p < sys_.num_particles(); ++p) {
       Contact& c = contacts_[static_cast<std::size_t>(p)];
+      StepImpulses in;
       if (c.obstacle < 0) {
         c.impulse = 0.0;
-        continue;
+      } else {
+        const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
+        const Vector3 r = residual_row(p);
+        // Under FrictionLaw::kImplicit the row also holds the friction's
+        // h c (v₁ − u), whose normal part is no constraint impulse.
+        const double full = r.dot(c.direction) - h_ * c.friction_damping *
+                                                     (v1.row(p).transpose() - c.v_obstacle).dot(c.direction);
+        c.impulse = full - inertia.dot(c.direction);
+        (full >= 0.0 ? in.holding : in.pulling) = full * c.direction;
+        in.friction = h_ * friction_.row(p).transpose();
+        if (c.held) {
+          // From the step's start state: the inertia of a multistep
+          // predictor v̂ ≠ v₀ is not the hold's.
+          const Vector3 from_start = r + mass(p) * (vhat.row(p) - v0.row(p)).transpose();
+          in.friction += ReadHold(p, r, from_start, release_tolerance);
+        }
       }
-      const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
-      const Vector3 r = residual_row(p);
-      // Under FrictionLaw::kImplicit the row also holds the friction's
-      // h c (v₁ − u), whose normal part is no constraint impulse.
-      const double full = r.dot(c.direction) - h_ * c.friction_damping *
-                                                   (v1.row(p).transpose() - c.v_obstacle).dot(c.direction);
-      c.impulse = full - inertia.dot(c.direction);
-      const Vector3 mean = 0.5 * (v0.row(p) + v1.row(p)).transpose();
-      (full >= 0.0 ? holding : pulling) += full * c.direction.dot(mean);
-      friction += h_ * friction_.row(p).dot(mean.transpose());
-      if (c.held) {
-        // From the step's start state: the inertia of a multistep
-        // predictor v̂ ≠ v₀ is not the hold's.
-        const Vector3 from_start = r + mass(p) * (vhat.row(p) - v0.row(p)).transpose();
-        friction += ReadHold(p, r, from_start, mean, release_tolerance);
-      }
+      AddWork(p, &in, 0.5 * (v0.row(p) + v1.row(p)).transpose(), carry);
     }
-    work_.holding += holding;
-    work_.pulling += pulling;
-    work_.friction += friction;
     release_tolerance_ = release_tolerance;
   }
 
@@ -318,10 +334,21 @@ class ContactResponse {
   // residual) and the same from the step's start state, r + m(v̂ − v₀)
   // (`from_start`; its tangential part J_t is the friction impulse that
   // held the particle, its slip's momentum included): the contact slides
-  // in the next step when |J_t| > μ J_N + release_tolerance. Returns the
-  // work of r's tangential part over the step, ⟨r_t, mean velocity⟩ [J]
-  // (friction's).
-  double ReadHold(int p, const Vector3& r, const Vector3& from_start, const Vector3& mean, double release_tolerance);
+  // in the next step when |J_t| > μ J_N + release_tolerance. Returns r's
+  // tangential part [kg m/s] (friction's impulse).
+  Vector3 ReadHold(int p, const Vector3& r, const Vector3& from_start, double release_tolerance);
+  // One particle's contact impulses of a step [kg m/s], by kind of work.
+  struct StepImpulses {
+    Vector3 holding = Vector3::Zero(), pulling = Vector3::Zero(), friction = Vector3::Zero();
+  };
+  // Adds the history's carry (KeepEchoes) to *in, keeps it for the next
+  // steps and adds its work ⟨I, mean⟩ [J] to work_ (ReadImpulses).
+  void AddWork(int p, StepImpulses* in, const Vector3& mean, const HistoryCarry& carry);
+  // KeepEchoes: the impulses J of the last accepted steps, [0] the last.
+  struct Echo {
+    MatrixN3 holding, pulling, friction;
+  };
+  std::vector<Echo> echoes_;
   // FrictionLaw::kImplicit: whether contact p's friction −c (v₁ − u)_t
   // exceeds μ J_N + tolerance; then it slides for the rest of the step
   // (released_ along −(v₁ − u)_t).

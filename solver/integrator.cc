@@ -186,6 +186,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
     sysmat_.ReserveChanges(n);
   }
   const bool multistep = scheme_.past_steps() > 0;
+  if (multistep) contacts_.KeepEchoes(scheme_.past_steps());
   error_control_ = solver.step_control == StepControl::kError && scheme_.error_controlled();
   // Under error control the contact events are located and restart the
   // method (docs/notes/collisions.md, "Error control through contact events"):
@@ -373,6 +374,7 @@ StepStats StepEngine::Solve(double h) {
     virtual_before_ = active;
   }
   const StageCoefficients c = PrepareStage(step, h, omega);
+  carry_ = HistoryCarry{c.carry1, c.carry2};
   if (colliding > 0 && multistep_form && opts_.contact_history == ContactHistory::kLand) LandContactTargets(h, c.gamma);
 
   if (!sysmat_.Update(c.alpha * h)) {
@@ -612,7 +614,7 @@ StepStats StepEngine::FinishStep(double h, StepStats st) {
   if (contacts_.active()) {
     contacts_.SetImplicitFriction(v1_);
     contacts_.ReadImpulses([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
-                           opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()));
+                           opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()), carry_);
   }
   if (!Commit(h)) st.status = StepStatus::kNonFinite;
   return st;

@@ -443,6 +443,7 @@ class StepEngine : public Stepper {
   Eigen::VectorXd friction_diagonal_;   // FrictionLaw::kImplicit: h c_p [kg] of this step (N; empty under the other laws)
   bool friction_diagonal_set_ = false;  // whether any is nonzero
   bool revising_ = false;               // a solve again of the same step (SolveHolding)
+  HistoryCarry carry_;                  // of the step's formula, for the contact work (ReadImpulses)
   bool friction_step_ = false;          // this step's first solve has friction rates, or the last step had
   bool refactored_ = false;             // and its preconditioner was factorised again with them
   RefactorChoice refactor_choice_;

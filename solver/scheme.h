@@ -27,6 +27,10 @@ class StepEngine;
 struct StageCoefficients {
   double alpha = 1.0, beta = 1.0, gamma = 1.0, gamma_g = 1.0, t_g = 0.0;
   bool midpoint = false;  ///< implicit midpoint: g at the mean velocity
+  /// A multistep formula's v̂ − v₀ = carry1 (v₀ − v₋₁) + carry2 (v₋₁ − v₋₂)
+  /// (0: one-step, v̂ = v₀); the contact work counts what it carries
+  /// (ContactResponse::ReadImpulses).
+  double carry1 = 0.0, carry2 = 0.0;
 };
 
 /// What a formula reads to set up a step (N×3 states [m], [m/s]) and the

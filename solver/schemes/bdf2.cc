@@ -13,6 +13,7 @@ StageCoefficients Bdf2Stage(const Stage& s, bool imex) {
   const Bdf2Coefficients bdf(s.omega);
   StageCoefficients k;
   k.alpha = k.beta = k.gamma = k.gamma_g = bdf.c3;
+  k.carry1 = bdf.c2;  // v̂ − v₀ = (c1 − 1) v₀ − c2 v₋₁, c1 − 1 = c2
   *s.xhat = bdf.c1 * *s.x0 - bdf.c2 * *s.xm1;
   *s.vhat = bdf.c1 * *s.v0 - bdf.c2 * *s.vm1;
   s.engine->LinearProduct(false, *s.xhat, s.tmp);

@@ -38,6 +38,8 @@ class Sbdf3 final : public Scheme {
   StageCoefficients Prepare(const Stage& s) const override {
     StageCoefficients k;
     k.alpha = k.beta = k.gamma = k.gamma_g = 6.0 / 11.0;
+    k.carry1 = 7.0 / 11.0;  // v̂ − v₀ = (7/11)(v₀ − v₋₁) − (2/11)(v₋₁ − v₋₂)
+    k.carry2 = -2.0 / 11.0;
     *s.xhat = (18.0 / 11.0) * *s.x0 - (9.0 / 11.0) * *s.xm1 + (2.0 / 11.0) * *s.xm2;
     *s.vhat = (18.0 / 11.0) * *s.v0 - (9.0 / 11.0) * *s.vm1 + (2.0 / 11.0) * *s.vm2;
     s.engine->LinearProduct(false, *s.xhat, s.tmp);
