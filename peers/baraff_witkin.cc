@@ -90,7 +90,7 @@ Vector3 BaraffWitkin::ResidualRow(int p) const {
 // The forces, friction and right-hand side at the step's start and the
 // PCG solve for v₁ (in vr_) under this attempt's filter. Returns false
 // with st->status set when the solve fails.
-bool BaraffWitkin::SolveVelocities(double h, StepStats* st) {
+bool BaraffWitkin::SolveVelocities(double h, bool again, StepStats* st) {
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
   sys_.Forces(t_, x0_, v0_, &f_);
   if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
@@ -121,9 +121,11 @@ bool BaraffWitkin::SolveVelocities(double h, StepStats* st) {
   contacts_.ForEachFrictionDamping([&](int p, double c, const Vector3& u) {
     rhs_.row(p) += (h * c) * (u - v0_.row(p).transpose()).transpose();
   });
-  vr_ = v0_;
-  TangentProduct(tangent_.matrix(), vr_, &br_);
+  TangentProduct(tangent_.matrix(), v0_, &br_);
   br_ += rhs_;
+  // A solve again of the step starts from the last solve's v₁, which
+  // differs only where contacts were released.
+  if (!again) vr_ = v0_;
 
   // η relative to the Δv form's right-hand side b_Δ = h (f₀ + h ∂f/∂x v₀):
   // ‖S_F b_Δ‖ (CgReference::kFixedOnly, with contacts) or ‖S b_Δ‖. The
@@ -195,7 +197,7 @@ StepStats BaraffWitkin::Step(double h) {
       return finish();
     }
   }
-  if (!SolveVelocities(h, &st)) return finish();
+  if (!SolveVelocities(h, /*again=*/false, &st)) return finish();
   // The active set (ContactResponse::ReviseHolds): the step is solved again
   // without the stiction holds whose tangential impulse exceeds μ J_N, and
   // with the implicit friction that left its cone as μ J_N.
@@ -211,7 +213,7 @@ StepStats BaraffWitkin::Step(double h) {
       st.status = StepStatus::kPreconditionerFailed;
       return finish();
     }
-    if (!SolveVelocities(h, &st)) return finish();
+    if (!SolveVelocities(h, /*again=*/true, &st)) return finish();
   }
   v1_ = vr_;
   x1_ = x0_ + h * v1_;

@@ -93,7 +93,9 @@ class BaraffWitkin : public Stepper {
   }
 
  private:
-  bool SolveVelocities(double h, StepStats* st);
+  // One linear solve of the step (eq. 18) into vr_; `again`: a solve again
+  // of the same step (the active set), from the last solve's vr_.
+  bool SolveVelocities(double h, bool again, StepStats* st);
   void UpdateFrictionDiagonal(double h);
   Vector3 ResidualRow(int p) const;
   const ParticleSystem& sys_;

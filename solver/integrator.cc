@@ -428,8 +428,12 @@ StepStats StepEngine::Solve(double h) {
   if (step.evaluates_g0()) ExplicitTerms(step, omega);
 
   // Predictor (3.25, 3.32): constant velocity, or linear extrapolation.
-  v1_ = v0_;
-  if (opts_.predictor == Predictor::kExtrapolate && past_ > 0) v1_ += omega * (v0_ - vm1_);
+  // A solve again of the step (SolveHolding) starts from the last solve's
+  // v₁, which differs only where contacts were released.
+  if (!revising_) {
+    v1_ = v0_;
+    if (opts_.predictor == Predictor::kExtrapolate && past_ > 0) v1_ += omega * (v0_ - vm1_);
+  }
 
   const PcgOptions pcg_opts{opts_.cg_tolerance, opts_.cg_max_iterations};
   // With contacts and CgReference::kFixedOnly, η is relative to ‖S_F b‖:
