@@ -365,8 +365,20 @@ class StepEngine : public Stepper {
   long events() const override { return event_location_ ? events_ : -1; }
   bool corrects_state() const override { return true; }
   bool follows_prescribed_motion() const override { return true; }
-  /// The explicit terms at the old end state are recomputed (g₀).
+  /// The explicit terms at the old end state are recomputed (g₀). A
+  /// multistep formula's past velocities move with the correction's jump
+  /// v − v₀, so that v̂ = Σ a_k v₋ₖ (Σ a_k = 1) carries it once: left as
+  /// they were, the formula read the jump as an acceleration and repeated
+  /// a share of it in every later step (BDF(2): c2 = 1/3 of it, then a
+  /// third of that, in all Δv/2 more; SBDF(3) 5Δv/6). The positions are
+  /// kept: a correction moves x₀ with its step's mean velocity (the
+  /// self-contact response, collision/self_contact_response.h), which the
+  /// position formula then continues.
   void CorrectState(const MatrixN3& x, const MatrixN3& v) override {
+    if (past_ > 0) {
+      vm1_ += v - v0_;
+      if (vm2_.rows() > 0) vm2_ += v - v0_;
+    }
     x0_ = x;
     v0_ = v;
     have_g0_ = false;
