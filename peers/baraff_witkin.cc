@@ -121,7 +121,8 @@ bool BaraffWitkin::SolveVelocities(double h, bool again, StepStats* st) {
   contacts_.ForEachFrictionDamping([&](int p, double c, const Vector3& u) {
     rhs_.row(p) += (h * c) * (u - v0_.row(p).transpose()).transpose();
   });
-  TangentProduct(tangent_.matrix(), v0_, &br_);
+  rhs_r_ = v0_;  // v₀ row-major, in rhs_r_'s storage until its own use below
+  TangentProduct(tangent_.matrix(), rhs_r_, &br_);
   br_ += rhs_;
   // A solve again of the step starts from the last solve's v₁, which
   // differs only where contacts were released.

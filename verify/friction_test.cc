@@ -39,7 +39,7 @@
 //      h = 0.005, 0.0025, 0.00125 s) the creep falls faster than first
 //      order: each at most 0.45 of the one before (measured 0.09–0.41; the
 //      mass cap's first-order creep halves, 0.50), and at h = 0.005 s it is
-//      below a tenth of the mass cap's 1.24·10⁻² m (measured 5.3–6.0·10⁻⁴ m).
+//      below a tenth of the mass cap's 1.24·10⁻² m (measured 5.6–6.0·10⁻⁴ m).
 //    - It lets a sliding sheet slide: on the tilted plane of 1. (friction
 //      0.3 < tan 30°) SBDF(2) moves the sheet more than 0.3 m (0.33 m
 //      measured; held by lagged decisions it stopped at 0.09 m), and the

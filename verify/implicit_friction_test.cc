@@ -6,7 +6,7 @@
 //    k-th and (k+1)-th h.
 //    - Implicit: at h = 0.01, 0.005, 0.0025, 0.00125 s each d_k is at most
 //      0.6 of the one before (first order halves it; measured ratios
-//      0.49 and 0.43; 0.6 leaves room for the irregular order of a
+//      0.47 and 0.42; 0.6 leaves room for the irregular order of a
 //      non-smooth problem): it converges from the scene's own step.
 //    - Explicit (the thesis' law): at h = 0.0025, 0.00125, 0.000625 s the
 //      distance grows (7.8·10⁻⁴, then 1.2·10⁻³ m measured): its friction
