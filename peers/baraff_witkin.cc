@@ -54,6 +54,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &f_, &rhs_, &x1_, &v1_}) m->setZero(n, 3);
+  if (contacts_.revises()) f0_.setZero(n, 3);
   if (opts_.friction_law == FrictionLaw::kImplicit && contacts_.active()) {
     friction_diagonal_.setZero(n);
     friction_change_.setZero(n);
@@ -92,7 +93,13 @@ Vector3 BaraffWitkin::ResidualRow(int p) const {
 // with st->status set when the solve fails.
 bool BaraffWitkin::SolveVelocities(double h, bool again, StepStats* st) {
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
-  sys_.Forces(t_, x0_, v0_, &f_);
+  // f₀ once per step: a solve again (the active set) changes only friction.
+  if (again) {
+    f_ = f0_;
+  } else {
+    sys_.Forces(t_, x0_, v0_, &f_);
+    if (f0_.size() > 0) f0_ = f_;
+  }
   if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
     // −tᵀ J_pq t for J's blocks beside particle p's (rows 3p … 3p+2): J is
     // not an M-matrix, so there the system cap is an estimate, not a bound.
