@@ -203,6 +203,7 @@ class ContactResponse {
       StepImpulses in;
       if (c.obstacle < 0) {
         c.impulse = 0.0;
+        if (echoes_.empty()) continue;  // no impulse, and no history carries one
       } else {
         const Vector3 inertia = mass(p) * (v1.row(p) - vhat.row(p)).transpose();
         const Vector3 r = residual_row(p);
