@@ -211,7 +211,7 @@ StepStats BaraffWitkin::Step(double h) {
   // with the implicit friction that left its cone as μ J_N.
   for (int k = 0; contacts_.revises() && k < ContactResponse::kHoldRevisions &&
                   contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, vr_, v0_,
-                                        opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()));
+                                        opts_.cg_tolerance * FreeRowsNorm(br_, sys_.fixed()), opts_.cg_tolerance);
        ++k) {
     st.colliding = contacts_.SetUpAgain(&filter_);
     PrescribeFixedTargets(sys_, t_ + h, &filter_);

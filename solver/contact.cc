@@ -170,11 +170,11 @@ void ContactResponse::SetImplicitFriction(const MatrixN3& v1) {
   }
 }
 
-bool ContactResponse::LeavesCone(int p, const Vector3& v1, double tolerance) {
+bool ContactResponse::LeavesCone(int p, const Vector3& v1, double relative_tolerance) {
   const Contact& c = contacts_[static_cast<std::size_t>(p)];
   const Vector3 slip = TangentialSlip(c, v1);
   const double speed = slip.norm();
-  if (!(h_ * c.friction_damping * speed > c.friction_limit + tolerance)) return false;
+  if (!(h_ * c.friction_damping * speed > c.friction_limit * (1.0 + relative_tolerance))) return false;
   released_[static_cast<std::size_t>(p)] = -slip / speed;
   return true;
 }

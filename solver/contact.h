@@ -228,9 +228,15 @@ class ContactResponse {
 
   /// The active set, after a solve and before its step is finished.
   /// FrictionLaw::kImplicit: every contact whose implicit friction impulse
-  /// h c |(v₁ − u)_t| exceeds μ J_N + release_tolerance (its slip grew
+  /// h c |(v₁ − u)_t| exceeds μ J_N (1 + cone_tolerance) (its slip grew
   /// past the step's start and v_ε: Coulomb's cone is left) slides for the
-  /// rest of the step, with μ J_N against that slip, explicit.
+  /// rest of the step, with μ J_N against that slip, explicit. The
+  /// tolerance is relative to the contact's own μ J_N: one against the
+  /// system's η‖S_F b‖ would keep, once the sheet moves fast and h is small,
+  /// every contact in the cone whose excess μ J_N Δ|v_t|/|v_t| is O(h²),
+  /// from a time that scales with h (docs/notes/collisions.md, "Implicit
+  /// friction"). A release in error only applies Coulomb's μ J_N at the
+  /// cone's edge, and costs a solve.
   /// Stiction: every held contact whose tangential constraint impulse J_t (the
   /// tangential part of its residual row, as in ReadImpulses; against its
   /// normal holding impulse J_N of this solve) exceeds
@@ -238,18 +244,19 @@ class ContactResponse {
   /// of the same step does not hold it and applies μ J_N (of the last
   /// step) along J_t instead; and a released contact whose friction points
   /// along its slip relative to the obstacle in v1 gets no friction for the
-  /// rest of the step. @return whether any changed (then the step is
-  /// solved again). Nothing unless revises(). No allocation.
+  /// rest of the step. @param release_tolerance η‖S_F b‖ [kg m/s]
+  /// @param cone_tolerance η (relative) @return whether any changed (then
+  /// the step is solved again). Nothing unless revises(). No allocation.
   template <class RowResidual, class V0, class V1, class VHat>
   bool ReviseHolds(RowResidual&& residual_row, const V0& v0, const V1& v1, const VHat& vhat,
-                   double release_tolerance) {
+                   double release_tolerance, double cone_tolerance) {
     if (!revises()) return false;
     bool any = false;
     const Eigen::VectorXd& mass = sys_.masses();
     for (int p = 0; p < sys_.num_particles(); ++p) {
       const Contact& c = contacts_[static_cast<std::size_t>(p)];
       if (c.friction_damping > 0.0) {
-        any |= LeavesCone(p, Vector3(v1.row(p).transpose()), release_tolerance);
+        any |= LeavesCone(p, Vector3(v1.row(p).transpose()), cone_tolerance);
         continue;
       }
       if (!c.held) {
@@ -353,7 +360,7 @@ class ContactResponse {
   // FrictionLaw::kImplicit: whether contact p's friction −c (v₁ − u)_t
   // exceeds μ J_N + tolerance; then it slides for the rest of the step
   // (released_ along −(v₁ − u)_t).
-  bool LeavesCone(int p, const Vector3& v1, double tolerance);
+  bool LeavesCone(int p, const Vector3& v1, double relative_tolerance);
   // A contact released in this step whose friction points along
   // its slip relative to the obstacle at v1 [m/s] pushed it; it gets no
   // friction for the rest of the step. Returns whether that is new.

@@ -322,7 +322,7 @@ StepStats StepEngine::SolveHolding(double h) {
   int updates = st.updates, cg_iterations = st.cg_iterations;
   for (int k = 0; contacts_.revises() && k < ContactResponse::kHoldRevisions && st.status == StepStatus::kOk; ++k) {
     if (!contacts_.ReviseHolds([this](int p) { return ResidualRow(p); }, v0_, v1_, vhat_,
-                               opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed())))
+                               opts_.cg_tolerance * FreeRowsNorm(b_, sys_.fixed()), opts_.cg_tolerance))
       break;
     revising_ = true;
     st = Solve(h);

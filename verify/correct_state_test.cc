@@ -64,7 +64,7 @@ TEST_P(CorrectStateTest, AVelocityJumpChangesTheMomentumOnce) {
 // 200 updates or Newton).
 INSTANTIATE_TEST_SUITE_P(ImexMethods, CorrectStateTest,
                          ::testing::Values(Method::kImexEuler, Method::kSbdf2, Method::kSbdf3),
-                         [](const auto& info) { return std::string(ToString(info.param)); });
+                         [](const auto& p) { return std::string(ToString(p.param)); });
 
 }  // namespace
 }  // namespace clothbench
