@@ -626,7 +626,8 @@ void ParseSolver(TableReader& top, const std::string& source, Scene& s) {
       v.Choice("tangent_projection", so.tangent_projection, {TangentProjection::kClamp, TangentProjection::kNone});
   so.tangent_explicit_terms = v.Bool("tangent_explicit_terms", so.tangent_explicit_terms);
   so.contact_history = v.Choice("contact_history", so.contact_history, {ContactHistory::kKeep, ContactHistory::kRestart, ContactHistory::kProject, ContactHistory::kLand});
-  so.friction_law = v.Choice("friction_law", so.friction_law, {FrictionLaw::kExplicit, FrictionLaw::kRegularised, FrictionLaw::kImplicit});
+  so.friction_law = v.Choice("friction_law", so.friction_law, {FrictionLaw::kExplicit, FrictionLaw::kRegularised, FrictionLaw::kImplicit,
+                                                         FrictionLaw::kImplicitIterated});
   so.friction_cap = v.Choice("friction_cap", so.friction_cap, {FrictionCap::kMass, FrictionCap::kSystem, FrictionCap::kStiction});
   so.contact_factors = v.Bool("contact_factors", so.contact_factors);
   so.amg_frames =

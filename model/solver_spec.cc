@@ -44,6 +44,7 @@ std::string_view ToString(FrictionLaw f) {
     case FrictionLaw::kExplicit: return "explicit";
     case FrictionLaw::kRegularised: return "regularised";
     case FrictionLaw::kImplicit: return "implicit";
+    case FrictionLaw::kImplicitIterated: return "implicit_iterated";
   }
   return "?";
 }
@@ -85,10 +86,10 @@ bool SolverSpec::IsValid(std::string* error) const {
   if (!(rtol > 0.0 && rtol < 1.0)) return fail(fmt::format("rtol = {} must be in (0, 1)", rtol));
   if (!(atol >= 0.0)) return fail(fmt::format("atol = {} must be >= 0", atol));
   if (max_rejections < 0) return fail(fmt::format("max_rejections = {} must be >= 0", max_rejections));
-  if (friction_law == FrictionLaw::kImplicit && friction_cap != FrictionCap::kMass)
-    return fail(fmt::format("friction_cap = \"{}\" caps an explicit friction impulse and friction_law = \"implicit\" "
+  if (IsImplicit(friction_law) && friction_cap != FrictionCap::kMass)
+    return fail(fmt::format("friction_cap = \"{}\" caps an explicit friction impulse and friction_law = \"{}\" "
                             "has none to cap: leave friction_cap at \"mass\"",
-                            ToString(friction_cap)));
+                            ToString(friction_cap), ToString(friction_law)));
   if (friction_cap == FrictionCap::kStiction && friction_law == FrictionLaw::kRegularised)
     return fail("friction_cap = \"stiction\" holds particles in place and friction_law = \"regularised\" has no "
                 "sticking: choose one");

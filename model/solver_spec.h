@@ -94,8 +94,19 @@ enum class ContactHistory { kKeep, kRestart, kProject, kLand };
 ///    explicit laws converge in h only once h is below the time scale m/d
 ///    of the damping between neighbours; this one from the first h
 ///    (docs/notes/collisions.md, "Implicit friction"). Thesis methods and
-///    Baraff–Witkin (and Blender); PD and VBD are refused (unsupported_scene).
-enum class FrictionLaw { kExplicit, kRegularised, kImplicit };
+///    Baraff–Witkin (and Blender); PD and VBD are refused (unsupported_scene);
+///  - "implicit_iterated": the same force with its rate taken again from the
+///    solve's own slip, c_p = μ J_N / (h |(v₁ − u)_t|), and the step solved
+///    again, while a contact that still slides (|(v₁ − u)_t| > v_ε) gets
+///    less than μ J_N (1 − η) (η the CG tolerance), within the active
+///    set's kHoldRevisions solves: Coulomb's sliding force μ J_N where
+///    "implicit" gives μ J_N |v₁_t|/|w_t|, less wherever the slip falls
+///    within the step (a landing's impact). The same methods.
+enum class FrictionLaw { kExplicit, kRegularised, kImplicit, kImplicitIterated };
+
+/// Whether the law puts the friction into the step's solve ("implicit",
+/// "implicit_iterated").
+inline bool IsImplicit(FrictionLaw f) { return f == FrictionLaw::kImplicit || f == FrictionLaw::kImplicitIterated; }
 
 /// What caps a step's friction impulse against the tangential velocity v_t
 /// (docs/model.md §2.5; docs/notes/collisions.md, "The friction cap"):

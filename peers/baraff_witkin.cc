@@ -55,7 +55,7 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   for (int p : system.fixed()) filter_.Fix(p);
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &f_, &rhs_, &x1_, &v1_}) m->setZero(n, 3);
   if (contacts_.revises()) f0_.setZero(n, 3);
-  if (opts_.friction_law == FrictionLaw::kImplicit && contacts_.active()) {
+  if (IsImplicit(opts_.friction_law) && contacts_.active()) {
     friction_diagonal_.setZero(n);
     friction_change_.setZero(n);
   }

@@ -15,6 +15,7 @@ ContactResponse::ContactResponse(const ParticleSystem& system) : sys_(system), d
   detected_.assign(static_cast<std::size_t>(n), ObstacleContact{});
   released_.assign(static_cast<std::size_t>(n), Vector3::Zero());
   frictionless_.assign(static_cast<std::size_t>(n), 0);
+  rate_slip_.assign(static_cast<std::size_t>(n), 0.0);
   friction_.setZero(n, 3);
 }
 
@@ -63,6 +64,7 @@ int ContactResponse::SetUp(double t0, double h, const MatrixN3& x_start, const M
     if (revises()) {
       std::fill(released_.begin(), released_.end(), Vector3::Zero());
       std::fill(frictionless_.begin(), frictionless_.end(), 0);
+      std::fill(rate_slip_.begin(), rate_slip_.end(), 0.0);
     }
   } else {
     std::copy(contacts_backup_.begin(), contacts_backup_.end(), contacts_.begin());
@@ -162,7 +164,7 @@ void ContactResponse::AddWork(int p, StepImpulses* in, const Vector3& mean, cons
 }
 
 void ContactResponse::SetImplicitFriction(const MatrixN3& v1) {
-  if (friction_law_ != FrictionLaw::kImplicit) return;
+  if (!IsImplicit(friction_law_)) return;
   for (int p = 0; p < sys_.num_particles(); ++p) {
     const Contact& c = contacts_[static_cast<std::size_t>(p)];
     if (c.obstacle < 0 || !(c.friction_damping > 0.0)) continue;
@@ -174,7 +176,13 @@ bool ContactResponse::LeavesCone(int p, const Vector3& v1, double relative_toler
   const Contact& c = contacts_[static_cast<std::size_t>(p)];
   const Vector3 slip = TangentialSlip(c, v1);
   const double speed = slip.norm();
-  if (!(h_ * c.friction_damping * speed > c.friction_limit * (1.0 + relative_tolerance))) return false;
+  const double impulse = h_ * c.friction_damping * speed;
+  if (friction_law_ == FrictionLaw::kImplicitIterated && speed > kStickVelocity &&
+      impulse < c.friction_limit * (1.0 - relative_tolerance)) {
+    rate_slip_[static_cast<std::size_t>(p)] = speed;  // still sliding, below μ J_N: the rate from this slip
+    return true;
+  }
+  if (!(impulse > c.friction_limit * (1.0 + relative_tolerance))) return false;
   released_[static_cast<std::size_t>(p)] = -slip / speed;
   return true;
 }
@@ -259,12 +267,15 @@ int ContactResponse::Respond(double h, VelocityFilter* filter) {
       c.friction_limit = FrictionLimit(mu * normal_impulse, c.slip.norm(),
                                        friction_law_ == FrictionLaw::kRegularised ? kSlipVelocity : 0.0);
       const Vector3 along = released.squaredNorm() > 0.0 ? released : c.hold_direction;
-      if (friction_law_ == FrictionLaw::kImplicit && !(released.squaredNorm() > 0.0)) {
+      if (IsImplicit(friction_law_) && !(released.squaredNorm() > 0.0)) {
         // Coulomb's force at v₁ with its rate lagged (FrictionLaw::kImplicit):
         // −c_p (v₁ − u)_t in the solve, nothing explicit; once it left the
         // cone in this step (LeavesCone), μ J_N against the slip below.
-        c.friction_damping = c.friction_limit / (h * std::max(c.slip.norm(), kStickVelocity));
-      } else if (slide && (held_before || friction_law_ == FrictionLaw::kImplicit || along.dot(c.slip) < 0.0)) {
+        // FrictionLaw::kImplicitIterated: in a solve again, from the last
+        // solve's slip of a contact that slid below μ J_N (LeavesCone).
+        const double rate_slip = rate_slip_[static_cast<std::size_t>(p)];
+        c.friction_damping = c.friction_limit / (h * std::max(rate_slip > 0.0 ? rate_slip : c.slip.norm(), kStickVelocity));
+      } else if (slide && (held_before || IsImplicit(friction_law_) || along.dot(c.slip) < 0.0)) {
         // Stiction, after a hold beyond the cone that held it at rest or
         // against its slip, and the implicit friction beyond its cone: μ J_N
         // along the hold's impulse (against the solve's slip), which stops

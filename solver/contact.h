@@ -71,7 +71,7 @@ class ContactResponse {
   /// Whether a step's solve may be revised (ReviseHolds): stiction may hold
   /// contacts (set_stiction), or the implicit friction may leave its cone
   /// (FrictionLaw::kImplicit); and the scene has obstacles.
-  bool revises() const { return (stiction_ || friction_law_ == FrictionLaw::kImplicit) && active(); }
+  bool revises() const { return (stiction_ || IsImplicit(friction_law_)) && active(); }
   /// The active set's solves of one step beyond the first, at most.
   static constexpr int kHoldRevisions = 8;
   /// The earliest fraction θ ∈ (0, 1] of the step from t0 over h [s] at
@@ -112,7 +112,7 @@ class ContactResponse {
   /// Between SetUp and the solve; nothing under the other laws.
   template <class F>
   void ForEachFrictionDamping(F&& f) const {
-    if (friction_law_ != FrictionLaw::kImplicit) return;
+    if (!IsImplicit(friction_law_)) return;
     for (int p = 0; p < sys_.num_particles(); ++p) {
       const Contact& c = contacts_[static_cast<std::size_t>(p)];
       if (c.obstacle >= 0 && c.friction_damping > 0.0) f(p, c.friction_damping, c.v_obstacle);
@@ -230,7 +230,10 @@ class ContactResponse {
   /// FrictionLaw::kImplicit: every contact whose implicit friction impulse
   /// h c |(v₁ − u)_t| exceeds μ J_N (1 + cone_tolerance) (its slip grew
   /// past the step's start and v_ε: Coulomb's cone is left) slides for the
-  /// rest of the step, with μ J_N against that slip, explicit. The
+  /// rest of the step, with μ J_N against that slip, explicit.
+  /// FrictionLaw::kImplicitIterated: every contact that still slides
+  /// (|(v₁ − u)_t| > v_ε) with less than μ J_N (1 − cone_tolerance) takes
+  /// its rate from that slip in the next solve. The
   /// tolerance is relative to the contact's own μ J_N: one against the
   /// system's η‖S_F b‖ would keep, once the sheet moves fast and h is small,
   /// every contact in the cone whose excess μ J_N Δ|v_t|/|v_t| is O(h²),
@@ -330,6 +333,11 @@ class ContactResponse {
   // Released in this step, and its friction pushed it along its slip in a
   // solve (ReviseHolds): no friction for the rest of the step.
   std::vector<uint8_t> frictionless_;
+  // FrictionLaw::kImplicitIterated: per particle, the slip [m/s] of the
+  // last solve of this step whose friction stayed below μ J_N while it slid
+  // (LeavesCone), from which the next solve takes its rate; 0: the slip at
+  // the step's start.
+  std::vector<double> rate_slip_;
   // The state the last SetUp started from, and whether a step was
   // accepted since (ReadImpulses): an attempt after a rejected one starts
   // from it again. h_read_: the step whose impulses were read [s].
@@ -358,8 +366,10 @@ class ContactResponse {
   };
   std::vector<Echo> echoes_;
   // FrictionLaw::kImplicit: whether contact p's friction −c (v₁ − u)_t
-  // exceeds μ J_N + tolerance; then it slides for the rest of the step
-  // (released_ along −(v₁ − u)_t).
+  // exceeds μ J_N (1 + tolerance); then it slides for the rest of the step
+  // (released_ along −(v₁ − u)_t). kImplicitIterated also: whether it
+  // still slides (|(v₁ − u)_t| > v_ε) below μ J_N (1 − tolerance); then
+  // the next solve takes its rate from that slip (rate_slip_).
   bool LeavesCone(int p, const Vector3& v1, double relative_tolerance);
   // A contact released in this step whose friction points along
   // its slip relative to the obstacle at v1 [m/s] pushed it; it gets no

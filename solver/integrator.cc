@@ -181,7 +181,7 @@ StepEngine::StepEngine(const ParticleSystem& system, Method method, const Solver
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   work_.Resize(n);
-  if (solver.friction_law == FrictionLaw::kImplicit && contacts_.active()) {
+  if (IsImplicit(solver.friction_law) && contacts_.active()) {
     friction_diagonal_.setZero(n);
     sysmat_.ReserveChanges(n);
   }
