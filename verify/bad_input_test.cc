@@ -101,6 +101,10 @@ TEST(BadInput, OutOfRangeSceneValuesAreRefusedBeforeComputing) {
   // The implicit friction has no explicit impulse to cap.
   ExpectRefused(Scene("implicit_cap.toml", Replace(kTiny, "[solver]\n", "[solver]\nfriction_cap = \"system\"\nfriction_law = \"implicit\"\n")),
                 "solver: friction_cap = \"system\" caps an explicit friction impulse and friction_law = \"implicit\" has none");
+  ExpectRefused(Scene("iterated_cap.toml", Replace(kTiny, "[solver]\n", "[solver]\nfriction_cap = \"stiction\"\nfriction_law = \"implicit_iterated\"\n")),
+                "solver: friction_cap = \"stiction\" caps an explicit friction impulse and friction_law = \"implicit_iterated\" has none");
+  ExpectRefused(Scene("no_law.toml", Replace(kTiny, "[solver]\n", "[solver]\nfriction_law = \"iterated\"\n")),
+                "solver.friction_law: must be one of \"explicit\" | \"regularised\" | \"implicit\" | \"implicit_iterated\" (got \"iterated\")");
 }
 
 TEST(BadInput, MeshesMustBeReadableNonEmptyAndPlacedInRange) {
