@@ -137,7 +137,7 @@ struct Args {
 void AddSubcommands(CLI::App& app, Args* a) {
   app.require_subcommand(1);
   app.add_option("file", a->file, "result file (.h5)")->required();
-  a->summary = app.add_subcommand("summary", "scene, machine, commit, and each run with status and counts");
+  a->summary = app.add_subcommand("summary", "scene, machine, commit, runs with status and counts, contact checks");
   a->table = app.add_subcommand("table", "the table bench_integrators printed, from the file alone");
   a->runs = app.add_subcommand("runs", "one line per run");
   a->runs->add_flag("--json", a->json, "every attribute of every run as a JSON array");

@@ -13,6 +13,37 @@ namespace {
 // A value or "-" (not stored).
 std::string Opt(const std::optional<double>& v) { return v ? fmt::format("{:.3e}", *v) : "-"; }
 
+// Scenes with obstacles or [collision]: the deepest particle inside an
+// obstacle over every run's stored frames, in collision distances δ
+// (penetration_ratio; a run past 1 ends `penetration`), and the most
+// crossing triangle pairs of the cloth at a stored frame
+// (/runs/<id>/crossing_pairs). Nothing when no run stores either.
+void PrintContactChecks(std::FILE* out, const ResultReader& f, const RunTable& t) {
+  double deepest = -1.0;
+  long crossings = -1;
+  std::string deepest_run, crossing_run;
+  for (const RunRecord& r : t.runs) {
+    if (r.penetration_ratio > deepest) {
+      deepest = r.penetration_ratio;
+      deepest_run = r.id;
+    }
+    const std::string pairs = "/runs/" + r.id + "/crossing_pairs";
+    if (!f.Exists(pairs)) continue;
+    for (const int32_t n : f.Ints(pairs)) {
+      if (n > crossings) {
+        crossings = n;
+        crossing_run = r.id;
+      }
+    }
+  }
+  if (deepest >= 0.0)
+    fmt::print(out, "deepest penetration over the runs' stored frames: {:.3f} δ ({})\n", deepest, deepest_run);
+  if (crossings == 0)
+    fmt::print(out, "crossing triangle pairs: 0 at every stored frame of every run that stores them\n");
+  else if (crossings > 0)
+    fmt::print(out, "crossing triangle pairs: up to {} at a stored frame ({})\n", crossings, crossing_run);
+}
+
 }  // namespace
 
 void PrintFileSummary(std::FILE* out, const ResultReader& f, const RunTable& t) {
@@ -62,6 +93,7 @@ void PrintFileSummary(std::FILE* out, const ResultReader& f, const RunTable& t) 
   for (const RunRecord& r : t.runs)
     fmt::print(out, "{:<36} {:<10} {:>7} {:>8} {:>9} {:>10.3f} {:>11}\n", r.id, r.status, r.steps, r.updates,
                r.cg_iterations, r.solver_time_s, Opt(r.error_final_m));
+  PrintContactChecks(out, f, t);
   if (t.work_precision)
     fmt::print(out, "work_precision: {} methods × {} targets\n", t.work_precision->labels.size(),
                t.work_precision->targets.size());

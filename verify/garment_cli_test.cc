@@ -2,8 +2,10 @@
 // §2.7–2.9): a rectangle pattern is the [grid] sheet on every default row,
 // and a sewn garment runs, stores its sewn start, reruns bit for bit and
 // keeps its seams closed.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -103,6 +105,19 @@ TEST(GarmentCli, ASewnGarmentRunsStoresItsStartAndReruns) {
         testing::RunCommand(CLOTHBENCH_INSPECT_BINARY, out.string() + " self-intersections " + id, Dir());
     EXPECT_EQ(si.exit_code, 0) << id << ": " << si.out << si.err;
   }
+  // The summary states the contact checks over every run: here 0 crossing
+  // pairs (the runs above), and the deepest particle inside the obstacle.
+  const Outcome summary = testing::RunCommand(CLOTHBENCH_INSPECT_BINARY, out.string() + " summary", Dir());
+  EXPECT_EQ(summary.exit_code, 0) << summary.err;
+  EXPECT_NE(summary.out.find("crossing triangle pairs: 0 at every stored frame of every run"), std::string::npos)
+      << summary.out;
+  double deepest = -1.0;
+  for (const std::string& id : f.Children("/runs"))
+    deepest = std::max(deepest, f.Double("/runs/" + id, "penetration_ratio").value_or(-1.0));
+  if (deepest >= 0.0)
+    EXPECT_NE(summary.out.find(fmt::format("deepest penetration over the runs' stored frames: {:.3f} δ", deepest)),
+              std::string::npos)
+        << summary.out;
   const Outcome rerun = testing::RunCommand(CLOTHBENCH_INSPECT_BINARY, out.string() + " rerun sbdf2_h0.005", Dir());
   EXPECT_EQ(rerun.exit_code, 0) << rerun.out << rerun.err;
   EXPECT_NE(rerun.out.find("bit for bit"), std::string::npos) << rerun.out;
