@@ -54,7 +54,6 @@ BaraffWitkin::BaraffWitkin(const ParticleSystem& system, const SolverSpec& solve
   filter_.Reserve(n);
   for (int p : system.fixed()) filter_.Fix(p);
   for (MatrixN3* m : {&x0_, &v0_, &xm1_, &f_, &rhs_, &x1_, &v1_}) m->setZero(n, 3);
-  if (contacts_.revises()) f0_.setZero(n, 3);
   if (IsImplicit(opts_.friction_law) && contacts_.active()) {
     friction_diagonal_.setZero(n);
     friction_change_.setZero(n);
@@ -93,13 +92,9 @@ Vector3 BaraffWitkin::ResidualRow(int p) const {
 // with st->status set when the solve fails.
 bool BaraffWitkin::SolveVelocities(double h, bool again, StepStats* st) {
   // J v₁ = J v₀ + h (f₀ + h ∂f/∂x v₀)  ⇔  J Δv = h (f₀ + h ∂f/∂x v₀)  (eq. 18).
-  // f₀ once per step: a solve again (the active set) changes only friction.
-  if (again) {
-    f_ = f0_;
-  } else {
-    sys_.Forces(t_, x0_, v0_, &f_);
-    if (f0_.size() > 0) f0_ = f_;
-  }
+  // f₀ once per step, kept in f_: a solve again (the active set) changes
+  // only the friction, which goes into the right-hand side.
+  if (!again) sys_.Forces(t_, x0_, v0_, &f_);
   if (contacts_.active() && opts_.friction_cap == FrictionCap::kSystem) {
     // −tᵀ J_pq t for J's blocks beside particle p's (rows 3p … 3p+2): J is
     // not an M-matrix, so there the system cap is an estimate, not a bound.
@@ -120,8 +115,9 @@ bool BaraffWitkin::SolveVelocities(double h, bool again, StepStats* st) {
     };
     contacts_.CapBySystem(coupling);
   }
-  if (contacts_.active()) f_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
-  rhs_ = h * f_;
+  rhs_ = f_;
+  if (contacts_.active()) rhs_ += contacts_.friction();  // Coulomb friction, explicit (docs/model.md §2.5)
+  rhs_ *= h;
   tangent_.AddJacobianProducts(h * h, v0_, 0.0, v0_, &rhs_);
   // FrictionLaw::kImplicit: −c (v₁ − u)_t, h c on J's diagonal (Step) and
   // h c (u − v₀) in the Δv form's right-hand side.

@@ -114,7 +114,6 @@ class BaraffWitkin : public Stepper {
   int rebuilds_ = 0;
   double setup_seconds_ = 0.0;
   MatrixN3 x0_, v0_, xm1_, f_, rhs_, x1_, v1_;
-  MatrixN3 f0_;  // f at the step's start, for its solves again (only where ContactResponse::revises())
   MatrixN3R vr_, br_, rhs_r_;
 };
 
