@@ -8,7 +8,10 @@
 #ifndef CLOTHBENCH_MODEL_OBSTACLE_H_
 #define CLOTHBENCH_MODEL_OBSTACLE_H_
 
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -168,6 +171,19 @@ class Obstacle {
     if (shape_->deforms()) pose.deformed = shape_->At(t);
     return pose;
   }
+  /// PoseAt(t) with the velocities of the motion's piece after t: the same
+  /// but at a keyframed motion's first keyframe, where PoseAt holds the
+  /// pose at rest (velocity 0) and this gives the first piece's velocities
+  /// (the contact in continuous time restarts there, HybridContact).
+  ObstaclePose PoseAfter(double t) const {
+    ObstaclePose pose = PoseAt(t);
+    if (spec_.keyframes.size() > 1 && t == spec_.keyframes.front().t) {
+      const ObstaclePose next = motion_.PoseAt(std::nextafter(t, std::numeric_limits<double>::infinity()));
+      pose.linear_velocity = next.linear_velocity;
+      pose.angular_velocity = next.angular_velocity;
+    }
+    return pose;
+  }
   /// An upper bound [m] on how far any point of a mesh obstacle's solid
   /// moves from pose a to pose b: the largest displacement of its vertices
   /// (the displacement of a rigid motion is affine in the point, so its norm
@@ -193,14 +209,20 @@ class Obstacle {
   }
   /// The largest speed [m/s] of a deforming shape's vertices (0 otherwise).
   double MaxVertexSpeed() const { return shape_->MaxVertexSpeed(); }
-  /// Whether the obstacle's velocity field is smooth over (t0, t1]: no
-  /// keyframe time and no frame time of a deforming shape in it (at those
-  /// times the piecewise-linear motion changes its velocity at once).
-  bool SmoothBetween(double t0, double t1) const {
+  /// The first time after t [s] where the obstacle's velocity jumps: a
+  /// keyframe time, or a frame time of a deforming shape (the
+  /// piecewise-linear motion changes its velocity at once there); +∞ if
+  /// none follows. At such a time PoseAt gives the piece after it, but for
+  /// a keyframed motion's first keyframe (PoseAfter).
+  double NextBreak(double t) const {
+    double next = shape_->NextFrameTime(t);
     for (const ObstacleKeyframe& k : spec_.keyframes)
-      if (k.t > t0 && k.t <= t1) return false;
-    return shape_->SmoothBetween(t0, t1);
+      if (k.t > t) return std::min(next, k.t);  // keyframe times increase
+    return next;
   }
+  /// Whether the obstacle's velocity field is smooth over (t0, t1]: no
+  /// break (NextBreak) in it.
+  bool SmoothBetween(double t0, double t1) const { return NextBreak(t0) > t1; }
   /// The obstacle's edges at `pose` (world coordinates), for the projection
   /// onto the cloth of the thesis' virtual particles (§5.3;
   /// collision/edge_projection.h): ObstacleShape::Edges moved to `pose`.

@@ -79,11 +79,12 @@ class ImexOde {
     sys_.Forces(t, x_, v_, &f_);
     contact_.Roots(t, x_, v_, f_, g);
   }
-  /// The events at a root t on the state y (changed in place); returns the mode changes.
-  int ApplyEvents(double t, const int* found, double* y) {
+  /// The events at a root or break t on the state y (changed in place;
+  /// HybridContact::ApplyEvents); returns the mode changes.
+  int ApplyEvents(double t, const int* found, bool at_break, double* y) {
     FromY(y, &x_, &v_);
     const int changes = contact_.ApplyEvents(
-        t, found, &x_, &v_, [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
+        t, found, at_break, &x_, &v_, [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
     map_.ToY(x_, v_, y);
     return changes;
   }
@@ -319,10 +320,11 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
       return f < 0 ? f : ARKStepSetStopTime(h.mem, options.t_end);
     };
     if (ode.contact().active())
-      d.on_root = [&](double t) {
-        const int f = ARKStepGetRootInfo(h.mem, roots_found.data());
+      d.on_event = [&](double t, bool root, bool at_break) {
+        std::fill(roots_found.begin(), roots_found.end(), 0);
+        const int f = root ? ARKStepGetRootInfo(h.mem, roots_found.data()) : 0;
         if (f < 0) return f;
-        ode.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y));
+        ode.ApplyEvents(t, roots_found.data(), at_break, N_VGetArrayPointer(h.y));
         return reset(t);
       };
     d.stop_at = [&](double t_stop) { return ARKStepSetStopTime(h.mem, t_stop); };

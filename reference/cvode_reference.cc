@@ -47,11 +47,12 @@ class FreeDofOde {
     sys_.Forces(t, x_, v_, &f_);
     contact_.Roots(t, x_, v_, f_, g);
   }
-  /// The events at a root t on the state y (changed in place); returns the mode changes.
-  int ApplyEvents(double t, const int* found, double* y) {
+  /// The events at a root or break t on the state y (changed in place;
+  /// HybridContact::ApplyEvents); returns the mode changes.
+  int ApplyEvents(double t, const int* found, bool at_break, double* y) {
     Unpack(y);
     const int changes = contact_.ApplyEvents(
-        t, found, &x_, &v_, [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
+        t, found, at_break, &x_, &v_, [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
     map_.ToY(x_, v_, y);
     return changes;
   }
@@ -356,10 +357,11 @@ internal::OneStepDriver CvodeDriver(CvodeHandles& h, FreeDofOde& ode, const Refe
     return f < 0 ? f : CVodeSetStopTime(h.mem, options.t_end);
   };
   if (ode.contact().active())
-    d.on_root = [&, reinit](double t) {
-      const int f = CVodeGetRootInfo(h.mem, roots_found.data());
+    d.on_event = [&, reinit](double t, bool root, bool at_break) {
+      std::fill(roots_found.begin(), roots_found.end(), 0);
+      const int f = root ? CVodeGetRootInfo(h.mem, roots_found.data()) : 0;
       if (f < 0) return f;
-      ode.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y));
+      ode.ApplyEvents(t, roots_found.data(), at_break, N_VGetArrayPointer(h.y));
       return reinit(t, 0.0);
     };
   d.stop_at = [&](double t_stop) { return CVodeSetStopTime(h.mem, t_stop); };

@@ -42,11 +42,12 @@ class ResidualForm {
     sys_.Forces(t, x_, v_, &f_);
     contact_.Roots(t, x_, v_, f_, g);
   }
-  /// The events at a root t on y (changed in place), and ẏ consistent with
-  /// the new modes: ẋ = v, M v̇ = f + the contact forces.
-  void ApplyEvents(double t, const int* found, double* y, double* yp) {
+  /// The events at a root or break t on y (changed in place;
+  /// HybridContact::ApplyEvents), and ẏ consistent with the new modes:
+  /// ẋ = v, M v̇ = f + the contact forces.
+  void ApplyEvents(double t, const int* found, bool at_break, double* y, double* yp) {
     Unpack(y);
-    contact_.ApplyEvents(t, found, &x_, &v_,
+    contact_.ApplyEvents(t, found, at_break, &x_, &v_,
                          [&](double s, const MatrixN3& x, const MatrixN3& v, MatrixN3* f) { sys_.Forces(s, x, v, f); });
     Pack(t, y, yp);
   }
@@ -451,10 +452,11 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
       return f < 0 ? f : IDASetStopTime(h.mem, options.t_end);
     };
     if (form.contact().active())
-      d.on_root = [&](double t) {
-        const int f = IDAGetRootInfo(h.mem, roots_found.data());
+      d.on_event = [&](double t, bool root, bool at_break) {
+        std::fill(roots_found.begin(), roots_found.end(), 0);
+        const int f = root ? IDAGetRootInfo(h.mem, roots_found.data()) : 0;
         if (f < 0) return f;
-        form.ApplyEvents(t, roots_found.data(), N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
+        form.ApplyEvents(t, roots_found.data(), at_break, N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
         return reinit(t);
       };
     d.stop_at = [&](double t_stop) { return IDASetStopTime(h.mem, t_stop); };

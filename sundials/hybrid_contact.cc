@@ -39,7 +39,7 @@ double HybridContact::Lambda(int k, double t, int p, const Vector3& x, const Vec
   const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
   const double dx = Distance(k, t, x, n);
   if (distance) *distance = dx;
-  const ObstaclePose pose = o.PoseAt(t);
+  const ObstaclePose pose = o.PoseAfter(t);
   const Vector3 u = pose.Velocity(x - dx * *n);  // of the closest surface point
   *w = v - u;
   // Rates along the particle's path by a forward difference: the normal's
@@ -81,6 +81,24 @@ void HybridContact::Initialize(double t, const MatrixN3& x, const MatrixN3& v) {
       normal_.row(p) = n.transpose();
     }
   }
+}
+
+int HybridContact::Reimpose(double t, MatrixN3* x, MatrixN3* v) const {
+  int n_moved = 0;
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    const int k = mode_[static_cast<std::size_t>(p)];
+    if (k < 0) continue;
+    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+    if (!o.moving()) continue;
+    Vector3 n;
+    const double delta = o.spec().collision_distance;
+    const double d = Distance(k, t, x->row(p).transpose(), &n);
+    x->row(p) -= (d - delta) * n.transpose();
+    const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - delta * n);
+    v->row(p) -= n.dot(v->row(p).transpose() - u) * n.transpose();
+    ++n_moved;
+  }
+  return n_moved;
 }
 
 Vector3 HybridContact::Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w) {

@@ -19,6 +19,12 @@
 //   Stewart & Trinkle 1996 and Brogliato 2016, ch. 5, state the exact
 //   Coulomb cone).
 // - Release: λ crosses 0 (the constraint would pull): the particle is free.
+// - Breaks: a keyframed or frame-sampled motion is piecewise linear, and
+//   its surface velocity jumps at the keyframe and frame times
+//   (Obstacle::NextBreak), where no rate carries the jump. The integrators
+//   stop there, and every particle sliding on a moving obstacle is put back
+//   on the δ-surface with no normal velocity relative to the motion's next
+//   piece (the mode's d = δ, ḋ = 0); then λ decides, as after an event.
 //
 // Between events the mode's ODE is smooth; a SUNDIALS integrator locates
 // the events with its rootfinding (one root function per free particle:
@@ -92,12 +98,15 @@ class HybridContact {
   /// The events at a root time t: for every particle with found[p] ≠ 0, a
   /// free one enters (its normal relative velocity is removed and its
   /// distance set to δ), a sliding one is released; so does any free
-  /// particle past its entry depth. Then every sliding particle whose λ
-  /// at the new state is below the release threshold is released.
-  /// `force` evaluates the model's forces at a state. Returns the number
-  /// of mode changes.
+  /// particle past its entry depth. At a break (`at_break`: t is a
+  /// NextBreak of an obstacle) every particle sliding on a moving obstacle
+  /// is put back on its δ-surface and its normal velocity relative to the
+  /// obstacle's next piece of motion is removed. Then every sliding
+  /// particle whose λ at the new state is below the release threshold is
+  /// released. `force` evaluates the model's forces at a state. Returns
+  /// the number of mode changes.
   template <class Forces>
-  int ApplyEvents(double t, const int* found, MatrixN3* x, MatrixN3* v, Forces&& force);
+  int ApplyEvents(double t, const int* found, bool at_break, MatrixN3* x, MatrixN3* v, Forces&& force);
 
   /// Calls f(p, n) for every sliding particle with its unit normal n at (t, x).
   template <class F>
@@ -124,6 +133,9 @@ class HybridContact {
   // asked) its signed distance [m].
   double Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
                 Vector3* w, double* distance = nullptr) const;
+  // At a break at t: every particle sliding on a moving obstacle back on
+  // its δ-surface, without normal velocity relative to it; returns how many.
+  int Reimpose(double t, MatrixN3* x, MatrixN3* v) const;
   // The regularised Coulomb force on particle p sliding on obstacle k with
   // normal force λ, normal n and relative velocity w; keeps its rate.
   Vector3 Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w);
@@ -139,7 +151,8 @@ class HybridContact {
 };
 
 template <class Forces>
-int HybridContact::ApplyEvents(double t, const int* found, MatrixN3* x, MatrixN3* v, Forces&& force) {
+int HybridContact::ApplyEvents(double t, const int* found, bool at_break, MatrixN3* x, MatrixN3* v,
+                               Forces&& force) {
   int changes = 0;
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
@@ -161,13 +174,14 @@ int HybridContact::ApplyEvents(double t, const int* found, MatrixN3* x, MatrixN3
     Distance(k, t, x->row(p).transpose(), &n);
     x->row(p) -= gap * n.transpose();  // onto the δ-surface
     const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
-    const Vector3 u = o.PoseAt(t).Velocity(x->row(p).transpose() - o.spec().collision_distance * n);  // at the surface
+    const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - o.spec().collision_distance * n);  // at the surface
     const double wn = n.dot(v->row(p).transpose() - u);
     if (wn < 0.0) v->row(p) -= wn * n.transpose();  // inelastic impact
     mode = k;
     ++changes;
   }
-  if (changes == 0) return 0;
+  const int reimposed = at_break ? Reimpose(t, x, v) : 0;
+  if (changes == 0 && reimposed == 0) return 0;
   // Every sliding particle slides on only if its constraint force pushes
   // after the jumps: a neighbour's impact changes the damping force on a
   // particle, and its λ can jump below the release threshold, where no
@@ -187,6 +201,7 @@ int HybridContact::ApplyEvents(double t, const int* found, MatrixN3* x, MatrixN3
       normal_.row(p) = n.transpose();
     }
   }
+  if (changes == 0) return 0;
   event_times_.push_back(t);
   mode_changes_ += changes;
   return changes;

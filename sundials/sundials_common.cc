@@ -6,6 +6,7 @@
 #include <cmath>
 #include <chrono>
 #include <cstdlib>
+#include <limits>
 #include <optional>
 
 #include <fmt/format.h>
@@ -75,7 +76,10 @@ class SundialsStepper final : public Stepper, public InternalSteps {
  public:
   SundialsStepper(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
                   const std::string& error)
-      : d_(d), error_(error), frames_(FrameTimes(options.t_end, options.frame_dt)), self_contact_(system) {}
+      : d_(d), sys_(system), error_(error), frames_(FrameTimes(options.t_end, options.frame_dt)),
+        self_contact_(system) {
+    for (const Obstacle& o : system.obstacles()) breaks_ = breaks_ || (d_.on_event && o.moving());
+  }
 
   // Stepper: the state the integrator holds (set up at rest by its driver).
   void Reset(double t, const MatrixN3& x, const MatrixN3& v) override {
@@ -113,11 +117,20 @@ class SundialsStepper final : public Stepper, public InternalSteps {
     *message = error_.empty() ? what + d_.flag_name(flag) : error_;
     return false;
   }
+  // The first break of a moving obstacle's motion after t (+∞ if none).
+  double NextBreak(double t) const {
+    double next = std::numeric_limits<double>::infinity();
+    for (const Obstacle& o : sys_.obstacles()) next = std::min(next, o.NextBreak(t));
+    return next;
+  }
   const OneStepDriver& d_;
+  const ParticleSystem& sys_;
   const std::string& error_;  // the SUNDIALS error handler's message
   std::vector<double> frames_;
   std::size_t next_frame_ = 1;  // the first frame after t_
   SundialsSelfContact self_contact_;
+  bool breaks_ = false;  // stop at the breaks of moving obstacles (with contact)
+  double break_ = std::numeric_limits<double>::infinity();  // the next break, a stop time
   double t_ = 0.0, h_ = 0.0;
   int flag_ = 0;  // the last step's
   MatrixN3 x_, v_;
@@ -129,8 +142,13 @@ StepStats SundialsStepper::Step(double) {
   while (next_frame_ < frames_.size() && frames_[next_frame_] <= t_ + 1e-12) ++next_frame_;
   const auto start = std::chrono::steady_clock::now();
   // With self-contact every frame is a stop time: a stored frame is a
-  // corrected state, not the uncorrected step's interpolant.
-  flag_ = self_contact_.corrects() ? d_.stop_at(frames_[std::min(next_frame_, frames_.size() - 1)]) : 0;
+  // corrected state, not the uncorrected step's interpolant. So is every
+  // break of a moving obstacle's motion (HybridContact's "Breaks").
+  double stop = self_contact_.corrects() ? frames_[std::min(next_frame_, frames_.size() - 1)]
+                                         : std::numeric_limits<double>::infinity();
+  break_ = breaks_ ? NextBreak(t_) : std::numeric_limits<double>::infinity();
+  if (break_ < std::min(stop, frames_.back())) stop = break_;
+  flag_ = stop < std::numeric_limits<double>::infinity() ? d_.stop_at(stop) : 0;
   if (flag_ >= 0) flag_ = d_.step(&t_);
   st.solve_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (flag_ < 0) {
@@ -148,8 +166,10 @@ StepStats SundialsStepper::Step(double) {
 }
 
 bool SundialsStepper::EndStep(RunStatus* status, std::string* message) {
-  const bool event = flag_ == 2 && d_.on_root;
-  int f = event ? d_.on_root(t_) : 0;
+  const bool root = flag_ == 2 && d_.on_event;
+  const bool at_break = breaks_ && t_ >= break_;  // stopped there (the stop time is returned exactly)
+  const bool event = root || at_break;
+  int f = event ? d_.on_event(t_, root, at_break) : 0;
   if (f >= 0 && (event || self_contact_.corrects())) {
     d_.current_state(&x_, &v_);  // the step's end, after the event's jump
     f = self_contact_.CorrectStep(d_, t_, h_, &x_, &v_);

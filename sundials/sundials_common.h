@@ -147,10 +147,12 @@ struct OneStepDriver {
   std::function<void(double* h, int* order)> last_step;
   std::function<std::string(int flag)> flag_name;
   /// Called when `step` returns a root (flag 2: CV_ROOT_RETURN,
-  /// IDA_ROOT_RETURN, ARK_ROOT_RETURN) after the frames up to that time
-  /// are stored: applies the events and restarts the integrator. Returns
-  /// its flag (< 0: the run fails with it). Empty: roots are not used.
-  std::function<int(double t)> on_root;
+  /// IDA_ROOT_RETURN, ARK_ROOT_RETURN), `root` true, or stops at a break
+  /// of a moving obstacle's motion (Obstacle::NextBreak), `at_break` true,
+  /// after the frames up to t are stored: applies the events
+  /// (HybridContact::ApplyEvents) and restarts the integrator. Returns its
+  /// flag (< 0: the run fails with it). Empty: no obstacle contact.
+  std::function<int(double t, bool root, bool at_break)> on_event;
   /// Restarts the integrator at time t from the N×3 state (x [m], v [m/s])
   /// that the self-contact response made of the last step's end: a jump of
   /// the state, restarted as an event's. Returns its flag (< 0: the run
@@ -172,7 +174,8 @@ struct OneStepDriver {
 /// and the scene's h; a corrected state restarts the integrator
 /// (OneStepDriver::restart), and the steps stop at every frame
 /// (OneStepDriver::stop_at; docs/notes/collisions.md, "Self-contact under
-/// SUNDIALS"). Every stored frame's crossing pairs are counted on a scene
+/// SUNDIALS"). With obstacle contact the steps also stop at every break of
+/// a moving obstacle's motion (OneStepDriver::on_event). Every stored frame's crossing pairs are counted on a scene
 /// with `[collision]`. `error` holds the
 /// message of the SUNDIALS error handler, if any. Every frame passes the
 /// BlowUpGuard (a failing one is not kept: status "non_finite" or

@@ -8,6 +8,7 @@
 // "Deforming obstacles"). A surface point moves with the barycentric
 // interpolation of its triangle's vertex velocities.
 #include <algorithm>
+#include <limits>
 #include <filesystem>
 #include <stdexcept>
 #include <system_error>
@@ -96,7 +97,9 @@ class MeshSequence final : public ObstacleShape {
   }
   const TriangleMesh* mesh() const override { return frames_ ? Rest().mesh() : nullptr; }
   double MaxVertexSpeed() const override { return frames_ ? frames_->vertices.max_speed() : 0.0; }
-  bool SmoothBetween(double t0, double t1) const override { return !frames_ || frames_->vertices.SmoothBetween(t0, t1); }
+  double NextFrameTime(double t) const override {
+    return frames_ ? frames_->vertices.NextTime(t) : std::numeric_limits<double>::infinity();
+  }
   std::shared_ptr<const ObstacleShape> At(double t) const override {
     if (!frames_) throw std::logic_error("mesh_sequence queried before Load()");
     return cache_.At(t, [this](double at) { return Interpolate(at); });

@@ -12,6 +12,7 @@
 #define CLOTHBENCH_COLLISION_SHAPES_OBSTACLE_SHAPE_H_
 
 #include <array>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -162,9 +163,9 @@ class ObstacleShape : public std::enable_shared_from_this<ObstacleShape> {
   /// The largest vertex speed [m/s] of a deforming shape over its whole
   /// motion; 0 for a rigid shape.
   virtual double MaxVertexSpeed() const { return 0.0; }
-  /// Whether a deforming shape's vertex velocities are constant over
-  /// (t0, t1]: no frame time in (t0, t1] (true for a rigid shape).
-  virtual bool SmoothBetween(double /*t0*/, double /*t1*/) const { return true; }
+  /// A deforming shape's first frame time after t [s]: where its vertex
+  /// velocities jump (+∞ for a rigid shape and after the last frame).
+  virtual double NextFrameTime(double /*t*/) const { return std::numeric_limits<double>::infinity(); }
 };
 
 /// Appends the triangle (a, b, c) of `vertices`, turned to face away from

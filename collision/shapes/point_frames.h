@@ -5,6 +5,7 @@
 #define CLOTHBENCH_COLLISION_SHAPES_POINT_FRAMES_H_
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <utility>
@@ -50,10 +51,11 @@ class PointFrames {
       (*v)[j] = (x_[k + 1][j] - x_[k][j]) / dt;
     }
   }
-  /// No frame time in (t0, t1]: the velocities are constant there.
-  bool SmoothBetween(double t0, double t1) const {
-    const auto next = std::upper_bound(times_.begin(), times_.end(), t0);
-    return next == times_.end() || *next > t1;
+  /// The first frame time after t [s] (+∞ after the last): the
+  /// velocities are constant between t and it.
+  double NextTime(double t) const {
+    const auto next = std::upper_bound(times_.begin(), times_.end(), t);
+    return next == times_.end() ? std::numeric_limits<double>::infinity() : *next;
   }
 
  private:

@@ -131,7 +131,9 @@ class Skeleton final : public ObstacleShape {
     Rest().Surface(vertices, triangles);
   }
   double MaxVertexSpeed() const override { return clip_ ? clip_->joints.max_speed() : 0.0; }
-  bool SmoothBetween(double t0, double t1) const override { return !clip_ || clip_->joints.SmoothBetween(t0, t1); }
+  double NextFrameTime(double t) const override {
+    return clip_ ? clip_->joints.NextTime(t) : std::numeric_limits<double>::infinity();
+  }
   std::shared_ptr<const ObstacleShape> At(double t) const override {
     if (!clip_) throw std::logic_error("skeleton queried before Load()");
     return cache_.At(t, [this](double at) { return Interpolate(at); });
