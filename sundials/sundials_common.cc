@@ -77,9 +77,9 @@ class SundialsStepper final : public Stepper, public InternalSteps {
   SundialsStepper(const OneStepDriver& d, const ParticleSystem& system, const ReferenceOptions& options,
                   const std::string& error)
       : d_(d), sys_(system), error_(error), frames_(FrameTimes(options.t_end, options.frame_dt)),
-        self_contact_(system) {
-    for (const Obstacle& o : system.obstacles()) breaks_ = breaks_ || (d_.on_event && o.moving());
-  }
+        self_contact_(system),
+        breaks_(d.on_event && std::any_of(system.obstacles().begin(), system.obstacles().end(),
+                                          [](const Obstacle& o) { return o.moving(); })) {}
 
   // Stepper: the state the integrator holds (set up at rest by its driver).
   void Reset(double t, const MatrixN3& x, const MatrixN3& v) override {
@@ -129,7 +129,7 @@ class SundialsStepper final : public Stepper, public InternalSteps {
   std::vector<double> frames_;
   std::size_t next_frame_ = 1;  // the first frame after t_
   SundialsSelfContact self_contact_;
-  bool breaks_ = false;  // stop at the breaks of moving obstacles (with contact)
+  const bool breaks_;  // stop at the breaks of moving obstacles (with contact)
   double break_ = std::numeric_limits<double>::infinity();  // the next break, a stop time
   double t_ = 0.0, h_ = 0.0;
   int flag_ = 0;  // the last step's

@@ -175,9 +175,9 @@ struct OneStepDriver {
 /// (OneStepDriver::restart), and the steps stop at every frame
 /// (OneStepDriver::stop_at; docs/notes/collisions.md, "Self-contact under
 /// SUNDIALS"). With obstacle contact the steps also stop at every break of
-/// a moving obstacle's motion (OneStepDriver::on_event). Every stored frame's crossing pairs are counted on a scene
-/// with `[collision]`. `error` holds the
-/// message of the SUNDIALS error handler, if any. Every frame passes the
+/// a moving obstacle's motion (OneStepDriver::on_event). Every stored
+/// frame's crossing pairs are counted on a scene with `[collision]`.
+/// `error` holds the message of the SUNDIALS error handler, if any. Every frame passes the
 /// BlowUpGuard (a failing one is not kept: status "non_finite" or
 /// "energy_growth"); options.limits end the run with "time_limit" or
 /// "step_limit".
