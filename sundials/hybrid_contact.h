@@ -140,6 +140,10 @@ class HybridContact {
   // normal force λ, normal n and relative velocity w; keeps its rate.
   Vector3 Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w);
 
+  // A mode within ApplyEvents only: released at this event by its λ root
+  // (the same found[p] is no entry).
+  static constexpr int kJustReleased = -2;
+
   const ParticleSystem& sys_;
   double entry_depth_;
   std::vector<int> mode_;     // per particle: −1 free, else the obstacle it slides on
@@ -157,7 +161,7 @@ int HybridContact::ApplyEvents(double t, const int* found, bool at_break, Matrix
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
     if (found[p] && mode >= 0 && !sys_.is_fixed(p)) {  // release
-      mode = -1;
+      mode = kJustReleased;  // not an entry below: its root was its λ's
       friction_rate_(p) = 0.0;
       ++changes;
     }
@@ -166,6 +170,10 @@ int HybridContact::ApplyEvents(double t, const int* found, bool at_break, Matrix
   // its entry depth (no root would catch it once the integrator restarts).
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
+    if (mode == kJustReleased) {
+      mode = -1;
+      continue;
+    }
     if (mode >= 0 || sys_.is_fixed(p)) continue;
     double gap = 0.0;
     const int k = Nearest(t, x->row(p).transpose(), &gap);
