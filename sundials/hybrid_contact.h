@@ -141,7 +141,7 @@ class HybridContact {
   Vector3 Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w);
 
   // A mode within ApplyEvents only: released at this event by its λ root
-  // (the same found[p] is no entry).
+  // (the same found[p] is no entry root).
   static constexpr int kJustReleased = -2;
 
   const ParticleSystem& sys_;
@@ -161,23 +161,24 @@ int HybridContact::ApplyEvents(double t, const int* found, bool at_break, Matrix
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
     if (found[p] && mode >= 0 && !sys_.is_fixed(p)) {  // release
-      mode = kJustReleased;  // not an entry below: its root was its λ's
+      mode = kJustReleased;  // no entry below: its root was its λ's
       friction_rate_(p) = 0.0;
       ++changes;
     }
   }
   // Entries: the roots found, and any free particle the jumps left past
   // its entry depth (no root would catch it once the integrator restarts).
+  // A particle released now leaves from the δ-surface: if it drifted past
+  // its entry depth while it slid, it is put back there, free.
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
-    if (mode == kJustReleased) {
-      mode = -1;
-      continue;
-    }
+    const bool released = mode == kJustReleased;
+    if (released) mode = -1;
     if (mode >= 0 || sys_.is_fixed(p)) continue;
     double gap = 0.0;
     const int k = Nearest(t, x->row(p).transpose(), &gap);
-    if (k < 0 || (!found[p] && gap + entry_depth_ >= 0.0)) continue;
+    const bool entry_root = found[p] && !released;  // a released particle's root was its λ's
+    if (k < 0 || (!entry_root && gap + entry_depth_ >= 0.0)) continue;
     Vector3 n;
     Distance(k, t, x->row(p).transpose(), &n);
     x->row(p) -= gap * n.transpose();  // onto the δ-surface
@@ -185,6 +186,7 @@ int HybridContact::ApplyEvents(double t, const int* found, bool at_break, Matrix
     const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - o.spec().collision_distance * n);  // at the surface
     const double wn = n.dot(v->row(p).transpose() - u);
     if (wn < 0.0) v->row(p) -= wn * n.transpose();  // inelastic impact
+    if (released) continue;
     mode = k;
     ++changes;
   }
