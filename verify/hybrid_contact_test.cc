@@ -22,6 +22,7 @@
 //    the events are counted.
 // 3b. On a limb whose keyframed motion changes speed, the rows stop at the
 //    breaks and the sliding cloth stays on the δ-surface.
+// 3c. A particle released at an event (its λ root found) is free after it.
 // 4. The thesis' virtual particles under the SUNDIALS rows (Fig. 5.5's beam,
 //    scenes/virtual_box.toml, StartVirtualParticles): CVODE, IDA and
 //    ARKODE hold the 2 × 2 cloth over the beam with them (every particle
@@ -335,7 +336,7 @@ TEST(HybridContact, TheSlidingClothFollowsALimbWhoseSpeedJumpsAtItsKeyframes) {
 // with the re-entries, 1,640 without). Here a particle on a plane's
 // δ-surface is pulled up at half the release threshold's force, as at a
 // located root, and its root is found: it must be free after the event,
-// with one mode change, where it stays, and the others slide on. A
+// with one mode change, where it is, and the others slide on. A
 // second one has drifted 1 mm inside the δ-surface while it slid (the
 // constraint holds at acceleration level, so a sliding particle drifts by
 // the integrator's error, and between two breaks by a moving body's
