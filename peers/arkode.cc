@@ -88,6 +88,18 @@ class ImexOde {
     map_.ToY(x_, v_, y);
     return changes;
   }
+  /// y = (x, v) (N×3 [m], [m/s]) after the self-contact response changed
+  /// it at t, with the obstacle contact made consistent again
+  /// (HybridContact::AfterCorrection).
+  void SetCorrected(double t, const MatrixN3& x, const MatrixN3& v, double* y) {
+    x_ = x;
+    v_ = v;
+    if (contact_.active())
+      contact_.AfterCorrection(t, &x_, &v_, [&](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* f) {
+        sys_.Forces(s, xs, vs, f);
+      });
+    map_.ToY(x_, v_, y);
+  }
   const internal::FreeDofMap& map() const { return map_; }
   int size() const { return map_.size(); }
   void FromY(const double* y, MatrixN3* x, MatrixN3* v) const {
@@ -329,7 +341,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
       };
     d.stop_at = [&](double t_stop) { return ARKStepSetStopTime(h.mem, t_stop); };
     d.restart = [&](double t, const MatrixN3& x, const MatrixN3& v) {
-      ode.map().ToY(x, v, N_VGetArrayPointer(h.y));
+      ode.SetCorrected(t, x, v, N_VGetArrayPointer(h.y));
       return reset(t);
     };
     internal::RunFrames(d, system, options, err, &res);

@@ -56,6 +56,18 @@ class FreeDofOde {
     map_.ToY(x_, v_, y);
     return changes;
   }
+  /// y = (x, v) (N×3 [m], [m/s]) after the self-contact response changed
+  /// it at t, with the obstacle contact made consistent again
+  /// (HybridContact::AfterCorrection).
+  void SetCorrected(double t, const MatrixN3& x, const MatrixN3& v, double* y) {
+    x_ = x;
+    v_ = v;
+    if (contact_.active())
+      contact_.AfterCorrection(t, &x_, &v_, [&](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* f) {
+        sys_.Forces(s, xs, vs, f);
+      });
+    map_.ToY(x_, v_, y);
+  }
   const internal::FreeDofMap& map() const { return map_; }
   int size() const { return map_.size(); }
   /// Wall time of the Jacobian evaluations so far [s].
@@ -372,7 +384,7 @@ internal::OneStepDriver CvodeDriver(CvodeHandles& h, FreeDofOde& ode, const Refe
   // fold_over_rod at rtol 1e-3; from the last step's size, which a restart
   // never lets grow, 17,767 steps to 0.47 s, the last ones 6e-8 s.
   d.restart = [&, reinit](double t, const MatrixN3& x, const MatrixN3& v) {
-    ode.map().ToY(x, v, N_VGetArrayPointer(h.y));
+    ode.SetCorrected(t, x, v, N_VGetArrayPointer(h.y));
     double h_next = 0.0;
     CVodeGetCurrentStep(h.mem, &h_next);
     return reinit(t, h_next);

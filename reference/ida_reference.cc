@@ -58,6 +58,18 @@ class ResidualForm {
     v_ = v;
     Pack(t, y, yp);
   }
+  /// The same after the self-contact response changed (x, v) at t, with
+  /// the obstacle contact made consistent again
+  /// (HybridContact::AfterCorrection).
+  void SetCorrected(double t, const MatrixN3& x, const MatrixN3& v, double* y, double* yp) {
+    x_ = x;
+    v_ = v;
+    if (contact_.active())
+      contact_.AfterCorrection(t, &x_, &v_, [&](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* f) {
+        sys_.Forces(s, xs, vs, f);
+      });
+    Pack(t, y, yp);
+  }
   void Pack(double t, double* y, double* yp) {
     sys_.Forces(t, x_, v_, &f_);
     contact_.AddContactForces(t, x_, v_, &f_);
@@ -461,7 +473,7 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
       };
     d.stop_at = [&](double t_stop) { return IDASetStopTime(h.mem, t_stop); };
     d.restart = [&](double t, const MatrixN3& x, const MatrixN3& v) {
-      form.SetState(t, x, v, N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
+      form.SetCorrected(t, x, v, N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
       return reinit(t);
     };
     internal::RunFrames(d, system, options, err, &res);

@@ -14,6 +14,7 @@ HybridContact::HybridContact(const ParticleSystem& system, double entry_depth)
   normal_.setZero(n, 3);
   f_work_.setZero(n, 3);
   friction_rate_.setZero(n);
+  no_roots_.assign(static_cast<std::size_t>(n), 0);
 }
 
 double HybridContact::Distance(int k, double t, const Vector3& p, Vector3* n) const {
@@ -96,6 +97,32 @@ int HybridContact::Reimpose(double t, MatrixN3* x, MatrixN3* v) const {
     x->row(p) -= (d - delta) * n.transpose();
     const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - delta * n);
     v->row(p) -= n.dot(v->row(p).transpose() - u) * n.transpose();
+    ++n_moved;
+  }
+  return n_moved;
+}
+
+int HybridContact::Resettled(double t, MatrixN3* x, MatrixN3* v) {
+  int n_moved = 0;
+  for (int p = 0; p < sys_.num_particles(); ++p) {
+    int& k = mode_[static_cast<std::size_t>(p)];
+    if (k < 0) continue;
+    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+    Vector3 n;
+    const double delta = o.spec().collision_distance;
+    const double gap = Distance(k, t, x->row(p).transpose(), &n) - delta;
+    if (gap > entry_depth_) {  // moved off the surface: free
+      k = -1;
+      friction_rate_(p) = 0.0;
+      ++mode_changes_;
+      ++n_moved;
+      continue;
+    }
+    if (gap >= 0.0) continue;
+    x->row(p) -= gap * n.transpose();
+    const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - delta * n);
+    const double wn = n.dot(v->row(p).transpose() - u);
+    if (wn < 0.0) v->row(p) -= wn * n.transpose();
     ++n_moved;
   }
   return n_moved;

@@ -106,7 +106,20 @@ class HybridContact {
   /// released. `force` evaluates the model's forces at a state. Returns
   /// the number of mode changes.
   template <class Forces>
-  int ApplyEvents(double t, const int* found, bool at_break, MatrixN3* x, MatrixN3* v, Forces&& force);
+  int ApplyEvents(double t, const int* found, bool at_break, MatrixN3* x, MatrixN3* v, Forces&& force) {
+    return Jump(t, found, at_break ? Resettle::kMoving : Resettle::kNone, x, v, force);
+  }
+  /// After the self-contact response changed (x, v) at t (N×3 [m], [m/s];
+  /// docs/notes/collisions.md, "Self-contact under SUNDIALS"): every
+  /// sliding particle it moved inside the δ-surface is put back on it and
+  /// its inward normal velocity relative to the obstacle removed, one it
+  /// moved off the surface is released, a free one it moved past its entry
+  /// depth enters; then λ decides, as after an event. Returns the number
+  /// of mode changes.
+  template <class Forces>
+  int AfterCorrection(double t, MatrixN3* x, MatrixN3* v, Forces&& force) {
+    return Jump(t, no_roots_.data(), Resettle::kEvery, x, v, force);
+  }
 
   /// Calls f(p, n) for every sliding particle with its unit normal n at (t, x).
   template <class F>
@@ -133,9 +146,17 @@ class HybridContact {
   // asked) its signed distance [m].
   double Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
                 Vector3* w, double* distance = nullptr) const;
+  // Which sliding particles a jump puts back on their δ-surface.
+  enum class Resettle { kNone, kMoving, kEvery };
+  template <class Forces>
+  int Jump(double t, const int* found, Resettle resettle, MatrixN3* x, MatrixN3* v, Forces&& force);
   // At a break at t: every particle sliding on a moving obstacle back on
   // its δ-surface, without normal velocity relative to it; returns how many.
   int Reimpose(double t, MatrixN3* x, MatrixN3* v) const;
+  // After a correction at t: every sliding particle inside its δ-surface
+  // back on it, without inward normal velocity relative to it, and every
+  // one outside it released; returns how many moved or were released.
+  int Resettled(double t, MatrixN3* x, MatrixN3* v);
   // The regularised Coulomb force on particle p sliding on obstacle k with
   // normal force λ, normal n and relative velocity w; keeps its rate.
   Vector3 Friction(int k, int p, double lambda, const Vector3& n, const Vector3& w);
@@ -152,11 +173,11 @@ class HybridContact {
   long mode_changes_ = 0;
   MatrixN3 f_work_;
   Eigen::VectorXd friction_rate_;
+  std::vector<int> no_roots_;  // found[p] = 0 for every particle
 };
 
 template <class Forces>
-int HybridContact::ApplyEvents(double t, const int* found, bool at_break, MatrixN3* x, MatrixN3* v,
-                               Forces&& force) {
+int HybridContact::Jump(double t, const int* found, Resettle resettle, MatrixN3* x, MatrixN3* v, Forces&& force) {
   int changes = 0;
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
@@ -190,7 +211,9 @@ int HybridContact::ApplyEvents(double t, const int* found, bool at_break, Matrix
     mode = k;
     ++changes;
   }
-  const int reimposed = at_break ? Reimpose(t, x, v) : 0;
+  const int reimposed = resettle == Resettle::kMoving  ? Reimpose(t, x, v)
+                        : resettle == Resettle::kEvery ? Resettled(t, x, v)
+                                                       : 0;
   if (changes == 0 && reimposed == 0) return 0;
   // Every sliding particle slides on only if its constraint force pushes
   // after the jumps: a neighbour's impact changes the damping force on a

@@ -55,8 +55,13 @@ class SundialsSelfContact {
     };
     const long before = acted();
     response_->Respond(std::max(h, h_scene_), x_start_, x, v);
+    int f = 0;
+    if (acted() != before) {
+      f = d.restart(t, *x, *v);  // with the obstacle contact made consistent (HybridContact::AfterCorrection)
+      if (f >= 0) d.current_state(x, v);
+    }
     x_start_ = *x;
-    return acted() == before ? 0 : d.restart(t, *x, *v);
+    return f;
   }
   /// Its counters, or nullptr without the response.
   const SelfContactStats* stats() const { return response_ ? &response_->stats() : nullptr; }

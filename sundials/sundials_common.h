@@ -155,8 +155,10 @@ struct OneStepDriver {
   std::function<int(double t, bool root, bool at_break)> on_event;
   /// Restarts the integrator at time t from the N×3 state (x [m], v [m/s])
   /// that the self-contact response made of the last step's end: a jump of
-  /// the state, restarted as an event's. Returns its flag (< 0: the run
-  /// fails with it). Needed on a scene with `[collision] self = true`.
+  /// the state, restarted as an event's, with the obstacle contact made
+  /// consistent first (HybridContact::AfterCorrection). Returns its flag
+  /// (< 0: the run fails with it). Needed on a scene with `[collision]
+  /// self = true`.
   std::function<int(double t, const MatrixN3& x, const MatrixN3& v)> restart;
   /// Sets the time the next steps stop at (CVodeSetStopTime and its
   /// kin); with self-contact every frame is a step's end, so that a stored
