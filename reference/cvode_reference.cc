@@ -56,16 +56,12 @@ class FreeDofOde {
     map_.ToY(x_, v_, y);
     return changes;
   }
-  /// y = (x, v) (N×3 [m], [m/s]) after the self-contact response changed
-  /// it at t, with the obstacle contact made consistent again
-  /// (HybridContact::AfterCorrection).
+  /// y from (x, v) (N×3 [m], [m/s]) as a self-contact correction left
+  /// them at t (HybridContact::AfterCorrection).
   void SetCorrected(double t, const MatrixN3& x, const MatrixN3& v, double* y) {
     x_ = x;
     v_ = v;
-    if (contact_.active())
-      contact_.AfterCorrection(t, &x_, &v_, [&](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* f) {
-        sys_.Forces(s, xs, vs, f);
-      });
+    contact_.AfterCorrection(t, &x_, &v_);
     map_.ToY(x_, v_, y);
   }
   const internal::FreeDofMap& map() const { return map_; }

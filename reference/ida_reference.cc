@@ -64,10 +64,7 @@ class ResidualForm {
   void SetCorrected(double t, const MatrixN3& x, const MatrixN3& v, double* y, double* yp) {
     x_ = x;
     v_ = v;
-    if (contact_.active())
-      contact_.AfterCorrection(t, &x_, &v_, [&](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* f) {
-        sys_.Forces(s, xs, vs, f);
-      });
+    contact_.AfterCorrection(t, &x_, &v_);
     Pack(t, y, yp);
   }
   void Pack(double t, double* y, double* yp) {

@@ -120,6 +120,14 @@ class HybridContact {
   int AfterCorrection(double t, MatrixN3* x, MatrixN3* v, Forces&& force) {
     return Jump(t, no_roots_.data(), Resettle::kEvery, x, v, force);
   }
+  /// The same with the model's forces (ParticleSystem::Forces); nothing
+  /// on a scene without obstacles.
+  int AfterCorrection(double t, MatrixN3* x, MatrixN3* v) {
+    if (!active()) return 0;
+    return AfterCorrection(t, x, v, [this](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* f) {
+      sys_.Forces(s, xs, vs, f);
+    });
+  }
 
   /// Calls f(p, n) for every sliding particle with its unit normal n at (t, x).
   template <class F>
