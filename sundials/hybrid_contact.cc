@@ -102,28 +102,32 @@ int HybridContact::Reimpose(double t, MatrixN3* x, MatrixN3* v) const {
   return n_moved;
 }
 
+void HybridContact::OntoSurface(int k, double t, int p, double gap, const Vector3& n, MatrixN3* x,
+                                MatrixN3* v) const {
+  x->row(p) -= gap * n.transpose();
+  const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+  const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - o.spec().collision_distance * n);  // at the surface
+  const double wn = n.dot(v->row(p).transpose() - u);
+  if (wn < 0.0) v->row(p) -= wn * n.transpose();
+}
+
 int HybridContact::Resettled(double t, MatrixN3* x, MatrixN3* v) {
   int n_moved = 0;
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& k = mode_[static_cast<std::size_t>(p)];
     if (k < 0) continue;
-    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
     Vector3 n;
-    const double delta = o.spec().collision_distance;
-    const double gap = Distance(k, t, x->row(p).transpose(), &n) - delta;
+    const double gap =
+        Distance(k, t, x->row(p).transpose(), &n) - sys_.obstacles()[static_cast<std::size_t>(k)].spec().collision_distance;
     if (gap > entry_depth_) {  // moved off the surface: free
       k = -1;
       friction_rate_(p) = 0.0;
       ++mode_changes_;
       ++n_moved;
-      continue;
+    } else if (gap < 0.0) {
+      OntoSurface(k, t, p, gap, n, x, v);
+      ++n_moved;
     }
-    if (gap >= 0.0) continue;
-    x->row(p) -= gap * n.transpose();
-    const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - delta * n);
-    const double wn = n.dot(v->row(p).transpose() - u);
-    if (wn < 0.0) v->row(p) -= wn * n.transpose();
-    ++n_moved;
   }
   return n_moved;
 }

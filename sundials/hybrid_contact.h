@@ -161,9 +161,12 @@ class HybridContact {
   // At a break at t: every particle sliding on a moving obstacle back on
   // its δ-surface, without normal velocity relative to it; returns how many.
   int Reimpose(double t, MatrixN3* x, MatrixN3* v) const;
+  // Particle p at d − δ = gap from obstacle k (unit normal n) onto its
+  // δ-surface, without inward normal velocity relative to it.
+  void OntoSurface(int k, double t, int p, double gap, const Vector3& n, MatrixN3* x, MatrixN3* v) const;
   // After a correction at t: every sliding particle inside its δ-surface
-  // back on it, without inward normal velocity relative to it, and every
-  // one outside it released; returns how many moved or were released.
+  // back on it (OntoSurface), and every one beyond its entry depth outside
+  // it released; returns how many moved or were released.
   int Resettled(double t, MatrixN3* x, MatrixN3* v);
   // The regularised Coulomb force on particle p sliding on obstacle k with
   // normal force λ, normal n and relative velocity w; keeps its rate.
@@ -210,11 +213,7 @@ int HybridContact::Jump(double t, const int* found, Resettle resettle, MatrixN3*
     if (k < 0 || (!entry_root && gap + entry_depth_ >= 0.0)) continue;
     Vector3 n;
     Distance(k, t, x->row(p).transpose(), &n);
-    x->row(p) -= gap * n.transpose();  // onto the δ-surface
-    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
-    const Vector3 u = o.PoseAfter(t).Velocity(x->row(p).transpose() - o.spec().collision_distance * n);  // at the surface
-    const double wn = n.dot(v->row(p).transpose() - u);
-    if (wn < 0.0) v->row(p) -= wn * n.transpose();  // inelastic impact
+    OntoSurface(k, t, p, gap, n, x, v);  // an inelastic impact
     if (released) continue;
     mode = k;
     ++changes;
