@@ -73,6 +73,14 @@ class ImexOde {
     }
   }
   internal::HybridContact& contact() { return contact_; }
+  /// ARKODE's memory, and its step count at its last (re)start (ARKStepReset
+  /// keeps the counters): the root functions' step horizon.
+  void* mem() const { return mem_; }
+  long steps_at_reset() const { return steps_at_reset_; }
+  void set_mem(void* mem) { mem_ = mem; }
+  void MarkReset() {
+    if (ARKStepGetNumSteps(mem_, &steps_at_reset_) < 0) steps_at_reset_ = 0;
+  }
   /// The root functions at (t, y): one per particle (HybridContact::Roots).
   void Roots(double t, const double* y, double* g) {
     FromY(y, &x_, &v_);
@@ -182,6 +190,8 @@ class ImexOde {
   int n_, nf_;
   SystemMatrix sysmat_;
   internal::HybridContact contact_;
+  void* mem_ = nullptr;
+  long steps_at_reset_ = 0;
   SparseMatrix a_friction_;    // with contacts: A + γ diag(friction rates)
   std::vector<int> diagonal_;  // per particle, the position of A's diagonal entry in its values
   VelocityFilter filter_;      // the fixed particles; with contacts also the sliding ones' normals
@@ -201,7 +211,9 @@ int ImplicitRhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
   return 0;
 }
 int RootFn(realtype t, N_Vector y, realtype* g, void* user) {
-  static_cast<ImexOde*>(user)->Roots(t, N_VGetArrayPointer(y), g);
+  auto* ode = static_cast<ImexOde*>(user);
+  ode->contact().set_step_horizon(ode->mem(), ARKStepGetNumSteps, ARKStepGetLastStep, ode->steps_at_reset());
+  ode->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }
 // f_I is linear with a constant Jacobian while no particle slides (one
@@ -269,6 +281,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
   h.dky = N_VNew_Serial(n, h.ctx);
   ode.map().ToY(system.rest_positions(), MatrixN3::Zero(system.num_particles(), 3), N_VGetArrayPointer(h.y));
   h.mem = ARKStepCreate(ExplicitRhs, ImplicitRhs, 0.0, h.y, h.ctx);
+  ode.set_mem(h.mem);
   // The custom SUNLinearSolver (sundials/sundials_common.h) solves ARKLS's
   // systems through ImexOde::Solve with γ from ARKStepGetCurrentGamma, the
   // PCG stopping at ARKLS's own tolerance for iterative solvers in its
@@ -324,6 +337,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
     // ARKODE restarts from h.y and keeps its counters.
     const auto reset = [&](double t) {
       int f = ARKStepReset(h.mem, t, h.y);
+      ode.MarkReset();
       if (f >= 0) f = SetLinearity(h.mem, ode);
       return f < 0 ? f : ARKStepSetStopTime(h.mem, options.t_end);
     };

@@ -165,6 +165,7 @@ class FreeDofOde {
 struct CvodeUser {
   FreeDofOde* ode = nullptr;
   class ReducedNewtonSolve* reduced = nullptr;
+  void* mem = nullptr;  // CVODE's
 };
 
 int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
@@ -173,7 +174,9 @@ int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
 }
 
 int RootFn(realtype t, N_Vector y, realtype* g, void* user) {
-  static_cast<CvodeUser*>(user)->ode->Roots(t, N_VGetArrayPointer(y), g);
+  const auto* u = static_cast<CvodeUser*>(user);
+  u->ode->contact().set_step_horizon(u->mem, CVodeGetNumSteps, CVodeGetLastStep);  // counted from CVodeReInit
+  u->ode->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }
 
@@ -416,6 +419,7 @@ RunSummary RunCvodeWith(const ParticleSystem& system, const ReferenceOptions& op
   MatrixN3 v0 = MatrixN3::Zero(system.num_particles(), 3);
   ode.map().ToY(system.rest_positions(), v0, N_VGetArrayPointer(h.y));
   h.mem = CVodeCreate(CV_BDF, h.ctx);
+  user.mem = h.mem;
   if (solve) {
     // CVLS hands the custom solver its preconditioner-setup wrapper, which
     // calls PrecSetup with CVODE's jok and γ: the Jacobian is re-evaluated

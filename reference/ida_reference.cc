@@ -309,6 +309,7 @@ class IdaReducedSolve {
 struct IdaUser {
   ResidualForm* form = nullptr;
   IdaReducedSolve* reduced = nullptr;
+  void* mem = nullptr;  // IDA's
 };
 
 int ResFn(realtype t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
@@ -318,7 +319,9 @@ int ResFn(realtype t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
 }
 
 int RootFn(realtype t, N_Vector y, N_Vector, realtype* g, void* user) {
-  static_cast<IdaUser*>(user)->form->Roots(t, N_VGetArrayPointer(y), g);
+  const auto* u = static_cast<IdaUser*>(user);
+  u->form->contact().set_step_horizon(u->mem, IDAGetNumSteps, IDAGetLastStep);  // counted from IDAReInit
+  u->form->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }
 
@@ -391,6 +394,7 @@ RunSummary RunIdaWith(const ParticleSystem& system, const ReferenceOptions& opti
   form.Initial(N_VGetArrayPointer(h.y), N_VGetArrayPointer(h.yp));
   form.Ids(N_VGetArrayPointer(h.id));
   h.mem = IDACreate(h.ctx);
+  user.mem = h.mem;
   if (solve) {
     // IDALS hands the custom solver its preconditioner-setup wrapper: IDA's
     // setups evaluate the Jacobian; the PCG stops at IDALS's own tolerance.

@@ -8,7 +8,7 @@
 namespace clothbench::internal {
 
 HybridContact::HybridContact(const ParticleSystem& system, double entry_depth)
-    : sys_(system), entry_depth_(entry_depth) {
+    : sys_(system), entry_depth_(entry_depth), cull_(system.obstacles(), static_cast<std::size_t>(system.num_particles())) {
   const int n = system.num_particles();
   mode_.assign(static_cast<std::size_t>(n), -1);
   normal_.setZero(n, 3);
@@ -67,6 +67,8 @@ void HybridContact::Initialize(double t, const MatrixN3& x, const MatrixN3& v) {
   event_times_.clear();
   mode_changes_ = 0;
   std::fill(mode_.begin(), mode_.end(), -1);
+  cull_.Reset();  // a run's roots do not depend on an earlier run's
+  horizon_ = std::numeric_limits<double>::infinity();
   friction_rate_.setZero();
   if (!active()) return;
   sys_.Forces(t, x, v, &f_work_);
@@ -182,7 +184,32 @@ bool HybridContact::any_sliding() const {
   return std::any_of(mode_.begin(), mode_.end(), [](int k) { return k >= 0; });
 }
 
+double HybridContact::FreeGap(double t, int p, const Vector3& x, double reach) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const auto up = static_cast<std::size_t>(p);
+  double gap = kInf;
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
+    const Obstacle& o = sys_.obstacles()[k];
+    const double delta = o.spec().collision_distance;
+    // A rigid keyframed motion has no speed bound here: not culled.
+    const bool culls = cull_.culls(k) && reach < kInf && o.spec().keyframes.empty();
+    double d = culls ? cull_.Bound(k, up, x) : -kInf;
+    if (culls && d - delta > kCullMargin * delta + reach + o.MaxVertexSpeed() * horizon_) {
+      ++culled_;
+    } else {
+      Vector3 n;
+      d = Distance(static_cast<int>(k), t, x, &n);
+      cull_.Record(k, up, x, d);
+    }
+    gap = std::min(gap, d - delta);
+  }
+  return gap;
+}
+
 void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& f, double* g) {
+  const bool cull = horizon_ < std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k)  // the anchors' motion bounds, every call
+    if (cull_.culls(k) && sys_.obstacles()[k].moving()) cull_.Advance(k, sys_.obstacles()[k].PoseAt(t));
   for (int p = 0; p < sys_.num_particles(); ++p) {
     if (sys_.is_fixed(p)) {
       g[p] = 1.0;
@@ -190,9 +217,10 @@ void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const 
     }
     const int k = mode_[static_cast<std::size_t>(p)];
     if (k < 0) {
-      double gap = 0.0;
-      Nearest(t, x.row(p).transpose(), &gap);
-      g[p] = gap + entry_depth_;
+      const double h = horizon_;
+      const double reach = cull ? 2.0 * (v.row(p).norm() * h + 0.5 * f.row(p).norm() / sys_.masses()(p) * h * h)
+                                : std::numeric_limits<double>::infinity();
+      g[p] = FreeGap(t, p, x.row(p).transpose(), reach) + entry_depth_;
     } else {
       Vector3 n, w;
       const double m = sys_.masses()(p);

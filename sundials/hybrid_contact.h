@@ -32,8 +32,11 @@
 #ifndef CLOTHBENCH_SUNDIALS_HYBRID_CONTACT_H_
 #define CLOTHBENCH_SUNDIALS_HYBRID_CONTACT_H_
 
+#include <cmath>
+#include <limits>
 #include <vector>
 
+#include "collision/distance_cull.h"
 #include "model/particle_system.h"
 #include "solver/pcg.h"
 
@@ -92,8 +95,48 @@ class HybridContact {
   /// The root functions g[p] at (t, x, v) with `f` the model's forces
   /// without contact (AddContactForces not applied): d − δ + entry_depth
   /// (the nearest obstacle) for a free particle, λ + kReleaseAcceleration m
-  /// [N] for a sliding one, 1 for a fixed one.
+  /// [N] for a sliding one, 1 for a fixed one. A free particle far from a
+  /// mesh obstacle takes a lower bound of its d in place of d (FreeGap).
   void Roots(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& f, double* g);
+  /// The distance cull of the free particles' root functions. SUNDIALS'
+  /// rootfinding (CVODE, IDA, ARKODE) reads the values of the root
+  /// functions that change sign between two evaluations only (the sign
+  /// changes and, among them, the secant's ratio). A free particle that
+  /// cannot reach its entry depth before the next evaluation needs a
+  /// positive value, not its distance: where the distance cull's lower
+  /// bound of its distance to a mesh obstacle (collision/distance_cull.h)
+  /// exceeds δ by kCullMargin δ plus its reach within the step horizon
+  /// (set_step_horizon; twice |v| H + ½ |f/m| H², plus the obstacle's
+  /// vertex speed times H), the root function takes that bound. The runs
+  /// are then the runs with every distance exact.
+  static constexpr double kCullMargin = 1.0;
+  /// The integrators' largest step growth: ARKODE's default (its
+  /// ARKStepSetMaxGrowth, 20; CVODE's is 10 and IDA's 2) after their
+  /// first step (10⁴ there).
+  static constexpr double kStepGrowth = 20.0;
+  /// The step horizon H [s]: an upper bound of the time from a root
+  /// evaluation to the next one that the rootfinding pairs with it:
+  /// kStepGrowth times the integrator's last step `last_step` [s] after
+  /// `steps` ≥ 2 steps since its (re)start, else +∞ (no cull; also after
+  /// Initialize). The drivers set it before each evaluation.
+  void set_step_horizon(long steps, double last_step) {
+    horizon_ = steps >= 2 ? kStepGrowth * std::abs(last_step) : std::numeric_limits<double>::infinity();
+  }
+  /// The same from an integrator's getters of its step count and last step
+  /// (CVodeGetNumSteps and CVodeGetLastStep, IDA's and ARKStep's), less
+  /// its count at its last restart (ARKStepReset keeps the counters).
+  void set_step_horizon(void* mem, int (*num_steps)(void*, long*), int (*last_step)(void*, double*),
+                        long steps_at_restart = 0) {
+    long steps = 0;
+    double last = 0.0;
+    if (num_steps(mem, &steps) < 0 || last_step(mem, &last) < 0) steps = steps_at_restart;  // unknown: no cull
+    set_step_horizon(steps - steps_at_restart, last);
+  }
+  /// Turns the distance cull of Roots on (the default) or off (every
+  /// distance exact; for the test of its values).
+  void set_distance_cull(bool on) { cull_.set_enabled(on); }
+  /// Distances Roots bounded instead of querying since construction.
+  long culled() const { return culled_; }
 
   /// The events at a root time t: for every particle with found[p] ≠ 0, a
   /// free one enters (its normal relative velocity is removed and its
@@ -147,6 +190,10 @@ class HybridContact {
  private:
   // Signed distance to obstacle k at (t, p) and its unit normal.
   double Distance(int k, double t, const Vector3& p, Vector3* n) const;
+  // Free particle p's d − δ at (t, x) [m] from its nearest obstacle, or a
+  // lower bound of it where that exceeds the cull's margin (kCullMargin)
+  // and `reach` [m], how far it may move within the step horizon.
+  double FreeGap(double t, int p, const Vector3& x, double reach);
   // The nearest obstacle to p at t: index, and d − δ.
   int Nearest(double t, const Vector3& p, double* gap) const;
   // λ of particle p sliding on obstacle k at (t, x_p, v_p) with f_p the
@@ -185,6 +232,9 @@ class HybridContact {
   MatrixN3 f_work_;
   Eigen::VectorXd friction_rate_;
   std::vector<int> no_roots_;  // found[p] = 0 for every particle
+  DistanceCull cull_;          // of the free particles' root functions
+  long culled_ = 0;
+  double horizon_ = std::numeric_limits<double>::infinity();  // set_step_horizon [s]
 };
 
 template <class Forces>

@@ -25,6 +25,8 @@
 // 3c. A particle released at an event (its λ root found) is free after it,
 //    and after a self-contact correction the obstacle contact is
 //    consistent again.
+// 3d. The distance cull of the root functions (HybridContact::kCullMargin)
+//    changes no value that the rootfinding reads, on a deforming mesh.
 // 4. The thesis' virtual particles under the SUNDIALS rows (Fig. 5.5's beam,
 //    scenes/virtual_box.toml, StartVirtualParticles): CVODE, IDA and
 //    ARKODE hold the 2 × 2 cloth over the beam with them (every particle
@@ -418,6 +420,58 @@ TEST(HybridContact, AfterASelfContactCorrectionTheObstacleContactIsConsistent) {
   EXPECT_FALSE(is_sliding(off));
   EXPECT_NEAR(x(free_one, 2), surface, 1e-15);
   EXPECT_TRUE(is_sliding(free_one));
+}
+
+// The cloth of scenes/mesh_sequence_drape.toml, thrown down at 2 m/s, falls
+// freely (x = x₀ − (2 t + ½ g t²) ẑ, no response) onto and through its
+// swelling sphere while the root functions are evaluated after steps of
+// 2 ms and 40 ms in turn (8 cm at 2 m/s, four times δ + the margin): each
+// step after a short one grows by kStepGrowth, the most the step horizon
+// allows. Every value is the exact one or a positive lower bound of it,
+// and a particle with a bound is outside its entry depth at the next
+// evaluation: the rootfinding, which reads the values of the root
+// functions that change sign only, finds what it finds with every
+// distance exact.
+TEST(HybridContact, TheDistanceCullOfTheRootsChangesNoValueTheRootfindingReads) {
+  const ParticleSystem sys(LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mesh_sequence_drape.toml"));
+  const int n = sys.num_particles();
+  const double short_step = 2e-3, g = 9.81, v0 = 2.0;
+  internal::HybridContact culled(sys, 1e-6), exact(sys, 1e-6);
+  exact.set_distance_cull(false);
+  MatrixN3 v = MatrixN3::Zero(n, 3), f = MatrixN3::Zero(n, 3);
+  f.col(2) = -g * sys.masses();
+  culled.Initialize(0.0, sys.rest_positions(), v);
+  exact.Initialize(0.0, sys.rest_positions(), v);
+  std::vector<double> g_culled(static_cast<std::size_t>(n)), g_exact(g_culled.size());
+  std::vector<char> was_bound(g_culled.size(), 0);
+  int bounded = 0, crossed = 0;
+  double t = 0.0, last_step = 0.0;
+  for (int i = 0; t < 0.35; ++i) {
+    MatrixN3 x = sys.rest_positions();
+    x.col(2).array() -= v0 * t + 0.5 * g * t * t;
+    v.col(2).setConstant(-v0 - g * t);
+    for (internal::HybridContact* c : {&culled, &exact}) {
+      c->set_step_horizon(i, last_step);  // no cull in the first two steps
+      c->Roots(t, x, v, f, (c == &culled ? g_culled : g_exact).data());
+    }
+    for (std::size_t p = 0; p < g_exact.size(); ++p) {
+      if (was_bound[p]) ASSERT_GT(g_exact[p], 0.0) << "particle " << p << " reached its entry depth at t = " << t;
+      was_bound[p] = g_culled[p] != g_exact[p];
+      if (!was_bound[p]) {
+        crossed += g_exact[p] <= 0.0;
+        continue;
+      }
+      ++bounded;
+      ASSERT_GT(g_culled[p], 0.0) << "particle " << p << " at t = " << t;
+      ASSERT_LT(g_culled[p], g_exact[p]) << "particle " << p << " at t = " << t;
+    }
+    last_step = i % 2 == 0 ? short_step : internal::HybridContact::kStepGrowth * short_step;
+    t += last_step;
+  }
+  EXPECT_GT(bounded, n);  // the cull acted
+  EXPECT_GT(crossed, 0);  // and the cloth reached the sphere
+  EXPECT_EQ(exact.culled(), 0);
+  EXPECT_GE(culled.culled(), bounded);  // a bound may equal the exact value
 }
 
 TEST(HybridContact, SundialsRowsHaveTheVirtualParticlesAndStartWithoutTheLastRuns) {
