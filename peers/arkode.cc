@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <limits>
 #include <vector>
 
 #include <arkode/arkode_arkstep.h>
@@ -73,11 +74,18 @@ class ImexOde {
     }
   }
   internal::HybridContact& contact() { return contact_; }
-  /// ARKODE's memory, and its step count at its last (re)start (ARKStepReset
-  /// keeps the counters): the root functions' step horizon.
+  /// ARKODE's memory, its step count at its last (re)start (ARKStepReset
+  /// keeps the counters) and its largest step [s]: the root functions'
+  /// step horizon.
   void* mem() const { return mem_; }
   long steps_at_reset() const { return steps_at_reset_; }
+  double max_step() const { return max_step_; }
   void set_mem(void* mem) { mem_ = mem; }
+  /// ARKStepSetMaxStep, kept for the step horizon.
+  int SetMaxStep(double h) {
+    max_step_ = h;
+    return ARKStepSetMaxStep(mem_, h);
+  }
   void MarkReset() {
     if (ARKStepGetNumSteps(mem_, &steps_at_reset_) < 0) steps_at_reset_ = 0;
   }
@@ -192,6 +200,7 @@ class ImexOde {
   internal::HybridContact contact_;
   void* mem_ = nullptr;
   long steps_at_reset_ = 0;
+  double max_step_ = std::numeric_limits<double>::infinity();
   SparseMatrix a_friction_;    // with contacts: A + γ diag(friction rates)
   std::vector<int> diagonal_;  // per particle, the position of A's diagonal entry in its values
   VelocityFilter filter_;      // the fixed particles; with contacts also the sliding ones' normals
@@ -212,7 +221,8 @@ int ImplicitRhs(realtype t, N_Vector y, N_Vector ydot, void* user) {
 }
 int RootFn(realtype t, N_Vector y, realtype* g, void* user) {
   auto* ode = static_cast<ImexOde*>(user);
-  ode->contact().set_step_horizon(ode->mem(), ARKStepGetNumSteps, ARKStepGetLastStep, ode->steps_at_reset());
+  ode->contact().set_step_horizon(ode->mem(), {ARKStepGetNumSteps, ARKStepGetLastStep, ARKStepGetCurrentTime}, t,
+                                  ode->steps_at_reset(), ode->max_step());
   ode->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }
@@ -313,7 +323,7 @@ RunSummary RunArkode(const ParticleSystem& system, const ReferenceOptions& optio
     // on the round table and passed through the 0.7 m table unseen. The
     // frame interval bounds the step (a particle would need 70 m/s to
     // cross that table within it).
-    ok = check(ARKStepSetMaxStep(h.mem, options.frame_dt), "ARKStepSetMaxStep") &&
+    ok = check(ode.SetMaxStep(options.frame_dt), "ARKStepSetMaxStep") &&
          check(ARKStepRootInit(h.mem, nr, RootFn), "ARKStepRootInit") &&
          check(ARKStepSetRootDirection(h.mem, direction.data()), "ARKStepSetRootDirection") &&
          check(ARKStepSetNoInactiveRootWarn(h.mem), "ARKStepSetNoInactiveRootWarn");

@@ -175,7 +175,7 @@ int RhsFn(realtype t, N_Vector y, N_Vector ydot, void* user) {
 
 int RootFn(realtype t, N_Vector y, realtype* g, void* user) {
   const auto* u = static_cast<CvodeUser*>(user);
-  u->ode->contact().set_step_horizon(u->mem, CVodeGetNumSteps, CVodeGetLastStep);  // counted from CVodeReInit
+  u->ode->contact().set_step_horizon(u->mem, {CVodeGetNumSteps, CVodeGetLastStep, CVodeGetCurrentTime}, t);
   u->ode->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }

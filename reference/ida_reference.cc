@@ -320,7 +320,7 @@ int ResFn(realtype t, N_Vector y, N_Vector yp, N_Vector r, void* user) {
 
 int RootFn(realtype t, N_Vector y, N_Vector, realtype* g, void* user) {
   const auto* u = static_cast<IdaUser*>(user);
-  u->form->contact().set_step_horizon(u->mem, IDAGetNumSteps, IDAGetLastStep);  // counted from IDAReInit
+  u->form->contact().set_step_horizon(u->mem, {IDAGetNumSteps, IDAGetLastStep, IDAGetCurrentTime}, t);
   u->form->Roots(t, N_VGetArrayPointer(y), g);
   return 0;
 }

@@ -32,6 +32,7 @@
 #ifndef CLOTHBENCH_SUNDIALS_HYBRID_CONTACT_H_
 #define CLOTHBENCH_SUNDIALS_HYBRID_CONTACT_H_
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -114,23 +115,35 @@ class HybridContact {
   /// ARKStepSetMaxGrowth, 20; CVODE's is 10 and IDA's 2) after their
   /// first step (10⁴ there).
   static constexpr double kStepGrowth = 20.0;
-  /// The step horizon H [s]: an upper bound of the time from a root
-  /// evaluation to the next one that the rootfinding pairs with it:
-  /// kStepGrowth times the integrator's last step `last_step` [s] after
-  /// `steps` ≥ 2 steps since its (re)start, else +∞ (no cull; also after
-  /// Initialize). The drivers set it before each evaluation.
-  void set_step_horizon(long steps, double last_step) {
-    horizon_ = steps >= 2 ? kStepGrowth * std::abs(last_step) : std::numeric_limits<double>::infinity();
+  /// The step horizon H [s]: an upper bound of the time between a root
+  /// evaluation and any other that the rootfinding pairs with it. Within
+  /// the step just taken (`at_step_end` false: the rootfinding's own
+  /// evaluations) that is its length `last_step` [s]. At its end (or at a
+  /// (re)start, `steps` = 0 steps since it) also the next step: at most
+  /// `max_step` [s] (the integrator's bound, if it has one) and, from the
+  /// second step on, kStepGrowth times the last one (+∞ before: the first
+  /// step's growth is 10⁴). +∞ (no cull) also after Initialize.
+  void set_step_horizon(long steps, double last_step, bool at_step_end, double max_step) {
+    const double h = std::abs(last_step);
+    const double next = std::min(steps >= 2 ? kStepGrowth * h : std::numeric_limits<double>::infinity(), max_step);
+    horizon_ = at_step_end || steps == 0 ? std::max(h, next) : h;
   }
-  /// The same from an integrator's getters of its step count and last step
-  /// (CVodeGetNumSteps and CVodeGetLastStep, IDA's and ARKStep's), less
-  /// its count at its last restart (ARKStepReset keeps the counters).
-  void set_step_horizon(void* mem, int (*num_steps)(void*, long*), int (*last_step)(void*, double*),
-                        long steps_at_restart = 0) {
+  /// An integrator's getters (CVODE's CVodeGetNumSteps, CVodeGetLastStep,
+  /// CVodeGetCurrentTime; IDA's and ARKStep's).
+  struct StepGetters {
+    int (*num_steps)(void*, long*);
+    int (*last_step)(void*, double*);
+    int (*current_time)(void*, double*);
+  };
+  /// The same for an evaluation at t [s] from the integrator's counters,
+  /// less its step count at its last restart (ARKStepReset keeps them).
+  void set_step_horizon(void* mem, const StepGetters& get, double t, long steps_at_restart = 0,
+                        double max_step = std::numeric_limits<double>::infinity()) {
     long steps = 0;
-    double last = 0.0;
-    if (num_steps(mem, &steps) < 0 || last_step(mem, &last) < 0) steps = steps_at_restart;  // unknown: no cull
-    set_step_horizon(steps - steps_at_restart, last);
+    double last = 0.0, t_n = 0.0;
+    if (get.num_steps(mem, &steps) < 0 || get.last_step(mem, &last) < 0 || get.current_time(mem, &t_n) < 0)
+      steps = steps_at_restart;  // unknown: no cull
+    set_step_horizon(steps - steps_at_restart, last, t >= t_n, max_step);
   }
   /// Turns the distance cull of Roots on (the default) or off (every
   /// distance exact; for the test of its values).

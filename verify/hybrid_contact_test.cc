@@ -427,46 +427,65 @@ TEST(HybridContact, AfterASelfContactCorrectionTheObstacleContactIsConsistent) {
 // swelling sphere while the root functions are evaluated after steps of
 // 2 ms and 40 ms in turn (8 cm at 2 m/s, four times δ + the margin): each
 // step after a short one grows by kStepGrowth, the most the step horizon
-// allows. Every value is the exact one or a positive lower bound of it,
-// and a particle with a bound is outside its entry depth at the next
-// evaluation: the rootfinding, which reads the values of the root
-// functions that change sign only, finds what it finds with every
-// distance exact.
+// allows at a step's end. Each step is evaluated at its end and, as a
+// rootfinding does, at its middle. Every value is the exact one or a
+// positive lower bound of it, and a particle with a bound is outside its
+// entry depth at every evaluation paired with it (a step end's: the next
+// step's end; a middle's: its step's ends): the rootfinding, which reads
+// the values of the root functions that change sign only, finds what it
+// finds with every distance exact.
 TEST(HybridContact, TheDistanceCullOfTheRootsChangesNoValueTheRootfindingReads) {
   const ParticleSystem sys(LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mesh_sequence_drape.toml"));
   const int n = sys.num_particles();
-  const double short_step = 2e-3, g = 9.81, v0 = 2.0;
+  const double short_step = 2e-3, g = 9.81, v0 = 2.0, kInf = std::numeric_limits<double>::infinity();
   internal::HybridContact culled(sys, 1e-6), exact(sys, 1e-6);
   exact.set_distance_cull(false);
-  MatrixN3 v = MatrixN3::Zero(n, 3), f = MatrixN3::Zero(n, 3);
+  MatrixN3 x(n, 3), v = MatrixN3::Zero(n, 3), f = MatrixN3::Zero(n, 3);
   f.col(2) = -g * sys.masses();
   culled.Initialize(0.0, sys.rest_positions(), v);
   exact.Initialize(0.0, sys.rest_positions(), v);
-  std::vector<double> g_culled(static_cast<std::size_t>(n)), g_exact(g_culled.size());
-  std::vector<char> was_bound(g_culled.size(), 0);
+  using Values = std::vector<double>;
+  Values g_culled(static_cast<std::size_t>(n)), g_exact(g_culled.size()), mid_culled(g_culled), mid_exact(g_culled);
+  Values end_exact(g_culled.size(), 1.0);  // at the step's start, then its end
   int bounded = 0, crossed = 0;
-  double t = 0.0, last_step = 0.0;
-  for (int i = 0; t < 0.35; ++i) {
-    MatrixN3 x = sys.rest_positions();
+  // The root values at t, `at_end` of a step of `step` [s] after step i.
+  const auto evaluate = [&](int i, double t, double step, bool at_end, Values* gc, Values* ge) {
+    x = sys.rest_positions();
     x.col(2).array() -= v0 * t + 0.5 * g * t * t;
     v.col(2).setConstant(-v0 - g * t);
     for (internal::HybridContact* c : {&culled, &exact}) {
-      c->set_step_horizon(i, last_step);  // no cull in the first two steps
-      c->Roots(t, x, v, f, (c == &culled ? g_culled : g_exact).data());
+      c->set_step_horizon(i, step, at_end, kInf);  // no cull in the first two steps
+      c->Roots(t, x, v, f, (c == &culled ? gc : ge)->data());
     }
-    for (std::size_t p = 0; p < g_exact.size(); ++p) {
-      if (was_bound[p]) ASSERT_GT(g_exact[p], 0.0) << "particle " << p << " reached its entry depth at t = " << t;
-      was_bound[p] = g_culled[p] != g_exact[p];
-      if (!was_bound[p]) {
-        crossed += g_exact[p] <= 0.0;
-        continue;
-      }
-      ++bounded;
-      ASSERT_GT(g_culled[p], 0.0) << "particle " << p << " at t = " << t;
-      ASSERT_LT(g_culled[p], g_exact[p]) << "particle " << p << " at t = " << t;
+  };
+  // Every value the exact one or a positive lower bound of it; returns the bounded particles.
+  const auto check = [&](const Values& gc, const Values& ge, double t) {
+    std::vector<std::size_t> b;
+    for (std::size_t p = 0; p < ge.size(); ++p) {
+      if (gc[p] == ge[p]) continue;
+      EXPECT_GT(gc[p], 0.0) << "particle " << p << " at t = " << t;
+      EXPECT_LT(gc[p], ge[p]) << "particle " << p << " at t = " << t;
+      b.push_back(p);
     }
-    last_step = i % 2 == 0 ? short_step : internal::HybridContact::kStepGrowth * short_step;
-    t += last_step;
+    bounded += static_cast<int>(b.size());
+    return b;
+  };
+  std::vector<std::size_t> bound_at_start;
+  double t = 0.0;
+  for (int i = 0; t < 0.35; ++i) {
+    const double step = i == 0 ? 0.0 : (i % 2 == 1 ? short_step : internal::HybridContact::kStepGrowth * short_step);
+    t += step;
+    const Values start_exact = end_exact;
+    evaluate(i, t, step, true, &g_culled, &g_exact);  // the step's end
+    for (std::size_t p : bound_at_start)
+      ASSERT_GT(g_exact[p], 0.0) << "particle " << p << " reached its entry depth by t = " << t;
+    bound_at_start = check(g_culled, g_exact, t);
+    end_exact = g_exact;
+    crossed += static_cast<int>(std::count_if(g_exact.begin(), g_exact.end(), [](double e) { return e <= 0.0; }));
+    if (i == 0) continue;
+    evaluate(i, t - 0.5 * step, step, false, &mid_culled, &mid_exact);  // the rootfinding's, within the step
+    for (std::size_t p : check(mid_culled, mid_exact, t - 0.5 * step))
+      ASSERT_TRUE(start_exact[p] > 0.0 && end_exact[p] > 0.0) << "particle " << p << " in the step to t = " << t;
   }
   EXPECT_GT(bounded, n);  // the cull acted
   EXPECT_GT(crossed, 0);  // and the cloth reached the sphere
