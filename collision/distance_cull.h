@@ -1,6 +1,7 @@
 // The distance cull of mesh obstacles (docs/model.md §7), which the
-// detection (collision/obstacle_contacts.h) and the position-based peers'
-// adapter (collision/obstacle_proximity.h) share: a mesh obstacle's distance
+// detection (collision/obstacle_contacts.h), the position-based peers'
+// adapter (collision/obstacle_proximity.h) and the SUNDIALS rows' root
+// functions (sundials/hybrid_contact.h) share: a mesh obstacle's distance
 // is 1-Lipschitz (signed for a closed mesh, unsigned for an open one), so
 // with d_a measured at x_a and the obstacle's motion bound m since
 // (Obstacle::MotionBound), d(x) ≥ d_a − |x − x_a| − m. A caller skips the
