@@ -3,11 +3,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
-#include <limits>
 #include <vector>
 
 #include <arkode/arkode_arkstep.h>

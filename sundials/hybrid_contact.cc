@@ -191,8 +191,7 @@ double HybridContact::FreeGap(double t, int p, const Vector3& x, double reach) {
   for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
     const Obstacle& o = sys_.obstacles()[k];
     const double delta = o.spec().collision_distance;
-    // A rigid keyframed motion has no speed bound here: not culled.
-    const bool culls = cull_.culls(k) && reach < kInf && o.spec().keyframes.empty();
+    const bool culls = reach < kInf && Culls(k);
     double d = culls ? cull_.Bound(k, up, x) : -kInf;
     if (culls && d - delta > kCullMargin * delta + reach + o.MaxVertexSpeed() * horizon_) {
       ++culled_;
@@ -207,9 +206,13 @@ double HybridContact::FreeGap(double t, int p, const Vector3& x, double reach) {
 }
 
 void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const MatrixN3& f, double* g) {
-  const bool cull = horizon_ < std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k)  // the anchors' motion bounds, every call
-    if (cull_.culls(k) && sys_.obstacles()[k].moving()) cull_.Advance(k, sys_.obstacles()[k].PoseAt(t));
+  bool cull = false;  // any obstacle culled, and a finite horizon
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
+    if (!Culls(k)) continue;
+    cull = true;
+    if (sys_.obstacles()[k].moving()) cull_.Advance(k, sys_.obstacles()[k].PoseAt(t));  // every call
+  }
+  cull = cull && horizon_ < std::numeric_limits<double>::infinity();
   for (int p = 0; p < sys_.num_particles(); ++p) {
     if (sys_.is_fixed(p)) {
       g[p] = 1.0;

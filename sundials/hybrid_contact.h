@@ -203,6 +203,9 @@ class HybridContact {
  private:
   // Signed distance to obstacle k at (t, p) and its unit normal.
   double Distance(int k, double t, const Vector3& p, Vector3* n) const;
+  // Whether the root functions cull obstacle k: a mesh (DistanceCull)
+  // without a rigid keyframed motion, which has no speed bound here.
+  bool Culls(std::size_t k) const { return cull_.culls(k) && sys_.obstacles()[k].spec().keyframes.empty(); }
   // Free particle p's d − δ at (t, x) [m] from its nearest obstacle, or a
   // lower bound of it where that exceeds the cull's margin (kCullMargin)
   // and `reach` [m], how far it may move within the step horizon.
