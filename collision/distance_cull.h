@@ -1,11 +1,14 @@
-// The distance cull of mesh obstacles (docs/model.md §7), which the
-// detection (collision/obstacle_contacts.h), the position-based peers'
-// adapter (collision/obstacle_proximity.h) and the SUNDIALS rows' root
-// functions (sundials/hybrid_contact.h) share: a mesh obstacle's distance
-// is 1-Lipschitz (signed for a closed mesh, unsigned for an open one), so
-// with d_a measured at x_a and the obstacle's motion bound m since
-// (Obstacle::MotionBound), d(x) ≥ d_a − |x − x_a| − m. A caller skips the
-// exact query where that bound already decides its test.
+// The distance cull of mesh and skeleton obstacles (docs/model.md §7),
+// which the detection (collision/obstacle_contacts.h), the position-based
+// peers' adapter (collision/obstacle_proximity.h), the blow-up guard's
+// path check (solver/run.h) and the SUNDIALS rows' root functions
+// (sundials/hybrid_contact.h) share: a mesh obstacle's distance is
+// 1-Lipschitz (signed for a closed mesh, unsigned for an open one), and so
+// is a skeleton's (a minimum of capsules' distances), so with d_a measured
+// at x_a and the obstacle's motion bound m since (Obstacle::MotionBound; a
+// skeleton's: its joints' largest displacement), d(x) ≥ d_a − |x − x_a| − m.
+// A caller skips the exact query where that bound already decides its test.
+// The analytic shapes cost less to query than to cull.
 #ifndef CLOTHBENCH_COLLISION_DISTANCE_CULL_H_
 #define CLOTHBENCH_COLLISION_DISTANCE_CULL_H_
 
@@ -21,11 +24,11 @@ namespace clothbench {
 
 class DistanceCull {
  public:
-  /// Per particle and obstacle one anchor (none yet); every mesh obstacle culled.
+  /// Per particle and obstacle one anchor (none yet); every mesh and skeleton obstacle culled.
   /// @param obstacles the model's obstacles (must outlive this); @param n particles
   DistanceCull(const std::vector<Obstacle>& obstacles, std::size_t n) : obstacles_(&obstacles), n_(n) {
     const std::size_t n_obs = obstacles.size();
-    for (const Obstacle& o : obstacles) culled_.push_back(o.mesh() != nullptr);
+    for (const Obstacle& o : obstacles) culled_.push_back(Cullable(o));
     motion_.assign(n_obs, 0.0);
     for (const Obstacle& o : obstacles) last_pose_.push_back(o.PoseAt(0.0));
     anchor_.assign(n * n_obs, Vector3::Zero());
@@ -35,9 +38,12 @@ class DistanceCull {
 
   /// Forgets the anchors (a new run).
   void Reset() { std::fill(distance_.begin(), distance_.end(), -kNone); }
-  /// Turns the cull of every mesh obstacle on or off (off: every query exact).
+  /// Whether obstacle o's queries are culled: a mesh (still, keyframed or a
+  /// sequence) or a deforming shape (a skeleton).
+  static bool Cullable(const Obstacle& o) { return o.mesh() != nullptr || o.shape().deforms(); }
+  /// Turns the cull of every cullable obstacle on or off (off: every query exact).
   void set_enabled(bool on) {
-    for (std::size_t k = 0; k < culled_.size(); ++k) culled_[k] = on && (*obstacles_)[k].mesh() != nullptr;
+    for (std::size_t k = 0; k < culled_.size(); ++k) culled_[k] = on && Cullable((*obstacles_)[k]);
   }
   /// Whether obstacle k is culled.
   bool culls(std::size_t k) const { return culled_[k] != 0; }

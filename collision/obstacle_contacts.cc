@@ -88,12 +88,13 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     const std::size_t pk = static_cast<std::size_t>(p) * n_obs + k;
     double& d_stored = last_distance_[pk];
     // The relative speed bounds the cull: a rigid motion's velocity at x₀,
-    // a deforming shape's largest vertex speed (its velocity at x₀ would
-    // cost the closest-point query the cull saves). The contact takes the
-    // velocity at the closest surface point once the distance is known.
+    // a deforming shape's largest vertex speed within the step (its
+    // velocity at x₀ would cost the closest-point query the cull saves).
+    // The contact takes the velocity at the closest surface point once the
+    // distance is known.
     Vector3 v_obs = o.moving() && !pose.deformed ? pose.Velocity(x0) : Vector3::Zero();
     Vector3 v_rel = v0 - v_obs;
-    const double rel_speed = pose.deformed ? v0.norm() + o.MaxVertexSpeed() : v_rel.norm();
+    const double rel_speed = pose.deformed ? v0.norm() + o.MaxVertexSpeedBetween(step_t0_, step_t0_ + h) : v_rel.norm();
     if (cull_.culls(k) && !same_contact) {
       const double bound = cull_.Bound(k, static_cast<std::size_t>(p), x0);
       const double moved = x_prev ? (x0 - *x_prev).norm() : 0.0;

@@ -99,7 +99,7 @@ class ObstacleDetection {
   bool has_step_ = false, has_prev_ = false;
   std::vector<double> last_distance_;  // N×O: signed distance at x₀ of the last step (x₋₁ now), or a lower bound
   std::vector<double> distance_backup_;
-  DistanceCull cull_;  // mesh obstacles
+  DistanceCull cull_;  // mesh and skeleton obstacles
   long queries_ = 0, culled_ = 0;
 };
 

@@ -70,7 +70,7 @@ class ObstacleProximity {
   std::vector<char> hit_;  // per particle: an entry of this call
   std::vector<double> distance_;
   std::vector<Vector3> direction_;
-  DistanceCull cull_;  // mesh obstacles
+  DistanceCull cull_;  // mesh and skeleton obstacles
   long queries_ = 0, culled_ = 0;
 };
 

@@ -209,6 +209,11 @@ class Obstacle {
   }
   /// The largest speed [m/s] of a deforming shape's vertices (0 otherwise).
   double MaxVertexSpeed() const { return shape_->MaxVertexSpeed(); }
+  /// The largest speed [m/s] of a deforming shape's vertices at any time in
+  /// [t0, t1] [s] (0 otherwise): what the distance culls' bounds move by
+  /// (a motion-capture clip's first frame, often a T-pose the scene never
+  /// reaches, does not count where the scene starts past it).
+  double MaxVertexSpeedBetween(double t0, double t1) const { return shape_->MaxVertexSpeedBetween(t0, t1); }
   /// The first time after t [s] where the obstacle's velocity jumps: a
   /// keyframe time, or a frame time of a deforming shape (the
   /// piecewise-linear motion changes its velocity at once there); +∞ if

@@ -185,7 +185,7 @@ class BlowUpGuard {
   /// Paths that start or end inside (contact, penetration) are left to
   /// the response and CheckFrame. By the 1-Lipschitz distance, a particle
   /// with d(x0) + d(x1) > |x1 − x0| cannot have entered and is skipped;
-  /// mesh obstacles are culled as the detection culls them
+  /// mesh and skeleton obstacles are culled as the detection culls them
   /// (collision/distance_cull.h). No allocation.
   bool CheckPath(double t0, const MatrixN3& x0, double t1, const MatrixN3& x1, RunStatus* status,
                  std::string* message);

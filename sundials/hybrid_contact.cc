@@ -14,6 +14,7 @@ HybridContact::HybridContact(const ParticleSystem& system, double entry_depth)
   normal_.setZero(n, 3);
   f_work_.setZero(n, 3);
   friction_rate_.setZero(n);
+  obstacle_reach_.assign(system.obstacles().size(), 0.0);
   no_roots_.assign(static_cast<std::size_t>(n), 0);
 }
 
@@ -193,7 +194,7 @@ double HybridContact::FreeGap(double t, int p, const Vector3& x, double reach) {
     const double delta = o.spec().collision_distance;
     const bool culls = reach < kInf && Culls(k);
     double d = culls ? cull_.Bound(k, up, x) : -kInf;
-    if (culls && d - delta > kCullMargin * delta + reach + o.MaxVertexSpeed() * horizon_) {
+    if (culls && d - delta > kCullMargin * delta + reach + obstacle_reach_[k]) {
       ++culled_;
     } else {
       Vector3 n;
@@ -210,7 +211,11 @@ void HybridContact::Roots(double t, const MatrixN3& x, const MatrixN3& v, const 
   for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
     if (!Culls(k)) continue;
     cull = true;
-    if (sys_.obstacles()[k].moving()) cull_.Advance(k, sys_.obstacles()[k].PoseAt(t));  // every call
+    const Obstacle& o = sys_.obstacles()[k];
+    if (o.moving()) cull_.Advance(k, o.PoseAt(t));  // every call
+    // Any evaluation paired with this one is within H of t, before or after.
+    if (horizon_ < std::numeric_limits<double>::infinity())
+      obstacle_reach_[k] = horizon_ * o.MaxVertexSpeedBetween(t - horizon_, t + horizon_);
   }
   cull = cull && horizon_ < std::numeric_limits<double>::infinity();
   for (int p = 0; p < sys_.num_particles(); ++p) {

@@ -105,11 +105,12 @@ class HybridContact {
   /// changes and, among them, the secant's ratio). A free particle that
   /// cannot reach its entry depth before the next evaluation needs a
   /// positive value, not its distance: where the distance cull's lower
-  /// bound of its distance to a mesh obstacle (collision/distance_cull.h)
-  /// exceeds δ by kCullMargin δ plus its reach within the step horizon
-  /// (set_step_horizon; twice |v| H + ½ |f/m| H², plus the obstacle's
-  /// vertex speed times H), the root function takes that bound. The runs
-  /// are then the runs with every distance exact.
+  /// bound of its distance to a mesh or skeleton obstacle
+  /// (collision/distance_cull.h) exceeds δ by kCullMargin δ plus its reach
+  /// within the step horizon (set_step_horizon; twice |v| H + ½ |f/m| H²,
+  /// plus H times the obstacle's largest vertex speed within H of t), the
+  /// root function takes that bound. The runs are then the runs with every
+  /// distance exact.
   static constexpr double kCullMargin = 1.0;
   /// The integrators' largest step growth: ARKODE's default (its
   /// ARKStepSetMaxGrowth, 20; CVODE's is 10 and IDA's 2) after their
@@ -203,7 +204,7 @@ class HybridContact {
  private:
   // Signed distance to obstacle k at (t, p) and its unit normal.
   double Distance(int k, double t, const Vector3& p, Vector3* n) const;
-  // Whether the root functions cull obstacle k: a mesh (DistanceCull)
+  // Whether the root functions cull obstacle k: a mesh or skeleton (DistanceCull)
   // without a rigid keyframed motion, which has no speed bound here.
   bool Culls(std::size_t k) const { return cull_.culls(k) && sys_.obstacles()[k].spec().keyframes.empty(); }
   // Free particle p's d − δ at (t, x) [m] from its nearest obstacle, or a
@@ -251,6 +252,7 @@ class HybridContact {
   DistanceCull cull_;          // of the free particles' root functions
   long culled_ = 0;
   double horizon_ = std::numeric_limits<double>::infinity();  // set_step_horizon [s]
+  std::vector<double> obstacle_reach_;  // per obstacle: its vertices' reach within H of the evaluation [m]
 };
 
 template <class Forces>

@@ -10,6 +10,7 @@
 // 3. A bad sequence is refused naming the file and the rule.
 // 4. A run's file stores the moving surface at its frame times.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -159,12 +160,26 @@ TEST(MeshSequence, InterpolatesItsFramesAndTheirVelocity) {
   std::vector<std::array<int, 3>> tri;
   UnitSphere(&unit, &tri);
   double largest = 0.0, fastest = 0.0;
+  std::array<double, 5> per_interval{};  // [0, 0.1], …, [0.4, 0.5]
   for (const Vector3& w : unit) {
     largest = std::max(largest, (Moved(w, 0.1) - Moved(w, 0.0)).norm());
-    for (int k = 0; k < 5; ++k) fastest = std::max(fastest, (Moved(w, 0.1 * (k + 1)) - Moved(w, 0.1 * k)).norm() / 0.1);
+    for (int k = 0; k < 5; ++k) {
+      const double speed = (Moved(w, 0.1 * (k + 1)) - Moved(w, 0.1 * k)).norm() / 0.1;
+      per_interval[static_cast<std::size_t>(k)] = std::max(per_interval[static_cast<std::size_t>(k)], speed);
+      fastest = std::max(fastest, speed);
+    }
   }
   EXPECT_NEAR(o.MotionBound(o.PoseAt(0.0), o.PoseAt(0.1)), largest, 1e-12);
   EXPECT_NEAR(o.MaxVertexSpeed(), fastest, 1e-9);
+  // Within a time span, the speed over the frame intervals that meet it
+  // (the files' 17 digits, to 1e-9 m/s): 0 where the mesh is held.
+  EXPECT_NEAR(o.MaxVertexSpeedBetween(0.12, 0.18), per_interval[1], 1e-9);
+  EXPECT_NEAR(o.MaxVertexSpeedBetween(0.15, 0.35), std::max({per_interval[1], per_interval[2], per_interval[3]}), 1e-9);
+  EXPECT_NEAR(o.MaxVertexSpeedBetween(0.1, 0.1), std::max(per_interval[0], per_interval[1]), 1e-9);
+  EXPECT_NEAR(o.MaxVertexSpeedBetween(-1.0, kT), fastest, 1e-9);
+  EXPECT_EQ(o.MaxVertexSpeedBetween(-1.0, -0.5), 0.0);
+  EXPECT_EQ(o.MaxVertexSpeedBetween(kT + 0.1, 9.0), 0.0);
+  EXPECT_LT(per_interval[0], per_interval[4]);  // the spans differ: the checks above could fail
 }
 
 // round_table's cloth over the sphere, which rises by 0.1 m and turns by

@@ -14,6 +14,7 @@
 //    first pose, and worn while the body moves without a crossing pair or
 //    a particle deeper than the collision distance inside it.
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -124,6 +125,11 @@ TEST(Skeleton, BonesStayRigidAndTheRootFollowsTheFile) {
   const double sa = body.SignedDistance(a, p, &da), sb = body.SignedDistance(b, p, &db);
   EXPECT_LE(std::abs(sa - sb), body.MotionBound(a, b) + 1e-12);
   EXPECT_LE(a.Velocity(p).norm(), body.MaxVertexSpeed() + 1e-9);
+  EXPECT_LE(a.Velocity(p).norm(), body.MaxVertexSpeedBetween(0.25, 0.25 + dt) + 1e-9);
+  // The clip's first frame is a T-pose (CMU's, before the motion): its
+  // jump to the second frame is the clip's fastest, at clip time 0, which
+  // the scene passed at t = -0.5 s; from t = 0 on the body is slower.
+  EXPECT_LT(body.MaxVertexSpeedBetween(0.0, 1.0), 0.5 * body.MaxVertexSpeed());
 }
 
 std::string Refusal(const std::string& path) {
@@ -193,6 +199,23 @@ TEST(Skeleton, HeldAtIsThePoseAtThatTimeHeldStill) {
 // held in that pose), and SBDF(2) at the scene's h wears it through the
 // crouch (0.6 s) with 0 crossing pairs at every frame and no particle deeper
 // than δ inside the body at any frame (the run guard's check: status ok).
+// The distance culls' speed bound (Obstacle::MaxVertexSpeedBetween) on
+// scenes/mocap_dress.toml's body: the clip's fastest interval is its
+// T-pose's jump to the motion, at clip time 0 (t = -0.5 s with start =
+// 0.5), which the scene's run from t = 0 never reaches; over the run the
+// joints move at a small part of that speed.
+TEST(Skeleton, TheCullsSpeedBoundLeavesOutTheClipsTPose) {
+  const Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mocap_dress.toml");
+  const Obstacle body(s.obstacles.at(0));
+  const double clip = body.MaxVertexSpeed(), run = body.MaxVertexSpeedBetween(0.0, s.t_end);
+  const double first = body.MaxVertexSpeedBetween(-0.5, -0.5 + 1e-4);  // the first interval only
+  std::printf("[ speed ] mocap_dress' joints: %.2f m/s over the clip, %.2f m/s from its first frame to its second, "
+              "%.2f m/s over t = 0 to %g s\n", clip, first, run, s.t_end);
+  EXPECT_EQ(first, clip);
+  EXPECT_GT(run, 0.0);
+  EXPECT_LT(run, 0.1 * clip);
+}
+
 TEST(Skeleton, TheMocapDressIsSewnOutsideTheBodyAndWornThroughItsMotion) {
   Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mocap_dress.toml");
   Sew(&s);

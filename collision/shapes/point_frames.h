@@ -24,7 +24,10 @@ class PointFrames {
   void Add(double t, std::vector<Vector3> x) {
     if (!x_.empty()) {
       const double dt = t - times_.back();
-      for (std::size_t j = 0; j < x.size(); ++j) max_speed_ = std::max(max_speed_, (x[j] - x_.back()[j]).norm() / dt);
+      double speed = 0.0;
+      for (std::size_t j = 0; j < x.size(); ++j) speed = std::max(speed, (x[j] - x_.back()[j]).norm() / dt);
+      speeds_.push_back(speed);
+      max_speed_ = std::max(max_speed_, speed);
     }
     times_.push_back(t);
     x_.push_back(std::move(x));
@@ -35,6 +38,16 @@ class PointFrames {
   const std::vector<Vector3>& frame(std::size_t k) const { return x_[k]; }
   /// The largest speed of a point between frames [m/s].
   double max_speed() const { return max_speed_; }
+  /// The largest speed of a point [m/s] at any time in [t0, t1] [s]: over
+  /// the frame intervals that meet it (0 where the points are held).
+  double max_speed(double t0, double t1) const {
+    if (times_.size() < 2 || t1 < times_.front() || t0 > times_.back()) return 0.0;
+    // Interval k, [t_k, t_{k+1}], meets [t0, t1] iff t_k ≤ t1 and t_{k+1} ≥ t0.
+    auto k = static_cast<std::size_t>(std::lower_bound(times_.begin() + 1, times_.end(), t0) - times_.begin()) - 1;
+    double speed = 0.0;
+    for (; k < speeds_.size() && times_[k] <= t1; ++k) speed = std::max(speed, speeds_[k]);
+    return speed;
+  }
   /// The points at time t [m] and their velocities [m/s] (0 where held).
   void At(double t, std::vector<Vector3>* x, std::vector<Vector3>* v) const {
     const std::size_t n = x_[0].size();
@@ -61,6 +74,7 @@ class PointFrames {
  private:
   std::vector<double> times_;
   std::vector<std::vector<Vector3>> x_;
+  std::vector<double> speeds_;  // per frame interval: its points' largest speed [m/s]
   double max_speed_ = 0.0;
 };
 

@@ -131,6 +131,9 @@ class Skeleton final : public ObstacleShape {
     Rest().Surface(vertices, triangles);
   }
   double MaxVertexSpeed() const override { return clip_ ? clip_->joints.max_speed() : 0.0; }
+  double MaxVertexSpeedBetween(double t0, double t1) const override {
+    return clip_ ? clip_->joints.max_speed(t0, t1) : 0.0;
+  }
   double NextFrameTime(double t) const override {
     return clip_ ? clip_->joints.NextTime(t) : std::numeric_limits<double>::infinity();
   }
