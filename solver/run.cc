@@ -86,10 +86,12 @@ namespace {
 
 // The largest speed [m/s] of a keyframed obstacle's surface within reach of
 // the cloth (distance R from its anchor), over its keyframe segments: the
-// anchor's speed plus |ω| R on each (both constant on a segment).
-double ObstacleSpeed(const Obstacle& o, double reach) {
+// anchor's speed plus |ω| R on each (both constant on a segment); of a
+// deforming shape's vertices over the run, t in [0, t_end] [s] (a
+// motion-capture clip's T-pose frame before the run does not count).
+double ObstacleSpeed(const Obstacle& o, double reach, double t_end) {
   const std::vector<ObstacleKeyframe>& keys = o.spec().keyframes;
-  double v = o.MaxVertexSpeed();  // a deforming mesh's vertices (it has no keyframes)
+  double v = o.MaxVertexSpeedBetween(0.0, t_end);  // a deforming shape (it has no keyframes)
   for (std::size_t k = 0; k + 1 < keys.size(); ++k) {
     const ObstaclePose pose = o.PoseAt(0.5 * (keys[k].t + keys[k + 1].t));
     v = std::max(v, pose.linear_velocity.norm() + pose.angular_velocity.norm() * (reach + pose.translation.norm()));
@@ -121,7 +123,7 @@ BlowUpGuard::BlowUpGuard(const ParticleSystem& system, const MatrixN3& x0, const
     double reach = 0.0;  // from the anchor to the cloth, plus the sheet's diagonal
     for (int p = 0; p < x0.rows(); ++p)
       reach = std::max(reach, (x0.row(p).transpose() - rest.anchor - rest.translation).norm());
-    v_obstacle = std::max(v_obstacle, ObstacleSpeed(o, reach + diagonal));
+    v_obstacle = std::max(v_obstacle, ObstacleSpeed(o, reach + diagonal, t_end));
   }
   double v_wind = 0.0;
   if (const auto& w = s.forces.wind) v_wind = w->direction.norm() * (std::abs(w->constant) + 1.0);

@@ -129,8 +129,9 @@ class ExternalWork {
 ///    ExternalWork; W_contact: the collision response's work, the
 ///    stepper's own count); "speed": max_p |v_p| > kSpeedFactor ·
 ///    v_bound, v_bound = sqrt(2|g|H) + 1 m/s + max_p |v_p(0)| + the wind's largest
-///    speed + the keyframed obstacles' largest surface speed within reach of
-///    the cloth, at most kMaxObstacleSpeed [m/s] (the energy balance only where it is closed: a method
+///    speed + the moving obstacles' largest surface speed within reach of
+///    the cloth over the run (a deforming shape's: its vertices' within
+///    [0, t_end]), at most kMaxObstacleSpeed [m/s] (the energy balance only where it is closed: a method
 ///    that does not count its contact work is not checked on it on a scene
 ///    with obstacles);
 ///  - at a stored frame (CheckFrame), with "penetration": a particle more

@@ -203,9 +203,10 @@ TEST(Skeleton, HeldAtIsThePoseAtThatTimeHeldStill) {
 // scenes/mocap_dress.toml's body: the clip's fastest interval is its
 // T-pose's jump to the motion, at clip time 0 (t = -0.5 s with start =
 // 0.5), which the scene's run from t = 0 never reaches; over the run the
-// joints move at a small part of that speed.
+// joints move at a small part of that speed, and so does the blow-up
+// guard's speed bound.
 TEST(Skeleton, TheCullsSpeedBoundLeavesOutTheClipsTPose) {
-  const Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mocap_dress.toml");
+  Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mocap_dress.toml");
   const Obstacle body(s.obstacles.at(0));
   const double clip = body.MaxVertexSpeed(), run = body.MaxVertexSpeedBetween(0.0, s.t_end);
   const double first = body.MaxVertexSpeedBetween(-0.5, -0.5 + 1e-4);  // the first interval only
@@ -214,6 +215,23 @@ TEST(Skeleton, TheCullsSpeedBoundLeavesOutTheClipsTPose) {
   EXPECT_EQ(first, clip);
   EXPECT_GT(run, 0.0);
   EXPECT_LT(run, 0.1 * clip);
+  // The blow-up guard's speed bound takes the body's speed over the run:
+  // v_bound = sqrt(2 g H) + 1 m/s + 3.9 m/s with H = the dress' 1 m height
+  // + ½ g t_end² = 20.6 m, 25 m/s, so a particle at 60 m/s is past 2 v_bound
+  // (with the T-pose's 84 m/s it would pass, under 2 · 105 m/s) and one at
+  // 30 m/s is not.
+  Sew(&s);
+  const ParticleSystem sys(s);
+  const int n = sys.num_particles();
+  BlowUpGuard guard(sys, sys.rest_positions(), MatrixN3::Zero(n, 3), s.t_end);
+  MatrixN3 v = MatrixN3::Zero(n, 3);
+  RunStatus status = RunStatus::kOk;
+  std::string message;
+  v(n / 2, 0) = 30.0;
+  EXPECT_TRUE(guard.CheckSpeed(0.5, v, &status, &message)) << message;
+  v(n / 2, 0) = 60.0;
+  EXPECT_FALSE(guard.CheckSpeed(0.5, v, &status, &message));
+  EXPECT_EQ(status, RunStatus::kSpeed) << message;
 }
 
 TEST(Skeleton, TheMocapDressIsSewnOutsideTheBodyAndWornThroughItsMotion) {
