@@ -47,7 +47,6 @@
 #include <utility>
 #include <vector>
 
-#include "collision/shapes/obstacle_shape.h"
 #include "harness/reference.h"
 #include "harness/thesis_tables.h"
 #include "peers/arkode.h"
@@ -509,23 +508,12 @@ TEST(HybridContact, TheDistanceCullOfTheRootsChangesNoValueTheRootfindingReads) 
     SCOPED_TRACE("swelling sphere");
     CheckTheRootCull(s);
   }
-  const auto body = [](double z) {
-    const std::vector<std::pair<std::string, double>> radii = {
-        {"Spine", 0.12}, {"Spine1", 0.13}, {"LeftUpLeg", 0.09}, {"RightUpLeg", 0.09}, {"Neck1", 0.06}, {"Head", 0.06}};
-    return ShapeFromValues("skeleton", {{"path", std::string("/usr/share/assimp/models/BVH/01_01.bvh")},
-                                        {"scale", 0.056},
-                                        {"start", 0.5},
-                                        {"radius", 0.045},
-                                        {"radii", radii},
-                                        {"rotate", Vector3(90.0, 0.0, 180.0)},
-                                        {"translate", Vector3(0.53, 1.03, z)}});
-  };
-  s.obstacles.at(0).shape = body(-1.1);
+  s.obstacles.at(0).shape = testing::MocapBody(Vector3(0.53, 1.03, -1.1));
   {
     SCOPED_TRACE("skeleton");
     CheckTheRootCull(s);
   }
-  s.obstacles.at(0).shape = body(-0.78);
+  s.obstacles.at(0).shape = testing::MocapBody(Vector3(0.53, 1.03, -0.78));
   SCOPED_TRACE("skeleton rising through the cloth");
   CheckTheRootCull(s, 0.0, 0.0, 1.5);
 }

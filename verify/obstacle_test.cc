@@ -454,17 +454,8 @@ Scene CullScene(CullCase c) {
   if (c == CullCase::kKeyframed)
     s.obstacles[0].keyframes = {{0.0, Vector3::Zero(), Vector3::Zero()},
                                 {0.6, Vector3(0.05, -0.03, 0.02), Vector3(0.0, 0.0, 20.0)}};
-  if (c == CullCase::kSkeleton || c == CullCase::kRising) {
-    const std::vector<std::pair<std::string, double>> radii = {
-        {"Spine", 0.12}, {"Spine1", 0.13}, {"LeftUpLeg", 0.09}, {"RightUpLeg", 0.09}, {"Neck1", 0.06}, {"Head", 0.06}};
-    s.obstacles[0].shape = ShapeFromValues("skeleton", {{"path", std::string("/usr/share/assimp/models/BVH/01_01.bvh")},
-                                                        {"scale", 0.056},
-                                                        {"start", 0.5},
-                                                        {"radius", 0.045},
-                                                        {"radii", radii},
-                                                        {"rotate", Vector3(90.0, 0.0, 180.0)},
-                                                        {"translate", Vector3(0.53, 0.93, c == CullCase::kRising ? 0.27 : 0.1)}});
-  }
+  if (c == CullCase::kSkeleton || c == CullCase::kRising)
+    s.obstacles[0].shape = testing::MocapBody(Vector3(0.53, 0.93, c == CullCase::kRising ? 0.27 : 0.1));
   if (c == CullCase::kRising) s.forces.gravity.setZero();
   return s;
 }

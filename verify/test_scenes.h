@@ -3,11 +3,15 @@
 #define CLOTHBENCH_VERIFY_TEST_SCENES_H_
 
 #include <algorithm>
+#include <memory>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <omp.h>
 
+#include "collision/shapes/obstacle_shape.h"
 #include "model/particle_system.h"
 
 namespace clothbench::testing {
@@ -24,6 +28,21 @@ inline double MaxAbs(const SparseMatrix& m) {
   double out = 0.0;
   for (Eigen::Index k = 0; k < m.nonZeros(); ++k) out = std::max(out, std::abs(m.valuePtr()[k]));
   return out;
+}
+
+/// The body of scenes/mocap_dress.toml (capsules on the CMU clip 01_01.bvh
+/// that scripts/setup installs, from 0.5 s into it) placed by `translate`
+/// [m]: (0.53, 0.93, 0) puts its root at (0, -0.1, 1) m at t = 0, as the scene does.
+inline std::shared_ptr<const ObstacleShape> MocapBody(const Vector3& translate) {
+  const std::vector<std::pair<std::string, double>> radii = {
+      {"Spine", 0.12}, {"Spine1", 0.13}, {"LeftUpLeg", 0.09}, {"RightUpLeg", 0.09}, {"Neck1", 0.06}, {"Head", 0.06}};
+  return ShapeFromValues("skeleton", {{"path", std::string("/usr/share/assimp/models/BVH/01_01.bvh")},
+                                      {"scale", 0.056},
+                                      {"start", 0.5},
+                                      {"radius", 0.045},
+                                      {"radii", radii},
+                                      {"rotate", Vector3(90.0, 0.0, 180.0)},
+                                      {"translate", translate}});
 }
 
 /// A nu×nv sheet in the xy-plane with every force term switched on.
