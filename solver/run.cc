@@ -183,8 +183,8 @@ bool BlowUpGuard::CheckPath(double t0, const MatrixN3& x0, double t1, const Matr
     // A moving obstacle: the path relative to it, from where its motion
     // carries x₀ to x₁ (a particle the obstacle swept past is on the path).
     // A deforming shape carries x₀ by at most (t₁ − t₀) times its largest
-    // vertex speed within the step, so the cull (1-Lipschitz bounds) decides before that
-    // costs a closest-point query.
+    // vertex speed within the step, so the cull (1-Lipschitz bounds)
+    // decides before that costs a closest-point query.
     ObstaclePose pose0;
     if (o.moving()) pose0 = o.PoseAt(t0);
     const double shift = pose0.deformed ? (t1 - t0) * o.MaxVertexSpeedBetween(t0, t1) : 0.0;

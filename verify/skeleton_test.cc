@@ -194,11 +194,6 @@ TEST(Skeleton, HeldAtIsThePoseAtThatTimeHeldStill) {
   }
 }
 
-// The sewn dress lies outside the body at t = 0 (every particle's signed
-// distance positive: the sewing phase's contact keeps it out of the body
-// held in that pose), and SBDF(2) at the scene's h wears it through the
-// crouch (0.6 s) with 0 crossing pairs at every frame and no particle deeper
-// than δ inside the body at any frame (the run guard's check: status ok).
 // The distance culls' speed bound (Obstacle::MaxVertexSpeedBetween) on
 // scenes/mocap_dress.toml's body: the clip's fastest interval is its
 // T-pose's jump to the motion, at clip time 0 (t = -0.5 s with start =
@@ -234,6 +229,11 @@ TEST(Skeleton, TheCullsSpeedBoundLeavesOutTheClipsTPose) {
   EXPECT_EQ(status, RunStatus::kSpeed) << message;
 }
 
+// The sewn dress lies outside the body at t = 0 (every particle's signed
+// distance positive: the sewing phase's contact keeps it out of the body
+// held in that pose), and SBDF(2) at the scene's h wears it through the
+// crouch (0.6 s) with 0 crossing pairs at every frame and no particle deeper
+// than δ inside the body at any frame (the run guard's check: status ok).
 TEST(Skeleton, TheMocapDressIsSewnOutsideTheBodyAndWornThroughItsMotion) {
   Scene s = LoadScene(std::string(CLOTHBENCH_SCENES_DIR) + "/mocap_dress.toml");
   Sew(&s);
