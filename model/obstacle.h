@@ -207,8 +207,11 @@ class Obstacle {
     if (a.deformed) return p + dt * a.Velocity(p);
     return b.ToWorld(a.ToPlaced(p));
   }
-  /// The largest speed [m/s] of a deforming shape's vertices (0 otherwise).
-  double MaxVertexSpeed() const { return shape_->MaxVertexSpeed(); }
+  /// The largest speed [m/s] of a deforming shape's vertices over its whole motion (0 otherwise).
+  double MaxVertexSpeed() const {
+    constexpr double kAll = std::numeric_limits<double>::infinity();
+    return shape_->MaxVertexSpeedBetween(-kAll, kAll);
+  }
   /// The largest speed [m/s] of a deforming shape's vertices at any time in
   /// [t0, t1] [s] (0 otherwise): what the distance culls' bounds move by
   /// (a motion-capture clip's first frame, often a T-pose the scene never

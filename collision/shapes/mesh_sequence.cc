@@ -96,7 +96,6 @@ class MeshSequence final : public ObstacleShape {
     Rest().Surface(vertices, triangles);
   }
   const TriangleMesh* mesh() const override { return frames_ ? Rest().mesh() : nullptr; }
-  double MaxVertexSpeed() const override { return frames_ ? frames_->vertices.max_speed() : 0.0; }
   double MaxVertexSpeedBetween(double t0, double t1) const override {
     return frames_ ? frames_->vertices.max_speed(t0, t1) : 0.0;
   }

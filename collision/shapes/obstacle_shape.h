@@ -160,11 +160,8 @@ class ObstacleShape : public std::enable_shared_from_this<ObstacleShape> {
   /// The largest distance [m] any vertex moves between this state and
   /// `other` of the same deforming shape (At(t_a), At(t_b)); 0 for a rigid shape.
   virtual double MaxVertexDistance(const ObstacleShape& /*other*/) const { return 0.0; }
-  /// The largest vertex speed [m/s] of a deforming shape over its whole
-  /// motion; 0 for a rigid shape.
-  virtual double MaxVertexSpeed() const { return 0.0; }
   /// The largest vertex speed [m/s] of a deforming shape at any time in
-  /// [t0, t1] [s] (≤ MaxVertexSpeed()); 0 for a rigid shape.
+  /// [t0, t1] [s] (±∞ allowed: its whole motion); 0 for a rigid shape.
   virtual double MaxVertexSpeedBetween(double /*t0*/, double /*t1*/) const { return 0.0; }
   /// A deforming shape's first frame time after t [s]: where its vertex
   /// velocities jump (+∞ for a rigid shape and after the last frame).

@@ -27,7 +27,6 @@ class PointFrames {
       double speed = 0.0;
       for (std::size_t j = 0; j < x.size(); ++j) speed = std::max(speed, (x[j] - x_.back()[j]).norm() / dt);
       speeds_.push_back(speed);
-      max_speed_ = std::max(max_speed_, speed);
     }
     times_.push_back(t);
     x_.push_back(std::move(x));
@@ -36,8 +35,6 @@ class PointFrames {
   double last_time() const { return times_.back(); }
   const std::vector<double>& times() const { return times_; }
   const std::vector<Vector3>& frame(std::size_t k) const { return x_[k]; }
-  /// The largest speed of a point between frames [m/s].
-  double max_speed() const { return max_speed_; }
   /// The largest speed of a point [m/s] at any time in [t0, t1] [s]: over
   /// the frame intervals that meet it (0 where the points are held).
   double max_speed(double t0, double t1) const {
@@ -75,7 +72,6 @@ class PointFrames {
   std::vector<double> times_;
   std::vector<std::vector<Vector3>> x_;
   std::vector<double> speeds_;  // per frame interval: its points' largest speed [m/s]
-  double max_speed_ = 0.0;
 };
 
 /// The largest distance [m] between corresponding points of a and b.

@@ -130,7 +130,6 @@ class Skeleton final : public ObstacleShape {
   void Surface(std::vector<Vector3>* vertices, std::vector<std::array<int, 3>>* triangles) const override {
     Rest().Surface(vertices, triangles);
   }
-  double MaxVertexSpeed() const override { return clip_ ? clip_->joints.max_speed() : 0.0; }
   double MaxVertexSpeedBetween(double t0, double t1) const override {
     return clip_ ? clip_->joints.max_speed(t0, t1) : 0.0;
   }
