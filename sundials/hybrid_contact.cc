@@ -16,6 +16,7 @@ HybridContact::HybridContact(const ParticleSystem& system, double entry_depth)
   friction_rate_.setZero(n);
   obstacle_reach_.assign(system.obstacles().size(), 0.0);
   no_roots_.assign(static_cast<std::size_t>(n), 0);
+  lambda_queries_.resize(static_cast<std::size_t>(n));
 }
 
 double HybridContact::Distance(int k, double t, const Vector3& p, Vector3* n) const {
@@ -36,32 +37,51 @@ int HybridContact::Nearest(double t, const Vector3& p, double* gap) const {
   return best;
 }
 
+double HybridContact::GapBound(int p, const Vector3& x) const {
+  double gap = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k) {
+    if (!Culls(k)) return -std::numeric_limits<double>::infinity();
+    gap = std::min(gap, cull_.Bound(k, static_cast<std::size_t>(p), x) - sys_.obstacles()[k].spec().collision_distance);
+  }
+  return gap;
+}
+
 double HybridContact::Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
                              Vector3* w, double* distance) const {
-  const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
-  const double dx = Distance(k, t, x, n);
-  if (distance) *distance = dx;
-  const ObstaclePose pose = o.PoseAfter(t);
-  const Vector3 u = pose.Velocity(x - dx * *n);  // of the closest surface point
-  *w = v - u;
-  // Rates along the particle's path by a forward difference: the normal's
-  // (curvature and the obstacle's rotation) and the surface velocity's; by
-  // a backward difference where a keyframe or frame time follows within
-  // the step (the piecewise-linear motion's velocity jumps there: the rate
-  // is the one of the motion's piece that holds t).
-  const double e = o.SmoothBetween(t, t + kRateStep) ? kRateStep : -kRateStep;
-  const Vector3 xe = x + e * v;
-  Vector3 ne;
-  const double de = Distance(k, t + e, xe, &ne);
-  // A deforming mesh's vertex velocities are constant between its frames:
-  // its surface velocity changes along the path only (measured against the
-  // same rigid motion as keyframes, verify/mesh_sequence_test.cc: its state
-  // at t + e, rebuilt from interpolated vertices, gave a turning sphere's
-  // drape 2e-2 m off at rtol 1e-4, against 2e-4 m this way).
-  const Vector3 ue = (o.shape().deforms() ? pose : o.PoseAt(t + e)).Velocity(xe - de * ne);
-  const Vector3 n_rate = (ne - *n) / e, a_u = (ue - u) / e;
-  const double m = sys_.masses()(p);
-  return m * (n->dot(a_u) - n_rate.dot(*w)) - n->dot(f);
+  LambdaQueries& q = lambda_queries_[static_cast<std::size_t>(p)];
+  if (!(q.k == k && q.t == t && q.x == x && q.v == v)) {
+    q.k = -1;  // until it is complete
+    const Obstacle& o = sys_.obstacles()[static_cast<std::size_t>(k)];
+    q.d = Distance(k, t, x, &q.n);
+    const ObstaclePose pose = o.PoseAfter(t);
+    const Vector3 u = pose.Velocity(x - q.d * q.n);  // of the closest surface point
+    q.w = v - u;
+    // Rates along the particle's path by a forward difference: the normal's
+    // (curvature and the obstacle's rotation) and the surface velocity's; by
+    // a backward difference where a keyframe or frame time follows within
+    // the step (the piecewise-linear motion's velocity jumps there: the rate
+    // is the one of the motion's piece that holds t).
+    const double e = o.SmoothBetween(t, t + kRateStep) ? kRateStep : -kRateStep;
+    const Vector3 xe = x + e * v;
+    Vector3 ne;
+    const double de = Distance(k, t + e, xe, &ne);
+    // A deforming mesh's vertex velocities are constant between its frames:
+    // its surface velocity changes along the path only (measured against the
+    // same rigid motion as keyframes, verify/mesh_sequence_test.cc: its state
+    // at t + e, rebuilt from interpolated vertices, gave a turning sphere's
+    // drape 2e-2 m off at rtol 1e-4, against 2e-4 m this way).
+    const Vector3 ue = (o.shape().deforms() ? pose : o.PoseAt(t + e)).Velocity(xe - de * ne);
+    const Vector3 n_rate = (ne - q.n) / e, a_u = (ue - u) / e;
+    q.mc = sys_.masses()(p) * (q.n.dot(a_u) - n_rate.dot(q.w));
+    q.k = k;
+    q.t = t;
+    q.x = x;
+    q.v = v;
+  }
+  *n = q.n;
+  *w = q.w;
+  if (distance) *distance = q.d;
+  return q.mc - n->dot(f);
 }
 
 void HybridContact::Initialize(double t, const MatrixN3& x, const MatrixN3& v) {
@@ -69,6 +89,7 @@ void HybridContact::Initialize(double t, const MatrixN3& x, const MatrixN3& v) {
   mode_changes_ = 0;
   std::fill(mode_.begin(), mode_.end(), -1);
   cull_.Reset();  // a run's roots do not depend on an earlier run's
+  for (LambdaQueries& q : lambda_queries_) q.k = -1;
   horizon_ = std::numeric_limits<double>::infinity();
   friction_rate_.setZero();
   if (!active()) return;

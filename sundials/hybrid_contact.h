@@ -213,11 +213,25 @@ class HybridContact {
   double FreeGap(double t, int p, const Vector3& x, double reach);
   // The nearest obstacle to p at t: index, and d − δ.
   int Nearest(double t, const Vector3& p, double* gap) const;
+  // A lower bound of particle p's d − δ at x [m] from the distance cull's
+  // anchors at the cull's last Advance (−∞ where an obstacle is not culled).
+  double GapBound(int p, const Vector3& x) const;
   // λ of particle p sliding on obstacle k at (t, x_p, v_p) with f_p the
   // model's force on it; also its normal n, relative velocity w and (if
   // asked) its signed distance [m].
   double Lambda(int k, double t, int p, const Vector3& x, const Vector3& v, const Vector3& f, Vector3* n,
                 Vector3* w, double* distance = nullptr) const;
+  // What particle p's last Lambda computed apart from its force: kept for
+  // a call at the same (k, t, x, v), which gives the same bits (ARKODE's
+  // two right-hand sides split the same stage).
+  struct LambdaQueries {
+    int k = -1;  // −1: none kept
+    double t = 0.0;
+    Vector3 x, v;
+    double d = 0.0;   // signed distance [m]
+    Vector3 n, w;     // normal, velocity relative to the surface [m/s]
+    double mc = 0.0;  // λ with no force [N]: m (n·a_u − ṅ·w)
+  };
   // Which sliding particles a jump puts back on their δ-surface.
   enum class Resettle { kNone, kMoving, kEvery };
   template <class Forces>
@@ -243,6 +257,7 @@ class HybridContact {
   const ParticleSystem& sys_;
   double entry_depth_;
   std::vector<int> mode_;     // per particle: −1 free, else the obstacle it slides on
+  mutable std::vector<LambdaQueries> lambda_queries_;  // per particle
   MatrixN3 normal_;           // sliding particles' normals at the last AddContactForces/Initialize
   std::vector<double> event_times_;
   long mode_changes_ = 0;
@@ -257,6 +272,8 @@ class HybridContact {
 
 template <class Forces>
 int HybridContact::Jump(double t, const int* found, Resettle resettle, MatrixN3* x, MatrixN3* v, Forces&& force) {
+  for (std::size_t k = 0; k < sys_.obstacles().size(); ++k)
+    if (Culls(k) && sys_.obstacles()[k].moving()) cull_.Advance(k, sys_.obstacles()[k].PoseAt(t));
   int changes = 0;
   for (int p = 0; p < sys_.num_particles(); ++p) {
     int& mode = mode_[static_cast<std::size_t>(p)];
@@ -275,9 +292,12 @@ int HybridContact::Jump(double t, const int* found, Resettle resettle, MatrixN3*
     const bool released = mode == kJustReleased;
     if (released) mode = -1;
     if (mode >= 0 || sys_.is_fixed(p)) continue;
+    const bool entry_root = found[p] && !released;  // a released particle's root was its λ's
+    // Where the cull's bound already puts it above its entry depth, the
+    // exact gap would too.
+    if (!entry_root && GapBound(p, x->row(p).transpose()) + entry_depth_ >= 0.0) continue;
     double gap = 0.0;
     const int k = Nearest(t, x->row(p).transpose(), &gap);
-    const bool entry_root = found[p] && !released;  // a released particle's root was its λ's
     if (k < 0 || (!entry_root && gap + entry_depth_ >= 0.0)) continue;
     Vector3 n;
     Distance(k, t, x->row(p).transpose(), &n);

@@ -433,7 +433,16 @@ TEST(HybridContact, AfterASelfContactCorrectionTheObstacleContactIsConsistent) {
 // entry depth at every evaluation paired with it (a step end's: the next
 // step's end; a middle's: its step's ends): the rootfinding, which reads
 // the values of the root functions that change sign only, finds what it
-// finds with every distance exact.
+// finds with every distance exact. The events at each step's end, which
+// skip the exact query where the bound keeps a particle above its entry
+// depth, leave copies of both contacts in the same state.
+// The particles sliding under `contact`.
+std::vector<int> Sliding(const internal::HybridContact& contact) {
+  std::vector<int> s;
+  contact.ForEachSliding([&](int p, const Vector3&) { s.push_back(p); });
+  return s;
+}
+
 // Thrown at v0 [m/s] under gravity g [m/s²] (v0 = g = 0: held still) until t_end [s].
 void CheckTheRootCull(const Scene& scene, double v0 = 2.0, double g = 9.81, double t_end = 0.35) {
   const ParticleSystem sys(scene);
@@ -448,7 +457,7 @@ void CheckTheRootCull(const Scene& scene, double v0 = 2.0, double g = 9.81, doub
   using Values = std::vector<double>;
   Values g_culled(static_cast<std::size_t>(n)), g_exact(g_culled.size()), mid_culled(g_culled), mid_exact(g_culled);
   Values end_exact(g_culled.size(), 1.0);  // at the step's start, then its end
-  int bounded = 0, crossed = 0;
+  int bounded = 0, crossed = 0, events = 0;
   // The root values at t, `at_end` of a step of `step` [s] after step i.
   const auto evaluate = [&](int i, double t, double step, bool at_end, Values* gc, Values* ge) {
     x = sys.rest_positions();
@@ -482,6 +491,22 @@ void CheckTheRootCull(const Scene& scene, double v0 = 2.0, double g = 9.81, doub
       ASSERT_GT(g_exact[p], 0.0) << "particle " << p << " reached its entry depth by t = " << t;
     bound_at_start = check(g_culled, g_exact, t);
     end_exact = g_exact;
+    // The events at the step's end with every other particle whose root
+    // crossed as found: the others enter as past their entry depth, which
+    // the culled contact must find where its bound does not decide.
+    std::vector<int> found(static_cast<std::size_t>(n), 0);
+    int crossing = 0;
+    for (std::size_t p = 0; p < g_exact.size(); ++p)
+      if (g_exact[p] <= 0.0 && crossing++ % 2 == 0) found[p] = 1;
+    // On copies: the values above stay paired along the free fall.
+    internal::HybridContact culled_events = culled, exact_events = exact;
+    MatrixN3 xc = x, vc = v, xe = x, ve = v;
+    const auto forces = [&](double s, const MatrixN3& xs, const MatrixN3& vs, MatrixN3* fs) { sys.Forces(s, xs, vs, fs); };
+    const int changes = exact_events.ApplyEvents(t, found.data(), false, &xe, &ve, forces);
+    ASSERT_EQ(culled_events.ApplyEvents(t, found.data(), false, &xc, &vc, forces), changes) << "t = " << t;
+    ASSERT_TRUE(xc == xe && vc == ve) << "t = " << t;
+    ASSERT_EQ(Sliding(culled_events), Sliding(exact_events)) << "t = " << t;
+    events += changes;
     crossed += static_cast<int>(std::count_if(g_exact.begin(), g_exact.end(), [](double e) { return e <= 0.0; }));
     if (i == 0) continue;
     evaluate(i, t - 0.5 * step, step, false, &mid_culled, &mid_exact);  // the rootfinding's, within the step
@@ -490,8 +515,10 @@ void CheckTheRootCull(const Scene& scene, double v0 = 2.0, double g = 9.81, doub
   }
   EXPECT_GT(bounded, n);  // the cull acted
   EXPECT_GT(crossed, 0);  // and the cloth reached the body
+  EXPECT_GT(events, 0);
   EXPECT_EQ(exact.culled(), 0);
   EXPECT_GE(culled.culled(), bounded);  // a bound may equal the exact value
+  std::printf("[ root cull ] %d values bounded, %d mode changes at the events\n", bounded, events);
 }
 
 // On the swelling sphere; with the sphere's place taken by the jumping body
