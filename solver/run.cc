@@ -497,7 +497,17 @@ class SelfContactStage {
     const auto start = std::chrono::steady_clock::now();
     x_ = engine.x();
     v_ = engine.v();
-    response_->Respond(h, x_prev, &x_, &v_);
+    // A step that ended at contact events moved its arrivals onto the
+    // obstacles' δ-surfaces after the solve (Stepper::LeftLimit): the
+    // response corrects the solve's motion, from the start moved by the
+    // same jumps, so a jump is not an approach of 1/h.
+    const MatrixN3 *x_left = nullptr, *v_left = nullptr;
+    if (engine.LeftLimit(&x_left, &v_left)) {
+      start_ = x_prev + (x_ - *x_left);
+      response_->Respond(h, start_, &x_, &v_);
+    } else {
+      response_->Respond(h, x_prev, &x_, &v_);
+    }
     engine.CorrectState(x_, v_);
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
@@ -521,6 +531,7 @@ class SelfContactStage {
   bool counts_own_ = false;  // the stepper counts its own self-contact's work
   std::optional<SelfContactResponse> response_;
   MatrixN3 x_, v_;  // the corrected state (allocated at the first step)
+  MatrixN3 start_;  // the step's start moved by its contact events' jumps
 };
 
 // The next step's end and size. Fixed steps (docs/model.md, "Fixed
