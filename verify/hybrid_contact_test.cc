@@ -229,6 +229,17 @@ TEST(HybridContact, ArkodeWithEventsAgreesWithCvode) {
   }
 }
 
+// A run of method m with `spec` over the scene's t_end at its h and frames.
+RunSummary RunWithSpec(const ParticleSystem& sys, const Scene& scene, Method m, const SolverSpec& spec) {
+  StepEngine engine(sys, m, spec);
+  RunOptions options;
+  options.h = scene.h;
+  options.t_end = scene.t_end;
+  options.frame_dt = scene.frame_dt;
+  options.solver = &spec;
+  return RunStepper(sys, engine, options);
+}
+
 // sbdf2/error and bdf2/error with event location (docs/notes/collisions.md,
 // "Error control through contact events") on the round table over 0.3 s
 // (rtol 1e-3 and 1e-6) and on the swinging box over 0.7 s (rtol 1e-4 and
@@ -257,13 +268,7 @@ TEST(HybridContact, ErrorControlledRowsLocateTheEntriesAndConverge) {
         spec.step_control = StepControl::kError;
         spec.rtol = rtol;
         if (m == Method::kBdf2) spec.nonlinear_solver = NonlinearSolver::kNewton;
-        StepEngine engine(sys, m, spec);
-        RunOptions options;
-        options.h = scene.h;
-        options.t_end = scene.t_end;
-        options.frame_dt = scene.frame_dt;
-        options.solver = &spec;
-        const RunSummary r = RunStepper(sys, engine, options);
+        const RunSummary r = RunWithSpec(sys, scene, m, spec);
         ASSERT_TRUE(r.ok()) << scene.name << " " << ToString(m) << " rtol " << rtol << ": " << r.message;
         EXPECT_GT(r.events, 0);
         distance.push_back(testing::RmsDifference(r.trajectory.positions.back(), c.trajectory.positions.back()));
@@ -303,13 +308,7 @@ TEST(HybridContact, TheSelfContactResponseDoesNotReadTheContactJumpsAsApproaches
   SolverSpec spec = scene.solver;
   spec.step_control = StepControl::kError;
   spec.rtol = 1e-3;
-  StepEngine engine(sys, Method::kSbdf2, spec);
-  RunOptions options;
-  options.h = scene.h;
-  options.t_end = scene.t_end;
-  options.frame_dt = scene.frame_dt;
-  options.solver = &spec;
-  const RunSummary r = RunStepper(sys, engine, options);
+  const RunSummary r = RunWithSpec(sys, scene, Method::kSbdf2, spec);
   ASSERT_TRUE(r.ok()) << r.message;
   double fastest = 0.0;
   for (const MatrixN3& v : r.trajectory.velocities) fastest = std::max(fastest, v.rowwise().norm().maxCoeff());
