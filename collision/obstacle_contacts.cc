@@ -40,7 +40,6 @@ ObstacleDetection::ObstacleDetection(const ParticleSystem& system)
   const std::size_t n = static_cast<std::size_t>(system.num_particles()), n_obs = system.obstacles().size();
   if (n_obs == 0) return;
   poses_.resize(n_obs);
-  obstacle_speed_.assign(n_obs, 0.0);
   last_distance_.assign(n * n_obs, 1e300);
 }
 
@@ -68,7 +67,6 @@ void ObstacleDetection::BeginStep(double t0) {
   }
   step_t0_ = t0;
   has_step_ = true;
-  speed_h_ = -1.0;  // the deforming obstacles' speeds over [t₀, t₀ + h] follow at the first Detect
   for (std::size_t k = 0; k < obstacles.size(); ++k) {
     poses_[k] = obstacles[k].PoseAt(t0);
     cull_.Advance(k, poses_[k]);
@@ -80,11 +78,6 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
   const auto& obstacles = sys_.obstacles();
   const std::size_t n_obs = obstacles.size();
   const bool was = prior.obstacle >= 0;
-  if (h != speed_h_) {  // once per step: the deforming obstacles' largest vertex speeds within it
-    for (std::size_t k = 0; k < n_obs; ++k)
-      obstacle_speed_[k] = obstacles[k].MaxVertexSpeedBetween(step_t0_, step_t0_ + h);
-    speed_h_ = h;
-  }
   double best = 1e300;
   bool found = false;
   for (std::size_t k = 0; k < n_obs; ++k) {
@@ -101,7 +94,7 @@ bool ObstacleDetection::Detect(int p, double h, const Vector3& x0, const Vector3
     // distance is known.
     Vector3 v_obs = o.moving() && !pose.deformed ? pose.Velocity(x0) : Vector3::Zero();
     Vector3 v_rel = v0 - v_obs;
-    const double rel_speed = pose.deformed ? v0.norm() + obstacle_speed_[k] : v_rel.norm();
+    const double rel_speed = pose.deformed ? v0.norm() + o.MaxVertexSpeedBetween(step_t0_, step_t0_ + h) : v_rel.norm();
     if (cull_.culls(k) && !same_contact) {
       const double bound = cull_.Bound(k, static_cast<std::size_t>(p), x0);
       const double moved = x_prev ? (x0 - *x_prev).norm() : 0.0;

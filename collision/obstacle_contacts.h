@@ -96,10 +96,6 @@ class ObstacleDetection {
   // old→new cast follows the path relative to it (ObstacleSpec::continuous).
   std::vector<ObstaclePose> prev_poses_;
   double step_t0_ = 0.0, prev_t0_ = 0.0;
-  // Each obstacle's largest vertex speed [m/s] over [t₀, t₀ + speed_h_]
-  // (0 for a rigid one), set by the step's first Detect (speed_h_ < 0: not yet).
-  std::vector<double> obstacle_speed_;
-  double speed_h_ = -1.0;
   bool has_step_ = false, has_prev_ = false;
   std::vector<double> last_distance_;  // N×O: signed distance at x₀ of the last step (x₋₁ now), or a lower bound
   std::vector<double> distance_backup_;

@@ -31,8 +31,10 @@ inline double MaxAbs(const SparseMatrix& m) {
 }
 
 /// The body of scenes/mocap_dress.toml (capsules on the CMU clip 01_01.bvh
-/// that scripts/setup installs, from 0.5 s into it) placed by `translate`
-/// [m]: (0.53, 0.93, 0) puts its root at (0, -0.1, 1) m at t = 0, as the scene does.
+/// that scripts/setup installs, from 0.5 s into it, at the scene's scale
+/// and rotation) with the legs and feet at the default radius 0.045 m (the
+/// scene gives them 0.07 and 0.055 m), placed by `translate` [m]:
+/// (0.53, 0.93, 0) puts its root at (0, -0.1, 1) m at t = 0, as the scene does.
 inline std::shared_ptr<const ObstacleShape> MocapBody(const Vector3& translate) {
   const std::vector<std::pair<std::string, double>> radii = {
       {"Spine", 0.12}, {"Spine1", 0.13}, {"LeftUpLeg", 0.09}, {"RightUpLeg", 0.09}, {"Neck1", 0.06}, {"Head", 0.06}};
